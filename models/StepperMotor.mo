@@ -1,0 +1,33 @@
+model StepperMotor
+  "Two-phase bipolar hybrid stepper motor with an averaged chopper current control, eqs [7]-[9]"
+  // Source: the paper's eqs [7]-[9] (the project's docs/physics.md restates them).
+  // Back-EMF sign: the one that makes electrical power in = mechanical power out with [9].
+  // The chopper of each winding is modelled by its average: the drive applies
+  // v = clamp(K (i_ref - i), -dV, +dV), i.e. a proportional current loop that saturates
+  // at the supply voltage (a system-level model of the paper's "feedback control").
+  parameter Real L(unit = "H") = 1.8e-3 "Phase inductance L_a = L_b (Table 3)";
+  parameter Real R(unit = "Ohm") = 0.1 "Phase resistance R_a = R_b (Table 3)";
+  parameter Real k_e(unit = "N.m/A") = 0.5 "Torque constant k_e (Table 3)";
+  parameter Real N_c(unit = "1") = 50 "Number of rotor teeth N_c (Table 3)";
+  parameter Real V_supply(unit = "V") = 3.1 "Chopper voltage limit dV (Table 3, rated voltage)";
+  parameter Real K_current(unit = "V/A") = 100 "Current-loop gain K of the averaged chopper";
+  parameter Real i_a_start(unit = "A") = 0 "Initial current of phase A";
+  parameter Real i_b_start(unit = "A") = 0 "Initial current of phase B";
+  input Real i_a_ref(unit = "A") "Reference current of phase A";
+  input Real i_b_ref(unit = "A") "Reference current of phase B";
+  input Real theta(unit = "rad") "Rotor angle";
+  input Real omega(unit = "rad/s") "Rotor speed";
+  output Real tau(unit = "N.m") "Electromagnetic torque on the rotor C";
+  output Real i_a(unit = "A", start = i_a_start, fixed = true) "Current of phase A";
+  output Real i_b(unit = "A", start = i_b_start, fixed = true) "Current of phase B";
+  output Real v_a(unit = "V") "Voltage applied to phase A";
+  output Real v_b(unit = "V") "Voltage applied to phase B";
+  output Real power(unit = "W") "Electrical power drawn by both phases";
+equation
+  v_a = min(max(K_current * (i_a_ref - i_a), -V_supply), V_supply);
+  v_b = min(max(K_current * (i_b_ref - i_b), -V_supply), V_supply);
+  L * der(i_a) = v_a - R * i_a + k_e * omega * sin(N_c * theta);  // [paper], eq. 7
+  L * der(i_b) = v_b - R * i_b + k_e * omega * cos(N_c * theta);  // [paper], eq. 8
+  tau = -k_e * i_a * sin(N_c * theta) - k_e * i_b * cos(N_c * theta);  // [paper], eq. 9
+  power = v_a * i_a + v_b * i_b;
+end StepperMotor;

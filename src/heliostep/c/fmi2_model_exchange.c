@@ -1,0 +1,539 @@
+/*
+ * heliostep's FMI 2.0 Model Exchange layer, written once for every model.
+ *
+ * A model contributes only two generated files: "model.h" (sizes, start values, names and
+ * the layout of the value references) and the CasADi-generated equations ("equations.h"),
+ * which provide
+ *   model_eval(t, x, u, p, guess) -> (computed, residual)
+ *   model_start(p)                -> x0
+ * where "computed" holds the state derivatives, the algebraic variables and the calculated
+ * parameters, solved from the model's implicit residual by a Newton iteration inside the
+ * generated code, and "residual" is the residual at that solution (checked here).
+ *
+ * Every real variable lives in one array r[], indexed by its value reference:
+ *   [0, OFF_X)        parameters (settable, tunable)
+ *   [OFF_X, OFF_U)    continuous states
+ *   [OFF_U, OFF_C)    inputs
+ *   [OFF_C, N_REALS)  computed: derivatives, algebraic variables, calculated parameters
+ *
+ * Every function checks the instance state against the FMI 2.0 state machine, every value
+ * reference against the layout, and reports problems through the logger with fmi2Error:
+ * a bad call never crashes the host.
+ */
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+#include "equations.h"
+#include "model.h"
+
+#define OFF_X (N_PARAMETERS)
+#define OFF_U (OFF_X + N_STATES)
+#define OFF_C (OFF_U + N_INPUTS)
+#define N_REALS (OFF_C + N_COMPUTED)
+
+/* residual norm above which the solved equations are not trusted */
+#define RESIDUAL_TOLERANCE 1e-6
+
+typedef enum {
+    Instantiated = 1 << 0,
+    InitializationMode = 1 << 1,
+    EventMode = 1 << 2,
+    ContinuousTimeMode = 1 << 3,
+    Terminated = 1 << 4,
+    ErrorState = 1 << 5
+} ModelState;
+
+#define ANY_STATE (Instantiated | InitializationMode | EventMode | ContinuousTimeMode | Terminated | ErrorState)
+#define INITIALIZED (EventMode | ContinuousTimeMode | Terminated | ErrorState)
+#define READABLE (InitializationMode | INITIALIZED)
+
+typedef struct {
+    fmi2CallbackFunctions functions;
+    char *instance_name;
+    fmi2Boolean logging_on;
+    ModelState state;
+    double time;
+    int computed_valid;
+    double r[N_REALS];
+    double guess[N_COMPUTED + 1];
+    double computed[N_COMPUTED + 1];
+    double residual[N_UNKNOWNS + 1];
+    const casadi_real **arg;
+    casadi_real **res;
+    casadi_int *iw;
+    casadi_real *w;
+} Instance;
+
+/* ---------------------------------------------------------------- logging and checks */
+
+static void log_message(Instance *inst, fmi2Status status, const char *category, const char *format, ...) {
+    char message[512];
+    va_list args;
+    if (!inst || !inst->functions.logger) return;
+    if (status == fmi2OK && !inst->logging_on) return;
+    va_start(args, format);
+    vsnprintf(message, sizeof message, format, args);
+    va_end(args);
+    inst->functions.logger(inst->functions.componentEnvironment, inst->instance_name, status, category, message);
+}
+
+#define LOG_ERROR(inst, ...) log_message((inst), fmi2Error, "logStatusError", __VA_ARGS__)
+
+static const char *state_name(ModelState state) {
+    switch (state) {
+    case Instantiated: return "instantiated";
+    case InitializationMode: return "initialization mode";
+    case EventMode: return "event mode";
+    case ContinuousTimeMode: return "continuous-time mode";
+    case Terminated: return "terminated";
+    default: return "error";
+    }
+}
+
+/* Checks that the instance exists and is in one of the allowed states. */
+static int invalid_state(Instance *inst, const char *function, int allowed) {
+    if (!inst) return 1;
+    if (!(inst->state & allowed)) {
+        LOG_ERROR(inst, "%s: not allowed in %s", function, state_name(inst->state));
+        return 1;
+    }
+    return 0;
+}
+
+static int null_argument(Instance *inst, const char *function, const char *name, const void *pointer) {
+    if (pointer) return 0;
+    LOG_ERROR(inst, "%s: argument %s must not be NULL", function, name);
+    return 1;
+}
+
+static int wrong_size(Instance *inst, const char *function, const char *name, size_t given, size_t expected) {
+    if (given == expected) return 0;
+    LOG_ERROR(inst, "%s: %s is %lu, the model has %lu", function, name, (unsigned long)given, (unsigned long)expected);
+    return 1;
+}
+
+static int invalid_vr(Instance *inst, const char *function, fmi2ValueReference vr) {
+    if (vr < N_REALS) return 0;
+    LOG_ERROR(inst, "%s: invalid value reference %u (the model has %u real variables)", function, vr, (unsigned)N_REALS);
+    return 1;
+}
+
+/* ---------------------------------------------------------------- evaluation */
+
+static int eval_equations(Instance *inst, const double *guess) {
+    inst->arg[0] = &inst->time;
+    inst->arg[1] = inst->r + OFF_X;
+    inst->arg[2] = inst->r + OFF_U;
+    inst->arg[3] = inst->r;
+    inst->arg[4] = guess;
+    inst->res[0] = inst->computed;
+    inst->res[1] = inst->residual;
+    if (model_eval(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
+    for (int i = 0; i < N_UNKNOWNS; i++) {
+        if (!(fabs(inst->residual[i]) <= RESIDUAL_TOLERANCE)) return 0;
+    }
+    return 1;
+}
+
+/* Calculated start values of the states (those bound to parameters). */
+static void compute_state_starts(Instance *inst) {
+    double x0[N_STATES + 1];
+    inst->arg[0] = inst->r;
+    inst->res[0] = x0;
+    model_start(inst->arg, inst->res, inst->iw, inst->w, 0);
+    for (int i = 0; i < N_STATES; i++) {
+        if (STATE_START_CALCULATED[i]) inst->r[OFF_X + i] = x0[i];
+    }
+}
+
+/* Brings the computed variables up to date; logs and returns fmi2Error if that fails. */
+static fmi2Status update(Instance *inst, const char *function) {
+    static const double zeros[N_COMPUTED + 1] = {0};
+    if (inst->computed_valid) return fmi2OK;
+    if (inst->state & (Instantiated | InitializationMode)) compute_state_starts(inst);
+    memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED);
+    if (!eval_equations(inst, inst->guess) && !eval_equations(inst, zeros)) {
+        LOG_ERROR(inst, "%s: the model equations could not be solved at t = %g", function, inst->time);
+        return fmi2Error;
+    }
+    for (int i = 0; i < N_COMPUTED; i++) {
+        if (!isfinite(inst->computed[i])) {
+            LOG_ERROR(inst, "%s: %s is not finite at t = %g", function, VARIABLE_NAMES[OFF_C + i], inst->time);
+            return fmi2Error;
+        }
+    }
+    memcpy(inst->r + OFF_C, inst->computed, sizeof(double) * N_COMPUTED);
+    inst->computed_valid = 1;
+    return fmi2OK;
+}
+
+/* ---------------------------------------------------------------- life cycle */
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+static void *allocate(const fmi2CallbackFunctions *functions, size_t count, size_t size) {
+    if (functions->allocateMemory) return functions->allocateMemory(count, size);
+    return calloc(count, size);
+}
+
+static void release(const fmi2CallbackFunctions *functions, void *pointer) {
+    if (!pointer) return;
+    if (functions->freeMemory) functions->freeMemory(pointer);
+    else free(pointer);
+}
+
+static void reset_values(Instance *inst) {
+    memcpy(inst->r, START_VALUES, sizeof(double) * N_REALS);
+    inst->time = 0;
+    inst->computed_valid = 0;
+}
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories, const fmi2String categories[]) {
+    Instance *inst = (Instance *)c;
+    (void)categories;
+    (void)nCategories;
+    if (invalid_state(inst, "fmi2SetDebugLogging", ANY_STATE)) return fmi2Error;
+    inst->logging_on = loggingOn;
+    return fmi2OK;
+}
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn) {
+    casadi_int sz_arg, sz_res, sz_iw, sz_w, n_arg, n_res, n_iw, n_w;
+    Instance *inst;
+    (void)fmuResourceLocation;
+    (void)visible;
+    if (!functions || !functions->logger) return NULL;
+    if (!instanceName || !instanceName[0]) {
+        functions->logger(functions->componentEnvironment, "?", fmi2Error, "logStatusError",
+                          "fmi2Instantiate: missing instance name");
+        return NULL;
+    }
+    if (fmuType != fmi2ModelExchange) {
+        functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                          "fmi2Instantiate: " MODEL_IDENTIFIER_STRING " supports Model Exchange only");
+        return NULL;
+    }
+    if (!fmuGUID || strcmp(fmuGUID, MODEL_GUID) != 0) {
+        functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                          "fmi2Instantiate: GUID does not match " MODEL_GUID);
+        return NULL;
+    }
+    inst = (Instance *)allocate(functions, 1, sizeof(Instance));
+    if (!inst) return NULL;
+    inst->functions = *functions;
+    inst->logging_on = loggingOn;
+    inst->state = Instantiated;
+    inst->instance_name = (char *)allocate(functions, strlen(instanceName) + 1, 1);
+    model_eval_work(&n_arg, &n_res, &n_iw, &n_w);
+    model_start_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+    if (sz_arg < n_arg) sz_arg = n_arg;
+    if (sz_res < n_res) sz_res = n_res;
+    if (sz_iw < n_iw) sz_iw = n_iw;
+    if (sz_w < n_w) sz_w = n_w;
+    inst->arg = (const casadi_real **)allocate(functions, (size_t)sz_arg + 1, sizeof(casadi_real *));
+    inst->res = (casadi_real **)allocate(functions, (size_t)sz_res + 1, sizeof(casadi_real *));
+    inst->iw = (casadi_int *)allocate(functions, (size_t)sz_iw + 1, sizeof(casadi_int));
+    inst->w = (casadi_real *)allocate(functions, (size_t)sz_w + 1, sizeof(casadi_real));
+    if (!inst->instance_name || !inst->arg || !inst->res || !inst->iw || !inst->w) {
+        functions->logger(functions->componentEnvironment, instanceName, fmi2Fatal, "logStatusFatal",
+                          "fmi2Instantiate: out of memory");
+        release(functions, inst->instance_name);
+        release(functions, (void *)inst->arg);
+        release(functions, inst->res);
+        release(functions, inst->iw);
+        release(functions, inst->w);
+        release(functions, inst);
+        return NULL;
+    }
+    strcpy(inst->instance_name, instanceName);
+    reset_values(inst);
+    return inst;
+}
+
+void fmi2FreeInstance(fmi2Component c) {
+    Instance *inst = (Instance *)c;
+    fmi2CallbackFunctions functions;
+    if (!inst) return;
+    functions = inst->functions;
+    release(&functions, inst->instance_name);
+    release(&functions, (void *)inst->arg);
+    release(&functions, inst->res);
+    release(&functions, inst->iw);
+    release(&functions, inst->w);
+    release(&functions, inst);
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
+    Instance *inst = (Instance *)c;
+    (void)toleranceDefined;
+    (void)tolerance;
+    (void)stopTimeDefined;
+    (void)stopTime;
+    if (invalid_state(inst, "fmi2SetupExperiment", Instantiated)) return fmi2Error;
+    inst->time = startTime;
+    inst->computed_valid = 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2EnterInitializationMode", Instantiated)) return fmi2Error;
+    inst->state = InitializationMode;
+    inst->computed_valid = 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Instance *inst = (Instance *)c;
+    fmi2Status status;
+    if (invalid_state(inst, "fmi2ExitInitializationMode", InitializationMode)) return fmi2Error;
+    inst->computed_valid = 0;
+    status = update(inst, "fmi2ExitInitializationMode");
+    if (status != fmi2OK) return status;
+    inst->state = EventMode;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2Terminate", EventMode | ContinuousTimeMode)) return fmi2Error;
+    inst->state = Terminated;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2Reset", ANY_STATE)) return fmi2Error;
+    inst->state = Instantiated;
+    reset_values(inst);
+    return fmi2OK;
+}
+
+/* ---------------------------------------------------------------- get and set */
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2GetReal", READABLE)) return fmi2Error;
+    if (nvr == 0) return fmi2OK;
+    if (null_argument(inst, "fmi2GetReal", "vr", vr) || null_argument(inst, "fmi2GetReal", "value", value)) return fmi2Error;
+    if (inst->state & InitializationMode) compute_state_starts(inst);
+    for (size_t i = 0; i < nvr; i++) {
+        if (invalid_vr(inst, "fmi2GetReal", vr[i])) return fmi2Error;
+        if (vr[i] >= OFF_C && update(inst, "fmi2GetReal") != fmi2OK) return fmi2Error;
+        value[i] = inst->r[vr[i]];
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2SetReal", Instantiated | InitializationMode | EventMode | ContinuousTimeMode)) return fmi2Error;
+    if (nvr == 0) return fmi2OK;
+    if (null_argument(inst, "fmi2SetReal", "vr", vr) || null_argument(inst, "fmi2SetReal", "value", value)) return fmi2Error;
+    for (size_t i = 0; i < nvr; i++) {
+        fmi2ValueReference ref = vr[i];
+        if (invalid_vr(inst, "fmi2SetReal", ref)) return fmi2Error;
+        if (ref >= OFF_C) {
+            LOG_ERROR(inst, "fmi2SetReal: %s is computed by the model and cannot be set", VARIABLE_NAMES[ref]);
+            return fmi2Error;
+        }
+        if (ref < OFF_X && !(inst->state & (Instantiated | InitializationMode | EventMode))) {
+            LOG_ERROR(inst, "fmi2SetReal: parameter %s can only be set before initialization or in event mode", VARIABLE_NAMES[ref]);
+            return fmi2Error;
+        }
+        if (ref >= OFF_X && ref < OFF_U &&
+            (STATE_START_CALCULATED[ref - OFF_X] || !(inst->state & (Instantiated | InitializationMode)))) {
+            LOG_ERROR(inst, "fmi2SetReal: state %s can only be set through fmi2SetContinuousStates", VARIABLE_NAMES[ref]);
+            return fmi2Error;
+        }
+        if (!isfinite(value[i])) {
+            LOG_ERROR(inst, "fmi2SetReal: value of %s is not finite", VARIABLE_NAMES[ref]);
+            return fmi2Error;
+        }
+        inst->r[ref] = value[i];
+    }
+    inst->computed_valid = 0;
+    return fmi2OK;
+}
+
+/* The model has no Integer, Boolean or String variables: any value reference is invalid. */
+static fmi2Status no_such_variables(fmi2Component c, const char *function, size_t nvr) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, function, ANY_STATE)) return fmi2Error;
+    if (nvr == 0) return fmi2OK;
+    LOG_ERROR(inst, "%s: invalid value reference (the model has no variables of this type)", function);
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
+    (void)vr; (void)value;
+    return no_such_variables(c, "fmi2GetInteger", nvr);
+}
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
+    (void)vr; (void)value;
+    return no_such_variables(c, "fmi2GetBoolean", nvr);
+}
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
+    (void)vr; (void)value;
+    return no_such_variables(c, "fmi2GetString", nvr);
+}
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
+    (void)vr; (void)value;
+    return no_such_variables(c, "fmi2SetInteger", nvr);
+}
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
+    (void)vr; (void)value;
+    return no_such_variables(c, "fmi2SetBoolean", nvr);
+}
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
+    (void)vr; (void)value;
+    return no_such_variables(c, "fmi2SetString", nvr);
+}
+
+/* ---------------------------------------------------------------- unsupported optional features */
+
+static fmi2Status unsupported(fmi2Component c, const char *function) {
+    Instance *inst = (Instance *)c;
+    if (inst) LOG_ERROR(inst, "%s: not supported by this FMU", function);
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    (void)FMUstate;
+    return unsupported(c, "fmi2GetFMUstate");
+}
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
+    (void)FMUstate;
+    return unsupported(c, "fmi2SetFMUstate");
+}
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    (void)FMUstate;
+    return unsupported(c, "fmi2FreeFMUstate");
+}
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
+    (void)FMUstate; (void)size;
+    return unsupported(c, "fmi2SerializedFMUstateSize");
+}
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
+    (void)FMUstate; (void)serializedState; (void)size;
+    return unsupported(c, "fmi2SerializeFMUstate");
+}
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size, fmi2FMUstate *FMUstate) {
+    (void)serializedState; (void)size; (void)FMUstate;
+    return unsupported(c, "fmi2DeSerializeFMUstate");
+}
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
+    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
+    return unsupported(c, "fmi2GetDirectionalDerivative");
+}
+
+/* ---------------------------------------------------------------- model exchange */
+
+fmi2Status fmi2EnterEventMode(fmi2Component c) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2EnterEventMode", EventMode | ContinuousTimeMode)) return fmi2Error;
+    inst->state = EventMode;
+    return fmi2OK;
+}
+
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2NewDiscreteStates", EventMode)) return fmi2Error;
+    if (null_argument(inst, "fmi2NewDiscreteStates", "eventInfo", eventInfo)) return fmi2Error;
+    eventInfo->newDiscreteStatesNeeded = fmi2False;
+    eventInfo->terminateSimulation = fmi2False;
+    eventInfo->nominalsOfContinuousStatesChanged = fmi2False;
+    eventInfo->valuesOfContinuousStatesChanged = fmi2False;
+    eventInfo->nextEventTimeDefined = fmi2False;
+    eventInfo->nextEventTime = 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2EnterContinuousTimeMode", EventMode)) return fmi2Error;
+    inst->state = ContinuousTimeMode;
+    return fmi2OK;
+}
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation) {
+    Instance *inst = (Instance *)c;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (invalid_state(inst, "fmi2CompletedIntegratorStep", ContinuousTimeMode)) return fmi2Error;
+    if (null_argument(inst, "fmi2CompletedIntegratorStep", "enterEventMode", enterEventMode) ||
+        null_argument(inst, "fmi2CompletedIntegratorStep", "terminateSimulation", terminateSimulation)) return fmi2Error;
+    *enterEventMode = fmi2False;
+    *terminateSimulation = fmi2False;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2SetTime", InitializationMode | EventMode | ContinuousTimeMode)) return fmi2Error;
+    inst->time = time;
+    inst->computed_valid = 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2SetContinuousStates", EventMode | ContinuousTimeMode)) return fmi2Error;
+    if (wrong_size(inst, "fmi2SetContinuousStates", "nx", nx, N_STATES)) return fmi2Error;
+    if (nx == 0) return fmi2OK;
+    if (null_argument(inst, "fmi2SetContinuousStates", "x", x)) return fmi2Error;
+    memcpy(inst->r + OFF_X, x, sizeof(double) * nx);
+    inst->computed_valid = 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2GetDerivatives", READABLE)) return fmi2Error;
+    if (wrong_size(inst, "fmi2GetDerivatives", "nx", nx, N_STATES)) return fmi2Error;
+    if (nx == 0) return fmi2OK;
+    if (null_argument(inst, "fmi2GetDerivatives", "derivatives", derivatives)) return fmi2Error;
+    if (update(inst, "fmi2GetDerivatives") != fmi2OK) return fmi2Error;
+    memcpy(derivatives, inst->r + OFF_C, sizeof(double) * nx);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
+    Instance *inst = (Instance *)c;
+    (void)eventIndicators;
+    if (invalid_state(inst, "fmi2GetEventIndicators", READABLE)) return fmi2Error;
+    if (wrong_size(inst, "fmi2GetEventIndicators", "ni", ni, 0)) return fmi2Error;
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2GetContinuousStates", READABLE)) return fmi2Error;
+    if (wrong_size(inst, "fmi2GetContinuousStates", "nx", nx, N_STATES)) return fmi2Error;
+    if (nx == 0) return fmi2OK;
+    if (null_argument(inst, "fmi2GetContinuousStates", "x", x)) return fmi2Error;
+    if (inst->state & InitializationMode) compute_state_starts(inst);
+    memcpy(x, inst->r + OFF_X, sizeof(double) * nx);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[], size_t nx) {
+    Instance *inst = (Instance *)c;
+    if (invalid_state(inst, "fmi2GetNominalsOfContinuousStates", ANY_STATE)) return fmi2Error;
+    if (wrong_size(inst, "fmi2GetNominalsOfContinuousStates", "nx", nx, N_STATES)) return fmi2Error;
+    if (nx == 0) return fmi2OK;
+    if (null_argument(inst, "fmi2GetNominalsOfContinuousStates", "x_nominal", x_nominal)) return fmi2Error;
+    memcpy(x_nominal, STATE_NOMINALS, sizeof(double) * nx);
+    return fmi2OK;
+}

@@ -1,0 +1,259 @@
+"""Modelica front end: ``models/*.mo`` → a flat, typed description of one model.
+
+pymoca parses and flattens the Modelica source (components and ``connect`` included) and
+translates it to CasADi symbols. This module adds what a build needs around it: errors that
+name the file, line and reason, a check for the constructs the FMU export does not support,
+and the descriptions of the variables (which pymoca's CasADi model drops) taken from the
+flattened tree.
+
+The supported subset: ``model`` classes of ``Real`` parameters, inputs, outputs and
+continuous variables, equations (including ``connect``), ``der()``, the usual maths
+functions and ``min``/``max``. Discrete-time constructs (``when``, ``pre``, ``reinit``,
+``sample``, ``algorithm`` sections, ``Integer``/``Boolean`` variables) are refused.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+
+from heliostep.errors import InputError
+
+
+class ModelicaError(InputError):
+    """A model cannot be built: syntax error, unsupported construct, unbalanced model."""
+
+
+#: Keywords of constructs that the FMU export cannot handle, with the reason given.
+UNSUPPORTED = {
+    "when": "discrete-time 'when' equations are not supported (no event handling in the export)",
+    "reinit": "'reinit' is not supported (no event handling in the export)",
+    "pre": "'pre' is not supported (no discrete states in the export)",
+    "sample": "'sample' is not supported (no clocked or sampled equations in the export)",
+    "algorithm": "'algorithm' sections are not supported; write equations",
+    "Integer": "Integer variables are not supported; use Real",
+    "Boolean": "Boolean variables are not supported; use Real",
+    "discrete": "discrete variables are not supported",
+    "delay": "'delay' is not supported",
+}
+
+_COMMENT_OR_STRING = re.compile(r'//[^\n]*|/\*.*?\*/|"(?:\\.|[^"\\])*"', re.S)
+_WORD = re.compile(r"\b[A-Za-z_]\w*\b")
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One scalar of the flat model.
+
+    ``kind`` is one of ``parameter`` (settable), ``calculated_parameter`` (bound to an
+    expression of parameters), ``state``, ``derivative``, ``input``, ``algebraic``.
+    """
+
+    name: str
+    kind: str
+    is_output: bool = False
+    unit: str = ""
+    description: str = ""
+    start: float | None = None
+    nominal: float | None = None
+    min: float | None = None
+    max: float | None = None
+    state_name: str | None = None  # for a derivative: the state it is the derivative of
+
+
+@dataclass
+class FlatModel:
+    """A flattened model as CasADi expressions plus the metadata of its variables."""
+
+    name: str
+    description: str
+    source_file: Path
+    time: ca.MX
+    states: list[Variable]
+    derivatives: list[Variable]
+    inputs: list[Variable]
+    parameters: list[Variable]
+    calculated_parameters: list[Variable]
+    algebraics: list[Variable]
+    symbols: dict[str, ca.MX]
+    #: residual equations, zero when the model holds
+    residual: ca.MX
+    #: start value of each state, as expressions of the parameters
+    state_start: list[ca.MX]
+    #: expression of each calculated parameter in the parameters
+    calculated_parameter_values: list[ca.MX] = field(default_factory=list)
+
+    def variables(self) -> list[Variable]:
+        return (self.parameters + self.calculated_parameters + self.states + self.inputs
+                + self.derivatives + self.algebraics)
+
+
+def model_files(models_dir: Path) -> list[Path]:
+    """The ``.mo`` files of a model folder, sorted by name."""
+    files = sorted(Path(models_dir).glob("*.mo"))
+    if not files:
+        raise ModelicaError(f"{models_dir}: no Modelica (.mo) files found")
+    return files
+
+
+def available_models(models_dir: Path) -> list[str]:
+    """Names of the models in a folder: one model per file, named like the file."""
+    return [path.stem for path in model_files(models_dir)]
+
+
+def check_supported(path: Path, text: str) -> None:
+    """Raise :class:`ModelicaError` naming file and line at the first unsupported construct."""
+    # blank comments and strings but keep their newlines, so line numbers stay right
+    code = _COMMENT_OR_STRING.sub(lambda m: re.sub(r"[^\n]", " ", m.group(0)), text)
+    for match in _WORD.finditer(code):
+        reason = UNSUPPORTED.get(match.group(0))
+        if reason:
+            line = code.count("\n", 0, match.start()) + 1
+            raise ModelicaError(f"{path}:{line}: unsupported construct: {reason}")
+
+
+def parse_models(models_dir: Path):
+    """Parse every ``.mo`` file of ``models_dir`` into one pymoca tree."""
+    from pymoca import parser
+
+    tree = None
+    for path in model_files(models_dir):
+        text = path.read_text(encoding="utf-8")
+        try:
+            parsed = parser.parse(text)
+        except parser.ModelicaSyntaxError as exc:
+            reason, location = exc.args[0], exc.args[1] if len(exc.args) > 1 else None
+            line = location[1] if location else "?"
+            raise ModelicaError(f"{path}:{line}: syntax error: {reason}") from None
+        if parsed is None:
+            raise ModelicaError(f"{path}: syntax error: the file could not be parsed")
+        check_supported(path, text)
+        if tree is None:
+            tree = parsed
+        else:
+            tree.extend(parsed)
+    return tree
+
+
+def _number(value) -> float | None:
+    """A finite float from a pymoca attribute, or None (unset, NaN or an expression)."""
+    if isinstance(value, ca.MX):
+        if not value.is_constant():
+            return None
+        value = float(ca.evalf(value))
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _descriptions(tree, model_name: str) -> tuple[str, dict[str, str]]:
+    from pymoca import tree as pymoca_tree
+
+    flat = pymoca_tree.flatten(copy.deepcopy(tree), model_name)
+    (flat_class,) = flat.classes.values()
+    comments = {name: symbol.comment or "" for name, symbol in flat_class.symbols.items()}
+    return getattr(flat_class, "comment", "") or "", comments
+
+
+def load_model(models_dir: Path, model_name: str) -> FlatModel:
+    """Parse, flatten and translate ``model_name`` from the ``.mo`` files of ``models_dir``."""
+    from pymoca.backends.casadi.api import generate_model
+
+    models_dir = Path(models_dir)
+    names = available_models(models_dir)
+    if model_name not in names:
+        raise ModelicaError(
+            f"{models_dir}: no model {model_name!r}; available: {', '.join(names)}")
+    source_file = models_dir / f"{model_name}.mo"
+    tree = parse_models(models_dir)
+    try:
+        description, comments = _descriptions(tree, model_name)
+        cas = generate_model(copy.deepcopy(tree), model_name, {"cache": False})
+    except ModelicaError:
+        raise
+    except Exception as exc:  # pymoca raises plain exceptions for semantic errors
+        raise ModelicaError(f"{source_file}: cannot translate model {model_name}: {exc}") from None
+
+    for attribute in ("delay_states", "string_parameters", "string_constants"):
+        if getattr(cas, attribute, None):
+            raise ModelicaError(f"{source_file}: unsupported construct: {attribute} in {model_name}")
+
+    outputs = set(cas.outputs)
+    symbols: dict[str, ca.MX] = {}
+
+    def make(var, kind, **extra) -> Variable:
+        name = var.symbol.name()
+        symbols[name] = var.symbol
+        unit = getattr(var, "unit", "") or ""
+        return Variable(
+            name=name, kind=kind, is_output=name in outputs, unit=unit,
+            description=comments.get(name, ""), nominal=_number(var.nominal) or None,
+            min=_number(var.min), max=_number(var.max), **extra)
+
+    # constants are substituted by their values everywhere
+    constant_symbols = [c.symbol for c in cas.constants]
+    constant_values = [ca.MX(_number(c.value) or 0.0) for c in cas.constants]
+
+    def substitute_constants(expressions: list[ca.MX]) -> list[ca.MX]:
+        if not constant_symbols or not expressions:
+            return expressions
+        return ca.substitute(expressions, constant_symbols, constant_values)
+
+    parameters, calculated, calculated_values = [], [], []
+    for var in cas.parameters:
+        value = _number(var.value)
+        if value is not None:
+            parameters.append(make(var, "parameter", start=value))
+        elif isinstance(var.value, ca.MX):
+            calculated.append(make(var, "calculated_parameter"))
+            calculated_values.append(var.value)
+        else:
+            raise ModelicaError(
+                f"{source_file}: parameter {var.symbol.name()} of {model_name} has no value")
+
+    states, state_start = [], []
+    for var in cas.states:
+        start = var.start if isinstance(var.start, ca.MX) else ca.MX(_number(var.start) or 0.0)
+        states.append(make(var, "state", start=_number(start)))
+        state_start.append(start)
+    derivatives = [
+        make(der, "derivative", state_name=state.name)
+        for der, state in zip(cas.der_states, states)
+    ]
+    inputs = [make(var, "input", start=_number(var.start) or 0.0) for var in cas.inputs]
+    algebraics = [make(var, "algebraic") for var in cas.alg_states]
+
+    residual = ca.vertcat(*substitute_constants(list(cas.equations)))
+    n_unknowns = len(derivatives) + len(algebraics)
+    if residual.numel() != n_unknowns:
+        raise ModelicaError(
+            f"{source_file}: model {model_name} is not balanced: {residual.numel()} equations "
+            f"for {n_unknowns} unknowns (derivatives and algebraic variables)")
+
+    # calculated parameters may refer to each other: substitute until none is left
+    calc_symbols = [symbols[v.name] for v in calculated]
+    values = substitute_constants(calculated_values)
+    for _ in range(len(values) + 1):
+        if not values or not any(ca.depends_on(v, ca.vertcat(*calc_symbols)) for v in values):
+            break
+        values = ca.substitute(values, calc_symbols, values)
+    else:
+        raise ModelicaError(f"{source_file}: calculated parameters of {model_name} depend on each other in a cycle")
+    if calc_symbols:
+        residual = ca.substitute(residual, ca.vertcat(*calc_symbols), ca.vertcat(*values))
+        state_start = ca.substitute(state_start, calc_symbols, values)
+
+    return FlatModel(
+        name=model_name, description=description, source_file=source_file, time=cas.time,
+        states=states, derivatives=derivatives, inputs=inputs, parameters=parameters,
+        calculated_parameters=calculated, algebraics=algebraics, symbols=symbols,
+        residual=residual, state_start=substitute_constants(list(state_start)),
+        calculated_parameter_values=values,
+    )
