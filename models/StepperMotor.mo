@@ -1,6 +1,6 @@
 model StepperMotor
   "Two-phase bipolar hybrid stepper motor with an averaged chopper current control, eqs [7]-[9]"
-  // Source: the paper's eqs [7]-[9] (the project's docs/physics.md restates them).
+  // Source: the paper's eqs [7]-[9], restated in docs/physics.md.
   // Back-EMF sign: the one that makes electrical power in = mechanical power out with [9].
   // The chopper of each winding is modelled by its average: the drive applies
   // v = clamp(K (i_ref - i), -dV, +dV), i.e. a proportional current loop that saturates

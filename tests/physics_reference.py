@@ -1,0 +1,48 @@
+"""An independent numpy implementation of the drive equations, for checking the FMUs.
+
+Written from docs/physics.md (the paper's eqs [7]-[15] and Tables 2-3), not from the
+Modelica sources, so that a sign or factor slip in a model shows up as a mismatch.
+"""
+
+import numpy as np
+
+#: Table 3 of the paper (motor), SI units.
+TABLE3_MOTOR = {"L": 1.8e-3, "R": 0.1, "k_e": 0.5, "N_c": 50.0, "V_supply": 3.1}
+RATED_CURRENT = 5.5  # [A], Table 3
+STEP_ANGLE = np.radians(1.8)  # [rad], Table 3 = pi / (2 N_c)
+
+#: Table 2 of the paper (panel), SI units.
+TABLE2_PANEL = {"J_p": 3.37, "r": 2.5e-3, "s": 0.3, "l": 1.5, "sp": 0.05, "M": 18.0}
+
+
+def stepper_motor(i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, N_c, V_supply, K_current):
+    """Averaged-chopper motor: returns di_a/dt, di_b/dt, torque, v_a, v_b, power."""
+    v_a = np.clip(K_current * (i_a_ref - i_a), -V_supply, V_supply)
+    v_b = np.clip(K_current * (i_b_ref - i_b), -V_supply, V_supply)
+    di_a = (v_a - R * i_a + k_e * omega * np.sin(N_c * theta)) / L  # eq. 7
+    di_b = (v_b - R * i_b + k_e * omega * np.cos(N_c * theta)) / L  # eq. 8
+    torque = -k_e * i_a * np.sin(N_c * theta) - k_e * i_b * np.cos(N_c * theta)  # eq. 9
+    return di_a, di_b, torque, v_a, v_b, v_a * i_a + v_b * i_b
+
+
+def ideal_current_motor(i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, N_c, T_current):
+    """Currents lag their references; voltages from eqs 7-8 solved for v."""
+    di_a = (i_a_ref - i_a) / T_current
+    di_b = (i_b_ref - i_b) / T_current
+    v_a = L * di_a + R * i_a - k_e * omega * np.sin(N_c * theta)
+    v_b = L * di_b + R * i_b - k_e * omega * np.cos(N_c * theta)
+    torque = -k_e * i_a * np.sin(N_c * theta) - k_e * i_b * np.cos(N_c * theta)
+    return di_a, di_b, torque, v_a, v_b, v_a * i_a + v_b * i_b
+
+
+def panel_mechanics(theta_p, omega_p, torque, m_ext, *, J_p, J_m, b, r, s,
+                    theta_p_start, theta_start, small_angle=False):
+    """Returns dtheta_p/dt, domega_p/dt, rotor angle, rotor speed."""
+    if small_angle:
+        ratio = s / r
+        theta = theta_start + ratio * (theta_p - theta_p_start)
+    else:
+        ratio = s / (r * np.cos(theta_p) ** 2)  # eq. 15
+        theta = theta_start + s / r * (np.tan(theta_p) - np.tan(theta_p_start))  # eqs. 12-14
+    domega_p = (ratio * torque - b * omega_p - m_ext) / (J_p + J_m * ratio**2)  # eq. 10, exact form
+    return omega_p, domega_p, theta, ratio * omega_p
