@@ -389,7 +389,7 @@ def end_loss_length(elevation, azimuth, mirror_distance, tube_height, plant_azim
     distance = _as_float_array(mirror_distance)
     _, sun_y, _ = sun_vector(_as_float_array(elevation), _as_float_array(azimuth), plant_azimuth)
     with np.errstate(divide="ignore"):
-        # magnitude: [paper], eq. 2 (cos(alpha) cos(a) = yS); sign: shift toward +y positive
+        # |k| as in eq. 2 (cos(alpha) cos(a) = yS); the light travels -yS along y, hence the sign
         shift = -sun_y / np.sqrt(1.0 - sun_y**2) * np.hypot(distance, tube_height)  # [paper], eq. 2
     return _wrap(shift, _template(elevation, azimuth, mirror_distance), "end_loss_length")
 
@@ -705,7 +705,8 @@ def rotor_angle_from_panel(panel_angle, panel_angle0, pinion_radius, lever_arm, 
     panel = _check_panel_angle(panel_angle, "panel_angle")
     panel0 = _check_panel_angle(panel_angle0, "panel_angle0")
     rotor_angle0 = _as_float_array(rotor_angle0)
-    # rack travel r (theta - theta0) [eq. 12] = s (tan - tan0) [eq. 13]:
+    # rack travel: r (theta - theta0)  # [paper], eq. 12
+    # rack travel: s (tan(panel) - tan(panel0))  # [paper], eq. 13; equal, hence eq. 14:
     rotor = rotor_angle0 + arm / radius * (np.tan(panel) - np.tan(panel0))  # [paper], eq. 14
     return _wrap(rotor, _template(panel_angle), "rotor_angle")
 
