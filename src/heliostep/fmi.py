@@ -211,7 +211,11 @@ class ModelExchangeInstance:
             self._model = None
             raise FMIError("fmi2Instantiate", instance_name, f"failure ({exc})", self.messages) from None
         self._component = self._model.component
-        self._x_buffer = np.zeros(self.n_states)
+        self._functions = self._model._functions
+        # buffers with cached pointers for the calls on the integrator's hot path
+        self._x, self._dx = np.zeros(self.n_states), np.zeros(self.n_states)
+        self._z = np.zeros(self.n_event_indicators)
+        self._x_ptr, self._dx_ptr, self._z_ptr = (self._pointer(a) for a in (self._x, self._dx, self._z))
         if parameters:
             self.set_parameters(parameters)
 
@@ -221,17 +225,20 @@ class ModelExchangeInstance:
         self.messages.append(text)
 
     def _call(self, function: str, *args):
-        """Call the FMI function ``function``; raise :class:`FMIError` on error or fatal."""
-        from fmpy.fmi1 import FMICallException
+        """Call the FMI function ``function``; raise :class:`FMIError` on error or fatal.
 
+        The raw ctypes function from fmpy's table of loaded functions is called directly
+        (fmpy's per-call wrapper costs more than the model evaluation itself).
+        """
         if self._model is None:
             raise FMIError(function, self.name, "no instance (freed)")
-        self.messages.clear()
-        try:
-            return getattr(self._model, function)(self._component, *args)
-        except FMICallException as exc:
-            status = _STATUS[exc.status] if 0 <= exc.status < len(_STATUS) else str(exc.status)
-            raise FMIError(function, self.name, status, self.messages) from None
+        status = self._functions[function](self._component, *args)
+        if status > 1:  # worse than fmi2Warning
+            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+            raise FMIError(function, self.name, label, self.messages)
+        if self.messages:
+            self.messages.clear()
+        return status
 
     @staticmethod
     def _pointer(array: np.ndarray):
@@ -338,20 +345,26 @@ class ModelExchangeInstance:
         self._call("fmi2SetTime", time)
 
     def get_states(self, out: np.ndarray | None = None) -> np.ndarray:
-        out = np.zeros(self.n_states) if out is None else out
+        """Continuous states, into ``out`` if given (else a new array)."""
         if self.n_states:
-            self._call("fmi2GetContinuousStates", self._pointer(out), self.n_states)
+            self._call("fmi2GetContinuousStates", self._x_ptr, self.n_states)
+        if out is None:
+            return self._x.copy()
+        out[:] = self._x
         return out
 
     def set_states(self, x: np.ndarray) -> None:
         if self.n_states:
-            data = np.ascontiguousarray(x, dtype=float)
-            self._call("fmi2SetContinuousStates", self._pointer(data), self.n_states)
+            self._x[:] = x
+            self._call("fmi2SetContinuousStates", self._x_ptr, self.n_states)
 
     def get_derivatives(self, out: np.ndarray | None = None) -> np.ndarray:
-        out = np.zeros(self.n_states) if out is None else out
+        """State derivatives, into ``out`` if given (else a new array)."""
         if self.n_states:
-            self._call("fmi2GetDerivatives", self._pointer(out), self.n_states)
+            self._call("fmi2GetDerivatives", self._dx_ptr, self.n_states)
+        if out is None:
+            return self._dx.copy()
+        out[:] = self._dx
         return out
 
     def get_nominals(self) -> np.ndarray:
@@ -361,9 +374,12 @@ class ModelExchangeInstance:
         return out
 
     def get_event_indicators(self, out: np.ndarray | None = None) -> np.ndarray:
-        out = np.zeros(self.n_event_indicators) if out is None else out
+        """Event indicators, into ``out`` if given (else a new array)."""
         if self.n_event_indicators:
-            self._call("fmi2GetEventIndicators", self._pointer(out), self.n_event_indicators)
+            self._call("fmi2GetEventIndicators", self._z_ptr, self.n_event_indicators)
+        if out is None:
+            return self._z.copy()
+        out[:] = self._z
         return out
 
     def terminate(self) -> None:

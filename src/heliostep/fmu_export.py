@@ -2,12 +2,13 @@
 
 Steps, the same for every model:
 
-1. CasADi builds one function ``model_eval(t, x, u, p, guess) -> (computed, residual)``:
-   the model's implicit residual ``F(der(x), z; t, x, u, p) = 0`` is solved for the
-   derivatives and algebraic variables by CasADi's ``fast_newton`` rootfinder, so the
-   Newton iteration runs inside the generated C code; ``residual`` is ``F`` at the solution
-   (checked by the C layer). A second function ``model_start(p) -> x0`` gives the start
-   values of the states bound to parameters.
+1. CasADi builds ``model_eval(t, x, u, p, guess) -> (computed, residual)``: the model's
+   implicit residual ``F(der(x), z; t, x, u, p) = 0`` is solved for the derivatives and
+   algebraic variables by CasADi's ``fast_newton`` rootfinder, so the Newton iteration runs
+   inside the generated C code; ``residual`` is ``F`` at the solution (checked by the C
+   layer). ``model_solve`` is the same with a converging iteration first (see
+   :data:`POLISH_OPTIONS`); ``model_start(p) -> x0`` gives the start values of the states
+   bound to parameters.
 2. CasADi generates C for both (``equations.c``/``equations.h``).
 3. ``model.h`` describes the model to the FMI layer written once for all models
    (``heliostep/c/fmi2_model_exchange.c``): sizes, start values, names.
@@ -55,8 +56,14 @@ BASE_UNITS = {
     "kg.m2": {"kg": 1, "m": 2},
 }
 
-#: Newton settings of the generated rootfinder: residual and step tolerances, iterations.
-NEWTON_OPTIONS = {"abstol": 1e-10, "abstolStep": 1e-14, "max_iter": 30}
+#: The everyday solve: exactly two Newton steps from the previous solution, never stopping
+#: early on an absolute residual test. A warm start that is already "close enough" would
+#: otherwise be returned unchanged, and CVODE's difference-quotient Jacobian (states perturbed
+#: by ~1e-8) would see no change at all. Two steps are exact for residuals linear in the
+#: unknowns and leave an error of the order of (change since the last call)^4 otherwise.
+POLISH_OPTIONS = {"abstol": 0.0, "abstolStep": 0.0, "max_iter": 2}
+#: The fallback when the polish does not satisfy the residual (first call, large jumps).
+ROBUST_OPTIONS = {"abstol": 1e-12, "abstolStep": 1e-14, "max_iter": 50}
 
 FMI_LAYER = "fmi2_model_exchange.c"
 SOURCE_FILES = (FMI_LAYER, "equations.c")
@@ -82,8 +89,12 @@ class Layout:
         return next(i for i, v in enumerate(self.variables) if v.name == name)
 
 
-def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function]:
-    """CasADi functions ``model_eval`` and ``model_start`` of a flat model."""
+def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.Function]:
+    """CasADi functions ``model_eval``, ``model_solve`` and ``model_start`` of a flat model.
+
+    ``model_eval`` polishes the previous solution with two Newton steps; ``model_solve``
+    iterates to convergence first (for a cold or far start), then polishes the same way.
+    """
     sym = model.symbols
     stack = lambda variables: ca.vertcat(*[sym[v.name] for v in variables])  # noqa: E731
     x, u, p = stack(model.states), stack(model.inputs), stack(model.parameters)
@@ -93,19 +104,23 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function]:
     guess = ca.MX.sym("guess", n_unknowns + len(model.calculated_parameters))
 
     residual_fn = ca.Function("residual", [unknowns, known], [model.residual])
-    solver = ca.rootfinder("newton", "fast_newton", residual_fn, NEWTON_OPTIONS)
-    solution = solver(guess[:n_unknowns], known)
+    polish = ca.rootfinder("polish", "fast_newton", residual_fn, POLISH_OPTIONS)
+    robust = ca.rootfinder("robust", "fast_newton", residual_fn, ROBUST_OPTIONS)
     calculated = ca.vertcat(*model.calculated_parameter_values) if model.calculated_parameters else ca.MX(0, 1)
-    evaluate = ca.Function(
-        "model_eval", [model.time, x, u, p, guess],
-        [ca.vertcat(solution, calculated), residual_fn(solution, known)],
-        ["t", "x", "u", "p", "guess"], ["computed", "residual"])
+
+    def solve(name: str, solution: ca.MX) -> ca.Function:
+        return ca.Function(name, [model.time, x, u, p, guess],
+                           [ca.vertcat(solution, calculated), residual_fn(solution, known)],
+                           ["t", "x", "u", "p", "guess"], ["computed", "residual"])
+
+    evaluate = solve("model_eval", polish(guess[:n_unknowns], known))
+    converge = solve("model_solve", polish(robust(guess[:n_unknowns], known), known))
     start = ca.Function("model_start", [p], [ca.vertcat(*model.state_start) if model.states else ca.MX(0, 1)],
                         ["p"], ["x0"])
     if start.has_free():
         raise HeliostepError(
             f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}")
-    return evaluate, start
+    return evaluate, converge, start
 
 
 def _c_double(value: float | None) -> str:
@@ -308,11 +323,11 @@ def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path,
     sources = work_dir / "sources"
     sources.mkdir(parents=True, exist_ok=True)
     layout = Layout.of(model)
-    evaluate, start = equation_functions(model)
+    evaluate, converge, start = equation_functions(model)
 
     generator = ca.CodeGenerator("equations.c", {"with_header": True, "casadi_real": "double"})
-    generator.add(evaluate)
-    generator.add(start)
+    for function in (evaluate, converge, start):
+        generator.add(function)
     generator.generate(str(sources) + "/")
     (sources / "model.h").write_text(model_header(model, layout, guid))
     layer = resources.files("heliostep") / "c" / FMI_LAYER

@@ -4,11 +4,14 @@
  * A model contributes only two generated files: "model.h" (sizes, start values, names and
  * the layout of the value references) and the CasADi-generated equations ("equations.h"),
  * which provide
- *   model_eval(t, x, u, p, guess) -> (computed, residual)
- *   model_start(p)                -> x0
+ *   model_eval(t, x, u, p, guess)  -> (computed, residual)   two Newton steps from guess
+ *   model_solve(t, x, u, p, guess) -> (computed, residual)   converge, then the same steps
+ *   model_start(p)                 -> x0
  * where "computed" holds the state derivatives, the algebraic variables and the calculated
  * parameters, solved from the model's implicit residual by a Newton iteration inside the
- * generated code, and "residual" is the residual at that solution (checked here).
+ * generated code, and "residual" is the residual at that solution (checked here). The
+ * previous solution is the guess; model_solve is the fallback when model_eval's residual
+ * is not small (first call, large jumps), from the previous solution and then from zero.
  *
  * Every real variable lives in one array r[], indexed by its value reference:
  *   [0, OFF_X)        parameters (settable, tunable)
@@ -125,7 +128,9 @@ static int invalid_vr(Instance *inst, const char *function, fmi2ValueReference v
 
 /* ---------------------------------------------------------------- evaluation */
 
-static int eval_equations(Instance *inst, const double *guess) {
+typedef int (*EquationFunction)(const casadi_real **, casadi_real **, casadi_int *, casadi_real *, int);
+
+static int eval_equations(Instance *inst, EquationFunction equations, const double *guess) {
     inst->arg[0] = &inst->time;
     inst->arg[1] = inst->r + OFF_X;
     inst->arg[2] = inst->r + OFF_U;
@@ -133,7 +138,7 @@ static int eval_equations(Instance *inst, const double *guess) {
     inst->arg[4] = guess;
     inst->res[0] = inst->computed;
     inst->res[1] = inst->residual;
-    if (model_eval(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
+    if (equations(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
     for (int i = 0; i < N_UNKNOWNS; i++) {
         if (!(fabs(inst->residual[i]) <= RESIDUAL_TOLERANCE)) return 0;
     }
@@ -157,7 +162,8 @@ static fmi2Status update(Instance *inst, const char *function) {
     if (inst->computed_valid) return fmi2OK;
     if (inst->state & (Instantiated | InitializationMode)) compute_state_starts(inst);
     memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED);
-    if (!eval_equations(inst, inst->guess) && !eval_equations(inst, zeros)) {
+    if (!eval_equations(inst, model_eval, inst->guess) && !eval_equations(inst, model_solve, inst->guess) &&
+        !eval_equations(inst, model_solve, zeros)) {
         LOG_ERROR(inst, "%s: the model equations could not be solved at t = %g", function, inst->time);
         return fmi2Error;
     }
@@ -232,12 +238,14 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     inst->logging_on = loggingOn;
     inst->state = Instantiated;
     inst->instance_name = (char *)allocate(functions, strlen(instanceName) + 1, 1);
-    model_eval_work(&n_arg, &n_res, &n_iw, &n_w);
     model_start_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-    if (sz_arg < n_arg) sz_arg = n_arg;
-    if (sz_res < n_res) sz_res = n_res;
-    if (sz_iw < n_iw) sz_iw = n_iw;
-    if (sz_w < n_w) sz_w = n_w;
+    for (int f = 0; f < 2; f++) {
+        (f == 0 ? model_eval_work : model_solve_work)(&n_arg, &n_res, &n_iw, &n_w);
+        if (sz_arg < n_arg) sz_arg = n_arg;
+        if (sz_res < n_res) sz_res = n_res;
+        if (sz_iw < n_iw) sz_iw = n_iw;
+        if (sz_w < n_w) sz_w = n_w;
+    }
     inst->arg = (const casadi_real **)allocate(functions, (size_t)sz_arg + 1, sizeof(casadi_real *));
     inst->res = (casadi_real **)allocate(functions, (size_t)sz_res + 1, sizeof(casadi_real *));
     inst->iw = (casadi_int *)allocate(functions, (size_t)sz_iw + 1, sizeof(casadi_int));
