@@ -23,8 +23,10 @@ a merged grid of the actual's times, the reference's times (which checks the
 reference's points against the interpolated actual), the reference's times
 shifted by ``+-tau`` (where a vertex enters or leaves the window) and the instants
 where the tube's bounding piece changes. Between two grid points both the actual
-and the bounds are linear, so no violation between grid points can be missed —
-a spike of either trace that falls between samples of the other is caught.
+and the bounds are linear, so no violation between grid points can be missed: a
+spike of the actual between reference samples is caught, and so is a reference
+feature between actual samples unless it is narrower than the time tolerance
+(which the tube, by definition, tolerates).
 
 Cost per signal is ``O(n log n)``: a sparse table answers window maxima in
 constant time, window ends are located with :func:`numpy.searchsorted`.
@@ -640,7 +642,7 @@ def _check_finite(values: np.ndarray, time: np.ndarray, column: str, name: str) 
         i = int(bad[0])
         kind = "NaN" if np.isnan(values[i]) else "a non-finite value"
         raise InputError(
-            f"{name}: column {column!r} has {kind} in data row {i + 1} (time {time[i]!r} s)"
+            f"{name}: column {column!r} has {kind} in data row {i + 1} (time {float(time[i])!r} s)"
             + (f" and {bad.size - 1} more row(s)" if bad.size > 1 else "")
         )
 
@@ -688,9 +690,9 @@ def compare_traces(
         for s in selected:
             if s == TIME:
                 raise InputError(f"{TIME!r} is the time column, not a signal")
-            for name, present in ((actual_name, in_actual), (reference_name, in_reference)):
-                if s not in present:
-                    raise InputError(f"{name}: no column {s!r} (requested signal)")
+            missing = [n for n, present in ((actual_name, in_actual), (reference_name, in_reference)) if s not in present]
+            if missing:
+                raise InputError(f"{' and '.join(missing)}: no column {s!r} (requested signal)")
     results: dict[str, SignalResult] = {}
     for s in selected:
         ya = _column(actual, s, actual_name)

@@ -61,6 +61,8 @@ from heliostep.errors import InputError
 TIME = "time"
 SUFFIXES = (".parquet", ".csv")
 _RESERVED_PARQUET_KEYS = ("pandas",)
+# pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
+_EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
 _RESERVED_PARQUET_PREFIX = "ARROW:"
 
 __all__ = ["TIME", "SUFFIXES", "read_trace", "write_trace", "check_time", "is_complete"]
@@ -105,13 +107,13 @@ def check_time(time: np.ndarray, name: str) -> None:
     bad = np.flatnonzero(~np.isfinite(time))
     if bad.size:
         i = int(bad[0])
-        raise InputError(f"{name}: column {TIME!r} has a non-finite value ({time[i]}) in data row {i + 1}")
+        raise InputError(f"{name}: column {TIME!r} has a non-finite value ({float(time[i])}) in data row {i + 1}")
     drops = np.flatnonzero(np.diff(time) < 0)
     if drops.size:
         i = int(drops[0]) + 1
         raise InputError(
             f"{name}: column {TIME!r} decreases in data row {i + 1} "
-            f"({time[i]!r} after {time[i - 1]!r}); time must be non-decreasing"
+            f"({float(time[i])!r} after {float(time[i - 1])!r}); time must be non-decreasing"
         )
 
 
@@ -243,7 +245,7 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     if dupes:
         raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
     try:
-        frame = pd.read_csv(io.StringIO(body), header=0, names=names, float_precision="round_trip")
+        frame = pd.read_csv(io.StringIO(body), header=0, names=names, **_EXACT_FLOATS)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise InputError(f"{path}: cannot read as CSV: {exc}") from None
     return meta, frame
