@@ -1,0 +1,400 @@
+"""Plots of one run's trace: the paper's Figs. 8-14.
+
+:func:`plot_run` writes one PNG per figure into a folder. The x axis is the local
+clock time (``metadata["window_start"]`` plus the trace's ``time``), angles are shown
+in degrees. A figure whose columns are missing from the trace is skipped, and so is
+the torque zoom of a run without steps.
+
+Long traces are thinned before drawing: per time bucket the first, last, smallest
+and largest sample of each line are kept, so steps and peaks stay visible while a
+line never has more than about ``4 * MAX_BUCKETS`` points. Figures are built with
+:class:`matplotlib.figure.Figure` (no pyplot state), so they can be drawn from
+worker threads.
+"""
+
+from __future__ import annotations
+
+import logging
+import zoneinfo
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import matplotlib.dates as mdates
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from heliostep.errors import InputError
+
+__all__ = ["FIGURE_FILES", "MAX_BUCKETS", "ZOOM_HALF_WIDTH", "plot_run", "step_times"]
+
+logger = logging.getLogger(__name__)
+
+#: Time buckets per drawn line; each keeps at most 4 samples (first, last, min, max).
+MAX_BUCKETS = 2000
+#: Half width of the torque zoom around a step (Fig. 14) [s].
+ZOOM_HALF_WIDTH = 0.1
+#: PNG written for each figure, in the order :func:`plot_run` draws them.
+FIGURE_FILES = (
+    "fig08_panel_angle_ref.png",
+    "fig09_rotor_angle_ref.png",
+    "fig10_phase_currents.png",
+    "fig11_torque.png",
+    "fig12_rotor_angle.png",
+    "fig13_panel_tracking.png",
+    "fig14_torque_zoom.png",
+)
+
+_DPI = 120
+_WIDE = (9.0, 4.5)
+_TALL = (9.0, 6.5)
+
+
+# --------------------------------------------------------------------------- helpers
+def _thin(time: np.ndarray, values: np.ndarray, max_buckets: int = MAX_BUCKETS) -> np.ndarray:
+    """Indices of the samples to draw (all when few; else first, last, min and max per bucket).
+
+    Parameters
+    ----------
+    time : numpy.ndarray  [s]
+        Non-decreasing.
+    values : numpy.ndarray
+        Same length; NaN is allowed.
+    max_buckets : int
+
+    Returns
+    -------
+    numpy.ndarray of int
+        Increasing, so the drawing order (and the two rows of a step instant) is kept.
+    """
+    n = time.size
+    if n <= 4 * max_buckets:
+        return np.arange(n)
+    span = time[-1] - time[0]
+    if span <= 0.0:
+        bucket = np.zeros(n, dtype=np.int64)
+    else:
+        bucket = np.minimum(((time - time[0]) * (max_buckets / span)).astype(np.int64), max_buckets - 1)
+    starts = np.flatnonzero(np.r_[True, bucket[1:] != bucket[:-1]])
+    lengths = np.diff(np.r_[starts, n])
+    ends = starts + lengths - 1
+    segment = np.repeat(np.arange(starts.size), lengths)
+    keep = [starts, ends]
+    for reduce in (np.fmin, np.fmax):  # NaN-ignoring extremes of each bucket
+        extreme = np.repeat(reduce.reduceat(values, starts), lengths)
+        hits = np.flatnonzero(values == extreme)
+        first_hit = np.r_[True, segment[hits][1:] != segment[hits][:-1]] if hits.size else hits.astype(bool)
+        keep.append(hits[first_hit])
+    return np.unique(np.concatenate(keep))
+
+
+def step_times(trace: pd.DataFrame) -> np.ndarray:
+    """Instants at which the sequencer steps: where ``step_index`` changes.
+
+    Parameters
+    ----------
+    trace : pandas.DataFrame
+        Columns ``time`` [s] and ``step_index``.
+
+    Returns
+    -------
+    numpy.ndarray  [s]
+        Time of the first row with the new index (empty without steps or without
+        a ``step_index`` column).
+    """
+    if "step_index" not in trace or "time" not in trace:
+        return np.empty(0)
+    index = trace["step_index"].to_numpy(dtype=float)
+    changed = np.flatnonzero(np.diff(index) != 0.0) + 1
+    changed = changed[np.isfinite(index[changed]) & np.isfinite(index[changed - 1])]
+    return trace["time"].to_numpy(dtype=float)[changed]
+
+
+def _largest_torque_step(time: np.ndarray, torque: np.ndarray, steps: np.ndarray) -> tuple[int, int] | None:
+    """(position in ``steps``, row of the peak) of the step followed by the largest |torque|.
+
+    Each step owns the rows from its instant up to the next step; rows before the
+    first step belong to none. None when no owned row has a finite torque.
+    """
+    if steps.size == 0:
+        return None
+    after_first = int(np.searchsorted(time, steps[0], side="left"))
+    magnitude = np.abs(torque[after_first:])
+    if not np.isfinite(magnitude).any():
+        return None
+    peak = after_first + int(np.nanargmax(magnitude))
+    step = int(np.searchsorted(steps, time[peak], side="right")) - 1
+    return step, peak
+
+
+class _Clock:
+    """Maps the trace's time [s from the window start] to the x axis: local clock time."""
+
+    def __init__(self, metadata: Mapping, time: np.ndarray):
+        self.start = None
+        self.tz = None
+        start_text = metadata.get("window_start")
+        timezone = metadata.get("timezone")
+        if start_text is not None:
+            try:
+                start = pd.Timestamp(start_text)
+            except (TypeError, ValueError) as exc:
+                raise InputError(f"metadata window_start {start_text!r} is not a date/time: {exc}") from None
+            try:
+                tz = zoneinfo.ZoneInfo(timezone) if timezone else None
+            except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+                raise InputError(f"metadata timezone {timezone!r} is not an IANA name") from None
+            if start.tzinfo is None:
+                start = start.tz_localize(tz or "UTC")
+            self.start = start.tz_convert(tz) if tz is not None else start
+            self.tz = self.start.tzinfo
+        self.span = float(time[-1] - time[0]) if time.size else 0.0
+        self._origin = None if self.start is None else mdates.date2num(self.start.to_pydatetime())
+
+    def x(self, time: np.ndarray) -> np.ndarray:
+        """x values (matplotlib dates, or seconds without a window start) of times [s]."""
+        return time if self._origin is None else self._origin + time / 86400.0
+
+    def format_axis(self, ax) -> None:
+        """Ticks and label of a time axis."""
+        if self._origin is None:
+            ax.set_xlabel("time from the window start [s]")
+            return
+        ax.xaxis.set_major_locator(mdates.AutoDateLocator(tz=self.tz, minticks=4, maxticks=9))
+        pattern = "%H:%M:%S" if self.span <= 3600.0 else "%H:%M"
+        ax.xaxis.set_major_formatter(mdates.DateFormatter(pattern, tz=self.tz))
+        shown = "hh:mm:ss" if pattern == "%H:%M:%S" else "hh:mm"
+        ax.set_xlabel(f"local time ({self.tz}) [{shown}]")
+
+    def label(self, time: float) -> str:
+        """A trace time as local clock time (or seconds)."""
+        if self.start is None:
+            return f"t = {time:.4f} s"
+        return (self.start + pd.Timedelta(seconds=float(time))).strftime("%H:%M:%S.%f")[:-3]
+
+
+class _Trace:
+    """Columns of a trace as float arrays, fetched on demand."""
+
+    def __init__(self, frame: pd.DataFrame):
+        self.frame = frame
+        self.time = frame["time"].to_numpy(dtype=float)
+        self._cache = {}
+
+    def has(self, *columns: str) -> bool:
+        return all(column in self.frame.columns for column in columns)
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        if column not in self._cache:
+            self._cache[column] = self.frame[column].to_numpy(dtype=float)
+        return self._cache[column]
+
+    def degrees(self, column: str) -> np.ndarray:
+        return np.degrees(self[column])
+
+
+def _line(ax, clock: _Clock, time: np.ndarray, values: np.ndarray, *args, **kwargs) -> None:
+    keep = _thin(time, values)
+    ax.plot(clock.x(time[keep]), values[keep], *args, **kwargs)
+
+
+def _figure(rows: int = 1, size=_WIDE):
+    fig = Figure(figsize=size, layout="constrained")
+    axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return fig, axes
+
+
+def _finish(fig: Figure, axes, clock: _Clock, path: Path) -> Path:
+    clock.format_axis(axes[-1])
+    fig.savefig(path, dpi=_DPI)
+    return path
+
+
+def _title(what: str, figure_number: int, context: str) -> str:
+    return f"Fig. {figure_number}: {what}{context}"
+
+
+# --------------------------------------------------------------------------- figures
+def _fig08(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+    if not trace.has("panel_angle_ref"):
+        return None
+    fig, axes = _figure()
+    _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), color="C0")
+    axes[0].set_ylabel("panel angle reference [deg]")
+    axes[0].set_title(_title("panel angle reference", 8, context))
+    return _finish(fig, axes, clock, path)
+
+
+def _fig09(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+    if not trace.has("rotor_angle_ref"):
+        return None
+    fig, axes = _figure()
+    _line(axes[0], clock, trace.time, trace.degrees("rotor_angle_ref"), color="C1")
+    axes[0].set_ylabel("rotor angle reference [deg]")
+    axes[0].set_title(_title("rotor angle reference (0 at the window start)", 9, context))
+    return _finish(fig, axes, clock, path)
+
+
+def _fig10(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+    if not trace.has("motor.i_a", "motor.i_b"):
+        return None
+    fig, axes = _figure(2, _TALL)
+    for ax, phase, color in zip(axes, ("a", "b"), ("C0", "C3")):
+        _line(ax, clock, trace.time, trace[f"motor.i_{phase}"], "-", color=color, linewidth=1.0,
+              label=f"actual i_{phase}")
+        if trace.has(f"i_{phase}_ref"):
+            _line(ax, clock, trace.time, trace[f"i_{phase}_ref"], "--", color="k", linewidth=1.0,
+                  label=f"reference i_{phase},ref")
+        ax.set_ylabel(f"phase {phase.upper()} current [A]")
+        ax.legend(loc="upper right")
+    axes[0].set_title(_title("phase currents", 10, context))
+    return _finish(fig, axes, clock, path)
+
+
+def _fig11(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+    if not trace.has("motor.tau"):
+        return None
+    fig, axes = _figure()
+    _line(axes[0], clock, trace.time, trace["motor.tau"], color="C2", linewidth=1.0)
+    axes[0].axhline(0.0, color="0.5", linewidth=0.8)
+    axes[0].set_ylabel("motor torque [N.m]")
+    axes[0].set_title(_title("motor torque", 11, context))
+    return _finish(fig, axes, clock, path)
+
+
+def _fig12(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+    if not trace.has("mechanics.theta"):
+        return None
+    fig, axes = _figure()
+    ax = axes[0]
+    if trace.has("rotor_angle_ref"):
+        _line(ax, clock, trace.time, trace.degrees("rotor_angle_ref"), ":", color="k", linewidth=1.2,
+              label="reference")
+    if trace.has("rotor_angle_cmd"):
+        _line(ax, clock, trace.time, trace.degrees("rotor_angle_cmd"), "--", color="C1", linewidth=1.0,
+              label="commanded (sequencer)")
+    _line(ax, clock, trace.time, trace.degrees("mechanics.theta"), "-", color="C0", linewidth=1.0,
+          label="actual")
+    ax.set_ylabel("rotor angle [deg]")
+    ax.set_title(_title("rotor angle", 12, context))
+    ax.legend(loc="best")
+    return _finish(fig, axes, clock, path)
+
+
+def _fig13(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+    if not trace.has("mechanics.theta_p", "panel_angle_ref"):
+        return None
+    fig, axes = _figure(2, _TALL)
+    _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), "--", color="k", linewidth=1.2,
+          label="desired (reference)")
+    _line(axes[0], clock, trace.time, trace.degrees("mechanics.theta_p"), "-", color="C0", linewidth=1.0,
+          label="actual")
+    axes[0].set_ylabel("panel angle [deg]")
+    axes[0].set_title(_title("panel tracking", 13, context))
+    axes[0].legend(loc="best")
+    if trace.has("panel_angle_error"):
+        error = trace.degrees("panel_angle_error")
+    else:
+        error = trace.degrees("mechanics.theta_p") - trace.degrees("panel_angle_ref")
+    _line(axes[1], clock, trace.time, error, color="C3", linewidth=1.0)
+    axes[1].axhline(0.0, color="0.5", linewidth=0.8)
+    axes[1].set_ylabel("tracking error, actual - desired [deg]")
+    return _finish(fig, axes, clock, path)
+
+
+def _fig14(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+    if not trace.has("motor.tau"):
+        return None
+    steps = step_times(trace.frame)
+    if steps.size == 0:
+        return None
+    time, torque = trace.time, trace["motor.tau"]
+    found = _largest_torque_step(time, torque, steps)
+    if found is None:
+        return None
+    step, peak = found
+    centre = steps[step]
+    lo = np.searchsorted(time, centre - ZOOM_HALF_WIDTH, side="left")
+    hi = np.searchsorted(time, centre + ZOOM_HALF_WIDTH, side="right")
+    window_time, window_torque = time[lo:hi], torque[lo:hi]
+    keep = _thin(window_time, window_torque)
+    relative_ms = (window_time[keep] - centre) * 1e3
+
+    fig = Figure(figsize=_WIDE, layout="constrained")
+    ax = fig.add_subplot()
+    ax.grid(True, alpha=0.3)
+    style = ".-" if keep.size <= 400 else "-"
+    ax.plot(relative_ms, window_torque[keep], style, color="C2", linewidth=1.0, markersize=3,
+            label="motor torque")
+    nearby = steps[(steps >= window_time[0]) & (steps <= window_time[-1])]
+    for other in nearby[nearby != centre]:
+        ax.axvline((other - centre) * 1e3, color="0.6", linestyle=":", linewidth=0.9)
+    ax.axvline(0.0, color="C1", linestyle="--", linewidth=0.9, label="step instant")
+    ax.plot((time[peak] - centre) * 1e3, torque[peak], "o", color="C3", markersize=5,
+            label=f"peak |torque| = {abs(torque[peak]):.3g} N.m")
+    ax.axhline(0.0, color="0.5", linewidth=0.8)
+    ax.set_xlabel(f"time from the step at {clock.label(centre)} [ms]")
+    ax.set_ylabel("motor torque [N.m]")
+    ax.set_title(_title(f"torque around step {step + 1} of {steps.size}, the largest |torque|", 14, context))
+    ax.legend(loc="best")
+    fig.savefig(path, dpi=_DPI)
+    return path
+
+
+_FIGURES: tuple[tuple[str, Callable], ...] = tuple(
+    zip(FIGURE_FILES, (_fig08, _fig09, _fig10, _fig11, _fig12, _fig13, _fig14))
+)
+
+
+# --------------------------------------------------------------------------- public
+def plot_run(trace: pd.DataFrame, out_dir, metadata: Mapping) -> list[Path]:
+    """Write the paper's Figs. 8-14 for one run as PNGs.
+
+    Parameters
+    ----------
+    trace : pandas.DataFrame
+        Column ``time`` [s from the window start], non-decreasing (a step instant
+        has two rows with the same time, before and after), and any of
+        ``panel_angle_ref``, ``rotor_angle_ref``, ``rotor_angle_cmd`` [rad],
+        ``step_index``, ``i_a_ref``, ``i_b_ref``, ``motor.i_a``, ``motor.i_b`` [A],
+        ``motor.tau`` [N.m], ``mechanics.theta`` [rad], ``mechanics.theta_p`` [rad],
+        ``panel_angle_error`` [rad].
+    out_dir : str or Path
+        Folder for the PNGs, created if missing.
+    metadata : Mapping
+        ``window_start`` (ISO local time with offset, e.g. "2025-01-21T10:00:00+01:00"),
+        ``timezone`` (IANA name) and ``scenario`` (name, shown in the titles). Without
+        ``window_start`` the x axis is in seconds from the window start.
+
+    Returns
+    -------
+    list of Path
+        The PNGs written, in figure order (names in :data:`FIGURE_FILES`): a figure
+        whose columns are missing is skipped, and so is Fig. 14 without steps.
+    """
+    if not isinstance(trace, pd.DataFrame) or "time" not in trace.columns:
+        raise InputError("trace must be a pandas DataFrame with a 'time' column [s]")
+    if trace.empty:
+        raise InputError("trace is empty: nothing to plot")
+    metadata = {} if metadata is None else metadata
+    columns = _Trace(trace)
+    if np.any(np.diff(columns.time) < 0.0) or not np.all(np.isfinite(columns.time)):
+        raise InputError("trace time must be finite and non-decreasing")
+    clock = _Clock(metadata, columns.time)
+    parts = [str(metadata["scenario"])] if metadata.get("scenario") else []
+    if clock.start is not None:
+        parts.append(f"{clock.start:%Y-%m-%d}")
+    context = f" ({', '.join(parts)})" if parts else ""
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for file_name, draw in _FIGURES:
+        path = draw(columns, clock, context, out_dir / file_name)
+        if path is None:
+            logger.info("%s skipped: its columns (or steps) are not in the trace", file_name)
+        else:
+            written.append(path)
+    return written
