@@ -19,6 +19,7 @@ from heliostep.errors import HeliostepError
 COMMAND_MODULES = (
     "heliostep.build",
     "heliostep.geometry_cli",
+    "heliostep.run",
     "heliostep.compare_cli",
 )
 

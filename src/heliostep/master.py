@@ -137,6 +137,7 @@ class CoSimulation:
         self.inputs = list(inputs)
         self.connections = self._check_connections(connections)
         self.order = self._propagation_order()
+        self._check_units()
         self._parameters = {name: dict(parameters.get(name, {})) for name in fmus}
 
     # ------------------------------------------------------------------ checks
@@ -161,15 +162,20 @@ class CoSimulation:
             self._variable(item.target, f"input {item.name} target", "input")
             driven[item.target] = f"master input {item.name}"
         for c in connections:
+            self._variable(c.source, "connection source", "output")
+            self._variable(c.target, "connection target", "input")
+            if c.target in driven:
+                raise InputError(f"{c.target} is driven twice: by {driven[c.target]} and by {c.source}")
+            driven[c.target] = c.source
+        return list(connections)
+
+    def _check_units(self) -> None:
+        for c in self.connections:
             _, source = self._variable(c.source, "connection source", "output")
             _, target = self._variable(c.target, "connection target", "input")
             if source.unit and target.unit and source.unit != target.unit:
                 raise InputError(f"connection {c.source} -> {c.target}: units differ "
                                  f"({source.unit!r} vs {target.unit!r})")
-            if c.target in driven:
-                raise InputError(f"{c.target} is driven twice: by {driven[c.target]} and by {c.source}")
-            driven[c.target] = c.source
-        return list(connections)
 
     def _propagation_order(self) -> list[Connection]:
         """Connections sorted so that an output is read only after the inputs it depends on are set."""
