@@ -104,11 +104,11 @@ def test_defaults_of_optional_sections(tmp_path):
         ("motor.tau", "mechanics.tau"), ("mechanics.theta", "motor.theta"), ("mechanics.omega", "motor.omega")
     ]
     assert DEFAULT_CONNECTIONS == scenario.connection_pairs()
-    assert (scenario.sequencer.mode, scenario.sequencer.current, scenario.sequencer.step_angle) == (
-        "one-phase-on", 5.5, 1.8)
+    assert (scenario.sequencer.mode, scenario.sequencer.current, scenario.sequencer.step_angle,
+            scenario.sequencer.trigger) == ("one-phase-on", 5.5, 1.8, "midpoint")
     assert scenario.wind.moment == 0.0
     assert (scenario.solver.rtol, scenario.solver.atol, scenario.solver.max_step,
-            scenario.solver.max_num_steps) == (1e-6, None, 0.05, 100_000)
+            scenario.solver.max_num_steps) == (1e-6, None, None, 100_000)
     assert (scenario.output.interval, scenario.output.step_detail, scenario.output.step_interval) == (
         0.01, 0.05, 0.0005)
 

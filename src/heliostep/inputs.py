@@ -50,6 +50,8 @@ class DriveInputs:
     output_times: np.ndarray
     #: mechanics parameters implied by the scenario (initial panel angle, transmission)
     mechanics_parameters: dict = field(default_factory=dict)
+    #: motor parameters implied by the scenario (the drive holds its first step at the start)
+    motor_parameters: dict = field(default_factory=dict)
 
     def panel_reference(self) -> PchipInterpolator:
         """Reference panel angle [rad] over time [s] (the same interpolation as the steps)."""
@@ -96,7 +98,8 @@ def prepare_inputs(scenario: Scenario, fmu_inputs: frozenset[str] = frozenset())
                                    rotor_angle0=0.0)  # [paper], eq. 14, rotor at 0 at the start
     sequencer = Sequencer(mode=scenario.sequencer.mode, current=scenario.sequencer.current,
                           step_angle=np.radians(scenario.sequencer.step_angle))
-    schedule = schedule_steps(reference_interpolant(times, np.asarray(rotor)), sequencer)
+    schedule = schedule_steps(reference_interpolant(times, np.asarray(rotor)), sequencer,
+                              trigger=scenario.sequencer.trigger)
 
     indices = np.concatenate([[schedule.initial_index], schedule.indices])
     i_a_ref, i_b_ref = sequencer.reference_currents(indices)
@@ -111,8 +114,9 @@ def prepare_inputs(scenario: Scenario, fmu_inputs: frozenset[str] = frozenset())
     grid = output_grid(duration, out.interval, schedule.times, out.step_detail, out.step_interval)
     mechanics = {"theta_p_start": float(panel[0]), "theta_start": 0.0,
                  "r": transmission.pinion_radius, "s": transmission.lever_arm}
+    motor = {"i_a_start": float(i_a_ref[0]), "i_b_start": float(i_b_ref[0])}
     return DriveInputs(window_start=start, duration=duration, reference_times=times,
                        panel_angle_ref=np.asarray(panel, dtype=float), rotor_angle_ref=np.asarray(rotor, dtype=float),
                        sequencer=sequencer, schedule=schedule, signals=tuple(signals),
-                       output_times=grid, mechanics_parameters=mechanics)
+                       output_times=grid, mechanics_parameters=mechanics, motor_parameters=motor)
 

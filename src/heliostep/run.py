@@ -99,15 +99,25 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _mechanics_parameters(scenario: Scenario, inputs: DriveInputs, info) -> dict:
-    """Parameters the scenario implies for the mechanics FMU (those it has), user values first."""
-    implied = {k: v for k, v in inputs.mechanics_parameters.items() if k in info.parameters}
-    user = scenario.parameters.get("mechanics", {})
-    for name, key in (("r", "transmission.pinion_radius"), ("s", "transmission.lever_arm")):
-        if name in user and user[name] != implied.get(name, user[name]):
-            raise InputError(f"parameters.mechanics.{name} = {user[name]} contradicts {key} = "
-                             f"{implied[name]}; set the transmission in {key} only")
-    return {**implied, **user}
+def _implied_parameters(scenario: Scenario, inputs: DriveInputs, infos: dict) -> dict:
+    """Parameters per instance: what the scenario implies (those the FMU has), then the user's.
+
+    The scenario implies the mechanics' initial panel angle and transmission and the
+    motor's initial currents (the drive holds its first step at the window start).
+    """
+    parameters = {name: dict(scenario.parameters.get(name, {})) for name in infos}
+    implied_by_role = {"mechanics": inputs.mechanics_parameters, "motor": inputs.motor_parameters}
+    for role, implied in implied_by_role.items():
+        if role not in infos:
+            continue
+        implied = {k: v for k, v in implied.items() if k in infos[role].parameters}
+        user = parameters[role]
+        for name, key in (("r", "transmission.pinion_radius"), ("s", "transmission.lever_arm")):
+            if role == "mechanics" and name in user and name in implied and user[name] != implied[name]:
+                raise InputError(f"parameters.mechanics.{name} = {user[name]} contradicts {key} = "
+                                 f"{implied[name]}; set the transmission in {key} only")
+        parameters[role] = {**implied, **user}
+    return parameters
 
 
 def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (),
@@ -124,9 +134,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     infos = {name: read_fmu(path) for name, path in fmu_paths.items()}
     fmu_inputs = frozenset(f"{name}.{variable}" for name, info in infos.items() for variable in info.inputs)
     inputs = prepare_inputs(scenario, fmu_inputs)
-    parameters = {name: dict(scenario.parameters.get(name, {})) for name in infos}
-    if "mechanics" in infos:
-        parameters["mechanics"] = _mechanics_parameters(scenario, inputs, infos["mechanics"])
+    parameters = _implied_parameters(scenario, inputs, infos)
     system = CoSimulation(infos, [Connection(s, t) for s, t in scenario.connection_pairs()],
                           inputs.signals, parameters)
     solver = SolverOptions(rtol=scenario.solver.rtol, atol=scenario.solver.atol,

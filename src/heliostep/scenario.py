@@ -47,6 +47,7 @@ from pydantic import (
 )
 
 from heliostep.errors import InputError
+from heliostep.sequencer import PATTERNS, TRIGGERS
 from heliostep.geometry import (
     AXES,
     DEFAULT_MIRROR_SPACING,
@@ -90,7 +91,8 @@ DEFAULT_CONNECTIONS = [
 #: Number of end mirrors in the field; ``mirror.index`` runs from 0 to N - 1, the central one is N // 2.
 N_FIELD_MIRRORS = 13
 #: Energising sequences of the stepper sequencer.
-SEQUENCER_MODES = ("one-phase-on", "two-phase-on", "half-step")
+SEQUENCER_MODES = tuple(PATTERNS)
+SEQUENCER_TRIGGERS = tuple(TRIGGERS)
 
 _INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _CLOCK_TIME = re.compile(r"(\d{1,2}):(\d{2})(?::(\d{2}))?")
@@ -334,6 +336,8 @@ class SequencerConfig(_Section):
     mode: Literal[SEQUENCER_MODES] = Field("one-phase-on", description="energising sequence")
     current: _Real = Field(5.5, gt=0.0, description="[A], phase current")
     step_angle: _Real = Field(1.8, gt=0.0, description="[deg], full step of the rotor")
+    trigger: Literal[SEQUENCER_TRIGGERS] = Field(
+        "midpoint", description="step when the reference crosses the midpoint to the next position, or reaches it")
 
 
 class WindConfig(_Section):
@@ -347,7 +351,7 @@ class SolverConfig(_Section):
 
     rtol: _Real = Field(1.0e-6, gt=0.0, le=0.1, description="relative tolerance")
     atol: _Real | None = Field(None, gt=0.0, description="absolute tolerance, null: the solver's default")
-    max_step: _Real = Field(0.05, gt=0.0, description="[s]")
+    max_step: _Real | None = Field(None, gt=0.0, description="[s], null: no limit")
     max_num_steps: _Count = Field(100_000, gt=0, description="solver steps at most")
 
 

@@ -1,10 +1,13 @@
 """Open-loop stepping: the phase-current sequencer and the step scheduler.
 
 The sequencer turns a step index into the two reference phase currents (pattern × rated
-current). The scheduler decides *when* to step: a step is commanded at the instant the
-reference rotor angle crosses the midpoint between the current commanded position and the
-next one (either direction), so the commanded position is always the reachable position
-nearest to the reference. The instants are the exact roots of a monotone piecewise-cubic
+current). The scheduler decides *when* to step. With the default trigger, ``midpoint``, a step is
+commanded at the instant the reference rotor angle crosses the midpoint between the current
+commanded position and the next one (either direction), so the commanded position is always
+the reachable position nearest to the reference and the error stays within half a step.
+With ``reach`` a step is commanded only when the reference has reached the next position, so
+the rotor lags by up to one step (what a drive that "executes each step when it is due", as
+the paper puts it, does). The instants are the exact roots of a monotone piecewise-cubic
 (PCHIP) interpolant of the reference (:meth:`scipy.interpolate.PPoly.solve`), not samples;
 PCHIP does not overshoot, so a reference that holds still (sun below the horizon) makes no
 spurious step pairs.
@@ -29,6 +32,11 @@ PATTERNS = {
     "two-phase-on": ((1, -1), (-1, -1), (-1, 1), (1, 1)),
     "half-step": ((1, 0), (1, -1), (0, -1), (-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1)),
 }
+
+
+#: Step triggers: the fraction of a step increment the reference must move past the
+#: commanded position before the next step is commanded.
+TRIGGERS = {"midpoint": 0.5, "reach": 1.0}
 
 
 @dataclass(frozen=True)
@@ -114,8 +122,8 @@ def reference_interpolant(times: np.ndarray, rotor_angle_ref: np.ndarray) -> Pch
 
 
 def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
-                   initial_index: int | None = None) -> StepSchedule:
-    """Step instants where the reference crosses the midpoints between positions.
+                   initial_index: int | None = None, trigger: str = "midpoint") -> StepSchedule:
+    """Step instants where the reference moves a trigger fraction past the commanded position.
 
     Parameters
     ----------
@@ -124,42 +132,47 @@ def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
     sequencer : Sequencer
     initial_index : int, optional
         Index commanded at the start; default the one nearest the reference's first value.
+    trigger : {'midpoint', 'reach'}
+        Step when the reference crosses the midpoint to the next position, or reaches it.
 
     Returns
     -------
     StepSchedule
     """
+    if trigger not in TRIGGERS:
+        raise InputError(f"sequencer trigger {trigger!r}: expected one of {', '.join(TRIGGERS)}")
+    fraction = TRIGGERS[trigger]
     start, stop = reference.x[0], reference.x[-1]
-    values = reference.c[-1]  # the value of each piece at its left end
-    low, high = min(values.min(), reference(stop)), max(values.max(), reference(stop))
-    increment, offset = sequencer.increment, sequencer.offset
     if initial_index is None:
         initial_index = sequencer.nearest_index(float(reference(start)))
-
-    first = int(np.floor((low - offset) / increment)) - 1
-    last = int(np.ceil((high - offset) / increment)) + 1
     slope = reference.derivative()
-    crossings = []  # (time, index after the crossing)
-    for k in range(first, last + 1):
-        level = offset + (k + 0.5) * increment  # midpoint between positions k and k+1
-        for t in reference.solve(level, extrapolate=False):
-            if not start < t <= stop:
-                continue
-            rising = _crossing_direction(reference, slope, t, level)
-            if rising != 0:
-                crossings.append((t, k + 1 if rising > 0 else k))
-    crossings.sort()
+    crossings: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
-    times, indices, index = [], [], initial_index
-    for t, new_index in crossings:
-        if new_index == index:  # e.g. touching a level twice at one instant
-            continue
-        if abs(new_index - index) != 1:
-            raise InputError(f"step schedule: the reference jumps by more than one step at t = {t:.6f} s; "
-                             "sample the reference more finely")
+    def crossings_of(level: float) -> tuple[np.ndarray, np.ndarray]:
+        """Times in (start, stop] where the reference crosses ``level``, and the directions."""
+        if level not in crossings:
+            roots = [t for t in reference.solve(level, extrapolate=False) if start < t <= stop]
+            directions = [_crossing_direction(reference, slope, t, level) for t in roots]
+            crossings[level] = (np.array(roots), np.array(directions, dtype=int))
+        return crossings[level]
+
+    def next_crossing(level: float, direction: int, after: float) -> float:
+        times, directions = crossings_of(level)
+        for k in range(np.searchsorted(times, after, side="right"), len(times)):
+            if directions[k] == direction:
+                return float(times[k])
+        return np.inf
+
+    times, indices, index, t = [], [], initial_index, start
+    while True:
+        position = float(sequencer.position(index))
+        up = next_crossing(position + fraction * sequencer.increment, +1, t)
+        down = next_crossing(position - fraction * sequencer.increment, -1, t)
+        if not np.isfinite(min(up, down)):
+            break
+        t, index = (up, index + 1) if up <= down else (down, index - 1)
         times.append(t)
-        indices.append(new_index)
-        index = new_index
+        indices.append(index)
     return StepSchedule(np.array(times, dtype=float), np.array(indices, dtype=int), initial_index)
 
 

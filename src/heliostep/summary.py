@@ -10,6 +10,8 @@ Definitions:
   next step (or at the end of the window for the last one), the rotor is more than half a
   step increment away from the position that step commanded; steps executed = commanded −
   missed;
+- steps lost: how many step increments the rotor ends behind the commanded position
+  (negative: ahead); a slip under load loses whole electrical cycles (4 full steps);
 - settling time of a step: from the step until the rotor stays within
   ``settling_band`` × the step increment of the commanded position (up to the next step);
   ``None`` when it never does.
@@ -96,6 +98,8 @@ def summarize(trace: pd.DataFrame, inputs: DriveInputs) -> dict:
             "per_step": settling,
         }
         summary["missed_step_times_s"] = [o[0] for o in outcomes if o[2]]
+        lag = trace["rotor_angle_cmd"].iloc[-1] - trace[ROTOR_ANGLE].iloc[-1]
+        summary["steps_lost"] = int(np.round(lag / inputs.sequencer.increment))
     if PANEL_ANGLE in trace and len(trace):
         summary["final_panel_angle_deg"] = float(np.degrees(trace[PANEL_ANGLE].iloc[-1]))
     return summary
