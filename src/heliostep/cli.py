@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "heliostep.geometry_cli",
     "heliostep.run",
     "heliostep.compare_cli",
+    "heliostep.regress",
 )
 
 

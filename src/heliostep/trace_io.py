@@ -163,7 +163,7 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
                 raise InputError(f"metadata key {key!r} is reserved in Parquet files")
         arrow = pa.table({c: pa.array(table[c].to_numpy(), type=pa.float64()) for c in table.columns})
         arrow = arrow.replace_schema_metadata({k.encode(): v.encode() for k, v in meta.items()})
-        pq.write_table(arrow, path)
+        pq.write_table(arrow, path, compression="zstd")
     else:
         with open(path, "w", encoding="utf-8", newline="") as fh:
             for key, value in meta.items():
