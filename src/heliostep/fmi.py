@@ -63,6 +63,8 @@ class FMUInfo:
     n_event_indicators: int
     #: output name -> names of the inputs it depends on directly (direct feedthrough)
     output_feedthrough: dict[str, list[str]] = field(default_factory=dict)
+    #: whether fmi2CompletedIntegratorStep must be called after each integrator step
+    needs_completed_integrator_step: bool = True
     description: object = None  # fmpy's ModelDescription
 
     def names(self, causality: str) -> list[str]:
@@ -134,7 +136,8 @@ def read_fmu(path: str | Path) -> FMUInfo:
         model_identifier=description.modelExchange.modelIdentifier, guid=description.guid,
         variables=variables, states=states,
         n_event_indicators=description.numberOfEventIndicators or 0,
-        output_feedthrough=feedthrough, description=description)
+        output_feedthrough=feedthrough, description=description,
+        needs_completed_integrator_step=bool(description.modelExchange.needsCompletedIntegratorStep))
 
 
 _extracted: dict[tuple[str, float], str] = {}
@@ -156,6 +159,20 @@ def _extract(path: Path) -> str:
 
 
 _STATUS = ["fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending"]
+
+#: Prototypes of the calls on the integrator's hot path, taking plain addresses (ints) for
+#: arrays: converting an int is much cheaper for ctypes than a typed pointer.
+_ARRAY_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t)
+_VALUES_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
+_TIME_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double)
+_HOT_CALLS = {"fmi2SetTime": _TIME_CALL, "fmi2SetContinuousStates": _ARRAY_CALL,
+              "fmi2GetContinuousStates": _ARRAY_CALL, "fmi2GetDerivatives": _ARRAY_CALL,
+              "fmi2GetEventIndicators": _ARRAY_CALL, "fmi2GetReal": _VALUES_CALL, "fmi2SetReal": _VALUES_CALL}
+
+
+def address(pointer) -> int:
+    """The address of a ctypes pointer (e.g. the data of a SUNDIALS vector) as an int."""
+    return ctypes.cast(pointer, ctypes.c_void_p).value or 0
 
 
 @dataclass(frozen=True)
@@ -212,6 +229,7 @@ class ModelExchangeInstance:
             raise FMIError("fmi2Instantiate", instance_name, f"failure ({exc})", self.messages) from None
         self._component = self._model.component
         self._functions = self._model._functions
+        self._hot = {name: prototype((name, self._model.dll)) for name, prototype in _HOT_CALLS.items()}
         # buffers with cached pointers for the calls on the integrator's hot path
         self._x, self._dx = np.zeros(self.n_states), np.zeros(self.n_states)
         self._z = np.zeros(self.n_event_indicators)
@@ -250,6 +268,48 @@ class ModelExchangeInstance:
 
         refs = list(value_references)
         return (fmi2ValueReference * len(refs))(*refs), len(refs)
+
+    def _check(self, function: str, status: int) -> None:
+        """The error path of the hot calls (same as :meth:`_call`)."""
+        if status > 1:
+            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+            raise FMIError(function, self.name, label, self.messages)
+
+    # ------------------------------------------------------------------ hot path (addresses)
+    def set_states_at(self, address: int) -> None:
+        """fmi2SetContinuousStates from ``n_states`` doubles at ``address``."""
+        self._check("fmi2SetContinuousStates",
+                    self._hot["fmi2SetContinuousStates"](self._component, address, self.n_states))
+
+    def get_states_at(self, address: int) -> None:
+        """fmi2GetContinuousStates into ``n_states`` doubles at ``address``."""
+        self._check("fmi2GetContinuousStates",
+                    self._hot["fmi2GetContinuousStates"](self._component, address, self.n_states))
+
+    def get_derivatives_at(self, address: int) -> None:
+        """fmi2GetDerivatives into ``n_states`` doubles at ``address``."""
+        self._check("fmi2GetDerivatives", self._hot["fmi2GetDerivatives"](self._component, address, self.n_states))
+
+    def get_event_indicators_at(self, address: int) -> None:
+        """fmi2GetEventIndicators into ``n_event_indicators`` doubles at ``address``."""
+        self._check("fmi2GetEventIndicators",
+                    self._hot["fmi2GetEventIndicators"](self._component, address, self.n_event_indicators))
+
+    def link(self, outputs: list[str], target: "ModelExchangeInstance", inputs: list[str]):
+        """A call that copies this instance's ``outputs`` to ``target``'s ``inputs`` (one buffer)."""
+        source_vrs = np.array(self.value_references(outputs), dtype=np.uint32)
+        target_vrs = np.array(target.value_references(inputs), dtype=np.uint32)
+        buffer = np.zeros(len(outputs))
+        n, get, put = len(outputs), self._hot["fmi2GetReal"], target._hot["fmi2SetReal"]
+        source_address, target_address = source_vrs.ctypes.data, target_vrs.ctypes.data
+        buffer_address = buffer.ctypes.data
+        keep = (source_vrs, target_vrs, buffer)  # the arrays must outlive the closure's addresses
+
+        def copy() -> None:
+            self._check("fmi2GetReal", get(self._component, source_address, n, buffer_address))
+            target._check("fmi2SetReal", put(target._component, target_address, n, buffer_address))
+        copy.keep = keep
+        return copy
 
     # ------------------------------------------------------------------ variables
     def value_references(self, names: Iterable[str]) -> list[int]:
@@ -342,7 +402,7 @@ class ModelExchangeInstance:
         return bool(enter.value), bool(terminate.value)
 
     def set_time(self, time: float) -> None:
-        self._call("fmi2SetTime", time)
+        self._check("fmi2SetTime", self._hot["fmi2SetTime"](self._component, time))
 
     def get_states(self, out: np.ndarray | None = None) -> np.ndarray:
         """Continuous states, into ``out`` if given (else a new array)."""

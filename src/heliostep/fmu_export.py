@@ -184,7 +184,7 @@ def model_description(model: FlatModel, layout: Layout, guid: str, evaluate: ca.
     me = ET.SubElement(root, "ModelExchange", {
         "modelIdentifier": model.name, "canGetAndSetFMUstate": "false",
         "canSerializeFMUstate": "false", "providesDirectionalDerivative": "false",
-        "canNotUseMemoryManagementFunctions": "false",
+        "canNotUseMemoryManagementFunctions": "false", "completedIntegratorStepNotNeeded": "true",
     })
     source_files = ET.SubElement(me, "SourceFiles")
     for name in SOURCE_FILES:

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.errors import HeliostepError, InputError
-from heliostep.fmi import FMUInfo, ModelExchangeInstance
+from heliostep.fmi import FMUInfo, ModelExchangeInstance, address
 
 
 class SimulationError(HeliostepError):
@@ -177,14 +177,28 @@ class CoSimulation:
                 raise InputError(f"connection {c.source} -> {c.target}: units differ "
                                  f"({source.unit!r} vs {target.unit!r})")
 
+    def _prerequisites(self, c: Connection) -> list[Connection]:
+        """Connections that set an input which ``c``'s source output depends on directly."""
+        feeds = {x.target: x for x in self.connections}  # input -> connection driving it
+        instance, output = _split(c.source, "connection source")
+        depends = self.fmus[instance].output_feedthrough.get(output, [])
+        return [feeds[f"{instance}.{name}"] for name in depends if f"{instance}.{name}" in feeds]
+
+    def propagation_groups(self) -> list[tuple[str, str, list[Connection]]]:
+        """Connections batched as (source instance, target instance, connections), in an order
+        where each batch's outputs depend only on inputs set by earlier batches."""
+        level: dict[Connection, int] = {}
+        for c in self.order:  # prerequisites come earlier in self.order
+            level[c] = 1 + max((level[p] for p in self._prerequisites(c)), default=0)
+        groups: dict[tuple[int, str, str], list[Connection]] = {}
+        for c in self.order:
+            key = (level[c], _split(c.source, "source")[0], _split(c.target, "target")[0])
+            groups.setdefault(key, []).append(c)
+        return [(src, dst, members) for (_, src, dst), members in sorted(groups.items(), key=lambda kv: kv[0][0])]
+
     def _propagation_order(self) -> list[Connection]:
         """Connections sorted so that an output is read only after the inputs it depends on are set."""
-        feeds = {c.target: c for c in self.connections}  # input -> connection driving it
-
-        def prerequisites(c: Connection) -> list[Connection]:
-            instance, output = _split(c.source, "connection source")
-            depends = self.fmus[instance].output_feedthrough.get(output, [])
-            return [feeds[f"{instance}.{name}"] for name in depends if f"{instance}.{name}" in feeds]
+        prerequisites = self._prerequisites
 
         order, state = [], {}  # state: 1 visiting, 2 done
 
@@ -265,50 +279,48 @@ class _Run:
             instance, variable = _split(item.target, "input target")
             self.input_writers.append((k, self.units[instance].fmu.writer([variable])))
         self.links = []
-        for c in self.system.order:
-            src_instance, src_variable = _split(c.source, "source")
-            dst_instance, dst_variable = _split(c.target, "target")
-            self.links.append((self.units[src_instance].fmu.reader([src_variable]),
-                               self.units[dst_instance].fmu.writer([dst_variable])))
+        for source, target, connections in self.system.propagation_groups():
+            outputs = [_split(c.source, "source")[1] for c in connections]
+            inputs = [_split(c.target, "target")[1] for c in connections]
+            self.links.append(self.units[source].fmu.link(outputs, self.units[target].fmu, inputs))
+        self.needs_step_call = [u for u in self.units_list if u.info.needs_completed_integrator_step]
+        # (unit, byte offset of its states, of its event indicators) for the CVODE callbacks
+        self.state_units = [(u, 8 * int(lo)) for u, lo in zip(self.units_list, self.offsets[:-1]) if u.n_states]
+        self.indicator_units = [(u, 8 * int(lo)) for u, lo in zip(self.units_list, self.z_offsets[:-1])
+                                if u.n_indicators]
 
     def _apply_inputs(self) -> None:
         for k, write in self.input_writers:
             write([self.input_values[k]])
 
     def _propagate(self) -> None:
-        for read, write in self.links:
-            write(read())
+        for copy in self.links:
+            copy()
 
     # --------------------------------------------------------------- CVODE callbacks
-    def _view(self, pointer, n):
-        return np.ctypeslib.as_array(pointer, (n,))
-
+    # CVODE hands over pointers to its vectors; the FMUs read and write them in place.
     def get_x(self, pointer, n):
-        x = self._view(pointer, n)
-        for unit, lo, hi in self._slices():
-            if unit.n_states:
-                unit.fmu.get_states(x[lo:hi])
+        base = address(pointer)
+        for unit, offset in self.state_units:
+            unit.fmu.get_states_at(base + offset)
 
     def set_x(self, pointer, n):
-        x = self._view(pointer, n)
-        for unit, lo, hi in self._slices():
-            if unit.n_states:
-                unit.fmu.set_states(x[lo:hi])
+        base = address(pointer)
+        for unit, offset in self.state_units:
+            unit.fmu.set_states_at(base + offset)
 
     def get_dx(self, pointer, n):
         self.counts["rhs"] += 1
-        dx = self._view(pointer, n)
         self._propagate()
-        for unit, lo, hi in self._slices():
-            if unit.n_states:
-                unit.fmu.get_derivatives(dx[lo:hi])
+        base = address(pointer)
+        for unit, offset in self.state_units:
+            unit.fmu.get_derivatives_at(base + offset)
 
     def get_z(self, pointer, n):
-        z = self._view(pointer, n)
         self._propagate()
-        for unit, lo, hi in zip(self.units_list, self.z_offsets[:-1], self.z_offsets[1:]):
-            if unit.n_indicators:
-                unit.fmu.get_event_indicators(z[lo:hi])
+        base = address(pointer)
+        for unit, offset in self.indicator_units:
+            unit.fmu.get_event_indicators_at(base + offset)
 
     def get_nominals(self, pointer, n):
         nominals = self._view(pointer, n)
@@ -327,6 +339,10 @@ class _Run:
 
     def _slices(self):
         return zip(self.units_list, self.offsets[:-1], self.offsets[1:])
+
+    @staticmethod
+    def _view(pointer, n):
+        return np.ctypeslib.as_array(pointer, (n,))
 
     # --------------------------------------------------------------- recording
     def record(self, t: float) -> None:
@@ -425,7 +441,7 @@ class _Run:
             self.set_time(t)
             self._propagate()
             step_event = False
-            for unit in self.units_list:
+            for unit in self.needs_step_call:
                 enter, terminate = unit.fmu.completed_integrator_step()
                 step_event |= enter
                 if terminate:
