@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
+from scipy.interpolate import PchipInterpolator, PPoly
 
 from heliostep.errors import InputError
 
@@ -147,11 +147,26 @@ def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
         initial_index = sequencer.nearest_index(float(reference(start)))
     slope = reference.derivative()
     crossings: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    # PCHIP is monotone on every interval, so only the pieces whose end values bracket a level
+    # can cross it: solve just those (solving the whole spline per level is O(pieces)).
+    knots = reference.x
+    ends = reference(knots)
+    piece_low, piece_high = np.minimum(ends[:-1], ends[1:]), np.maximum(ends[:-1], ends[1:])
+    margin = 1e-12 * max(1.0, float(np.abs(ends).max()))
+
+    def solve(level: float) -> list[float]:
+        pieces = np.nonzero((piece_low - margin <= level) & (level <= piece_high + margin))[0]
+        roots = []
+        for k in pieces:
+            piece = PPoly(reference.c[:, k:k + 1], knots[k:k + 2], extrapolate=False)
+            roots += [t for t in piece.solve(level, extrapolate=False) if np.isfinite(t)]
+        roots = sorted(roots)
+        return [t for i, t in enumerate(roots) if i == 0 or t - roots[i - 1] > 1e-12 * max(1.0, abs(t))]
 
     def crossings_of(level: float) -> tuple[np.ndarray, np.ndarray]:
         """Times in (start, stop] where the reference crosses ``level``, and the directions."""
         if level not in crossings:
-            roots = [t for t in reference.solve(level, extrapolate=False) if start < t <= stop]
+            roots = [t for t in solve(level) if start < t <= stop]
             directions = [_crossing_direction(reference, slope, t, level) for t in roots]
             crossings[level] = (np.array(roots), np.array(directions, dtype=int))
         return crossings[level]
