@@ -33,6 +33,7 @@ def run_output(tmp_path_factory):
         "--mirror", "6",
         "--spacing", "0.5",
         "--paper-case",
+        "--window-start", "12:00",  # near solar noon, for the half-zenith check below
         "--window-step", "10",
     ]
     status = main(argv)

@@ -11,7 +11,7 @@ Writes to ``--out`` (default ``geometry-out``):
 * with ``--paper-case``: ``paper_case.csv``, ``paper_case_panel_angle.png`` (Fig. 8)
   and ``paper_case_rotor_angle.png`` (Fig. 9) -- 21 January, h = 3 m, central mirror
   (d = 0), secondary axis, a ``--window-minutes`` window from ``--window-start``
-  local clock time (default 12:00-12:05), rotor angle 0 at the window start,
+  local clock time (default 10:00-10:05, as scenarios/jan21-central.yaml), rotor angle 0 at the window start,
   r = 2.5 mm, s = 0.3 m.
 
 The default site is the paper's latitude 40 deg N; longitude 14.25 deg E, sea level
@@ -89,7 +89,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     paper = parser.add_argument_group("the paper's case (Figs. 8 and 9)")
     paper.add_argument("--paper-case", action="store_true", help="also write the paper's reference case")
     paper.add_argument("--paper-date", default=PAPER_DATE, help=f"day of the case (default {PAPER_DATE})")
-    paper.add_argument("--window-start", default="12:00", metavar="HH:MM", help="local clock time (default 12:00)")
+    paper.add_argument("--window-start", default="10:00", metavar="HH:MM", help="local clock time (default 10:00)")
     paper.add_argument("--window-minutes", type=float, default=5.0, help="window length [min] (default 5)")
     paper.add_argument("--window-step", type=float, default=1.0, help="time step in the window [s] (default 1)")
     paper.add_argument(
