@@ -174,7 +174,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
 
 
 def _progress_bar(duration: float):
-    """A tqdm bar over simulated time when on a terminal and not in CI; else None."""
+    """A tqdm bar over simulated time when on a terminal and not in CI (shown after 2 s); else None."""
     if not sys.stderr.isatty() or os.environ.get("CI"):
         return None
     from tqdm import tqdm
@@ -184,7 +184,7 @@ def _progress_bar(duration: float):
             if t - self.n >= 0.01 * self.total or t >= self.total:
                 self.update(t - self.n)
 
-    return Bar(total=duration, unit="s", desc="simulating", mininterval=0.5,
+    return Bar(total=duration, unit="s", desc="simulating", mininterval=0.5, delay=2.0,
                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated [{elapsed}<{remaining}]")
 
 
