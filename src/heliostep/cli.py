@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "heliostep.run",
     "heliostep.compare_cli",
     "heliostep.regress",
+    "heliostep.sweep_cli",
 )
 
 

@@ -526,9 +526,16 @@ def field_distances(n_mirrors: int = 13, spacing: float = DEFAULT_MIRROR_SPACING
 
 
 def field_primary_errors(
-    elevation, azimuth, tube_height, mirror_distances=None, plant_azimuth: float = 0.0
+    elevation, azimuth, tube_height, mirror_distances=None, plant_azimuth: float = 0.0,
+    calibration=None,
 ) -> pd.DataFrame:
     """Primary-angle error of each end mirror when all follow the central mirror's law.
+
+    One motor turns every primary by the same angle, so each mirror's primary is its mounting
+    offset plus the central mirror's primary. With ``calibration`` the offsets are the ones
+    that make every mirror exact when the sun stands there, and the error is the difference
+    in *motion* since; without it the error is the plain difference of the angles (the offset
+    included).
 
     Parameters
     ----------
@@ -537,26 +544,36 @@ def field_primary_errors(
     mirror_distances : array-like, optional  [m]
         Defaults to :func:`field_distances` ().
     plant_azimuth : float, default 0  [deg]
+    calibration : (float, float), optional  [deg]
+        Sun elevation and azimuth at which the mirrors are mounted exact (e.g. solar noon).
 
     Returns
     -------
     pandas.DataFrame  [rad]
-        Own primary minus the central (d = 0) primary; one column per mirror
-        distance, indexed like ``elevation`` (if a Series).
+        Own primary minus the central (d = 0) primary, minus the same at the calibration;
+        one column per mirror distance, indexed like ``elevation`` (if a Series).
     """
     if mirror_distances is None:
         mirror_distances = field_distances()
     distances = _as_float_array(mirror_distances).ravel()
     elevation_values = np.atleast_1d(_as_float_array(elevation))
     azimuth_values = np.atleast_1d(_as_float_array(azimuth))
-    central, _ = two_axis_angles(elevation_values, azimuth_values, 0.0, tube_height, plant_azimuth)
-    own, _ = two_axis_angles(
-        elevation_values[:, None], azimuth_values[:, None], distances[None, :], tube_height, plant_azimuth
-    )
+
+    def own_minus_central(sun_elevation, sun_azimuth):
+        central, _ = two_axis_angles(sun_elevation, sun_azimuth, 0.0, tube_height, plant_azimuth)
+        own, _ = two_axis_angles(
+            sun_elevation[:, None], sun_azimuth[:, None], distances[None, :], tube_height, plant_azimuth
+        )
+        return own - central[:, None]
+
+    errors = own_minus_central(elevation_values, azimuth_values)
+    if calibration is not None:
+        offsets = own_minus_central(np.atleast_1d(float(calibration[0])), np.atleast_1d(float(calibration[1])))
+        errors = errors - offsets
     template = _template(elevation, azimuth)
     index = template.index if template is not None else None
     return pd.DataFrame(
-        own - central[:, None],
+        errors,
         index=index,
         columns=pd.Index(distances, name="mirror_distance"),
     )

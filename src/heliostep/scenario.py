@@ -729,6 +729,26 @@ def validate_scenario(data: Mapping, *, source: str = "<scenario>", folder=None)
     return scenario
 
 
+def read_yaml_file(path: str | Path, what: str):
+    """Read a YAML file the way heliostep reads scenarios (and sweeps).
+
+    YAML 1.2 numbers (``1e-6`` is a float), clock times such as ``10:00`` kept as strings,
+    a key repeated in one mapping refused. Every problem is an :class:`InputError` naming
+    the file (``what`` says which kind of file it is).
+    """
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{source}: {what} file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{source}: cannot read the {what} file: {exc}") from None
+    try:
+        return yaml.load(text, Loader=_ScenarioLoader)  # noqa: S506 - a SafeLoader
+    except yaml.YAMLError as exc:
+        raise InputError(f"{source}: not valid YAML: {_yaml_problem(exc)}") from None
+
+
 def load_scenario(path, overrides: Sequence[str] = ()) -> Scenario:
     """Read, override and validate a scenario file.
 
@@ -758,16 +778,7 @@ def load_scenario(path, overrides: Sequence[str] = ()) -> Scenario:
         raise TypeError("overrides must be a sequence of 'dotted.key=value' strings, not one string")
     path = Path(path)
     source = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{source}: scenario file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{source}: cannot read the scenario file: {exc}") from None
-    try:
-        data = yaml.load(text, Loader=_ScenarioLoader)  # noqa: S506 - a SafeLoader
-    except yaml.YAMLError as exc:
-        raise InputError(f"{source}: not valid YAML: {_yaml_problem(exc)}") from None
+    data = read_yaml_file(path, "scenario")
     if not isinstance(data, dict):
         what = "empty" if data is None else f"a {type(data).__name__}"
         raise InputError(f"{source}: the top level must be a mapping of keys (name, site, window, ...), "

@@ -1,0 +1,177 @@
+"""Plots of a sweep's results table (:mod:`heliostep.sweep`).
+
+:func:`plot_sweep` writes, into a folder:
+
+* ``heatmap_peak_torque.png``, ``heatmap_max_tracking_error.png`` and
+  ``heatmap_primary_sharing_error.png``: the figure over day of year x mirror index
+  (the largest value over the other axes), when the table has at least two days and two
+  mirrors;
+* ``torque_requirement.png``: per day of year, the required motor torque, the paper's
+  2x margin for wind on the simulated peak torque (largest over the mirrors), against
+  the motor's holding torque k_e x I (one line per phase current swept).
+
+Only cases with status "ok" are drawn; a missing cell (failed case) stays blank. Figures
+are built with :class:`matplotlib.figure.Figure` (no pyplot state).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib import colormaps
+from matplotlib.figure import Figure
+
+__all__ = ["HEATMAPS", "TORQUE_FILE", "plot_heatmap", "plot_sweep", "plot_torque_requirement"]
+
+#: (column, PNG, colour-bar label) of each heatmap.
+HEATMAPS = (
+    ("peak_torque_Nm", "heatmap_peak_torque.png", "peak motor torque [N.m]"),
+    ("max_tracking_error_deg", "heatmap_max_tracking_error.png", "max secondary tracking error [deg]"),
+    ("primary_sharing_error_max_deg", "heatmap_primary_sharing_error.png",
+     "max primary error from sharing the central law [deg]"),
+)
+#: PNG of the torque requirement plot.
+TORQUE_FILE = "torque_requirement.png"
+#: Most tick labels on a heatmap axis.
+_MAX_TICKS = 13
+_DPI = 120
+
+
+def _ok_drive_rows(table: pd.DataFrame) -> pd.DataFrame:
+    rows = table[table["status"] == "ok"]
+    if "role" in rows:
+        rows = rows[rows["role"].fillna("drive") == "drive"]
+    return rows
+
+
+def _ticks(count: int) -> np.ndarray:
+    return np.unique(np.linspace(0, count - 1, min(count, _MAX_TICKS)).round().astype(int))
+
+
+def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str) -> Path | None:
+    """One figure of the table over day of year (x) x mirror index (y).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The sweep table: ``day_of_year``, ``mirror_index``, ``status``, ``column``.
+    column : str
+        The figure to show; the largest value over the table's other axes per cell.
+    path : str or Path
+        PNG to write.
+    label : str
+        Colour-bar label (with unit).
+
+    Returns
+    -------
+    Path or None
+        None when the table has no value of ``column`` to show.
+    """
+    rows = _ok_drive_rows(table).dropna(subset=["day_of_year", "mirror_index", column])
+    if rows.empty:
+        return None
+    grid = rows.pivot_table(index="mirror_index", columns="day_of_year", values=column, aggfunc="max")
+    days = [int(d) for d in grid.columns]
+    mirrors = [int(m) for m in grid.index]
+    values = np.ma.masked_invalid(grid.to_numpy(dtype=float))
+    fig = Figure(figsize=(max(6.0, min(14.0, 3.0 + 0.25 * len(days))), 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    colormap = colormaps["viridis"].with_extremes(bad="0.85")  # failed cases: grey
+    image = ax.imshow(values, origin="lower", aspect="auto", interpolation="nearest", cmap=colormap)
+    x_ticks, y_ticks = _ticks(len(days)), _ticks(len(mirrors))
+    ax.set_xticks(x_ticks, [str(days[k]) for k in x_ticks])
+    ax.set_yticks(y_ticks, [str(mirrors[k]) for k in y_ticks])
+    ax.set_xlabel("day of year")
+    ax.set_ylabel("mirror index (6: central)")
+    varied = [c for c in ("current_A", "motor", "mechanics", "wind_moment_Nm") if rows[c].nunique() > 1]
+    note = f" (max over {', '.join(varied)})" if varied else ""
+    ax.set_title(f"{label}{note}")
+    fig.colorbar(image, ax=ax, label=label)
+    path = Path(path)
+    fig.savefig(path, dpi=_DPI)
+    return path
+
+
+def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | None:
+    """Required torque (2 x peak, max over mirrors) per day against the holding torque k_e x I.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The sweep table: ``day_of_year``, ``current_A``, ``required_torque_Nm``,
+        ``holding_torque_Nm``, ``role``, ``status``.
+    path : str or Path
+        PNG to write.
+
+    Returns
+    -------
+    Path or None
+        None when no case has a peak torque.
+    """
+    rows = table[table["status"] == "ok"].dropna(subset=["required_torque_Nm", "day_of_year"])
+    if rows.empty:
+        return None
+    fig = Figure(figsize=(9.0, 4.8), layout="constrained")
+    ax = fig.add_subplot()
+    days = sorted(int(d) for d in rows["day_of_year"].unique())
+    bars = len(days) <= 31
+    series = list(rows.groupby(["role", "current_A"], sort=True))
+    width = 0.8 / max(1, len(series))
+    colors = {}
+    for k, ((role, current), group) in enumerate(series):
+        required = group.groupby("day_of_year")["required_torque_Nm"].max().reindex(days)
+        who = "shared primary" if role == "shared-primary" else "max over mirrors"
+        label = f"required 2 x peak torque, {who}, I = {current:g} A"
+        if bars:
+            positions = np.arange(len(days)) + (k - (len(series) - 1) / 2) * width
+            drawn = ax.bar(positions, required.to_numpy(dtype=float), width, label=label)
+            colors[current] = colors.get(current, drawn.patches[0].get_facecolor())
+        else:
+            (line,) = ax.plot(days, required.to_numpy(dtype=float), label=label)
+            colors[current] = colors.get(current, line.get_color())
+    for current, group in rows.groupby("current_A", sort=True):
+        for holding in sorted(group["holding_torque_Nm"].dropna().unique()):
+            ax.axhline(holding, color=colors.get(current, "k"), linestyle="--", linewidth=1.2,
+                       label=f"holding torque k_e x I = {holding:.3g} N.m (I = {current:g} A)")
+    if bars:
+        ax.set_xticks(np.arange(len(days)), [str(d) for d in days])
+    ax.set_xlabel("day of year")
+    ax.set_ylabel("torque [N.m]")
+    ax.set_title("Motor torque needed with the 2x wind margin vs holding torque")
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize="small")
+    path = Path(path)
+    fig.savefig(path, dpi=_DPI)
+    return path
+
+
+def plot_sweep(table: pd.DataFrame, out_dir: str | Path) -> list[Path]:
+    """Write the sweep's figures (see the module docstring) into ``out_dir``.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        :func:`heliostep.sweep.read_results` or ``SweepOutcome.table``.
+    out_dir : str or Path
+        Created when missing.
+
+    Returns
+    -------
+    list of Path
+        The PNGs written (heatmaps only when the table spans two or more days and mirrors).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    drive = _ok_drive_rows(table)
+    if drive["day_of_year"].nunique() >= 2 and drive["mirror_index"].nunique() >= 2:
+        for column, name, label in HEATMAPS:
+            path = plot_heatmap(table, column, out_dir / name, label)
+            if path is not None:
+                written.append(path)
+    path = plot_torque_requirement(table, out_dir / TORQUE_FILE)
+    if path is not None:
+        written.append(path)
+    return written

@@ -1,0 +1,123 @@
+"""``heliostep sweep SWEEP.yaml``: run a sizing sweep on Dask (see :mod:`heliostep.sweep`).
+
+Writes ``<out>/results.parquet`` (one row per case, written as cases finish) and the
+sweep's figures (:mod:`heliostep.plots.sweep`) into ``--out`` (default
+``out/<sweep name>``). Exit status: 0 when every case is ok, 1 when some case failed,
+2 for bad input (raised as :class:`~heliostep.errors.InputError`, reported by
+:mod:`heliostep.cli`) before any case runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+from heliostep.errors import InputError
+from heliostep.sweep import (
+    SweepOutcome,
+    execute_cases,
+    expand_cases,
+    load_sweep,
+    read_results,
+    sweep_metadata,
+)
+
+__all__ = ["register"]
+
+RESULTS_FILE = "results.parquet"
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``sweep`` command to the ``heliostep`` command line.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        From :meth:`argparse.ArgumentParser.add_subparsers`.
+    """
+    parser = subparsers.add_parser(
+        "sweep", help="run a sizing sweep (days x mirrors x motors ...) on Dask, results in one Parquet table",
+        description="Run every case of a sweep file on a local dask.distributed cluster (one worker "
+                    "process per core) or on --scheduler, writing out/<name>/results.parquet as cases "
+                    "finish; a rerun skips the cases already done. See docs/sweep.md.")
+    parser.add_argument("sweep", type=Path, help="sweep YAML file")
+    parser.add_argument("--out", type=Path, metavar="DIR",
+                        help="folder of results.parquet and the plots (default: out/<sweep name>)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on this Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
+    parser.add_argument("--workers", type=int, metavar="N",
+                        help="worker processes of the local cluster (default: one per core)")
+    parser.add_argument("--connect-timeout", type=float, default=5.0, metavar="SECONDS",
+                        help="how long to try reaching --scheduler (default: 5)")
+    parser.add_argument("--retry-failed", action="store_true",
+                        help="run again the cases recorded as failed (they are skipped otherwise)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--list", action="store_true",
+                        help="list the cases and whether each is done; run nothing")
+    parser.set_defaults(func=_run_command)
+
+
+def _run_command(args: argparse.Namespace) -> int:
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers must be >= 1, got {args.workers}")
+    if args.connect_timeout <= 0:
+        raise InputError(f"--connect-timeout must be > 0 s, got {args.connect_timeout}")
+    spec = load_sweep(args.sweep)
+    cases = expand_cases(spec)
+    out_dir = args.out or Path("out") / spec.name
+    results_path = out_dir / RESULTS_FILE
+    if args.list:
+        print(_case_listing(cases, read_results(results_path)))
+        return 0
+    outcome = execute_cases(cases, results_path, scheduler=args.scheduler, n_workers=args.workers,
+                            connect_timeout=args.connect_timeout, retry_failed=args.retry_failed,
+                            progress=True, metadata=sweep_metadata(spec))
+    plots = []
+    if not args.no_plots and len(outcome.table):
+        from heliostep.plots.sweep import plot_sweep
+
+        plots = plot_sweep(outcome.table, out_dir)
+    print(_report(spec.name, outcome, plots))
+    if outcome.failed:
+        print(f"heliostep sweep: {outcome.failed} case(s) failed; rerun with --retry-failed to try them again",
+              file=sys.stderr)
+    return 1 if outcome.failed else 0
+
+
+def _case_listing(cases, table: pd.DataFrame) -> str:
+    status = dict(zip(table["case_id"], table["status"])) if len(table) else {}
+    lines = [f"{len(cases)} cases"]
+    for case in cases:
+        lines.append(f"  {case.index:5d} {case.case_id} {status.get(case.case_id, 'todo'):6s} {case.label}")
+    return "\n".join(lines)
+
+
+def _report(name: str, outcome: SweepOutcome, plots: list[Path]) -> str:
+    table = outcome.table
+    lines = [f"{name}: {len(table)} cases: {outcome.executed} run now, {outcome.skipped} already done, "
+             f"{outcome.failed} failed -> {outcome.results_path}"]
+    ok = table[table["status"] == "ok"]
+    for column, label, unit in (("max_tracking_error_deg", "max tracking error", "deg"),
+                                ("peak_torque_Nm", "peak torque", "N.m"),
+                                ("required_torque_Nm", "required torque (2 x peak)", "N.m"),
+                                ("primary_sharing_error_max_deg", "primary sharing error", "deg")):
+        values = ok[column].dropna()
+        if len(values):
+            worst = ok.loc[values.idxmax()]
+            lines.append(f"  {label + ' [' + unit + ']':36s} max {values.max():.4g} (case {worst['case_index']}: "
+                         f"{worst['overrides']})")
+    holding = ok["holding_torque_Nm"].dropna()
+    if len(holding):
+        lines.append(f"  {'holding torque k_e x I [N.m]':36s} {', '.join(f'{h:.4g}' for h in sorted(holding.unique()))}")
+    failed = table[table["status"] == "failed"]
+    for row in failed.head(5).itertuples(index=False):
+        first_line = (row.error or "").splitlines()[0] if row.error else ""
+        lines.append(f"  FAILED case {row.case_index} ({row.overrides}): {row.error_type}: {first_line[:200]}")
+    if len(failed) > 5:
+        lines.append(f"  ... and {len(failed) - 5} more failed cases (see the table's error column)")
+    for path in plots:
+        lines.append(f"  plot: {path}")
+    return "\n".join(lines)
