@@ -683,17 +683,26 @@ def _apply_overrides(data: dict, overrides: Sequence[str], source: str) -> dict:
         except yaml.YAMLError as exc:
             raise InputError(f"{source}: --set {override!r}: the value is not valid YAML: "
                              f"{_yaml_problem(exc)}") from None
-        node = data
-        for depth, part in enumerate(parts[:-1]):
-            child = node.get(part)
-            if child is None:
-                child = node[part] = {}
-            elif not isinstance(child, dict):
-                raise InputError(f"{source}: --set {override!r}: {'.'.join(parts[:depth + 1])} is "
-                                 f"{child!r}, not a mapping, so it has no key {parts[depth + 1]!r}")
-            node = child
-        node[parts[-1]] = value
+        set_dotted_key(data, parts, value, f"{source}: --set {override!r}")
     return data
+
+
+def set_dotted_key(data: dict, parts: Sequence[str], value, where: str) -> None:
+    """Set ``data[parts[0]][parts[1]]... = value``, creating missing mappings on the way.
+
+    A part that is already something other than a mapping is an :class:`InputError`
+    starting with ``where``.
+    """
+    node = data
+    for depth, part in enumerate(parts[:-1]):
+        child = node.get(part)
+        if child is None:
+            child = node[part] = {}
+        elif not isinstance(child, dict):
+            raise InputError(f"{where}: {'.'.join(parts[:depth + 1])} is {child!r}, not a mapping, "
+                             f"so it has no key {parts[depth + 1]!r}")
+        node = child
+    node[parts[-1]] = value
 
 
 def validate_scenario(data: Mapping, *, source: str = "<scenario>", folder=None) -> Scenario:

@@ -74,7 +74,8 @@ from heliostep.errors import HeliostepError, InputError
 from heliostep.field import primary_sharing_error
 from heliostep.fmi import read_fmu
 from heliostep.run import RunFailed, run_scenario
-from heliostep.scenario import N_FIELD_MIRRORS, Scenario, load_scenario, read_yaml_file, validate_scenario
+from heliostep.scenario import (N_FIELD_MIRRORS, Scenario, load_scenario, read_yaml_file, set_dotted_key,
+                                validate_scenario)
 
 __all__ = [
     "CASE_COLUMNS",
@@ -517,17 +518,7 @@ def _date_of_day(year: int, day_of_year: int) -> dt.date:
 
 
 def _set_dotted(data: dict, key: str, value, where: str) -> None:
-    parts = key.split(".")
-    node = data
-    for depth, part in enumerate(parts[:-1]):
-        child = node.get(part)
-        if child is None:
-            child = node[part] = {}
-        elif not isinstance(child, dict):
-            raise InputError(f"{where}: {'.'.join(parts[:depth + 1])} is {child!r}, not a mapping, "
-                             f"so it has no key {parts[depth + 1]!r}")
-        node = child
-    node[parts[-1]] = copy.deepcopy(value)
+    set_dotted_key(data, key.split("."), copy.deepcopy(value), where)
 
 
 def _scenario_data(spec: SweepSpec, settings: Iterable[tuple[str, Any]], where: str) -> dict:
