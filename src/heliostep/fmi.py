@@ -232,8 +232,7 @@ class ModelExchangeInstance:
         self._hot = {name: prototype((name, self._model.dll)) for name, prototype in _HOT_CALLS.items()}
         # buffers with cached pointers for the calls on the integrator's hot path
         self._x, self._dx = np.zeros(self.n_states), np.zeros(self.n_states)
-        self._z = np.zeros(self.n_event_indicators)
-        self._x_ptr, self._dx_ptr, self._z_ptr = (self._pointer(a) for a in (self._x, self._dx, self._z))
+        self._x_ptr, self._dx_ptr = self._pointer(self._x), self._pointer(self._dx)
         if parameters:
             self.set_parameters(parameters)
 
@@ -431,15 +430,6 @@ class ModelExchangeInstance:
         out = np.ones(self.n_states)
         if self.n_states:
             self._call("fmi2GetNominalsOfContinuousStates", self._pointer(out), self.n_states)
-        return out
-
-    def get_event_indicators(self, out: np.ndarray | None = None) -> np.ndarray:
-        """Event indicators, into ``out`` if given (else a new array)."""
-        if self.n_event_indicators:
-            self._call("fmi2GetEventIndicators", self._z_ptr, self.n_event_indicators)
-        if out is None:
-            return self._z.copy()
-        out[:] = self._z
         return out
 
     def terminate(self) -> None:
