@@ -49,10 +49,10 @@ def bench_scenario(name: str, repeat: int) -> None:
 def bench_against_monolithic(repeat: int) -> None:
     from fmpy import simulate_fmu
 
-    from heliostep.build import ensure_fmu
-    from heliostep.fmi import read_fmu
-    from heliostep.inputs import prepare_inputs
-    from heliostep.master import CoSimulation, Connection, SolverOptions
+    from heliostep.fmu.build import ensure_fmu
+    from heliostep.cosim.fmi import read_fmu
+    from heliostep.drive.inputs import prepare_inputs
+    from heliostep.cosim.master import CoSimulation, Connection, SolverOptions
     from heliostep.scenario import load_scenario
 
     scenario = load_scenario(SCENARIOS / "jan21-central.yaml")
@@ -113,7 +113,7 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true", help="profile the 5-minute case")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    from heliostep.build import build_all
+    from heliostep.fmu.build import build_all
 
     build_all()
     bench_scenario("jan21-central", args.repeat)

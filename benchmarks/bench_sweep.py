@@ -29,7 +29,7 @@ from pathlib import Path
 import yaml
 from distributed import Client, LocalCluster
 
-from heliostep.build import ensure_fmu
+from heliostep.fmu.build import ensure_fmu
 from heliostep.sweep import execute_cases, expand_cases, load_sweep
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -2,7 +2,7 @@
 
 import pytest
 
-from heliostep.build import build_fmu
+from heliostep.fmu.build import build_fmu
 
 MODELS = ("StepperMotor", "StepperMotorIdealCurrent", "PanelMechanics",
           "PanelMechanicsSmallAngle", "DriveSystem")

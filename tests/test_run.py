@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from heliostep.build import PROJECT_ROOT
+from heliostep.paths import scenarios_dir
 from heliostep.cli import main
 from heliostep.run import RunFailed, run_scenario
-from heliostep.trace_io import read_trace
+from heliostep.results.trace_io import read_trace
 
-SCENARIOS = PROJECT_ROOT / "scenarios"
+SCENARIOS = scenarios_dir()
 STEP = np.pi / 100  # 1.8 deg, Table 3
 PINION_RADIUS, LEVER_ARM = 2.5e-3, 0.3  # Table 2
 RATED_CURRENT, PHASE_RESISTANCE = 5.5, 0.1  # Table 3

@@ -1,3 +1,22 @@
-"""heliostep: co-simulation of the stepper drives of solar-tracking mirrors."""
+"""heliostep: co-simulation of the stepper drives of solar-tracking mirrors.
+
+The one public entry point is :func:`run_scenario` (returning a :class:`RunResult`), re-exported
+here from :mod:`heliostep.run`. The packages follow the data flow, one stage each:
+:mod:`~heliostep.scenario` → :mod:`~heliostep.solar` / :mod:`~heliostep.drive` →
+:mod:`~heliostep.cosim` (with FMUs from :mod:`~heliostep.fmu`) → :mod:`~heliostep.results` →
+:mod:`~heliostep.plots`; :mod:`~heliostep.sweep` runs many scenarios, :mod:`~heliostep.cli` is
+the command line. The layer contracts in ``pyproject.toml`` (import-linter) keep it that way.
+"""
 
 __version__ = "0.1.0"
+
+__all__ = ["RunFailed", "RunResult", "__version__", "run_scenario"]
+
+
+def __getattr__(name: str):
+    # PEP 562: `import heliostep` stays light; the entry point is imported on first use.
+    if name in ("run_scenario", "RunResult", "RunFailed"):
+        from heliostep import run
+
+        return getattr(run, name)
+    raise AttributeError(f"module 'heliostep' has no attribute {name!r}")

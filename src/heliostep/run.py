@@ -1,13 +1,12 @@
 """``run_scenario``: heliostep's one public entry point, and ``heliostep run``.
 
-scenario → inputs (:mod:`heliostep.inputs`) → master (:mod:`heliostep.master`) → trace
-(:mod:`heliostep.trace`) → summary (:mod:`heliostep.summary`) / plots (:mod:`heliostep.plots.run`).
+scenario → inputs (:mod:`heliostep.drive.inputs`) → master (:mod:`heliostep.cosim.master`) → trace
+(:mod:`heliostep.results.trace`) → summary (:mod:`heliostep.results.summary`) / plots (:mod:`heliostep.plots.run`).
 A run that fails part-way still returns (and writes) the trace so far, marked incomplete.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
@@ -18,18 +17,32 @@ from dataclasses import dataclass, field
 from importlib import metadata as package_metadata
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from heliostep import __version__
-from heliostep.build import ensure_fmu
+from heliostep.cosim import (
+    Connection,
+    CoSimulation,
+    FMUInfo,
+    PiecewiseConstant,
+    SimulationError,
+    SolverOptions,
+    read_fmu,
+)
+from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import HeliostepError, InputError
-from heliostep.fmi import read_fmu
-from heliostep.inputs import DriveInputs, prepare_inputs
-from heliostep.master import CoSimulation, Connection, SimulationError, SolverOptions
-from heliostep.scenario import Scenario, load_scenario
-from heliostep.summary import summarize
-from heliostep.trace import UNITS, assemble_trace
-from heliostep.trace_io import write_trace
+from heliostep.fmu.build import ensure_fmu
+from heliostep.results.summary import summarize
+from heliostep.results.trace import UNITS, assemble_trace, drive_metadata
+from heliostep.results.trace_io import write_trace
+from heliostep.scenario import (
+    INPUT_ROLES,
+    OUTPUT_ROLES,
+    PARAMETER_ROLES,
+    Scenario,
+    load_scenario,
+)
 
 #: Packages whose versions go into a run's metadata.
 VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pandas")
@@ -65,9 +78,10 @@ class RunResult:
 
     def trace_metadata(self) -> dict[str, str]:
         units = {f"unit.{c}": u for c, u in self.metadata.get("units", {}).items() if c in self.trace}
+        roles = {f"role.{r}": c for r, c in self.metadata.get("roles", {}).items() if c in self.trace}
         return {"complete": str(self.complete).lower(), "scenario": self.scenario.name,
                 "window_start": self.metadata["window_start"], "timezone": self.metadata["timezone"],
-                **({"error": self.error} if self.error else {}), **units}
+                **({"error": self.error} if self.error else {}), **units, **roles}
 
     def write(self, out_dir: str | Path, plots: bool = True) -> dict[str, Path]:
         """Write trace (Parquet and CSV), summary.json, metadata.json and plots into ``out_dir``."""
@@ -99,25 +113,60 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _implied_parameters(scenario: Scenario, inputs: DriveInputs, infos: dict) -> dict:
-    """Parameters per instance: what the scenario implies (those the FMU has), then the user's.
+def _check_roles(roles: dict[str, str], infos: dict[str, FMUInfo], scenario: Scenario) -> None:
+    """Every role names a variable its FMU has, with the right causality."""
+    expected = {**{r: "input" for r in INPUT_ROLES}, **{r: "output" for r in OUTPUT_ROLES},
+                **{r: "parameter" for r in PARAMETER_ROLES}}
+    for role, target in roles.items():
+        instance, _, variable = target.partition(".")
+        info = infos[instance]
+        if variable not in info.variables:
+            if role not in scenario.roles.model_fields_set:
+                continue  # a default role this FMU does not have: absent
+            raise InputError(f"{scenario.source}: roles.{role}: {info.path.name} (instance {instance!r}) has no "
+                             f"variable {variable!r}; its {expected[role]}s: {', '.join(info.names(expected[role]))}")
+        causality = info.variables[variable].causality
+        if causality != expected[role]:
+            raise InputError(f"{scenario.source}: roles.{role}: {target} has causality {causality!r}, "
+                             f"expected {expected[role]!r}")
 
-    The scenario implies the mechanics' initial panel angle and transmission and the
-    motor's initial currents (the drive holds its first step at the window start).
-    """
+
+def _present_roles(scenario: Scenario, infos: dict[str, FMUInfo]) -> dict[str, str]:
+    """The scenario's roles that exist in its FMUs (checked), resolved once for the whole run."""
+    roles = scenario.resolved_roles()
+    _check_roles(roles, infos, scenario)
+    return {role: target for role, target in roles.items()
+            if target.partition(".")[2] in infos[target.partition(".")[0]].variables}
+
+
+def _parameters(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str], infos: dict) -> dict:
+    """Parameters per instance: what the scenario implies (through the parameter roles), then the user's."""
     parameters = {name: dict(scenario.parameters.get(name, {})) for name in infos}
-    implied_by_role = {"mechanics": inputs.mechanics_parameters, "motor": inputs.motor_parameters}
-    for role, implied in implied_by_role.items():
-        if role not in infos:
+    transmission_keys = {"pinion_radius": "transmission.pinion_radius", "lever_arm": "transmission.lever_arm"}
+    for role, value in inputs.implied_parameters.items():
+        if role not in roles:
             continue
-        implied = {k: v for k, v in implied.items() if k in infos[role].parameters}
-        user = parameters[role]
-        for name, key in (("r", "transmission.pinion_radius"), ("s", "transmission.lever_arm")):
-            if role == "mechanics" and name in user and name in implied and user[name] != implied[name]:
-                raise InputError(f"parameters.mechanics.{name} = {user[name]} contradicts {key} = "
-                                 f"{implied[name]}; set the transmission in {key} only")
-        parameters[role] = {**implied, **user}
+        instance, _, name = roles[role].partition(".")
+        user = scenario.parameters.get(instance, {})
+        if role in transmission_keys and name in user and user[name] != value:
+            raise InputError(f"{scenario.source}: parameters.{instance}.{name} = {user[name]} contradicts "
+                             f"{transmission_keys[role]} = {value}; set the transmission in "
+                             f"{transmission_keys[role]} only")
+        parameters[instance].setdefault(name, value)
     return parameters
+
+
+def _signals(inputs: DriveInputs, roles: dict[str, str]) -> list[PiecewiseConstant]:
+    """The drive's commands as the master's input signals, into the FMU inputs their roles name."""
+    steps = inputs.schedule.times
+    signals = [PiecewiseConstant("i_a_ref", roles["current_a_ref"], steps, inputs.current_a_ref),
+               PiecewiseConstant("i_b_ref", roles["current_b_ref"], steps, inputs.current_b_ref)]
+    if "wind_moment" in roles:
+        signals.append(PiecewiseConstant("m_ext", roles["wind_moment"], np.zeros(0), np.array([inputs.wind_moment])))
+    elif inputs.wind_moment != 0.0:
+        raise InputError(f"wind.moment = {inputs.wind_moment} N.m, but no FMU input has the role wind_moment "
+                         f"(roles.wind_moment)")
+    return signals
 
 
 def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (),
@@ -130,13 +179,14 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
     started = clock.perf_counter()
-    fmu_paths = {name: ensure_fmu(scenario.fmu_reference(name)) for name in scenario.fmus}
+    search = (scenario.folder / "fmus", Path.cwd() / "fmus")
+    fmu_paths = {name: ensure_fmu(scenario.fmu_reference(name), search) for name in scenario.fmus}
     infos = {name: read_fmu(path) for name, path in fmu_paths.items()}
-    fmu_inputs = frozenset(f"{name}.{variable}" for name, info in infos.items() for variable in info.inputs)
-    inputs = prepare_inputs(scenario, fmu_inputs)
-    parameters = _implied_parameters(scenario, inputs, infos)
+    roles = _present_roles(scenario, infos)
+    inputs = prepare_inputs(scenario)
+    parameters = _parameters(scenario, inputs, roles, infos)
     system = CoSimulation(infos, [Connection(s, t) for s, t in scenario.connection_pairs()],
-                          inputs.signals, parameters)
+                          _signals(inputs, roles), parameters)
     solver = SolverOptions(rtol=scenario.solver.rtol, atol=scenario.solver.atol,
                            max_step=scenario.solver.max_step or float("inf"),
                            max_num_steps=scenario.solver.max_num_steps)
@@ -149,8 +199,8 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
         "scenario": scenario.resolved_dict(), "fmus": {
             name: {"path": str(path), "sha256": _sha256(path), "guid": infos[name].guid}
             for name, path in fmu_paths.items()},
-        "parameters": parameters, "window_start": inputs.window_start.isoformat(),
-        "timezone": scenario.site.timezone, "units": units,
+        "parameters": parameters, "roles": roles, "drive": drive_metadata(inputs),
+        "window_start": inputs.window_start.isoformat(), "timezone": scenario.site.timezone, "units": units,
     }
 
     bar = _progress_bar(inputs.duration) if progress else None
@@ -164,9 +214,9 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     finally:
         if bar:
             bar.close()
-    trace = assemble_trace(raw, inputs)
+    trace = assemble_trace(raw, inputs, roles)
     meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started}
-    run = RunResult(scenario, trace, summarize(trace, inputs) if len(trace) else {}, meta,
+    run = RunResult(scenario, trace, summarize(trace, meta) if len(trace) else {}, meta,
                     complete, error, inputs)
     if not complete:
         raise RunFailed(error, run)
@@ -186,49 +236,3 @@ def _progress_bar(duration: float):
 
     return Bar(total=duration, unit="s", desc="simulating", mininterval=0.5, delay=2.0,
                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated [{elapsed}<{remaining}]")
-
-
-def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
-        "run", help="run a scenario YAML: trace, summary.json, plots and metadata",
-        description="Co-simulate a scenario and write trace.parquet, trace.csv, summary.json, "
-                    "metadata.json and the figures into --out.")
-    parser.add_argument("scenario", type=Path, help="scenario YAML file")
-    parser.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a scenario key, e.g. --set fmus.motor=StepperMotorIdealCurrent")
-    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    parser.set_defaults(func=_run_command)
-
-
-def _run_command(args: argparse.Namespace) -> int:
-    scenario = load_scenario(args.scenario, args.overrides)
-    out_dir = args.out or Path("out") / scenario.name
-    try:
-        result = run_scenario(scenario, progress=True)
-        status = 0
-    except RunFailed as failed:
-        result, status = failed.result, 1
-        print(f"heliostep run: error: {failed}", file=sys.stderr)
-    result.write(out_dir, plots=not args.no_plots)
-    print(_report(result, out_dir))
-    return status
-
-
-def _report(result: RunResult, out_dir: Path) -> str:
-    s = result.summary
-    lines = [f"{result.scenario.name}: {'complete' if result.complete else 'INCOMPLETE'} -> {out_dir}"]
-    for key, label, fmt in (("max_tracking_error_deg", "max tracking error [deg]", "{:.4f}"),
-                            ("rms_tracking_error_deg", "RMS tracking error [deg]", "{:.4f}"),
-                            ("peak_torque_Nm", "peak torque [N.m]", "{:.3f}"),
-                            ("peak_phase_current_A", "peak phase current [A]", "{:.3f}"),
-                            ("electrical_energy_J", "electrical energy [J]", "{:.1f}"),
-                            ("steps_commanded", "steps commanded", "{}"),
-                            ("steps_executed", "steps executed", "{}"),
-                            ("missed_steps", "missed steps", "{}")):
-        if s.get(key) is not None:
-            lines.append(f"  {label:28s} {fmt.format(s[key])}")
-    wall = result.metadata.get("statistics", {}).get("run_wall_time")
-    if wall is not None:
-        lines.append(f"  {'wall time [s]':28s} {wall:.2f}")
-    return "\n".join(lines)

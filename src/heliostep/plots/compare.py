@@ -18,8 +18,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from heliostep.compare import ComparisonResult, SignalEvaluation, SignalResult, evaluate_signal
-from heliostep.trace_io import TIME
+from heliostep.plots.thinning import thin
+from heliostep.results.compare import (
+    ComparisonResult,
+    SignalEvaluation,
+    SignalResult,
+    evaluate_signal,
+)
+from heliostep.results.trace_io import TIME
 
 __all__ = ["plot_signal", "write_report", "png_name"]
 
@@ -33,23 +39,9 @@ def png_name(signal: str) -> str:
     return f"{stem}.png"
 
 
-def _thin(t: np.ndarray, *series: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
-    """Indices to draw: all if few, else the first, last, min and max of each series per time bin."""
-    n = t.size
-    if n <= max_points:
-        return np.arange(n)
-    bins = max(1, max_points // (2 * max(1, len(series))))
-    span = t[-1] - t[0]
-    key = np.zeros(n, dtype=np.int64) if span <= 0 else np.minimum(((t - t[0]) / span * bins).astype(np.int64), bins - 1)
-    keep = [np.array([0, n - 1])]
-    for values in series:
-        finite = np.where(np.isfinite(values), values, 0.0)
-        order = np.lexsort((finite, key))
-        sorted_key = key[order]
-        first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-        last = np.r_[first[1:] - 1, n - 1]
-        keep += [order[first], order[last]]
-    return np.unique(np.concatenate(keep))
+def _thin(t: np.ndarray, *series: np.ndarray) -> np.ndarray:
+    """At most :data:`MAX_POINTS` indices to draw (see :func:`heliostep.plots.thinning.thin`)."""
+    return thin(t, *series, max_buckets=max(1, MAX_POINTS // (2 + 2 * len(series))))
 
 
 def _range(t: np.ndarray, lo: float, hi: float) -> slice:

@@ -25,6 +25,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from heliostep.errors import InputError
+from heliostep.plots.thinning import thin
+from heliostep.scenario import RolesConfig
 
 __all__ = ["FIGURE_FILES", "MAX_BUCKETS", "ZOOM_HALF_WIDTH", "plot_run", "step_times"]
 
@@ -51,43 +53,6 @@ _TALL = (9.0, 6.5)
 
 
 # --------------------------------------------------------------------------- helpers
-def _thin(time: np.ndarray, values: np.ndarray, max_buckets: int = MAX_BUCKETS) -> np.ndarray:
-    """Indices of the samples to draw (all when few; else first, last, min and max per bucket).
-
-    Parameters
-    ----------
-    time : numpy.ndarray  [s]
-        Non-decreasing.
-    values : numpy.ndarray
-        Same length; NaN is allowed.
-    max_buckets : int
-
-    Returns
-    -------
-    numpy.ndarray of int
-        Increasing, so the drawing order (and the two rows of a step instant) is kept.
-    """
-    n = time.size
-    if n <= 4 * max_buckets:
-        return np.arange(n)
-    span = time[-1] - time[0]
-    if span <= 0.0:
-        bucket = np.zeros(n, dtype=np.int64)
-    else:
-        bucket = np.minimum(((time - time[0]) * (max_buckets / span)).astype(np.int64), max_buckets - 1)
-    starts = np.flatnonzero(np.r_[True, bucket[1:] != bucket[:-1]])
-    lengths = np.diff(np.r_[starts, n])
-    ends = starts + lengths - 1
-    segment = np.repeat(np.arange(starts.size), lengths)
-    keep = [starts, ends]
-    for reduce in (np.fmin, np.fmax):  # NaN-ignoring extremes of each bucket
-        extreme = np.repeat(reduce.reduceat(values, starts), lengths)
-        hits = np.flatnonzero(values == extreme)
-        first_hit = np.r_[True, segment[hits][1:] != segment[hits][:-1]] if hits.size else hits.astype(bool)
-        keep.append(hits[first_hit])
-    return np.unique(np.concatenate(keep))
-
-
 def step_times(trace: pd.DataFrame) -> np.ndarray:
     """Instants at which the sequencer steps: where ``step_index`` changes.
 
@@ -174,12 +139,17 @@ class _Clock:
 
 
 class _Trace:
-    """Columns of a trace as float arrays, fetched on demand."""
+    """Columns of a trace as float arrays, fetched on demand; FMU columns found by role."""
 
-    def __init__(self, frame: pd.DataFrame):
+    def __init__(self, frame: pd.DataFrame, roles: Mapping[str, str]):
         self.frame = frame
+        self.roles = dict(roles)
         self.time = frame["time"].to_numpy(dtype=float)
         self._cache = {}
+
+    def col(self, role: str) -> str:
+        """The column of a role (a name no trace has when the role is absent)."""
+        return self.roles.get(role, f"<no {role}>")
 
     def has(self, *columns: str) -> bool:
         return all(column in self.frame.columns for column in columns)
@@ -194,7 +164,7 @@ class _Trace:
 
 
 def _line(ax, clock: _Clock, time: np.ndarray, values: np.ndarray, *args, **kwargs) -> None:
-    keep = _thin(time, values)
+    keep = thin(time, values, max_buckets=MAX_BUCKETS)
     ax.plot(clock.x(time[keep]), values[keep], *args, **kwargs)
 
 
@@ -238,11 +208,11 @@ def _fig09(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
 
 
 def _fig10(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
-    if not trace.has("motor.i_a", "motor.i_b"):
+    if not trace.has(trace.col("current_a"), trace.col("current_b")):
         return None
     fig, axes = _figure(2, _TALL)
     for ax, phase, color in zip(axes, ("a", "b"), ("C0", "C3")):
-        _line(ax, clock, trace.time, trace[f"motor.i_{phase}"], "-", color=color, linewidth=1.0,
+        _line(ax, clock, trace.time, trace[trace.col(f"current_{phase}")], "-", color=color, linewidth=1.0,
               label=f"actual i_{phase}")
         if trace.has(f"i_{phase}_ref"):
             _line(ax, clock, trace.time, trace[f"i_{phase}_ref"], "--", color="k", linewidth=1.0,
@@ -254,10 +224,10 @@ def _fig10(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
 
 
 def _fig11(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
-    if not trace.has("motor.tau"):
+    if not trace.has(trace.col("torque")):
         return None
     fig, axes = _figure()
-    _line(axes[0], clock, trace.time, trace["motor.tau"], color="C2", linewidth=1.0)
+    _line(axes[0], clock, trace.time, trace[trace.col("torque")], color="C2", linewidth=1.0)
     axes[0].axhline(0.0, color="0.5", linewidth=0.8)
     axes[0].set_ylabel("motor torque [N.m]")
     axes[0].set_title(_title("motor torque", 11, context))
@@ -265,7 +235,7 @@ def _fig11(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
 
 
 def _fig12(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
-    if not trace.has("mechanics.theta"):
+    if not trace.has(trace.col("rotor_angle")):
         return None
     fig, axes = _figure()
     ax = axes[0]
@@ -275,7 +245,7 @@ def _fig12(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
     if trace.has("rotor_angle_cmd"):
         _line(ax, clock, trace.time, trace.degrees("rotor_angle_cmd"), "--", color="C1", linewidth=1.0,
               label="commanded (sequencer)")
-    _line(ax, clock, trace.time, trace.degrees("mechanics.theta"), "-", color="C0", linewidth=1.0,
+    _line(ax, clock, trace.time, trace.degrees(trace.col("rotor_angle")), "-", color="C0", linewidth=1.0,
           label="actual")
     ax.set_ylabel("rotor angle [deg]")
     ax.set_title(_title("rotor angle", 12, context))
@@ -284,12 +254,12 @@ def _fig12(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
 
 
 def _fig13(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
-    if not trace.has("mechanics.theta_p", "panel_angle_ref"):
+    if not trace.has(trace.col("panel_angle"), "panel_angle_ref"):
         return None
     fig, axes = _figure(2, _TALL)
     _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), "--", color="k", linewidth=1.2,
           label="desired (reference)")
-    _line(axes[0], clock, trace.time, trace.degrees("mechanics.theta_p"), "-", color="C0", linewidth=1.0,
+    _line(axes[0], clock, trace.time, trace.degrees(trace.col("panel_angle")), "-", color="C0", linewidth=1.0,
           label="actual")
     axes[0].set_ylabel("panel angle [deg]")
     axes[0].set_title(_title("panel tracking", 13, context))
@@ -297,7 +267,7 @@ def _fig13(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
     if trace.has("panel_angle_error"):
         error = trace.degrees("panel_angle_error")
     else:
-        error = trace.degrees("mechanics.theta_p") - trace.degrees("panel_angle_ref")
+        error = trace.degrees(trace.col("panel_angle")) - trace.degrees("panel_angle_ref")
     _line(axes[1], clock, trace.time, error, color="C3", linewidth=1.0)
     axes[1].axhline(0.0, color="0.5", linewidth=0.8)
     axes[1].set_ylabel("tracking error, actual - desired [deg]")
@@ -305,12 +275,12 @@ def _fig13(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
 
 
 def _fig14(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
-    if not trace.has("motor.tau"):
+    if not trace.has(trace.col("torque")):
         return None
     steps = step_times(trace.frame)
     if steps.size == 0:
         return None
-    time, torque = trace.time, trace["motor.tau"]
+    time, torque = trace.time, trace[trace.col("torque")]
     found = _largest_torque_step(time, torque, steps)
     if found is None:
         return None
@@ -319,7 +289,7 @@ def _fig14(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
     lo = np.searchsorted(time, centre - ZOOM_HALF_WIDTH, side="left")
     hi = np.searchsorted(time, centre + ZOOM_HALF_WIDTH, side="right")
     window_time, window_torque = time[lo:hi], torque[lo:hi]
-    keep = _thin(window_time, window_torque)
+    keep = thin(window_time, window_torque, max_buckets=MAX_BUCKETS)
     relative_ms = (window_time[keep] - centre) * 1e3
 
     fig = Figure(figsize=_WIDE, layout="constrained")
@@ -365,7 +335,8 @@ def plot_run(trace: pd.DataFrame, out_dir, metadata: Mapping) -> list[Path]:
         Folder for the PNGs, created if missing.
     metadata : Mapping
         ``window_start`` (ISO local time with offset, e.g. "2025-01-21T10:00:00+01:00"),
-        ``timezone`` (IANA name) and ``scenario`` (name, shown in the titles). Without
+        ``timezone`` (IANA name), ``scenario`` (name, shown in the titles) and ``role.NAME``
+        (the column of each role; default: the shipped FMUs' names). Without
         ``window_start`` the x axis is in seconds from the window start.
 
     Returns
@@ -379,7 +350,8 @@ def plot_run(trace: pd.DataFrame, out_dir, metadata: Mapping) -> list[Path]:
     if trace.empty:
         raise InputError("trace is empty: nothing to plot")
     metadata = {} if metadata is None else metadata
-    columns = _Trace(trace)
+    roles = {**RolesConfig().present(), **{k[5:]: v for k, v in metadata.items() if str(k).startswith("role.")}}
+    columns = _Trace(trace, roles)
     if np.any(np.diff(columns.time) < 0.0) or not np.all(np.isfinite(columns.time)):
         raise InputError("trace time must be finite and non-decreasing")
     clock = _Clock(metadata, columns.time)

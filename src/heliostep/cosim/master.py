@@ -1,0 +1,433 @@
+"""The co-simulation master: several FMI 2.0 Model Exchange FMUs solved as one system.
+
+All continuous states of all FMUs form one vector integrated by SUNDIALS CVODE through
+fmpy (:class:`fmpy.sundials.CVodeSolver`: BDF, Newton iteration, dense Jacobian). On every
+right-hand-side evaluation the master sets time and states of each FMU, propagates outputs
+to connected inputs in the order of the FMUs' direct feedthrough (read from their
+``ModelStructure``) and collects the derivatives.
+
+Discontinuities are handled per FMI 2.0: master-side inputs change only at known instants
+(:class:`PiecewiseConstant`), where the integration stops, every FMU enters event mode, the
+new inputs are set, the ``fmi2NewDiscreteStates`` iteration runs to a fixed point (outputs
+re-propagated between rounds) and CVODE restarts. FMU time events (``nextEventTime``), state
+events (CVODE root finding on all event indicators) and step events
+(``fmi2CompletedIntegratorStep``) go through the same event handling.
+
+The trace has a row at every output time and a row just before and just after every event
+(two rows with the same time), so nothing that happens at a step is lost to interpolation.
+"""
+
+from __future__ import annotations
+
+import time as clock
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from heliostep.cosim.fmi import FMUInfo, ModelExchangeInstance, address
+from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
+from heliostep.errors import HeliostepError, InputError
+
+
+class SimulationError(HeliostepError):
+    """The simulation failed part-way; ``trace`` holds what was computed until then."""
+
+    def __init__(self, message: str, trace: pd.DataFrame, statistics: dict):
+        super().__init__(message)
+        self.trace = trace
+        self.statistics = statistics
+
+
+@dataclass
+class MasterResult:
+    """A finished co-simulation: the trace and the solver statistics."""
+
+    trace: pd.DataFrame
+    statistics: dict = field(default_factory=dict)
+
+
+def _split(qualified: str, what: str) -> tuple[str, str]:
+    instance, dot, variable = qualified.partition(".")
+    if not dot or not instance or not variable:
+        raise InputError(f"{what} {qualified!r}: expected 'instance.variable'")
+    return instance, variable
+
+
+class _Unit:
+    """One FMU instance and the buffers the master uses with it."""
+
+    def __init__(self, name: str, info: FMUInfo, parameters: Mapping[str, float]):
+        self.name = name
+        self.info = info
+        self.fmu = ModelExchangeInstance(info, name, parameters)
+        self.n_states = self.fmu.n_states
+        self.n_indicators = self.fmu.n_event_indicators
+        self.outputs = info.outputs
+        self.read_outputs = self.fmu.reader(self.outputs) if self.outputs else (lambda: np.zeros(0))
+        self.next_event_time: float | None = None
+
+
+class CoSimulation:
+    """Connected Model Exchange FMUs and the inputs the master drives.
+
+    Parameters
+    ----------
+    fmus : mapping of str to FMUInfo
+        FMU instances by name (read with :func:`heliostep.cosim.fmi.read_fmu`).
+    connections : sequence of Connection
+        FMU outputs to FMU inputs. Connected variables must have the same unit.
+    inputs : sequence of PiecewiseConstant
+        Master-side inputs and the FMU inputs they drive.
+    parameters : mapping of str to mapping of str to float, optional
+        Parameter values per instance.
+    """
+
+    def __init__(self, fmus: Mapping[str, FMUInfo], connections: Sequence[Connection] = (),
+                 inputs: Sequence[PiecewiseConstant] = (),
+                 parameters: Mapping[str, Mapping[str, float]] | None = None):
+        parameters = parameters or {}
+        unknown = set(parameters) - set(fmus)
+        if unknown:
+            raise InputError(f"parameters given for unknown FMU instance(s) {sorted(unknown)}; "
+                             f"instances: {', '.join(fmus)}")
+        self.fmus = dict(fmus)
+        self.inputs = list(inputs)
+        self.connections = self._check_connections(connections)
+        self.order = self._propagation_order()
+        self._check_units()
+        self._parameters = {name: dict(parameters.get(name, {})) for name in fmus}
+
+    # ------------------------------------------------------------------ checks
+    def _variable(self, qualified: str, what: str, causality: str):
+        instance, variable = _split(qualified, what)
+        if instance not in self.fmus:
+            raise InputError(f"{what} {qualified!r}: no FMU instance {instance!r}; instances: {', '.join(self.fmus)}")
+        info = self.fmus[instance]
+        if variable not in info.variables:
+            names = info.outputs if causality == "output" else info.inputs
+            raise InputError(f"{what} {qualified!r}: {info.path.name} has no variable {variable!r}; "
+                             f"its {causality}s: {', '.join(names)}")
+        var = info.variables[variable]
+        if var.causality != causality or var.type != "Real":
+            raise InputError(f"{what} {qualified!r}: expected a Real {causality}, it is a "
+                             f"{var.type} {var.causality}")
+        return instance, var
+
+    def _check_connections(self, connections: Sequence[Connection]) -> list[Connection]:
+        driven: dict[str, str] = {}
+        for item in self.inputs:
+            self._variable(item.target, f"input {item.name} target", "input")
+            driven[item.target] = f"master input {item.name}"
+        for c in connections:
+            self._variable(c.source, "connection source", "output")
+            self._variable(c.target, "connection target", "input")
+            if c.target in driven:
+                raise InputError(f"{c.target} is driven twice: by {driven[c.target]} and by {c.source}")
+            driven[c.target] = c.source
+        return list(connections)
+
+    def _check_units(self) -> None:
+        for c in self.connections:
+            _, source = self._variable(c.source, "connection source", "output")
+            _, target = self._variable(c.target, "connection target", "input")
+            if source.unit and target.unit and source.unit != target.unit:
+                raise InputError(f"connection {c.source} -> {c.target}: units differ "
+                                 f"({source.unit!r} vs {target.unit!r})")
+
+    def _prerequisites(self, c: Connection) -> list[Connection]:
+        """Connections that set an input which ``c``'s source output depends on directly."""
+        feeds = {x.target: x for x in self.connections}  # input -> connection driving it
+        instance, output = _split(c.source, "connection source")
+        depends = self.fmus[instance].output_feedthrough.get(output, [])
+        return [feeds[f"{instance}.{name}"] for name in depends if f"{instance}.{name}" in feeds]
+
+    def propagation_groups(self) -> list[tuple[str, str, list[Connection]]]:
+        """Connections batched as (source instance, target instance, connections), in an order
+        where each batch's outputs depend only on inputs set by earlier batches."""
+        level: dict[Connection, int] = {}
+        for c in self.order:  # prerequisites come earlier in self.order
+            level[c] = 1 + max((level[p] for p in self._prerequisites(c)), default=0)
+        groups: dict[tuple[int, str, str], list[Connection]] = {}
+        for c in self.order:
+            key = (level[c], _split(c.source, "source")[0], _split(c.target, "target")[0])
+            groups.setdefault(key, []).append(c)
+        return [(src, dst, members) for (_, src, dst), members in sorted(groups.items(), key=lambda kv: kv[0][0])]
+
+    def _propagation_order(self) -> list[Connection]:
+        """Connections sorted so that an output is read only after the inputs it depends on are set."""
+        prerequisites = self._prerequisites
+
+        order, state = [], {}  # state: 1 visiting, 2 done
+
+        def visit(c: Connection, path: list[Connection]) -> None:
+            if state.get(c) == 2:
+                return
+            if state.get(c) == 1:
+                cycle = path[path.index(c):] + [c]
+                raise InputError("algebraic loop of direct feedthrough between FMUs: "
+                                 + " -> ".join(f"{x.source} -> {x.target}" for x in cycle[:-1])
+                                 + "; break it with a state or remove a connection")
+            state[c] = 1
+            for before in prerequisites(c):
+                visit(before, path + [c])
+            state[c] = 2
+            order.append(c)
+
+        for c in self.connections:
+            visit(c, [])
+        return order
+
+    # ------------------------------------------------------------------ simulation
+    def simulate(self, start_time: float, stop_time: float, output_times: np.ndarray | None = None,
+                 solver: SolverOptions | None = None,
+                 progress: Callable[[float], None] | None = None) -> MasterResult:
+        """Integrate from ``start_time`` to ``stop_time`` [s].
+
+        Returns the trace with a row at each of ``output_times`` (default: start and stop)
+        and rows just before/after each event. On failure raises :class:`SimulationError`
+        carrying the trace so far.
+        """
+        if not stop_time > start_time:
+            raise InputError(f"stop time {stop_time} must be after start time {start_time}")
+        solver = solver or SolverOptions()
+        grid = np.unique(np.clip(np.asarray([start_time, stop_time] if output_times is None
+                                            else output_times, dtype=float), start_time, stop_time))
+        run = _Run(self, solver, progress)
+        try:
+            run.execute(start_time, stop_time, grid)
+        except (HeliostepError, RuntimeError) as exc:
+            raise SimulationError(f"simulation failed at t = {run.time:.9g} s: {exc}",
+                                  run.trace(), run.statistics()) from exc
+        finally:
+            run.close()
+        return MasterResult(run.trace(), run.statistics())
+
+
+class _Run:
+    """State of one integration (instances, CVODE, recorded rows)."""
+
+    def __init__(self, system: CoSimulation, solver: SolverOptions, progress):
+        self.system = system
+        self.options = solver
+        self.progress = progress
+        self.units: dict[str, _Unit] = {}
+        self.rows: list[np.ndarray] = []
+        self.time = np.nan
+        self.counts = {"rhs": 0, "integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
+        self.wall_start = clock.perf_counter()
+        self.input_values = np.array([item.values[0] for item in system.inputs], dtype=float)
+        self.columns = ["time"] + [item.name for item in system.inputs]
+        for name, info in system.fmus.items():
+            self.columns += [f"{name}.{output}" for output in info.outputs]
+
+    # --------------------------------------------------------------- setup
+    def _instantiate(self, start_time: float) -> None:
+        for name, info in self.system.fmus.items():
+            self.units[name] = unit = _Unit(name, info, self.system._parameters[name])
+            unit.fmu.setup_experiment(start_time)
+            unit.fmu.enter_initialization_mode()
+        self.units_list = list(self.units.values())
+        self.offsets = np.cumsum([0] + [u.n_states for u in self.units_list])
+        self.z_offsets = np.cumsum([0] + [u.n_indicators for u in self.units_list])
+        self.n_states = int(self.offsets[-1])
+        self.n_indicators = int(self.z_offsets[-1])
+        self.input_writers = []
+        for k, item in enumerate(self.system.inputs):
+            instance, variable = _split(item.target, "input target")
+            self.input_writers.append((k, self.units[instance].fmu.writer([variable])))
+        self.links = []
+        for source, target, connections in self.system.propagation_groups():
+            outputs = [_split(c.source, "source")[1] for c in connections]
+            inputs = [_split(c.target, "target")[1] for c in connections]
+            self.links.append(self.units[source].fmu.link(outputs, self.units[target].fmu, inputs))
+        self.needs_step_call = [u for u in self.units_list if u.info.needs_completed_integrator_step]
+        # (unit, byte offset of its states, of its event indicators) for the CVODE callbacks
+        self.state_units = [(u, 8 * int(lo)) for u, lo in zip(self.units_list, self.offsets[:-1]) if u.n_states]
+        self.indicator_units = [(u, 8 * int(lo)) for u, lo in zip(self.units_list, self.z_offsets[:-1])
+                                if u.n_indicators]
+
+    def _apply_inputs(self) -> None:
+        for k, write in self.input_writers:
+            write([self.input_values[k]])
+
+    def _propagate(self) -> None:
+        for copy in self.links:
+            copy()
+
+    # --------------------------------------------------------------- CVODE callbacks
+    # CVODE hands over pointers to its vectors; the FMUs read and write them in place.
+    def get_x(self, pointer, n):
+        base = address(pointer)
+        for unit, offset in self.state_units:
+            unit.fmu.get_states_at(base + offset)
+
+    def set_x(self, pointer, n):
+        base = address(pointer)
+        for unit, offset in self.state_units:
+            unit.fmu.set_states_at(base + offset)
+
+    def get_dx(self, pointer, n):
+        self.counts["rhs"] += 1
+        self._propagate()
+        base = address(pointer)
+        for unit, offset in self.state_units:
+            unit.fmu.get_derivatives_at(base + offset)
+
+    def get_z(self, pointer, n):
+        self._propagate()
+        base = address(pointer)
+        for unit, offset in self.indicator_units:
+            unit.fmu.get_event_indicators_at(base + offset)
+
+    def get_nominals(self, pointer, n):
+        nominals = self._view(pointer, n)
+        for unit, lo, hi in self._slices():
+            if unit.n_states:
+                nominals[lo:hi] = unit.fmu.get_nominals()
+        if self.options.atol is not None:  # CVodeSolver uses atol = rtol * nominal
+            nominals[:] = self.options.atol / self.options.rtol
+
+    def set_time(self, t):
+        for unit in self.units_list:
+            unit.fmu.set_time(t)
+
+    def apply(self, t):  # the 'input' object CVodeSolver calls in its root function
+        pass
+
+    def _slices(self):
+        return zip(self.units_list, self.offsets[:-1], self.offsets[1:])
+
+    @staticmethod
+    def _view(pointer, n):
+        return np.ctypeslib.as_array(pointer, (n,))
+
+    # --------------------------------------------------------------- recording
+    def record(self, t: float) -> None:
+        parts = [np.array([t]), self.input_values.copy()]
+        parts += [unit.read_outputs() for unit in self.units_list]
+        self.rows.append(np.concatenate(parts))
+
+    def trace(self) -> pd.DataFrame:
+        data = np.vstack(self.rows) if self.rows else np.zeros((0, len(self.columns)))
+        return pd.DataFrame(data, columns=self.columns)
+
+    def statistics(self) -> dict:
+        return {**self.counts, "wall_time": clock.perf_counter() - self.wall_start,
+                "states": getattr(self, "n_states", 0), "event_indicators": getattr(self, "n_indicators", 0)}
+
+    # --------------------------------------------------------------- events
+    def _event_iteration(self, t: float, new_inputs: bool) -> None:
+        """Event mode at ``t``: set inputs, iterate discrete states to a fixed point."""
+        self.counts["events"] += 1
+        for unit in self.units_list:
+            unit.fmu.enter_event_mode()
+        if new_inputs:
+            self.input_values = np.array([item.value_at(t) for item in self.system.inputs], dtype=float)
+            self._apply_inputs()
+        self._discrete_fixed_point()
+        for unit in self.units_list:
+            unit.fmu.enter_continuous_time_mode()
+
+    def _discrete_fixed_point(self, max_rounds: int = 100) -> bool:
+        """NewDiscreteStates on every FMU, re-propagating outputs, until nothing changes."""
+        changed = False
+        previous = None
+        for _ in range(max_rounds):
+            self._propagate()
+            for unit in self.units_list:
+                result = unit.fmu.update_discrete_states()
+                changed |= result.states_changed
+                unit.next_event_time = result.next_event_time
+                if result.terminate:
+                    raise HeliostepError(f"{unit.name} asked to terminate the simulation at t = {self.time}")
+            outputs = np.concatenate([unit.read_outputs() for unit in self.units_list] or [np.zeros(0)])
+            if previous is not None and np.array_equal(outputs, previous):
+                return changed
+            previous = outputs
+        raise HeliostepError(f"event iteration at t = {self.time} found no fixed point in {max_rounds} rounds")
+
+    # --------------------------------------------------------------- main loop
+    def execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
+        from fmpy.sundials import CVodeSolver
+
+        self.time = start_time
+        self._instantiate(start_time)
+        self._apply_inputs()
+        self._propagate()
+        for unit in self.units_list:
+            unit.fmu.exit_initialization_mode()
+        self._discrete_fixed_point()
+        for unit in self.units_list:
+            unit.fmu.enter_continuous_time_mode()
+        self.record(start_time)
+
+        change_times = np.unique(np.concatenate(
+            [item.times for item in self.system.inputs] or [np.zeros(0)]))
+        change_times = change_times[(change_times > start_time) & (change_times <= stop_time)]
+        solver = CVodeSolver(
+            nx=self.n_states, nz=self.n_indicators, get_x=self.get_x, set_x=self.set_x,
+            get_dx=self.get_dx, get_z=self.get_z, get_nominals=self.get_nominals,
+            set_time=self.set_time, input=self, startTime=start_time,
+            maxStep=self.options.max_step, relativeTolerance=self.options.rtol,
+            maxNumSteps=self.options.max_num_steps)
+
+        t = start_time
+        next_output = next_change = 0
+        while True:
+            # stops closer than this to t count as reached (CVODE cannot integrate that far)
+            eps = 1e-12 * max(1.0, abs(t))
+            while next_output < len(grid) and grid[next_output] <= t + eps:
+                next_output += 1
+            if next_change < len(change_times) and change_times[next_change] <= t + eps:
+                next_change += 1
+                self._event(solver, t, new_inputs=True)
+                continue
+            if t >= stop_time - eps:
+                break
+            time_events = [u.next_event_time for u in self.units_list
+                           if u.next_event_time is not None and u.next_event_time > t + eps]
+            t_output = grid[next_output] if next_output < len(grid) else stop_time
+            t_change = change_times[next_change] if next_change < len(change_times) else np.inf
+            t_time_event = min(time_events) if time_events else np.inf
+            t_next = min(t_output, t_change, t_time_event, stop_time)
+
+            self.counts["integrator_calls"] += 1
+            state_event, _, t = solver.step(t, t_next)
+            self.time = t
+            self.set_time(t)
+            self._propagate()
+            step_event = False
+            for unit in self.needs_step_call:
+                enter, terminate = unit.fmu.completed_integrator_step()
+                step_event |= enter
+                if terminate:
+                    raise HeliostepError(f"{unit.name} asked to terminate the simulation at t = {t}")
+
+            input_event = t >= t_change
+            time_event = t >= t_time_event
+            if input_event:
+                next_change += 1
+            if state_event or step_event or input_event or time_event:
+                self.counts["state_events"] += int(state_event)
+                self.counts["time_events"] += int(time_event)
+                self._event(solver, t, new_inputs=input_event)
+            elif t >= t_output:
+                self.record(t)
+            if self.progress:
+                self.progress(t)
+
+    def _event(self, solver, t: float, new_inputs: bool) -> None:
+        """Record the row before, handle the event at ``t``, restart CVODE, record the row after."""
+        self.record(t)
+        self._event_iteration(t, new_inputs=new_inputs)
+        solver.reset(t)  # re-reads the states (changed or not) and restarts CVODE
+        self.record(t)
+
+    def close(self) -> None:
+        for unit in self.units.values():
+            try:
+                unit.fmu.free()
+            except Exception:  # noqa: BLE001 - freeing must not hide the original error
+                pass

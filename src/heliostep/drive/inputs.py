@@ -1,0 +1,113 @@
+"""From a scenario to what the drive commands: reference, step schedule, phase currents, grid.
+
+This is the second stage of heliostep's one-way data flow
+(scenario → solar / **drive** → cosim → results → plots):
+
+1. the reference panel angle of the scenario's mirror and axis over the window, from the
+   sun's position (pvlib SPA, :mod:`heliostep.solar`) on a grid of at most 10 s;
+2. the reference rotor angle through the transmission law ([paper], eqs. 12–14), 0 at the
+   window start as in the paper;
+3. the step instants where that reference crosses half-step boundaries
+   (:func:`heliostep.drive.sequencer.schedule_steps`, exact roots of a monotone interpolant);
+4. the sequencer's reference currents (piecewise constant, changing at the steps) and the
+   wind moment, as plain arrays (the run hands them to the master by role);
+5. the output grid: regular, plus a finer grid for a while after each step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.interpolate import PchipInterpolator
+
+from heliostep.drive.sequencer import (
+    Sequencer,
+    StepSchedule,
+    reference_interpolant,
+    schedule_steps,
+)
+from heliostep.scenario import Scenario
+from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
+
+#: Longest spacing of the grid on which the sun's position is evaluated [s].
+MAX_REFERENCE_SPACING = 10.0
+
+
+@dataclass(frozen=True)
+class DriveInputs:
+    """Everything the master needs for one scenario, computed from it alone."""
+
+    window_start: pd.Timestamp
+    duration: float
+    reference_times: np.ndarray
+    panel_angle_ref: np.ndarray
+    rotor_angle_ref: np.ndarray
+    sequencer: Sequencer
+    schedule: StepSchedule
+    #: reference phase currents [A]: before the first step, then from each step on
+    current_a_ref: np.ndarray
+    current_b_ref: np.ndarray
+    #: constant external moment on the panel [N.m]
+    wind_moment: float
+    output_times: np.ndarray
+    #: parameter values the scenario implies, by role (initial panel and rotor angle,
+    #: transmission, initial phase currents: the drive holds its first step at the start)
+    implied_parameters: dict = field(default_factory=dict)
+
+    def panel_reference(self) -> PchipInterpolator:
+        """Reference panel angle [rad] over time [s] (the same interpolation as the steps)."""
+        return PchipInterpolator(self.reference_times, self.panel_angle_ref, extrapolate=True)
+
+    def rotor_reference(self) -> PchipInterpolator:
+        """Reference rotor angle [rad] over time [s]."""
+        return PchipInterpolator(self.reference_times, self.rotor_angle_ref, extrapolate=True)
+
+
+def reference_times(duration: float) -> np.ndarray:
+    """Times [s] at which the sun is evaluated: at least 600 points, at most 10 s apart."""
+    n = max(600, int(np.ceil(duration / MAX_REFERENCE_SPACING)) + 1)
+    return np.linspace(0.0, duration, n)
+
+
+def output_grid(duration: float, interval: float, step_times: np.ndarray,
+                step_detail: float, step_interval: float) -> np.ndarray:
+    """Regular grid plus, after each step, ``step_detail`` seconds at ``step_interval`` [s]."""
+    regular = np.arange(0.0, duration, interval)
+    detail = np.arange(0.0, step_detail, step_interval)
+    fine = (step_times[:, None] + detail[None, :]).ravel() if len(step_times) else np.zeros(0)
+    grid = np.concatenate([regular, fine, [duration]])
+    return np.unique(grid[(grid >= 0.0) & (grid <= duration)])
+
+
+def prepare_inputs(scenario: Scenario) -> DriveInputs:
+    """Compute the reference, the step schedule, the reference currents and the output grid."""
+    start, end = scenario.window_bounds()
+    duration = (end - start).total_seconds()
+    times = reference_times(duration)
+    index = start + pd.to_timedelta(times, unit="s")
+    mirror = scenario.mirror
+    panel = panel_angle_reference(
+        index, scenario.site.to_site(), scenario.plant.to_plant(), mirror.mirror_distance,
+        axis=mirror.axis, stow=mirror.stow, stow_angle=np.radians(mirror.stow_angle)).to_numpy()
+    transmission = scenario.transmission
+    rotor = rotor_angle_from_panel(panel, panel[0], transmission.pinion_radius, transmission.lever_arm,
+                                   rotor_angle0=0.0)  # [paper], eq. 14, rotor at 0 at the start
+    sequencer = Sequencer(mode=scenario.sequencer.mode, current=scenario.sequencer.current,
+                          step_angle=np.radians(scenario.sequencer.step_angle))
+    schedule = schedule_steps(reference_interpolant(times, np.asarray(rotor)), sequencer,
+                              trigger=scenario.sequencer.trigger)
+
+    indices = np.concatenate([[schedule.initial_index], schedule.indices])
+    i_a_ref, i_b_ref = sequencer.reference_currents(indices)
+    out = scenario.output
+    grid = output_grid(duration, out.interval, schedule.times, out.step_detail, out.step_interval)
+    implied = {"panel_angle_start": float(panel[0]), "rotor_angle_start": 0.0,
+               "pinion_radius": transmission.pinion_radius, "lever_arm": transmission.lever_arm,
+               "current_a_start": float(i_a_ref[0]), "current_b_start": float(i_b_ref[0])}
+    return DriveInputs(window_start=start, duration=duration, reference_times=times,
+                       panel_angle_ref=np.asarray(panel, dtype=float), rotor_angle_ref=np.asarray(rotor, dtype=float),
+                       sequencer=sequencer, schedule=schedule, current_a_ref=np.asarray(i_a_ref, dtype=float),
+                       current_b_ref=np.asarray(i_b_ref, dtype=float), wind_moment=scenario.wind.moment,
+                       output_times=grid, implied_parameters=implied)

@@ -1,0 +1,209 @@
+"""Open-loop stepping: the phase-current sequencer and the step scheduler.
+
+The sequencer turns a step index into the two reference phase currents (pattern × rated
+current). The scheduler decides *when* to step. With the default trigger, ``midpoint``, a step is
+commanded at the instant the reference rotor angle crosses the midpoint between the current
+commanded position and the next one (either direction), so the commanded position is always
+the reachable position nearest to the reference and the error stays within half a step.
+With ``reach`` a step is commanded only when the reference has reached the next position, so
+the rotor lags by up to one step (what a drive that "executes each step when it is due", as
+the paper puts it, does). The instants are the exact roots of a monotone piecewise-cubic
+(PCHIP) interpolant of the reference (:meth:`scipy.interpolate.PPoly.solve`), not samples;
+PCHIP does not overshoot, so a reference that holds still (sun below the horizon) makes no
+spurious step pairs.
+
+Stable positions follow from the torque law C = −k_e i_a sin(N_c θ) − k_e i_b cos(N_c θ)
+([paper], eq. 9): pattern (+1, 0) holds θ = 0, (0, −1) holds θ = π/(2 N_c) (one full step),
+(+1, −1) holds half a step, and so on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator, PPoly
+
+from heliostep.errors import InputError
+from heliostep.scenario import SEQUENCER_MODES, SEQUENCER_TRIGGERS, SequencerConfig
+
+#: Phase patterns (phase A, phase B) per step index, in the order that turns the rotor forward.
+PATTERNS = {
+    "one-phase-on": ((1, 0), (0, -1), (-1, 0), (0, 1)),  # [paper], Table 1
+    "two-phase-on": ((1, -1), (-1, -1), (-1, 1), (1, 1)),
+    "half-step": ((1, 0), (1, -1), (0, -1), (-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1)),
+}
+
+
+#: Step triggers: the fraction of a step increment the reference must move past the
+#: commanded position before the next step is commanded.
+TRIGGERS = {"midpoint": 0.5, "reach": 1.0}
+
+if set(PATTERNS) != set(SEQUENCER_MODES) or set(TRIGGERS) != set(SEQUENCER_TRIGGERS):  # pragma: no cover
+    raise ImportError("heliostep.drive.sequencer: patterns or triggers differ from the scenario's vocabulary")
+
+_DEFAULTS = SequencerConfig()
+
+
+@dataclass(frozen=True)
+class Sequencer:
+    """Phase-current sequencer of a two-phase stepper.
+
+    Parameters
+    ----------
+    mode : {'one-phase-on', 'two-phase-on', 'half-step'}
+    current : float
+        Rated phase current I [A]; reference currents are pattern × I.
+    step_angle : float
+        Full-step angle [rad] (1.8° = π/(2 N_c) for N_c = 50).
+    """
+
+    mode: str = _DEFAULTS.mode
+    current: float = _DEFAULTS.current
+    step_angle: float = float(np.radians(_DEFAULTS.step_angle))
+
+    def __post_init__(self):
+        if self.mode not in PATTERNS:
+            raise InputError(f"sequencer mode {self.mode!r}: expected one of {', '.join(PATTERNS)}")
+        if not self.current > 0:
+            raise InputError(f"sequencer current {self.current!r}: expected > 0 [A]")
+        if not self.step_angle > 0:
+            raise InputError(f"sequencer step_angle {self.step_angle!r}: expected > 0")
+
+    @property
+    def increment(self) -> float:
+        """Rotor angle between successive step indices [rad]."""
+        return self.step_angle / 2 if self.mode == "half-step" else self.step_angle
+
+    @property
+    def offset(self) -> float:
+        """Rotor angle held by step index 0 [rad] (two-phase-on sits half a step on)."""
+        return self.step_angle / 2 if self.mode == "two-phase-on" else 0.0
+
+    def position(self, index):
+        """Rotor angle held by step ``index`` [rad] (vectorised)."""
+        return self.offset + np.asarray(index) * self.increment
+
+    def nearest_index(self, rotor_angle: float) -> int:
+        """Step index whose position is nearest to ``rotor_angle`` [rad]."""
+        return int(np.floor((rotor_angle - self.offset) / self.increment + 0.5))
+
+    def reference_currents(self, index) -> tuple[np.ndarray, np.ndarray]:
+        """Reference currents (i_a, i_b) [A] of step ``index`` (vectorised)."""
+        table = np.array(PATTERNS[self.mode], dtype=float)
+        pattern = table[np.mod(np.asarray(index), len(table))]
+        return pattern[..., 0] * self.current, pattern[..., 1] * self.current
+
+
+@dataclass(frozen=True)
+class StepSchedule:
+    """When the sequencer steps and to which index.
+
+    ``times[k]`` is the instant of the k-th step [s]; from it on the index is ``indices[k]``;
+    before the first step it is ``initial_index``.
+    """
+
+    times: np.ndarray
+    indices: np.ndarray
+    initial_index: int
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def index_at(self, time, side: str = "right") -> np.ndarray:
+        """Commanded index at ``time`` [s]; ``side='left'`` gives the value just before a step."""
+        k = np.searchsorted(self.times, time, side=side)
+        all_indices = np.concatenate([[self.initial_index], self.indices])
+        return all_indices[k]
+
+
+def reference_interpolant(times: np.ndarray, rotor_angle_ref: np.ndarray) -> PchipInterpolator:
+    """Monotone piecewise-cubic interpolant of the reference rotor angle [rad] over time [s]."""
+    times = np.asarray(times, dtype=float)
+    if times.ndim != 1 or len(times) < 2 or np.any(np.diff(times) <= 0):
+        raise InputError("reference times: expected at least two strictly increasing values")
+    if not np.all(np.isfinite(rotor_angle_ref)):
+        raise InputError("reference rotor angle: expected finite values (no NaN)")
+    return PchipInterpolator(times, rotor_angle_ref, extrapolate=False)
+
+
+def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
+                   initial_index: int | None = None, trigger: str = "midpoint") -> StepSchedule:
+    """Step instants where the reference moves a trigger fraction past the commanded position.
+
+    Parameters
+    ----------
+    reference : PchipInterpolator
+        Reference rotor angle [rad] over time [s], from :func:`reference_interpolant`.
+    sequencer : Sequencer
+    initial_index : int, optional
+        Index commanded at the start; default the one nearest the reference's first value.
+    trigger : {'midpoint', 'reach'}
+        Step when the reference crosses the midpoint to the next position, or reaches it.
+
+    Returns
+    -------
+    StepSchedule
+    """
+    if trigger not in TRIGGERS:
+        raise InputError(f"sequencer trigger {trigger!r}: expected one of {', '.join(TRIGGERS)}")
+    fraction = TRIGGERS[trigger]
+    start, stop = reference.x[0], reference.x[-1]
+    if initial_index is None:
+        initial_index = sequencer.nearest_index(float(reference(start)))
+    slope = reference.derivative()
+    crossings: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    # PCHIP is monotone on every interval, so only the pieces whose end values bracket a level
+    # can cross it: solve just those (solving the whole spline per level is O(pieces)).
+    knots = reference.x
+    ends = reference(knots)
+    piece_low, piece_high = np.minimum(ends[:-1], ends[1:]), np.maximum(ends[:-1], ends[1:])
+    margin = 1e-12 * max(1.0, float(np.abs(ends).max()))
+
+    def solve(level: float) -> list[float]:
+        pieces = np.nonzero((piece_low - margin <= level) & (level <= piece_high + margin))[0]
+        roots = []
+        for k in pieces:
+            piece = PPoly(reference.c[:, k:k + 1], knots[k:k + 2], extrapolate=False)
+            roots += [t for t in piece.solve(level, extrapolate=False) if np.isfinite(t)]
+        roots = sorted(roots)
+        return [t for i, t in enumerate(roots) if i == 0 or t - roots[i - 1] > 1e-12 * max(1.0, abs(t))]
+
+    def crossings_of(level: float) -> tuple[np.ndarray, np.ndarray]:
+        """Times in (start, stop] where the reference crosses ``level``, and the directions."""
+        if level not in crossings:
+            roots = [t for t in solve(level) if start < t <= stop]
+            directions = [_crossing_direction(reference, slope, t, level) for t in roots]
+            crossings[level] = (np.array(roots), np.array(directions, dtype=int))
+        return crossings[level]
+
+    def next_crossing(level: float, direction: int, after: float) -> float:
+        times, directions = crossings_of(level)
+        for k in range(np.searchsorted(times, after, side="right"), len(times)):
+            if directions[k] == direction:
+                return float(times[k])
+        return np.inf
+
+    times, indices, index, t = [], [], initial_index, start
+    while True:
+        position = float(sequencer.position(index))
+        up = next_crossing(position + fraction * sequencer.increment, +1, t)
+        down = next_crossing(position - fraction * sequencer.increment, -1, t)
+        if not np.isfinite(min(up, down)):
+            break
+        t, index = (up, index + 1) if up <= down else (down, index - 1)
+        times.append(t)
+        indices.append(index)
+    return StepSchedule(np.array(times, dtype=float), np.array(indices, dtype=int), initial_index)
+
+
+def _crossing_direction(reference, slope, t: float, level: float) -> int:
+    """+1 if the reference crosses ``level`` upwards at ``t``, −1 downwards, 0 if it only touches."""
+    d = float(slope(t))
+    if np.isfinite(d) and d != 0:
+        return 1 if d > 0 else -1
+    eps = 1e-6 * max(1.0, abs(t))
+    before, after = reference(t - eps), reference(t + eps)
+    if np.isnan(before) or np.isnan(after) or (before - level) * (after - level) >= 0:
+        return 0
+    return 1 if after > level else -1

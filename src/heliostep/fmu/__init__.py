@@ -1,0 +1,8 @@
+"""Modelica models -> FMI 2.0 Model Exchange FMUs, built on first use and cached by content.
+
+:mod:`~heliostep.fmu.modelica` (pymoca front end), :mod:`~heliostep.fmu.export` (CasADi code
+generation, modelDescription, gcc, zip), ``c/fmi2_model_exchange.c`` (the FMI C layer written
+once for every model), :mod:`~heliostep.fmu.build` (the content-keyed cache) and
+:mod:`~heliostep.fmu.reference` (variant name or path). Imports nothing of heliostep but
+:mod:`heliostep.errors` and :mod:`heliostep.paths`.
+"""

@@ -1,0 +1,10 @@
+"""A run's results: the trace, its figures, trace files, comparison and regression.
+
+:mod:`~heliostep.results.trace` (the master's rows plus reference, commanded position and
+error), :mod:`~heliostep.results.summary` (figures from a trace and its metadata alone),
+:mod:`~heliostep.results.trace_io` (Parquet/CSV with metadata), :mod:`~heliostep.results.compare`
+(tolerance tubes) and :mod:`~heliostep.results.regress` (shipped scenarios against their
+references). May import :mod:`heliostep.drive`, :mod:`heliostep.scenario` and below; never
+:mod:`heliostep.cli`, :mod:`heliostep.run` or :mod:`heliostep.plots` (but for the report
+writer called on request).
+"""

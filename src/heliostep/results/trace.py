@@ -1,0 +1,68 @@
+"""A run's trace: the master's rows plus the reference, the commanded position and the error.
+
+Columns (SI units, angles in radians; see :data:`UNITS`): ``time`` [s from the window
+start], the master inputs ``i_a_ref``, ``i_b_ref`` (and ``m_ext``), every FMU output as
+``instance.variable``, and the derived ``panel_angle_ref``, ``rotor_angle_ref``,
+``step_index``, ``rotor_angle_cmd`` and ``panel_angle_error`` (actual − reference panel
+angle). At a step two rows share the time: just before and just after it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from heliostep.drive.inputs import DriveInputs
+from heliostep.drive.sequencer import Sequencer, StepSchedule
+
+#: Units of the columns heliostep itself adds to a trace.
+UNITS = {
+    "time": "s", "i_a_ref": "A", "i_b_ref": "A", "m_ext": "N.m", "panel_angle_ref": "rad",
+    "rotor_angle_ref": "rad", "step_index": "1", "rotor_angle_cmd": "rad", "panel_angle_error": "rad",
+}
+
+
+
+def drive_metadata(inputs: DriveInputs) -> dict:
+    """What the results need of the drive, as plain JSON data for a run's metadata."""
+    sequencer, schedule = inputs.sequencer, inputs.schedule
+    return {"mode": sequencer.mode, "current": sequencer.current, "step_angle": sequencer.step_angle,
+            "initial_index": int(schedule.initial_index), "step_times": [float(t) for t in schedule.times],
+            "step_indices": [int(k) for k in schedule.indices]}
+
+
+def drive_from_metadata(drive: dict) -> tuple[Sequencer, StepSchedule]:
+    """The sequencer and the step schedule back from :func:`drive_metadata`'s data."""
+    sequencer = Sequencer(mode=drive["mode"], current=float(drive["current"]), step_angle=float(drive["step_angle"]))
+    schedule = StepSchedule(times=np.asarray(drive["step_times"], dtype=float),
+                            indices=np.asarray(drive["step_indices"], dtype=int),
+                            initial_index=int(drive["initial_index"]))
+    return sequencer, schedule
+
+
+def step_indices(times: np.ndarray, schedule: StepSchedule) -> np.ndarray:
+    """Commanded step index on each row: at a repeated time the first row is before the step."""
+    times = np.asarray(times, dtype=float)
+    first_of_time = np.concatenate([[True], times[1:] != times[:-1]])
+    before = schedule.index_at(times, side="left")
+    after = schedule.index_at(times, side="right")
+    return np.where(first_of_time, before, after)
+
+
+def assemble_trace(master_trace: pd.DataFrame, inputs: DriveInputs, roles: dict[str, str]) -> pd.DataFrame:
+    """Add the reference, the commanded position and the tracking error to the master's trace.
+
+    ``roles`` maps role names to trace columns (``instance.variable``); the tracking error
+    is the ``panel_angle`` role's column minus the reference.
+    """
+    trace = master_trace.copy()
+    time = trace["time"].to_numpy()
+    trace["panel_angle_ref"] = inputs.panel_reference()(time)
+    trace["rotor_angle_ref"] = inputs.rotor_reference()(time)
+    index = step_indices(time, inputs.schedule)
+    trace["step_index"] = index.astype(float)
+    trace["rotor_angle_cmd"] = inputs.sequencer.position(index)
+    panel = roles.get("panel_angle")
+    if panel in trace:
+        trace["panel_angle_error"] = trace[panel] - trace["panel_angle_ref"]
+    return trace

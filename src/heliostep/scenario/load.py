@@ -1,0 +1,108 @@
+"""Loading a scenario: read the YAML, apply ``--set`` overrides, validate; shipped scenarios by name."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from heliostep.errors import InputError
+from heliostep.paths import scenarios_dir
+from heliostep.scenario.keys import apply_overrides
+from heliostep.scenario.model import Scenario
+from heliostep.scenario.problems import format_validation_error
+from heliostep.scenario.yaml_io import read_yaml_file
+
+
+def validate_scenario(data: Mapping, *, source: str = "<scenario>", folder=None) -> Scenario:
+    """Validate a scenario mapping.
+
+    Parameters
+    ----------
+    data : Mapping
+        The scenario, as read from YAML.
+    source : str, default "<scenario>"
+        Named in error messages (the file).
+    folder : str or Path, optional
+        Folder that relative FMU paths resolve against; default the current directory.
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    InputError
+        One line per problem: source, dotted key path, what was expected.
+    """
+    if not isinstance(data, Mapping):
+        raise InputError(f"{source}: the top level must be a mapping of keys (name, site, window, ...), "
+                         f"got {type(data).__name__}")
+    try:
+        scenario = Scenario.model_validate(dict(data))
+    except ValidationError as exc:
+        raise InputError(format_validation_error(exc, source, Scenario)) from None
+    scenario._folder = Path.cwd() if folder is None else Path(folder).absolute()
+    scenario._source = source
+    return scenario
+
+
+
+
+def shipped_scenario_dir() -> Path:
+    """The folder of the scenarios shipped with heliostep."""
+    return scenarios_dir()
+
+
+def resolve_scenario_path(path: str | Path) -> Path:
+    """``path`` if it exists, else the shipped scenario of that name.
+
+    ``jan21-central``, ``jan21-central.yaml`` and ``scenarios/jan21-central.yaml`` (from any
+    directory) name the shipped ``jan21-central.yaml``; a path that is neither is returned as
+    it is (and reported missing by the reader).
+    """
+    path = Path(path)
+    if path.exists() or (path.parent != Path(".") and path.parent.name != "scenarios"):
+        return path
+    name = path.name if path.suffix in (".yaml", ".yml") else f"{path.name}.yaml"
+    shipped = shipped_scenario_dir() / name
+    return shipped if shipped.is_file() else path
+
+
+def load_scenario(path, overrides: Sequence[str] = ()) -> Scenario:
+    """Read, override and validate a scenario file.
+
+    Parameters
+    ----------
+    path : str or Path
+        YAML scenario file, or the name of a shipped scenario (see :func:`resolve_scenario_path`).
+    overrides : sequence of str, default ()
+        ``"dotted.key=value"`` items (the command line's ``--set``), applied in order
+        before validation. The value is YAML (``sequencer.current=3`` is a number,
+        ``fmus.motor=StepperMotorIdealCurrent`` a string, ``fmus.mechanics=`` null);
+        missing intermediate mappings are created.
+
+    Returns
+    -------
+    Scenario
+        Relative FMU paths resolve against the file's folder.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, invalid YAML (with its line), a top level that is
+        not a mapping, a malformed override, or an invalid scenario (one line per
+        problem, each naming the file, the key path and what was expected).
+    """
+    if isinstance(overrides, str):
+        raise TypeError("overrides must be a sequence of 'dotted.key=value' strings, not one string")
+    path = resolve_scenario_path(path)
+    source = str(path)
+    data = read_yaml_file(path, "scenario")
+    if not isinstance(data, dict):
+        what = "empty" if data is None else f"a {type(data).__name__}"
+        raise InputError(f"{source}: the top level must be a mapping of keys (name, site, window, ...), "
+                         f"the file holds {what}")
+    data = apply_overrides(data, overrides, source)
+    return validate_scenario(data, source=source, folder=path.absolute().parent)

@@ -1,0 +1,339 @@
+"""The scenario: one run of the co-simulation, validated (unknown keys are errors)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated
+
+import pandas as pd
+from pydantic import (
+    BeforeValidator,
+    Field,
+    PrivateAttr,
+    field_validator,
+    model_validator,
+)
+
+from heliostep.errors import InputError
+from heliostep.fmu.reference import is_variant_name
+from heliostep.scenario.keys import KeyProblems, dotted
+from heliostep.scenario.roles import REQUIRED_ROLES, RolesConfig
+from heliostep.scenario.sections import (
+    SUNRISE,
+    SUNSET,
+    MirrorConfig,
+    OutputConfig,
+    PlantConfig,
+    Real,
+    Section,
+    SequencerConfig,
+    SiteConfig,
+    SolverConfig,
+    TransmissionConfig,
+    WindConfig,
+    WindowConfig,
+)
+from heliostep.solar import sun_events
+
+#: FMU instances of a scenario without ``fmus``: instance name -> variant name.
+DEFAULT_FMUS = {"motor": "StepperMotor", "mechanics": "PanelMechanics"}
+#: Connections used when a scenario gives no ``connections``: (source, target).
+DEFAULT_CONNECTIONS = [
+    ("motor.tau", "mechanics.tau"),
+    ("mechanics.theta", "motor.theta"),
+    ("mechanics.omega", "motor.omega"),
+]
+
+_INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+#: Top-level keys whose null value means "the defaults".
+_DEFAULTED_KEYS = ("transmission", "fmus", "parameters", "roles", "sequencer", "wind", "solver", "output")
+
+
+def _merge_default_fmus(value):
+    """Entries of ``fmus`` over :data:`DEFAULT_FMUS`; a null entry drops that instance."""
+    if not isinstance(value, Mapping):
+        return value
+    merged = {**DEFAULT_FMUS, **value}
+    return {name: variant for name, variant in merged.items() if variant is not None}
+
+
+def _connection_pair(value):
+    if isinstance(value, (list, tuple)) and len(value) == 2 and all(isinstance(v, str) for v in value):
+        return tuple(value)
+    raise ValueError(f"expected a [source, target] pair of 'instance.variable' strings, got {value!r}")
+
+
+def _endpoint_problem(endpoint: str) -> str | None:
+    instance, dot, variable = endpoint.partition(".")
+    if not dot or not variable or not _INSTANCE_NAME.fullmatch(instance):
+        return f"expected 'instance.variable' (e.g. 'motor.tau'), got {endpoint!r}"
+    return None
+
+
+# --------------------------------------------------------------------------- scenario
+class Scenario(Section):
+    """A validated scenario: one run of the co-simulation.
+
+    Build it with :func:`load_scenario` (from a file) or :func:`validate_scenario`
+    (from a mapping); both raise :class:`~heliostep.errors.InputError` on bad input.
+    """
+
+    name: str = Field(min_length=1, description="name of the run")
+    description: str | None = None
+    site: SiteConfig
+    window: WindowConfig
+    plant: PlantConfig
+    mirror: MirrorConfig
+    transmission: TransmissionConfig = Field(default_factory=TransmissionConfig)
+    fmus: Annotated[dict[str, str], BeforeValidator(_merge_default_fmus)] = Field(
+        default_factory=lambda: dict(DEFAULT_FMUS),
+        description="instance name -> model variant or path to an .fmu; merged over the defaults "
+                    "motor: StepperMotor, mechanics: PanelMechanics (null drops one)",
+    )
+    parameters: dict[str, dict[str, Real]] = Field(
+        default_factory=dict, description="instance name -> {parameter name: value}"
+    )
+    connections: list[Annotated[tuple[str, str], BeforeValidator(_connection_pair)]] | None = Field(
+        None, description="[source, target] pairs 'instance.variable'; null: the default connections"
+    )
+    roles: RolesConfig = Field(default_factory=RolesConfig)
+    sequencer: SequencerConfig = Field(default_factory=SequencerConfig)
+    wind: WindConfig = Field(default_factory=WindConfig)
+    solver: SolverConfig = Field(default_factory=SolverConfig)
+    output: OutputConfig = Field(default_factory=OutputConfig)
+
+    _folder: Path = PrivateAttr(default_factory=Path.cwd)
+    _source: str = PrivateAttr(default="<scenario>")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _empty_means_default(cls, data):
+        """An empty (null) section takes its defaults, e.g. ``wind:`` with its lines commented out."""
+        if not isinstance(data, Mapping):
+            return data
+        data = {key: value for key, value in data.items() if not (value is None and key in _DEFAULTED_KEYS)}
+        if isinstance(data.get("parameters"), Mapping):
+            data["parameters"] = {instance: {} if values is None else values
+                                  for instance, values in data["parameters"].items()}
+        return data
+
+    @field_validator("name")
+    @classmethod
+    def _not_blank(cls, value: str) -> str:
+        if not value.strip():
+            raise ValueError("must not be blank")
+        return value.strip()
+
+    @field_validator("fmus")
+    @classmethod
+    def _fmu_names(cls, fmus: dict[str, str]) -> dict[str, str]:
+        problems = []
+        if not fmus:
+            problems.append(((), "at least one FMU instance is needed"))
+        for instance, variant in fmus.items():
+            if not _INSTANCE_NAME.fullmatch(instance):
+                problems.append(((instance,), "instance names are identifiers (letters, digits, '_', "
+                                              "not starting with a digit)"))
+            if not variant.strip():
+                problems.append(((instance,), "expected a model variant name or a path to an .fmu, got ''"))
+        if problems:
+            raise KeyProblems(problems)
+        return fmus
+
+    @field_validator("connections")
+    @classmethod
+    def _connection_endpoints(cls, connections):
+        if connections is None:
+            return None
+        problems = []
+        for position, pair in enumerate(connections):
+            for side, endpoint in enumerate(pair):
+                problem = _endpoint_problem(endpoint)
+                if problem:
+                    problems.append(((position, side), problem))
+            if pair[0] == pair[1]:
+                problems.append(((position,), f"connects {pair[0]!r} to itself"))
+        if problems:
+            raise KeyProblems(problems)
+        return connections
+
+    @model_validator(mode="after")
+    def _consistent_sections(self) -> Scenario:
+        problems = []
+        instances = ", ".join(self.fmus)
+        for instance in self.parameters:
+            if instance not in self.fmus:
+                problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
+        if self.connections is None:
+            missing = sorted({endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair}
+                             - set(self.fmus))
+            if missing:
+                problems.append((("connections",), f"the default connections use FMU instance(s) "
+                                                   f"{', '.join(missing)}, not in fmus ({instances}); "
+                                                   f"give 'connections' explicitly ([] for none)"))
+        else:
+            targets = {}
+            for position, (source, target) in enumerate(self.connections):
+                for side, endpoint in enumerate((source, target)):
+                    instance = endpoint.partition(".")[0]
+                    if instance not in self.fmus:
+                        problems.append((("connections", position, side), f"{endpoint!r}: unknown FMU instance "
+                                                                          f"{instance!r}; instances in fmus: {instances}"))
+                if target in targets:
+                    problems.append((("connections", position), f"{target!r} is already the target of "
+                                                                f"connections[{targets[target]}]; an input has one source"))
+                targets.setdefault(target, position)
+        problems += self._role_problems()
+        try:
+            self._resolve_window()
+        except KeyProblems as exc:
+            problems += exc.problems
+        if problems:
+            raise KeyProblems(problems)
+        return self
+
+    # ----------------------------------------------------------------------- queries
+    def connection_pairs(self) -> list[tuple[str, str]]:
+        """Effective connections: ``connections``, or :data:`DEFAULT_CONNECTIONS` when omitted.
+
+        Returns
+        -------
+        list of (str, str)
+            (source, target) as "instance.variable".
+        """
+        pairs = DEFAULT_CONNECTIONS if self.connections is None else self.connections
+        return [tuple(pair) for pair in pairs]
+
+    def resolved_roles(self) -> dict[str, str]:
+        """Role -> ``instance.variable`` for this scenario's FMUs.
+
+        Roles the scenario sets are kept as given; a default role whose instance is not in
+        ``fmus`` is dropped (a required one is an error at validation).
+        """
+        given = self.roles.model_fields_set
+        return {role: target for role, target in self.roles.present().items()
+                if role in given or target.partition(".")[0] in self.fmus}
+
+    def _role_problems(self) -> list:
+        problems = []
+        given = self.roles.model_fields_set
+        instances = ", ".join(self.fmus)
+        for role, target in self.roles.model_dump().items():
+            if target is None:
+                if role in REQUIRED_ROLES:
+                    problems.append((("roles", role), "this role is required: give the 'instance.variable' it is"))
+                continue
+            problem = _endpoint_problem(target)
+            instance = target.partition(".")[0]
+            if role in given and problem:
+                problems.append((("roles", role), problem))
+            elif role in given and instance not in self.fmus:
+                problems.append((("roles", role), f"{target!r}: unknown FMU instance {instance!r}; "
+                                                  f"instances in fmus: {instances}"))
+            elif role not in given and instance not in self.fmus and role in REQUIRED_ROLES:
+                problems.append((("roles", role), f"the default {target!r} uses FMU instance {instance!r}, not in "
+                                                  f"fmus ({instances}); give roles.{role} explicitly"))
+        return problems
+
+    def fmu_reference(self, instance: str) -> str | Path:
+        """What ``fmus[instance]`` refers to.
+
+        Parameters
+        ----------
+        instance : str
+            An FMU instance name, a key of ``fmus``.
+
+        Returns
+        -------
+        str or pathlib.Path
+            The variant name unchanged when it is a bare name (no "/" and not ending
+            in ".fmu"), else the path resolved against the scenario file's folder
+            (the current directory for a scenario not read from a file).
+        """
+        if instance not in self.fmus:
+            raise InputError(f"{self._source}: fmus: no FMU instance {instance!r}; "
+                             f"instances: {', '.join(self.fmus)}")
+        reference = self.fmus[instance]
+        if is_variant_name(reference):
+            return reference
+        path = Path(reference).expanduser()
+        return path if path.is_absolute() else (self._folder / path).resolve()
+
+    def window_bounds(self) -> tuple[pd.Timestamp, pd.Timestamp]:
+        """Start and end of the simulated window.
+
+        "sunrise" and "sunset" are computed with NREL's SPA
+        (:func:`heliostep.solar.sun_events`) for the window's date
+        and the site.
+
+        Returns
+        -------
+        start, end : pandas.Timestamp
+            Timezone-aware, in the site's timezone.
+        """
+        try:
+            return self._resolve_window()
+        except KeyProblems as exc:
+            raise InputError("\n".join(f"{self._source}: {dotted(path)}: {message}"
+                                       for path, message in exc.problems)) from None
+
+    def resolved_dict(self) -> dict:
+        """The fully validated scenario as plain JSON-able data (for run metadata).
+
+        Defaults are filled in, ``fmus`` is merged over :data:`DEFAULT_FMUS` and
+        ``connections`` is the effective list; reading it back gives an equal scenario.
+        """
+        data = self.model_dump(mode="json")
+        data["connections"] = [list(pair) for pair in self.connection_pairs()]
+        return data
+
+    @property
+    def source(self) -> str:
+        """Where the scenario came from (its file), for error messages."""
+        return self._source
+
+    @property
+    def folder(self) -> Path:
+        """Folder that relative FMU paths are resolved against."""
+        return self._folder
+
+    # ----------------------------------------------------------------------- helpers
+    def _resolve_window(self) -> tuple[pd.Timestamp, pd.Timestamp]:
+        timezone = self.site.timezone
+        window = self.window
+        events = None
+
+        def sun_event(column: str, key: str) -> pd.Timestamp:
+            nonlocal events
+            if events is None:
+                events = sun_events(window.date, self.site.to_site())
+            stamp = events[column]
+            if stamp is None:
+                raise KeyProblems([(("window", key), f"the sun has no {column} on {window.date} at "
+                                                     f"latitude {self.site.latitude:g} deg")])
+            # whole seconds, inside the daylight: sunrise rounded up, sunset down
+            return stamp.ceil("s") if column == SUNRISE else stamp.floor("s")
+
+        def local(clock: dt.time, key: str) -> pd.Timestamp:
+            try:
+                return pd.Timestamp(dt.datetime.combine(window.date, clock)).tz_localize(
+                    timezone, ambiguous="raise", nonexistent="raise"
+                )
+            except ValueError:
+                raise KeyProblems([(("window", key), f"{window.date} {clock} does not exist or is "
+                                                      f"ambiguous in {timezone} (daylight saving change)")]) from None
+
+        start = sun_event(SUNRISE, "start") if window.start == SUNRISE else local(window.start, "start")
+        if window.duration is not None:
+            end = start + pd.Timedelta(seconds=window.duration)
+        elif window.end == SUNSET:
+            end = sun_event(SUNSET, "end")
+        else:
+            end = local(window.end, "end")
+        if end <= start:
+            raise KeyProblems([(("window", "end"), f"must be after the start ({start}), got {end}")])
+        return start, end
+

@@ -1,0 +1,219 @@
+"""The typed sections of a scenario (site, window, plant, mirror, transmission, sequencer, wind, solver, output)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_validator,
+)
+
+from heliostep.cosim.signals import SolverOptions
+from heliostep.scenario.keys import KeyProblems
+from heliostep.solar import (
+    AXES,
+    DEFAULT_MIRROR_SPACING,
+    N_FIELD_MIRRORS,
+    ORIENTATIONS,
+    PAPER_LEVER_ARM,
+    PAPER_PINION_RADIUS,
+    STOW_POLICIES,
+    Plant,
+    Site,
+    check_timezone,
+    field_distances,
+)
+
+#: Energising sequences of the stepper sequencer (the drive implements one phase pattern for each).
+SEQUENCER_MODES = ("one-phase-on", "two-phase-on", "half-step")
+#: When a step is commanded: the reference crosses the midpoint to the next position, or reaches it.
+SEQUENCER_TRIGGERS = ("midpoint", "reach")
+
+_CLOCK_TIME = re.compile(r"(\d{1,2}):(\d{2})(?::(\d{2}))?")
+SUNRISE, SUNSET = "sunrise", "sunset"
+
+
+def _parse_clock_time(value: Any, word: str) -> dt.time | str:
+    """A local clock time from "HH:MM", "HH:MM:SS", a :class:`datetime.time` or ``word``."""
+    if isinstance(value, str) and value.strip().lower() == word:
+        return word
+    if isinstance(value, dt.time) and value.tzinfo is None:
+        return value
+    expected = f'a local time "HH:MM" or "HH:MM:SS" (quoted), or {word!r}'
+    if not isinstance(value, str):
+        raise ValueError(f"expected {expected}, got {value!r}")
+    match = _CLOCK_TIME.fullmatch(value.strip())
+    if match is None:
+        raise ValueError(f"expected {expected}, got {value!r}")
+    hour, minute, second = (int(group or 0) for group in match.groups())
+    if hour > 23 or minute > 59 or second > 59:
+        raise ValueError(f"{value!r} is not a clock time (hours 0-23, minutes and seconds 0-59)")
+    return dt.time(hour, minute, second)
+
+
+def _start_time(value):
+    return _parse_clock_time(value, SUNRISE)
+
+
+def _end_time(value):
+    return None if value is None else _parse_clock_time(value, SUNSET)
+
+
+def _upper(value):
+    return value.upper() if isinstance(value, str) else value
+
+
+#: A real number given as a YAML number (a bool or a quoted string is an error), finite.
+Real = Annotated[float, Field(strict=True)]
+Count = Annotated[int, Field(strict=True)]
+
+
+class Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+# --------------------------------------------------------------------------- sections
+class SiteConfig(Section):
+    """``site``: where the plant is (see :class:`heliostep.solar.Site`)."""
+
+    latitude: Real = Field(ge=-90.0, le=90.0, description="[deg], positive North")
+    longitude: Real = Field(ge=-180.0, le=180.0, description="[deg], positive East")
+    altitude: Real = Field(0.0, description="[m] above sea level")
+    timezone: str = Field(description="IANA name such as 'Europe/Rome'")
+
+    @field_validator("timezone")
+    @classmethod
+    def _known_timezone(cls, value: str) -> str:
+        return check_timezone(value)
+
+    def to_site(self) -> Site:
+        """The :class:`heliostep.solar.Site` of this section."""
+        return Site(latitude=self.latitude, longitude=self.longitude, altitude=self.altitude,
+                    timezone=self.timezone)
+
+
+class WindowConfig(Section):
+    """``window``: the simulated time span, in local time of the site.
+
+    ``start`` is "HH:MM[:SS]" or "sunrise"; the span ends after ``duration`` [s] or
+    at ``end`` ("HH:MM[:SS]" or "sunset"): exactly one of the two.
+    """
+
+    date: dt.date = Field(description="local calendar date, YYYY-MM-DD")
+    start: Annotated[Union[dt.time, Literal["sunrise"]], BeforeValidator(_start_time)] = Field(
+        description='local time "HH:MM" or "HH:MM:SS", or "sunrise"'
+    )
+    end: Annotated[Union[dt.time, Literal["sunset"], None], BeforeValidator(_end_time)] = Field(
+        None, description='local time "HH:MM" or "HH:MM:SS", or "sunset"; instead of duration'
+    )
+    duration: Real | None = Field(None, gt=0.0, description="[s]; instead of end")
+
+    @model_validator(mode="after")
+    def _one_way_to_end(self) -> WindowConfig:
+        if (self.end is None) == (self.duration is None):
+            given = "both" if self.end is not None else "neither"
+            raise KeyProblems([((), f"give exactly one of 'end' or 'duration' ({given} given)")])
+        if isinstance(self.start, dt.time) and isinstance(self.end, dt.time) and self.end <= self.start:
+            raise KeyProblems([(("end",), f"must be after start ({self.start}) on the same date, "
+                                           f"got {self.end}")])
+        return self
+
+
+class PlantConfig(Section):
+    """``plant``: the receiver line (see :class:`heliostep.solar.Plant`)."""
+
+    orientation: Annotated[Literal[tuple(ORIENTATIONS)], BeforeValidator(_upper)] = Field(
+        "NS", description="tube direction"
+    )
+    azimuth_offset: Real = Field(0.0, description="[deg], from North toward East")
+    tube_height: Real = Field(gt=0.0, description="[m] above the mirror plane")
+
+    def to_plant(self) -> Plant:
+        """The :class:`heliostep.solar.Plant` of this section."""
+        return Plant(tube_height=self.tube_height, orientation=self.orientation,
+                     azimuth_offset=self.azimuth_offset)
+
+
+class MirrorConfig(Section):
+    """``mirror``: which end mirror is driven and how it tracks.
+
+    Its position is ``distance`` [m] from the tube, or ``index`` (0 .. 12, 6 is the
+    central mirror) in the field of 13 mirrors ``spacing`` [m] apart: exactly one of
+    ``distance`` and ``index``.
+    """
+
+    distance: Real | None = Field(None, description="[m], transverse position; instead of index")
+    index: Count | None = Field(None, ge=0, le=N_FIELD_MIRRORS - 1,
+                                 description="position in the field of 13; instead of distance")
+    spacing: Real | None = Field(None, gt=0.0, description=f"[m] between mirrors, with index "
+                                                            f"(default {DEFAULT_MIRROR_SPACING})")
+    axis: Literal[AXES] = Field("secondary", description="the driven axis")
+    stow: Literal[STOW_POLICIES] = Field("hold", description="policy while the sun is down")
+    stow_angle: Real = Field(0.0, ge=-90.0, le=90.0, description="[deg]")
+
+    @model_validator(mode="after")
+    def _one_position(self) -> MirrorConfig:
+        if (self.distance is None) == (self.index is None):
+            given = "both" if self.index is not None else "neither"
+            raise KeyProblems([((), f"give exactly one of 'distance' or 'index' ({given} given)")])
+        if self.spacing is not None and self.index is None:
+            raise KeyProblems([(("spacing",), "only applies with 'index'; remove it or give 'index' "
+                                               "instead of 'distance'")])
+        return self
+
+    @property
+    def mirror_distance(self) -> float:
+        """Transverse position of the mirror [m]: ``distance`` or the index's place in the field."""
+        if self.distance is not None:
+            return self.distance
+        spacing = DEFAULT_MIRROR_SPACING if self.spacing is None else self.spacing
+        return float(field_distances(N_FIELD_MIRRORS, spacing)[self.index])
+
+
+class TransmissionConfig(Section):
+    """``transmission``: rack and pinion between rotor and panel (defaults: the paper's Table 2)."""
+
+    pinion_radius: Real = Field(PAPER_PINION_RADIUS, gt=0.0, description="[m]")
+    lever_arm: Real = Field(PAPER_LEVER_ARM, gt=0.0, description="[m]")
+
+
+class SequencerConfig(Section):
+    """``sequencer``: how the stepper's phases are energised."""
+
+    mode: Literal[SEQUENCER_MODES] = Field("one-phase-on", description="energising sequence")
+    current: Real = Field(5.5, gt=0.0, description="[A], phase current")
+    step_angle: Real = Field(1.8, gt=0.0, description="[deg], full step of the rotor")
+    trigger: Literal[SEQUENCER_TRIGGERS] = Field(
+        "midpoint", description="step when the reference crosses the midpoint to the next position, or reaches it")
+
+
+class WindConfig(Section):
+    """``wind``: external load on the panel."""
+
+    moment: Real = Field(0.0, description="[N.m], constant moment on the panel")
+
+
+class SolverConfig(Section):
+    """``solver``: settings of the master's ODE solver."""
+
+    rtol: Real = Field(SolverOptions.rtol, gt=0.0, le=0.1, description="relative tolerance")
+    atol: Real | None = Field(None, gt=0.0, description="absolute tolerance, null: the solver's default")
+    max_step: Real | None = Field(None, gt=0.0, description="[s], null: no limit")
+    max_num_steps: Count = Field(SolverOptions.max_num_steps, gt=0, description="solver steps at most")
+
+
+class OutputConfig(Section):
+    """``output``: time grid of the trace."""
+
+    interval: Real = Field(0.01, gt=0.0, description="[s], spacing of the regular grid")
+    step_detail: Real = Field(0.05, gt=0.0, description="[s] after each step kept on the fine grid")
+    step_interval: Real = Field(0.0005, gt=0.0, description="[s], spacing of the fine grid")
+
+

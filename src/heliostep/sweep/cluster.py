@@ -1,0 +1,297 @@
+"""Running cases on dask.distributed: the local or given cluster, shipping FMUs, skipping done cases."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import logging
+import os
+import socket
+import sys
+import time as clock
+import uuid
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from heliostep.errors import InputError
+from heliostep.fmu.build import ensure_fmu
+from heliostep.sweep.spec import (
+    SweepCase,
+    SweepSpec,
+    expand_cases,
+    load_sweep,
+    sweep_metadata,
+)
+from heliostep.sweep.store import (
+    _consolidate,
+    _normalize,
+    _parts_dir,
+    _write_part,
+    default_results_path,
+)
+from heliostep.sweep.worker import (
+    FmuPayload,
+    _fmu_key,
+    _fmu_payload,
+    _lost_case_row,
+    run_case,
+)
+
+#: Seconds between merges of the part files into the results table while a sweep runs.
+CONSOLIDATE_EVERY = 30.0
+
+
+@dataclasses.dataclass
+class SweepOutcome:
+    """What :func:`run_sweep` / :func:`execute_cases` did.
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        The results table (one row per case of the sweep), as written.
+    results_path : Path
+    executed : int
+        Cases run by this call.
+    skipped : int
+        Cases skipped because the table already held them.
+    failed : int
+        Cases of the table whose status is "failed".
+    """
+
+    table: pd.DataFrame
+    results_path: Path
+    executed: int
+    skipped: int
+    failed: int
+
+
+def _worker_count() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def _probe_scheduler(address: str, timeout: float) -> None:
+    """Fail at once (InputError) when a tcp:// scheduler address refuses connections."""
+    from distributed.comm import parse_address
+    from distributed.comm.addressing import parse_host_port
+    from distributed.comm.registry import backends
+
+    try:
+        scheme, location = parse_address(address, strict=True)
+        if scheme not in backends:
+            raise ValueError(f"unknown scheme {scheme!r}; known: {', '.join(sorted(backends))}")
+        host, port = parse_host_port(location) if scheme == "tcp" else (None, None)
+    except ValueError as exc:
+        raise InputError(f"scheduler {address!r}: expected an address such as tcp://HOST:8786 ({exc})") from None
+    if scheme != "tcp":
+        return
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise InputError(f"cannot reach the Dask scheduler at {address} ({exc.strerror or exc}); start one "
+                         f"with 'dask scheduler' or leave out --scheduler to run on a local cluster") from None
+
+
+@contextlib.contextmanager
+def _dask_client(client=None, scheduler: str | None = None, n_workers: int | None = None,
+                 connect_timeout: float = 5.0) -> Iterator:
+    """A Dask client: the one given, one connected to ``scheduler``, or one on a new local cluster."""
+    if client is not None:
+        yield client
+        return
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        _probe_scheduler(scheduler, connect_timeout)
+        try:
+            connected = Client(scheduler, timeout=connect_timeout)
+        except ValueError as exc:
+            raise InputError(f"scheduler {scheduler!r}: not a usable Dask address ({exc})") from None
+        except Exception as exc:  # noqa: BLE001 - timeouts, refusals, a non-Dask server answering
+            raise InputError(f"cannot connect to a Dask scheduler at {scheduler} within {connect_timeout:g} s "
+                             f"({type(exc).__name__}: {str(exc)[:200]}); start one with 'dask scheduler' or "
+                             f"leave out --scheduler to run on a local cluster") from None
+        with connected:
+            yield connected
+        return
+    workers = n_workers or _worker_count()
+    if workers < 1:
+        raise InputError(f"n_workers must be >= 1, got {workers}")
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, Client(cluster) as local:
+        yield local
+
+
+def _progress_bar(total: int, enabled: bool):
+    from tqdm import tqdm
+
+    quiet = not enabled or not sys.stderr.isatty() or bool(os.environ.get("CI"))
+    return tqdm(total=total, desc="cases", unit="case", disable=quiet, file=sys.stderr, mininterval=0.5)
+
+
+def _ship_fmus(cases: Sequence[SweepCase]) -> tuple[list[SweepCase], dict[str, FmuPayload]]:
+    """Build (or find) every FMU the cases use, once, and read their bytes."""
+    paths: dict[str, Path] = {}
+    for case in cases:
+        for instance, reference in case.scenario["fmus"].items():
+            if reference not in paths:
+                try:
+                    paths[reference] = Path(ensure_fmu(reference))
+                except InputError as exc:
+                    raise InputError(f"{case.source}: fmus.{instance}: {exc}") from None
+    payloads, sha_of = {}, {}
+    for reference, path in paths.items():
+        data = path.read_bytes()
+        sha = hashlib.sha256(data).hexdigest()
+        payloads[sha] = FmuPayload(name=path.name, sha256=sha, data=data)
+        sha_of[reference] = sha
+    shipped = [dataclasses.replace(case, fmu_sha256={instance: sha_of[reference]
+                                                     for instance, reference in case.scenario["fmus"].items()})
+               for case in cases]
+    return shipped, payloads
+
+
+def execute_cases(cases: Sequence[SweepCase], results_path: str | Path, *, client=None,
+                  scheduler: str | None = None, n_workers: int | None = None, connect_timeout: float = 5.0,
+                  retry_failed: bool = False, progress: bool = False,
+                  on_result: Callable[[dict], None] | None = None,
+                  metadata: Mapping | None = None) -> SweepOutcome:
+    """Run the cases not yet in the results table on Dask, writing each row as it finishes.
+
+    Parameters
+    ----------
+    cases : sequence of SweepCase
+        From :func:`expand_cases` (validated).
+    results_path : str or Path
+        The Parquet table; its part files go to ``<results_path>.parts/``.
+    client : distributed.Client, optional
+        Use this client (and its cluster) as it is.
+    scheduler : str, optional
+        Else connect to this scheduler (``tcp://HOST:PORT``); else start a local cluster.
+    n_workers : int, optional
+        Workers of the local cluster; default: the cores of this machine.
+    connect_timeout : float, default 5  [s]
+        How long to try reaching ``scheduler``.
+    retry_failed : bool, default False
+        Run again the cases whose row says "failed" (they are skipped otherwise).
+    progress : bool, default False
+        Show a progress bar (cases done / failed / remaining) when stderr is a terminal
+        and ``CI`` is not set.
+    on_result : callable, optional
+        Called in the client with each finished case's row.
+    metadata : Mapping, optional
+        Stored in the table's Parquet metadata (``heliostep.sweep``).
+
+    Returns
+    -------
+    SweepOutcome
+
+    Raises
+    ------
+    InputError
+        An FMU that cannot be built or found, or an unreachable scheduler (before any case runs).
+    """
+    results_path = Path(results_path)
+    metadata = dict(metadata or {})
+    cases, payloads = _ship_fmus(cases)
+    if client is None and scheduler:
+        _probe_scheduler(scheduler, connect_timeout)
+    table = _consolidate(results_path, metadata) if results_path.exists() or _parts_dir(results_path).is_dir() \
+        else _normalize(pd.DataFrame())
+    done_statuses = {"ok"} if retry_failed else {"ok", "failed"}
+    finished = {row.case_id: row for row in table.itertuples(index=False)
+                if row.status in done_statuses}
+    to_run = [case for case in cases
+              if case.case_id not in finished or finished[case.case_id].fmu_sha256 != _fmu_key(case.fmu_sha256)]
+    executed = 0
+    run_id = uuid.uuid4().hex[:12]
+    try:
+        if to_run:
+            executed = _run_on_dask(to_run, payloads, results_path, metadata, run_id, client=client,
+                                    scheduler=scheduler, n_workers=n_workers, connect_timeout=connect_timeout,
+                                    progress=progress, on_result=on_result)
+    finally:
+        if results_path.exists() or _parts_dir(results_path).is_dir():
+            table = _consolidate(results_path, metadata, cases=cases)
+    failed = int((table["status"] == "failed").sum())
+    return SweepOutcome(table=table, results_path=results_path, executed=executed,
+                        skipped=len(cases) - len(to_run), failed=failed)
+
+
+def _run_on_dask(cases: Sequence[SweepCase], payloads: Mapping[str, FmuPayload], results_path: Path,
+                 metadata: Mapping, run_id: str, *, client, scheduler, n_workers, connect_timeout,
+                 progress, on_result) -> int:
+    from distributed import as_completed
+
+    with _dask_client(client, scheduler, n_workers, connect_timeout) as dask_client:
+        shipped = {sha: dask_client.submit(_fmu_payload, payload, key=f"heliostep-fmu-{sha[:16]}-{run_id}",
+                                           pure=False)
+                   for sha, payload in payloads.items()
+                   if any(sha in case.fmu_sha256.values() for case in cases)}
+        futures = {}
+        for case in cases:
+            needed = {sha: shipped[sha] for sha in set(case.fmu_sha256.values())}
+            future = dask_client.submit(run_case, case, needed, run_id, pure=False,
+                                        key=f"heliostep-case-{case.case_id}-{run_id}")
+            futures[future] = case
+        done = failed = 0
+        last_merge = clock.monotonic()
+        with _progress_bar(len(cases), progress) as bar:
+            for future in as_completed(futures):
+                case = futures.pop(future)
+                try:
+                    row = future.result()
+                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: record, go on
+                    row = _lost_case_row(case, exc, run_id)
+                future.release()
+                _write_part(row, results_path)
+                done += 1
+                failed += row["status"] == "failed"
+                bar.set_postfix(done=done, failed=failed, remaining=len(cases) - done, refresh=False)
+                bar.update(1)
+                if on_result is not None:
+                    on_result(row)
+                if clock.monotonic() - last_merge > CONSOLIDATE_EVERY:
+                    _consolidate(results_path, metadata)
+                    last_merge = clock.monotonic()
+        for future in shipped.values():
+            future.release()
+    return done
+
+
+def run_sweep(sweep: SweepSpec | str | Path, results_path: str | Path | None = None, *, client=None,
+              scheduler: str | None = None, n_workers: int | None = None, connect_timeout: float = 5.0,
+              retry_failed: bool = False, progress: bool = False,
+              on_result: Callable[[dict], None] | None = None) -> SweepOutcome:
+    """Run a sweep: validate every case, then run the unfinished ones on Dask.
+
+    Parameters
+    ----------
+    sweep : SweepSpec or str or Path
+        A sweep, or the path of a sweep file.
+    results_path : str or Path, optional
+        Default :func:`default_results_path`.
+    client, scheduler, n_workers, connect_timeout, retry_failed, progress, on_result
+        See :func:`execute_cases`.
+
+    Returns
+    -------
+    SweepOutcome
+
+    Raises
+    ------
+    InputError
+        Bad sweep or case scenario, unknown FMU, unreachable scheduler: before any case runs.
+    """
+    spec = sweep if isinstance(sweep, SweepSpec) else load_sweep(sweep)
+    cases = expand_cases(spec)
+    path = Path(results_path) if results_path is not None else default_results_path(spec)
+    return execute_cases(cases, path, client=client, scheduler=scheduler, n_workers=n_workers,
+                         connect_timeout=connect_timeout, retry_failed=retry_failed, progress=progress,
+                         on_result=on_result, metadata=sweep_metadata(spec))

@@ -1,0 +1,489 @@
+"""Sweep files and their cases: axes, combinations, each case's validated scenario and identity."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import datetime as dt
+import hashlib
+import itertools
+import json
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from heliostep.errors import InputError
+from heliostep.solar import N_FIELD_MIRRORS
+from heliostep.scenario import (
+    Scenario,
+    load_scenario,
+    read_yaml_file,
+    set_dotted_key,
+    validate_scenario,
+)
+
+#: How the axes combine into cases.
+COMBINE_MODES = ("product", "zip")
+
+
+#: Shorthand axis name -> the dotted scenario key it sets (day_of_year and mirror are special).
+SHORTHAND_AXES = {
+    "day_of_year": "window.date",
+    "mirror": "mirror.index",
+    "motor": "fmus.motor",
+    "mechanics": "fmus.mechanics",
+    "current": "sequencer.current",
+    "wind_moment": "wind.moment",
+}
+
+
+#: Table column of each shorthand axis (a column the table always has).
+_SHORTHAND_COLUMNS = {
+    "day_of_year": "day_of_year", "mirror": "mirror_index", "motor": "motor",
+    "mechanics": "mechanics", "current": "current_A", "wind_moment": "wind_moment_Nm",
+}
+
+
+#: Index of the central mirror of the field (distance 0), whose law the shared primary follows.
+CENTRAL_MIRROR = N_FIELD_MIRRORS // 2
+
+
+#: Roles of a case: one mirror's drive, or the field's shared primary drive.
+ROLES = ("drive", "shared-primary")
+
+
+_SWEEP_KEYS = ("name", "description", "base", "combine", "axes", "overrides", "shared_primary")
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepAxis:
+    """One axis of a sweep.
+
+    Attributes
+    ----------
+    name : str
+        As written in the sweep: a shorthand of :data:`SHORTHAND_AXES` or a dotted key.
+    values : tuple
+        The expanded values ("all" and ranges resolved), in order.
+    """
+
+    name: str
+    values: tuple
+
+    @property
+    def column(self) -> str:
+        """The results-table column holding this axis's value."""
+        return _SHORTHAND_COLUMNS.get(self.name, self.name)
+
+    def overrides(self, value, year: int) -> tuple[tuple[str, Any], ...]:
+        """The (dotted key, value) settings for one value of this axis.
+
+        Parameters
+        ----------
+        value
+            One of :attr:`values`.
+        year : int
+            Year of the base scenario's window (for ``day_of_year``).
+        """
+        if self.name == "day_of_year":
+            return (("window.date", _date_of_day(year, value)),)
+        if self.name == "mirror":
+            return (("mirror.distance", None), ("mirror.index", value))
+        return ((SHORTHAND_AXES.get(self.name, self.name), value),)
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepSpec:
+    """A parsed sweep (see the module docstring); build it with :func:`load_sweep`.
+
+    Attributes
+    ----------
+    name : str
+    source : str
+        The sweep file (or a description), named in error messages.
+    base_data : dict
+        The base scenario as plain data (its resolved form).
+    base_source : str
+        The base scenario's file, named in error messages.
+    base_folder : Path
+        Folder that relative FMU paths of the base scenario resolve against.
+    axes : tuple of SweepAxis
+    combine : {"product", "zip"}
+    overrides : tuple of (str, object)
+        (dotted key, value) applied to every case, before the axes.
+    shared_primary : bool
+        Add, per combination of the other axes, one case of the field's shared primary
+        drive (the central mirror's primary axis); needs a ``mirror`` axis.
+    description : str or None
+    """
+
+    name: str
+    source: str
+    base_data: dict
+    base_source: str
+    base_folder: Path
+    axes: tuple[SweepAxis, ...]
+    combine: str = "product"
+    overrides: tuple[tuple[str, Any], ...] = ()
+    shared_primary: bool = False
+    description: str | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepCase:
+    """One case of a sweep: a validated scenario and its row's identity columns.
+
+    Attributes
+    ----------
+    case_id : str
+        16 hex digits of the SHA-256 of the resolved scenario: stable across reruns.
+    index : int
+        Position in the sweep's expansion.
+    columns : dict
+        Identity and parameter columns of the case's row (axis values, date, mirror, ...).
+    scenario : dict
+        The case's resolved scenario (JSON-able); ``fmus`` holds variant names or
+        absolute paths.
+    source : str
+        Named in the case's error messages.
+    folder : str
+        The base scenario's folder.
+    fmu_sha256 : dict
+        FMU instance -> SHA-256 of the FMU file the case runs (set by :func:`execute_cases`).
+    """
+
+    case_id: str
+    index: int
+    columns: dict
+    scenario: dict
+    source: str
+    folder: str
+    fmu_sha256: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        """A short description: the case's override settings."""
+        return self.columns.get("overrides") or "(base)"
+
+
+def load_sweep(path: str | Path) -> SweepSpec:
+    """Read and check a sweep file (its cases are built by :func:`expand_cases`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The sweep YAML.
+
+    Returns
+    -------
+    SweepSpec
+
+    Raises
+    ------
+    InputError
+        Naming the sweep file and key: unreadable file, unknown key, missing base,
+        an empty axis, a repeated value, zip axes of different lengths, an invalid
+        ``day_of_year`` or ``mirror`` value, or an invalid base scenario.
+    """
+    path = Path(path)
+    source = str(path)
+    data = read_yaml_file(path, "sweep")
+    if not isinstance(data, dict):
+        raise InputError(f"{source}: the top level must be a mapping with keys {', '.join(_SWEEP_KEYS)}")
+    unknown = [key for key in data if key not in _SWEEP_KEYS]
+    if unknown:
+        raise InputError(f"{source}: {unknown[0]}: unknown key; allowed keys: {', '.join(_SWEEP_KEYS)}")
+    if not isinstance(data.get("base"), str) or not data["base"].strip():
+        raise InputError(f"{source}: base: required: the path of the base scenario (relative to the sweep file)")
+    base_path = Path(data["base"]).expanduser()
+    if not base_path.is_absolute():
+        base_path = path.absolute().parent / base_path
+    try:
+        base = load_scenario(base_path)
+    except InputError as exc:
+        raise InputError(f"{source}: base: {exc}") from None
+    name = data.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\") or name.startswith("."):
+        raise InputError(f"{source}: name: expected a non-empty name usable as a folder name "
+                         f"(no '/', not starting with '.'), got {name!r}")
+    return _make_spec(
+        name=name.strip(), source=source, base=base, base_source=str(base_path),
+        axes=data.get("axes"), combine=data.get("combine", "product"),
+        overrides=data.get("overrides"), shared_primary=data.get("shared_primary", False),
+        description=data.get("description"))
+
+
+def sweep_from_scenario(scenario: Scenario, axes: Mapping[str, Any], *, combine: str = "product",
+                        overrides: Mapping[str, Any] | None = None, shared_primary: bool = False,
+                        name: str | None = None, source: str | None = None) -> SweepSpec:
+    """A sweep over an in-memory scenario (the Python form of a sweep file).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The base scenario.
+    axes : Mapping
+        Axis name (shorthand or dotted key) -> values (a list, "all" or ``{start, stop, step}``).
+    combine : {"product", "zip"}, default "product"
+    overrides : Mapping, optional
+        Dotted key -> value, applied to every case.
+    shared_primary : bool, default False
+        See :class:`SweepSpec`.
+    name : str, optional
+        Default: the scenario's name.
+    source : str, optional
+        Named in error messages; default ``"sweep of <scenario name>"``.
+
+    Returns
+    -------
+    SweepSpec
+    """
+    label = source or f"sweep of {scenario.name}"
+    return _make_spec(name=name or scenario.name, source=label, base=scenario,
+                      base_source=f"scenario {scenario.name}", axes=axes, combine=combine,
+                      overrides=overrides, shared_primary=shared_primary, description=None)
+
+
+def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, overrides,
+               shared_primary, description) -> SweepSpec:
+    if combine not in COMBINE_MODES:
+        raise InputError(f"{source}: combine: expected one of {', '.join(COMBINE_MODES)}, got {combine!r}")
+    if not isinstance(shared_primary, bool):
+        raise InputError(f"{source}: shared_primary: expected true or false, got {shared_primary!r}")
+    if description is not None and not isinstance(description, str):
+        raise InputError(f"{source}: description: expected a string, got {description!r}")
+    if overrides is None:
+        overrides = {}
+    if not isinstance(overrides, Mapping):
+        raise InputError(f"{source}: overrides: expected a mapping of dotted scenario keys to values, "
+                         f"e.g. {{output.interval: 0.5}}, got {overrides!r}")
+    common = tuple((_check_key(key, f"{source}: overrides"), value) for key, value in overrides.items())
+    base_data = base.resolved_dict()
+    base_data["fmus"] = {instance: str(base.fmu_reference(instance)) for instance in base.fmus}
+    spec = SweepSpec(name=name, source=source, base_data=base_data, base_source=base_source,
+                     base_folder=base.folder, axes=(), combine=combine, overrides=common,
+                     shared_primary=shared_primary, description=description)
+    year = _validated(spec, (), f"{source}: overrides").window.date.year
+
+    if not isinstance(axes, Mapping) or not axes:
+        raise InputError(f"{source}: axes: expected a mapping of at least one axis (e.g. "
+                         f"day_of_year: [21, 172]), got {axes!r}")
+    parsed = tuple(SweepAxis(name=_check_key(axis_name, f"{source}: axes"),
+                             values=_axis_values(axis_name, raw, year, f"{source}: axes.{axis_name}"))
+                   for axis_name, raw in axes.items())
+    owner = {}
+    for axis in parsed:
+        for key, _ in axis.overrides(axis.values[0], year):
+            if key in owner and key != "mirror.distance":
+                raise InputError(f"{source}: axes.{axis.name}: sets {key}, as axes.{owner[key]} does")
+            owner.setdefault(key, axis.name)
+    if combine == "zip":
+        lengths = {axis.name: len(axis.values) for axis in parsed}
+        if len(set(lengths.values())) > 1:
+            listed = ", ".join(f"{axis_name} has {n}" for axis_name, n in lengths.items())
+            raise InputError(f"{source}: axes: combine: zip needs axes of equal length; {listed} values")
+    if shared_primary and "mirror" not in [axis.name for axis in parsed]:
+        raise InputError(f"{source}: shared_primary: needs a 'mirror' axis (e.g. mirror: all)")
+    return dataclasses.replace(spec, axes=parsed)
+
+
+def _check_key(key, where: str) -> str:
+    if not isinstance(key, str) or not all(part.strip() for part in key.split(".")) or key != key.strip():
+        raise InputError(f"{where}: {key!r}: expected a shorthand ({', '.join(SHORTHAND_AXES)}) or a "
+                         f"dotted scenario key such as 'sequencer.current'")
+    return key
+
+
+def _axis_hint(name: str) -> str:
+    if name == "mirror.index":
+        return " (to sweep the field's mirrors use the 'mirror' axis, which also clears mirror.distance)"
+    if name == "window.date":
+        return " (or use the 'day_of_year' axis)"
+    return ""
+
+
+def _axis_values(name: str, raw, year: int, where: str) -> tuple:
+    """Expand one axis's values: a list, "all" (day_of_year, mirror) or {start, stop, step}."""
+    if isinstance(raw, str) and raw.strip().lower() == "all":
+        if name == "mirror":
+            return tuple(range(N_FIELD_MIRRORS))
+        if name == "day_of_year":
+            return tuple(range(1, _days_in_year(year) + 1))
+        raise InputError(f"{where}: 'all' is only for the day_of_year and mirror axes")
+    if isinstance(raw, Mapping):
+        values = _range_values(raw, where)
+    elif isinstance(raw, (list, tuple)):
+        values = tuple(raw)
+    else:
+        raise InputError(f"{where}: expected a list of values, 'all' (day_of_year, mirror) or "
+                         f"{{start, stop, step}}, got {raw!r}")
+    if not values:
+        raise InputError(f"{where}: the axis is empty; give at least one value")
+    seen = set()
+    for value in values:
+        if _show(value) in seen:
+            raise InputError(f"{where}: the value {value!r} is repeated")
+        seen.add(_show(value))
+    if name == "day_of_year":
+        days = _days_in_year(year)
+        for value in values:
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= days:
+                raise InputError(f"{where}: {value!r}: expected a day of year, an integer from 1 to {days} "
+                                 f"(the base scenario's year is {year})")
+    if name == "mirror":
+        for value in values:
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < N_FIELD_MIRRORS:
+                raise InputError(f"{where}: {value!r}: expected a mirror index, an integer from 0 to "
+                                 f"{N_FIELD_MIRRORS - 1} ({CENTRAL_MIRROR} is the central mirror), or 'all'")
+    return values
+
+
+def _range_values(raw: Mapping, where: str) -> tuple:
+    if set(raw) - {"start", "stop", "step"} or not {"start", "stop"} <= set(raw):
+        raise InputError(f"{where}: a range is {{start, stop, step}} (step optional, default 1), got {dict(raw)!r}")
+    start, stop, step = raw["start"], raw["stop"], raw.get("step", 1)
+    for key, value in (("start", start), ("stop", stop), ("step", step)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InputError(f"{where}.{key}: expected a number, got {value!r}")
+    if step <= 0:
+        raise InputError(f"{where}.step: expected a number > 0, got {step!r}")
+    if stop < start:
+        raise InputError(f"{where}: stop ({stop}) is before start ({start})")
+    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    if all(isinstance(v, int) for v in (start, stop, step)):
+        return tuple(start + k * step for k in range(count))
+    return tuple(float(np.round(start + k * step, 12)) for k in range(count))
+
+
+def _days_in_year(year: int) -> int:
+    return 366 if (year % 4 == 0 and year % 100 != 0) or year % 400 == 0 else 365
+
+
+def _date_of_day(year: int, day_of_year: int) -> dt.date:
+    return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
+
+
+def _set_dotted(data: dict, key: str, value, where: str) -> None:
+    set_dotted_key(data, key.split("."), copy.deepcopy(value), where)
+
+
+def _scenario_data(spec: SweepSpec, settings: Iterable[tuple[str, Any]], where: str) -> dict:
+    data = copy.deepcopy(spec.base_data)
+    for key, value in (*spec.overrides, *settings):
+        _set_dotted(data, key, value, where)
+    return data
+
+
+def _validated(spec: SweepSpec, settings: Sequence[tuple[str, Any]], where: str, hint: str = "") -> Scenario:
+    """The base scenario with the sweep's and ``settings``' overrides, validated."""
+    data = _scenario_data(spec, settings, where)
+    shown = ", ".join(f"{key}={_show(value)}" for key, value in settings)
+    try:
+        return validate_scenario(data, source=f"{spec.base_source}{' with ' + shown if shown else ''}",
+                                 folder=spec.base_folder)
+    except InputError as exc:
+        raise InputError(f"{where}: gives an invalid scenario{hint}:\n{exc}") from None
+
+
+def _show(value) -> str:
+    if isinstance(value, (dt.date, dt.time)):
+        return value.isoformat()
+    return json.dumps(value, default=str)
+
+
+def expand_cases(spec: SweepSpec) -> list[SweepCase]:
+    """All cases of a sweep, each with its scenario validated.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+
+    Returns
+    -------
+    list of SweepCase
+        In expansion order (``product``: the first axis varies slowest), then the shared
+        primary cases when ``spec.shared_primary``.
+
+    Raises
+    ------
+    InputError
+        When a case's scenario is invalid (naming the sweep file and the case's
+        settings), or when two cases are the same scenario.
+    """
+    year = _validated(spec, (), f"{spec.source}: overrides").window.date.year
+    if spec.combine == "zip":
+        combinations = list(zip(*(axis.values for axis in spec.axes)))
+    else:
+        combinations = list(itertools.product(*(axis.values for axis in spec.axes)))
+    cases = []
+    for values in combinations:
+        cases.append(_make_case(spec, year, dict(zip(spec.axes, values)), len(cases), "drive"))
+    if spec.shared_primary:
+        others = [axis for axis in spec.axes if axis.name != "mirror"]
+        seen = set()
+        for values in combinations:
+            chosen = {axis: value for axis, value in zip(spec.axes, values) if axis.name != "mirror"}
+            key = json.dumps([_show(chosen[axis]) for axis in others])
+            if key not in seen:
+                seen.add(key)
+                cases.append(_make_case(spec, year, chosen, len(cases), "shared-primary"))
+    first_of = {}
+    for case in cases:
+        if case.case_id in first_of:
+            other = first_of[case.case_id]
+            raise InputError(f"{spec.source}: axes: cases {other.index} ({other.label}) and {case.index} "
+                             f"({case.label}) are the same scenario")
+        first_of[case.case_id] = case
+    return cases
+
+
+def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], index: int, role: str) -> SweepCase:
+    """One validated case: the axis values ``chosen`` on the base, as a drive or the shared primary."""
+    if role not in ROLES:
+        raise ValueError(f"role must be one of {ROLES}, got {role!r}")
+    settings = [setting for axis, value in chosen.items() for setting in axis.overrides(value, year)]
+    if role == "shared-primary":
+        settings += [("mirror.distance", None), ("mirror.index", CENTRAL_MIRROR), ("mirror.axis", "primary")]
+    shown = ", ".join(f"{axis.name}={_show(value)}" for axis, value in chosen.items())
+    if role == "shared-primary":
+        shown += " (shared primary)"
+    try:
+        scenario = _validated(spec, settings, f"{spec.source}: case {index} ({shown})")
+    except InputError:
+        for axis, value in chosen.items():  # name the axis when its value alone is invalid
+            _validated(spec, axis.overrides(value, year), f"{spec.source}: axes.{axis.name}: {_show(value)}",
+                       hint=_axis_hint(axis.name))
+        raise
+    resolved = scenario.resolved_dict()
+    resolved["fmus"] = {instance: str(scenario.fmu_reference(instance)) for instance in scenario.fmus}
+    case_id = hashlib.sha256(json.dumps(resolved, sort_keys=True).encode()).hexdigest()[:16]
+    mirror = scenario.mirror
+    columns = {
+        "case_id": case_id, "case_index": index, "role": role,
+        **{axis.column: _table_value(value) for axis, value in chosen.items()},
+        "date": scenario.window.date.isoformat(), "day_of_year": scenario.window.date.timetuple().tm_yday,
+        "mirror_index": mirror.index, "mirror_distance_m": float(mirror.mirror_distance),
+        "mirror_axis": mirror.axis, "motor": scenario.fmus.get(scenario.roles.instance_of("torque")),
+        "mechanics": scenario.fmus.get(scenario.roles.instance_of("rotor_angle")), "current_A": scenario.sequencer.current,
+        "wind_moment_Nm": scenario.wind.moment,
+        "overrides": ", ".join(f"{key}={_show(value)}" for key, value in (*spec.overrides, *settings)),
+    }
+    return SweepCase(case_id=case_id, index=index, columns=columns, scenario=resolved,
+                     source=f"{spec.source}: case {index} ({shown})", folder=str(spec.base_folder))
+
+
+def _table_value(value):
+    """An axis value as a table cell: scalars as they are, dates as ISO text, the rest as JSON."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return _show(value)
+
+
+def sweep_metadata(spec: SweepSpec) -> dict:
+    """What the table's Parquet metadata records about the sweep (name, source, axes, combine)."""
+    return {"name": spec.name, "source": spec.source, "base": spec.base_source, "combine": spec.combine,
+            "axes": {axis.name: axis.column for axis in spec.axes}, "shared_primary": spec.shared_primary,
+            "overrides": {key: _show(value) for key, value in spec.overrides}}

@@ -1,0 +1,196 @@
+"""The results table: one Parquet part per finished case, merged atomically into ``results.parquet``."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import uuid
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from heliostep.errors import InputError
+from heliostep.sweep.spec import SweepCase, SweepSpec
+
+logger = logging.getLogger(__name__)
+
+
+#: Status of a case in the results table.
+CASE_STATUSES = ("ok", "failed")
+
+
+#: Figure columns of the table and their dtypes ("Int64": nullable integer).
+FIGURE_COLUMNS = {
+    "max_tracking_error_deg": "float64",
+    "rms_tracking_error_deg": "float64",
+    "peak_torque_Nm": "float64",
+    "peak_phase_current_A": "float64",
+    "electrical_energy_J": "float64",
+    "steps_commanded": "Int64",
+    "steps_executed": "Int64",
+    "missed_steps": "Int64",
+    "steps_lost": "Int64",
+    "settling_time_max_s": "float64",
+    "settling_time_mean_s": "float64",
+    "settling_not_settled": "Int64",
+    "final_panel_angle_deg": "float64",
+    "duration_s": "float64",
+    "required_torque_Nm": "float64",
+    "holding_torque_Nm": "float64",
+    "primary_sharing_error_max_deg": "float64",
+    "primary_sharing_error_signed_deg": "float64",
+}
+
+
+#: Columns describing a case (from its resolved scenario), with dtypes.
+CASE_COLUMNS = {
+    "case_id": "string", "case_index": "Int64", "role": "string",
+    "date": "string", "day_of_year": "Int64", "mirror_index": "Int64",
+    "mirror_distance_m": "float64", "mirror_axis": "string", "motor": "string",
+    "mechanics": "string", "current_A": "float64", "wind_moment_Nm": "float64",
+    "overrides": "string",
+}
+
+
+#: Columns about the execution of a case, with dtypes.
+RUN_COLUMNS = {
+    "status": "string", "error_type": "string", "error": "string", "wall_time_s": "float64",
+    "finished_at": "string", "run_id": "string", "worker": "string", "fmu_sha256": "string",
+}
+
+
+_METADATA_KEY = b"heliostep.sweep"
+
+
+def default_results_path(spec: SweepSpec) -> Path:
+    """``out/<sweep name>/results.parquet`` (relative to the current directory)."""
+    return Path("out") / spec.name / "results.parquet"
+
+
+def _parts_dir(results_path: Path) -> Path:
+    return results_path.with_name(results_path.name + ".parts")
+
+
+def _normalize(table: pd.DataFrame) -> pd.DataFrame:
+    """Fixed dtypes for the known columns; axis columns of mixed types become text."""
+    known = {**CASE_COLUMNS, **FIGURE_COLUMNS, **RUN_COLUMNS}
+    table = table.copy()
+    for column, dtype in known.items():
+        if column not in table:
+            table[column] = pd.Series([None] * len(table), dtype=object)
+        values = table[column]
+        if dtype == "Int64":
+            table[column] = pd.array([None if pd.isna(v) else int(v) for v in values], dtype="Int64")
+        elif dtype == "float64":
+            table[column] = pd.to_numeric(values.astype(object).where(values.notna(), np.nan),
+                                          errors="coerce").astype("float64")
+        else:
+            table[column] = pd.array([None if _missing(v) else str(v) for v in values], dtype="string")
+    for column in table.columns:
+        if column in known or table[column].dtype != object:
+            continue
+        kinds = {type(v) for v in table[column] if not _missing(v)}
+        if len(kinds) > 1 and not kinds <= {int, float}:
+            table[column] = pd.array([None if _missing(v) else str(v) for v in table[column]], dtype="string")
+    ordered = [c for c in CASE_COLUMNS if c in ("case_id", "case_index", "role")]
+    ordered += [c for c in table.columns if c not in known]
+    ordered += [c for c in CASE_COLUMNS if c not in ordered] + list(FIGURE_COLUMNS) + list(RUN_COLUMNS)
+    return table[ordered]
+
+
+def _missing(value) -> bool:
+    return value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA
+
+
+def _write_atomically(table: pd.DataFrame, path: Path, metadata: Mapping | None = None) -> None:
+    arrow = pa.Table.from_pandas(_normalize(table), preserve_index=False)
+    if metadata:
+        arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}),
+                                               _METADATA_KEY: json.dumps(metadata).encode()})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    scratch = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        pq.write_table(arrow, scratch)
+        os.replace(scratch, path)
+    finally:
+        scratch.unlink(missing_ok=True)
+
+
+def _read_parquet(path: Path) -> tuple[pd.DataFrame, dict]:
+    try:
+        arrow = pq.read_table(path)
+    except (OSError, pa.ArrowException) as exc:
+        raise InputError(f"{path}: not a readable results table: {exc}") from None
+    raw = (arrow.schema.metadata or {}).get(_METADATA_KEY)
+    return arrow.to_pandas(), (json.loads(raw) if raw else {})
+
+
+def read_results(results_path: str | Path) -> pd.DataFrame:
+    """The results of a sweep: the table plus any part files not merged yet.
+
+    Parameters
+    ----------
+    results_path : str or Path
+        The sweep's ``results.parquet``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per case (the latest when a case ran more than once), sorted by
+        ``case_index``; ``attrs["sweep"]`` holds the sweep's metadata (name, axes
+        columns, ...). Empty when nothing was written yet.
+    """
+    results_path = Path(results_path)
+    frames, metadata = [], {}
+    if results_path.exists():
+        table, metadata = _read_parquet(results_path)
+        frames.append(table)
+    parts = _parts_dir(results_path)
+    part_files = sorted(parts.glob("*.parquet")) if parts.is_dir() else []
+    for part in part_files:
+        try:
+            frames.append(_read_parquet(part)[0])
+        except InputError:  # a part being written by a stopped run: its case reruns
+            logger.warning("ignoring unreadable part file %s", part)
+    if not frames:
+        return _normalize(pd.DataFrame())
+    combined = _normalize(pd.concat([f for f in frames if len(f)] or frames[:1], ignore_index=True))
+    combined = combined.sort_values("finished_at", kind="stable").drop_duplicates("case_id", keep="last")
+    combined = combined.sort_values("case_index", kind="stable").reset_index(drop=True)
+    combined.attrs["sweep"] = metadata
+    return combined
+
+
+def _consolidate(results_path: Path, metadata: Mapping, cases: Sequence[SweepCase] | None = None) -> pd.DataFrame:
+    """Merge the part files into the table (atomically), then delete the merged parts.
+
+    With ``cases``, the table keeps only the rows of these cases, with their identity
+    and parameter columns (``case_index``, axis values, ...) as these cases give them.
+    """
+    parts = _parts_dir(results_path)
+    merged_parts = sorted(parts.glob("*.parquet")) if parts.is_dir() else []
+    table = read_results(results_path)
+    if cases is not None:
+        outcome_columns = ["case_id", *FIGURE_COLUMNS, *RUN_COLUMNS]
+        identities = pd.DataFrame([case.columns for case in cases], columns=_column_union(cases))
+        table = identities.merge(table[outcome_columns], on="case_id", how="inner", validate="one_to_one")
+        table = _normalize(table).sort_values("case_index", kind="stable").reset_index(drop=True)
+    _write_atomically(table, results_path, metadata)
+    for part in merged_parts:
+        part.unlink(missing_ok=True)
+    table.attrs["sweep"] = dict(metadata)
+    return table
+
+
+def _column_union(cases: Sequence[SweepCase]) -> list[str]:
+    return list(dict.fromkeys(column for case in cases for column in case.columns))
+
+
+def _write_part(row: Mapping, results_path: Path) -> None:
+    _write_atomically(pd.DataFrame([row]), _parts_dir(results_path) / f"{row['case_id']}.parquet")

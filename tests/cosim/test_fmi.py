@@ -1,0 +1,134 @@
+"""heliostep.cosim.fmi: the one FMI layer, its error path, and the FMUs' life cycle."""
+
+import os
+
+import numpy as np
+import pytest
+
+from heliostep.errors import InputError
+from heliostep.cosim.fmi import FMIError, ModelExchangeInstance, read_fmu
+
+
+def _resident_kib() -> int:
+    with open(f"/proc/{os.getpid()}/statm") as handle:
+        return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") // 1024
+
+
+def _one_life(info):
+    inst = ModelExchangeInstance(info, "cycle", {"K_current": 80.0})
+    inst.setup_experiment(0.0)
+    inst.enter_initialization_mode()
+    inst.exit_initialization_mode()
+    inst.enter_continuous_time_mode()
+    inst.set_time(0.001)
+    inst.get_derivatives()
+    inst.terminate()
+    inst.reset()
+    inst.setup_experiment(0.0)
+    inst.enter_initialization_mode()
+    inst.exit_initialization_mode()
+    inst.terminate()
+    inst.free()
+
+
+def test_thousand_life_cycles_do_not_crash_or_grow_memory(fmu_paths):
+    info = read_fmu(fmu_paths["StepperMotor"])
+    for _ in range(100):  # warm up allocator and caches
+        _one_life(info)
+    before = _resident_kib()
+    for _ in range(1000):
+        _one_life(info)
+    growth = _resident_kib() - before
+    assert growth < 2048, f"resident memory grew by {growth} KiB over 1000 life cycles"
+
+
+@pytest.fixture
+def motor(fmu_paths):
+    inst = ModelExchangeInstance(read_fmu(fmu_paths["StepperMotor"]), "motor")
+    yield inst
+    inst.free()
+
+
+def test_invalid_value_reference_is_an_fmi_error_with_the_log(motor):
+    motor.setup_experiment(0.0)
+    motor.enter_initialization_mode()
+    motor.exit_initialization_mode()
+    with pytest.raises(FMIError) as error:
+        motor.get_real([10_000])
+    assert error.value.function == "fmi2GetReal" and error.value.status == "fmi2Error"
+    assert "invalid value reference 10000" in str(error.value)
+    with pytest.raises(FMIError, match="invalid value reference"):
+        motor.set_real([10_000], [1.0])
+    # the instance is still usable afterwards
+    assert motor.get_real(motor.value_references(["i_a"]))[0] == 0.0
+
+
+def test_calls_in_the_wrong_state_are_fmi_errors(motor):
+    with pytest.raises(FMIError, match="fmi2GetDerivatives: not allowed in instantiated"):
+        motor.get_derivatives()
+    with pytest.raises(FMIError, match="fmi2ExitInitializationMode: not allowed"):
+        motor.exit_initialization_mode()
+    motor.setup_experiment(0.0)
+    motor.enter_initialization_mode()
+    motor.exit_initialization_mode()
+    motor.enter_continuous_time_mode()
+    with pytest.raises(FMIError, match="fmi2NewDiscreteStates: not allowed in continuous-time mode"):
+        motor.update_discrete_states()
+    with pytest.raises(FMIError, match="parameter L can only be set"):
+        motor.set_real(motor.value_references(["L"]), [1e-3])
+    with pytest.raises(FMIError, match="tau is computed by the model"):
+        motor.set_real(motor.value_references(["tau"]), [1.0])
+
+
+def test_tunable_parameter_changes_the_model_in_event_mode(motor):
+    motor.setup_experiment(0.0)
+    motor.enter_initialization_mode()
+    motor.set_real(motor.value_references(["i_a_ref"]), [5.5])
+    motor.exit_initialization_mode()
+    # from rest the chopper saturates: di/dt = dV / L
+    assert motor.get_derivatives()[0] == pytest.approx(3.1 / 1.8e-3)
+    motor.set_parameters({"V_supply": 6.2})
+    assert motor.get_derivatives()[0] == pytest.approx(6.2 / 1.8e-3)
+
+
+def test_unknown_parameter_lists_the_valid_names(fmu_paths):
+    info = read_fmu(fmu_paths["PanelMechanics"])
+    with pytest.raises(InputError) as error:
+        ModelExchangeInstance(info, "mech", {"J_rotor": 1e-4})
+    message = str(error.value)
+    assert "J_rotor" in message and "PanelMechanics.fmu" in message
+    for name in ("J_p", "J_m", "b", "r", "s"):
+        assert name in message
+
+
+def test_start_values_follow_their_parameters(fmu_paths):
+    info = read_fmu(fmu_paths["PanelMechanics"])
+    with ModelExchangeInstance(info, "mech", {"theta_p_start": 0.25, "theta_start": 1.0}) as inst:
+        inst.setup_experiment(0.0)
+        inst.enter_initialization_mode()
+        inst.exit_initialization_mode()
+        np.testing.assert_allclose(inst.get_states(), [0.25, 0.0])
+        assert inst.reader(["theta"])()[0] == pytest.approx(1.0)
+
+
+def test_read_fmu_rejects_what_is_not_fmi2_model_exchange(tmp_path):
+    with pytest.raises(InputError, match="FMU file not found"):
+        read_fmu(tmp_path / "missing.fmu")
+    bogus = tmp_path / "bogus.fmu"
+    bogus.write_text("not a zip")
+    with pytest.raises(InputError, match="bogus.fmu: not a readable FMU"):
+        read_fmu(bogus)
+
+
+def test_read_fmu_rejects_a_co_simulation_only_fmu(fmu_paths, tmp_path):
+    import zipfile
+
+    cs_only = tmp_path / "CoSimOnly.fmu"
+    with zipfile.ZipFile(fmu_paths["StepperMotor"]) as source, zipfile.ZipFile(cs_only, "w") as target:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b"<ModelExchange", b"<CoSimulation").replace(b"</ModelExchange", b"</CoSimulation")
+            target.writestr(item, data)
+    with pytest.raises(InputError, match="CoSimOnly.fmu: the FMU does not support Model Exchange"):
+        read_fmu(cs_only)

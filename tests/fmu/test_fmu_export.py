@@ -1,0 +1,213 @@
+"""The built FMUs, each on its own: valid FMI 2.0 ME, correct equations, correct structure."""
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.validation import validate_fmu
+from scipy.integrate import solve_ivp
+
+from heliostep.cosim.fmi import ModelExchangeInstance, read_fmu
+from physics_reference import (RATED_CURRENT, TABLE2_PANEL, TABLE3_MOTOR, ideal_current_motor,
+                               panel_mechanics, stepper_motor)
+from conftest import MODELS
+
+MOTOR_OUTPUTS = ["i_a", "i_b", "tau", "v_a", "v_b", "power"]
+MECHANICS_OUTPUTS = ["theta_p", "omega_p", "theta", "omega"]
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_fmu_passes_fmpy_validation(fmu_paths, name):
+    assert validate_fmu(str(fmu_paths[name])) == []
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_fmu_simulates_alone_with_fmpy_cvode(fmu_paths, name):
+    result = simulate_fmu(str(fmu_paths[name]), fmi_type="ModelExchange", solver="CVode",
+                          stop_time=0.05, output_interval=1e-3)
+    assert len(result) == 51
+    for column in result.dtype.names:
+        assert np.all(np.isfinite(result[column])), column
+
+
+def test_model_description_declares_interface_units_and_descriptions(fmu_paths):
+    description = read_model_description(str(fmu_paths["StepperMotor"]))
+    variables = {v.name: v for v in description.modelVariables}
+    assert [v.name for v in description.modelVariables if v.causality == "input"] == [
+        "i_a_ref", "i_b_ref", "theta", "omega"]
+    assert variables["tau"].causality == "output" and variables["tau"].unit == "N.m"
+    assert variables["L"].causality == "parameter" and variables["L"].variability == "tunable"
+    assert float(variables["L"].start) == TABLE3_MOTOR["L"]
+    assert "inductance" in variables["L"].description
+    units = {u.name: u.baseUnit for u in description.unitDefinitions}
+    assert units["V"].kg == 1 and units["V"].m == 2 and units["V"].s == -3 and units["V"].A == -1
+    # the two currents are the states; their derivatives point back at them
+    assert [d.variable.derivative.name for d in description.derivatives] == ["i_a", "i_b"]
+
+
+def test_model_structure_gives_exact_direct_feedthrough(fmu_paths):
+    info = read_fmu(fmu_paths["StepperMotor"])
+    # eq. 9: torque depends on the rotor angle (an input) but not on its speed or the references
+    assert info.output_feedthrough["tau"] == ["theta"]
+    assert info.output_feedthrough["v_a"] == ["i_a_ref"]
+    assert info.output_feedthrough["i_a"] == []
+    mechanics = read_fmu(fmu_paths["PanelMechanics"])
+    assert all(deps == [] for deps in mechanics.output_feedthrough.values())
+
+
+def test_paper_panel_inertia_matches_eq_11(fmu_paths):
+    # [paper], eq. 11: J_p = M/12 (l^2 + sp^2) with Table 2's M, l, sp
+    t2 = TABLE2_PANEL
+    j_p = t2["M"] / 12 * (t2["l"] ** 2 + t2["sp"] ** 2)
+    default = read_fmu(fmu_paths["PanelMechanics"]).variable("J_p").start
+    assert default == pytest.approx(j_p, rel=0.005)
+
+
+# ----------------------------------------------------------------- equations at random points
+
+def assert_relative(actual, expected, rtol=1e-9):
+    """Equal to ``rtol`` relative to each column's scale (differences of large terms cancel)."""
+    scale = np.abs(expected).max(axis=0)
+    error = np.abs(actual - expected) / (scale + np.abs(expected))
+    worst = np.unravel_index(np.argmax(error), error.shape)
+    assert error.max() <= rtol, f"relative error {error.max():.3g} at {worst}: {actual[worst]} vs {expected[worst]}"
+
+
+def _random_points(rng, n, bounds):
+    return {name: rng.uniform(low, high, n) for name, (low, high) in bounds.items()}
+
+
+def _evaluate_fmu(path, parameters, states, inputs, outputs, points):
+    """Derivatives and outputs through the FMI API at each point (states and inputs set)."""
+    info = read_fmu(path)
+    with ModelExchangeInstance(info, "check", parameters) as inst:
+        inst.setup_experiment(0.0)
+        inst.enter_initialization_mode()
+        inst.exit_initialization_mode()
+        set_inputs = inst.writer(inputs)
+        read_outputs = inst.reader(outputs)
+        n = len(next(iter(points.values())))
+        derivatives, values = np.zeros((n, len(states))), np.zeros((n, len(outputs)))
+        for k in range(n):
+            inst.set_states(np.array([points[s][k] for s in states]))
+            set_inputs([points[u][k] for u in inputs])
+            derivatives[k] = inst.get_derivatives()
+            values[k] = read_outputs()
+    return derivatives, values
+
+
+MOTOR_POINT_BOUNDS = {"i_a": (-7, 7), "i_b": (-7, 7), "i_a_ref": (-5.5, 5.5), "i_b_ref": (-5.5, 5.5),
+                      "theta": (-0.5, 0.5), "omega": (-20, 20)}
+
+
+@pytest.mark.parametrize("name, reference, extra", [
+    ("StepperMotor", stepper_motor, {"V_supply": 3.1, "K_current": 100.0}),
+    ("StepperMotorIdealCurrent", ideal_current_motor, {"T_current": 1e-3}),
+])
+def test_motor_equations_match_numpy_at_random_points(fmu_paths, name, reference, extra):
+    rng = np.random.default_rng(7)
+    parameters = {k: TABLE3_MOTOR[k] * rng.uniform(0.8, 1.2) for k in ("L", "R", "k_e")}
+    parameters["N_c"] = 50.0
+    parameters.update({k: v * rng.uniform(0.8, 1.2) for k, v in extra.items()})
+    points = _random_points(rng, 200, MOTOR_POINT_BOUNDS)
+    derivatives, outputs = _evaluate_fmu(fmu_paths[name], parameters, ["i_a", "i_b"],
+                                         ["i_a_ref", "i_b_ref", "theta", "omega"], MOTOR_OUTPUTS, points)
+    di_a, di_b, tau, v_a, v_b, power = reference(
+        points["i_a"], points["i_b"], points["i_a_ref"], points["i_b_ref"], points["theta"],
+        points["omega"], **parameters)
+    assert_relative(derivatives, np.column_stack([di_a, di_b]))
+    expected = np.column_stack([points["i_a"], points["i_b"], tau, v_a, v_b, power])
+    assert_relative(outputs, expected)
+
+
+@pytest.mark.parametrize("name, small_angle", [("PanelMechanics", False), ("PanelMechanicsSmallAngle", True)])
+def test_mechanics_equations_match_numpy_at_random_points(fmu_paths, name, small_angle):
+    rng = np.random.default_rng(11)
+    parameters = {"J_p": 3.37, "J_m": 1.4e-4, "b": 6500.0, "r": 2.5e-3, "s": 0.3}
+    parameters = {k: v * rng.uniform(0.5, 1.5) for k, v in parameters.items()}
+    parameters.update(theta_p_start=0.3, theta_start=2.0)
+    points = _random_points(rng, 200, {"theta_p": (-1.0, 1.0), "omega_p": (-0.01, 0.01),
+                                       "tau": (-3, 3), "m_ext": (-50, 50)})
+    derivatives, outputs = _evaluate_fmu(fmu_paths[name], parameters, ["theta_p", "omega_p"],
+                                         ["tau", "m_ext"], MECHANICS_OUTPUTS, points)
+    dtheta_p, domega_p, theta, omega = panel_mechanics(
+        points["theta_p"], points["omega_p"], points["tau"], points["m_ext"],
+        small_angle=small_angle, **parameters)
+    assert_relative(derivatives, np.column_stack([dtheta_p, domega_p]))
+    expected = np.column_stack([points["theta_p"], points["omega_p"], theta, omega])
+    assert_relative(outputs, expected)
+
+
+def test_drive_system_equations_match_numpy_at_random_points(fmu_paths):
+    rng = np.random.default_rng(3)
+    motor = {**TABLE3_MOTOR, "K_current": 100.0}
+    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 6500.0, "r": 2.5e-3, "s": 0.3,
+                 "theta_p_start": 0.0, "theta_start": 0.0}
+    points = _random_points(rng, 100, {"theta_p": (-0.8, 0.8), "omega_p": (-0.01, 0.01),
+                                       "i_a": (-6, 6), "i_b": (-6, 6), "i_a_ref": (-5.5, 5.5),
+                                       "i_b_ref": (-5.5, 5.5), "m_ext": (-20, 20)})
+    states = ["mechanics.theta_p", "mechanics.omega_p", "motor.i_a", "motor.i_b"]
+    renamed = {"mechanics.theta_p": points["theta_p"], "mechanics.omega_p": points["omega_p"],
+               "motor.i_a": points["i_a"], "motor.i_b": points["i_b"], **points}
+    derivatives, outputs = _evaluate_fmu(fmu_paths["DriveSystem"], {}, states,
+                                         ["i_a_ref", "i_b_ref", "m_ext"], ["motor.tau", "mechanics.theta"],
+                                         renamed)
+    dtheta_p, _, theta, omega = panel_mechanics(points["theta_p"], points["omega_p"], 0.0, 0.0, **mechanics)
+    di_a, di_b, tau, *_ = stepper_motor(points["i_a"], points["i_b"], points["i_a_ref"], points["i_b_ref"],
+                                        theta, omega, **motor)
+    _, domega_p, _, _ = panel_mechanics(points["theta_p"], points["omega_p"], tau, points["m_ext"], **mechanics)
+    expected = np.column_stack([dtheta_p, domega_p, di_a, di_b])
+    assert_relative(derivatives, expected)
+    assert_relative(outputs, np.column_stack([tau, theta]))
+
+
+# ----------------------------------------------------------------- step responses vs Radau
+
+def _step_input(names, values, stop_time):
+    dtype = [("time", float)] + [(n, float) for n in names]
+    return np.array([(0.0, *values), (stop_time, *values)], dtype=dtype)
+
+
+def test_phase_current_step_with_rotor_held_matches_radau(fmu_paths):
+    theta_held = 0.004  # [rad], rotor held off a detent so the torque is not zero
+    motor = {**TABLE3_MOTOR, "K_current": 100.0}
+    stop_time = 0.01
+    signals = _step_input(["i_a_ref", "i_b_ref", "theta", "omega"], [RATED_CURRENT, 0.0, theta_held, 0.0], stop_time)
+    result = simulate_fmu(str(fmu_paths["StepperMotor"]), fmi_type="ModelExchange", solver="CVode",
+                          stop_time=stop_time, output_interval=1e-4, input=signals,
+                          relative_tolerance=1e-8, output=["i_a", "i_b", "tau"])
+
+    def rhs(t, y):
+        di_a, di_b, *_ = stepper_motor(y[0], y[1], RATED_CURRENT, 0.0, theta_held, 0.0, **motor)
+        return [di_a, di_b]
+
+    radau = solve_ivp(rhs, (0, stop_time), [0.0, 0.0], method="Radau", t_eval=result["time"],
+                      rtol=1e-10, atol=1e-12, max_step=1e-5)
+    np.testing.assert_allclose(result["i_a"], radau.y[0], atol=2e-4 * RATED_CURRENT)
+    np.testing.assert_allclose(result["i_b"], radau.y[1], atol=1e-9)
+    # first principles: the current rises at (dV - R i)/L while the chopper is saturated ...
+    early = result["time"] == pytest.approx(1e-3)
+    assert result["i_a"][early] == pytest.approx(3.1 / 1.8e-3 * 1e-3, rel=0.05)
+    # ... and settles at K I / (K + R), the proportional loop's steady state
+    assert result["i_a"][-1] == pytest.approx(100 * RATED_CURRENT / 100.1, rel=1e-6)
+    assert result["tau"][-1] == pytest.approx(-0.5 * result["i_a"][-1] * np.sin(50 * theta_held), rel=1e-6)
+
+
+def test_torque_step_into_mechanics_matches_radau(fmu_paths):
+    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 6500.0, "r": 2.5e-3, "s": 0.3,
+                 "theta_p_start": 0.2, "theta_start": 0.0}
+    stop_time = 2.0
+    signals = _step_input(["tau", "m_ext"], [0.5, 2.0], stop_time)
+    result = simulate_fmu(str(fmu_paths["PanelMechanics"]), fmi_type="ModelExchange", solver="CVode",
+                          stop_time=stop_time, output_interval=0.01, input=signals, relative_tolerance=1e-9,
+                          start_values={"theta_p_start": 0.2}, output=["theta_p", "omega_p", "theta"])
+
+    def rhs(t, y):
+        dtheta_p, domega_p, _, _ = panel_mechanics(y[0], y[1], 0.5, 2.0, **mechanics)
+        return [dtheta_p, domega_p]
+
+    radau = solve_ivp(rhs, (0, stop_time), [0.2, 0.0], method="Radau", t_eval=result["time"],
+                      rtol=1e-11, atol=1e-14)
+    np.testing.assert_allclose(result["theta_p"], radau.y[0], rtol=1e-6, atol=1e-10)
+    np.testing.assert_allclose(result["omega_p"], radau.y[1], rtol=1e-5, atol=1e-10)
+    rotor = mechanics["s"] / mechanics["r"] * (np.tan(radau.y[0]) - np.tan(0.2))
+    np.testing.assert_allclose(result["theta"], rotor, rtol=1e-5, atol=1e-8)

@@ -1,0 +1,181 @@
+"""Tests of heliostep.plots.run: the run figures (paper Figs. 8-14) from a synthetic trace."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from heliostep.errors import InputError
+from heliostep.plots import run as run_plots
+from heliostep.plots.thinning import thin
+
+STEP_ANGLE = np.radians(1.8)  # [rad]
+METADATA = {"window_start": "2025-01-21T10:00:00+01:00", "timezone": "Europe/Rome", "scenario": "synthetic"}
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def synthetic_trace(duration=20.0, step_period=1.0, interval=0.01, detail=0.05, fine=0.0005, loud_step=7):
+    """A trace shaped like the master's: regular grid, a finer grid after each step, two rows per step.
+
+    Step k (1-based) at k * step_period; the torque after step ``loud_step`` is twice as large.
+    """
+    steps = np.arange(step_period, duration, step_period)
+    regular = np.arange(0.0, duration + interval / 2, interval)
+    after_steps = (steps[:, None] + np.arange(fine, detail, fine)[None, :]).ravel()
+    grid = np.unique(np.round(np.r_[regular, after_steps], 9))
+    grid = grid[~np.isin(grid, np.round(steps, 9))]
+    time = np.sort(np.r_[grid, steps, steps])
+    step_index = np.searchsorted(steps, time, side="right")
+    first_of_pair = np.r_[np.diff(time) == 0.0, False]
+    step_index = np.where(first_of_pair, step_index - 1, step_index)  # the row just before the step
+    since_step = time - np.r_[0.0, steps][step_index]
+    ringing = np.exp(-since_step / 0.01) * (step_index > 0)
+    command = step_index * STEP_ANGLE
+    theta = command - STEP_ANGLE * ringing * np.cos(2 * np.pi * 60 * since_step)
+    torque = 0.5 * ringing * np.sin(2 * np.pi * 60 * since_step) * np.where(step_index == loud_step, 2.0, 1.0)
+    i_a_ref = 5.5 * np.cos(step_index * np.pi / 2)
+    i_b_ref = 5.5 * np.sin(step_index * np.pi / 2)
+    rise = 1.0 - np.exp(-since_step / 0.003)
+    panel_ref = np.radians(20.0) + time * STEP_ANGLE / step_period * 0.0025 / 0.3
+    theta_p = np.radians(20.0) + theta * 0.0025 / 0.3
+    zeros = np.zeros_like(time)
+    return pd.DataFrame({
+        "time": time,
+        "panel_angle_ref": panel_ref,
+        "rotor_angle_ref": time * STEP_ANGLE / step_period,
+        "rotor_angle_cmd": command,
+        "step_index": step_index,
+        "i_a_ref": i_a_ref, "i_b_ref": i_b_ref,
+        "m_ext": zeros,
+        "motor.i_a": i_a_ref * rise, "motor.i_b": i_b_ref * rise,
+        "motor.tau": torque,
+        "motor.v_a": zeros, "motor.v_b": zeros, "motor.power": zeros,
+        "mechanics.theta": theta, "mechanics.omega": zeros,
+        "mechanics.theta_p": theta_p, "mechanics.omega_p": zeros,
+        "panel_angle_error": theta_p - panel_ref,
+    })
+
+
+@pytest.fixture(scope="module")
+def trace():
+    return synthetic_trace()
+
+
+def png_size(path):
+    """(width, height) [px] of a PNG, from its IHDR chunk; fails on anything else."""
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE, f"{path.name} is not a PNG"
+    assert data[12:16] == b"IHDR"
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def test_synthetic_trace_has_two_rows_per_step(trace):
+    steps = run_plots.step_times(trace)
+    np.testing.assert_allclose(steps, np.arange(1.0, 20.0))
+    for instant in steps:
+        assert (trace["time"] == instant).sum() == 2
+
+
+def test_every_figure_is_written(trace, tmp_path):
+    written = run_plots.plot_run(trace, tmp_path / "figures", METADATA)
+    expected = [tmp_path / "figures" / name for name in (
+        "fig08_panel_angle_ref.png", "fig09_rotor_angle_ref.png", "fig10_phase_currents.png",
+        "fig11_torque.png", "fig12_rotor_angle.png", "fig13_panel_tracking.png", "fig14_torque_zoom.png")]
+    assert written == expected
+    for path in expected:
+        assert path.stat().st_size > 20_000, f"{path.name} looks empty"
+        width, height = png_size(path)
+        assert width >= 800 and height >= 400
+
+
+def test_no_steps_skips_the_torque_zoom(trace, tmp_path):
+    still = trace[trace["time"] < 0.5].copy()
+    still["step_index"] = 0
+    written = run_plots.plot_run(still, tmp_path, METADATA)
+    names = [path.name for path in written]
+    assert "fig14_torque_zoom.png" not in names and not (tmp_path / "fig14_torque_zoom.png").exists()
+    assert len(names) == 6
+
+
+@pytest.mark.parametrize(
+    ("dropped", "skipped"),
+    [
+        (["motor.i_a", "motor.i_b", "motor.tau", "motor.v_a", "motor.v_b", "motor.power"],
+         {"fig10_phase_currents.png", "fig11_torque.png", "fig14_torque_zoom.png"}),
+        (["mechanics.theta", "mechanics.theta_p", "mechanics.omega", "mechanics.omega_p", "panel_angle_error"],
+         {"fig12_rotor_angle.png", "fig13_panel_tracking.png"}),
+        (["step_index", "i_a_ref", "i_b_ref", "rotor_angle_cmd", "panel_angle_error"], {"fig14_torque_zoom.png"}),
+        ([column for column in synthetic_trace(duration=1.0).columns if column != "time"], set(run_plots.FIGURE_FILES)),
+    ],
+)
+def test_missing_columns_skip_their_figures(trace, tmp_path, dropped, skipped):
+    written = run_plots.plot_run(trace.drop(columns=dropped), tmp_path, METADATA)
+    assert {path.name for path in written} == set(run_plots.FIGURE_FILES) - skipped
+
+
+def test_torque_zoom_picks_the_step_with_the_largest_torque(trace):
+    time, torque = trace["time"].to_numpy(), trace["motor.tau"].to_numpy()
+    steps = run_plots.step_times(trace)
+    step, peak = run_plots._largest_torque_step(time, torque, steps)
+    assert steps[step] == 7.0  # the loud step of the synthetic trace
+    assert 7.0 < time[peak] < 7.05 and abs(torque[peak]) == np.abs(torque).max()
+
+
+def test_x_axis_shows_local_clock_time(trace):
+    from matplotlib.figure import Figure
+
+    clock = run_plots._Clock(METADATA, trace["time"].to_numpy())
+    ax = Figure().add_subplot()
+    ax.plot(clock.x(np.array([0.0, 20.0])), [0.0, 1.0])
+    clock.format_axis(ax)
+    formatter = ax.xaxis.get_major_formatter()
+    assert formatter(clock.x(np.array([0.0]))[0]) == "10:00:00"  # 09:00 UTC shown in Europe/Rome
+    assert formatter(clock.x(np.array([75.0]))[0]) == "10:01:15"
+    assert "Europe/Rome" in ax.get_xlabel()
+
+
+def test_without_window_start_the_axis_is_in_seconds(trace, tmp_path):
+    written = run_plots.plot_run(trace, tmp_path, {"scenario": "no-clock"})
+    assert len(written) == 7
+    clock = run_plots._Clock({}, trace["time"].to_numpy())
+    np.testing.assert_array_equal(clock.x(np.array([1.5])), [1.5])
+
+
+def test_thinning_keeps_extremes_order_and_bounds_the_points():
+    rng = np.random.default_rng(1)
+    time = np.sort(rng.uniform(0.0, 100.0, 1_000_000))
+    values = rng.normal(size=time.size)
+    values[123_456] = 50.0
+    values[654_321] = -50.0
+    values[777] = np.nan
+    keep = thin(time, values, max_buckets=run_plots.MAX_BUCKETS)
+    assert keep.size <= 4 * run_plots.MAX_BUCKETS
+    assert np.all(np.diff(keep) > 0)
+    assert {0, time.size - 1, 123_456, 654_321} <= set(keep.tolist())
+    short = np.arange(100.0)
+    np.testing.assert_array_equal(thin(short, short, max_buckets=run_plots.MAX_BUCKETS), np.arange(100))
+
+
+def test_bad_traces_are_input_errors(trace, tmp_path):
+    with pytest.raises(InputError, match="'time' column"):
+        run_plots.plot_run(trace.drop(columns="time"), tmp_path, METADATA)
+    with pytest.raises(InputError, match="non-decreasing"):
+        run_plots.plot_run(trace.iloc[::-1], tmp_path, METADATA)
+    with pytest.raises(InputError, match="empty"):
+        run_plots.plot_run(trace.iloc[:0], tmp_path, METADATA)
+
+
+def test_matplotlib_is_imported_only_by_the_plots():
+    code = (
+        "import sys\n"
+        "import heliostep.scenario, heliostep.solar, heliostep.errors\n"
+        "assert 'matplotlib' not in sys.modules, 'imported matplotlib'\n"
+        "import heliostep.plots.run, matplotlib\n"
+        "assert matplotlib.get_backend().lower() == 'agg', matplotlib.get_backend()\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr

@@ -1,0 +1,61 @@
+"""heliostep.results.summary: the run's figures from a trace built by hand, with known answers."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from heliostep.scenario import RolesConfig
+from heliostep.results.summary import summarize
+
+STEP = np.pi / 100
+
+
+def _inputs(step_times, indices):
+    """A run's metadata as written to metadata.json: the roles and the drive record (no DriveInputs)."""
+    drive = {"mode": "one-phase-on", "current": 5.5, "step_angle": STEP, "initial_index": 0,
+             "step_times": list(step_times), "step_indices": list(indices)}
+    return {"roles": RolesConfig().present(), "drive": drive}
+
+
+def _trace(time, rotor, command, error=None, tau=None, power=None):
+    n = len(time)
+    return pd.DataFrame({
+        "time": time, "mechanics.theta": rotor, "rotor_angle_cmd": command,
+        "panel_angle_error": np.zeros(n) if error is None else error,
+        "motor.tau": np.zeros(n) if tau is None else tau, "motor.i_a": np.full(n, 5.5), "motor.i_b": np.zeros(n),
+        "motor.power": np.zeros(n) if power is None else power, "mechanics.theta_p": np.zeros(n)})
+
+
+def test_settling_time_and_executed_steps():
+    # step at 1 s; the rotor reaches the new position (within 5 % of a step) at 1.2 s
+    time = np.array([0.0, 1.0, 1.0, 1.1, 1.2, 2.0, 3.0])
+    rotor = np.array([0.0, 0.0, 0.0, 0.5 * STEP, 0.99 * STEP, STEP, STEP])
+    command = np.array([0.0, 0.0, STEP, STEP, STEP, STEP, STEP])
+    summary = summarize(_trace(time, rotor, command), _inputs([1.0], [1]))
+    assert summary["steps_commanded"] == 1 and summary["steps_executed"] == 1 and summary["missed_steps"] == 0
+    assert summary["settling_time_s"]["per_step"] == [pytest.approx(0.2)]
+    assert summary["steps_lost"] == 0
+
+
+def test_step_not_reached_by_the_next_step_is_missed():
+    # two steps commanded, the rotor never moves: the first is missed at 2 s, the second at the end
+    time = np.array([0.0, 1.0, 1.0, 2.0, 2.0, 3.0])
+    rotor = np.zeros(6)
+    command = np.array([0, 0, STEP, STEP, 2 * STEP, 2 * STEP])
+    summary = summarize(_trace(time, rotor, command), _inputs([1.0, 2.0], [1, 2]))
+    assert summary["missed_steps"] == 2 and summary["steps_executed"] == 0
+    assert summary["missed_step_times_s"] == [1.0, 2.0]
+    assert summary["settling_time_s"]["not_settled"] == 2
+    assert summary["steps_lost"] == 2
+
+
+def test_error_energy_and_peaks():
+    time = np.linspace(0.0, 3.0, 301)
+    error = np.radians(0.01) * np.sin(2 * np.pi * time)  # RMS of a sine over whole periods: amplitude/sqrt(2)
+    summary = summarize(_trace(time, np.zeros(301), np.zeros(301), error=error,
+                               tau=-0.6 * np.sin(time), power=np.full(301, 3.0)), _inputs([], []))
+    assert summary["max_tracking_error_deg"] == pytest.approx(0.01, rel=1e-3)
+    assert summary["rms_tracking_error_deg"] == pytest.approx(0.01 / np.sqrt(2), rel=1e-3)
+    assert summary["peak_torque_Nm"] == pytest.approx(0.6)
+    assert summary["electrical_energy_J"] == pytest.approx(9.0)  # 3 W for 3 s
+    assert summary["peak_phase_current_A"] == 5.5

@@ -1,0 +1,152 @@
+"""Tests of heliostep.results.trace_io: the trace file format."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from heliostep.errors import InputError
+from heliostep.results.trace_io import is_complete, read_trace, write_trace
+
+
+def _trace() -> pd.DataFrame:
+    # A jump at t = 1 (two rows), awkward floats and a NaN must survive unchanged.
+    return pd.DataFrame(
+        {
+            "time": [0.0, 0.5, 1.0, 1.0, 2.0],
+            "motor.tau": [0.0, 1.0 / 3.0, 0.1, 2.5e-300, -7.0],
+            "panel_angle_error": [np.pi, np.nan, 1e20, -0.0, 5.0],
+        }
+    )
+
+
+META = {"complete": "false", "unit.motor.tau": "N.m", "unit.time": "s", "note": "a: b, c"}
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".csv"])
+def test_round_trip_values_metadata_and_duplicate_times(tmp_path, suffix):
+    path = tmp_path / f"trace{suffix}"
+    write_trace(_trace(), path, META)
+    table, meta = read_trace(path)
+    assert meta == META
+    assert list(table.columns) == ["time", "motor.tau", "panel_angle_error"]
+    expected = _trace()
+    for column in expected.columns:
+        # Bit-for-bit equal, NaN where NaN.
+        np.testing.assert_array_equal(table[column].to_numpy(), expected[column].to_numpy())
+        assert table[column].dtype == np.float64
+    assert table["time"].tolist().count(1.0) == 2
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".csv"])
+def test_time_is_written_first_and_ints_become_floats(tmp_path, suffix):
+    path = tmp_path / f"trace{suffix}"
+    write_trace(pd.DataFrame({"b": [1, 2], "time": [0, 1]}), path)
+    table, meta = read_trace(path)
+    assert meta == {}
+    assert list(table.columns) == ["time", "b"]
+    assert table["b"].dtype == np.float64
+    assert table["b"].tolist() == [1.0, 2.0]
+
+
+def test_csv_layout_is_metadata_lines_then_header(tmp_path):
+    path = tmp_path / "t.csv"
+    write_trace(pd.DataFrame({"time": [0.0, 1.0, 1.0], "x": [0.5, 0.5, 2.0]}), path, {"complete": True})
+    assert path.read_text().splitlines() == [
+        "# complete: true",
+        "time,x",
+        "0.0,0.5",
+        "1.0,0.5",
+        "1.0,2.0",
+    ]
+
+
+def test_hand_written_csv_is_read(tmp_path):
+    path = tmp_path / "ref.csv"
+    path.write_text("# complete: true\n#unit.x:m\n\ntime,x\n0,1\n1,2.5\n")
+    table, meta = read_trace(path)
+    assert meta == {"complete": "true", "unit.x": "m"}
+    assert table["x"].tolist() == [1.0, 2.5]
+
+
+def test_parquet_metadata_is_schema_key_value_metadata(tmp_path):
+    path = tmp_path / "t.parquet"
+    write_trace(pd.DataFrame({"time": [0.0], "x": [1.0]}), path, {"complete": "true"})
+    schema_meta = pq.read_schema(path).metadata
+    assert schema_meta[b"complete"] == b"true"
+
+
+def test_complete_flag():
+    assert is_complete({}) is True
+    assert is_complete({"complete": "true"}) is True
+    assert is_complete({"complete": "False"}) is False
+
+
+@pytest.mark.parametrize("suffix", [".parquet", ".csv"])
+def test_missing_time_column_names_file_and_column(tmp_path, suffix):
+    path = tmp_path / f"bad{suffix}"
+    if suffix == ".csv":
+        path.write_text("t,x\n0,1\n")
+    else:
+        pd.DataFrame({"t": [0.0], "x": [1.0]}).to_parquet(path)
+    with pytest.raises(InputError, match=r"bad\.(csv|parquet).*'time'"):
+        read_trace(path)
+
+
+def test_decreasing_time_names_file_column_and_row(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time,x\n0,1\n2,1\n1,1\n")
+    with pytest.raises(InputError, match=r"bad\.csv.*'time' decreases in data row 3"):
+        read_trace(path)
+
+
+def test_nan_time_is_rejected(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time,x\n0,1\n,1\n")
+    with pytest.raises(InputError, match=r"bad\.csv.*'time'"):
+        read_trace(path)
+
+
+def test_non_numeric_column_is_rejected(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time,mode\n0,idle\n1,run\n")
+    with pytest.raises(InputError, match=r"bad\.csv.*'mode'"):
+        read_trace(path)
+
+
+def test_duplicate_csv_columns_are_rejected(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time,x,x\n0,1,2\n")
+    with pytest.raises(InputError, match=r"bad\.csv.*duplicate.*'x'"):
+        read_trace(path)
+
+
+def test_missing_and_unreadable_files(tmp_path):
+    with pytest.raises(InputError, match=r"nope\.parquet: no such file"):
+        read_trace(tmp_path / "nope.parquet")
+    garbage = tmp_path / "garbage.parquet"
+    garbage.write_bytes(b"this is not parquet")
+    with pytest.raises(InputError, match=r"garbage\.parquet: cannot read"):
+        read_trace(garbage)
+    with pytest.raises(InputError, match="unknown trace format"):
+        read_trace(tmp_path / "trace.txt")
+
+
+def test_malformed_metadata_line(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("# complete true\ntime,x\n0,1\n")
+    with pytest.raises(InputError, match=r"bad\.csv: line 1"):
+        read_trace(path)
+
+
+@pytest.mark.parametrize("key", ["", "a:b", "a\nb", " a"])
+def test_bad_metadata_keys_are_refused(tmp_path, key):
+    with pytest.raises(InputError):
+        write_trace(pd.DataFrame({"time": [0.0]}), tmp_path / "t.csv", {key: "v"})
+
+
+def test_writer_refuses_decreasing_time(tmp_path):
+    with pytest.raises(InputError, match="decreases"):
+        write_trace(pd.DataFrame({"time": [1.0, 0.0]}), tmp_path / "t.parquet")

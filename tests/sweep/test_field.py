@@ -1,0 +1,143 @@
+"""Tests of heliostep.sweep.field: the 13-mirror field with one shared primary drive.
+
+The primary sharing errors are checked against the primary angles computed here from
+first principles (pvlib's sun position, the mirror normal bisecting the sun and the
+tube directions) and against :func:`heliostep.solar.two_axis_angles`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pvlib
+import pytest
+from distributed import Client, LocalCluster
+
+from heliostep.paths import scenarios_dir
+from heliostep.sweep import field_sharing_errors, primary_sharing_error, run_field
+from heliostep.solar import two_axis_angles
+from heliostep.drive.inputs import reference_times
+from heliostep.scenario import load_scenario
+from heliostep.sweep import expand_cases, sweep_from_scenario
+
+BASE = scenarios_dir() / "jan21-central.yaml"
+
+SPACING = 0.6  # [m], the default of the field
+DISTANCES = (np.arange(13) - 6) * SPACING  # [m], mirror index 0 .. 12
+
+
+@pytest.fixture(scope="module")
+def client(fmu_paths):
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=":0") as cluster, Client(cluster) as dask_client:
+        dask_client.wait_for_workers(2)
+        yield dask_client
+
+
+def short_scenario(start: str = "10:00", duration: float = 20.0):
+    return load_scenario(BASE, (f"window.start={start!r}", f"window.duration={duration}", "output.interval=0.5"))
+
+
+def solar_noon_direction(scenario) -> np.ndarray:
+    """Unit vector to the sun at solar noon of the window's date (pvlib SPA transit)."""
+    site = scenario.site
+    day = pd.DatetimeIndex([pd.Timestamp(scenario.window.date).tz_localize(site.timezone) + pd.Timedelta(hours=12)])
+    transit = pvlib.solarposition.sun_rise_set_transit_spa(day, site.latitude, site.longitude)["transit"]
+    sun = pvlib.solarposition.get_solarposition(pd.DatetimeIndex(transit), site.latitude, site.longitude,
+                                                site.altitude, method="nrel_numpy")
+    elevation, azimuth = np.radians(sun["apparent_elevation"].iloc[0]), np.radians(sun["azimuth"].iloc[0])
+    return np.array([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth), np.sin(elevation)])
+
+
+def primary_at(to_sun: np.ndarray, distance: float, height: float) -> float:
+    """Primary angle of a two-axis mirror at ``distance`` for one sun direction (normal bisects sun and tube)."""
+    normal = to_sun + np.array([-distance, 0.0, height]) / np.hypot(distance, height)
+    return float(np.arctan2(normal[0], normal[2]))
+
+
+def first_principles_errors(scenario) -> dict[float, tuple[float, float]]:
+    """mirror distance -> (max |primary error| [deg], signed error at that instant [deg])."""
+    start, end = scenario.window_bounds()
+    times = start + pd.to_timedelta(reference_times((end - start).total_seconds()), unit="s")
+    site = scenario.site
+    sun = pvlib.solarposition.get_solarposition(times, site.latitude, site.longitude, site.altitude,
+                                                method="nrel_numpy")
+    elevation = np.radians(sun["apparent_elevation"].to_numpy())
+    azimuth = np.radians(sun["azimuth"].to_numpy())
+    # North-South plant: x = East, y = North, z = up; the tube over x = 0 at height h
+    to_sun = np.stack([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth),
+                       np.sin(elevation)], axis=1)
+    height = scenario.plant.tube_height
+
+    def primary(distance):
+        to_tube = np.array([-distance, 0.0, height]) / np.hypot(distance, height)
+        normal = to_sun + to_tube  # bisects the sun and tube directions
+        return np.arctan2(normal[:, 0], normal[:, 2])
+
+    central = primary(0.0)
+    # the mirrors are mounted exact at solar noon: the offsets are the differences there
+    noon = solar_noon_direction(scenario)
+    errors = {}
+    for distance in DISTANCES:
+        offset = primary_at(noon, distance, height) - primary_at(noon, 0.0, height)
+        error = np.degrees(primary(distance) - central - offset)
+        library, _ = two_axis_angles(sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy(),
+                                     distance, height)
+        library_central, _ = two_axis_angles(sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy(),
+                                             0.0, height)
+        np.testing.assert_allclose(np.radians(error) + offset, library - library_central, rtol=0, atol=1e-12)
+        worst = int(np.argmax(np.abs(error)))
+        errors[float(distance)] = (abs(error[worst]), error[worst])
+    return errors
+
+
+def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path):
+    scenario = short_scenario()
+    table = run_field(scenario, tmp_path / "results.parquet", client=client)
+    assert len(table) == 14 and (table["status"] == "ok").all()
+    mirrors = table[table["role"] == "drive"].set_index("mirror_index")
+    assert list(mirrors.index) == list(range(13))
+    assert (mirrors["mirror_axis"] == "secondary").all()
+    np.testing.assert_allclose(mirrors["mirror_distance_m"], DISTANCES, atol=1e-12)
+    assert (mirrors["max_tracking_error_deg"] > 0).all() and mirrors["peak_phase_current_A"].notna().all()
+    shared = table[table["role"] == "shared-primary"]
+    assert len(shared) == 1 and shared["mirror_axis"].item() == "primary" and shared["mirror_index"].item() == 6
+
+    expected = first_principles_errors(scenario)
+    assert mirrors.loc[6, "primary_sharing_error_max_deg"] == 0.0
+    for index in range(13):
+        magnitude, signed = expected[float(DISTANCES[index])]
+        assert mirrors.loc[index, "primary_sharing_error_max_deg"] == pytest.approx(magnitude, rel=1e-9, abs=1e-12)
+        assert mirrors.loc[index, "primary_sharing_error_signed_deg"] == pytest.approx(signed, rel=1e-9, abs=1e-12)
+
+
+def test_sharing_errors_vanish_at_solar_noon_where_the_mirrors_are_mounted():
+    noon = pvlib.solarposition.sun_rise_set_transit_spa(
+        pd.DatetimeIndex([pd.Timestamp("2025-01-21 12:00", tz="Europe/Rome")]), 40.0, 14.25)["transit"].iloc[0]
+    start = (pd.Timestamp(noon).tz_convert("Europe/Rome") - pd.Timedelta(seconds=1)).floor("s")
+    errors = field_sharing_errors(short_scenario(start.strftime("%H:%M:%S"), duration=2.0))
+    # within 2 s of noon the sun moves by ~0.008 deg: the motion errors are a small fraction of that
+    assert errors["primary_sharing_error_max_deg"].max() < 1e-3
+    assert errors.loc[6, "primary_sharing_error_max_deg"] == 0.0
+
+
+def test_field_sharing_errors_match_the_per_case_figure_and_first_principles():
+    scenario = short_scenario()
+    errors = field_sharing_errors(scenario, [0, 6, 9])
+    expected = first_principles_errors(scenario)
+    for index in (0, 6, 9):
+        assert errors.loc[index, "primary_sharing_error_max_deg"] == pytest.approx(
+            expected[float(DISTANCES[index])][0], rel=1e-9, abs=1e-12)
+    single = primary_sharing_error(load_scenario(BASE, ("window.duration=20", "mirror.distance=-3.6")))
+    assert single["primary_sharing_error_max_deg"] == pytest.approx(errors.loc[0, "primary_sharing_error_max_deg"])
+    night = primary_sharing_error(short_scenario("23:00"))
+    assert night == {"primary_sharing_error_max_deg": None, "primary_sharing_error_signed_deg": None}
+
+
+def test_mirror_all_shorthand_sweeps_the_field():
+    spec = sweep_from_scenario(short_scenario(), {"mirror": "all"}, shared_primary=True)
+    cases = expand_cases(spec)
+    assert [c.columns["mirror_index"] for c in cases] == [*range(13), 6]
+    assert [c.columns["role"] for c in cases] == ["drive"] * 13 + ["shared-primary"]

@@ -1,0 +1,306 @@
+"""Tests of heliostep.sweep, heliostep sweep and the sweep plots, on real local Dask clusters.
+
+The module's cluster has two single-threaded worker processes on 127.0.0.1 whose
+HELIOSTEP_MODELS and HELIOSTEP_FMUS point at an empty folder: they can neither build nor
+find an FMU by name, so every case that runs proves the FMUs were shipped to them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import signal
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from distributed import Client, LocalCluster
+
+from heliostep import cli
+from heliostep.errors import InputError
+from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE, plot_sweep
+from heliostep.paths import fmus_dir, scenarios_dir
+from heliostep.run import run_scenario
+from heliostep.sweep import expand_cases, load_sweep, read_results, run_sweep
+
+BASE = scenarios_dir() / "jan21-central.yaml"
+SMOKE = scenarios_dir() / "sweeps" / "smoke.yaml"
+YEAR_FIELD = scenarios_dir() / "sweeps" / "year-field.yaml"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: Summary key -> table column, for the figures that are plain numbers.
+PLAIN_FIGURES = ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
+                 "electrical_energy_J", "steps_commanded", "steps_executed", "missed_steps", "duration_s")
+SHORT_WINDOW = {"window.duration": 20, "output.interval": 0.5}
+
+
+def local_cluster(**env) -> LocalCluster:
+    return LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                        dashboard_address=":0", env=env)
+
+
+@pytest.fixture(scope="module")
+def client(fmu_paths, tmp_path_factory):
+    """A client of a 2-worker local cluster whose workers cannot build or find FMUs themselves."""
+    empty = tmp_path_factory.mktemp("no-models")
+    with local_cluster(HELIOSTEP_MODELS=str(empty), HELIOSTEP_FMUS=str(empty)) as cluster, \
+            Client(cluster) as dask_client:
+        dask_client.wait_for_workers(2)
+        yield dask_client
+
+
+def write_sweep(folder: Path, name: str = "sweep", **content) -> Path:
+    """A sweep file over the paper's scenario (short windows unless overridden)."""
+    data = {"base": str(BASE), "overrides": dict(SHORT_WINDOW), **content}
+    path = folder / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def same(value, expected) -> bool:
+    if expected is None:
+        return value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value))
+    return value == pytest.approx(expected, rel=1e-9, abs=0.0)
+
+
+# --------------------------------------------------------------------------- expansion
+def test_smoke_sweep_expands_to_day_by_mirror_product():
+    spec = load_sweep(SMOKE)
+    cases = expand_cases(spec)
+    assert [(c.columns["date"], c.columns["mirror_index"]) for c in cases] == [
+        ("2025-01-21", 0), ("2025-01-21", 12), ("2025-06-21", 0), ("2025-06-21", 12)]
+    assert [c.columns["mirror_distance_m"] for c in cases] == [-3.6, 3.6, -3.6, 3.6]
+    assert all(c.scenario["window"]["duration"] == 20 and c.scenario["output"]["interval"] == 0.5 for c in cases)
+    assert all(c.scenario["mirror"]["distance"] is None for c in cases)
+    assert [c.case_id for c in expand_cases(load_sweep(SMOKE))] == [c.case_id for c in cases]  # stable
+    assert len({c.case_id for c in cases}) == 4
+
+
+def test_zip_all_ranges_and_shared_primary(tmp_path):
+    zipped = write_sweep(tmp_path, "zipped", combine="zip",
+                         axes={"day_of_year": [21, 172], "sequencer.current": [5.5, 3.0]})
+    cases = expand_cases(load_sweep(zipped))
+    assert [(c.columns["day_of_year"], c.columns["current_A"]) for c in cases] == [(21, 5.5), (172, 3.0)]
+    assert cases[1].columns["sequencer.current"] == 3.0
+
+    field = write_sweep(tmp_path, "field", shared_primary=True,
+                        axes={"day_of_year": {"start": 1, "stop": 15, "step": 7}, "mirror": "all"})
+    cases = expand_cases(load_sweep(field))
+    drives = [c for c in cases if c.columns["role"] == "drive"]
+    primaries = [c for c in cases if c.columns["role"] == "shared-primary"]
+    assert len(drives) == 3 * 13 and len(primaries) == 3
+    assert sorted({c.columns["mirror_index"] for c in drives}) == list(range(13))
+    assert all(c.scenario["mirror"]["axis"] == "primary" and c.scenario["mirror"]["index"] == 6 for c in primaries)
+    assert [c.columns["day_of_year"] for c in primaries] == [1, 8, 15]
+
+
+def test_year_field_example_is_the_full_year_times_13_mirrors():
+    spec = load_sweep(YEAR_FIELD)
+    assert {axis.name: len(axis.values) for axis in spec.axes} == {"day_of_year": 365, "mirror": 13}
+
+
+# --------------------------------------------------------------------------- running
+def test_sweep_on_two_workers_equals_runs_one_by_one(client, tmp_path):
+    results = tmp_path / "results.parquet"
+    outcome = run_sweep(SMOKE, results, client=client)
+    table = outcome.table
+    assert (outcome.executed, outcome.skipped, outcome.failed) == (4, 0, 0)
+    assert list(table["status"]) == ["ok"] * 4
+    assert table.equals(read_results(results))
+    for row in table.itertuples(index=False):
+        overrides = ("window.duration=20", "output.interval=0.5", f"window.date={row.date}",
+                     "mirror.distance=null", f"mirror.index={row.mirror_index}")
+        summary = run_scenario(BASE, overrides).summary
+        for key in PLAIN_FIGURES:
+            assert same(getattr(row, key), summary[key]), key
+        settling = summary["settling_time_s"]
+        assert same(row.settling_time_max_s, settling["max"])
+        assert same(row.settling_time_mean_s, settling["mean"])
+        assert row.settling_not_settled == settling["not_settled"]
+        assert row.required_torque_Nm == pytest.approx(2.0 * summary["peak_torque_Nm"], rel=1e-12)
+        assert row.holding_torque_Nm == pytest.approx(0.5 * 5.5)
+    # the workers ran the FMUs shipped to them, written once into their local folders
+    expected = {hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in fmus_dir().glob("*.fmu")}
+
+    def local_fmus(dask_worker):
+        folder = Path(dask_worker.local_directory) / "heliostep-fmus"
+        return [hashlib.sha256(p.read_bytes()).hexdigest() for p in folder.glob("*/*.fmu")]
+
+    shipped = client.run(local_fmus)
+    assert any(shipped.values())
+    for hashes in shipped.values():
+        assert len(hashes) == len(set(hashes)) and set(hashes) <= expected
+
+
+def test_rerun_skips_finished_cases_and_runs_new_ones(client, tmp_path):
+    results = tmp_path / "results.parquet"
+    first = run_sweep(write_sweep(tmp_path, axes={"day_of_year": [21, 172]}), results, client=client)
+    assert first.executed == 2
+    stamps = dict(zip(first.table["case_id"], first.table["finished_at"]))
+
+    again = run_sweep(write_sweep(tmp_path, axes={"day_of_year": [21, 172]}), results, client=client)
+    assert (again.executed, again.skipped) == (0, 2)
+    assert dict(zip(again.table["case_id"], again.table["finished_at"])) == stamps
+
+    grown = run_sweep(write_sweep(tmp_path, axes={"day_of_year": [21, 111, 172]}), results, client=client)
+    assert (grown.executed, grown.skipped) == (1, 2)
+    table = read_results(results)
+    assert list(table["day_of_year"]) == [21, 111, 172]
+    for case_id, stamp in stamps.items():
+        assert table.loc[table["case_id"] == case_id, "finished_at"].item() == stamp
+
+    edited = run_sweep(write_sweep(tmp_path, axes={"day_of_year": [21, 111, 172]},
+                                   overrides={**SHORT_WINDOW, "window.start": "11:00"}), results, client=client)
+    assert edited.executed == 3  # another base window: other scenarios, other case ids
+    assert len(read_results(results)) == 3  # rows of cases no longer in the sweep are dropped
+
+
+def test_stopped_sweep_keeps_finished_cases(client, tmp_path):
+    sweep = write_sweep(tmp_path, axes={"day_of_year": [21, 111, 172, 264]})
+    results = tmp_path / "results.parquet"
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def stop_after_two(row):
+        seen.append(row["case_id"])
+        if len(seen) == 2:
+            raise Stop
+
+    with pytest.raises(Stop):
+        run_sweep(sweep, results, client=client, on_result=stop_after_two)
+    kept = read_results(results)
+    assert set(seen) <= set(kept["case_id"]) and (kept["status"] == "ok").all()
+    rerun = run_sweep(sweep, results, client=client)
+    assert rerun.executed == 4 - len(kept) and rerun.skipped == len(kept)
+    assert len(rerun.table) == 4 and (rerun.table["status"] == "ok").all()
+
+
+def test_failing_case_is_recorded_and_the_rest_complete(client, tmp_path):
+    sweep = write_sweep(tmp_path, axes={"solver.max_num_steps": [5, 100000], "parameters.motor.k_e": [0.5]})
+    results = tmp_path / "results.parquet"
+    outcome = run_sweep(sweep, results, client=client)
+    table = outcome.table.set_index("solver.max_num_steps")
+    assert outcome.failed == 1
+    assert table.loc[5, "status"] == "failed" and table.loc[5, "error_type"] == "RunFailed"
+    assert "CVode" in table.loc[5, "error"] and pd.isna(table.loc[5, "peak_torque_Nm"])
+    assert table.loc[100000, "status"] == "ok" and table.loc[100000, "peak_torque_Nm"] > 0.0
+
+    again = run_sweep(sweep, results, client=client)
+    assert again.executed == 0  # a failed case is finished too ...
+    retried = run_sweep(sweep, results, client=client, retry_failed=True)
+    assert (retried.executed, retried.failed) == (1, 1)  # ... unless retried
+
+
+def test_killing_a_worker_mid_sweep_loses_nothing(fmu_paths, tmp_path):
+    sweep = write_sweep(tmp_path, axes={"day_of_year": [21, 111, 172], "mirror": [0, 12]},
+                        overrides={"window.duration": 60, "output.interval": 0.5})
+    results = tmp_path / "results.parquet"
+    killed = []
+
+    with local_cluster() as cluster, Client(cluster) as dask_client:
+        dask_client.wait_for_workers(2)
+
+        def kill_a_worker_after_the_first_result(row):
+            if killed:
+                return
+            pids = dask_client.run(os.getpid)
+            busy = [address for address, keys in dask_client.processing().items() if keys and address in pids]
+            victim = (busy or sorted(pids))[0]
+            os.kill(pids[victim], signal.SIGKILL)
+            killed.append((pids[victim], victim in busy))
+
+        outcome = run_sweep(sweep, results, client=dask_client, on_result=kill_a_worker_after_the_first_result)
+        survivors = set(dask_client.run(os.getpid).values())
+    (victim_pid, victim_was_running_cases), = killed
+    assert victim_was_running_cases and victim_pid not in survivors
+    table = read_results(results)
+    assert outcome.executed == 6 and len(table) == 6
+    assert list(table["status"]) == ["ok"] * 6
+    assert sorted(zip(table["day_of_year"], table["mirror_index"])) == [
+        (21, 0), (21, 12), (111, 0), (111, 12), (172, 0), (172, 12)]
+
+
+# --------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize("content, words", [
+    ({"axes": {"sequencer.curent": [5.5]}}, ["axes.sequencer.curent", "unknown key"]),
+    ({"axes": {"mirror": []}}, ["axes.mirror", "empty"]),
+    ({"combine": "zip", "axes": {"day_of_year": [21, 172], "mirror": [0, 6, 12]}},
+     ["zip", "day_of_year has 2", "mirror has 3"]),
+    ({"axes": {"day_of_year": [21, 400]}}, ["axes.day_of_year", "400", "1 to 365"]),
+    ({"axes": {"mirror": [0, 13]}}, ["axes.mirror", "13"]),
+    ({"axes": {"mirror.index": [3]}}, ["axes.mirror.index", "'mirror' axis"]),
+    ({"axes": {"motor": ["NoSuchMotor"]}}, ["fmus.motor", "NoSuchMotor"]),
+    ({"axes": {"day_of_year": [21]}, "colour": "red"}, ["colour", "unknown key"]),
+    ({"axes": {"day_of_year": [21, 21]}}, ["axes.day_of_year", "repeated"]),
+    ({"axes": {"window.duration": [20, -1]}}, ["axes.window.duration", "-1"]),
+    ({"axes": {"day_of_year": [21]}, "overrides": {"solver.rtol": "tight"}}, ["overrides", "solver.rtol"]),
+])
+def test_bad_sweep_gives_clear_error_before_any_case_runs(client, tmp_path, content, words):
+    sweep = write_sweep(tmp_path, "bad", **content)
+    results = tmp_path / "results.parquet"
+    ran = []
+    with pytest.raises(InputError) as error:
+        run_sweep(sweep, results, client=client, on_result=ran.append)
+    message = str(error.value)
+    assert str(sweep) in message
+    for word in words:
+        assert word in message
+    assert not ran and not results.exists()
+
+
+def test_unreachable_scheduler_fails_fast(tmp_path):
+    results = tmp_path / "results.parquet"
+    started = time.perf_counter()
+    with pytest.raises(InputError, match=r"tcp://127\.0\.0\.1:1"):
+        run_sweep(SMOKE, results, scheduler="tcp://127.0.0.1:1", connect_timeout=2.0)
+    assert time.perf_counter() - started < 10.0
+    assert not results.exists()
+
+
+# --------------------------------------------------------------------------- command line, plots
+@pytest.fixture
+def heliostep_main(monkeypatch):
+    """heliostep.cli.main with the sweep command registered (as the lead will)."""
+    if "heliostep.cli.sweep" not in cli.COMMAND_MODULES:
+        monkeypatch.setattr(cli, "COMMAND_MODULES", (*cli.COMMAND_MODULES, "heliostep.cli.sweep"))
+    return cli.main
+
+
+def test_cli_runs_lists_and_reports_failures(client, tmp_path, capsys, heliostep_main):
+    address = client.scheduler.address
+    sweep = write_sweep(tmp_path, axes={"day_of_year": [21, 172], "mirror": [0, 12]})
+    out = tmp_path / "out"
+    assert heliostep_main(["sweep", str(sweep), "--out", str(out), "--scheduler", address]) == 0
+    printed = capsys.readouterr().out
+    assert "4 run now, 0 already done, 0 failed" in printed and "results.parquet" in printed
+    assert (out / "results.parquet").is_file() and (out / TORQUE_FILE).is_file()
+
+    assert heliostep_main(["sweep", str(sweep), "--out", str(out), "--list"]) == 0
+    listing = capsys.readouterr().out
+    assert listing.startswith("4 cases") and listing.count(" ok ") == 4
+
+    failing = write_sweep(tmp_path, "failing", axes={"solver.max_num_steps": [5, 100000]})
+    assert heliostep_main(["sweep", str(failing), "--out", str(tmp_path / "f"), "--scheduler", address,
+                           "--no-plots"]) == 1
+    captured = capsys.readouterr()
+    assert "FAILED case 0" in captured.out and "--retry-failed" in captured.err
+
+    assert heliostep_main(["sweep", str(tmp_path / "missing.yaml")]) == 2
+    assert "sweep file not found" in capsys.readouterr().err
+    assert heliostep_main(["sweep", str(sweep), "--out", str(tmp_path / "u"), "--scheduler", "tcp://127.0.0.1:1",
+                           "--connect-timeout", "2"]) == 2
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
+
+
+def test_plots_heatmaps_only_with_days_and_mirrors(client, tmp_path):
+    table = run_sweep(SMOKE, tmp_path / "results.parquet", client=client).table
+    written = plot_sweep(table, tmp_path / "plots")
+    assert sorted(p.name for p in written) == sorted([name for _, name, _ in HEATMAPS] + [TORQUE_FILE])
+    for path in written:
+        assert path.read_bytes().startswith(PNG_SIGNATURE)
+    one_day = table[table["day_of_year"] == 21]
+    assert [p.name for p in plot_sweep(one_day, tmp_path / "one-day")] == [TORQUE_FILE]
