@@ -19,6 +19,7 @@ The trace has a row at every output time and a row just before and just after ev
 
 from __future__ import annotations
 
+import ctypes
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -32,12 +33,28 @@ from heliostep.errors import HeliostepError, InputError
 
 
 class SimulationError(HeliostepError):
-    """The simulation failed part-way; ``trace`` holds what was computed until then."""
+    """The simulation failed or was stopped part-way; ``trace`` holds what was computed until then.
 
-    def __init__(self, message: str, trace: pd.DataFrame, statistics: dict):
+    ``reason`` is ``"failed"`` or ``"interrupted"`` (``should_stop`` asked to stop); ``time`` is
+    the simulation time reached [s].
+    """
+
+    def __init__(self, message: str, trace: pd.DataFrame, statistics: dict, reason: str = "failed",
+                 time: float = float("nan")):
         super().__init__(message)
         self.trace = trace
         self.statistics = statistics
+        self.reason = reason
+        self.time = time
+
+
+class _Interrupted(HeliostepError):
+    """Raised inside the main loop when ``should_stop`` says so (between solver calls)."""
+
+
+#: CVODE's one-step task and the flag it returns on reaching the stop time (cvode.h).
+_CV_ONE_STEP = 2
+_CV_TSTOP_RETURN = 1
 
 
 @dataclass
@@ -182,24 +199,37 @@ class CoSimulation:
     # ------------------------------------------------------------------ simulation
     def simulate(self, start_time: float, stop_time: float, output_times: np.ndarray | None = None,
                  solver: SolverOptions | None = None,
-                 progress: Callable[[float], None] | None = None) -> MasterResult:
+                 progress: Callable[[float], None] | None = None,
+                 monitor: Callable[[np.ndarray], None] | None = None,
+                 should_stop: Callable[[], bool] | None = None) -> MasterResult:
         """Integrate from ``start_time`` to ``stop_time`` [s].
 
         Returns the trace with a row at each of ``output_times`` (default: start and stop)
         and rows just before/after each event. On failure raises :class:`SimulationError`
         carrying the trace so far.
+
+        ``monitor``, when given, is called with a row (laid out like the trace's rows: time,
+        master inputs, FMU outputs) at **every internal step of the solver**, at every event
+        (both sides) and at every output time, so figures such as peaks and integrals can be
+        computed from the solution itself rather than from the output grid (CVODE then runs in
+        one-step mode up to each stop). ``should_stop`` is asked between solver calls; when it
+        returns True the run stops there with a :class:`SimulationError` whose ``reason`` is
+        ``"interrupted"``.
         """
         if not stop_time > start_time:
             raise InputError(f"stop time {stop_time} must be after start time {start_time}")
         solver = solver or SolverOptions()
         grid = np.unique(np.clip(np.asarray([start_time, stop_time] if output_times is None
                                             else output_times, dtype=float), start_time, stop_time))
-        run = _Run(self, solver, progress)
+        run = _Run(self, solver, progress, monitor, should_stop)
         try:
             run.execute(start_time, stop_time, grid)
+        except _Interrupted:
+            raise SimulationError(f"interrupted at t = {run.time:.9g} s", run.trace(), run.statistics(),
+                                  reason="interrupted", time=run.time) from None
         except (HeliostepError, RuntimeError) as exc:
             raise SimulationError(f"simulation failed at t = {run.time:.9g} s: {exc}",
-                                  run.trace(), run.statistics()) from exc
+                                  run.trace(), run.statistics(), time=run.time) from exc
         finally:
             run.close()
         return MasterResult(run.trace(), run.statistics())
@@ -208,10 +238,12 @@ class CoSimulation:
 class _Run:
     """State of one integration (instances, CVODE, recorded rows)."""
 
-    def __init__(self, system: CoSimulation, solver: SolverOptions, progress):
+    def __init__(self, system: CoSimulation, solver: SolverOptions, progress, monitor=None, should_stop=None):
         self.system = system
         self.options = solver
         self.progress = progress
+        self.monitor = monitor
+        self.should_stop = should_stop
         self.units: dict[str, _Unit] = {}
         self.rows: list[np.ndarray] = []
         self.time = np.nan
@@ -304,10 +336,48 @@ class _Run:
         return np.ctypeslib.as_array(pointer, (n,))
 
     # --------------------------------------------------------------- recording
-    def record(self, t: float) -> None:
+    def _row(self, t: float) -> np.ndarray:
         parts = [np.array([t]), self.input_values.copy()]
         parts += [unit.read_outputs() for unit in self.units_list]
-        self.rows.append(np.concatenate(parts))
+        return np.concatenate(parts)
+
+    def record(self, t: float) -> None:
+        row = self._row(t)
+        self.rows.append(row)
+        if self.monitor is not None:
+            self.monitor(row)
+
+    def _advance(self, solver, t_next: float):
+        """Integrate to ``t_next`` or the first root: (root found, t reached).
+
+        Without a monitor this is one CVODE call in normal mode. With one, CVODE takes one
+        internal step at a time (stop time ``t_next``, so it never steps past it) and the
+        monitor sees the solution after each.
+        """
+        if self.monitor is None:
+            root, _, t = solver.step(self.time, t_next)
+            return root, t
+        from fmpy.sundials.cvode import CV_ROOT_RETURN, CVode, sundials_cvode
+
+        set_stop_time = sundials_cvode.CVodeSetStopTime
+        set_stop_time.argtypes, set_stop_time.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_int
+        if not solver.discrete:
+            solver.get_x(solver.px, solver.nx)
+        if set_stop_time(solver.cvode_mem, t_next) < 0:
+            raise RuntimeError(f"CVodeSetStopTime({t_next}) failed")
+        reached = ctypes.c_double(0.0)
+        while True:
+            flag = CVode(solver.cvode_mem, t_next, solver.x, ctypes.byref(reached), _CV_ONE_STEP)
+            if flag < 0:
+                raise RuntimeError("CVode error (code %s) in module %s, function %s: %s" % solver.error_info)
+            if not solver.discrete:
+                solver.set_x(solver.px, solver.nx)
+            t = reached.value
+            if flag == CV_ROOT_RETURN or flag == _CV_TSTOP_RETURN or t >= t_next:
+                return flag == CV_ROOT_RETURN, t
+            self.set_time(t)
+            self._propagate()
+            self.monitor(self._row(t))
 
     def trace(self) -> pd.DataFrame:
         data = np.vstack(self.rows) if self.rows else np.zeros((0, len(self.columns)))
@@ -394,7 +464,7 @@ class _Run:
             t_next = min(t_output, t_change, t_time_event, stop_time)
 
             self.counts["integrator_calls"] += 1
-            state_event, _, t = solver.step(t, t_next)
+            state_event, t = self._advance(solver, t_next)
             self.time = t
             self.set_time(t)
             self._propagate()
@@ -417,6 +487,8 @@ class _Run:
                 self.record(t)
             if self.progress:
                 self.progress(t)
+            if self.should_stop is not None and self.should_stop():
+                raise _Interrupted()
 
     def _event(self, solver, t: float, new_inputs: bool) -> None:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after."""
