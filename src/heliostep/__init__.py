@@ -8,7 +8,7 @@ here from :mod:`heliostep.run`. The packages follow the data flow, one stage eac
 the command line. The layer contracts in ``pyproject.toml`` (import-linter) keep it that way.
 """
 
-__version__ = "0.1.0"
+from heliostep._version import __version__
 
 __all__ = ["RunFailed", "RunResult", "__version__", "run_scenario"]
 

@@ -1,6 +1,7 @@
 """heliostep.drive.sequencer: phase patterns from the torque law, step instants by root finding."""
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 import pytest
 from scipy.optimize import brentq
 
@@ -74,8 +75,15 @@ def test_reference_that_goes_up_and_down_steps_both_ways_at_the_roots():
 
 
 def test_reference_held_still_makes_no_steps():
+    # the reference rises to 0.49 step in 2 s and is then held (the stow 'hold' at sunset): it never
+    # reaches the half step, so no step may be commanded. An interpolant that overshoots at the
+    # corner would cross 0.5 step and command a spurious step pair: a cubic spline does (checked),
+    # the monotone PCHIP the scheduler uses must not.
     times = np.linspace(0, 100, 101)
-    held = np.where(times < 50, 0.4 * STEP, 0.4 * STEP)  # a stow 'hold': constant below a half step
+    held = np.clip(times / 2.0, 0.0, 1.0) * 0.49 * STEP
+    fine = np.linspace(0, 100, 100_001)
+    assert CubicSpline(times, held)(fine).max() > 0.5 * STEP  # the test can fail: overshoot exists
+    assert reference_interpolant(times, held)(fine).max() <= 0.49 * STEP * (1 + 1e-12)
     assert len(schedule_steps(reference_interpolant(times, held), Sequencer(step_angle=STEP))) == 0
 
 

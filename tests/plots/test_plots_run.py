@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -73,11 +74,13 @@ def png_size(path):
     return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
 
 
-def test_synthetic_trace_has_two_rows_per_step(trace):
-    steps = run_plots.step_times(trace)
-    np.testing.assert_allclose(steps, np.arange(1.0, 20.0))
-    for instant in steps:
-        assert (trace["time"] == instant).sum() == 2
+def test_step_times_are_where_the_commanded_index_changes():
+    # rows as the master writes them: a row before and a row after each step, same time
+    table = pd.DataFrame({"time": [0.0, 0.5, 1.0, 1.0, 1.5, 2.25, 2.25, 3.0, 3.0, 4.0],
+                          "step_index": [0, 0, 0, 1, 1, 1, 2, 2, 1, 1]})
+    np.testing.assert_array_equal(run_plots.step_times(table), [1.0, 2.25, 3.0])
+    assert run_plots.step_times(table.drop(columns="step_index")).size == 0
+    assert run_plots.step_times(table.assign(step_index=0)).size == 0
 
 
 def test_every_figure_is_written(trace, tmp_path):
@@ -170,10 +173,18 @@ def test_bad_traces_are_input_errors(trace, tmp_path):
 
 
 def test_matplotlib_is_imported_only_by_the_plots():
+    # every module of heliostep outside heliostep.plots, imported (all of them) in a fresh interpreter
+    import heliostep
+
+    package = Path(heliostep.__file__).parent
+    modules = sorted("heliostep." + ".".join(path.relative_to(package).with_suffix("").parts).removesuffix(".__init__")
+                     for path in package.rglob("*.py") if "plots" not in path.relative_to(package).parts)
+    assert len(modules) > 40 and "heliostep.sweep.cluster" in modules and "heliostep.cli.run" in modules
     code = (
-        "import sys\n"
-        "import heliostep.scenario, heliostep.solar, heliostep.errors\n"
-        "assert 'matplotlib' not in sys.modules, 'imported matplotlib'\n"
+        "import importlib, sys\n"
+        f"for name in {modules!r}:\n"
+        "    importlib.import_module(name)\n"
+        "    assert 'matplotlib' not in sys.modules, f'{name} imported matplotlib'\n"
         "import heliostep.plots.run, matplotlib\n"
         "assert matplotlib.get_backend().lower() == 'agg', matplotlib.get_backend()\n"
     )

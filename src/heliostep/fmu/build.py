@@ -26,7 +26,7 @@ from contextlib import contextmanager
 from importlib import metadata, resources
 from pathlib import Path
 
-from heliostep import __version__
+from heliostep._version import __version__
 from heliostep.errors import InputError
 from heliostep.fmu.export import FMI_LAYER, compiler, export_fmu
 from heliostep.fmu.modelica import available_models, load_model, model_files

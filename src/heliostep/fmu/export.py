@@ -31,7 +31,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from heliostep import __version__
+from heliostep._version import __version__
 from heliostep.errors import HeliostepError
 from heliostep.fmu.modelica import FlatModel, Variable
 

@@ -23,6 +23,8 @@ import pandas as pd
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 
+from heliostep.solar import N_FIELD_MIRRORS
+
 __all__ = ["HEATMAPS", "TORQUE_FILE", "plot_heatmap", "plot_sweep", "plot_torque_requirement"]
 
 #: (column, PNG, colour-bar label) of each heatmap.
@@ -34,8 +36,8 @@ HEATMAPS = (
 )
 #: PNG of the torque requirement plot.
 TORQUE_FILE = "torque_requirement.png"
-#: Most tick labels on a heatmap axis.
-_MAX_TICKS = 13
+#: Most tick labels on a heatmap axis: one per mirror of the field.
+_MAX_TICKS = N_FIELD_MIRRORS
 _DPI = 120
 
 

@@ -145,13 +145,13 @@ class MirrorConfig(Section):
     """``mirror``: which end mirror is driven and how it tracks.
 
     Its position is ``distance`` [m] from the tube, or ``index`` (0 .. 12, 6 is the
-    central mirror) in the field of 13 mirrors ``spacing`` [m] apart: exactly one of
+    central mirror) in the field of N_FIELD_MIRRORS mirrors ``spacing`` [m] apart: exactly one of
     ``distance`` and ``index``.
     """
 
     distance: Real | None = Field(None, description="[m], transverse position; instead of index")
     index: Count | None = Field(None, ge=0, le=N_FIELD_MIRRORS - 1,
-                                 description="position in the field of 13; instead of distance")
+                                 description=f"position in the field of {N_FIELD_MIRRORS}; instead of distance")
     spacing: Real | None = Field(None, gt=0.0, description=f"[m] between mirrors, with index "
                                                             f"(default {DEFAULT_MIRROR_SPACING})")
     axis: Literal[AXES] = Field("secondary", description="the driven axis")
