@@ -1,21 +1,38 @@
 model PanelMechanics
-  "Secondary-axis drive: rotor -> pinion -> rack -> panel, exact kinematics, eqs [10]-[15]"
+  "Secondary-axis drive: rotor -> pinion -> rack -> panel, exact kinematics and full Lagrangian, eqs [10]-[15]"
   // The rack travel is r*dtheta [12] and s*d(tan theta_p) [13], so the rotor angle is
   // theta = theta_start + (s/r)*(tan theta_p - tan theta_p_start) [14] and the speed ratio
-  // g = dtheta/dtheta_p = s/(r cos^2 theta_p) [15]. Virtual work gives the exact form of the
-  // paper's eq [10]: (J_p + J_m g^2) der(omega_p) = g tau - b omega_p - M_ext.
+  // g = dtheta/dtheta_p = s/(r cos^2 theta_p) [15]. With kinetic energy
+  // T = J_p omega_p^2/2 + J_m (g omega_p)^2/2, Lagrange's equation is the exact form of [10]:
+  //   (J_p + J_m g^2) der(omega_p) + J_m g (dg/dtheta_p) omega_p^2
+  //       = g (tau - T_c tanh(omega/w_s)) - M_c tanh(omega/w_s) - b omega_p - M_ext,
+  // with dg/dtheta_p = 2 g tan(theta_p). Friction is Coulomb friction, smoothed by tanh so the
+  // right-hand side stays smooth for CVODE; see docs/physics.md for every parameter's source.
   parameter Real J_p(unit = "kg.m2") = 3.37 "Panel inertia about its hinge, M/12 (l^2 + sp^2) [11] (Table 2)";
-  // J_m: rotor inertia of a hybrid stepper of this size (holding torque k_e*I = 2.75 N.m,
-  // NEMA 34 class), whose catalogue rotor inertias are of the order of 1-3 kg.cm2; the
-  // reducer's own inertia is small beside it. The paper gives no value.
-  parameter Real J_m(unit = "kg.m2") = 1.4e-4 "Rotor + gear inertia referred to the motor shaft";
-  // b: the paper reports a first-order-like step response with no settling oscillation but
-  // gives no damping. With the current loop holding the phase currents, the rotor sits in a
-  // detent of stiffness k = k_e*I*N_c = 137.5 N.m/rad (rated current); referred to the
-  // panel at theta_p = 0 (g = s/r = 120) critical damping is
-  // b = 2*g^2*sqrt(k*(J_m + J_p/g^2)) = 6.53e3 N.m.s/rad. b = 6500 makes one step settle
-  // without ringing (damping ratio about 1); it lumps bearing, rack and drive losses.
-  parameter Real b(unit = "N.m.s/rad") = 6500 "Viscous damping on the panel axis";
+  // J_m: the paper gives no rotor inertia. Catalogue class: NEMA 34 (86 mm frame) two-phase
+  // hybrid stepper of about 2.2-3 N.m holding torque (ours: k_e*I = 2.75 N.m), rotor inertia
+  // 1400 g.cm2 (e.g. Oriental Motor PKP296 series, 86 mm, 1.8 deg: rotor inertia 1400 g.cm2).
+  // The reducer's own inertia is not included (no reducer is named by the paper).
+  parameter Real J_m(unit = "kg.m2") = 1.4e-4 "Rotor inertia on the motor shaft (NEMA 34 class catalogue value)";
+  // b: no sourced viscous friction for this drive; 0 by default (kept for studies).
+  parameter Real b(unit = "N.m.s/rad") = 0 "Viscous damping on the panel axis (none sourced: 0)";
+  // T_c: Coulomb friction of the reducer and the rack-and-pinion, referred to the motor shaft.
+  // Source: a single planetary stage loses about 3 % of the torque it transmits (typical
+  // catalogue efficiency 97 % per stage); at the motor's rated holding torque k_e*I = 2.75 N.m
+  // that is T_c = 0.03*2.75 = 0.08 N.m, taken as a load-independent Coulomb torque.
+  parameter Real T_c(unit = "N.m") = 0.08 "Coulomb friction of reducer + rack on the motor shaft";
+  // M_c: the panel's two hinge ball bearings, SKF's simplified friction moment
+  // M = 0.5*mu*P*d with mu = 0.0015 (deep-groove ball bearing), P = M g = 18*9.81 N (Table 2
+  // mass) and an assumed bore d = 25 mm: 3.3e-3 N.m on the panel axis.
+  parameter Real M_c(unit = "N.m") = 3.3e-3 "Coulomb friction of the hinge bearings on the panel axis";
+  // w_s: regularisation speed of tanh(omega/w_s) (rotor speed). Below it friction acts as a
+  // steep viscous term T_c/w_s = 8 N.m.s/rad, so a rotor that real friction would stick within
+  // T_c/k of the detent (k = k_e I N_c = 137.5 N.m/rad: 5.8e-4 rad, 1.9 % of a step) creeps into
+  // it with a time constant T_c/(w_s k) = 0.06 s instead. Step motion (rotor speeds of rad/s)
+  // is 100 w_s and sees the full Coulomb torque; ringing below w_s has an amplitude under
+  // w_s/omega_n = 1.6e-5 rad (0.05 % of a step). Smaller w_s (1e-3) made the RHS so stiff that
+  // CVODE failed on fine output grids.
+  parameter Real w_s(unit = "rad/s") = 1e-2 "Regularisation speed of the Coulomb friction (rotor speed)";
   parameter Real r(unit = "m") = 2.5e-3 "Pinion radius after the reducer (Table 2)";
   parameter Real s(unit = "m") = 0.3 "Lever arm of the rack on the panel (Table 2)";
   parameter Real theta_p_start(unit = "rad") = 0 "Initial panel angle";
@@ -26,11 +43,14 @@ model PanelMechanics
   output Real omega(unit = "rad/s") "Rotor speed";
   output Real theta_p(unit = "rad", start = theta_p_start, fixed = true) "Panel angle";
   output Real omega_p(unit = "rad/s", start = 0, fixed = true) "Panel speed";
+  output Real tau_friction(unit = "N.m") "Friction torque on the motor shaft (bearings referred to it)";
   Real g(unit = "1") "Speed ratio dtheta/dtheta_p";
 equation
   g = s / (r * cos(theta_p)^2);  // [paper], eq. 15
   der(theta_p) = omega_p;
-  (J_p + J_m * g^2) * der(omega_p) = g * tau - b * omega_p - m_ext;  // [paper], eq. 10 (exact form)
+  tau_friction = (T_c + M_c * r * cos(theta_p)^2 / s) * tanh(omega / w_s);  // M_c / g
+  (J_p + J_m * g^2) * der(omega_p) + J_m * g * (2 * g * tan(theta_p)) * omega_p^2
+    = g * (tau - tau_friction) - b * omega_p - m_ext;  // [paper], eq. 10 (exact form, full Lagrangian)
   theta = theta_start + s / r * (tan(theta_p) - tan(theta_p_start));  // [paper], eqs. 12-14
   omega = g * omega_p;  // [paper], eq. 15
 end PanelMechanics;

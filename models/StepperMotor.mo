@@ -11,15 +11,17 @@ model StepperMotor
   parameter Real N_c(unit = "1") = 50 "Number of rotor teeth N_c (Table 3)";
   parameter Real V_supply(unit = "V") = 3.1 "Chopper voltage limit dV (Table 3, rated voltage)";
   parameter Real K_current(unit = "V/A") = 100 "Current-loop gain K of the averaged chopper";
-  parameter Real i_a_start(unit = "A") = 0 "Initial current of phase A";
-  parameter Real i_b_start(unit = "A") = 0 "Initial current of phase B";
+  // The run starts at the loop's holding equilibrium: with the rotor still, L di/dt = 0 gives
+  // K (i_ref - i) = R i, i.e. i = K i_ref / (K + R) (while |R i| <= dV, the chopper unsaturated).
+  parameter Real i_a_start(unit = "A") = 0 "Reference current of phase A held before the start";
+  parameter Real i_b_start(unit = "A") = 0 "Reference current of phase B held before the start";
   input Real i_a_ref(unit = "A") "Reference current of phase A";
   input Real i_b_ref(unit = "A") "Reference current of phase B";
   input Real theta(unit = "rad") "Rotor angle";
   input Real omega(unit = "rad/s") "Rotor speed";
   output Real tau(unit = "N.m") "Electromagnetic torque on the rotor C";
-  output Real i_a(unit = "A", start = i_a_start, fixed = true) "Current of phase A";
-  output Real i_b(unit = "A", start = i_b_start, fixed = true) "Current of phase B";
+  output Real i_a(unit = "A", start = K_current * i_a_start / (K_current + R), fixed = true) "Current of phase A";
+  output Real i_b(unit = "A", start = K_current * i_b_start / (K_current + R), fixed = true) "Current of phase B";
   output Real v_a(unit = "V") "Voltage applied to phase A";
   output Real v_b(unit = "V") "Voltage applied to phase B";
   output Real power(unit = "W") "Electrical power drawn by both phases";

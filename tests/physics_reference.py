@@ -36,13 +36,23 @@ def ideal_current_motor(i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, 
 
 
 def panel_mechanics(theta_p, omega_p, torque, m_ext, *, J_p, J_m, b, r, s,
-                    theta_p_start, theta_start, small_angle=False):
-    """Returns dtheta_p/dt, domega_p/dt, rotor angle, rotor speed."""
+                    theta_p_start, theta_start, small_angle=False, T_c=0.08, M_c=3.3e-3, w_s=1e-2):
+    """Returns dtheta_p/dt, domega_p/dt, rotor angle, rotor speed.
+
+    Exact form: Lagrange's equation with T = J_p w_p^2/2 + J_m (g w_p)^2/2 gives
+    (J_p + J_m g^2) dw_p/dt + J_m g g' w_p^2 = g (C - T_f) - b w_p - M_ext, g' = dg/dtheta_p,
+    with Coulomb friction T_f = (T_c + M_c/g) tanh(g w_p / w_s) (smoothed; docs/physics.md).
+    """
     if small_angle:
         ratio = s / r
+        dratio = 0.0
         theta = theta_start + ratio * (theta_p - theta_p_start)
     else:
         ratio = s / (r * np.cos(theta_p) ** 2)  # eq. 15
+        dratio = 2 * ratio * np.tan(theta_p)  # d/dtheta_p of s / (r cos^2 theta_p)
         theta = theta_start + s / r * (np.tan(theta_p) - np.tan(theta_p_start))  # eqs. 12-14
-    domega_p = (ratio * torque - b * omega_p - m_ext) / (J_p + J_m * ratio**2)  # eq. 10, exact form
-    return omega_p, domega_p, theta, ratio * omega_p
+    omega = ratio * omega_p
+    friction = (T_c + M_c / ratio) * np.tanh(omega / w_s)
+    domega_p = ((ratio * (torque - friction) - b * omega_p - m_ext - J_m * ratio * dratio * omega_p**2)
+                / (J_p + J_m * ratio**2))  # eq. 10, exact form
+    return omega_p, domega_p, theta, omega

@@ -59,3 +59,116 @@ def build_bouncing_ball(out_dir: Path) -> Path:
             fmu.write(library, f"binaries/linux64/{MODEL_IDENTIFIER}.so")
         partial.replace(fmu_path)  # atomic: a reader never sees a half-written FMU
     return fmu_path
+
+
+# ---------------------------------------------------------------------- the mini FMUs
+#: Small hand-written FMUs in ``tests/data/mini/`` (C sources sharing ``mini_fmu.h``); their
+#: modelDescription.xml is written from these tables by :func:`build_mini_fmu`.
+#: Each variable: (name, type, causality, variability, start or None, derivative-of or None);
+#: its value reference is its index (as in the C source).
+MINI_DIR = Path(__file__).parent / "data" / "mini"
+MINI_FMUS = {
+    "Counter": ("counter.c", "{c0a7e1f2-0001-4000-8000-000000000001}", 0, [
+        ("count", "Integer", "output", "discrete", None, None),
+        ("x", "Real", "output", "continuous", 0.0, None),
+        ("der(x)", "Real", "local", "continuous", None, "x"),
+        ("period", "Real", "parameter", "fixed", 1.0, None),
+        ("t_stop", "Real", "parameter", "fixed", 9.0, None),
+        ("half", "Real", "output", "discrete", None, None),
+        ("even", "Boolean", "output", "discrete", None, None),
+        ("step", "Integer", "parameter", "fixed", 1, None),
+        ("enabled", "Boolean", "parameter", "fixed", True, None),
+        ("ticks", "Integer", "local", "discrete", None, None),
+    ]),
+    "PassThrough": ("pass_through.c", "{c0a7e1f2-0002-4000-8000-000000000002}", 0, [
+        ("u_c", "Real", "input", "continuous", 0.0, None),
+        ("u_d", "Real", "input", "discrete", 0.0, None),
+        ("u_i", "Integer", "input", "discrete", 0, None),
+        ("u_b", "Boolean", "input", "discrete", False, None),
+        ("y_c", "Real", "output", "continuous", None, None),
+        ("y_d", "Real", "output", "discrete", None, None),
+        ("y_i", "Integer", "output", "discrete", None, None),
+        ("y_b", "Boolean", "output", "discrete", None, None),
+        ("integral", "Real", "output", "continuous", 0.0, None),
+        ("der(integral)", "Real", "local", "continuous", None, "integral"),
+        ("u_max", "Real", "parameter", "fixed", 1e300, None),
+    ]),
+    "Switch": ("switch.c", "{c0a7e1f2-0003-4000-8000-000000000003}", 1, [
+        ("x", "Real", "output", "continuous", 0.0, None),
+        ("der(x)", "Real", "local", "continuous", None, "x"),
+        ("on", "Boolean", "output", "discrete", None, None),
+        ("switches", "Integer", "output", "discrete", None, None),
+        ("up", "Real", "parameter", "fixed", 1.0, None),
+        ("down", "Real", "parameter", "fixed", 2.0, None),
+        ("high", "Real", "parameter", "fixed", 1.0, None),
+    ]),
+    "Gain": ("gain.c", "{c0a7e1f2-0004-4000-8000-000000000004}", 0, [
+        ("u", "Real", "input", "continuous", 0.0, None),
+        ("y", "Real", "output", "continuous", None, None),
+        ("k", "Real", "parameter", "fixed", 0.5, None),
+        ("b", "Real", "parameter", "fixed", 1.0, None),
+        ("s", "Real", "output", "continuous", 0.0, None),
+        ("der(s)", "Real", "local", "continuous", None, "s"),
+    ]),
+}
+#: direct feedthrough: model -> output -> the input it depends on
+_FEEDTHROUGH = {"PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"},
+                "Gain": {"y": "u"}}
+
+
+def _model_description(name: str) -> str:
+    _, guid, n_indicators, variables = MINI_FMUS[name]
+    index = {v[0]: k + 1 for k, v in enumerate(variables)}
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>',
+             f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" '
+             f'numberOfEventIndicators="{n_indicators}" variableNamingConvention="structured">',
+             f'  <ModelExchange modelIdentifier="{name}"/>',
+             '  <ModelVariables>']
+    for vr, (var, type_, causality, variability, start, derivative) in enumerate(variables):
+        attributes = f'name="{var}" valueReference="{vr}" causality="{causality}" variability="{variability}"'
+        if start is not None and causality in ("output", "local"):
+            attributes += ' initial="exact"'
+        element = ""
+        if start is not None:
+            text = str(start).lower() if type_ == "Boolean" else repr(start)
+            element += f' start="{text}"'
+        if derivative:
+            element += f' derivative="{index[derivative]}"'
+        lines.append(f'    <ScalarVariable {attributes}><{type_}{element}/></ScalarVariable>')
+    lines += ['  </ModelVariables>', '  <ModelStructure>', '    <Outputs>']
+    for var, *_ in (v for v in variables if v[2] == "output"):
+        source = _FEEDTHROUGH.get(name, {}).get(var)
+        deps = f' dependencies="{index[source]}"' if source else ' dependencies=""'
+        lines.append(f'      <Unknown index="{index[var]}"{deps}/>')
+    lines += ['    </Outputs>', '    <Derivatives>']
+    derivatives = [v for v in variables if v[5]]
+    for var, *_ in derivatives:
+        lines.append(f'      <Unknown index="{index[var]}"/>')
+    lines += ['    </Derivatives>', '    <InitialUnknowns>']
+    for var, type_, causality, variability, start, derivative in variables:
+        if (causality == "output" and start is None) or derivative:
+            lines.append(f'      <Unknown index="{index[var]}"/>')
+    lines += ['    </InitialUnknowns>', '  </ModelStructure>', '</fmiModelDescription>', '']
+    return "\n".join(lines)
+
+
+def build_mini_fmu(name: str, out_dir: Path, platform: str = "linux64") -> Path:
+    """Compile the mini FMU ``name`` (Counter, PassThrough, Switch, Gain) into ``out_dir/<name>.fmu``."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fmu_path = out_dir / f"{name}.fmu"
+    with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
+        library = Path(tmp) / f"{name}.so"
+        gcc = shutil.which("gcc") or "gcc"
+        command = [gcc, *CFLAGS, "-I", str(fmi2_headers()), "-I", str(MINI_DIR),
+                   str(MINI_DIR / MINI_FMUS[name][0]), "-o", str(library), "-lm"]
+        completed = subprocess.run(command, capture_output=True, text=True)
+        if completed.returncode != 0:
+            raise RuntimeError(f"compiling {name} failed:\n{' '.join(command)}\n"
+                               f"{completed.stdout}{completed.stderr}")
+        partial = Path(tmp) / fmu_path.name
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as fmu:
+            fmu.writestr("modelDescription.xml", _model_description(name))
+            fmu.write(library, f"binaries/{platform}/{name}.so")
+        partial.replace(fmu_path)
+    return fmu_path

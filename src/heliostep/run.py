@@ -11,8 +11,11 @@ import hashlib
 import json
 import os
 import platform
+import shutil
 import sys
+import tempfile
 import time as clock
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata as package_metadata
 from pathlib import Path
@@ -20,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from heliostep import __version__
+from heliostep._version import __version__
 from heliostep.cosim import (
     Connection,
     CoSimulation,
@@ -33,7 +36,8 @@ from heliostep.cosim import (
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import HeliostepError, InputError
 from heliostep.fmu.build import ensure_fmu
-from heliostep.results.summary import summarize
+from heliostep.results.outputs import TMP_PREFIX, atomic_path, remove_stale, write_text_atomic
+from heliostep.results.summary import SolutionRecorder, solution_figures, summarize
 from heliostep.results.trace import UNITS, assemble_trace, drive_metadata
 from heliostep.results.trace_io import write_trace
 from heliostep.scenario import (
@@ -52,8 +56,14 @@ VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pa
 class RunResult:
     """The outcome of :func:`run_scenario`.
 
-    ``complete`` is False when the simulation failed part-way; ``error`` then says why and
-    ``trace`` holds the rows computed until then.
+    ``complete`` is False when the simulation failed or was interrupted part-way; ``error`` then
+    says why, ``reason`` is ``"failed"`` or ``"interrupted"``, ``time_reached`` the simulated time
+    reached [s], and ``trace`` holds the rows computed until then.
+
+    The summary of an interrupted run does not judge the step in progress at the cut: when the
+    last step before the cut looks missed or unsettled there, the step figures (steps commanded,
+    executed, missed, lost, settling) are those up to that step, and ``step_in_progress_at_cut_s``
+    gives its time.
     """
 
     scenario: Scenario
@@ -63,50 +73,149 @@ class RunResult:
     complete: bool = True
     error: str | None = None
     inputs: DriveInputs | None = field(default=None, repr=False)
+    reason: str | None = None
+    time_reached: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.reason == "interrupted" and self.summary:
+            self.summary = _summary_at_cut(self.trace, self.metadata, self.summary)
 
     def to_pandas(self) -> pd.DataFrame:
         """The trace as a DataFrame (a copy)."""
         return self.trace.copy()
 
     def plot(self, out_dir: str | Path) -> list[Path]:
-        """Write the paper's Figs. 8–14 for this run into ``out_dir``."""
+        """Write the paper's Figs. 8–14 for this run into ``out_dir`` (each file renamed into place)."""
         from heliostep.plots.run import plot_run
 
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
-        return plot_run(self.trace, out_dir, self.trace_metadata())
+        staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
+        try:
+            drawn = plot_run(self.trace, staging, self.trace_metadata())
+            written = []
+            for path in drawn:
+                target = out_dir / Path(path).name
+                os.replace(path, target)
+                written.append(target)
+            return written
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
 
     def trace_metadata(self) -> dict[str, str]:
         units = {f"unit.{c}": u for c, u in self.metadata.get("units", {}).items() if c in self.trace}
         roles = {f"role.{r}": c for r, c in self.metadata.get("roles", {}).items() if c in self.trace}
-        return {"complete": str(self.complete).lower(), "scenario": self.scenario.name,
+        extra = {}
+        if not self.complete:
+            extra["reason"] = self.reason or "failed"
+            if self.time_reached is not None:
+                extra["time_reached"] = repr(float(self.time_reached))
+        return {"complete": str(self.complete).lower(), **extra, "scenario": self.scenario.name,
                 "window_start": self.metadata["window_start"], "timezone": self.metadata["timezone"],
                 **({"error": self.error} if self.error else {}), **units, **roles}
 
-    def write(self, out_dir: str | Path, plots: bool = True) -> dict[str, Path]:
-        """Write trace (Parquet and CSV), summary.json, metadata.json and plots into ``out_dir``."""
+    def summary_record(self) -> dict:
+        """What ``summary.json`` holds: completeness (and why not), then the figures."""
+        head = {"complete": self.complete, "error": self.error}
+        if not self.complete:
+            head["reason"] = self.reason or "failed"
+            head["time_reached_s"] = self.time_reached
+        return {**head, **self.summary}
+
+    def write(self, out_dir: str | Path, plots: bool = True, csv: bool = True,
+              should_stop: Callable[[], bool] | None = None) -> dict[str, Path]:
+        """Write trace (Parquet, and CSV unless ``csv=False``), summary.json, metadata.json and
+        plots into ``out_dir``. The trace's metadata, summary.json and metadata.json all say
+        ``complete`` (and, when not, ``reason`` and the time reached).
+
+        Every file is written under a temporary name in ``out_dir`` and renamed into place, so no
+        file is ever cut short under its final name. Files of heliostep's own kinds left by an
+        earlier run and not written now are removed. When ``should_stop()`` turns true the
+        figures (drawn last) are skipped.
+        """
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         written = {}
-        for suffix in ("parquet", "csv"):
-            written[f"trace.{suffix}"] = write_trace(self.trace, out_dir / f"trace.{suffix}", self.trace_metadata())
-        summary = {"complete": self.complete, "error": self.error, **self.summary}
-        for name, content in (("summary.json", summary), ("metadata.json", self.metadata)):
-            path = out_dir / name
-            path.write_text(json.dumps(content, indent=2, default=str) + "\n")
-            written[name] = path
-        if plots and len(self.trace):
+        for suffix in ("parquet", "csv") if csv else ("parquet",):
+            path = out_dir / f"trace.{suffix}"
+            with atomic_path(path) as tmp:
+                write_trace(self.trace, tmp, self.trace_metadata())
+            written[path.name] = path
+        status = {k: v for k, v in self.summary_record().items() if k in ("complete", "error", "reason", "time_reached_s")}
+        for name, content in (("metadata.json", {**status, **self.metadata}), ("summary.json", self.summary_record())):
+            written[name] = write_text_atomic(out_dir / name, json.dumps(content, indent=2, default=str) + "\n")
+        if plots and len(self.trace) and not (should_stop and should_stop()):
             for path in self.plot(out_dir):
                 written[path.name] = path
+        remove_stale(out_dir, written.values())
         return written
 
 
 class RunFailed(HeliostepError):
-    """The simulation failed part-way; ``result`` holds the incomplete run."""
+    """The simulation failed or was interrupted part-way; ``result`` holds the incomplete run
+    (``result.reason`` says which)."""
 
     def __init__(self, message: str, result: RunResult):
         super().__init__(message)
         self.result = result
+
+    @property
+    def interrupted(self) -> bool:
+        return self.result.reason == "interrupted"
+
+
+#: Step figures of a summary that depend on judging each step (see :func:`_summary_at_cut`).
+_STEP_FIELDS = ("steps_commanded", "missed_steps", "steps_executed", "settling_time_s",
+                "missed_step_times_s", "steps_lost", "final_lag_steps")
+
+
+def _summary_at_cut(trace: pd.DataFrame, metadata: dict, summary: dict) -> dict:
+    """The summary of an interrupted run without judging the step in progress at the cut.
+
+    If the last step commanded before the cut is missed or unsettled at the cut (it has not had
+    its time to complete), the step figures are recomputed up to the row just before that step,
+    without it (the earlier steps judged at its time, as in a complete run).
+    """
+    drive = metadata.get("drive") or {}
+    times = np.asarray(drive.get("step_times", []), dtype=float)
+    if not len(trace) or "time" not in trace:
+        return summary
+    end = float(trace["time"].iloc[-1])
+    before = times[times <= end]
+    if not len(before):
+        return summary
+    last_step = float(before[-1])
+    missed_last = last_step in set(summary.get("missed_step_times_s") or [])
+    per_step = (summary.get("settling_time_s") or {}).get("per_step") or []
+    unsettled_last = bool(per_step) and per_step[-1] is None
+    lost = summary.get("steps_lost")
+    if not (missed_last or unsettled_last or (lost not in (None, 0))):
+        return summary
+    time = trace["time"].to_numpy()
+    i = int(np.searchsorted(time, last_step, side="left"))
+    head = trace.iloc[:i + 1] if i < len(time) and time[i] == last_step else trace.iloc[:i]
+    keep = times < last_step
+    drive_before = {**drive, "step_times": [float(t) for t in times[keep]],
+                    "step_indices": [int(k) for k in np.asarray(drive["step_indices"])[keep]]}
+    fixed = dict(summary)
+    if len(head):
+        partial = summarize(head, {**metadata, "drive": drive_before})
+        for key in _STEP_FIELDS:
+            if key in partial:
+                fixed[key] = partial[key]
+    else:
+        for key in _STEP_FIELDS:
+            fixed.pop(key, None)
+    fixed["step_in_progress_at_cut_s"] = last_step
+    return fixed
+
+
+def _raise_input_error(exc: SimulationError, raw: pd.DataFrame, scenario: Scenario) -> None:
+    """An input error found while setting up the FMUs (e.g. an unknown parameter name), before
+    any row was computed, is bad input (exit 2), not a failed simulation."""
+    cause = exc.__cause__
+    if getattr(exc, "reason", "failed") == "failed" and isinstance(cause, InputError) and not len(raw):
+        raise InputError(f"{scenario.source}: {cause}") from None
 
 
 def _sha256(path: Path) -> str:
@@ -169,24 +278,49 @@ def _signals(inputs: DriveInputs, roles: dict[str, str]) -> list[PiecewiseConsta
     return signals
 
 
+def resolve_fmus(scenario: Scenario) -> dict[str, Path]:
+    """Instance -> FMU file of a scenario, built when it is a model (an error names ``fmus.NAME``).
+
+    A bare name is a model (built into the FMU cache) or an FMU in ``fmus/`` beside the scenario,
+    in ``fmus/`` of the current directory, or in the FMU cache.
+    """
+    search = (scenario.folder / "fmus", Path.cwd() / "fmus")
+    paths = {}
+    for name in scenario.fmus:
+        try:
+            paths[name] = ensure_fmu(scenario.fmu_reference(name), search)
+        except InputError as exc:
+            raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
+    return paths
+
+
 def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (),
-                 progress: bool = False) -> RunResult:
+                 progress: bool = False, should_stop: Callable[[], bool] | None = None) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
 
     Raises :class:`RunFailed` (carrying the incomplete :class:`RunResult`) when the
     simulation fails part-way, and :class:`~heliostep.errors.InputError` for bad input.
+    ``should_stop`` is asked between solver calls; when it returns True the run stops there and
+    :class:`RunFailed` carries the trace so far with ``reason == "interrupted"``.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
     started = clock.perf_counter()
-    search = (scenario.folder / "fmus", Path.cwd() / "fmus")
-    fmu_paths = {name: ensure_fmu(scenario.fmu_reference(name), search) for name in scenario.fmus}
-    infos = {name: read_fmu(path) for name, path in fmu_paths.items()}
+    fmu_paths = resolve_fmus(scenario)
+    infos = {}
+    for name, path in fmu_paths.items():
+        try:
+            infos[name] = read_fmu(path)  # FMI 2.0 ME, a binary for this platform that loads
+        except InputError as exc:
+            raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     roles = _present_roles(scenario, infos)
     inputs = prepare_inputs(scenario)
     parameters = _parameters(scenario, inputs, roles, infos)
-    system = CoSimulation(infos, [Connection(s, t) for s, t in scenario.connection_pairs()],
-                          _signals(inputs, roles), parameters)
+    try:  # connections (types, units, loops), parameter names and values, checked before simulating
+        system = CoSimulation(infos, [Connection(s, t) for s, t in scenario.connection_pairs()],
+                              _signals(inputs, roles), parameters)
+    except InputError as exc:
+        raise InputError(f"{scenario.source}: {exc}") from None
     solver = SolverOptions(rtol=scenario.solver.rtol, atol=scenario.solver.atol,
                            max_step=scenario.solver.max_step or float("inf"),
                            max_num_steps=scenario.solver.max_num_steps)
@@ -204,20 +338,31 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     }
 
     bar = _progress_bar(inputs.duration) if progress else None
-    error, complete = None, True
+    solution = SolutionRecorder()
+    error, complete, reason, reached = None, True, None, None
     try:
         result = system.simulate(0.0, inputs.duration, inputs.output_times, solver,
-                                 progress=bar.update_to if bar else None)
+                                 progress=bar.update_to if bar else None, should_stop=should_stop,
+                                 monitor=solution)  # every solver step, for the figures
         raw, statistics = result.trace, result.statistics
     except SimulationError as exc:
         raw, statistics, error, complete = exc.trace, exc.statistics, str(exc), False
+        reason = getattr(exc, "reason", "failed")
+        reached = getattr(exc, "time", None)
+        if reached is None or not np.isfinite(reached):
+            reached = float(raw["time"].iloc[-1]) if len(raw) else 0.0
+        _raise_input_error(exc, raw, scenario)
     finally:
         if bar:
             bar.close()
     trace = assemble_trace(raw, inputs, roles)
     meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started}
+    if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
+        meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
+    if len(solution):  # figures from every solver step, stored so summarize(trace, meta) recomputes them
+        meta["solution_figures"] = solution_figures(assemble_trace(solution.frame(raw.columns), inputs, roles), meta)
     run = RunResult(scenario, trace, summarize(trace, meta) if len(trace) else {}, meta,
-                    complete, error, inputs)
+                    complete, error, inputs, reason, reached)
     if not complete:
         raise RunFailed(error, run)
     return run

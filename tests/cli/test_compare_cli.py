@@ -201,3 +201,42 @@ def test_report_for_passing_run_has_no_png(traces, tmp_path, capsys):
     assert run(capsys, act, ref, "--report", report)[0] == 0
     assert list(report.glob("*.png")) == []
     assert "PASS" in (report / "index.md").read_text()
+
+
+def _excel_csv(path, signals, sep, decimal, bom):
+    header = sep.join(["time", *signals])
+    rows = []
+    for i, t in enumerate(T):
+        cells = [repr(float(t)), *(repr(float(v[i])) for v in signals.values())]
+        rows.append(sep.join(c.replace(".", decimal) for c in cells))
+    path.write_text(("\ufeff" if bom else "") + "\r\n".join([header, *rows]) + "\r\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("sep, decimal, bom", [(",", ".", True), (";", ",", False), (";", ",", True),
+                                               (";", ".", False)])
+def test_excel_csv_with_bom_or_semicolons_is_compared(traces, tmp_path, capsys, sep, decimal, bom):
+    _, ref, signals = traces
+    act = _excel_csv(tmp_path / "excel.csv", signals, sep, decimal, bom)
+    status, out, err = run(capsys, act, ref, "--abs-tol", "0", "--rel-tol", "0", "--time-tol", "0")
+    assert status == 0, err
+    assert "PASS: all 3 signal(s)" in out  # bit-exact values, every column found
+
+
+def test_reference_signal_missing_from_actual_is_exit_2_unless_signals_are_selected(traces, tmp_path, capsys):
+    _, ref, signals = traces
+    act = tmp_path / "one-signal.csv"
+    write_trace(frame(**{"motor.tau": signals["motor.tau"]}), act)
+    status, printed, err = run(capsys, act, ref)
+    assert status == 2 and "PASS" not in printed
+    assert str(act) in err and "'panel_angle_error'" in err and "'rate'" in err and "--signals" in err
+    status, out, _ = run(capsys, act, ref, "--signals", "motor.tau")
+    assert status == 0 and "PASS: all 1 signal(s)" in out
+
+
+def test_signal_only_in_actual_is_listed_not_an_error(traces, tmp_path, capsys):
+    _, ref, signals = traces
+    act = tmp_path / "more.csv"
+    write_trace(frame(**signals, extra=T), act)
+    status, out, _ = run(capsys, act, ref)
+    assert status == 0 and "not compared, only in" in out and "extra" in out

@@ -5,8 +5,8 @@ import os
 import numpy as np
 import pytest
 
-from heliostep.errors import InputError
 from heliostep.cosim.fmi import FMIError, ModelExchangeInstance, read_fmu
+from heliostep.errors import InputError
 
 
 def _resident_kib() -> int:
@@ -57,10 +57,16 @@ def test_invalid_value_reference_is_an_fmi_error_with_the_log(motor):
         motor.get_real([10_000])
     assert error.value.function == "fmi2GetReal" and error.value.status == "fmi2Error"
     assert "invalid value reference 10000" in str(error.value)
-    with pytest.raises(FMIError, match="invalid value reference"):
-        motor.set_real([10_000], [1.0])
-    # the instance is still usable afterwards
+    # fmi2Error puts the instance in the error state: values can still be read, nothing set
     assert motor.get_real(motor.value_references(["i_a"]))[0] == 0.0
+    with pytest.raises(FMIError, match="fmi2SetReal: not allowed in error") as error:
+        motor.set_real(motor.value_references(["i_a_ref"]), [1.0])
+    assert "invalid value reference" not in str(error.value)  # no stale message
+    motor.reset()  # allowed in the error state, and usable again afterwards
+    motor.setup_experiment(0.0)
+    motor.enter_initialization_mode()
+    with pytest.raises(FMIError, match="fmi2SetReal: invalid value reference 10000"):
+        motor.set_real([10_000], [1.0])
 
 
 def test_calls_in_the_wrong_state_are_fmi_errors(motor):
@@ -76,6 +82,11 @@ def test_calls_in_the_wrong_state_are_fmi_errors(motor):
         motor.update_discrete_states()
     with pytest.raises(FMIError, match="parameter L can only be set"):
         motor.set_real(motor.value_references(["L"]), [1e-3])
+    assert motor.mode == "error"
+    with pytest.raises(FMIError, match="fmi2EnterEventMode: not allowed in error"):
+        motor.enter_event_mode()
+    motor.terminate()  # allowed from the error state
+    motor.reset()
     with pytest.raises(FMIError, match="tau is computed by the model"):
         motor.set_real(motor.value_references(["tau"]), [1.0])
 
@@ -132,3 +143,30 @@ def test_read_fmu_rejects_a_co_simulation_only_fmu(fmu_paths, tmp_path):
             target.writestr(item, data)
     with pytest.raises(InputError, match="CoSimOnly.fmu: the FMU does not support Model Exchange"):
         read_fmu(cs_only)
+
+
+def test_rejected_set_real_writes_nothing_and_leaves_no_stale_value(motor):
+    motor.setup_experiment(0.0)
+    motor.enter_initialization_mode()
+    motor.exit_initialization_mode()
+    before = motor.get_derivatives()
+    i_a_ref, tau = motor.value_references(["i_a_ref", "tau"])
+    # a valid reference first, then a computed one: the whole call is refused, i_a_ref unchanged
+    with pytest.raises(FMIError, match="tau is computed by the model"):
+        motor.set_real([i_a_ref, tau], [5.5, 1.0])
+    assert motor.get_real([i_a_ref])[0] == 0.0
+    np.testing.assert_array_equal(motor.get_derivatives(), before)  # recomputed, not stale
+    motor.reset()
+    motor.setup_experiment(0.0)
+    motor.enter_initialization_mode()
+    motor.exit_initialization_mode()
+    with pytest.raises(FMIError, match="invalid value reference 10000"):
+        motor.set_real([i_a_ref, 10_000], [5.5, 1.0])
+    assert motor.get_real([i_a_ref])[0] == 0.0
+    # after a valid set the derivatives follow the new input (the cache was invalidated)
+    motor.reset()
+    motor.setup_experiment(0.0)
+    motor.enter_initialization_mode()
+    motor.set_real([i_a_ref], [5.5])
+    motor.exit_initialization_mode()
+    assert motor.get_derivatives()[0] == pytest.approx(3.1 / 1.8e-3)

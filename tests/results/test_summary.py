@@ -33,7 +33,8 @@ def test_settling_time_and_executed_steps():
     command = np.array([0.0, 0.0, STEP, STEP, STEP, STEP, STEP])
     summary = summarize(_trace(time, rotor, command), _inputs([1.0], [1]))
     assert summary["steps_commanded"] == 1 and summary["steps_executed"] == 1 and summary["missed_steps"] == 0
-    assert summary["settling_time_s"]["per_step"] == [pytest.approx(0.2)]
+    # the band (5 % of a step) is crossed between 1.1 s (0.45 step outside) and 1.2 s (0.04 inside)
+    assert summary["settling_time_s"]["per_step"] == [pytest.approx(0.1 + 0.1 * 0.45 / 0.49)]
     assert summary["steps_lost"] == 0
 
 
@@ -59,3 +60,26 @@ def test_error_energy_and_peaks():
     assert summary["peak_torque_Nm"] == pytest.approx(0.6)
     assert summary["electrical_energy_J"] == pytest.approx(9.0)  # 3 W for 3 s
     assert summary["peak_phase_current_A"] == 5.5
+
+
+def test_slip_loses_whole_periods_and_later_full_steps_are_not_missed():
+    # three steps; at the first the rotor slips back one electrical period (moves 1 - 4 = -3
+    # steps), the next two move it by one step each: one step missed, 4 steps lost
+    time = np.array([0.0, 1.0, 1.0, 1.5, 2.0, 2.0, 2.5, 3.0, 3.0, 3.5, 4.0])
+    rotor = np.array([0, 0, 0, -3, -3, -3, -2, -2, -2, -1, -1]) * STEP
+    command = np.array([0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3]) * STEP
+    summary = summarize(_trace(time, rotor, command), _inputs([1.0, 2.0, 3.0], [1, 2, 3]))
+    assert summary["missed_steps"] == 1 and summary["missed_step_times_s"] == [1.0]
+    assert summary["steps_executed"] == 2
+    assert summary["steps_lost"] == 4
+
+
+def test_lost_steps_are_net_of_the_elastic_lag_held_from_the_start():
+    # a loaded rotor lags 0.7 step from the start; it slips one period at the step: 4 lost, not 5
+    lag = 0.7 * STEP
+    time = np.array([0.0, 1.0, 1.0, 2.0])
+    rotor = np.array([-lag, -lag, -lag, -3 * STEP - lag])
+    command = np.array([0.0, 0.0, STEP, STEP])
+    summary = summarize(_trace(time, rotor, command), _inputs([1.0], [1]))
+    assert summary["steps_lost"] == 4
+    assert summary["final_lag_steps"] == pytest.approx(0.7)

@@ -150,3 +150,15 @@ def test_bad_metadata_keys_are_refused(tmp_path, key):
 def test_writer_refuses_decreasing_time(tmp_path):
     with pytest.raises(InputError, match="decreases"):
         write_trace(pd.DataFrame({"time": [1.0, 0.0]}), tmp_path / "t.parquet")
+
+
+def test_csv_with_bom_and_semicolons_reads_bit_exact(tmp_path):
+    t = np.array([0.0, 0.1, 0.1, 1 / 3])
+    y = np.array([1e-300, -2.5, np.pi, 12345.678901234567])
+    rows = [f"{float(a)!r};{float(b)!r}".replace(".", ",") for a, b in zip(t, y)]
+    path = tmp_path / "excel.csv"
+    path.write_text("\ufeff# complete: true\r\ntime;motor.tau\r\n" + "\r\n".join(rows) + "\r\n", encoding="utf-8")
+    table, meta = read_trace(path)
+    assert meta == {"complete": "true"}
+    assert list(table.columns) == ["time", "motor.tau"]
+    assert np.array_equal(table["time"], t) and np.array_equal(table["motor.tau"], y)

@@ -73,7 +73,7 @@ def test_full_scenario_round_trip(tmp_path):
     assert scenario.mirror.mirror_distance == pytest.approx(-6 * 0.5)  # index 0 of 13, central is 6
     assert scenario.transmission.pinion_radius == 0.003
     assert scenario.parameters == {"motor": {"K_current": 100.0, "R": 1.0}, "mechanics": {}}
-    assert isinstance(scenario.parameters["motor"]["R"], float)
+    assert type(scenario.parameters["motor"]["R"]) is int  # kept as written; the master converts it to the FMU's Real
     assert scenario.connection_pairs() == [("motor.tau", "mechanics.tau"), ("mechanics.theta", "motor.theta")]
     assert scenario.sequencer.mode == "half-step" and scenario.sequencer.current == 3.5
     assert scenario.wind.moment == -2.5

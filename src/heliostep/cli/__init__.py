@@ -3,7 +3,8 @@
 Each command lives in its own module of this package, which exposes ``register(subparsers)``; that
 function adds the command's parser and sets ``func`` (taking the parsed arguments and
 returning an exit status). This module only assembles them and turns a
-:class:`~heliostep.errors.HeliostepError` into one line on stderr and exit status 2.
+:class:`~heliostep.errors.HeliostepError` into one line on stderr and exit status 2 (and a
+KeyboardInterrupt that reaches it into one line and exit status 130).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import argparse
 import importlib
 import sys
 
-from heliostep import __version__
+from heliostep._version import __version__
 from heliostep.errors import HeliostepError
 
 #: Modules that provide a command, in the order ``--help`` lists them.
@@ -49,6 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     except HeliostepError as exc:
         print(f"heliostep {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"heliostep {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

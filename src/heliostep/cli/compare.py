@@ -1,7 +1,8 @@
 """``heliostep compare ACTUAL REFERENCE``: check a trace against a reference trace.
 
 Exit status: 0 every compared signal is inside its tolerance tube, 1 some signal
-deviates (or the actual trace is marked ``complete: false``), 2 bad input (reported
+deviates (or the actual trace is marked ``complete: false``), 2 bad input, including a
+signal of the reference that the actual trace lacks when ``--signals`` is not given (reported
 by :mod:`heliostep.cli` from the :class:`~heliostep.errors.InputError` raised here).
 """
 
@@ -27,7 +28,10 @@ Compare the signals of trace ACTUAL with those of trace REFERENCE (Parquet or CS
 using a tolerance tube around the reference: half-width max(abs, rel*|ref|),
 widened by the time tolerance (the bounds at t are the max/min over
 [t - time, t + time]). Exit status 0: all signals inside their tube;
-1: some signal outside (or ACTUAL is marked complete: false); 2: bad input.
+1: some signal outside (or ACTUAL is marked complete: false); 2: bad input
+(including a signal of REFERENCE missing from ACTUAL, unless --signals names
+the signals to compare). CSV: ',' or ';' separated (';' with ',' or '.'
+decimals), UTF-8 with or without a byte order mark.
 Tolerances: built-in defaults (abs 1e-6, rel 1e-4, time 1e-3 s) < the 'default'
 section of --tolerances FILE < --abs-tol/--rel-tol/--time-tol; the per-signal
 entries of FILE override the fields they name.
@@ -47,7 +51,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument(
         "--signals",
         metavar="A,B,...",
-        help="comma-separated signals to compare (default: every signal in both traces)",
+        help="comma-separated signals to compare (default: every signal of REFERENCE, each of which "
+             "ACTUAL must have: a missing one is bad input, exit 2)",
     )
     parser.add_argument("--abs-tol", metavar="X", help="absolute tolerance, signal units, for all signals")
     parser.add_argument("--rel-tol", metavar="X", help="relative tolerance (fraction of |reference|)")
@@ -107,6 +112,12 @@ def run(args: argparse.Namespace) -> int:
     signals = _signals(args.signals)
     actual, actual_meta = read_trace(args.actual)
     reference, reference_meta = read_trace(args.reference)
+    if signals is None:
+        missing = [c for c in reference.columns if c != "time" and c not in actual.columns]
+        if missing:
+            raise InputError(
+                f"{args.actual}: no column(s) {', '.join(map(repr, missing))} of the reference {args.reference}; "
+                f"to compare only some signals, name them with --signals")
     result = compare_traces(
         actual,
         reference,

@@ -4,42 +4,138 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from pathlib import Path
 
-from heliostep.run import RunFailed, RunResult, run_scenario
+import numpy as np
+import pandas as pd
+
+from heliostep.cli.signals import stop_requests
+from heliostep.errors import HeliostepError
+from heliostep.results.outputs import check_out_dir
+from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
 from heliostep.scenario import load_scenario
+from heliostep.solar import solar_position
+
+#: Windows longer than this [s] get no CSV copy of the trace unless --csv is given.
+CSV_DEFAULT_MAX_DURATION = 3600.0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "run", help="run a scenario YAML: trace, summary.json, plots and metadata",
-        description="Co-simulate a scenario and write trace.parquet, trace.csv, summary.json, "
-                    "metadata.json and the figures into --out.")
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Co-simulate a scenario and write trace.parquet, trace.csv (see --csv), summary.json, "
+                    "metadata.json and the figures into --out.\n\n"
+                    "Every file is written under a temporary name and renamed into place; files of these "
+                    "kinds left in --out by an earlier run and not written now are removed. --out is "
+                    "checked before simulating.\n\n"
+                    "Ctrl+C (SIGINT) or SIGTERM stops the simulation at the next safe point: the trace so "
+                    "far, summary.json and metadata.json are written, marked complete: false with reason "
+                    "interrupted and the time reached; no figures are drawn.\n\n"
+                    "A window with the sun below the horizon throughout runs, with a warning on stderr "
+                    "and \"night\": true and a warning in summary.json.\n\n"
+                    "Exit status: 0 complete; 1 the simulation failed part-way (the trace so far is "
+                    "written, complete: false) or the results could not be written; 2 bad input "
+                    "(scenario, override, FMU, unusable --out); 130 / 143 stopped by SIGINT / SIGTERM.")
     parser.add_argument("scenario", type=Path, help="scenario YAML file")
     parser.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key, e.g. --set fmus.motor=StepperMotorIdealCurrent")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--csv", action=argparse.BooleanOptionalAction, default=None,
+                        help="also write the trace as trace.csv (default: only for windows up to "
+                             f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)")
     parser.set_defaults(func=_run_command)
 
 
 def _run_command(args: argparse.Namespace) -> int:
-    scenario = load_scenario(args.scenario, args.overrides)
-    out_dir = args.out or Path("out") / scenario.name
-    try:
-        result = run_scenario(scenario, progress=True)
-        status = 0
-    except RunFailed as failed:
-        result, status = failed.result, 1
-        print(f"heliostep run: error: {failed}", file=sys.stderr)
-    result.write(out_dir, plots=not args.no_plots)
-    print(_report(result, out_dir))
+    with stop_requests() as stop:
+        scenario = load_scenario(args.scenario, args.overrides)
+        out_dir = args.out or Path("out") / scenario.name
+        resolve_fmus(scenario)
+        existed = out_dir.exists()
+        check_out_dir(out_dir)
+        if stop.is_set():
+            print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
+            return stop.exit_status
+        try:
+            result = run_scenario(scenario, progress=True, should_stop=stop.is_set)
+            status = 0
+        except RunFailed as failed:
+            result = failed.result
+            if failed.interrupted:
+                status = stop.exit_status
+                print(f"heliostep run: stopped by {stop.name or 'a stop request'} at t = "
+                      f"{result.time_reached:.6g} s; writing the trace so far (complete: false)", file=sys.stderr)
+            else:
+                status = 1
+                print(f"heliostep run: error: {failed}", file=sys.stderr)
+        except HeliostepError:
+            if not existed:  # bad input found while setting up the FMUs: leave no empty folder
+                _remove_if_empty(out_dir)
+            raise
+        _note_night(result)
+        csv = args.csv
+        if csv is None:
+            duration = result.inputs.duration if result.inputs is not None else 0.0
+            csv = duration <= CSV_DEFAULT_MAX_DURATION
+        try:
+            result.write(out_dir, plots=not args.no_plots, csv=csv, should_stop=stop.is_set)
+        except OSError as exc:
+            print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
+            rescue = _rescue(result, csv)
+            if rescue:
+                print(f"heliostep run: the results were written to {rescue} instead", file=sys.stderr)
+            return status or 1
+        print(_report(result, out_dir))
+        if stop.is_set() and status == 0:
+            print(f"heliostep run: stopped by {stop.name} while writing; the results are complete, "
+                  f"the figures may be missing", file=sys.stderr)
+            status = stop.exit_status
     return status
+
+
+def _remove_if_empty(folder: Path) -> None:
+    try:
+        folder.rmdir()
+    except OSError:
+        pass
+
+
+def _note_night(result: RunResult) -> None:
+    """A window with the sun below the horizon all the time: warn, and say so in the summary."""
+    inputs = result.inputs
+    if inputs is None or not result.summary:
+        return
+    site = result.scenario.site
+    times = inputs.window_start + pd.to_timedelta(np.linspace(0.0, inputs.duration, 97), unit="s")
+    elevation = solar_position(pd.DatetimeIndex(times), site.latitude, site.longitude, site.altitude)["elevation"]
+    night = bool((elevation.to_numpy() <= 0.0).all())
+    result.summary["night"] = night
+    if night:
+        warning = (f"the sun is below the horizon during the whole window ({inputs.window_start} + "
+                   f"{inputs.duration:g} s): the drive holds still and the figures are those of a night")
+        result.summary.setdefault("warnings", []).append(warning)
+        print(f"heliostep run: warning: {warning}", file=sys.stderr)
+
+
+def _rescue(result: RunResult, csv: bool) -> Path | None:
+    """Write the results into a fresh temporary folder (no figures); None if that fails too."""
+    try:
+        rescue = Path(tempfile.mkdtemp(prefix=f"heliostep-{result.scenario.name}-"))
+        result.write(rescue, plots=False, csv=csv)
+        return rescue
+    except OSError:
+        return None
 
 
 def _report(result: RunResult, out_dir: Path) -> str:
     s = result.summary
-    lines = [f"{result.scenario.name}: {'complete' if result.complete else 'INCOMPLETE'} -> {out_dir}"]
+    state = "complete" if result.complete else (
+        f"INCOMPLETE ({result.reason or 'failed'} at t = {result.time_reached:.6g} s)"
+        if result.time_reached is not None else "INCOMPLETE")
+    lines = [f"{result.scenario.name}: {state} -> {out_dir}"]
     for key, label, fmt in (("max_tracking_error_deg", "max tracking error [deg]", "{:.4f}"),
                             ("rms_tracking_error_deg", "RMS tracking error [deg]", "{:.4f}"),
                             ("peak_torque_Nm", "peak torque [N.m]", "{:.3f}"),

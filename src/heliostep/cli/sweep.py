@@ -4,18 +4,21 @@ Writes ``<out>/results.parquet`` (one row per case, written as cases finish) and
 sweep's figures (:mod:`heliostep.plots.sweep`) into ``--out`` (default
 ``out/<sweep name>``). Exit status: 0 when every case is ok, 1 when some case failed,
 2 for bad input (raised as :class:`~heliostep.errors.InputError`, reported by
-:mod:`heliostep.cli`) before any case runs.
+:mod:`heliostep.cli`) before any case runs; 130 / 143 when stopped by SIGINT / SIGTERM (the
+cases finished so far stay in results.parquet; a rerun runs the rest).
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 
 import pandas as pd
 
-from heliostep.errors import InputError
+from heliostep.cli.signals import exit_status, stop_requests
+from heliostep.errors import HeliostepError, InputError
 from heliostep.sweep import (
     SweepOutcome,
     execute_cases,
@@ -65,26 +68,52 @@ def _run_command(args: argparse.Namespace) -> int:
         raise InputError(f"--workers must be >= 1, got {args.workers}")
     if args.connect_timeout <= 0:
         raise InputError(f"--connect-timeout must be > 0 s, got {args.connect_timeout}")
-    spec = load_sweep(args.sweep)
-    cases = expand_cases(spec)
-    out_dir = args.out or Path("out") / spec.name
-    results_path = out_dir / RESULTS_FILE
-    if args.list:
-        print(_case_listing(cases, read_results(results_path)))
-        return 0
-    outcome = execute_cases(cases, results_path, scheduler=args.scheduler, n_workers=args.workers,
-                            connect_timeout=args.connect_timeout, retry_failed=args.retry_failed,
-                            progress=True, metadata=sweep_metadata(spec))
-    plots = []
-    if not args.no_plots and len(outcome.table):
-        from heliostep.plots.sweep import plot_sweep
+    results_path = None
+    try:
+        with stop_requests(raise_exception=_Stopped):
+            spec = load_sweep(args.sweep)
+            cases = expand_cases(spec)
+            out_dir = args.out or Path("out") / spec.name
+            results_path = out_dir / RESULTS_FILE
+            if args.list:
+                print(_case_listing(cases, read_results(results_path)))
+                return 0
+            outcome = execute_cases(cases, results_path, scheduler=args.scheduler, n_workers=args.workers,
+                                    connect_timeout=args.connect_timeout, retry_failed=args.retry_failed,
+                                    progress=True, metadata=sweep_metadata(spec))
+            plots = []
+            if not args.no_plots and len(outcome.table):
+                from heliostep.plots.sweep import plot_sweep
 
-        plots = plot_sweep(outcome.table, out_dir)
+                plots = plot_sweep(outcome.table, out_dir)
+    except KeyboardInterrupt as stopped:
+        signum = stopped.signum if isinstance(stopped, _Stopped) else signal.SIGINT
+        print(f"heliostep sweep: stopped by {signal.Signals(signum).name}; {_recorded(results_path)}",
+              file=sys.stderr)
+        return exit_status(signum)
     print(_report(spec.name, outcome, plots))
     if outcome.failed:
         print(f"heliostep sweep: {outcome.failed} case(s) failed; rerun with --retry-failed to try them again",
               file=sys.stderr)
     return 1 if outcome.failed else 0
+
+
+def _recorded(results_path: Path | None) -> str:
+    if results_path is None:
+        return "no case was run"
+    try:
+        done = len(read_results(results_path))
+    except (OSError, HeliostepError):  # only for the message
+        return f"the cases finished so far are in {results_path}"
+    return f"{done} case(s) recorded in {results_path}; rerun the same command to run the rest"
+
+
+class _Stopped(KeyboardInterrupt):
+    """SIGINT or SIGTERM while the sweep runs (raised in the main thread, waiting on Dask)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
 
 
 def _case_listing(cases, table: pd.DataFrame) -> str:

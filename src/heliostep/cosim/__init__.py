@@ -1,15 +1,19 @@
 """Co-simulation of FMI 2.0 Model Exchange FMUs: FMI import and the master.
 
-Owns everything FMI: :mod:`~heliostep.cosim.fmi` (the only ctypes code of heliostep:
-modelDescription, binaries, calls), :mod:`~heliostep.cosim.master` (N FMUs on one CVODE)
-and :mod:`~heliostep.cosim.signals` (the connections, input signals and solver settings it
+Owns everything FMI: :mod:`~heliostep.cosim.description` (``modelDescription.xml``, variable
+types, the up-front check of the platform binary), :mod:`~heliostep.cosim.fmi` (the only
+ctypes code of heliostep: calls on instances of every variable type, per-instance logging),
+:mod:`~heliostep.cosim.master` (N FMUs on one CVODE, discrete exchange at events,
+terminateSimulation), :mod:`~heliostep.cosim.loops` (Newton on torn algebraic loops) and
+:mod:`~heliostep.cosim.signals` (the connections, input signals and solver settings it
 consumes). It imports nothing of heliostep but :mod:`heliostep.errors`: no scenario, drive or
 results type reaches it, so it serves any set of Model Exchange FMUs.
 """
 
 from heliostep.cosim.fmi import FMIError, FMUInfo, read_fmu
+from heliostep.cosim.loops import LoopError
 from heliostep.cosim.master import CoSimulation, MasterResult, SimulationError
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 
-__all__ = ["CoSimulation", "Connection", "FMIError", "FMUInfo", "MasterResult", "PiecewiseConstant",
-           "SimulationError", "SolverOptions", "read_fmu"]
+__all__ = ["CoSimulation", "Connection", "FMIError", "FMUInfo", "LoopError", "MasterResult",
+           "PiecewiseConstant", "SimulationError", "SolverOptions", "read_fmu"]

@@ -4,161 +4,103 @@ Everything FMI goes through here: reading and checking ``modelDescription.xml``
 (:func:`read_fmu`), loading the binary (``fmpy.fmi2.FMU2Model``) and every call on an
 instance (:class:`ModelExchangeInstance`). There is one error path: any FMI call that
 returns a status worse than warning raises :class:`FMIError`, which names the function,
-the instance and the messages the FMU logged. The rest of heliostep (master, sequencer,
-CLI, plots) never touches ctypes.
+the instance, the simulation time and the messages the FMU logged. The rest of heliostep
+(master, sequencer, CLI, plots) never touches ctypes.
+
+Variables of every FMI 2.0 type are read and set with their own functions (Real with
+``fmi2GetReal``, Integer and Enumeration with ``fmi2GetInteger``, Boolean with
+``fmi2GetBoolean``, String with ``fmi2SetString``). Each instance gets its own logger
+callback identified by FMI's ``componentEnvironment``, so an FMU's messages always stay
+with its instance (fmpy's logger proxy keeps one logger per process).
 """
 
 from __future__ import annotations
 
-import atexit
 import ctypes
-import shutil
-import tempfile
+import itertools
+import logging as _logging
+import weakref
 from collections import deque
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
+from heliostep.cosim.description import (  # noqa: F401 - re-exported: the FMI API lives here
+    REQUIRED_FUNCTIONS,
+    FMUInfo,
+    VariableInfo,
+    _extract,
+    convert_value,
+    read_fmu,
+)
 from heliostep.errors import HeliostepError, InputError
 
 
 class FMIError(HeliostepError):
     """An FMI function returned fmi2Error or fmi2Fatal (or an FMU could not be loaded)."""
 
-    def __init__(self, function: str, instance: str, status: str, messages: Iterable[str] = ()):
+    def __init__(self, function: str, instance: str, status: str, messages: Iterable[str] = (),
+                 time: float | None = None):
         self.function = function
         self.instance = instance
         self.status = status
-        self.messages = list(messages)
+        self.messages = list(messages)[-5:]  # the FMU's own last messages
+        self.time = time
+        at = f" at t = {time:.9g} s" if time is not None and np.isfinite(time) else ""
         detail = f": {' | '.join(self.messages)}" if self.messages else ""
-        super().__init__(f"{instance}: {function} returned {status}{detail}")
-
-
-@dataclass(frozen=True)
-class VariableInfo:
-    """What the master needs to know of one scalar variable."""
-
-    name: str
-    value_reference: int
-    type: str
-    causality: str
-    variability: str
-    unit: str = ""
-    start: float | None = None
-    description: str = ""
-
-
-@dataclass
-class FMUInfo:
-    """The parts of an FMU's modelDescription.xml that heliostep uses."""
-
-    path: Path
-    model_name: str
-    model_identifier: str
-    guid: str
-    variables: dict[str, VariableInfo]
-    states: list[str]
-    n_event_indicators: int
-    #: output name -> names of the inputs it depends on directly (direct feedthrough)
-    output_feedthrough: dict[str, list[str]] = field(default_factory=dict)
-    #: whether fmi2CompletedIntegratorStep must be called after each integrator step
-    needs_completed_integrator_step: bool = True
-    description: object = None  # fmpy's ModelDescription
-
-    def names(self, causality: str) -> list[str]:
-        return [v.name for v in self.variables.values() if v.causality == causality]
-
-    @property
-    def inputs(self) -> list[str]:
-        return self.names("input")
-
-    @property
-    def outputs(self) -> list[str]:
-        return self.names("output")
-
-    @property
-    def parameters(self) -> list[str]:
-        return self.names("parameter")
-
-    def variable(self, name: str) -> VariableInfo:
-        try:
-            return self.variables[name]
-        except KeyError:
-            raise InputError(f"{self.path}: no variable {name!r} in {self.model_name}; "
-                             f"variables: {', '.join(self.variables)}") from None
-
-
-def _unit(variable) -> str:
-    if variable.unit:
-        return variable.unit
-    declared = getattr(variable, "declaredType", None)
-    return getattr(declared, "unit", None) or ""
-
-
-def read_fmu(path: str | Path) -> FMUInfo:
-    """Read and check an FMU: it must be FMI 2.0 with Model Exchange (else :class:`InputError`)."""
-    from fmpy import read_model_description
-
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"FMU file not found: {path}")
-    try:
-        description = read_model_description(str(path), validate=False)
-    except Exception as exc:
-        raise InputError(f"{path}: not a readable FMU ({exc})") from None
-    if description.fmiVersion != "2.0":
-        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0")
-    if description.modelExchange is None:
-        raise InputError(f"{path}: the FMU does not support Model Exchange (co-simulation only); "
-                         "heliostep integrates Model Exchange FMUs itself")
-    variables = {}
-    for v in description.modelVariables:
-        start = None
-        if v.type == "Real" and v.start is not None:
-            start = float(v.start)
-        variables[v.name] = VariableInfo(
-            name=v.name, value_reference=v.valueReference, type=v.type, causality=v.causality,
-            variability=v.variability, unit=_unit(v), start=start, description=v.description or "")
-    states = [d.variable.derivative.name for d in description.derivatives]
-    inputs = {v.name for v in description.modelVariables if v.causality == "input"}
-    feedthrough = {}
-    for unknown in description.outputs:
-        dependencies = unknown.dependencies
-        if dependencies is None:  # no dependency information: depends on every input
-            names = sorted(inputs)
-        else:
-            names = [d.name for d in dependencies if d.name in inputs]
-        feedthrough[unknown.variable.name] = names
-    return FMUInfo(
-        path=path, model_name=description.modelName,
-        model_identifier=description.modelExchange.modelIdentifier, guid=description.guid,
-        variables=variables, states=states,
-        n_event_indicators=description.numberOfEventIndicators or 0,
-        output_feedthrough=feedthrough, description=description,
-        needs_completed_integrator_step=bool(description.modelExchange.needsCompletedIntegratorStep))
-
-
-_extracted: dict[tuple[str, float], str] = {}
-_extract_root = None
-
-
-def _extract(path: Path) -> str:
-    """Unzip an FMU once per process (per file and modification time)."""
-    global _extract_root
-    from fmpy import extract
-
-    key = (str(path.resolve()), path.stat().st_mtime)
-    if key not in _extracted:
-        if _extract_root is None:
-            _extract_root = tempfile.mkdtemp(prefix="heliostep-fmus-")
-            atexit.register(shutil.rmtree, _extract_root, True)
-        _extracted[key] = extract(str(path), unzipdir=tempfile.mkdtemp(dir=_extract_root))
-    return _extracted[key]
+        super().__init__(f"{instance}: {function} returned {status}{at}{detail}")
 
 
 _STATUS = ["fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending"]
+
+_log = _logging.getLogger("heliostep.fmu")
+_log.addHandler(_logging.NullHandler())  # the application decides where FMU messages go
+
+# ---------------------------------------------------------------------- per-instance logging
+#: componentEnvironment (an int id) -> instance; the one logger callback looks the instance up
+_by_environment: weakref.WeakValueDictionary[int, ModelExchangeInstance] = weakref.WeakValueDictionary()
+_environment_ids = itertools.count(1)
+_logger_callback = None
+
+
+def _dispatch_log(environment, instance_name, status, category, message) -> None:
+    """The fmi2CallbackLogger of every instance: the message goes to the instance whose
+    componentEnvironment the FMU passes back (by instance name for FMUs that pass none).
+
+    fmpy's native logger proxy (which formats the printf-style arguments ctypes cannot see)
+    keeps a single logger per process; it is always this one function, so that does not matter."""
+    try:
+        instance = _by_environment.get(environment or 0)
+        name = instance_name.decode("utf-8", "replace") if isinstance(instance_name, bytes) else str(instance_name)
+        if instance is None:
+            instance = next((i for i in list(_by_environment.values()) if i.name == name), None)
+        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+        if instance is not None:
+            instance.messages.append(text)
+        _log.log(_logging.WARNING if status >= 1 else _logging.DEBUG, "%s [%s] %s",
+                 instance.name if instance is not None else name, label, text)
+    except Exception:  # noqa: BLE001 - a logger must never raise into the FMU
+        pass
+
+
+def _logger():
+    global _logger_callback
+    if _logger_callback is None:
+        from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+
+        _logger_callback = fmi2CallbackLoggerTYPE(_dispatch_log)
+    return _logger_callback
+
+
+#: ctypes element type and numpy dtype of the values of each FMI type, and its get/set functions
+_TYPES = {
+    "Real": (ctypes.c_double, np.float64, "fmi2GetReal", "fmi2SetReal"),
+    "Integer": (ctypes.c_int, np.int32, "fmi2GetInteger", "fmi2SetInteger"),
+    "Enumeration": (ctypes.c_int, np.int32, "fmi2GetInteger", "fmi2SetInteger"),
+    "Boolean": (ctypes.c_int, np.int32, "fmi2GetBoolean", "fmi2SetBoolean"),
+}
 
 #: Prototypes of the calls on the integrator's hot path, taking plain addresses (ints) for
 #: arrays: converting an int is much cheaper for ctypes than a typed pointer.
@@ -193,20 +135,23 @@ class ModelExchangeInstance:
         The FMU, from :func:`read_fmu`.
     instance_name : str
         Name used in log messages and errors.
-    parameters : mapping of str to float, optional
-        Parameter values set right after instantiation; an unknown name raises
-        :class:`InputError` listing the valid names.
+    parameters : mapping of str to value, optional
+        Parameter values set right after instantiation (each with the set function of its
+        type); an unknown name raises :class:`InputError` listing the valid names.
+
+    ``mode`` follows FMI's state machine as seen from the master ("instantiated",
+    "initialization", "event", "continuous", "terminated", "error", "fatal", "freed"), so that
+    :meth:`close` calls ``fmi2Terminate`` only where the standard allows it.
     """
 
     def __init__(self, info: FMUInfo, instance_name: str,
-                 parameters: Mapping[str, float] | None = None, logging: bool = False):
+                 parameters: Mapping[str, object] | None = None, logging: bool = False):
         from fmpy import calloc, free
         from fmpy.fmi2 import (
             FMU2Model,
             fmi2CallbackAllocateMemoryTYPE,
             fmi2CallbackFreeMemoryTYPE,
             fmi2CallbackFunctions,
-            fmi2CallbackLoggerTYPE,
         )
 
         self.info = info
@@ -214,23 +159,34 @@ class ModelExchangeInstance:
         self.messages: deque[str] = deque(maxlen=50)
         self.n_states = len(info.states)
         self.n_event_indicators = info.n_event_indicators
+        self.time = float("nan")
+        self.mode = "freed"
         self._model = None
+        self._environment = next(_environment_ids)
+        _by_environment[self._environment] = self
         self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self._callbacks.logger = _logger()
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        try:
+        self._callbacks.componentEnvironment = self._environment
+        try:  # fmpy's native proxy formats the printf-style arguments, then calls _dispatch_log
             from fmpy.logging import addLoggerProxy
             addLoggerProxy(ctypes.byref(self._callbacks))
-        except Exception:  # the proxy only formats printf-style arguments  # noqa: BLE001
+        except Exception:  # noqa: BLE001 - without it messages stay unformatted
             pass
         try:
             self._model = FMU2Model(guid=info.guid, unzipDirectory=_extract(info.path),
                                     modelIdentifier=info.model_identifier, instanceName=instance_name)
             self._model.instantiate(callbacks=self._callbacks, loggingOn=logging)
         except Exception as exc:
+            if self._model is not None:
+                try:
+                    self._model.freeLibrary()
+                except Exception:  # noqa: BLE001
+                    pass
             self._model = None
             raise FMIError("fmi2Instantiate", instance_name, f"failure ({exc})", self.messages) from None
+        self.mode = "instantiated"
         self._component = self._model.component
         self._functions = self._model._functions
         self._hot = {name: prototype((name, self._model.dll)) for name, prototype in _HOT_CALLS.items()}
@@ -238,12 +194,23 @@ class ModelExchangeInstance:
         self._x, self._dx = np.zeros(self.n_states), np.zeros(self.n_states)
         self._x_ptr, self._dx_ptr = self._pointer(self._x), self._pointer(self._dx)
         if parameters:
-            self.set_parameters(parameters)
+            try:
+                self.set_parameters(parameters)
+            except BaseException:  # the instance must not outlive a failed construction
+                self.free()
+                raise
 
     # ------------------------------------------------------------------ the error path
-    def _log(self, env, instance, status, category, message) -> None:
-        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        self.messages.append(text)
+    def _error(self, function: str, status) -> FMIError:
+        if isinstance(status, int):
+            if status == 3:
+                self.mode = "error"
+            elif status >= 4:
+                self.mode = "fatal"
+            status = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+        error = FMIError(function, self.name, status, self.messages, self.time)
+        self.messages.clear()  # never reported twice, never with a later error
+        return error
 
     def _call(self, function: str, *args):
         """Call the FMI function ``function``; raise :class:`FMIError` on error or fatal.
@@ -252,18 +219,17 @@ class ModelExchangeInstance:
         (fmpy's per-call wrapper costs more than the model evaluation itself).
         """
         if self._model is None:
-            raise FMIError(function, self.name, "no instance (freed)")
-        status = self._functions[function](self._component, *args)
-        if status > 1:  # worse than fmi2Warning
-            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
-            raise FMIError(function, self.name, label, self.messages)
+            raise FMIError(function, self.name, "no instance (freed, library unloaded)", (), self.time)
         if self.messages:
             self.messages.clear()
+        status = self._functions[function](self._component, *args)
+        if status > 1:  # worse than fmi2Warning
+            raise self._error(function, status)
         return status
 
     @staticmethod
-    def _pointer(array: np.ndarray):
-        return array.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    def _pointer(array: np.ndarray, ctype=ctypes.c_double):
+        return array.ctypes.data_as(ctypes.POINTER(ctype))
 
     @staticmethod
     def _vrs(value_references: Iterable[int]):
@@ -275,8 +241,12 @@ class ModelExchangeInstance:
     def _check(self, function: str, status: int) -> None:
         """The error path of the hot calls (same as :meth:`_call`)."""
         if status > 1:
-            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
-            raise FMIError(function, self.name, label, self.messages)
+            raise self._error(function, status)
+
+    def _freed(self, function: str):
+        def call(*args):
+            raise FMIError(function, self.name, "no instance (freed, library unloaded)", (), self.time)
+        return call
 
     # ------------------------------------------------------------------ hot path (addresses)
     def set_states_at(self, address: int) -> None:
@@ -298,35 +268,85 @@ class ModelExchangeInstance:
         self._check("fmi2GetEventIndicators",
                     self._hot["fmi2GetEventIndicators"](self._component, address, self.n_event_indicators))
 
-    def link(self, outputs: list[str], target: "ModelExchangeInstance", inputs: list[str]):
-        """A call that copies this instance's ``outputs`` to ``target``'s ``inputs`` (one buffer)."""
-        source_vrs = np.array(self.value_references(outputs), dtype=np.uint32)
-        target_vrs = np.array(target.value_references(inputs), dtype=np.uint32)
-        buffer = np.zeros(len(outputs))
-        n, get, put = len(outputs), self._hot["fmi2GetReal"], target._hot["fmi2SetReal"]
-        source_address, target_address = source_vrs.ctypes.data, target_vrs.ctypes.data
-        buffer_address = buffer.ctypes.data
-        keep = (source_vrs, target_vrs, buffer)  # the arrays must outlive the closure's addresses
+    def link(self, outputs: list[str], target: ModelExchangeInstance, inputs: list[str]):
+        """A call that copies this instance's ``outputs`` to ``target``'s ``inputs``.
 
-        def copy() -> None:
-            self._check("fmi2GetReal", get(self._component, source_address, n, buffer_address))
-            target._check("fmi2SetReal", put(target._component, target_address, n, buffer_address))
-        copy.keep = keep
-        return copy
+        Real variables go through one buffer with the hot-path calls; Integer/Enumeration and
+        Boolean ones with fmi2Get/SetInteger and fmi2Get/SetBoolean (the caller has checked
+        that connected variables have compatible types).
+        """
+        types = [self.info.variable(name).type for name in outputs]
+        if all(t == "Real" for t in types):
+            source_vrs = np.array(self.value_references(outputs), dtype=np.uint32)
+            target_vrs = np.array(target.value_references(inputs), dtype=np.uint32)
+            buffer = np.zeros(len(outputs))
+            n = len(outputs)
+            source_address, target_address = source_vrs.ctypes.data, target_vrs.ctypes.data
+            buffer_address = buffer.ctypes.data
+
+            def copy() -> None:
+                self._check("fmi2GetReal", self._hot["fmi2GetReal"](self._component, source_address, n,
+                                                                      buffer_address))
+                target._check("fmi2SetReal", target._hot["fmi2SetReal"](target._component, target_address,
+                                                                          n, buffer_address))
+            copy.keep = (source_vrs, target_vrs, buffer)  # must outlive the closure's addresses
+            return copy
+        groups = []
+        for kind in dict.fromkeys(types):
+            pairs = [(o, i) for o, i, t in zip(outputs, inputs, types) if t == kind]
+            groups.append((self._typed(kind, [o for o, _ in pairs]), target._typed(
+                target.info.variable(pairs[0][1]).type if kind != "Real" else "Real", [i for _, i in pairs])))
+
+        def copy_typed() -> None:
+            for (get, _, get_buffer), (_, put, put_buffer) in groups:
+                get()
+                put_buffer[:] = get_buffer
+                put()
+        return copy_typed
+
+    def _typed(self, kind: str, names: list[str]):
+        """(get, set, buffer) for variables of one type: the calls read into / write from buffer."""
+        if kind not in _TYPES:
+            raise InputError(f"{self.info.path}: {', '.join(names)}: {kind} variables cannot be exchanged")
+        ctype, dtype, getter, setter = _TYPES[kind]
+        vrs, n = self._vrs(self.value_references(names))
+        buffer = np.zeros(n, dtype=dtype)
+        pointer = self._pointer(buffer, ctype)
+
+        def get() -> None:
+            self._call(getter, vrs, n, pointer)
+
+        def put() -> None:
+            self._call(setter, vrs, n, pointer)
+        return get, put, buffer
 
     # ------------------------------------------------------------------ variables
     def value_references(self, names: Iterable[str]) -> list[int]:
         return [self.info.variable(name).value_reference for name in names]
 
-    def set_parameters(self, values: Mapping[str, float]) -> None:
-        """Set parameters by name (before initialization, or tunable ones in event mode)."""
+    def set_parameters(self, values: Mapping[str, object]) -> None:
+        """Set parameters by name, each with the function of its type (Real, Integer,
+        Enumeration, Boolean, String): before initialization, or tunable ones in event mode."""
         valid = self.info.parameters
         unknown = [name for name in values if name not in valid]
         if unknown:
             raise InputError(
                 f"{self.info.path}: {self.info.model_name} has no parameter "
                 f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}")
-        self.set_real(self.value_references(values), [float(v) for v in values.values()])
+        by_type: dict[str, list[tuple[int, object]]] = {}
+        for name, value in values.items():
+            variable = self.info.variables[name]
+            by_type.setdefault(variable.type, []).append((variable.value_reference, convert_value(variable, value)))
+        for kind, items in by_type.items():
+            refs, data = [r for r, _ in items], [v for _, v in items]
+            if kind == "Real":
+                self.set_real(refs, data)
+            elif kind in ("Integer", "Enumeration"):
+                self.set_integer(refs, data)
+            elif kind == "Boolean":
+                self.set_boolean(refs, data)
+            else:
+                self.set_string(refs, data)
 
     def set_real(self, value_references: Iterable[int], values: Iterable[float]) -> None:
         vrs, n = self._vrs(value_references)
@@ -339,40 +359,105 @@ class ModelExchangeInstance:
         self._call("fmi2GetReal", vrs, n, self._pointer(out))
         return out
 
-    def reader(self, names: Iterable[str]):
-        """A fast getter of the named variables: ``read() -> ndarray`` (no per-call lookup)."""
-        vrs, n = self._vrs(self.value_references(names))
-        out = np.zeros(n)
-        pointer = self._pointer(out)
+    def set_integer(self, value_references: Iterable[int], values: Iterable[int]) -> None:
+        vrs, n = self._vrs(value_references)
+        data = np.ascontiguousarray(np.fromiter(values, dtype=np.int32, count=n))
+        self._call("fmi2SetInteger", vrs, n, self._pointer(data, ctypes.c_int))
 
-        def read() -> np.ndarray:
-            self._call("fmi2GetReal", vrs, n, pointer)
+    def get_integer(self, value_references: Iterable[int]) -> np.ndarray:
+        vrs, n = self._vrs(value_references)
+        out = np.zeros(n, dtype=np.int32)
+        self._call("fmi2GetInteger", vrs, n, self._pointer(out, ctypes.c_int))
+        return out
+
+    def set_boolean(self, value_references: Iterable[int], values: Iterable[bool]) -> None:
+        vrs, n = self._vrs(value_references)
+        data = np.ascontiguousarray(np.fromiter((bool(v) for v in values), dtype=np.int32, count=n))
+        self._call("fmi2SetBoolean", vrs, n, self._pointer(data, ctypes.c_int))
+
+    def get_boolean(self, value_references: Iterable[int]) -> np.ndarray:
+        vrs, n = self._vrs(value_references)
+        out = np.zeros(n, dtype=np.int32)
+        self._call("fmi2GetBoolean", vrs, n, self._pointer(out, ctypes.c_int))
+        return out.astype(bool)
+
+    def set_string(self, value_references: Iterable[int], values: Iterable[str]) -> None:
+        vrs, n = self._vrs(value_references)
+        data = (ctypes.c_char_p * n)(*[str(v).encode("utf-8") for v in values])
+        self._call("fmi2SetString", vrs, n, data)
+
+    def get_string(self, value_references: Iterable[int]) -> list[str]:
+        vrs, n = self._vrs(value_references)
+        out = (ctypes.c_char_p * n)()
+        self._call("fmi2GetString", vrs, n, out)
+        return [(v or b"").decode("utf-8", "replace") for v in out]
+
+    def reader(self, names: Iterable[str]):
+        """A fast getter of the named variables (Real, Integer, Enumeration, Boolean):
+        ``read() -> ndarray`` of floats in the order of ``names`` (no per-call lookup)."""
+        names = list(names)
+        types = [self.info.variable(name).type for name in names]
+        out = np.zeros(len(names))
+        if all(t == "Real" for t in types):
+            vrs, n = self._vrs(self.value_references(names))
+            pointer = self._pointer(out)
+
+            def read() -> np.ndarray:
+                self._call("fmi2GetReal", vrs, n, pointer)
+                return out.copy()
+            return read
+        groups = []
+        for kind in dict.fromkeys(types):
+            index = np.array([k for k, t in enumerate(types) if t == kind], dtype=int)
+            get, _, buffer = self._typed(kind, [names[k] for k in index])
+            groups.append((index, get, buffer))
+
+        def read_typed() -> np.ndarray:
+            for index, get, buffer in groups:
+                get()
+                out[index] = buffer
             return out.copy()
-        return read
+        return read_typed
 
     def writer(self, names: Iterable[str]):
-        """A fast setter of the named variables: ``write(values)``."""
-        vrs, n = self._vrs(self.value_references(names))
-        data = np.zeros(n)
-        pointer = self._pointer(data)
+        """A fast setter of the named variables: ``write(values)`` (floats, converted to each
+        variable's type: Integer rounded, Boolean true when non-zero)."""
+        names = list(names)
+        types = [self.info.variable(name).type for name in names]
+        groups = []
+        for kind in dict.fromkeys(types):
+            index = np.array([k for k, t in enumerate(types) if t == kind], dtype=int)
+            _, put, buffer = self._typed(kind, [names[k] for k in index])
+            groups.append((index, put, buffer, kind))
 
         def write(values) -> None:
-            data[:] = values
-            self._call("fmi2SetReal", vrs, n, pointer)
+            values = np.asarray(values, dtype=float)
+            for index, put, buffer, kind in groups:
+                if kind == "Real":
+                    buffer[:] = values[index]
+                elif kind == "Boolean":
+                    buffer[:] = values[index] != 0
+                else:
+                    buffer[:] = np.rint(values[index])
+                put()
         return write
 
     # ------------------------------------------------------------------ life cycle
     def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:
+        self.time = start_time
         self._call("fmi2SetupExperiment", tolerance is not None, tolerance or 0.0, start_time, False, 0.0)
 
     def enter_initialization_mode(self) -> None:
         self._call("fmi2EnterInitializationMode")
+        self.mode = "initialization"
 
     def exit_initialization_mode(self) -> None:
         self._call("fmi2ExitInitializationMode")
+        self.mode = "event"
 
     def enter_event_mode(self) -> None:
         self._call("fmi2EnterEventMode")
+        self.mode = "event"
 
     def update_discrete_states(self, max_iterations: int = 100) -> EventResult:
         """Iterate fmi2NewDiscreteStates until the FMU needs no more (FMI 2.0 event iteration)."""
@@ -387,12 +472,13 @@ class ModelExchangeInstance:
                 break
         else:
             raise FMIError("fmi2NewDiscreteStates", self.name,
-                           f"no fixed point after {max_iterations} event iterations")
+                           f"no fixed point after {max_iterations} event iterations", self.messages, self.time)
         return EventResult(terminate=bool(info.terminateSimulation), states_changed=changed,
                            next_event_time=info.nextEventTime if info.nextEventTimeDefined else None)
 
     def enter_continuous_time_mode(self) -> None:
         self._call("fmi2EnterContinuousTimeMode")
+        self.mode = "continuous"
 
     def completed_integrator_step(self) -> tuple[bool, bool]:
         """Returns (enter event mode, terminate simulation)."""
@@ -403,6 +489,7 @@ class ModelExchangeInstance:
         return bool(enter.value), bool(terminate.value)
 
     def set_time(self, time: float) -> None:
+        self.time = time
         self._check("fmi2SetTime", self._hot["fmi2SetTime"](self._component, time))
 
     def get_states(self, out: np.ndarray | None = None) -> np.ndarray:
@@ -436,19 +523,44 @@ class ModelExchangeInstance:
 
     def terminate(self) -> None:
         self._call("fmi2Terminate")
+        self.mode = "terminated"
 
     def reset(self) -> None:
         self._call("fmi2Reset")
+        self.mode = "instantiated"
+
+    def close(self) -> None:
+        """End the instance on any path: fmi2Terminate where the state machine allows it
+        (event, continuous-time or error mode), then fmi2FreeInstance and unload (never raises)."""
+        if self._model is not None and self.mode in ("event", "continuous", "error"):
+            try:
+                self.terminate()
+            except Exception:  # noqa: BLE001 - closing must not hide the original error
+                pass
+        try:
+            self.free()
+        except Exception:  # noqa: BLE001
+            pass
 
     def free(self) -> None:
-        """Free the instance and unload the binary (safe to call twice)."""
+        """Free the instance and unload the binary (safe to call twice).
+
+        After fmi2Fatal no function may be called on the FMU any more, not even
+        fmi2FreeInstance: the library is only unloaded. Every later call raises :class:`FMIError`.
+        """
         if self._model is not None:
             model, self._model = self._model, None
-            model.fmi2FreeInstance(self._component)
-            model.freeLibrary()
+            self._hot = {name: self._freed(name) for name in _HOT_CALLS}
+            try:
+                if self.mode != "fatal":
+                    model.fmi2FreeInstance(self._component)
+            finally:
+                self.mode = "freed"
+                self._component = None
+                model.freeLibrary()
 
-    def __enter__(self) -> "ModelExchangeInstance":
+    def __enter__(self) -> ModelExchangeInstance:
         return self
 
     def __exit__(self, *exc) -> None:
-        self.free()
+        self.close()

@@ -13,6 +13,16 @@ re-propagated between rounds) and CVODE restarts. FMU time events (``nextEventTi
 events (CVODE root finding on all event indicators) and step events
 (``fmi2CompletedIntegratorStep``) go through the same event handling.
 
+Variables of every FMI 2.0 type are exchanged with their own get/set functions; connections
+join compatible types only (Real with Real of the same unit, Integer/Enumeration with
+Integer/Enumeration, Boolean with Boolean). Discrete-time connections (any non-Real variable,
+or a Real of variability discrete on either side) are copied only at events (initialization,
+event mode, the discrete fixed point), continuous ones also on every model evaluation.
+An FMU asking for ``terminateSimulation`` ends the run normally at that instant
+(:attr:`MasterResult.terminated`). Every instance gets ``fmi2Terminate`` (where allowed) and
+``fmi2FreeInstance`` on every path. Exceptions raised inside CVODE's callbacks are kept and
+re-raised after the solver call, with the time of the failing evaluation.
+
 The trace has a row at every output time and a row just before and just after every event
 (two rows with the same time), so nothing that happens at a step is lost to interpolation.
 """
@@ -27,7 +37,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from heliostep.cosim.fmi import FMUInfo, ModelExchangeInstance, address
+from heliostep.cosim.fmi import FMUInfo, ModelExchangeInstance, address, convert_value
+from heliostep.cosim.loops import LoopSolver
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 from heliostep.errors import HeliostepError, InputError
 
@@ -57,12 +68,32 @@ _CV_ONE_STEP = 2
 _CV_TSTOP_RETURN = 1
 
 
+class _Terminated(HeliostepError):
+    """An FMU asked to terminate the simulation (fmi2NewDiscreteStates/CompletedIntegratorStep)."""
+
+    def __init__(self, reason: str, time: float):
+        super().__init__(reason)
+        self.reason = reason
+        self.time = time
+
+
 @dataclass
 class MasterResult:
-    """A finished co-simulation: the trace and the solver statistics."""
+    """A finished co-simulation: the trace and the solver statistics.
+
+    ``terminated`` is True when an FMU asked to stop (terminateSimulation) before the stop
+    time: the run then ended normally at ``termination_time`` for ``termination_reason``.
+    """
 
     trace: pd.DataFrame
     statistics: dict = field(default_factory=dict)
+    terminated: bool = False
+    termination_reason: str = ""
+    termination_time: float | None = None
+
+
+#: Connectable FMI types: a connection's two ends must fall in the same class.
+_TYPE_CLASS = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean"}
 
 
 def _split(qualified: str, what: str) -> tuple[str, str]:
@@ -81,7 +112,7 @@ class _Unit:
         self.fmu = ModelExchangeInstance(info, name, parameters)
         self.n_states = self.fmu.n_states
         self.n_indicators = self.fmu.n_event_indicators
-        self.outputs = info.outputs
+        self.outputs = info.traced_outputs  # every type but String, traced as floats
         self.read_outputs = self.fmu.reader(self.outputs) if self.outputs else (lambda: np.zeros(0))
         self.next_event_time: float | None = None
 
@@ -115,6 +146,11 @@ class CoSimulation:
         self.order = self._propagation_order()
         self._check_units()
         self._parameters = {name: dict(parameters.get(name, {})) for name in fmus}
+        for name, values in self._parameters.items():  # every value must fit its type, up front
+            info = self.fmus[name]
+            for parameter, value in values.items():
+                if parameter in info.variables and info.variables[parameter].causality == "parameter":
+                    convert_value(info.variables[parameter], value)
 
     # ------------------------------------------------------------------ checks
     def _variable(self, qualified: str, what: str, causality: str):
@@ -127,9 +163,11 @@ class CoSimulation:
             raise InputError(f"{what} {qualified!r}: {info.path.name} has no variable {variable!r}; "
                              f"its {causality}s: {', '.join(names)}")
         var = info.variables[variable]
-        if var.causality != causality or var.type != "Real":
-            raise InputError(f"{what} {qualified!r}: expected a Real {causality}, it is a "
+        if var.causality != causality:
+            raise InputError(f"{what} {qualified!r}: expected an {causality}, it is a "
                              f"{var.type} {var.causality}")
+        if var.type not in _TYPE_CLASS:
+            raise InputError(f"{what} {qualified!r}: {var.type} variables cannot be connected or driven")
         return instance, var
 
     def _check_connections(self, connections: Sequence[Connection]) -> list[Connection]:
@@ -149,6 +187,9 @@ class CoSimulation:
         for c in self.connections:
             _, source = self._variable(c.source, "connection source", "output")
             _, target = self._variable(c.target, "connection target", "input")
+            if _TYPE_CLASS[source.type] != _TYPE_CLASS[target.type]:
+                raise InputError(f"connection {c.source} -> {c.target}: types are incompatible "
+                                 f"({c.source} is {source.type}, {c.target} is {target.type})")
             if source.unit and target.unit and source.unit != target.unit:
                 raise InputError(f"connection {c.source} -> {c.target}: units differ "
                                  f"({source.unit!r} vs {target.unit!r})")
@@ -160,12 +201,18 @@ class CoSimulation:
         depends = self.fmus[instance].output_feedthrough.get(output, [])
         return [feeds[f"{instance}.{name}"] for name in depends if f"{instance}.{name}" in feeds]
 
+    def is_discrete(self, c: Connection) -> bool:
+        """Exchanged only at events: either end is a discrete-time variable."""
+        _, source = self._variable(c.source, "connection source", "output")
+        _, target = self._variable(c.target, "connection target", "input")
+        return source.discrete or target.discrete
+
     def propagation_groups(self) -> list[tuple[str, str, list[Connection]]]:
         """Connections batched as (source instance, target instance, connections), in an order
         where each batch's outputs depend only on inputs set by earlier batches."""
         level: dict[Connection, int] = {}
         for c in self.order:  # prerequisites come earlier in self.order
-            level[c] = 1 + max((level[p] for p in self._prerequisites(c)), default=0)
+            level[c] = 1 + max((level[p] for p in self._prerequisites(c) if p not in self.torn), default=0)
         groups: dict[tuple[int, str, str], list[Connection]] = {}
         for c in self.order:
             key = (level[c], _split(c.source, "source")[0], _split(c.target, "target")[0])
@@ -173,28 +220,50 @@ class CoSimulation:
         return [(src, dst, members) for (_, src, dst), members in sorted(groups.items(), key=lambda kv: kv[0][0])]
 
     def _propagation_order(self) -> list[Connection]:
-        """Connections sorted so that an output is read only after the inputs it depends on are set."""
-        prerequisites = self._prerequisites
+        """Connections sorted so that an output is read only after the inputs it depends on are set.
 
-        order, state = [], {}  # state: 1 visiting, 2 done
+        Algebraic loops (cycles of direct feedthrough) are torn: in each cycle found, the
+        connection that comes first in the order the connections were given is torn (its
+        input becomes an iteration variable of :class:`~heliostep.cosim.loops.LoopSolver`),
+        until no cycle is left. ``self.torn`` lists the torn connections and ``self.loops``
+        describes each loop. Loops through discrete-time connections are refused.
+        """
+        self.torn: list[Connection] = []
+        self.loops: list[str] = []
+        index = {c: k for k, c in enumerate(self.connections)}
+        while True:
+            order, state = [], {}  # state: 1 visiting, 2 done
+            cycle_found: list[Connection] = []
 
-        def visit(c: Connection, path: list[Connection]) -> None:
-            if state.get(c) == 2:
-                return
-            if state.get(c) == 1:
-                cycle = path[path.index(c):] + [c]
-                raise InputError("algebraic loop of direct feedthrough between FMUs: "
-                                 + " -> ".join(f"{x.source} -> {x.target}" for x in cycle[:-1])
-                                 + "; break it with a state or remove a connection")
-            state[c] = 1
-            for before in prerequisites(c):
-                visit(before, path + [c])
-            state[c] = 2
-            order.append(c)
+            def visit(c: Connection, path: list[Connection]) -> bool:
+                if state.get(c) == 2:
+                    return False
+                if state.get(c) == 1:
+                    cycle_found.extend(path[path.index(c):])
+                    return True
+                state[c] = 1
+                for before in self._prerequisites(c):
+                    if before not in self.torn and visit(before, path + [c]):
+                        return True
+                state[c] = 2
+                order.append(c)
+                return False
 
-        for c in self.connections:
-            visit(c, [])
-        return order
+            if not any(visit(c, []) for c in self.connections if c not in self.torn):
+                return [c for c in order if c not in self.torn]
+            cycle = cycle_found[::-1]  # in the direction values flow
+            tear = min(cycle, key=index.__getitem__)
+            k = cycle.index(tear)
+            cycle = cycle[k:] + cycle[:k]  # described from the torn connection on
+            description = " -> ".join(f"{x.source} -> {x.target}" for x in cycle)
+            discrete = [x for x in cycle if self.is_discrete(x)]
+            if discrete:
+                raise InputError(f"algebraic loop of direct feedthrough between FMUs: {description}; "
+                                 f"it runs through the discrete-time connection {discrete[0].source} -> "
+                                 f"{discrete[0].target} and cannot be solved: break it with a state "
+                                 "or remove a connection")
+            self.torn.append(tear)
+            self.loops.append(f"{description} (torn at {tear.target})")
 
     # ------------------------------------------------------------------ simulation
     def simulate(self, start_time: float, stop_time: float, output_times: np.ndarray | None = None,
@@ -232,7 +301,8 @@ class CoSimulation:
                                   run.trace(), run.statistics(), time=run.time) from exc
         finally:
             run.close()
-        return MasterResult(run.trace(), run.statistics())
+        return MasterResult(run.trace(), run.statistics(), terminated=run.terminated,
+                            termination_reason=run.termination_reason, termination_time=run.termination_time)
 
 
 class _Run:
@@ -249,13 +319,17 @@ class _Run:
         self.time = np.nan
         self.counts = {"rhs": 0, "integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
         self.wall_start = clock.perf_counter()
+        self.terminated, self.termination_reason, self.termination_time = False, "", None
+        self.callback_error: BaseException | None = None  # raised inside a CVODE callback
+        self.callback_time = np.nan
         self.input_values = np.array([item.values[0] for item in system.inputs], dtype=float)
         self.columns = ["time"] + [item.name for item in system.inputs]
         for name, info in system.fmus.items():
-            self.columns += [f"{name}.{output}" for output in info.outputs]
+            self.columns += [f"{name}.{output}" for output in info.traced_outputs]
 
     # --------------------------------------------------------------- setup
     def _instantiate(self, start_time: float) -> None:
+        self.units_list = []
         for name, info in self.system.fmus.items():
             self.units[name] = unit = _Unit(name, info, self.system._parameters[name])
             unit.fmu.setup_experiment(start_time)
@@ -269,11 +343,31 @@ class _Run:
         for k, item in enumerate(self.system.inputs):
             instance, variable = _split(item.target, "input target")
             self.input_writers.append((k, self.units[instance].fmu.writer([variable])))
-        self.links = []
+        self.links, self.event_links = [], []  # continuous ones; all (at events)
         for source, target, connections in self.system.propagation_groups():
-            outputs = [_split(c.source, "source")[1] for c in connections]
-            inputs = [_split(c.target, "target")[1] for c in connections]
-            self.links.append(self.units[source].fmu.link(outputs, self.units[target].fmu, inputs))
+            for discrete in (False, True):
+                members = [c for c in connections if self.system.is_discrete(c) == discrete]
+                if not members:
+                    continue
+                outputs = [_split(c.source, "source")[1] for c in members]
+                inputs = [_split(c.target, "target")[1] for c in members]
+                link = self.units[source].fmu.link(outputs, self.units[target].fmu, inputs)
+                self.event_links.append(link)
+                if not discrete:
+                    self.links.append(link)
+        self.loop = None
+        if self.system.torn:  # algebraic loops: Newton on the torn inputs at every propagation
+            ends = [(_split(c.target, "target"), _split(c.source, "source")) for c in self.system.torn]
+            writers = [self.units[i].fmu.writer([v]) for (i, v), _ in ends]
+            readers = [self.units[i].fmu.reader([v]) for _, (i, v) in ends]
+
+            def write(values) -> None:
+                for put, value in zip(writers, values):
+                    put([value])
+
+            def read() -> np.ndarray:
+                return np.array([get()[0] for get in readers])
+            self.loop = LoopSolver([c.target for c in self.system.torn], write, read)
         self.needs_step_call = [u for u in self.units_list if u.info.needs_completed_integrator_step]
         # (unit, byte offset of its states, of its event indicators) for the CVODE callbacks
         self.state_units = [(u, 8 * int(lo)) for u, lo in zip(self.units_list, self.offsets[:-1]) if u.n_states]
@@ -285,8 +379,35 @@ class _Run:
             write([self.input_values[k]])
 
     def _propagate(self) -> None:
+        """Continuous-time connections (continuous-time mode: every model evaluation)."""
+        if self.loop is not None:
+            self.loop.solve(self._copy_continuous, self.time)
+            return
         for copy in self.links:
             copy()
+
+    def _copy_continuous(self) -> None:
+        for copy in self.links:
+            copy()
+
+    def _propagate_at_event(self) -> None:
+        """Every connection, discrete ones included (initialization and event mode only)."""
+        if self.loop is not None:
+            self.loop.solve(self._copy_all, self.time)
+            return
+        for copy in self.event_links:
+            copy()
+
+    def _copy_all(self) -> None:
+        for copy in self.event_links:
+            copy()
+
+    def _raise_callback_error(self) -> None:
+        """Re-raise what a CVODE callback raised (kept by :class:`_Solver`), at its time."""
+        if self.callback_error is not None:
+            error, self.callback_error = self.callback_error, None
+            self.time = self.callback_time
+            raise error
 
     # --------------------------------------------------------------- CVODE callbacks
     # CVODE hands over pointers to its vectors; the FMUs read and write them in place.
@@ -366,7 +487,12 @@ class _Run:
         if set_stop_time(solver.cvode_mem, t_next) < 0:
             raise RuntimeError(f"CVodeSetStopTime({t_next}) failed")
         reached = ctypes.c_double(0.0)
+        steps = 0
         while True:
+            steps += 1
+            if steps > self.options.max_num_steps:  # as CVODE's own limit in normal mode (mxstep)
+                raise RuntimeError(f"CVode took {self.options.max_num_steps} internal steps (solver.max_num_steps) "
+                                   f"before reaching t = {t_next:.9g} s, at t = {reached.value:.9g} s")
             flag = CVode(solver.cvode_mem, t_next, solver.x, ctypes.byref(reached), _CV_ONE_STEP)
             if flag < 0:
                 raise RuntimeError("CVode error (code %s) in module %s, function %s: %s" % solver.error_info)
@@ -385,7 +511,10 @@ class _Run:
 
     def statistics(self) -> dict:
         return {**self.counts, "wall_time": clock.perf_counter() - self.wall_start,
-                "states": getattr(self, "n_states", 0), "event_indicators": getattr(self, "n_indicators", 0)}
+                "states": getattr(self, "n_states", 0), "event_indicators": getattr(self, "n_indicators", 0),
+                "terminated": self.terminated, "termination_reason": self.termination_reason,
+                "termination_time": self.termination_time, "algebraic_loops": list(self.system.loops),
+                **(self.loop.statistics() if getattr(self, "loop", None) is not None else {})}
 
     # --------------------------------------------------------------- events
     def _event_iteration(self, t: float, new_inputs: bool) -> None:
@@ -405,13 +534,18 @@ class _Run:
         changed = False
         previous = None
         for _ in range(max_rounds):
-            self._propagate()
+            self._propagate_at_event()
+            stop = []
             for unit in self.units_list:
                 result = unit.fmu.update_discrete_states()
                 changed |= result.states_changed
                 unit.next_event_time = result.next_event_time
                 if result.terminate:
-                    raise HeliostepError(f"{unit.name} asked to terminate the simulation at t = {self.time}")
+                    stop.append(unit.name)
+            if stop:  # the round is complete: pass the final outputs on, then end the run
+                self._propagate_at_event()
+                raise _Terminated(f"{', '.join(stop)} asked to terminate the simulation "
+                                  "(fmi2NewDiscreteStates: terminateSimulation)", self.time)
             outputs = np.concatenate([unit.read_outputs() for unit in self.units_list] or [np.zeros(0)])
             if previous is not None and np.array_equal(outputs, previous):
                 return changed
@@ -420,12 +554,18 @@ class _Run:
 
     # --------------------------------------------------------------- main loop
     def execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
-        from fmpy.sundials import CVodeSolver
+        """Run the integration; an FMU's terminateSimulation ends it normally at that time."""
+        try:
+            self._execute(start_time, stop_time, grid)
+        except _Terminated as stop:
+            self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
+            self.record(stop.time)
 
+    def _execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
         self.time = start_time
         self._instantiate(start_time)
         self._apply_inputs()
-        self._propagate()
+        self._propagate_at_event()
         for unit in self.units_list:
             unit.fmu.exit_initialization_mode()
         self._discrete_fixed_point()
@@ -436,7 +576,8 @@ class _Run:
         change_times = np.unique(np.concatenate(
             [item.times for item in self.system.inputs] or [np.zeros(0)]))
         change_times = change_times[(change_times > start_time) & (change_times <= stop_time)]
-        solver = CVodeSolver(
+        solver = _Solver(
+            self,
             nx=self.n_states, nz=self.n_indicators, get_x=self.get_x, set_x=self.set_x,
             get_dx=self.get_dx, get_z=self.get_z, get_nominals=self.get_nominals,
             set_time=self.set_time, input=self, startTime=start_time,
@@ -464,7 +605,12 @@ class _Run:
             t_next = min(t_output, t_change, t_time_event, stop_time)
 
             self.counts["integrator_calls"] += 1
-            state_event, t = self._advance(solver, t_next)
+            try:
+                state_event, t = self._advance(solver, t_next)
+            except BaseException:
+                self._raise_callback_error()  # the cause, not CVODE's generic failure
+                raise
+            self._raise_callback_error()
             self.time = t
             self.set_time(t)
             self._propagate()
@@ -473,7 +619,8 @@ class _Run:
                 enter, terminate = unit.fmu.completed_integrator_step()
                 step_event |= enter
                 if terminate:
-                    raise HeliostepError(f"{unit.name} asked to terminate the simulation at t = {t}")
+                    raise _Terminated(f"{unit.name} asked to terminate the simulation "
+                                      "(fmi2CompletedIntegratorStep: terminateSimulation)", t)
 
             input_event = t >= t_change
             time_event = t >= t_time_event
@@ -494,12 +641,48 @@ class _Run:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after."""
         self.record(t)
         self._event_iteration(t, new_inputs=new_inputs)
-        solver.reset(t)  # re-reads the states (changed or not) and restarts CVODE
+        try:
+            solver.reset(t)  # re-reads the states (changed or not) and restarts CVODE
+        except BaseException:
+            self._raise_callback_error()
+            raise
+        self._raise_callback_error()
         self.record(t)
 
     def close(self) -> None:
+        """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path."""
         for unit in self.units.values():
+            unit.fmu.close()
+
+
+def _solver_class():
+    from fmpy.sundials import CVodeSolver
+
+    class Solver(CVodeSolver):
+        """fmpy's CVODE wrapper whose callbacks never lose an exception: the first one is kept
+        on the run (with the time of the failing evaluation) and CVODE is told to stop (-1,
+        unrecoverable); the master re-raises it after the solver call."""
+
+        def __init__(self, run: _Run, **kwargs):
+            self.run = run
+            super().__init__(**kwargs)
+
+        def _guard(self, method, t, *args):
+            if self.run.callback_error is not None:
+                return -1
             try:
-                unit.fmu.free()
-            except Exception:  # noqa: BLE001 - freeing must not hide the original error
-                pass
+                return method(t, *args)
+            except BaseException as exc:  # noqa: BLE001 - kept and re-raised outside the callback
+                self.run.callback_error, self.run.callback_time = exc, float(t)
+                return -1
+
+        def f(self, t, y, ydot, user_data):
+            return self._guard(super().f, t, y, ydot, user_data)
+
+        def g(self, t, y, gout, user_data):
+            return self._guard(super().g, t, y, gout, user_data)
+    return Solver
+
+
+def _Solver(run: _Run, **kwargs):
+    return _solver_class()(run, **kwargs)

@@ -81,6 +81,40 @@ def output_grid(duration: float, interval: float, step_times: np.ndarray,
     return np.unique(grid[(grid >= 0.0) & (grid <= duration)])
 
 
+#: Table 3 motor constants and the averaged chopper's loop gain: the shipped motor models'
+#: defaults, used for the initial equilibrium unless the scenario sets them.
+MOTOR_DEFAULTS = {"k_e": 0.5, "N_c": 50.0, "R": 0.1, "K_current": 100.0}
+
+
+def held_current(scenario: Scenario, reference: float) -> float:
+    """Phase current [A] the drive holds for a reference current: K i_ref / (K + R) for the
+    averaged chopper (its proportional loop's steady state), i_ref for the ideal-current model."""
+    motor = scenario.roles.instance_of("torque") or "motor"
+    if "IdealCurrent" in str(scenario.fmus.get(motor, "")):
+        return reference
+    values = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
+    return values["K_current"] * reference / (values["K_current"] + values["R"])
+
+
+def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> float:
+    """Elastic lag [rad] of the rotor behind its detent under the wind moment, held by ``reference`` A.
+
+    Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) ([paper], eqs. 9, 10)
+    and g = s / (r cos^2 theta_p) ([paper], eq. 15), so delta = asin(M_ext / (g k_e i)) / N_c.
+    0 without wind; raises nothing when the moment exceeds the holding torque (the lag is then
+    capped at a quarter of an electrical period: the drive cannot hold and will slip).
+    """
+    moment = scenario.wind.moment
+    if moment == 0.0 or reference == 0.0:
+        return 0.0
+    motor = scenario.roles.instance_of("torque") or "motor"
+    values = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
+    transmission = scenario.transmission
+    g = transmission.lever_arm / (transmission.pinion_radius * np.cos(panel_angle) ** 2)
+    ratio = moment / (g * values["k_e"] * held_current(scenario, reference))
+    return float(np.arcsin(np.clip(ratio, -1.0, 1.0)) / values["N_c"])
+
+
 def prepare_inputs(scenario: Scenario) -> DriveInputs:
     """Compute the reference, the step schedule, the reference currents and the output grid."""
     start, end = scenario.window_bounds()
@@ -103,7 +137,13 @@ def prepare_inputs(scenario: Scenario) -> DriveInputs:
     i_a_ref, i_b_ref = sequencer.reference_currents(indices)
     out = scenario.output
     grid = output_grid(duration, out.interval, schedule.times, out.step_detail, out.step_interval)
-    implied = {"panel_angle_start": float(panel[0]), "rotor_angle_start": 0.0,
+    # the run starts at the drive's holding equilibrium: the rotor at its loaded detent (the
+    # commanded position minus the elastic lag under the wind moment), the panel where the
+    # transmission puts it; the motor model starts its currents at what its loop holds
+    rotor0 = float(sequencer.position(schedule.initial_index)) - loaded_lag(
+        scenario, float(np.hypot(i_a_ref[0], i_b_ref[0])), float(panel[0]))
+    panel0 = float(np.arctan(np.tan(panel[0]) + rotor0 * transmission.pinion_radius / transmission.lever_arm))
+    implied = {"panel_angle_start": panel0, "rotor_angle_start": rotor0,
                "pinion_radius": transmission.pinion_radius, "lever_arm": transmission.lever_arm,
                "current_a_start": float(i_a_ref[0]), "current_b_start": float(i_b_ref[0])}
     return DriveInputs(window_start=start, duration=duration, reference_times=times,

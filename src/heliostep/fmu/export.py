@@ -2,11 +2,13 @@
 
 Steps, the same for every model:
 
-1. CasADi builds ``model_eval(t, x, u, p, guess) -> (computed, residual)``: the model's
+1. CasADi builds ``model_eval(t, x, u, p, guess) -> (computed, residual, scale)``: the model's
    implicit residual ``F(der(x), z; t, x, u, p) = 0`` is solved for the derivatives and
    algebraic variables by CasADi's ``fast_newton`` rootfinder, so the Newton iteration runs
    inside the generated C code; ``residual`` is ``F`` at the solution (checked by the C
-   layer). ``model_solve`` is the same with a converging iteration first (see
+   layer, equation by equation, relative to ``scale``: the size of the terms the equation
+   balances, ``|F_i| + sum_k |dF_i/dk_k| |k_k|`` over the known values with the unknowns at
+   zero). ``model_solve`` is the same with a converging iteration first (see
    :data:`POLISH_OPTIONS`); ``model_start(p) -> x0`` gives the start values of the states
    bound to parameters.
 2. CasADi generates C for both (``equations.c``/``equations.h``).
@@ -61,9 +63,9 @@ BASE_UNITS = {
 #: otherwise be returned unchanged, and CVODE's difference-quotient Jacobian (states perturbed
 #: by ~1e-8) would see no change at all. Two steps are exact for residuals linear in the
 #: unknowns and leave an error of the order of (change since the last call)^4 otherwise.
-POLISH_OPTIONS = {"abstol": 0.0, "abstolStep": 0.0, "max_iter": 2}
+POLISH_OPTIONS = {"abstol": 0.0, "abstolStep": 0.0, "max_iter": 2, "error_on_fail": False}
 #: The fallback when the polish does not satisfy the residual (first call, large jumps).
-ROBUST_OPTIONS = {"abstol": 1e-12, "abstolStep": 1e-14, "max_iter": 50}
+ROBUST_OPTIONS = {"abstol": 1e-12, "abstolStep": 1e-14, "max_iter": 50, "error_on_fail": False}
 
 FMI_LAYER = "fmi2_model_exchange.c"
 SOURCE_FILES = (FMI_LAYER, "equations.c")
@@ -104,14 +106,21 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
     guess = ca.MX.sym("guess", n_unknowns + len(model.calculated_parameters))
 
     residual_fn = ca.Function("residual", [unknowns, known], [model.residual])
+    # The size of what each equation balances, in its own units, so that its residual is judged
+    # relative to its own terms rather than by one absolute 1e-6: |F_i| + sum_k |dF_i/dk_k| |k_k|
+    # over the known values, with the unknowns at zero (never inflated by a wrong solution).
+    magnitude = ca.fabs(model.residual) + ca.mtimes(ca.fabs(ca.jacobian(model.residual, known)), ca.fabs(known))
+    scale_fn = ca.Function("scale", [unknowns, known], [magnitude])
+    no_unknowns = ca.MX.zeros(unknowns.numel(), 1)
     polish = ca.rootfinder("polish", "fast_newton", residual_fn, POLISH_OPTIONS)
     robust = ca.rootfinder("robust", "fast_newton", residual_fn, ROBUST_OPTIONS)
     calculated = ca.vertcat(*model.calculated_parameter_values) if model.calculated_parameters else ca.MX(0, 1)
 
     def solve(name: str, solution: ca.MX) -> ca.Function:
         return ca.Function(name, [model.time, x, u, p, guess],
-                           [ca.vertcat(solution, calculated), residual_fn(solution, known)],
-                           ["t", "x", "u", "p", "guess"], ["computed", "residual"])
+                           [ca.vertcat(solution, calculated), residual_fn(solution, known),
+                            scale_fn(no_unknowns, known)],
+                           ["t", "x", "u", "p", "guess"], ["computed", "residual", "scale"])
 
     evaluate = solve("model_eval", polish(guess[:n_unknowns], known))
     converge = solve("model_solve", polish(robust(guess[:n_unknowns], known), known))

@@ -1,24 +1,33 @@
-"""A run's figures (``summary.json``) from its trace and its metadata alone.
+"""A run's figures (``summary.json``) from the solution, recomputable from trace and metadata.
 
-:func:`summarize` needs nothing but the trace and the run's metadata (the ``roles`` that name
-the columns, the ``drive`` record of the sequencer and the step schedule), so the figures of a
-stored run can be recomputed from its files (:func:`summarize_files`).
+A run computes its figures from **the solution itself**: the master's monitor sees the state
+at every internal CVODE step, at every event (both sides) and at every output row
+(:class:`SolutionRecorder`), and :func:`solution_figures` evaluates the definitions below on
+those rows. The run stores them in its metadata (``solution_figures``), so :func:`summarize`
+needs nothing but the trace and the metadata (:func:`summarize_files` recomputes a stored
+run's summary). For a trace without solution figures (an older run, a hand-built trace) the
+same definitions are evaluated on the trace's rows, and ``figures_from`` says so.
 
 Definitions:
 
 - tracking error: the panel angle minus its reference; max of its magnitude and its RMS
-  over time (trapezoidal, so the extra rows around steps do not weigh more) [deg];
-- peak torque, peak phase current: max magnitude over the trace;
-- electrical energy drawn: the integral of the motor's electrical power [J];
-- steps commanded: the sequencer's steps in the window; a step is *missed* when, at the
-  next step (or at the end of the window for the last one), the rotor is more than half a
-  step increment away from the position that step commanded; steps executed = commanded −
-  missed;
-- steps lost: how many step increments the rotor ends behind the commanded position
-  (negative: ahead); a slip under load loses whole electrical cycles (4 full steps);
-- settling time of a step: from the step until the rotor stays within
-  ``settling_band`` × the step increment of the commanded position (up to the next step);
-  ``None`` when it never does.
+  over time (the error taken as linear between rows) [deg];
+- peak torque, peak phase current: max magnitude over the rows (every solver step);
+- electrical energy drawn: the integral of the motor's electrical power, trapezoidal over
+  every solver step [J];
+- a step is *missed* when it did not move the rotor by its increment: the rotor's move
+  from the step to the next step (or to the end) differs from the commanded increment by
+  more than :data:`MISS_TOLERANCE` increments (the rotor then ends in another detent; a slip
+  falls back by whole electrical periods, 4 full steps). Steps executed = commanded − missed;
+- steps lost: how many step increments the rotor ends behind the commanded position, net of
+  the elastic lag (the static deflection under load, which the run holds from its first row:
+  it starts at the loaded detent): round((cmd − rotor)/increment − lag at the start), negative
+  when ahead. A slip under load loses whole electrical periods (4 full steps).
+  ``final_lag_steps`` is what is left, the elastic lag at the end, in increments;
+- settling time of a step: from the step until the rotor stays within ``settling_band`` ×
+  the increment of its rest position (the commanded position minus the elastic lag held at
+  the start, in the detent the rotor ends in; the crossing time is interpolated linearly
+  between rows); ``None`` when at the next step (or the end) it is still outside.
 """
 
 from __future__ import annotations
@@ -34,15 +43,44 @@ from heliostep.drive.sequencer import Sequencer, StepSchedule
 from heliostep.results.trace import drive_from_metadata
 from heliostep.results.trace_io import read_trace
 
-#: Band around the commanded position that counts as settled, in step increments.
+#: Band around the rest position that counts as settled, in step increments.
 SETTLING_BAND = 0.05
+#: A step is missed when the rotor's move differs from the increment by more than this [increments].
+MISS_TOLERANCE = 0.5
+#: Full steps per electrical period (2 pi / N_c): a slipping rotor falls back by multiples of it.
+FULL_STEPS_PER_PERIOD = 4
+#: Summary fields that judge steps (per-step outcomes, settling, missed and lost steps).
+STEP_FIELDS = ("missed_steps", "steps_executed", "settling_time_s", "missed_step_times_s", "steps_lost",
+               "final_lag_steps")
+
+
+class SolutionRecorder:
+    """The master's ``monitor``: keeps every row it is shown (each solver step, event, output)."""
+
+    def __init__(self) -> None:
+        self.rows: list[np.ndarray] = []
+
+    def __call__(self, row: np.ndarray) -> None:
+        self.rows.append(np.array(row, dtype=float, copy=True))
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def frame(self, columns) -> pd.DataFrame:
+        """The rows as a DataFrame with the master trace's ``columns``, in time order."""
+        data = np.vstack(self.rows) if self.rows else np.zeros((0, len(columns)))
+        frame = pd.DataFrame(data, columns=list(columns))
+        return frame.iloc[np.argsort(frame["time"].to_numpy(), kind="stable")].reset_index(drop=True)
 
 
 def _time_rms(values: np.ndarray, time: np.ndarray) -> float:
+    """RMS over time of a signal taken as linear between rows (exact for the square of a linear
+    piece, so long solver steps over which the error drifts linearly do not inflate it)."""
     span = time[-1] - time[0]
     if span <= 0:
         return float(np.sqrt(np.mean(values**2)))
-    return float(np.sqrt(np.trapezoid(values**2, time) / span))
+    e0, e1, h = values[:-1], values[1:], np.diff(time)
+    return float(np.sqrt(np.sum(h * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0) / span))
 
 
 def _peak(trace: pd.DataFrame, *columns: str) -> float | None:
@@ -50,73 +88,140 @@ def _peak(trace: pd.DataFrame, *columns: str) -> float | None:
     return float(np.abs(trace[present].to_numpy()).max()) if present and len(trace) else None
 
 
+def _period(sequencer: Sequencer) -> float:
+    """One electrical period of the rotor [rad]: 4 full steps."""
+    return FULL_STEPS_PER_PERIOD * sequencer.step_angle
+
+
 def step_outcomes(trace: pd.DataFrame, rotor_column: str, sequencer: Sequencer, schedule: StepSchedule,
                   settling_band: float = SETTLING_BAND):
-    """Per commanded step: (time, commanded angle, missed, settling time or None)."""
+    """Per commanded step: (time, commanded angle, missed, settling time or None, move in increments)."""
     time = trace["time"].to_numpy()
     rotor = trace[rotor_column].to_numpy()
     increment = sequencer.increment
+    period = _period(sequencer)
     end = time[-1]
+    lag = float(sequencer.position(schedule.initial_index) - rotor[0])  # elastic lag held at the start
     outcomes = []
+    previous = float(sequencer.position(schedule.initial_index))
     for k, (t_step, index) in enumerate(zip(schedule.times, schedule.indices)):
         if t_step > end:
             break  # the run stopped before this step
         t_next = schedule.times[k + 1] if k + 1 < len(schedule) else end
         commanded = float(sequencer.position(index))
-        first = np.searchsorted(time, t_step, side="right") - 1  # the row just after the step
-        last = np.searchsorted(time, t_next, side="left")  # the row just before the next one
+        first = int(np.searchsorted(time, t_step, side="left"))  # the row at the step (before it)
+        last = int(np.searchsorted(time, t_next, side="left"))  # the row at the next step (before it)
         last = min(max(last, first), len(time) - 1)
-        error = np.abs(rotor[first:last + 1] - commanded)
-        missed = bool(error[-1] > increment / 2)
-        outside = np.nonzero(error > settling_band * increment)[0]
+        move = (rotor[last] - rotor[first]) / increment
+        missed = bool(abs(move - (commanded - previous) / increment) > MISS_TOLERANCE)
+        rest = commanded - lag
+        rest -= period * np.round((rest - rotor[last]) / period)  # the detent the rotor ends in
+        t, x = time[first:last + 1], rotor[first:last + 1]
+        outside = np.nonzero(np.abs(x - rest) > settling_band * increment)[0]
         if len(outside) == 0:
             settling = 0.0
-        elif outside[-1] == len(error) - 1:
+        elif outside[-1] == len(x) - 1:
             settling = None
         else:
-            settling = float(time[first + outside[-1] + 1] - t_step)
-        outcomes.append((float(t_step), commanded, missed, settling))
+            j = outside[-1]  # last row outside the band; the crossing lies between j and j + 1
+            band = settling_band * increment
+            d0, d1 = abs(x[j] - rest) - band, abs(x[j + 1] - rest) - band
+            fraction = d0 / (d0 - d1) if d0 != d1 else 1.0
+            settling = float(t[j] + fraction * (t[j + 1] - t[j]) - t_step)
+        outcomes.append((float(t_step), commanded, missed, settling, float(move)))
+        previous = commanded
     return outcomes
 
 
-def summarize(trace: pd.DataFrame, metadata: Mapping) -> dict:
-    """The run's figures (see the module docstring) from its trace and metadata.
+def figures(trace: pd.DataFrame, metadata: Mapping) -> dict:
+    """The figures (see the module docstring) evaluated on the rows of ``trace``.
 
-    ``metadata`` needs ``roles`` (role -> column) and ``drive`` (see
-    :func:`heliostep.results.trace.drive_metadata`).
+    ``trace`` is an assembled trace (with ``rotor_angle_cmd`` and ``panel_angle_error``): the
+    run's output trace, or the solution rows the monitor saw, assembled the same way.
     """
     roles = metadata.get("roles", {})
     sequencer, schedule = drive_from_metadata(metadata["drive"])
-    rotor_column, panel_column = roles.get("rotor_angle"), roles.get("panel_angle")
+    rotor_column = roles.get("rotor_angle")
     time = trace["time"].to_numpy()
-    summary: dict = {"duration_s": float(time[-1] - time[0]) if len(time) else 0.0, "rows": int(len(trace))}
+    result: dict = {}
     if "panel_angle_error" in trace and len(trace):
         error = np.degrees(trace["panel_angle_error"].to_numpy())
-        summary["max_tracking_error_deg"] = float(np.abs(error).max())
-        summary["rms_tracking_error_deg"] = _time_rms(error, time)
-    summary["peak_torque_Nm"] = _peak(trace, *(c for c in [roles.get("torque")] if c))
-    summary["peak_phase_current_A"] = _peak(trace, *(roles[r] for r in ("current_a", "current_b") if r in roles))
+        result["max_tracking_error_deg"] = float(np.abs(error).max())
+        result["rms_tracking_error_deg"] = _time_rms(error, time)
+    result["peak_torque_Nm"] = _peak(trace, *(c for c in [roles.get("torque")] if c))
+    result["peak_phase_current_A"] = _peak(trace, *(roles[r] for r in ("current_a", "current_b") if r in roles))
     power = roles.get("power")
     if power in trace and len(trace) > 1:
-        summary["electrical_energy_J"] = float(np.trapezoid(trace[power].to_numpy(), time))
-    commanded = int(np.sum(schedule.times <= (time[-1] if len(time) else -np.inf)))
-    summary["steps_commanded"] = commanded
+        result["electrical_energy_J"] = float(np.trapezoid(trace[power].to_numpy(), time))
     if rotor_column in trace and len(trace):
         outcomes = step_outcomes(trace, rotor_column, sequencer, schedule)
-        missed = sum(1 for o in outcomes if o[2])
-        settling = [o[3] for o in outcomes]
-        settled = [s for s in settling if s is not None]
-        summary["missed_steps"] = missed
-        summary["steps_executed"] = commanded - missed
-        summary["settling_time_s"] = {
-            "max": max(settled) if settled else None,
-            "mean": float(np.mean(settled)) if settled else None,
-            "not_settled": sum(1 for s in settling if s is None),
-            "per_step": settling,
-        }
-        summary["missed_step_times_s"] = [o[0] for o in outcomes if o[2]]
-        lag = trace["rotor_angle_cmd"].iloc[-1] - trace[rotor_column].iloc[-1]
-        summary["steps_lost"] = int(np.round(lag / sequencer.increment))
+        result.update(_step_fields(outcomes, len(outcomes)))
+        behind = float(trace["rotor_angle_cmd"].iloc[-1] - trace[rotor_column].iloc[-1]) / sequencer.increment
+        lag = float(trace["rotor_angle_cmd"].iloc[0] - trace[rotor_column].iloc[0]) / sequencer.increment
+        result["steps_lost"] = int(np.round(behind - lag))
+        result["final_lag_steps"] = float(behind - result["steps_lost"])
+        result["step_outcomes"] = [{"time_s": o[0], "missed": o[2], "settling_s": o[3], "move_steps": o[4]}
+                                   for o in outcomes]
+    return result
+
+
+def _step_fields(outcomes, commanded: int) -> dict:
+    missed = [o for o in outcomes if o[2]]
+    settling = [o[3] for o in outcomes]
+    settled = [s for s in settling if s is not None]
+    return {"missed_steps": len(missed), "steps_executed": commanded - len(missed),
+            "settling_time_s": {"max": max(settled) if settled else None,
+                                "mean": float(np.mean(settled)) if settled else None,
+                                "not_settled": sum(1 for s in settling if s is None), "per_step": settling},
+            "missed_step_times_s": [o[0] for o in missed]}
+
+
+def solution_figures(solution: pd.DataFrame, metadata: Mapping) -> dict:
+    """The figures from the solution rows (assembled like a trace), for ``metadata['solution_figures']``."""
+    result = figures(solution, metadata)
+    result["solution_rows"] = int(len(solution))
+    result["end_time_s"] = float(solution["time"].iloc[-1]) if len(solution) else 0.0
+    return result
+
+
+def summarize(trace: pd.DataFrame, metadata: Mapping, solution: Mapping | None = None) -> dict:
+    """The run's figures (see the module docstring) from its trace and metadata.
+
+    ``metadata`` needs ``roles`` (role -> column) and ``drive`` (see
+    :func:`heliostep.results.trace.drive_metadata`); its ``solution_figures`` (or
+    ``solution``, the same dict) are the figures from every solver step, which take
+    precedence over the ones the trace's rows give.
+    """
+    roles = metadata.get("roles", {})
+    sequencer, schedule = drive_from_metadata(metadata["drive"])
+    panel_column = roles.get("panel_angle")
+    time = trace["time"].to_numpy()
+    summary: dict = {"duration_s": float(time[-1] - time[0]) if len(time) else 0.0, "rows": int(len(trace))}
+    end = time[-1] if len(time) else -np.inf
+    commanded = int(np.sum(schedule.times <= end))
+    grid = figures(trace, metadata) if len(trace) else {}
+    solution = solution if solution is not None else metadata.get("solution_figures")
+    chosen = dict(grid)
+    if solution:
+        chosen.update({k: v for k, v in solution.items() if k not in STEP_FIELDS and k != "step_outcomes"
+                       and k in grid})
+        outcomes = [o for o in solution.get("step_outcomes", []) if o["time_s"] <= end]
+        if len(outcomes) == commanded and "step_outcomes" in grid:
+            chosen.update(_step_fields([(o["time_s"], None, o["missed"], o["settling_s"], o["move_steps"])
+                                        for o in outcomes], commanded))
+            if solution.get("end_time_s") == float(end):
+                chosen["steps_lost"] = solution["steps_lost"]
+                chosen["final_lag_steps"] = solution["final_lag_steps"]
+    chosen.pop("step_outcomes", None)
+    summary.update({k: chosen.get(k) for k in ("max_tracking_error_deg", "rms_tracking_error_deg") if k in chosen})
+    for key in ("peak_torque_Nm", "peak_phase_current_A", "electrical_energy_J"):
+        if key in chosen:
+            summary[key] = chosen[key]
+    summary["steps_commanded"] = commanded
+    for key in STEP_FIELDS:
+        if key in chosen:
+            summary[key] = chosen[key]
+    summary["figures_from"] = "solution" if solution else "output rows"
     if panel_column in trace and len(trace):
         summary["final_panel_angle_deg"] = float(np.degrees(trace[panel_column].iloc[-1]))
     return summary

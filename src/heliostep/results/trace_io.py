@@ -33,7 +33,9 @@ Two encodings, chosen by the file suffix:
 ``.csv``
     UTF-8 text. The metadata comes first, one ``# key: value`` line per entry, then
     the header line (``time,motor.tau,...``) and one line per row, comma-separated,
-    floats in shortest round-trip form, missing values as empty fields::
+    floats in shortest round-trip form, missing values as empty fields (:func:`read_trace`
+    also accepts a UTF-8 byte order mark and, as Excel writes in many locales, ``;`` as the
+    separator with ``,`` or ``.`` as the decimal mark)::
 
         # complete: true
         # unit.motor.tau: N.m
@@ -64,6 +66,8 @@ _RESERVED_PARQUET_KEYS = ("pandas",)
 # pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
 _EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
 _RESERVED_PARQUET_PREFIX = "ARROW:"
+#: Rows per Parquet row group (and per slice converted to Arrow at a time).
+ROW_GROUP_ROWS = 262_144
 
 __all__ = ["TIME", "SUFFIXES", "read_trace", "write_trace", "check_time", "is_complete"]
 
@@ -161,9 +165,14 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
         for key in meta:
             if key in _RESERVED_PARQUET_KEYS or key.startswith(_RESERVED_PARQUET_PREFIX):
                 raise InputError(f"metadata key {key!r} is reserved in Parquet files")
-        arrow = pa.table({c: pa.array(table[c].to_numpy(), type=pa.float64()) for c in table.columns})
-        arrow = arrow.replace_schema_metadata({k.encode(): v.encode() for k, v in meta.items()})
-        pq.write_table(arrow, path, compression="zstd")
+        schema = pa.schema([pa.field(c, pa.float64()) for c in table.columns],
+                           metadata={k.encode(): v.encode() for k, v in meta.items()})
+        columns = [table[c].to_numpy() for c in table.columns]
+        # row groups of ROW_GROUP_ROWS: Arrow holds one group at a time, not a copy of the table
+        with pq.ParquetWriter(path, schema, compression="zstd") as writer:
+            for start in range(0, max(len(table), 1), ROW_GROUP_ROWS):
+                chunk = [pa.array(c[start:start + ROW_GROUP_ROWS], type=pa.float64()) for c in columns]
+                writer.write_table(pa.Table.from_arrays(chunk, schema=schema))
     else:
         with open(path, "w", encoding="utf-8", newline="") as fh:
             for key, value in meta.items():
@@ -214,7 +223,7 @@ def read_trace(path: str | Path) -> tuple[pd.DataFrame, dict[str, str]]:
 
 def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a leading byte order mark (Excel) is dropped
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: cannot read as CSV: {exc}") from None
     meta: dict[str, str] = {}
@@ -237,18 +246,28 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     body = "".join(lines[start:])
     if not body.strip():
         raise InputError(f"{path}: no header line (expected a {TIME!r} column)")
+    sep, decimal = _dialect(lines[start], lines[start + 1:start + 50])
     try:
-        names = next(csv.reader(io.StringIO(lines[start])))
+        names = [n.strip() for n in next(csv.reader(io.StringIO(lines[start]), delimiter=sep))]
     except csv.Error as exc:
         raise InputError(f"{path}: line {start + 1}: bad header: {exc}") from None
     dupes = sorted({c for c in names if names.count(c) > 1})
     if dupes:
         raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
     try:
-        frame = pd.read_csv(io.StringIO(body), header=0, names=names, **_EXACT_FLOATS)
+        frame = pd.read_csv(io.StringIO(body), header=0, names=names, sep=sep, decimal=decimal,
+                            **_EXACT_FLOATS)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise InputError(f"{path}: cannot read as CSV: {exc}") from None
     return meta, frame
+
+
+def _dialect(header: str, rows: list[str]) -> tuple[str, str]:
+    """Separator and decimal mark: ``,`` and ``.``, or (Excel in many locales) ``;`` with ``,``
+    or ``.`` decimals. ``;`` is taken when the header has a ``;`` and no ``,``."""
+    if ";" in header and "," not in header:
+        return ";", "," if any("," in row for row in rows) else "."
+    return ",", "."
 
 
 def is_complete(metadata: Mapping[str, str]) -> bool:

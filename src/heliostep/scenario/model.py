@@ -6,10 +6,13 @@ import datetime as dt
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Union
 
 import pandas as pd
 from pydantic import (
+    StrictBool,
+    StrictInt,
+    StrictStr,
     BeforeValidator,
     Field,
     PrivateAttr,
@@ -46,6 +49,11 @@ DEFAULT_CONNECTIONS = [
     ("mechanics.theta", "motor.theta"),
     ("mechanics.omega", "motor.omega"),
 ]
+
+#: A parameter value of any FMI 2.0 type; the master checks it against the variable's declared type
+#: (a Boolean must be true/false, an Integer a whole number, a String quoted text).
+ParameterValue = Annotated[Union[StrictBool, StrictInt, Annotated[float, Field(strict=True, allow_inf_nan=False)],
+                                 StrictStr], Field(union_mode="left_to_right")]
 
 _INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 #: Top-level keys whose null value means "the defaults".
@@ -93,8 +101,9 @@ class Scenario(Section):
         description="instance name -> model variant or path to an .fmu; merged over the defaults "
                     "motor: StepperMotor, mechanics: PanelMechanics (null drops one)",
     )
-    parameters: dict[str, dict[str, Real]] = Field(
-        default_factory=dict, description="instance name -> {parameter name: value}"
+    parameters: dict[str, dict[str, ParameterValue]] = Field(
+        default_factory=dict, description="instance name -> {parameter name: value (Real, Integer, Boolean or "
+                                          "String, as the FMU declares it)}"
     )
     connections: list[Annotated[tuple[str, str], BeforeValidator(_connection_pair)]] | None = Field(
         None, description="[source, target] pairs 'instance.variable'; null: the default connections"

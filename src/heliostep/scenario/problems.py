@@ -52,9 +52,20 @@ def _explain(root: type[BaseModel], error: dict) -> list[tuple[tuple, str]]:
     return [(loc, f"{error['msg']}{meaning}, got {error['input']!r}")]
 
 
+#: Tags pydantic appends to the key path of each member of a scalar union (a parameter value).
+_UNION_TAGS = ("bool", "int", "float", "str")
+
+
 def format_validation_error(exc: ValidationError, source: str, root: type[BaseModel]) -> str:
-    lines = []
+    lines, unions = [], set()
     for error in exc.errors(include_url=False):
+        loc = tuple(error["loc"])
+        if loc and loc[-1] in _UNION_TAGS:  # one line for a value that is none of the union's types
+            if loc[:-1] not in unions:
+                unions.add(loc[:-1])
+                lines.append(f"{source}: {dotted(loc[:-1])}: expected a number, true/false or a string, "
+                             f"got {error['input']!r}")
+            continue
         for loc, message in _explain(root, error):
             lines.append(f"{source}: {dotted(loc) or '(top level)'}: {message}")
     return "\n".join(lines)

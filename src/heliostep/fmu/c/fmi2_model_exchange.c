@@ -4,8 +4,8 @@
  * A model contributes only two generated files: "model.h" (sizes, start values, names and
  * the layout of the value references) and the CasADi-generated equations ("equations.h"),
  * which provide
- *   model_eval(t, x, u, p, guess)  -> (computed, residual)   two Newton steps from guess
- *   model_solve(t, x, u, p, guess) -> (computed, residual)   converge, then the same steps
+ *   model_eval(t, x, u, p, guess)  -> (computed, residual, scale)   two Newton steps from guess
+ *   model_solve(t, x, u, p, guess) -> (computed, residual, scale)   converge, then the same steps
  *   model_start(p)                 -> x0
  * where "computed" holds the state derivatives, the algebraic variables and the calculated
  * parameters, solved from the model's implicit residual by a Newton iteration inside the
@@ -39,8 +39,11 @@
 #define OFF_C (OFF_U + N_INPUTS)
 #define N_REALS (OFF_C + N_COMPUTED)
 
-/* residual norm above which the solved equations are not trusted */
-#define RESIDUAL_TOLERANCE 1e-6
+/* An equation's residual is trusted when |F_i| <= RESIDUAL_RTOL * scale_i + RESIDUAL_ATOL, where
+ * scale_i (from the generated code) is the size of the terms that equation balances, in its
+ * own units: one absolute tolerance would be too loose for some equations, too tight for others. */
+#define RESIDUAL_RTOL 1e-8
+#define RESIDUAL_ATOL 1e-10
 
 typedef enum {
     Instantiated = 1 << 0,
@@ -66,6 +69,7 @@ typedef struct {
     double guess[N_COMPUTED + 1];
     double computed[N_COMPUTED + 1];
     double residual[N_UNKNOWNS + 1];
+    double scale[N_UNKNOWNS + 1];
     const casadi_real **arg;
     casadi_real **res;
     casadi_int *iw;
@@ -120,6 +124,18 @@ static int wrong_size(Instance *inst, const char *function, const char *name, si
     return 1;
 }
 
+/* After fmi2Error the instance is in the error state (FMI 2.0 state machine, as the
+ * Reference FMUs do): only fmi2Get*, fmi2Terminate, fmi2Reset, fmi2FreeInstance and
+ * fmi2SetDebugLogging are allowed, and nothing computed before is trusted any more. An
+ * illegal call sequence is refused without changing the state. */
+static fmi2Status enter_error_state(Instance *inst) {
+    if (inst) {
+        inst->state = ErrorState;
+        inst->computed_valid = 0;
+    }
+    return fmi2Error;
+}
+
 static int invalid_vr(Instance *inst, const char *function, fmi2ValueReference vr) {
     if (vr < N_REALS) return 0;
     LOG_ERROR(inst, "%s: invalid value reference %u (the model has %u real variables)", function, vr, (unsigned)N_REALS);
@@ -138,9 +154,10 @@ static int eval_equations(Instance *inst, EquationFunction equations, const doub
     inst->arg[4] = guess;
     inst->res[0] = inst->computed;
     inst->res[1] = inst->residual;
+    inst->res[2] = inst->scale;
     if (equations(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
     for (int i = 0; i < N_UNKNOWNS; i++) {
-        if (!(fabs(inst->residual[i]) <= RESIDUAL_TOLERANCE)) return 0;
+        if (!(fabs(inst->residual[i]) <= RESIDUAL_RTOL * fabs(inst->scale[i]) + RESIDUAL_ATOL)) return 0;
     }
     return 1;
 }
@@ -165,12 +182,12 @@ static fmi2Status update(Instance *inst, const char *function) {
     if (!eval_equations(inst, model_eval, inst->guess) && !eval_equations(inst, model_solve, inst->guess) &&
         !eval_equations(inst, model_solve, zeros)) {
         LOG_ERROR(inst, "%s: the model equations could not be solved at t = %g", function, inst->time);
-        return fmi2Error;
+        return enter_error_state(inst);
     }
     for (int i = 0; i < N_COMPUTED; i++) {
         if (!isfinite(inst->computed[i])) {
             LOG_ERROR(inst, "%s: %s is not finite at t = %g", function, VARIABLE_NAMES[OFF_C + i], inst->time);
-            return fmi2Error;
+            return enter_error_state(inst);
         }
     }
     memcpy(inst->r + OFF_C, inst->computed, sizeof(double) * N_COMPUTED);
@@ -313,7 +330,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 
 fmi2Status fmi2Terminate(fmi2Component c) {
     Instance *inst = (Instance *)c;
-    if (invalid_state(inst, "fmi2Terminate", EventMode | ContinuousTimeMode)) return fmi2Error;
+    if (invalid_state(inst, "fmi2Terminate", EventMode | ContinuousTimeMode | ErrorState)) return fmi2Error;
     inst->state = Terminated;
     return fmi2OK;
 }
@@ -334,8 +351,10 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     if (nvr == 0) return fmi2OK;
     if (null_argument(inst, "fmi2GetReal", "vr", vr) || null_argument(inst, "fmi2GetReal", "value", value)) return fmi2Error;
     if (inst->state & InitializationMode) compute_state_starts(inst);
+    for (size_t i = 0; i < nvr; i++) {  /* every reference is checked before anything is read */
+        if (invalid_vr(inst, "fmi2GetReal", vr[i])) return enter_error_state(inst);
+    }
     for (size_t i = 0; i < nvr; i++) {
-        if (invalid_vr(inst, "fmi2GetReal", vr[i])) return fmi2Error;
         if (vr[i] >= OFF_C && update(inst, "fmi2GetReal") != fmi2OK) return fmi2Error;
         value[i] = inst->r[vr[i]];
     }
@@ -347,28 +366,29 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     if (invalid_state(inst, "fmi2SetReal", Instantiated | InitializationMode | EventMode | ContinuousTimeMode)) return fmi2Error;
     if (nvr == 0) return fmi2OK;
     if (null_argument(inst, "fmi2SetReal", "vr", vr) || null_argument(inst, "fmi2SetReal", "value", value)) return fmi2Error;
+    /* validate every reference and value first: a rejected call writes nothing */
     for (size_t i = 0; i < nvr; i++) {
         fmi2ValueReference ref = vr[i];
-        if (invalid_vr(inst, "fmi2SetReal", ref)) return fmi2Error;
+        if (invalid_vr(inst, "fmi2SetReal", ref)) return enter_error_state(inst);
         if (ref >= OFF_C) {
             LOG_ERROR(inst, "fmi2SetReal: %s is computed by the model and cannot be set", VARIABLE_NAMES[ref]);
-            return fmi2Error;
+            return enter_error_state(inst);
         }
         if (ref < OFF_X && !(inst->state & (Instantiated | InitializationMode | EventMode))) {
             LOG_ERROR(inst, "fmi2SetReal: parameter %s can only be set before initialization or in event mode", VARIABLE_NAMES[ref]);
-            return fmi2Error;
+            return enter_error_state(inst);
         }
         if (ref >= OFF_X && ref < OFF_U &&
             (STATE_START_CALCULATED[ref - OFF_X] || !(inst->state & (Instantiated | InitializationMode)))) {
             LOG_ERROR(inst, "fmi2SetReal: state %s can only be set through fmi2SetContinuousStates", VARIABLE_NAMES[ref]);
-            return fmi2Error;
+            return enter_error_state(inst);
         }
         if (!isfinite(value[i])) {
             LOG_ERROR(inst, "fmi2SetReal: value of %s is not finite", VARIABLE_NAMES[ref]);
-            return fmi2Error;
+            return enter_error_state(inst);
         }
-        inst->r[ref] = value[i];
     }
+    for (size_t i = 0; i < nvr; i++) inst->r[vr[i]] = value[i];
     inst->computed_valid = 0;
     return fmi2OK;
 }
@@ -500,7 +520,13 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
     if (invalid_state(inst, "fmi2SetContinuousStates", EventMode | ContinuousTimeMode)) return fmi2Error;
     if (wrong_size(inst, "fmi2SetContinuousStates", "nx", nx, N_STATES)) return fmi2Error;
     if (nx == 0) return fmi2OK;
-    if (null_argument(inst, "fmi2SetContinuousStates", "x", x)) return fmi2Error;
+    if (null_argument(inst, "fmi2SetContinuousStates", "x", x)) return enter_error_state(inst);
+    for (size_t i = 0; i < nx; i++) {
+        if (!isfinite(x[i])) {
+            LOG_ERROR(inst, "fmi2SetContinuousStates: %s = %g is not finite", VARIABLE_NAMES[OFF_X + i], x[i]);
+            return enter_error_state(inst);
+        }
+    }
     memcpy(inst->r + OFF_X, x, sizeof(double) * nx);
     inst->computed_valid = 0;
     return fmi2OK;
@@ -511,7 +537,7 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx
     if (invalid_state(inst, "fmi2GetDerivatives", READABLE)) return fmi2Error;
     if (wrong_size(inst, "fmi2GetDerivatives", "nx", nx, N_STATES)) return fmi2Error;
     if (nx == 0) return fmi2OK;
-    if (null_argument(inst, "fmi2GetDerivatives", "derivatives", derivatives)) return fmi2Error;
+    if (null_argument(inst, "fmi2GetDerivatives", "derivatives", derivatives)) return enter_error_state(inst);
     if (update(inst, "fmi2GetDerivatives") != fmi2OK) return fmi2Error;
     memcpy(derivatives, inst->r + OFF_C, sizeof(double) * nx);
     return fmi2OK;

@@ -1,0 +1,78 @@
+"""Stopping a command cleanly on SIGINT (Ctrl+C) and SIGTERM.
+
+:func:`stop_requests` installs handlers that only record the signal (no exception is raised
+inside the solver's ctypes callbacks), so a long computation can ask ``stop.is_set()`` at its next
+safe point and end with its results written. The previous handlers are restored on leaving.
+Exit status of a stopped command: 128 + the signal number (130 for SIGINT, 143 for SIGTERM).
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+__all__ = ["STOP_SIGNALS", "StopRequest", "exit_status", "stop_requests"]
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class StopRequest:
+    """Set by the first stop signal; ``signum`` says which."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self.signum: int | None = None
+
+    def is_set(self) -> bool:
+        return self._event.is_set()
+
+    def set(self, signum: int) -> None:
+        if self.signum is None:
+            self.signum = signum
+        self._event.set()
+
+    @property
+    def name(self) -> str:
+        return signal.Signals(self.signum).name if self.signum is not None else ""
+
+    @property
+    def exit_status(self) -> int:
+        return exit_status(self.signum or signal.SIGINT)
+
+
+def exit_status(signum: int) -> int:
+    """The shell's convention for a process ended by a signal: 128 + its number."""
+    return 128 + int(signum)
+
+
+@contextmanager
+def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterator[StopRequest]:
+    """Within the block, SIGINT and SIGTERM set the returned :class:`StopRequest`.
+
+    With ``raise_exception``, the handler also raises it (for code that waits in Python, not in
+    native callbacks, e.g. a Dask client). Outside the main thread nothing is installed, and a
+    signal that is ignored (``SIG_IGN``, as SIGINT in a shell's background job) stays ignored.
+    """
+    request = StopRequest()
+    if threading.current_thread() is not threading.main_thread():
+        yield request
+        return
+
+    def handler(signum, frame):
+        first = not request.is_set()
+        request.set(signum)
+        if raise_exception is not None and first:
+            raise raise_exception(signum)
+
+    previous = {}
+    try:
+        for sig in STOP_SIGNALS:
+            if signal.getsignal(sig) is signal.SIG_IGN:
+                continue  # ignored on purpose (e.g. SIGINT of a background job): keep it so
+            previous[sig] = signal.signal(sig, handler)
+        yield request
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)

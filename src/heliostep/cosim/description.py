@@ -1,0 +1,233 @@
+"""What heliostep reads of an FMU before running it: ``modelDescription.xml`` and its binary.
+
+:func:`read_fmu` checks that the file is an FMI 2.0 Model Exchange FMU with a binary for
+this platform that loads and exports every FMI 2.0 Model Exchange function (else
+:class:`~heliostep.errors.InputError` naming the ``.fmu`` file and the platform) and returns
+an :class:`FMUInfo` with every variable and its type. :func:`convert_value` turns a value
+given by the user into a variable's type. The calls on instances are in
+:mod:`heliostep.cosim.fmi`.
+"""
+
+from __future__ import annotations
+
+import atexit
+import ctypes
+import shutil
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from heliostep.errors import InputError
+
+
+@dataclass(frozen=True)
+class VariableInfo:
+    """What the master needs to know of one scalar variable."""
+
+    name: str
+    value_reference: int
+    type: str
+    causality: str
+    variability: str
+    unit: str = ""
+    start: float | str | None = None  # float for Real/Integer/Boolean/Enumeration, str for String
+    description: str = ""
+
+    @property
+    def discrete(self) -> bool:
+        """Changes only at events: every non-Real variable, and Real ones of variability discrete."""
+        return self.type != "Real" or self.variability != "continuous"
+
+
+@dataclass
+class FMUInfo:
+    """The parts of an FMU's modelDescription.xml that heliostep uses."""
+
+    path: Path
+    model_name: str
+    model_identifier: str
+    guid: str
+    variables: dict[str, VariableInfo]
+    states: list[str]
+    n_event_indicators: int
+    #: output name -> names of the inputs it depends on directly (direct feedthrough)
+    output_feedthrough: dict[str, list[str]] = field(default_factory=dict)
+    #: whether fmi2CompletedIntegratorStep must be called after each integrator step
+    needs_completed_integrator_step: bool = True
+    description: object = None  # fmpy's ModelDescription
+
+    def names(self, causality: str) -> list[str]:
+        return [v.name for v in self.variables.values() if v.causality == causality]
+
+    @property
+    def inputs(self) -> list[str]:
+        return self.names("input")
+
+    @property
+    def outputs(self) -> list[str]:
+        return self.names("output")
+
+    @property
+    def traced_outputs(self) -> list[str]:
+        """Outputs that go into the trace (as floats): every type but String."""
+        return [name for name in self.outputs if self.variables[name].type != "String"]
+
+    @property
+    def parameters(self) -> list[str]:
+        return self.names("parameter")
+
+    def variable(self, name: str) -> VariableInfo:
+        try:
+            return self.variables[name]
+        except KeyError:
+            raise InputError(f"{self.path}: no variable {name!r} in {self.model_name}; "
+                             f"variables: {', '.join(self.variables)}") from None
+
+
+def _unit(variable) -> str:
+    if variable.unit:
+        return variable.unit
+    declared = getattr(variable, "declaredType", None)
+    return getattr(declared, "unit", None) or ""
+
+
+def read_fmu(path: str | Path) -> FMUInfo:
+    """Read and check an FMU: it must be FMI 2.0 with Model Exchange (else :class:`InputError`)."""
+    from fmpy import read_model_description
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"FMU file not found: {path}")
+    try:
+        description = read_model_description(str(path), validate=False)
+    except Exception as exc:
+        raise InputError(f"{path}: not a readable FMU ({exc})") from None
+    if description.fmiVersion != "2.0":
+        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0")
+    if description.modelExchange is None:
+        raise InputError(f"{path}: the FMU does not support Model Exchange (co-simulation only); "
+                         "heliostep integrates Model Exchange FMUs itself")
+    _check_binary(path, description.modelExchange.modelIdentifier)
+    variables = {}
+    for v in description.modelVariables:
+        start = None
+        if v.start is not None:
+            start = _parse_start(v.type, v.start)
+        variables[v.name] = VariableInfo(
+            name=v.name, value_reference=v.valueReference, type=v.type, causality=v.causality,
+            variability=v.variability, unit=_unit(v), start=start, description=v.description or "")
+    states = [d.variable.derivative.name for d in description.derivatives]
+    inputs = {v.name for v in description.modelVariables if v.causality == "input"}
+    feedthrough = {}
+    for unknown in description.outputs:
+        dependencies = unknown.dependencies
+        if dependencies is None:  # no dependency information: depends on every input
+            names = sorted(inputs)
+        else:
+            names = [d.name for d in dependencies if d.name in inputs]
+        feedthrough[unknown.variable.name] = names
+    return FMUInfo(
+        path=path, model_name=description.modelName,
+        model_identifier=description.modelExchange.modelIdentifier, guid=description.guid,
+        variables=variables, states=states,
+        n_event_indicators=description.numberOfEventIndicators or 0,
+        output_feedthrough=feedthrough, description=description,
+        needs_completed_integrator_step=bool(description.modelExchange.needsCompletedIntegratorStep))
+
+
+def _parse_start(type_: str, start) -> float | str | None:
+    if type_ == "String":
+        return str(start)
+    if type_ == "Boolean":
+        return float(str(start).strip().lower() in ("true", "1"))
+    try:
+        return float(start)
+    except (TypeError, ValueError):
+        return None
+
+
+#: The functions every FMI 2.0 Model Exchange binary must export (fmpy binds all of them).
+REQUIRED_FUNCTIONS = (
+    "fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging", "fmi2Instantiate",
+    "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2GetReal", "fmi2GetInteger",
+    "fmi2GetBoolean", "fmi2GetString", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean",
+    "fmi2SetString", "fmi2EnterEventMode", "fmi2NewDiscreteStates", "fmi2EnterContinuousTimeMode",
+    "fmi2CompletedIntegratorStep", "fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetDerivatives",
+    "fmi2GetEventIndicators", "fmi2GetContinuousStates", "fmi2GetNominalsOfContinuousStates")
+
+
+def _check_binary(path: Path, model_identifier: str) -> None:
+    """The FMU must have a binary for this platform that loads and exports the FMI 2.0 ME API.
+
+    Refused with :class:`InputError` naming the ``.fmu`` file and the platform (never the
+    temporary folder it is unpacked to).
+    """
+    from fmpy import platform, sharedLibraryExtension
+
+    member = f"binaries/{platform}/{model_identifier}{sharedLibraryExtension}"
+    with zipfile.ZipFile(path) as archive:
+        names = archive.namelist()
+    if member not in names:
+        available = sorted({n.split("/")[1] for n in names
+                            if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[1]})
+        raise InputError(f"{path}: no binary for this platform ({platform}): {member} is missing; "
+                         f"the FMU has binaries for: {', '.join(available) or 'no platform'}")
+    library = Path(_extract(path)) / member
+    try:
+        dll = ctypes.CDLL(str(library))
+    except OSError as exc:
+        reason = str(exc).replace(str(library), member)
+        raise InputError(f"{path}: the binary for {platform} ({member}) does not load: {reason}") from None
+    try:
+        missing = [name for name in REQUIRED_FUNCTIONS if not hasattr(dll, name)]
+    finally:  # unload again: instances must start from a freshly loaded library
+        import _ctypes
+
+        _ctypes.dlclose(dll._handle)
+    if missing:
+        raise InputError(f"{path}: the binary for {platform} ({member}) lacks the FMI 2.0 Model "
+                         f"Exchange function(s) {', '.join(missing)}")
+
+
+_extracted: dict[tuple[str, float], str] = {}
+_extract_root = None
+
+
+def _extract(path: Path) -> str:
+    """Unzip an FMU once per process (per file and modification time)."""
+    global _extract_root
+    from fmpy import extract
+
+    key = (str(path.resolve()), path.stat().st_mtime)
+    if key not in _extracted:
+        if _extract_root is None:
+            _extract_root = tempfile.mkdtemp(prefix="heliostep-fmus-")
+            atexit.register(shutil.rmtree, _extract_root, True)
+        _extracted[key] = extract(str(path), unzipdir=tempfile.mkdtemp(dir=_extract_root))
+    return _extracted[key]
+
+
+def convert_value(variable: VariableInfo, value):
+    """A scenario value converted to the variable's type (InputError when it does not fit):
+    Real from numbers, Integer/Enumeration from whole numbers, Boolean from True/False, 0/1 or
+    "true"/"false", String from anything."""
+    try:
+        if variable.type == "Real":
+            return float(value)
+        if variable.type in ("Integer", "Enumeration"):
+            if isinstance(value, bool) or float(value) != int(float(value)):
+                raise ValueError
+            return int(float(value))
+        if variable.type == "Boolean":
+            if isinstance(value, str):
+                if value.strip().lower() not in ("true", "false", "1", "0"):
+                    raise ValueError
+                return value.strip().lower() in ("true", "1")
+            if value not in (0, 1, True, False):
+                raise ValueError
+            return bool(value)
+        return str(value)
+    except (TypeError, ValueError):
+        raise InputError(f"parameter {variable.name}: {value!r} is not a valid {variable.type} value") from None

@@ -1,0 +1,81 @@
+"""Algebraic loops across FMUs: Newton's method on the torn connections' inputs.
+
+A loop of direct feedthrough (an output that depends, through other FMUs, on the input it
+feeds) has no evaluation order. The master tears it: in each cycle, the connection that comes
+first in the order the connections were given is *torn* (:meth:`CoSimulation._propagation_order`).
+Its target input becomes an iteration variable ``v``; the other connections are copied in
+feedthrough order as usual, and the torn source output ``y(v)`` is read back. The loop is solved
+when ``y(v) = v``: Newton's method on ``r(v) = y(v) - v`` with a forward-difference Jacobian,
+starting from the previous solution. The last evaluation is always at the accepted ``v``, so
+every FMU is left consistent.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from heliostep.errors import HeliostepError
+
+
+class LoopError(HeliostepError):
+    """Newton's method found no solution of an algebraic loop."""
+
+
+class LoopSolver:
+    """Solves the torn inputs of all algebraic loops at once.
+
+    ``write(v)`` sets the torn inputs, ``propagate()`` copies the other connections in order,
+    ``read()`` returns the torn sources' outputs.
+    """
+
+    def __init__(self, names: list[str], write: Callable[[np.ndarray], None], read: Callable[[], np.ndarray],
+                 rtol: float = 1e-10, atol: float = 1e-12, max_iterations: int = 50):
+        self.names = names
+        self.write, self.read = write, read
+        self.rtol, self.atol, self.max_iterations = rtol, atol, max_iterations
+        self.v = np.zeros(len(names))
+        self.solves = 0
+        self.iterations = 0
+        self.most_iterations = 0
+
+    def _residual(self, v: np.ndarray, propagate: Callable[[], None]) -> np.ndarray:
+        self.write(v)
+        propagate()
+        return self.read() - v
+
+    def solve(self, propagate: Callable[[], None], time: float) -> None:
+        """Find v with y(v) = v, leaving every FMU evaluated at that v."""
+        v = self.v.copy()
+        n = len(v)
+        self.solves += 1
+        r = self._residual(v, propagate)
+        for iteration in range(self.max_iterations + 1):
+            if np.all(np.abs(r) <= self.atol + self.rtol * np.abs(v)) and np.all(np.isfinite(r)):
+                self.v = v
+                self.iterations += iteration
+                self.most_iterations = max(self.most_iterations, iteration)
+                return
+            if iteration == self.max_iterations or not np.all(np.isfinite(r)):
+                break
+            jacobian = np.empty((n, n))
+            for j in range(n):
+                h = 1e-7 * max(1.0, abs(v[j]))
+                perturbed = v.copy()
+                perturbed[j] += h
+                jacobian[:, j] = (self._residual(perturbed, propagate) - r) / h
+            try:
+                step = np.linalg.solve(jacobian, -r)
+            except np.linalg.LinAlgError:
+                raise LoopError(f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: "
+                                "singular Jacobian (the loop has no unique solution)") from None
+            v = v + step
+            r = self._residual(v, propagate)
+        raise LoopError(f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: no "
+                        f"convergence in {self.max_iterations} Newton iterations (residual "
+                        f"{np.max(np.abs(r)):.3g})")
+
+    def statistics(self) -> dict:
+        return {"loop_solves": self.solves, "loop_iterations": self.iterations,
+                "loop_most_iterations": self.most_iterations}
