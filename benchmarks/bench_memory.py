@@ -8,6 +8,13 @@ step is kept), without figures. Reported per window: wall time, trace rows, solv
 summary recorded, trace.parquet size, and the subprocess's peak RSS (``ru_maxrss`` from
 ``wait4``). The growth of peak RSS per simulated hour is the figure that decides how long a window
 fits in memory. With ``--max-rss-mb`` the exit status is 1 when a window's peak exceeds it.
+
+Measured (2026-11-23, paper's case, 10 s grid): before the streaming figures the summary kept every
+solver row and peak RSS grew 58 MB per simulated hour (236 MB at 0.25 h, 280 MB at 1 h). With the
+streaming :class:`~heliostep.results.summary.SolutionRecorder` (memory bounded by its block of 4096
+rows plus the rotor's rows over one step interval) it grows 10 MB per hour (225 MB at 0.25 h, 242 MB
+at 2 h, 264 MB at 4 h): what is left is the master's output rows and the trace built from them,
+which the row sink of issue 13 (streaming the trace to Parquet row groups) would remove.
 """
 
 from __future__ import annotations

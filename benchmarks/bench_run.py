@@ -1,13 +1,14 @@
 """Speed of the co-simulation master (prints figures; not a test).
 
-    .venv/bin/python benchmarks/bench_run.py [--skip-day] [--profile]
+    .venv/bin/python benchmarks/bench_run.py [--skip-day] [--profile] [--repeat N]
 
-Figures:
-1. the paper's 5-minute case (scenarios/jan21-central.yaml): wall time of the simulation and
-   of the whole run_scenario, right-hand-side evaluations (target: under 2 s);
-2. sunrise to sunset (scenarios/jan21-day.yaml) (target: under 60 s);
-3. the master on StepperMotor + PanelMechanics against fmpy.simulate_fmu on the monolithic
-   DriveSystem FMU with the same inputs, tolerance and output grid (target: within 1.5x);
+Printed side by side in one run:
+1. the paper's 5-minute case (scenarios/jan21-central.yaml): simulation wall time, RHS evaluations;
+2. sunrise to sunset (scenarios/jan21-day.yaml): simulation wall time, RHS per motor step;
+3. the same day with fmpy.simulate_fmu on the monolithic DriveSystem FMU (same inputs, start
+   values, tolerance and output grid) and the ratio master / fmpy;
+each for the master's paths: Python callbacks or the compiled right-hand side
+(heliostep.cosim.kernel), stopping CVODE at every output time or interpolating output rows.
 4. with --profile: where the time of the 5-minute case goes (cProfile, top functions).
 """
 
@@ -36,63 +37,92 @@ def best_of(function, repeat: int):
     return min(times), result
 
 
-def bench_scenario(name: str, repeat: int) -> None:
+#: the master's paths: (label, compiled right-hand side, interpolated output rows)
+PATHS = [("python callbacks, stops at outputs", False, False),
+         ("compiled RHS, stops at outputs", True, False),
+         ("compiled RHS, interpolated outputs", True, True)]
+
+
+def run_path(name: str, compiled: bool, interpolate: bool, repeat: int):
+    """run_scenario on one path: (best simulation wall time, run, the CoSimulation and its arguments)."""
+    import heliostep.cosim.master as master
     from heliostep.run import run_scenario
 
-    wall, run = best_of(lambda: run_scenario(SCENARIOS / f"{name}.yaml"), repeat)
-    stats = run.metadata["statistics"]
-    print(f"{name}: simulation {stats['wall_time']:.2f} s, run_scenario {wall:.2f} s "
-          f"(best of {repeat}); {run.summary['steps_commanded']} steps, {stats['rhs']} RHS evaluations, "
-          f"{stats['integrator_calls']} integrator calls, {stats['events']} events, {len(run.trace)} trace rows")
+    captured = {}
+    simulate = master.CoSimulation.simulate
+
+    def capture(self, *args, **kwargs):
+        captured.update(system=self, args=args)
+        return simulate(self, *args, **kwargs)
+    master.COMPILED_RHS, master.INTERPOLATE_OUTPUTS = compiled, interpolate
+    master.CoSimulation.simulate = capture
+    try:
+        walls, run = [], None
+        for _ in range(repeat):
+            run = run_scenario(SCENARIOS / f"{name}.yaml")
+            walls.append(run.metadata["statistics"]["wall_time"])
+    finally:
+        master.CoSimulation.simulate = simulate
+    return min(walls), run, captured
 
 
-def bench_against_monolithic(repeat: int) -> None:
+def monolithic(captured, repeat: int) -> tuple[float, dict]:
+    """fmpy.simulate_fmu on DriveSystem with the master's inputs, start values, rtol and grid."""
     from fmpy import simulate_fmu
 
-    from heliostep.fmu.build import ensure_fmu
     from heliostep.cosim.fmi import read_fmu
-    from heliostep.drive.inputs import prepare_inputs
-    from heliostep.cosim.master import CoSimulation, Connection, SolverOptions
-    from heliostep.scenario import load_scenario
+    from heliostep.fmu.build import ensure_fmu
 
-    scenario = load_scenario(SCENARIOS / "jan21-central.yaml")
-    inputs = prepare_inputs(scenario, frozenset())
-    duration, rtol, interval = inputs.duration, scenario.solver.rtol, 0.1
-    grid = np.round(np.arange(0.0, duration + 1e-9, interval), 9)
-    parameters = {"mechanics": {"theta_p_start": inputs.mechanics_parameters["theta_p_start"]},
-                  "motor": dict(inputs.motor_parameters)}
-    fmus = {"motor": read_fmu(ensure_fmu("StepperMotor")), "mechanics": read_fmu(ensure_fmu("PanelMechanics"))}
-    connections = [Connection(s, t) for s, t in scenario.connection_pairs()]
-
-    def master():
-        system = CoSimulation(fmus, connections, inputs.signals, parameters)
-        return system.simulate(0.0, duration, grid, SolverOptions(rtol=rtol))
-
-    # the same piecewise-constant currents as an fmpy input table (a repeated time is a step)
-    currents = {s.name: s for s in inputs.signals}
-    edges = np.concatenate([[0.0], inputs.schedule.times, [duration]])
-    rows = []
-    for k in range(len(edges) - 1):
-        values = (currents["i_a_ref"].values[k], currents["i_b_ref"].values[k], 0.0)
-        rows += [(edges[k], *values), (edges[k + 1], *values)]
-    table = np.array(rows, dtype=[("time", float), ("i_a_ref", float), ("i_b_ref", float), ("m_ext", float)])
+    system, (start, stop, grid, solver) = captured["system"], captured["args"][:4]
     drive = str(ensure_fmu("DriveSystem"))
-    start_values = {"mechanics.theta_p_start": parameters["mechanics"]["theta_p_start"],
-                    "motor.i_a_start": parameters["motor"]["i_a_start"],
-                    "motor.i_b_start": parameters["motor"]["i_b_start"]}
+    variables = read_fmu(drive).variables
+    inputs = [s for s in system.inputs if s.target.split(".", 1)[1] in variables]
+    edges = np.unique(np.concatenate([[start, stop], *[s.times for s in inputs]]))
+    rows = []
+    for k in range(len(edges) - 1):  # a repeated time is a step in fmpy's input table
+        values = tuple(s.value_at(edges[k]) for s in inputs)
+        rows += [(edges[k], *values), (edges[k + 1], *values)]
+    table = np.array(rows, dtype=[("time", float)] + [(s.target.split(".", 1)[1], float) for s in inputs])
+    start_values = {f"{instance}.{name}": value for instance, values in system._parameters.items()
+                    for name, value in values.items() if f"{instance}.{name}" in variables}
+    interval = float(np.median(np.diff(grid)))
 
-    def monolithic():
-        return simulate_fmu(drive, fmi_type="ModelExchange", solver="CVode", stop_time=duration,
-                            output_interval=interval, relative_tolerance=rtol, input=table,
-                            start_values=start_values, output=["mechanics.theta", "motor.tau"])
+    def call():
+        # fmpy's CVodeSolver allows 500 steps per output interval: give it the master's limit
+        import fmpy.sundials as sundials
 
-    master_wall, result = best_of(master, repeat)
-    fmpy_wall, reference = best_of(monolithic, repeat)
-    difference = abs(result.trace["mechanics.theta"].iloc[-1] - reference["mechanics.theta"][-1])
-    print(f"master (2 FMUs) vs fmpy.simulate_fmu (DriveSystem), paper's 5-minute window, rtol {rtol:g}: "
-          f"{master_wall:.3f} s vs {fmpy_wall:.3f} s = {master_wall / fmpy_wall:.2f}x "
-          f"(best of {repeat}); master {result.statistics['rhs']} RHS evaluations; "
-          f"final rotor angles differ by {difference:.2e} rad")
+        original = sundials.CVodeSolver
+
+        class Solver(original):
+            def __init__(self, **kwargs):
+                super().__init__(**{**kwargs, "maxNumSteps": solver.max_num_steps})
+        sundials.CVodeSolver = Solver
+        try:
+            return simulate_fmu(drive, fmi_type="ModelExchange", solver="CVode", start_time=start, stop_time=stop,
+                                output_interval=interval, relative_tolerance=solver.rtol, input=table,
+                                start_values=start_values, output=["mechanics.theta", "motor.tau"])
+        finally:
+            sundials.CVodeSolver = original
+    return best_of(call, repeat)
+
+
+def bench(name: str, repeat: int, against_fmpy: bool) -> None:
+    fmpy_wall = None
+    for label, compiled, interpolate in PATHS:
+        wall, run, captured = run_path(name, compiled, interpolate, repeat)
+        stats = run.metadata["statistics"]
+        steps = max(1, int(run.summary["steps_commanded"]))
+        line = (f"{name:14s} {label:36s} simulation {wall:7.3f} s  {stats['rhs']:>9,d} RHS  "
+                f"{stats['rhs'] / steps:7.1f} RHS/motor step  {stats['integrator_calls']:>6,d} solver calls")
+        if against_fmpy:
+            if fmpy_wall is None:
+                fmpy_wall, reference = monolithic(captured, 1)
+                last = abs(run.trace["mechanics.theta"].iloc[-1] - reference["mechanics.theta"][-1]) \
+                    if "mechanics.theta" in run.trace else float("nan")
+                print(f"{name:14s} {'fmpy.simulate_fmu on DriveSystem':36s} simulation {fmpy_wall:7.3f} s  "
+                      f"(final rotor angles of the first path differ by {last:.1e} rad)")
+            line += f"  = {wall / fmpy_wall:.2f}x fmpy"
+        print(line, flush=True)
 
 
 def profile_paper_case(top: int = 15) -> None:
@@ -116,10 +146,9 @@ def main() -> None:
     from heliostep.fmu.build import build_all
 
     build_all()
-    bench_scenario("jan21-central", args.repeat)
-    bench_against_monolithic(args.repeat)
+    bench("jan21-central", args.repeat, against_fmpy=True)
     if not args.skip_day:
-        bench_scenario("jan21-day", 1)
+        bench("jan21-day", 1, against_fmpy=True)
     if args.profile:
         profile_paper_case()
 

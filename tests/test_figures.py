@@ -111,3 +111,30 @@ def test_weak_motor_lost_steps_are_what_the_rotor_angle_shows(fmu_paths):
     assert summary["steps_lost"] % 4 == 0  # a slip falls back by whole electrical periods
     # each missed step is one slip of one electrical period (4 full steps): moved by 1 - 4 steps
     assert summary["steps_lost"] == 4 * summary["missed_steps"]
+
+
+def test_figures_on_a_1_ms_grid_equal_those_on_a_30_s_grid(fmu_paths):
+    # a minute of the paper's case (steps at its start) on a 1 ms grid: the grid that made the
+    # currents decay to 1e-155 A between rows and once broke the FMU's Newton step (NaN)
+    window = ("window.duration=60",)
+    fine = _run("jan21-central", *window, "output.interval=0.001")
+    coarse = _run("jan21-central", *window, *COARSE)
+    assert fine.summary["rows"] > 50 * coarse.summary["rows"]
+    assert fine.summary["steps_commanded"] >= 3
+    _assert_same_figures(fine.summary, coarse.summary, rel=5e-3)
+
+
+def test_idle_current_reduction_cuts_the_holding_energy_by_the_square_of_the_fraction(fmu_paths):
+    # the co-simulated drive: full current for idle_delay after each step (and the start), then
+    # the fraction f of it; the holding loss is R (K i/(K+R))^2 per second at each level
+    fraction, delay = 0.5, 0.5
+    run = _run("jan21-central", "window.duration=60", f"sequencer.idle_current_fraction={fraction}",
+               f"sequencer.idle_delay={delay}")
+    duration = run.summary["duration_s"]
+    starts = np.concatenate([[0.0], run.inputs.schedule.times[run.inputs.schedule.times < duration]])
+    spans = np.diff(np.concatenate([starts, [duration]]))
+    full_time = np.minimum(spans, delay).sum()
+    held = K_CURRENT * RATED_CURRENT / (K_CURRENT + TABLE3_MOTOR["R"])
+    expected = TABLE3_MOTOR["R"] * held**2 * (full_time + fraction**2 * (duration - full_time))
+    assert run.summary["electrical_energy_J"] == pytest.approx(expected, rel=0.01)
+    assert run.summary["missed_steps"] == 0 and run.summary["steps_commanded"] >= 3

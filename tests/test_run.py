@@ -129,8 +129,58 @@ def test_variant_swap_is_one_set(fmu_paths):
 
 def test_weak_motor_misses_steps_and_says_so(fmu_paths):
     run = run_scenario(SCENARIOS / "jan21-weak-motor.yaml", ["window.duration=60"])
-    assert run.summary["missed_steps"] > 0
-    assert run.summary["steps_lost"] >= 4  # slips lose whole electrical cycles of 4 full steps
+    summary, outcomes = run.summary, run.metadata["solution_figures"]["step_outcomes"]
+    assert summary["steps_commanded"] == len(outcomes) >= 3
+    # at every step the wind pushes the 2 A rotor back by one electrical period (4 full steps):
+    # each step moves it by +1 - 4 = -3 increments, so every step is missed and 4 are lost per step
+    assert [o["move_steps"] for o in outcomes] == pytest.approx([-3.0] * len(outcomes), abs=0.05)
+    assert summary["missed_steps"] == summary["steps_commanded"] and summary["steps_executed"] == 0
+    assert summary["steps_lost"] == 4 * summary["steps_commanded"]
+
+
+@pytest.mark.parametrize("scenario", ["jan21-central.yaml", "jan21-weak-motor.yaml"])
+def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch, scenario):
+    """The recorder's running figures (memory bounded by one step interval) are those that the
+    definitions give on all the rows it was shown, kept and assembled as a trace."""
+    import heliostep.run as run_module
+    from heliostep.results.summary import SolutionRecorder, solution_figures
+    from heliostep.results.trace import assemble_trace
+
+    recorders = []
+
+    class Keeping(SolutionRecorder):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, block=7, **kwargs)  # small blocks: steps cut across blocks
+            self.kept = []
+            recorders.append(self)
+
+        def __call__(self, row):
+            self.kept.append(np.array(row, dtype=float))
+            super().__call__(row)
+
+    monkeypatch.setattr(run_module, "SolutionRecorder", Keeping)
+    run = run_scenario(SCENARIOS / scenario, ["window.duration=60"])
+    recorder = recorders[0]
+    import pandas as pd
+    frame = pd.DataFrame(np.vstack(recorder.kept), columns=recorder.columns)
+    assert recorder.unordered == 0 and np.all(np.diff(frame["time"].to_numpy()) >= 0)
+    expected = solution_figures(assemble_trace(frame, run.inputs, run.metadata["roles"]), run.metadata)
+    streamed = run.metadata["solution_figures"]
+    assert set(streamed) == set(expected)
+    for key in ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
+                "electrical_energy_J", "final_lag_steps", "end_time_s"):
+        assert streamed[key] == pytest.approx(expected[key], rel=1e-9), key
+    for key in ("missed_steps", "steps_executed", "missed_step_times_s", "steps_lost", "solution_rows"):
+        assert streamed[key] == expected[key], key
+    for got, want in zip(streamed["step_outcomes"], expected["step_outcomes"], strict=True):
+        assert got["missed"] == want["missed"] and got["move_steps"] == pytest.approx(want["move_steps"], rel=1e-9)
+        assert (got["settling_s"] is None) == (want["settling_s"] is None)
+        if want["settling_s"] is not None:
+            assert got["settling_s"] == pytest.approx(want["settling_s"], rel=1e-9)
+    # memory: the rotor rows held never exceed those of one step interval (the longest one)
+    edges = np.searchsorted(frame["time"].to_numpy(), run.inputs.schedule.times, side="left")
+    longest = int(np.max(np.diff(np.concatenate([edges, [len(frame)]])))) + 1
+    assert 0 < recorder.max_held <= longest < len(frame) / 2
 
 
 @pytest.mark.parametrize("override, message", [

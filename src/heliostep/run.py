@@ -34,10 +34,17 @@ from heliostep.cosim import (
     read_fmu,
 )
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
+from heliostep.drive.sequencer import idle_currents
 from heliostep.errors import HeliostepError, InputError
 from heliostep.fmu.build import ensure_fmu
-from heliostep.results.outputs import TMP_PREFIX, atomic_path, remove_stale, write_text_atomic
-from heliostep.results.summary import SolutionRecorder, solution_figures, summarize
+from heliostep.results.light import light_figures
+from heliostep.results.outputs import (
+    TMP_PREFIX,
+    atomic_path,
+    remove_stale,
+    write_text_atomic,
+)
+from heliostep.results.summary import SolutionRecorder, summarize
 from heliostep.results.trace import UNITS, assemble_trace, drive_metadata
 from heliostep.results.trace_io import write_trace
 from heliostep.scenario import (
@@ -47,6 +54,7 @@ from heliostep.scenario import (
     Scenario,
     load_scenario,
 )
+from heliostep.solar.irradiance import read_weather
 
 #: Packages whose versions go into a run's metadata.
 VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pandas")
@@ -266,10 +274,17 @@ def _parameters(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str], 
 
 
 def _signals(inputs: DriveInputs, roles: dict[str, str]) -> list[PiecewiseConstant]:
-    """The drive's commands as the master's input signals, into the FMU inputs their roles name."""
-    steps = inputs.schedule.times
-    signals = [PiecewiseConstant("i_a_ref", roles["current_a_ref"], steps, inputs.current_a_ref),
-               PiecewiseConstant("i_b_ref", roles["current_b_ref"], steps, inputs.current_b_ref)]
+    """The drive's commands as the master's input signals, into the FMU inputs their roles name.
+
+    With idle current reduction the currents also drop to their idle fraction a set time after
+    each step (:func:`heliostep.drive.sequencer.idle_currents`); those instants are events too.
+    """
+    steps, current_a, current_b = inputs.schedule.times, inputs.current_a_ref, inputs.current_b_ref
+    if inputs.sequencer.idle_current_fraction != 1.0:
+        times, current_a, current_b = idle_currents(inputs.schedule, inputs.sequencer, inputs.duration)
+        steps = np.asarray(times[1:], dtype=float)
+    signals = [PiecewiseConstant("i_a_ref", roles["current_a_ref"], steps, np.asarray(current_a, dtype=float)),
+               PiecewiseConstant("i_b_ref", roles["current_b_ref"], steps, np.asarray(current_b, dtype=float))]
     if "wind_moment" in roles:
         signals.append(PiecewiseConstant("m_ext", roles["wind_moment"], np.zeros(0), np.array([inputs.wind_moment])))
     elif inputs.wind_moment != 0.0:
@@ -314,6 +329,13 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
         except InputError as exc:
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     roles = _present_roles(scenario, infos)
+    if scenario.optics.weather_file is not None:  # a bad weather file is bad input, found before simulating
+        weather = Path(scenario.optics.weather_file)
+        weather = weather if weather.is_absolute() else scenario.folder / weather
+        try:
+            read_weather(weather, scenario.site.to_site())
+        except InputError as exc:
+            raise InputError(f"{scenario.source}: optics.{exc}") from None
     inputs = prepare_inputs(scenario)
     parameters = _parameters(scenario, inputs, roles, infos)
     try:  # connections (types, units, loops), parameter names and values, checked before simulating
@@ -338,7 +360,9 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     }
 
     bar = _progress_bar(inputs.duration) if progress else None
-    solution = SolutionRecorder()
+    columns = ["time"] + [item.name for item in system.inputs]  # the master's trace columns
+    columns += [f"{name}.{output}" for name, info in system.fmus.items() for output in info.traced_outputs]
+    solution = SolutionRecorder(columns, roles, inputs.sequencer, inputs.schedule, inputs.panel_reference())
     error, complete, reason, reached = None, True, None, None
     try:
         result = system.simulate(0.0, inputs.duration, inputs.output_times, solver,
@@ -360,9 +384,13 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
     if len(solution):  # figures from every solver step, stored so summarize(trace, meta) recomputes them
-        meta["solution_figures"] = solution_figures(assemble_trace(solution.frame(raw.columns), inputs, roles), meta)
-    run = RunResult(scenario, trace, summarize(trace, meta) if len(trace) else {}, meta,
-                    complete, error, inputs, reason, reached)
+        if list(raw.columns) != solution.columns:
+            raise RuntimeError(f"solution recorder columns {solution.columns} differ from the trace's {list(raw.columns)}")
+        meta["solution_figures"] = solution.figures()
+    summary = summarize(trace, meta) if len(trace) else {}
+    if len(trace) > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
+        summary.update(light_figures(trace, meta, scenario))
+    run = RunResult(scenario, trace, summary, meta, complete, error, inputs, reason, reached)
     if not complete:
         raise RunFailed(error, run)
     return run

@@ -92,3 +92,73 @@ def test_index_at_gives_values_before_and_after_a_step():
     schedule = schedule_steps(reference_interpolant(times, 0.01 * times), Sequencer(step_angle=STEP))
     t0 = schedule.times[0]
     assert schedule.index_at(t0, side="left") == 0 and schedule.index_at(t0) == 1
+
+
+# --------------------------------------------------------------------------- microstepping, idle current
+from heliostep.drive.sequencer import holding_energy, idle_currents  # noqa: E402
+from heliostep.drive.sequencer import StepSchedule  # noqa: E402
+
+R_PHASE = 0.1  # [ohm], Table 3
+
+
+@pytest.mark.parametrize("microsteps", [2, 4, 8, 16])
+def test_microstep_currents_hold_the_position_the_sequencer_claims(microsteps):
+    sequencer = Sequencer(current=5.5, step_angle=STEP, microsteps=microsteps)
+    for index in range(-3, 2 * microsteps + 3):
+        i_a, i_b = sequencer.reference_currents(index)
+        assert np.hypot(i_a, i_b) == pytest.approx(5.5)  # sine/cosine: constant current magnitude
+        expected = index * STEP / microsteps
+        assert stable_position(i_a, i_b, expected) == pytest.approx(expected, abs=1e-9)
+    # every N-th microstep is a one-phase-on full step (Table 1)
+    full = Sequencer(current=5.5, step_angle=STEP)
+    for k in range(4):
+        np.testing.assert_allclose(sequencer.reference_currents(k * microsteps), full.reference_currents(k), atol=1e-12)
+
+
+@pytest.mark.parametrize("microsteps", [1, 2, 4, 8, 16])
+def test_microstep_schedule_scales_with_the_microstep(microsteps):
+    rate = 3 * STEP / 100.0  # [rad/s], a ramp of 3 full steps in 100 s
+    t = np.linspace(0.0, 100.0, 201)
+    sequencer = Sequencer(current=5.5, step_angle=STEP, microsteps=microsteps)
+    schedule = schedule_steps(reference_interpolant(t, rate * t), sequencer)
+    increment = STEP / microsteps
+    n = len(schedule)
+    assert n == 3 * microsteps
+    # midpoint trigger: step k at (k - 1/2) increments of the ramp
+    np.testing.assert_allclose(schedule.times, (np.arange(1, n + 1) - 0.5) * increment / rate, rtol=1e-9)
+    np.testing.assert_allclose(sequencer.position(schedule.indices), np.arange(1, n + 1) * increment, rtol=1e-12)
+    # the tracking error bound (reference minus commanded position) is half the microstep
+    probe = np.linspace(0.0, 100.0, 20001)
+    error = rate * probe - sequencer.position(schedule.index_at(probe))
+    assert np.max(np.abs(error)) == pytest.approx(increment / 2, rel=1e-3)
+
+
+def test_microsteps_need_one_phase_on_and_a_driver_division():
+    with pytest.raises(InputError, match="microsteps"):
+        Sequencer(mode="half-step", microsteps=4)
+    with pytest.raises(InputError, match="microsteps"):
+        Sequencer(microsteps=3)
+    with pytest.raises(InputError, match="idle_current_fraction"):
+        Sequencer(idle_current_fraction=0.0)
+
+
+@pytest.mark.parametrize("fraction", [0.25, 0.5, 0.7, 1.0])
+@pytest.mark.parametrize("microsteps", [1, 8])
+def test_idle_reduction_cuts_holding_energy_by_the_square(fraction, microsteps):
+    schedule = StepSchedule(times=np.array([10.0, 25.0, 60.0]), indices=np.array([1, 2, 3]), initial_index=0)
+    end, delay, current = 100.0, 0.5, 5.5
+    full = Sequencer(current=current, step_angle=STEP, microsteps=microsteps)
+    idle = Sequencer(current=current, step_angle=STEP, microsteps=microsteps, idle_current_fraction=fraction,
+                     idle_delay=delay)
+    times, i_a, i_b = idle_currents(schedule, idle, end)
+    # full current for `delay` after the start and each step, f * I for the rest: R (f I)^2 per phase
+    assert np.all(np.hypot(i_a, i_b)[np.isin(times, [0.0, 10.0, 25.0, 60.0])] == pytest.approx(current))
+    held = 4 * delay
+    expected = R_PHASE * current**2 * (held + fraction**2 * (end - held))
+    assert holding_energy(times, i_a, i_b, end, R_PHASE) == pytest.approx(expected, rel=1e-12)
+    # with no delay the whole holding energy scales with f^2
+    zero = Sequencer(current=current, step_angle=STEP, microsteps=microsteps, idle_current_fraction=fraction)
+    e_full = holding_energy(*idle_currents(schedule, full, end), end, R_PHASE)
+    e_idle = holding_energy(*idle_currents(schedule, zero, end), end, R_PHASE)
+    assert e_full == pytest.approx(R_PHASE * current**2 * end)
+    assert e_idle / e_full == pytest.approx(fraction**2, rel=1e-12)

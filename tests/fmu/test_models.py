@@ -109,3 +109,22 @@ def test_small_angle_mechanics_agree_with_exact_form_near_zero(fmu_paths):
     assert exact[-1] > 0
     # they differ at second order in theta_p (cos^2 and tan - theta): relative ~ theta_p^2
     np.testing.assert_allclose(exact, small, rtol=2 * exact.max() ** 2 + 1e-6, atol=1e-12)
+
+
+def test_vanishing_current_is_evaluated_not_nan(fmu_paths):
+    # a phase current decaying as exp(-t / 18 us) reaches 1e-155 A after 0.1 s; its square
+    # underflows, and the Newton step's QR once returned NaN for it ("could not be solved")
+    from heliostep.cosim.fmi import ModelExchangeInstance, read_fmu
+
+    info = read_fmu(fmu_paths["StepperMotor"])
+    with ModelExchangeInstance(info, "tiny", {}) as motor:
+        motor.setup_experiment(0.0)
+        motor.enter_initialization_mode()
+        motor.exit_initialization_mode()
+        motor.enter_continuous_time_mode()
+        for tiny in (1e-152, 1e-155, 1e-160, 1e-300):
+            motor.set_real(motor.value_references(["i_a_ref", "i_b_ref", "theta", "omega"]), [5.5, 0.0, 0.0, -tiny])
+            motor.set_states(np.array([5.5 * 100 / 100.1, tiny]))
+            derivatives = motor.get_derivatives()
+            assert np.all(np.isfinite(derivatives)), tiny
+            assert abs(derivatives[1]) < 1e-100  # nothing drives phase B

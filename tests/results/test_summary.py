@@ -83,3 +83,50 @@ def test_lost_steps_are_net_of_the_elastic_lag_held_from_the_start():
     summary = summarize(_trace(time, rotor, command), _inputs([1.0], [1]))
     assert summary["steps_lost"] == 4
     assert summary["final_lag_steps"] == pytest.approx(0.7)
+
+
+def _streamed(trace, metadata, block):
+    """The SolutionRecorder's figures of the rows of ``trace`` (reference: the trace's own)."""
+    from heliostep.results.summary import SolutionRecorder
+    from heliostep.results.trace import drive_from_metadata
+
+    sequencer, schedule = drive_from_metadata(metadata["drive"])
+    columns = ["time", "mechanics.theta", "motor.tau", "motor.i_a", "motor.i_b", "motor.power", "mechanics.theta_p"]
+    error = trace.set_index("time")["panel_angle_error"]
+    reference = lambda t: -np.interp(t, error.index.to_numpy(), error.to_numpy())  # the panel is at 0
+    recorder = SolutionRecorder(columns, metadata["roles"], sequencer, schedule, reference, block=block)
+    for row in trace[columns].to_numpy():
+        recorder(row)
+    return recorder.figures()
+
+
+@pytest.mark.parametrize("block", [1, 2, 3, 100])
+def test_streamed_figures_of_a_slip_a_late_step_and_a_step_at_the_end(block):
+    # a slip at 1 s (-3 steps), a full step at 2 s that settles at 2.4 s, a step at 3 s the rotor
+    # has not made when the run ends at 3.5 s, and a step commanded after the end
+    time = np.array([0.0, 1.0, 1.0, 1.5, 2.0, 2.0, 2.2, 2.4, 3.0, 3.0, 3.5])
+    rotor = np.array([0, 0, 0, -3, -3, -3, -2.5, -2.02, -2, -2, -2]) * STEP
+    command = np.array([0, 0, 1, 1, 1, 2, 2, 2, 2, 3, 3]) * STEP
+    error = np.radians(0.01) * np.sin(time)
+    power = 3.0 + time
+    tau = np.array([0, 0, 0.5, -0.7, 0, 0.2, 0.1, 0, 0, 0.3, 0])
+    trace = _trace(time, rotor, command, error=error, tau=tau, power=power)
+    metadata = _inputs([1.0, 2.0, 3.0, 9.0], [1, 2, 3, 4])
+    streamed = _streamed(trace, metadata, block)
+    assert [o["move_steps"] for o in streamed["step_outcomes"]] == pytest.approx([-3.0, 1.0, 0.0])
+    assert streamed["missed_steps"] == 2 and streamed["missed_step_times_s"] == [1.0, 3.0]
+    assert streamed["steps_lost"] == 5  # 4 lost at the slip, 1 not made by the end
+    settling = [o["settling_s"] for o in streamed["step_outcomes"]]
+    # step at 2 s: 0.5 step outside at 2.2 s, 0.02 inside at 2.4 s: crossing at 2.2 + 0.2 * 0.45 / 0.48
+    assert settling[1] == pytest.approx(0.2 + 0.2 * 0.45 / 0.48)
+    assert settling[2] is None
+    assert streamed["peak_torque_Nm"] == 0.7 and streamed["peak_phase_current_A"] == 5.5
+    assert streamed["electrical_energy_J"] == pytest.approx(3.0 * 3.5 + 3.5**2 / 2)  # integral of 3 + t
+    assert streamed["max_tracking_error_deg"] == pytest.approx(0.01 * np.sin(1.5))
+    assert streamed["solution_rows"] == len(time) and streamed["end_time_s"] == 3.5
+    # the same as the definitions on the whole trace
+    whole = summarize(trace, metadata)
+    for key in ("missed_steps", "steps_lost", "max_tracking_error_deg", "electrical_energy_J", "peak_torque_Nm"):
+        assert streamed[key] == pytest.approx(whole[key], rel=1e-12), key
+    assert streamed["rms_tracking_error_deg"] == pytest.approx(whole["rms_tracking_error_deg"], rel=1e-12)
+    assert streamed["settling_time_s"] == whole["settling_time_s"]

@@ -25,11 +25,24 @@ re-raised after the solver call, with the time of the failing evaluation.
 
 The trace has a row at every output time and a row just before and just after every event
 (two rows with the same time), so nothing that happens at a step is lost to interpolation.
+
+CVODE's right-hand side and root function are compiled C (:mod:`heliostep.cosim.kernel`,
+switch :data:`COMPILED_RHS`): per evaluation they set time and states, copy the continuous Real
+connections in the same propagation order and read derivatives or event indicators through the
+FMUs' own ``fmi2*`` function pointers, with no Python per evaluation; an FMI error comes back as
+a status recorded with its time and becomes the same :class:`~heliostep.cosim.fmi.FMIError`.
+Runs with algebraic loops keep the Python callbacks. The event logic stays here, in Python.
+
+With :data:`INTERPOLATE_OUTPUTS` (off by default: it changes the solver's path, so results move
+within the solver tolerance, and the regression references were made with stops), one-step
+CVODE stops only at input changes, time events and the stop time; output rows in between are
+recorded from CVODE's interpolating polynomial (``CVodeGetDky``).
 """
 
 from __future__ import annotations
 
 import ctypes
+import os
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -66,6 +79,15 @@ class _Interrupted(HeliostepError):
 #: CVODE's one-step task and the flag it returns on reaching the stop time (cvode.h).
 _CV_ONE_STEP = 2
 _CV_TSTOP_RETURN = 1
+
+#: With a monitor (one-step CVODE), stop the solver only at input changes, time events and the
+#: stop time, and record output times that fall between internal steps from CVODE's
+#: interpolating polynomial (CVodeGetDky) instead of making CVODE stop at each of them.
+#: CVODE calls the compiled right-hand side and root function (:mod:`heliostep.cosim.kernel`)
+#: directly; runs with algebraic loops keep the Python callbacks.
+COMPILED_RHS = os.environ.get("HELIOSTEP_COMPILED_RHS", "1") == "1"
+
+INTERPOLATE_OUTPUTS = os.environ.get("HELIOSTEP_INTERPOLATE_OUTPUTS", "0") == "1"
 
 
 class _Terminated(HeliostepError):
@@ -322,6 +344,8 @@ class _Run:
         self.terminated, self.termination_reason, self.termination_time = False, "", None
         self.callback_error: BaseException | None = None  # raised inside a CVODE callback
         self.callback_time = np.nan
+        self.kernel = None  # the compiled right-hand side, when CVODE uses it
+        self._dky = None  # CVODE's interpolated states at an output time (one-step mode)
         self.input_values = np.array([item.values[0] for item in system.inputs], dtype=float)
         self.columns = ["time"] + [item.name for item in system.inputs]
         for name, info in system.fmus.items():
@@ -344,6 +368,8 @@ class _Run:
             instance, variable = _split(item.target, "input target")
             self.input_writers.append((k, self.units[instance].fmu.writer([variable])))
         self.links, self.event_links = [], []  # continuous ones; all (at events)
+        self.native_links = []  # the continuous ones for the compiled kernel (None: not all Real)
+        index = {name: k for k, name in enumerate(self.units)}
         for source, target, connections in self.system.propagation_groups():
             for discrete in (False, True):
                 members = [c for c in connections if self.system.is_discrete(c) == discrete]
@@ -355,6 +381,14 @@ class _Run:
                 self.event_links.append(link)
                 if not discrete:
                     self.links.append(link)
+                    source_fmu, target_fmu = self.units[source].fmu, self.units[target].fmu
+                    real = all(source_fmu.info.variable(o).type == "Real" for o in outputs) and all(
+                        target_fmu.info.variable(i).type == "Real" for i in inputs)
+                    if self.native_links is not None and real:
+                        self.native_links.append((index[source], index[target], source_fmu.value_references(outputs),
+                                                  target_fmu.value_references(inputs)))
+                    else:
+                        self.native_links = None
         self.loop = None
         if self.system.torn:  # algebraic loops: Newton on the torn inputs at every propagation
             ends = [(_split(c.target, "target"), _split(c.source, "source")) for c in self.system.torn]
@@ -403,7 +437,12 @@ class _Run:
             copy()
 
     def _raise_callback_error(self) -> None:
-        """Re-raise what a CVODE callback raised (kept by :class:`_Solver`), at its time."""
+        """Re-raise what a CVODE callback raised (kept by :class:`_Solver`, or recorded by the
+        compiled kernel as an FMI status), at its time."""
+        if self.kernel is not None and self.callback_error is None:
+            failed = self.kernel.take_error()
+            if failed is not None:
+                self.callback_error, self.callback_time = failed
         if self.callback_error is not None:
             error, self.callback_error = self.callback_error, None
             self.time = self.callback_time
@@ -468,16 +507,62 @@ class _Run:
         if self.monitor is not None:
             self.monitor(row)
 
-    def _advance(self, solver, t_next: float):
-        """Integrate to ``t_next`` or the first root: (root found, t reached).
+    def _interpolate_outputs(self, solver, outputs: np.ndarray, k: int, t: float) -> int:
+        """Record the rows at ``outputs[k:]`` earlier than ``t`` (the time CVODE just reached)
+        from CVODE's interpolating polynomial; return the index of the first output not recorded.
+
+        For each such output time the interpolated states and the time are set into the FMUs,
+        the connections propagated and the row recorded (monitor included); the caller restores
+        the states at ``t`` afterwards. ``should_stop`` is asked after each row.
+        """
+        eps = 1e-12 * max(1.0, abs(t))
+        if k >= len(outputs) or outputs[k] >= t - eps:
+            return k
+        from fmpy.sundials.cvode import sundials_cvode
+
+        if self._dky is None:
+            from fmpy.sundials.nvector_serial import N_VNew_Serial, NV_DATA_S
+
+            get_dky = sundials_cvode.CVodeGetDky
+            get_dky.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_int, type(solver.x)]
+            get_dky.restype = ctypes.c_int
+            self._dky = N_VNew_Serial(solver.nx, solver.sunctx)
+            self._dky_owner = solver  # the vector belongs to this solver's SUNDIALS context
+            self._pdky = NV_DATA_S(self._dky)
+        get_dky = sundials_cvode.CVodeGetDky
+        while k < len(outputs) and outputs[k] < t - eps:
+            g = float(outputs[k])
+            if not solver.discrete:
+                flag = get_dky(solver.cvode_mem, g, 0, self._dky)
+                if flag < 0:
+                    raise RuntimeError(f"CVodeGetDky at t = {g:.9g} s failed (flag {flag}) after a step to "
+                                       f"t = {t:.9g} s")
+            if self.kernel is not None:
+                self.kernel.prepare(g, self._pdky)
+            else:
+                if not solver.discrete:
+                    self.set_x(self._pdky, solver.nx)
+                self.set_time(g)
+                self._propagate()
+            self.record(g)
+            k += 1
+            if self.should_stop is not None and self.should_stop():
+                self.time = g
+                raise _Interrupted()
+        return k
+
+    def _advance(self, solver, t_next: float, outputs: np.ndarray | None = None, k: int = 0):
+        """Integrate to ``t_next`` or the first root: (root found, t reached, next output index).
 
         Without a monitor this is one CVODE call in normal mode. With one, CVODE takes one
         internal step at a time (stop time ``t_next``, so it never steps past it) and the
-        monitor sees the solution after each.
+        monitor sees the solution after each. With ``outputs`` (one-step mode only), the rows
+        at ``outputs[k:]`` passed on the way (earlier than the time reached) are recorded by
+        interpolation (:meth:`_interpolate_outputs`).
         """
         if self.monitor is None:
             root, _, t = solver.step(self.time, t_next)
-            return root, t
+            return root, t, k
         from fmpy.sundials.cvode import CV_ROOT_RETURN, CVode, sundials_cvode
 
         set_stop_time = sundials_cvode.CVodeSetStopTime
@@ -496,13 +581,20 @@ class _Run:
             flag = CVode(solver.cvode_mem, t_next, solver.x, ctypes.byref(reached), _CV_ONE_STEP)
             if flag < 0:
                 raise RuntimeError("CVode error (code %s) in module %s, function %s: %s" % solver.error_info)
-            if not solver.discrete:
-                solver.set_x(solver.px, solver.nx)
             t = reached.value
+            if outputs is not None:
+                k = self._interpolate_outputs(solver, outputs, k, t)
             if flag == CV_ROOT_RETURN or flag == _CV_TSTOP_RETURN or t >= t_next:
-                return flag == CV_ROOT_RETURN, t
-            self.set_time(t)
-            self._propagate()
+                if not solver.discrete:
+                    solver.set_x(solver.px, solver.nx)
+                return flag == CV_ROOT_RETURN, t, k
+            if self.kernel is not None:  # states, time and connections in one call
+                self.kernel.prepare(t, solver.px)
+            else:
+                if not solver.discrete:
+                    solver.set_x(solver.px, solver.nx)
+                self.set_time(t)
+                self._propagate()
             self.monitor(self._row(t))
 
     def trace(self) -> pd.DataFrame:
@@ -510,7 +602,10 @@ class _Run:
         return pd.DataFrame(data, columns=self.columns)
 
     def statistics(self) -> dict:
-        return {**self.counts, "wall_time": clock.perf_counter() - self.wall_start,
+        counts = dict(self.counts)
+        if getattr(self, "kernel", None) is not None:
+            counts["rhs"] += self.kernel.rhs_count
+        return {**counts, "compiled_rhs": getattr(self, "kernel", None) is not None, "wall_time": clock.perf_counter() - self.wall_start,
                 "states": getattr(self, "n_states", 0), "event_indicators": getattr(self, "n_indicators", 0),
                 "terminated": self.terminated, "termination_reason": self.termination_reason,
                 "termination_time": self.termination_time, "algebraic_loops": list(self.system.loops),
@@ -576,7 +671,8 @@ class _Run:
         change_times = np.unique(np.concatenate(
             [item.times for item in self.system.inputs] or [np.zeros(0)]))
         change_times = change_times[(change_times > start_time) & (change_times <= stop_time)]
-        solver = _Solver(
+        solver = self._native_solver(start_time)
+        solver = solver or _Solver(
             self,
             nx=self.n_states, nz=self.n_indicators, get_x=self.get_x, set_x=self.set_x,
             get_dx=self.get_dx, get_z=self.get_z, get_nominals=self.get_nominals,
@@ -584,6 +680,7 @@ class _Run:
             maxStep=self.options.max_step, relativeTolerance=self.options.rtol,
             maxNumSteps=self.options.max_num_steps)
 
+        interpolate = self.monitor is not None and INTERPOLATE_OUTPUTS
         t = start_time
         next_output = next_change = 0
         while True:
@@ -602,11 +699,20 @@ class _Run:
             t_output = grid[next_output] if next_output < len(grid) else stop_time
             t_change = change_times[next_change] if next_change < len(change_times) else np.inf
             t_time_event = min(time_events) if time_events else np.inf
-            t_next = min(t_output, t_change, t_time_event, stop_time)
+            if interpolate:  # output times between internal steps come from interpolation
+                t_next = min(t_change, t_time_event, stop_time)
+            else:
+                t_next = min(t_output, t_change, t_time_event, stop_time)
 
             self.counts["integrator_calls"] += 1
             try:
-                state_event, t = self._advance(solver, t_next)
+                if interpolate:
+                    state_event, t, next_output = self._advance(solver, t_next, grid, next_output)
+                    # outputs at (within rounding of) the time reached: recorded there, as before
+                    t_output = grid[next_output] if next_output < len(grid) else np.inf
+                    t_output = t if t_output <= t + 1e-12 * max(1.0, abs(t)) else t_output
+                else:
+                    state_event, t, _ = self._advance(solver, t_next)
             except BaseException:
                 self._raise_callback_error()  # the cause, not CVODE's generic failure
                 raise
@@ -637,6 +743,20 @@ class _Run:
             if self.should_stop is not None and self.should_stop():
                 raise _Interrupted()
 
+    def _native_solver(self, start_time: float):
+        """CVODE on the compiled kernel, or None where the Python callbacks are needed
+        (switched off, algebraic loops, non-Real continuous connections)."""
+        if not COMPILED_RHS or self.loop is not None or self.native_links is None:
+            return None
+        from heliostep.cosim.kernel import Kernel, NativeSolver
+
+        units = [(u.fmu, int(x), int(z)) for u, x, z in zip(self.units_list, self.offsets[:-1], self.z_offsets[:-1])]
+        self.kernel = Kernel(units, self.native_links, self.n_states)
+        return NativeSolver(self.kernel, nx=self.n_states, nz=self.n_indicators, get_x=self.get_x,
+                            set_x=self.set_x, get_nominals=self.get_nominals, startTime=start_time,
+                            maxStep=self.options.max_step, relativeTolerance=self.options.rtol,
+                            maxNumSteps=self.options.max_num_steps)
+
     def _event(self, solver, t: float, new_inputs: bool) -> None:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after."""
         self.record(t)
@@ -653,6 +773,11 @@ class _Run:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path."""
         for unit in self.units.values():
             unit.fmu.close()
+        if getattr(self, "_dky", None) is not None:
+            from fmpy.sundials.nvector_serial import N_VDestroy_Serial
+
+            N_VDestroy_Serial(self._dky)
+            self._dky = self._dky_owner = None
 
 
 def _solver_class():

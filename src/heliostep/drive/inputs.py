@@ -129,7 +129,10 @@ def prepare_inputs(scenario: Scenario) -> DriveInputs:
     rotor = rotor_angle_from_panel(panel, panel[0], transmission.pinion_radius, transmission.lever_arm,
                                    rotor_angle0=0.0)  # [paper], eq. 14, rotor at 0 at the start
     sequencer = Sequencer(mode=scenario.sequencer.mode, current=scenario.sequencer.current,
-                          step_angle=np.radians(scenario.sequencer.step_angle))
+                          step_angle=np.radians(scenario.sequencer.step_angle),
+                          microsteps=scenario.sequencer.microsteps,
+                          idle_current_fraction=scenario.sequencer.idle_current_fraction,
+                          idle_delay=scenario.sequencer.idle_delay)
     schedule = schedule_steps(reference_interpolant(times, np.asarray(rotor)), sequencer,
                               trigger=scenario.sequencer.trigger)
 

@@ -35,6 +35,9 @@ PATTERNS = {
 }
 
 
+#: Microstep divisions of a full step a driver offers (1: full steps).
+MICROSTEPS = (1, 2, 4, 8, 16)
+
 #: Step triggers: the fraction of a step increment the reference must move past the
 #: commanded position before the next step is commanded.
 TRIGGERS = {"midpoint": 0.5, "reach": 1.0}
@@ -61,6 +64,9 @@ class Sequencer:
     mode: str = _DEFAULTS.mode
     current: float = _DEFAULTS.current
     step_angle: float = float(np.radians(_DEFAULTS.step_angle))
+    microsteps: int = _DEFAULTS.microsteps
+    idle_current_fraction: float = _DEFAULTS.idle_current_fraction
+    idle_delay: float = _DEFAULTS.idle_delay
 
     def __post_init__(self):
         if self.mode not in PATTERNS:
@@ -69,10 +75,21 @@ class Sequencer:
             raise InputError(f"sequencer current {self.current!r}: expected > 0 [A]")
         if not self.step_angle > 0:
             raise InputError(f"sequencer step_angle {self.step_angle!r}: expected > 0")
+        if self.microsteps not in MICROSTEPS:
+            raise InputError(f"sequencer microsteps {self.microsteps!r}: expected one of {MICROSTEPS}")
+        if self.microsteps > 1 and self.mode != "one-phase-on":
+            raise InputError(f"sequencer microsteps {self.microsteps}: needs mode one-phase-on "
+                             f"(sine/cosine currents), got {self.mode!r}")
+        if not 0.0 < self.idle_current_fraction <= 1.0:
+            raise InputError(f"sequencer idle_current_fraction {self.idle_current_fraction!r}: expected in (0, 1]")
+        if not self.idle_delay >= 0.0:
+            raise InputError(f"sequencer idle_delay {self.idle_delay!r}: expected >= 0 [s]")
 
     @property
     def increment(self) -> float:
         """Rotor angle between successive step indices [rad]."""
+        if self.microsteps > 1:
+            return self.step_angle / self.microsteps
         return self.step_angle / 2 if self.mode == "half-step" else self.step_angle
 
     @property
@@ -90,6 +107,12 @@ class Sequencer:
 
     def reference_currents(self, index) -> tuple[np.ndarray, np.ndarray]:
         """Reference currents (i_a, i_b) [A] of step ``index`` (vectorised)."""
+        if self.microsteps > 1:
+            # sine/cosine microstepping: the electrical angle advances pi/2 per full step, so the
+            # torque law ([paper], eq. 9) holds theta = phi / N_c; at multiples of N the currents
+            # are the one-phase-on pattern (Table 1)
+            phase = np.asarray(index) * (np.pi / 2) / self.microsteps
+            return np.cos(phase) * self.current, -np.sin(phase) * self.current
         table = np.array(PATTERNS[self.mode], dtype=float)
         pattern = table[np.mod(np.asarray(index), len(table))]
         return pattern[..., 0] * self.current, pattern[..., 1] * self.current
@@ -207,3 +230,54 @@ def _crossing_direction(reference, slope, t: float, level: float) -> int:
     if np.isnan(before) or np.isnan(after) or (before - level) * (after - level) >= 0:
         return 0
     return 1 if after > level else -1
+
+
+def idle_currents(schedule: StepSchedule, sequencer: Sequencer, end: float, start: float = 0.0):
+    """Reference currents with idle current reduction, as a piecewise-constant signal.
+
+    The drive holds the full current from each step (and from ``start``) for
+    ``sequencer.idle_delay`` seconds, then ``idle_current_fraction`` of it until the next step.
+
+    Parameters
+    ----------
+    schedule : StepSchedule
+    sequencer : Sequencer
+    end : float  [s]
+        End of the window.
+    start : float, default 0  [s]
+
+    Returns
+    -------
+    times, current_a, current_b : arrays  [s], [A], [A]
+        The currents hold from ``times[k]`` until ``times[k + 1]`` (the last until ``end``).
+    """
+    steps = schedule.times[(schedule.times > start) & (schedule.times <= end)]
+    indices = schedule.index_at(np.concatenate([[start], steps]))
+    full_a, full_b = sequencer.reference_currents(indices)
+    starts = np.concatenate([[start], steps])
+    stops = np.concatenate([steps, [end]])
+    times, i_a, i_b = [], [], []
+    f = sequencer.idle_current_fraction
+    for t0, t1, a, b in zip(starts, stops, full_a, full_b):
+        times.append(t0), i_a.append(a), i_b.append(b)
+        drop = t0 + sequencer.idle_delay
+        if f < 1.0 and drop < t1:
+            times.append(drop), i_a.append(f * a), i_b.append(f * b)
+    return np.array(times), np.array(i_a), np.array(i_b)
+
+
+def holding_energy(times, current_a, current_b, end: float, resistance: float) -> float:
+    """Copper energy R (i_a^2 + i_b^2) integrated over a piecewise-constant current signal [J].
+
+    Parameters
+    ----------
+    times, current_a, current_b : array-like
+        As returned by :func:`idle_currents` [s], [A], [A].
+    end : float  [s]
+    resistance : float  [ohm]
+        Phase resistance R ([paper], Table 3: 0.1 ohm).
+    """
+    times = np.asarray(times, dtype=float)
+    durations = np.diff(np.concatenate([times, [end]]))
+    power = resistance * (np.asarray(current_a) ** 2 + np.asarray(current_b) ** 2)  # Joule's law, R i^2 per phase
+    return float(np.sum(power * durations))

@@ -1,9 +1,10 @@
 """A run's figures (``summary.json``) from the solution, recomputable from trace and metadata.
 
 A run computes its figures from **the solution itself**: the master's monitor sees the state
-at every internal CVODE step, at every event (both sides) and at every output row
-(:class:`SolutionRecorder`), and :func:`solution_figures` evaluates the definitions below on
-those rows. The run stores them in its metadata (``solution_figures``), so :func:`summarize`
+at every internal CVODE step, at every event (both sides) and at every output row, and
+:class:`SolutionRecorder` evaluates the definitions below on those rows as they come (running
+peaks and sums, each step judged once the next step is reached), so its memory does not grow
+with the run; :func:`solution_figures` evaluates the same definitions on rows held in a frame. The run stores them in its metadata (``solution_figures``), so :func:`summarize`
 needs nothing but the trace and the metadata (:func:`summarize_files` recomputes a stored
 run's summary). For a trace without solution figures (an older run, a hand-built trace) the
 same definitions are evaluated on the trace's rows, and ``figures_from`` says so.
@@ -55,22 +56,183 @@ STEP_FIELDS = ("missed_steps", "steps_executed", "settling_time_s", "missed_step
 
 
 class SolutionRecorder:
-    """The master's ``monitor``: keeps every row it is shown (each solver step, event, output)."""
+    """The master's ``monitor``: the figures of every row it is shown (each solver step, event and
+    output row), computed as the rows come, in memory that does not grow with the run.
 
-    def __init__(self) -> None:
-        self.rows: list[np.ndarray] = []
+    It evaluates the same definitions as :func:`figures` on the same rows (the rows come in time
+    order; they are taken in blocks of ``block`` rows): running peaks, the energy and the
+    tracking error's RMS as sums over consecutive rows, the maximum error, and each step's
+    outcome from the rotor's rows between the step and the next step (kept only until that step
+    is judged). Memory is bounded by ``block`` rows plus the rotor's (time, angle) over one step
+    interval, whatever the window's length. ``columns`` are the master trace's columns;
+    ``panel_reference`` maps times [s] to the panel reference [rad].
+    """
+
+    def __init__(self, columns, roles: Mapping, sequencer: Sequencer, schedule: StepSchedule,
+                 panel_reference, block: int = 4096) -> None:
+        self.columns = list(columns)
+        index = {c: i for i, c in enumerate(self.columns)}
+        self._panel = index.get(roles.get("panel_angle"))
+        self._rotor = index.get(roles.get("rotor_angle"))
+        self._torque = [index[c] for c in [roles.get("torque")] if c in index]
+        self._currents = [index[roles[r]] for r in ("current_a", "current_b") if roles.get(r) in index]
+        self._power = index.get(roles.get("power"))
+        self.sequencer, self.schedule, self.reference = sequencer, schedule, panel_reference
+        self.block = block
+        self._pending: list[np.ndarray] = []
+        self.count = 0
+        self.unordered = 0  # rows earlier than a row already taken (none expected: the master is in order)
+        self._first = self._last = None  # the first and the last row taken
+        self._last_time_repeated = False  # the last row's time equals the one before it
+        self._error_max = 0.0
+        self._error_sq_int = self._error_sq_sum = 0.0  # integral of e^2 (linear pieces), sum of e^2
+        self._energy = 0.0
+        self._peak_torque = self._peak_current = 0.0
+        self._last_error = None
+        # per-step outcomes
+        self._k = 0  # the next step to judge
+        self._open = False  # its first row (the row at the step) has been seen
+        self._step_t: list[np.ndarray] = []
+        self._step_x: list[np.ndarray] = []
+        self._previous = float(sequencer.position(schedule.initial_index))
+        self._lag = None
+        self.outcomes: list[tuple] = []
+        self.max_held = 0  # the most rotor rows held at once for a step not yet judged
 
     def __call__(self, row: np.ndarray) -> None:
-        self.rows.append(np.array(row, dtype=float, copy=True))
+        self._pending.append(np.array(row, dtype=float, copy=True))
+        if len(self._pending) >= self.block:
+            self._take()
 
     def __len__(self) -> int:
-        return len(self.rows)
+        return self.count + len(self._pending)
 
-    def frame(self, columns) -> pd.DataFrame:
-        """The rows as a DataFrame with the master trace's ``columns``, in time order."""
-        data = np.vstack(self.rows) if self.rows else np.zeros((0, len(columns)))
-        frame = pd.DataFrame(data, columns=list(columns))
-        return frame.iloc[np.argsort(frame["time"].to_numpy(), kind="stable")].reset_index(drop=True)
+    def _take(self) -> None:
+        if not self._pending:
+            return
+        data = np.vstack(self._pending)
+        self._pending = []
+        data = data[np.argsort(data[:, 0], kind="stable")]
+        time = data[:, 0]
+        if self._last is not None:
+            self.unordered += int(np.sum(time < self._last[0]))
+            previous_time = self._last[0]
+        else:
+            self._first = data[0].copy()
+            previous_time = np.nan
+        times = np.concatenate([[previous_time], time])
+        self._last_time_repeated = bool(times[-1] == times[-2])
+        if self._torque:
+            self._peak_torque = max(self._peak_torque, float(np.abs(data[:, self._torque]).max()))
+        if self._currents:
+            self._peak_current = max(self._peak_current, float(np.abs(data[:, self._currents]).max()))
+        if self._power is not None:
+            power = data[:, self._power]
+            if self._last is not None:
+                power, t = np.concatenate([[self._last[self._power]], power]), times
+            else:
+                t = time
+            self._energy += float(np.sum(np.diff(t) * (power[:-1] + power[1:]) / 2.0))
+        if self._panel is not None:
+            error = np.degrees(data[:, self._panel] - self.reference(time))
+            self._error_max = max(self._error_max, float(np.abs(error).max()))
+            self._error_sq_sum += float(np.sum(error * error))
+            if self._last_error is not None:
+                e, t = np.concatenate([[self._last_error], error]), times
+            else:
+                e, t = error, time
+            e0, e1 = e[:-1], e[1:]
+            self._error_sq_int += float(np.sum(np.diff(t) * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0))
+            self._last_error = float(error[-1])
+        if self._rotor is not None:
+            if self._lag is None:
+                self._lag = float(self.sequencer.position(self.schedule.initial_index) - data[0, self._rotor])
+            self._steps(time, data[:, self._rotor])
+        self._last = data[-1].copy()
+        self.count += len(data)
+
+    def _steps(self, time: np.ndarray, rotor: np.ndarray) -> None:
+        """Judge the steps whose interval ends in this block; keep the rotor rows of the open one."""
+        try:
+            self._judge_steps(time, rotor)
+        finally:
+            self.max_held = max(self.max_held, sum(len(t) for t in self._step_t))
+
+    def _judge_steps(self, time: np.ndarray, rotor: np.ndarray) -> None:
+        times, n, pos = self.schedule.times, len(self.schedule), 0
+        while self._k < n:
+            if not self._open:
+                pos += int(np.searchsorted(time[pos:], times[self._k], side="left"))
+                if pos == len(time):
+                    return
+                self._open = True
+            if self._k + 1 == n:  # the last step lasts to the end of the run
+                self._step_t.append(time[pos:])
+                self._step_x.append(rotor[pos:])
+                return
+            last = pos + int(np.searchsorted(time[pos:], times[self._k + 1], side="left"))
+            if last == len(time):
+                self._step_t.append(time[pos:])
+                self._step_x.append(rotor[pos:])
+                return
+            self._step_t.append(time[pos:last + 1])
+            self._step_x.append(rotor[pos:last + 1])
+            self.max_held = max(self.max_held, sum(len(t) for t in self._step_t))
+            self._judge(np.concatenate(self._step_t), np.concatenate(self._step_x))
+            pos = last
+
+    def _judge(self, t: np.ndarray, x: np.ndarray) -> None:
+        t_step, index = self.schedule.times[self._k], self.schedule.indices[self._k]
+        commanded = float(self.sequencer.position(index))
+        missed, settling, move = _outcome(t_step, commanded, self._previous, t, x, self._lag, self.sequencer)
+        self.outcomes.append((float(t_step), commanded, missed, settling, move))
+        self._previous = commanded
+        self._k += 1
+        self._open = False
+        self._step_t, self._step_x = [], []
+
+    def figures(self) -> dict:
+        """The figures of every row shown (as :func:`solution_figures` of those rows)."""
+        self._take()
+        result: dict = {}
+        if self.count == 0:
+            return {"solution_rows": 0, "end_time_s": 0.0}
+        start, end = float(self._first[0]), float(self._last[0])
+        if self._panel is not None:
+            result["max_tracking_error_deg"] = self._error_max
+            span = end - start
+            result["rms_tracking_error_deg"] = float(np.sqrt(self._error_sq_int / span if span > 0
+                                                             else self._error_sq_sum / self.count))
+        result["peak_torque_Nm"] = self._peak_torque if self._torque else None
+        result["peak_phase_current_A"] = self._peak_current if self._currents else None
+        if self._power is not None and self.count > 1:
+            result["electrical_energy_J"] = self._energy
+        if self._rotor is not None:
+            outcomes = list(self.outcomes)
+            if self._open and self._k < len(self.schedule):  # the step open at the end
+                t, x = np.concatenate(self._step_t), np.concatenate(self._step_x)
+                if self._k + 1 == len(self.schedule):  # judged up to the first row at the end
+                    cut = int(np.searchsorted(t, end, side="left"))
+                    t, x = t[:cut + 1], x[:cut + 1]
+                t_step, index = self.schedule.times[self._k], self.schedule.indices[self._k]
+                commanded = float(self.sequencer.position(index))
+                missed, settling, move = _outcome(t_step, commanded, self._previous, t, x, self._lag,
+                                                  self.sequencer)
+                outcomes.append((float(t_step), commanded, missed, settling, move))
+            result.update(_step_fields(outcomes, len(outcomes)))
+            first_cmd = float(self.sequencer.position(self.schedule.index_at(np.array([start]), side="left"))[0])
+            side = "right" if self._last_time_repeated else "left"
+            last_cmd = float(self.sequencer.position(self.schedule.index_at(np.array([end]), side=side))[0])
+            increment = self.sequencer.increment
+            behind = (last_cmd - float(self._last[self._rotor])) / increment
+            lag = (first_cmd - float(self._first[self._rotor])) / increment
+            result["steps_lost"] = int(np.round(behind - lag))
+            result["final_lag_steps"] = float(behind - result["steps_lost"])
+            result["step_outcomes"] = [{"time_s": o[0], "missed": o[2], "settling_s": o[3], "move_steps": o[4]}
+                                       for o in outcomes]
+        result["solution_rows"] = int(self.count)
+        result["end_time_s"] = end
+        return result
 
 
 def _time_rms(values: np.ndarray, time: np.ndarray) -> float:
@@ -93,13 +255,35 @@ def _period(sequencer: Sequencer) -> float:
     return FULL_STEPS_PER_PERIOD * sequencer.step_angle
 
 
+def _outcome(t_step: float, commanded: float, previous: float, t: np.ndarray, x: np.ndarray, lag: float,
+             sequencer: Sequencer, settling_band: float = SETTLING_BAND):
+    """One step's (missed, settling time or None, move in increments) from the rows ``t, x`` of the
+    rotor from the row at the step to the row at the next step (or the end), both included."""
+    increment = sequencer.increment
+    period = _period(sequencer)
+    move = (x[-1] - x[0]) / increment
+    missed = bool(abs(move - (commanded - previous) / increment) > MISS_TOLERANCE)
+    rest = commanded - lag
+    rest -= period * np.round((rest - x[-1]) / period)  # the detent the rotor ends in
+    outside = np.nonzero(np.abs(x - rest) > settling_band * increment)[0]
+    if len(outside) == 0:
+        settling = 0.0
+    elif outside[-1] == len(x) - 1:
+        settling = None
+    else:
+        j = outside[-1]  # last row outside the band; the crossing lies between j and j + 1
+        band = settling_band * increment
+        d0, d1 = abs(x[j] - rest) - band, abs(x[j + 1] - rest) - band
+        fraction = d0 / (d0 - d1) if d0 != d1 else 1.0
+        settling = float(t[j] + fraction * (t[j + 1] - t[j]) - t_step)
+    return missed, settling, float(move)
+
+
 def step_outcomes(trace: pd.DataFrame, rotor_column: str, sequencer: Sequencer, schedule: StepSchedule,
                   settling_band: float = SETTLING_BAND):
     """Per commanded step: (time, commanded angle, missed, settling time or None, move in increments)."""
     time = trace["time"].to_numpy()
     rotor = trace[rotor_column].to_numpy()
-    increment = sequencer.increment
-    period = _period(sequencer)
     end = time[-1]
     lag = float(sequencer.position(schedule.initial_index) - rotor[0])  # elastic lag held at the start
     outcomes = []
@@ -112,23 +296,9 @@ def step_outcomes(trace: pd.DataFrame, rotor_column: str, sequencer: Sequencer, 
         first = int(np.searchsorted(time, t_step, side="left"))  # the row at the step (before it)
         last = int(np.searchsorted(time, t_next, side="left"))  # the row at the next step (before it)
         last = min(max(last, first), len(time) - 1)
-        move = (rotor[last] - rotor[first]) / increment
-        missed = bool(abs(move - (commanded - previous) / increment) > MISS_TOLERANCE)
-        rest = commanded - lag
-        rest -= period * np.round((rest - rotor[last]) / period)  # the detent the rotor ends in
-        t, x = time[first:last + 1], rotor[first:last + 1]
-        outside = np.nonzero(np.abs(x - rest) > settling_band * increment)[0]
-        if len(outside) == 0:
-            settling = 0.0
-        elif outside[-1] == len(x) - 1:
-            settling = None
-        else:
-            j = outside[-1]  # last row outside the band; the crossing lies between j and j + 1
-            band = settling_band * increment
-            d0, d1 = abs(x[j] - rest) - band, abs(x[j + 1] - rest) - band
-            fraction = d0 / (d0 - d1) if d0 != d1 else 1.0
-            settling = float(t[j] + fraction * (t[j + 1] - t[j]) - t_step)
-        outcomes.append((float(t_step), commanded, missed, settling, float(move)))
+        missed, settling, move = _outcome(t_step, commanded, previous, time[first:last + 1],
+                                          rotor[first:last + 1], lag, sequencer, settling_band)
+        outcomes.append((float(t_step), commanded, missed, settling, move))
         previous = commanded
     return outcomes
 

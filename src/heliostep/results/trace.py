@@ -27,13 +27,19 @@ def drive_metadata(inputs: DriveInputs) -> dict:
     """What the results need of the drive, as plain JSON data for a run's metadata."""
     sequencer, schedule = inputs.sequencer, inputs.schedule
     return {"mode": sequencer.mode, "current": sequencer.current, "step_angle": sequencer.step_angle,
+            "microsteps": sequencer.microsteps, "idle_current_fraction": sequencer.idle_current_fraction,
+            "idle_delay": sequencer.idle_delay,
             "initial_index": int(schedule.initial_index), "step_times": [float(t) for t in schedule.times],
             "step_indices": [int(k) for k in schedule.indices]}
 
 
 def drive_from_metadata(drive: dict) -> tuple[Sequencer, StepSchedule]:
     """The sequencer and the step schedule back from :func:`drive_metadata`'s data."""
-    sequencer = Sequencer(mode=drive["mode"], current=float(drive["current"]), step_angle=float(drive["step_angle"]))
+    defaults = Sequencer()  # a record written before microstepping and idle reduction existed
+    sequencer = Sequencer(mode=drive["mode"], current=float(drive["current"]), step_angle=float(drive["step_angle"]),
+                          microsteps=int(drive.get("microsteps", defaults.microsteps)),
+                          idle_current_fraction=float(drive.get("idle_current_fraction", defaults.idle_current_fraction)),
+                          idle_delay=float(drive.get("idle_delay", defaults.idle_delay)))
     schedule = StepSchedule(times=np.asarray(drive["step_times"], dtype=float),
                             indices=np.asarray(drive["step_indices"], dtype=int),
                             initial_index=int(drive["initial_index"]))

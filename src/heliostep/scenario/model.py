@@ -28,9 +28,9 @@ from heliostep.scenario.sections import (
     SUNRISE,
     SUNSET,
     MirrorConfig,
+    OpticsConfig,
     OutputConfig,
     PlantConfig,
-    Real,
     Section,
     SequencerConfig,
     SiteConfig,
@@ -57,7 +57,8 @@ ParameterValue = Annotated[Union[StrictBool, StrictInt, Annotated[float, Field(s
 
 _INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 #: Top-level keys whose null value means "the defaults".
-_DEFAULTED_KEYS = ("transmission", "fmus", "parameters", "roles", "sequencer", "wind", "solver", "output")
+_DEFAULTED_KEYS = ("transmission", "fmus", "parameters", "roles", "sequencer", "wind", "solver", "output",
+                   "optics")
 
 
 def _merge_default_fmus(value):
@@ -111,6 +112,7 @@ class Scenario(Section):
     roles: RolesConfig = Field(default_factory=RolesConfig)
     sequencer: SequencerConfig = Field(default_factory=SequencerConfig)
     wind: WindConfig = Field(default_factory=WindConfig)
+    optics: OpticsConfig = Field(default_factory=OpticsConfig)
     solver: SolverConfig = Field(default_factory=SolverConfig)
     output: OutputConfig = Field(default_factory=OutputConfig)
 

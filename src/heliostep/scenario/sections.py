@@ -192,6 +192,30 @@ class SequencerConfig(Section):
     step_angle: Real = Field(1.8, gt=0.0, description="[deg], full step of the rotor")
     trigger: Literal[SEQUENCER_TRIGGERS] = Field(
         "midpoint", description="step when the reference crosses the midpoint to the next position, or reaches it")
+    microsteps: Literal[1, 2, 4, 8, 16] = Field(
+        1, description="sine/cosine phase currents in 1/N of a full step (one-phase-on only); 1: full steps")
+    idle_current_fraction: Real = Field(
+        1.0, gt=0.0, le=1.0, description="[-], current held after idle_delay without a step; 1: no reduction")
+    idle_delay: Real = Field(0.0, ge=0.0, description="[s] after each step before the idle current reduction")
+
+
+class OpticsConfig(Section):
+    """``optics``: the mirror's light path to the tube (see :mod:`heliostep.solar.optics`).
+
+    Defaults: a 1.5 m x 1 m panel (the paper's Table 2 length), the optical chain of seed 004
+    (rho = 0.80, tau = 0.85, alpha = 0.95), a 70 mm tube, the faceted-mirror slope error
+    b / (8 f) = 2.22 mrad of seed 002, no specularity error, clear-sky DNI.
+    """
+
+    mirror_area: Real = Field(1.5, gt=0.0, description="[m^2], aperture of the mirror")
+    mirror_length: Real = Field(1.5, gt=0.0, description="[m], along the tube")
+    reflectivity: Real = Field(0.80, ge=0.0, le=1.0, description="[-], rho of the mirror")
+    transmittance: Real = Field(0.85, ge=0.0, le=1.0, description="[-], tau of the tube's glass")
+    absorptance: Real = Field(0.95, ge=0.0, le=1.0, description="[-], alpha of the tube")
+    tube_diameter: Real = Field(0.07, gt=0.0, description="[m], or a secondary reflector's aperture")
+    slope_error: Real = Field(2.22e-3, ge=0.0, description="[rad], RMS slope error of the mirror")
+    specularity: Real = Field(0.0, ge=0.0, description="[rad], specularity error")
+    weather_file: str | None = Field(None, description="TMY3 (.csv) or EPW (.epw) file; null: clear sky")
 
 
 class WindConfig(Section):

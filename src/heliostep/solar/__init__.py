@@ -38,7 +38,9 @@ Frames and conventions
 
 Modules: :mod:`~heliostep.solar.sun` (site, plant, SPA), :mod:`~heliostep.solar.tracking`
 (tracking laws, reference panel angle), :mod:`~heliostep.solar.transmission` (rotor <-> panel),
-:mod:`~heliostep.solar.field` (the end mirrors' field, shared primary), and
+:mod:`~heliostep.solar.field` (the end mirrors' field, shared primary),
+:mod:`~heliostep.solar.optics` (reflected ray, miss, cosine and intercept factors),
+:mod:`~heliostep.solar.irradiance` (DNI: pvlib clear sky or a TMY3/EPW file), and
 :mod:`~heliostep.solar.checks`. This package imports nothing of heliostep but
 :mod:`heliostep.errors`.
 """
@@ -52,6 +54,22 @@ from heliostep.solar.field import (
     sharing_errors,
     sharing_figures,
     solar_noon_sun,
+)
+from heliostep.solar.irradiance import clear_sky_dni, dni, read_weather, weather_dni
+from heliostep.solar.optics import (
+    SUN_HALF_ANGLE,
+    beam_spread,
+    concentration_limit,
+    cosine_factor,
+    end_loss_gain,
+    end_fraction,
+    facet_slope_error,
+    intercept_factor,
+    lit_length,
+    mirror_normal,
+    optical_chain,
+    receiver_miss,
+    reflect,
 )
 from heliostep.solar.sun import (
     ORIENTATIONS,
@@ -91,4 +109,7 @@ __all__ = [
     "rotor_speed_from_panel_speed", "sharing_errors", "sharing_figures", "single_axis_tilt",
     "solar_noon_sun", "solar_position", "sun_events", "sun_vector", "time_window", "two_axis_angles",
     "two_axis_angles_from_normal", "two_axis_normal",
+    "SUN_HALF_ANGLE", "beam_spread", "clear_sky_dni", "concentration_limit", "cosine_factor", "dni",
+    "end_fraction", "end_loss_gain", "facet_slope_error", "intercept_factor", "lit_length", "mirror_normal", "optical_chain",
+    "read_weather", "receiver_miss", "reflect", "weather_dni",
 ]

@@ -146,7 +146,21 @@ static int invalid_vr(Instance *inst, const char *function, fmi2ValueReference v
 
 typedef int (*EquationFunction)(const casadi_real **, casadi_real **, casadi_int *, casadi_real *, int);
 
+/* Values below TINY (e.g. a phase current decaying as exp(-t/18 us) for 0.1 s reaches 1e-155 A)
+ * are zero for the physics of any SI quantity, but the generated QR factorisation of the Newton
+ * step squares them: below sqrt(DBL_MIN) ~ 1.5e-154 the squares underflow to zero and the
+ * Householder step returns 0/0 = NaN. They are flushed to zero before every evaluation. */
+#define TINY 1e-100
+
+static void flush_tiny(double *values, int n) {
+    for (int i = 0; i < n; i++) {
+        if (values[i] != 0.0 && fabs(values[i]) < TINY) values[i] = 0.0;
+    }
+}
+
 static int eval_equations(Instance *inst, EquationFunction equations, const double *guess) {
+    flush_tiny(inst->r + OFF_X, N_STATES + N_INPUTS);
+    flush_tiny(inst->guess, N_COMPUTED);
     inst->arg[0] = &inst->time;
     inst->arg[1] = inst->r + OFF_X;
     inst->arg[2] = inst->r + OFF_U;

@@ -1,0 +1,305 @@
+"""Optics of one mirror: reflected ray, where it meets the tube, cosine and intercept factors.
+
+Conventions: see :mod:`heliostep.solar` (plant frame x across, y along the tube, z up; tube
+axis at x = 0, z = ``tube_height``; a mirror at x = ``mirror_distance``, y = 0, z = 0;
+n = R_y(primary) R_x(secondary) z_hat).
+
+Beam spread model
+-----------------
+The reflected beam's angular spread about the central ray is taken as a Gaussian whose
+variance adds the independent contributions (the usual optical error budget of SolTrace and
+SAM's physical trough/linear Fresnel models, after Guven & Bannerot, J. Sol. Energy Eng. 108
+(1986); Rabl, *Active Solar Collectors and Their Applications*, 1985, ch. 6)::
+
+    sigma_total**2 = sigma_sun**2 + (2 * sigma_slope)**2 + sigma_specularity**2
+
+where the slope error counts twice because a tilt of the normal by e turns the reflected ray
+by 2 e (law of reflection), and the sun's disc (a pillbox of half-angle 4.65 mrad) is replaced
+by the Gaussian of the same 1-D projected standard deviation, 4.65 / 2 mrad (the projected
+variance of a uniform disc of radius R is R**2 / 4). At the slant distance L the spread is
+L * sigma_total across the ray (small angles), and the intercept factor of a tube of diameter
+D whose axis the central ray misses by e is the closed form::
+
+    gamma = 1/2 [erf((D/2 - e) / (sqrt(2) L sigma)) + erf((D/2 + e) / (sqrt(2) L sigma))]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import erf
+
+from heliostep.solar.checks import as_float_array, check_positive, check_range
+
+#: Half-angle of the sun's disc [rad] (Rabl 1985; seed 002 quotes +-4.6 mrad).
+SUN_HALF_ANGLE = 4.65e-3
+#: Standard deviation of the pillbox sun's 1-D projection, SUN_HALF_ANGLE / 2 [rad].
+SUN_SIGMA = SUN_HALF_ANGLE / 2.0
+
+
+def mirror_normal(primary, secondary):
+    """Unit normal of a two-axis mirror from its two rotation angles.
+
+    Parameters
+    ----------
+    primary, secondary : array-like  [rad]
+        Rotations as in :func:`heliostep.solar.tracking.two_axis_angles_from_normal`.
+
+    Returns
+    -------
+    normal_x, normal_y, normal_z : arrays  [-]
+        n = (cos q sin p, -sin q, cos q cos p).
+    """
+    p, q = as_float_array(primary), as_float_array(secondary)
+    return np.cos(q) * np.sin(p), -np.sin(q) * np.ones_like(p), np.cos(q) * np.cos(p)  # [paper], eqs. 3-4
+
+
+def reflect(sun_x, sun_y, sun_z, normal_x, normal_y, normal_z):
+    """Direction of the reflected central ray.
+
+    Parameters
+    ----------
+    sun_x, sun_y, sun_z : array-like  [-]
+        Unit vector toward the sun.
+    normal_x, normal_y, normal_z : array-like  [-]
+        Unit mirror normal.
+
+    Returns
+    -------
+    ray_x, ray_y, ray_z : arrays  [-]
+        r = 2 (S . n) n - S (law of reflection), a unit vector.
+    """
+    s = [as_float_array(c) for c in (sun_x, sun_y, sun_z)]
+    n = [as_float_array(c) for c in (normal_x, normal_y, normal_z)]
+    dot = s[0] * n[0] + s[1] * n[1] + s[2] * n[2]
+    return tuple(2.0 * dot * nc - sc for sc, nc in zip(s, n))  # law of reflection, r = 2(S.n)n - S
+
+
+def cosine_factor(sun_x, sun_y, sun_z, normal_x, normal_y, normal_z):
+    """Cosine of the incidence angle on the mirror, clipped at 0 (sun behind the mirror).
+
+    Returns
+    -------
+    array  [-]
+        max(S . n, 0): the fraction of the DNI falling on a unit of mirror area.
+    """
+    dot = sum(as_float_array(a) * as_float_array(b) for a, b in zip((sun_x, sun_y, sun_z), (normal_x, normal_y, normal_z)))
+    return np.clip(dot, 0.0, None)  # Lambert's cosine law
+
+
+def receiver_miss(ray_x, ray_y, ray_z, mirror_distance, tube_height):
+    """Where the central ray passes the tube axis (x = 0, z = h, parallel to y).
+
+    The point of the ray closest to the axis in the cross-section (the x-z projection) is
+    where it crosses the tube's cross-section plane through the axis.
+
+    Parameters
+    ----------
+    ray_x, ray_y, ray_z : array-like  [-]
+        Unit reflected ray from the mirror at (d, 0, 0).
+    mirror_distance : float or array-like  [m]
+    tube_height : float  [m]
+
+    Returns
+    -------
+    transverse : array  [m]
+        Signed perpendicular distance of the ray's cross-section projection from the tube
+        axis; positive when a rising ray passes on the +x side of the axis.
+    longitudinal : array  [m]
+        y of the ray at that point: how far along the tube the light lands from the
+        mirror's own cross-section.
+    slant : array  [m]
+        Path length from the mirror to that point (NaN if the ray goes down or away).
+    """
+    tube_height = check_positive(tube_height, "tube_height", "m")
+    d = as_float_array(mirror_distance)
+    rx, ry, rz = (as_float_array(c) for c in (ray_x, ray_y, ray_z))
+    across = np.hypot(rx, rz)  # length of the ray's cross-section projection
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (-d * rx + tube_height * rz) / across**2  # parameter of closest approach in x-z
+        transverse = (rx * tube_height + rz * d) / across  # 2-D cross product (T - M) x r / |r_xz|
+        t = np.where(t > 0, t, np.nan)
+    return transverse, t * ry, t * np.sqrt(rx**2 + ry**2 + rz**2)
+
+
+def beam_spread(slope_error=0.0, specularity=0.0, sun_sigma: float = SUN_SIGMA):
+    """Standard deviation of the reflected beam's angular spread.
+
+    Parameters
+    ----------
+    slope_error : float  [rad]
+        RMS slope error of the mirror surface (e.g. :func:`facet_slope_error`).
+    specularity : float  [rad]
+        Specularity (scatter) error of the reflective surface.
+    sun_sigma : float, default SUN_SIGMA  [rad]
+
+    Returns
+    -------
+    float  [rad]
+        sqrt(sigma_sun**2 + (2 sigma_slope)**2 + sigma_specularity**2) (Guven & Bannerot 1986;
+        SolTrace/SAM error budget).
+    """
+    return float(np.sqrt(sun_sigma**2 + (2.0 * slope_error) ** 2 + specularity**2))  # Guven & Bannerot 1986
+
+
+def intercept_factor(miss, slant, tube_diameter, sigma):
+    """Fraction of a Gaussian beam that hits a tube.
+
+    Parameters
+    ----------
+    miss : array-like  [m]
+        Transverse miss of the central ray (:func:`receiver_miss`).
+    slant : array-like  [m]
+        Path length from the mirror to the tube.
+    tube_diameter : float  [m]
+        Diameter D of the tube (or the aperture of a secondary reflector), > 0.
+    sigma : float  [rad]
+        Angular standard deviation (:func:`beam_spread`), >= 0.
+
+    Returns
+    -------
+    array  [-]
+        1/2 [erf((D/2 - e)/(sqrt 2 s)) + erf((D/2 + e)/(sqrt 2 s))], s = L sigma; the
+        indicator |e| <= D/2 when sigma = 0; 0 where slant or miss is NaN.
+    """
+    tube_diameter = check_positive(tube_diameter, "tube_diameter", "m")
+    sigma = check_range(sigma, "sigma", 0.0, np.inf, "rad")
+    e, length = as_float_array(miss), as_float_array(slant)
+    half = tube_diameter / 2.0
+    spread = np.sqrt(2.0) * length * sigma
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gamma = np.where(
+            spread > 0,
+            0.5 * (erf((half - e) / spread) + erf((half + e) / spread)),  # Gaussian integral over the tube
+            (np.abs(e) <= half).astype(float),
+        )
+    return np.nan_to_num(gamma, nan=0.0)
+
+
+def end_fraction(longitudinal, mirror_length, mirror_y, tube_start, tube_end):
+    """Fraction of a mirror's light that lands on the tube's length (the end effect).
+
+    The mirror (length l along y, centred at y_m) lights [y_m + k - l/2, y_m + k + l/2] of
+    the tube's axis, k being the longitudinal shift of its light.
+
+    Parameters
+    ----------
+    longitudinal : array-like  [m]
+        Shift k (:func:`receiver_miss` or :func:`heliostep.solar.tracking.end_loss_length`).
+    mirror_length : float  [m]
+        Length l of the mirror along the tube, > 0.
+    mirror_y : float  [m]
+        y of the mirror's centre.
+    tube_start, tube_end : float  [m]
+        y of the tube's two ends.
+
+    Returns
+    -------
+    array  [-]
+        Overlap length / l within [0, 1]; 0 where k is NaN.
+    """
+    length = check_positive(mirror_length, "mirror_length", "m")
+    k = as_float_array(longitudinal)
+    low, high = min(tube_start, tube_end), max(tube_start, tube_end)
+    centre = mirror_y + k
+    with np.errstate(invalid="ignore"):
+        overlap = np.clip(np.minimum(centre + length / 2, high) - np.maximum(centre - length / 2, low), 0.0, length)
+    return np.nan_to_num(overlap / length, nan=0.0)
+
+
+def lit_length(longitudinal, plant_length):
+    """Length of tube lit by a row whose light is shifted by k along the tube.
+
+    Returns
+    -------
+    array  [m]
+        max(L - |k|, 0): the first |k| metres get no light ([paper], Section 2, eq. 2).
+    """
+    plant_length = check_positive(plant_length, "plant_length", "m")
+    return np.clip(plant_length - np.abs(as_float_array(longitudinal)), 0.0, None)  # [paper], eq. 2
+
+
+def optical_chain(reflectivity, transmittance, absorptance):
+    """Product rho tau alpha of mirror reflectivity, glass transmittance and tube absorptance.
+
+    Returns
+    -------
+    float  [-]
+        rho * tau * alpha (seed 004, Section 3: 0.80 * 0.85 * 0.95).
+    """
+    values = [check_range(v, n, 0.0, 1.0, "-") for v, n in ((reflectivity, "reflectivity"), (transmittance, "transmittance"), (absorptance, "absorptance"))]
+    return values[0] * values[1] * values[2]  # seed 004, energy chain
+
+
+def facet_slope_error(facet_width, focal_length):
+    """Mean slope error of a cylindrically curved facet approximating a parabola.
+
+    Returns
+    -------
+    float  [rad]
+        b / (8 f) (seed 002, eq. 13).
+    """
+    b = check_positive(facet_width, "facet_width", "m")
+    f = check_positive(focal_length, "focal_length", "m")
+    return b / (8.0 * f)  # seed 002, eq. 13
+
+
+def concentration_limit(acceptance_half_angle, dimensions: int = 2):
+    """Ideal concentration limit for an acceptance half-angle theta_c.
+
+    Parameters
+    ----------
+    acceptance_half_angle : float  [rad]
+    dimensions : {2, 3}
+
+    Returns
+    -------
+    float  [-]
+        1 / sin(theta_c) in 2-D (seed 004, eq. 10), 1 / sin(theta_c)**2 in 3-D (seed 004, eq. 21).
+    """
+    theta = check_range(acceptance_half_angle, "acceptance_half_angle", 0.0, np.pi / 2, "rad")
+    if dimensions not in (2, 3):
+        from heliostep.errors import InputError
+
+        raise InputError(f"dimensions must be 2 or 3, got {dimensions!r}")
+    return 1.0 / np.sin(theta) ** (dimensions - 1)  # seed 004, eqs. 10 and 21
+
+
+def end_loss_gain(elevation, azimuth, mirror_distances, tube_height, plant_length, plant_azimuth: float = 0.0):
+    """Lit tube length with single-axis rows vs two-axis end mirrors.
+
+    A single-axis row shifts its light along the tube by k ([paper], eq. 2), so the first |k|
+    metres get none of it and |k| metres of its light fall past the far end; two-axis end mirrors
+    send their light to their own cross-section, so the whole length is lit.
+
+    Parameters
+    ----------
+    elevation, azimuth : array-like  [deg]
+        Apparent sun elevation and azimuth (one value per time).
+    mirror_distances : array-like  [m]
+        Transverse positions d of the rows.
+    tube_height : float  [m]
+    plant_length : float  [m]
+    plant_azimuth : float, default 0  [deg]
+
+    Returns
+    -------
+    dict of arrays (one value per time)
+        ``unlit_length_m``: the largest |k| over the rows (the dark length at the tube's end);
+        ``lit_fraction_single``: mean over the rows of max(L - |k|, 0) / L;
+        ``lit_fraction_two_axis``: 1 while the sun is up;
+        ``gain``: lit_fraction_two_axis / lit_fraction_single - 1.
+    """
+    from heliostep.solar.tracking import end_loss_length
+
+    plant_length = check_positive(plant_length, "plant_length", "m")
+    elevation = np.atleast_1d(as_float_array(elevation))[:, None]
+    azimuth = np.atleast_1d(as_float_array(azimuth))[:, None]
+    distances = np.atleast_1d(as_float_array(mirror_distances))[None, :]
+    k = end_loss_length(elevation, azimuth, distances, tube_height, plant_azimuth)  # [paper], eq. 2
+    up = elevation[:, 0] > 0.0
+    single = np.where(up, np.mean(lit_length(k, plant_length), axis=1) / plant_length, 0.0)
+    two_axis = up.astype(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = np.where(single > 0, two_axis / single - 1.0, np.nan)
+    return {"unlit_length_m": np.where(up, np.max(np.abs(k), axis=1), np.nan), "lit_fraction_single": single,
+            "lit_fraction_two_axis": two_axis, "gain": gain}

@@ -1,0 +1,110 @@
+"""Tests of heliostep.results.light: energy on the tube against an independent computation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from pvlib.location import Location
+from scipy.special import erf
+
+from heliostep.errors import InputError
+from heliostep.results.light import light_figures, light_timeseries
+from heliostep.scenario import validate_scenario
+from heliostep.solar.tracking import panel_angle_reference
+
+#: Sun's pillbox half-angle 4.65 mrad -> 1-D sigma 4.65/2 mrad (Rabl, Active Solar Collectors, 1985).
+SUN_SIGMA = 4.65e-3 / 2
+PANEL_COLUMN = "mechanics.theta_p"
+
+
+def _scenario(distance=0.0, axis="secondary", **optics):
+    return validate_scenario({
+        "name": "light-test",
+        "site": {"latitude": 40.0, "longitude": 14.25, "altitude": 0.0, "timezone": "Europe/Rome"},
+        "window": {"date": "2025-01-21", "start": "10:00", "duration": 1800},
+        "plant": {"orientation": "NS", "tube_height": 3.0},
+        "mirror": {"distance": distance, "axis": axis},
+        **({"optics": optics} if optics else {}),
+    })
+
+
+def _trace(scenario, offset=0.0, step=1.0):
+    start = pd.Timestamp("2025-01-21 10:00", tz="Europe/Rome")
+    seconds = np.arange(0.0, 1800.0 + step, step)
+    times = start + pd.to_timedelta(seconds, unit="s")
+    site, plant = scenario.site.to_site(), scenario.plant.to_plant()
+    ref = panel_angle_reference(times, site, plant, scenario.mirror.mirror_distance, axis=scenario.mirror.axis)
+    trace = pd.DataFrame({"time": seconds, "panel_angle_ref": ref.to_numpy(), PANEL_COLUMN: ref.to_numpy() + offset})
+    metadata = {"window_start": start.isoformat(), "timezone": "Europe/Rome", "roles": {"panel_angle": PANEL_COLUMN}}
+    return trace, metadata, times
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+@pytest.mark.parametrize("distance", [0.0, 2.4])
+def test_ideal_energy_equals_dni_area_cosine_chain_integrated(distance):
+    scenario = _scenario(distance)
+    trace, metadata, times = _trace(scenario)
+    figures = light_figures(trace, metadata, scenario)
+    # independent: pvlib clear sky and sun position, the cosine of half the angle between S and T
+    location = Location(40.0, 14.25, "Europe/Rome", 0.0)
+    dni = location.get_clearsky(times, model="ineichen")["dni"].to_numpy()
+    sun = location.get_solarposition(times)
+    alt, az = np.radians(sun["apparent_elevation"].to_numpy()), np.radians(sun["azimuth"].to_numpy())
+    s = np.stack([np.cos(alt) * np.sin(az), np.cos(alt) * np.cos(az), np.sin(alt)])
+    slant = np.hypot(distance, 3.0)
+    t = np.array([-distance, 0.0, 3.0]) / slant
+    cosine = np.sqrt((1.0 + t @ s) / 2.0)  # the normal bisects S and T
+    o = scenario.optics
+    sigma = np.sqrt(SUN_SIGMA**2 + (2 * o.slope_error) ** 2 + o.specularity**2)
+    gamma = erf(o.tube_diameter / 2 / (np.sqrt(2) * slant * sigma))
+    expected = np.trapezoid(dni * o.mirror_area * cosine * 0.80 * 0.85 * 0.95 * gamma, trace["time"].to_numpy())
+    assert figures["light_energy_ideal_J"] == pytest.approx(expected, rel=1e-5)
+    assert figures["light_lost_stepping_J"] == pytest.approx(0.0, abs=1e-6 * expected)  # the trace tracks exactly
+    if distance == 0.0:  # the central mirror's primary is its own: no sharing loss
+        assert figures["light_energy_J"] == pytest.approx(expected, rel=1e-5)
+
+
+def test_shared_primary_costs_light_off_centre():
+    central = light_figures(*_trace(_scenario(0.0))[:2], _scenario(0.0))
+    assert central["light_lost_shared_primary_J"] == pytest.approx(0.0, abs=1e-6 * central["light_energy_ideal_J"])
+    outer = _scenario(6.0)
+    figures = light_figures(*_trace(outer)[:2], outer)
+    assert figures["light_lost_shared_primary_J"] > 0.01 * figures["light_energy_ideal_J"]
+
+
+def test_primary_offset_loses_light_as_the_intercept_says():
+    scenario = _scenario(0.0, axis="primary", slope_error=0.0)
+    delta = 4e-3  # [rad]: the ray turns by 2 delta in the cross-section, the miss is h sin(2 delta)
+    trace, metadata, _ = _trace(scenario, offset=delta)
+    series = light_timeseries(trace, metadata, scenario)
+    miss = series["transverse_miss_actual_m"].to_numpy()
+    assert np.all(np.abs(miss) > 0.5 * 3.0 * np.sin(2 * delta))  # about h sin(2 delta) (exact with the sun in the plane)
+    half = scenario.optics.tube_diameter / 2
+    spread = np.sqrt(2) * 3.0 * SUN_SIGMA  # slant = h at d = 0, miss << h
+    ratio = 0.5 * (erf((half - miss) / spread) + erf((half + miss) / spread)) / erf(half / spread)
+    ratio *= series["cosine_actual"] / series["cosine_reference"]
+    np.testing.assert_allclose(series["power_actual_W"], ratio * series["power_reference_W"], rtol=1e-3)
+    figures = light_figures(trace, metadata, scenario)
+    assert figures["light_lost_stepping_J"] > 0.005 * figures["light_energy_reference_J"]
+
+
+def test_secondary_stepping_error_moves_light_along_the_tube():
+    scenario = _scenario(0.0)
+    delta = np.radians(0.006)  # the measured stepping error of the secondary
+    figures = light_figures(*_trace(scenario, offset=delta)[:2], scenario)
+    # an infinite tube keeps light shifted along it: only the cosine changes, to first order in delta
+    assert abs(figures["light_lost_stepping_fraction"]) < 1e-3
+    assert figures["max_longitudinal_miss_m"] == pytest.approx(3.0 * np.tan(2 * delta), rel=0.05)
+
+
+@pytest.mark.parametrize("key, value", [("mirror_area", -1.0), ("tube_diameter", 0.0), ("reflectivity", 1.2),
+                                        ("absorptance", -0.1)])
+def test_bad_optics_are_errors_naming_the_key(key, value):
+    with pytest.raises(InputError, match=key):
+        _scenario(**{key: value})
+
+
+def test_unknown_optics_key_is_an_error():
+    with pytest.raises(InputError, match="colour"):
+        _scenario(colour="silver")
