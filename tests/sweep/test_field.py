@@ -141,3 +141,23 @@ def test_mirror_all_shorthand_sweeps_the_field():
     cases = expand_cases(spec)
     assert [c.columns["mirror_index"] for c in cases] == [*range(13), 6]
     assert [c.columns["role"] for c in cases] == ["drive"] * 13 + ["shared-primary"]
+
+
+def test_shared_primary_case_carries_the_fields_panels_about_their_longitudinal_axes():
+    # Table 2: M = 18 kg, rho = 800 kg/m3, l = 1.5 m, sp = 0.05 m -> width w = M/(rho l sp) = 0.3 m;
+    # 13 panels each M/12 (w^2 + sp^2) about the longitudinal axis; the rack at the panel edge, w/2
+    width = 18.0 / (800.0 * 1.5 * 0.05)
+    inertia = 13 * 18.0 / 12.0 * (width**2 + 0.05**2)
+    assert width == pytest.approx(0.3) and inertia == pytest.approx(1.80375)
+    spec = sweep_from_scenario(load_scenario(BASE), {"mirror": [0, 6]}, shared_primary=True)
+    cases = expand_cases(spec)
+    primary = [case for case in cases if case.columns["role"] == "shared-primary"]
+    drives = [case for case in cases if case.columns["role"] == "drive"]
+    assert len(primary) == 1 and len(drives) == 2
+    scenario = primary[0].scenario
+    assert scenario["mirror"]["axis"] == "primary"
+    assert scenario["parameters"]["mechanics"]["J_p"] == pytest.approx(inertia)
+    assert scenario["transmission"]["lever_arm"] == pytest.approx(width / 2)
+    for case in drives:  # the secondaries keep the panel of Table 2 about the secondary axis
+        assert "J_p" not in case.scenario["parameters"].get("mechanics", {})
+        assert case.scenario["transmission"]["lever_arm"] == pytest.approx(0.3)

@@ -131,3 +131,23 @@ def sharing_figures(errors: np.ndarray) -> dict:
     worst = int(np.argmax(np.abs(degrees)))
     return {"primary_sharing_error_max_deg": float(abs(degrees[worst])),
             "primary_sharing_error_signed_deg": float(degrees[worst])}
+
+
+# --------------------------------------------------------------------------- the shared primary's load
+#: The panel of Table 2 [paper]: mass [kg], density [kg/m3], length along the tube [m], thickness [m].
+PANEL_MASS, PANEL_DENSITY, PANEL_LENGTH, PANEL_THICKNESS = 18.0, 800.0, 1.5, 0.05
+#: Panel width across the tube [m]: what Table 2's mass, density, length and thickness leave,
+#: M / (rho l sp) = 0.3 m (the paper gives no width; this follows from its other values).
+PANEL_WIDTH = PANEL_MASS / (PANEL_DENSITY * PANEL_LENGTH * PANEL_THICKNESS)
+#: Lever arm of the primary's rack on each panel [m]: an assumption, the rack at the panel's edge
+#: (half its width, the longest arm the panel offers); the paper does not describe the primary drive.
+PRIMARY_LEVER_ARM = PANEL_WIDTH / 2
+
+
+def primary_panel_inertia(n_mirrors: int = N_FIELD_MIRRORS) -> float:
+    """Inertia of the panels a shared primary drive turns about their longitudinal axes [kg m2].
+
+    Each panel turns about its own axis along the tube: M/12 (w² + sp²) (the rectangular plate
+    of [paper] eq. 11, about the other axis), all ``n_mirrors`` linked to one motor.
+    """
+    return n_mirrors * PANEL_MASS / 12.0 * (PANEL_WIDTH**2 + PANEL_THICKNESS**2)  # [paper], eq. 11

@@ -17,6 +17,7 @@ import numpy as np
 
 from heliostep.errors import InputError
 from heliostep.solar import N_FIELD_MIRRORS
+from heliostep.solar.field import PRIMARY_LEVER_ARM, primary_panel_inertia
 from heliostep.scenario import (
     Scenario,
     load_scenario,
@@ -49,6 +50,22 @@ _SHORTHAND_COLUMNS = {
 
 #: Index of the central mirror of the field (distance 0), whose law the shared primary follows.
 CENTRAL_MIRROR = N_FIELD_MIRRORS // 2
+
+
+#: Mechanics models whose panel inertia and lever arm the shared primary's case sets.
+SHIPPED_MECHANICS = ("PanelMechanics", "PanelMechanicsSmallAngle")
+
+
+def _primary_load(base: Mapping) -> list[tuple[str, Any]]:
+    """The shared primary drive's own load: all the field's panels about their longitudinal axes
+    (:func:`heliostep.solar.field.primary_panel_inertia`) through the primary's rack
+    (:data:`heliostep.solar.field.PRIMARY_LEVER_ARM`). Set for the shipped mechanics models; a
+    user's own mechanics FMU keeps its parameters (give them in the sweep's overrides)."""
+    instance = str((base.get("roles") or {}).get("panel_angle") or "mechanics.theta_p").partition(".")[0]
+    if (base.get("fmus") or {}).get(instance) not in SHIPPED_MECHANICS:
+        return []
+    return [("transmission.lever_arm", PRIMARY_LEVER_ARM),
+            (f"parameters.{instance}.J_p", primary_panel_inertia(N_FIELD_MIRRORS))]
 
 
 #: Roles of a case: one mirror's drive, or the field's shared primary drive.
@@ -447,6 +464,7 @@ def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], inde
     settings = [setting for axis, value in chosen.items() for setting in axis.overrides(value, year)]
     if role == "shared-primary":
         settings += [("mirror.distance", None), ("mirror.index", CENTRAL_MIRROR), ("mirror.axis", "primary")]
+        settings += _primary_load(spec.base_data)
     shown = ", ".join(f"{axis.name}={_show(value)}" for axis, value in chosen.items())
     if role == "shared-primary":
         shown += " (shared primary)"
