@@ -138,3 +138,13 @@ def test_idle_current_reduction_cuts_the_holding_energy_by_the_square_of_the_fra
     expected = TABLE3_MOTOR["R"] * held**2 * (full_time + fraction**2 * (duration - full_time))
     assert run.summary["electrical_energy_J"] == pytest.approx(expected, rel=0.01)
     assert run.summary["missed_steps"] == 0 and run.summary["steps_commanded"] >= 3
+
+
+def test_day_figures_on_a_30_s_grid_equal_those_on_a_10_ms_grid(fmu_paths):
+    # jan21-day's first hour after sunrise (the finest grid the suite can afford over it)
+    hour = ("window.end=null", "window.duration=3600")
+    coarse = _run("jan21-day", *hour)  # its own 30 s grid
+    fine = _run("jan21-day", *hour, "output.interval=0.01")
+    assert fine.summary["rows"] > 100 * coarse.summary["rows"]
+    assert coarse.summary["steps_commanded"] >= 20
+    _assert_same_figures(fine.summary, coarse.summary, rel=5e-3)
