@@ -1,8 +1,11 @@
-"""``run_scenario``: heliostep's one public entry point, and ``heliostep run``.
+"""``run_scenario``: heliostep's one public entry point (re-exported as ``heliostep.run_scenario``).
 
-scenario → inputs (:mod:`heliostep.drive.inputs`) → master (:mod:`heliostep.cosim.master`) → trace
-(:mod:`heliostep.results.trace`) → summary (:mod:`heliostep.results.summary`) / plots (:mod:`heliostep.plots.run`).
-A run that fails part-way still returns (and writes) the trace so far, marked incomplete.
+scenario → drive inputs (:mod:`heliostep.drive`) → master (:mod:`heliostep.cosim`) → trace, figures
+from every solver step and light on the tube (:mod:`heliostep.results`) → plots
+(:mod:`heliostep.plots`, on request). The FMU variables each part of the drive uses are found
+through the scenario's roles, resolved here once. A run that fails or is interrupted part-way
+still returns (and writes) the trace so far, marked incomplete. The command line is
+:mod:`heliostep.cli.run`.
 """
 
 from __future__ import annotations
