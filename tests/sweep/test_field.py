@@ -19,7 +19,7 @@ from heliostep.paths import scenarios_dir
 from heliostep.sweep import field_sharing_errors, primary_sharing_error, run_field
 from heliostep.solar import two_axis_angles
 from heliostep.drive.inputs import reference_times
-from heliostep.scenario import load_scenario
+from heliostep.scenario import load_scenario, validate_scenario
 from heliostep.sweep import expand_cases, sweep_from_scenario
 
 BASE = scenarios_dir() / "jan21-central.yaml"
@@ -161,3 +161,20 @@ def test_shared_primary_case_carries_the_fields_panels_about_their_longitudinal_
     for case in drives:  # the secondaries keep the panel of Table 2 about the secondary axis
         assert "J_p" not in case.scenario["parameters"].get("mechanics", {})
         assert case.scenario["transmission"]["lever_arm"] == pytest.approx(0.3)
+
+
+def test_shorthand_motor_axis_swaps_the_instance_that_plays_the_motor(tmp_path):
+    # instances renamed: the 'motor' axis follows the torque role, not the name 'motor'
+    renamed = load_scenario(BASE, ["fmus.motor=null", "fmus.mechanics=null", "fmus.coil=StepperMotor",
+                                   "fmus.panel=PanelMechanics",
+                                   "connections=[[coil.tau, panel.tau], [panel.theta, coil.theta], "
+                                   "[panel.omega, coil.omega]]",
+                                   "roles={current_a_ref: coil.i_a_ref, current_b_ref: coil.i_b_ref, "
+                                   "torque: coil.tau, rotor_angle: panel.theta, panel_angle: panel.theta_p}"])
+    spec = sweep_from_scenario(renamed, {"motor": ["StepperMotor", "StepperMotorIdealCurrent"]})
+    cases = expand_cases(spec)
+    assert [case.scenario["fmus"]["coil"] for case in cases] == ["StepperMotor", "StepperMotorIdealCurrent"]
+    for case in cases:  # the dropped default instances stay dropped when a worker reads the case back
+        assert case.scenario["fmus"].get("motor") is None
+        assert set(validate_scenario(case.scenario, folder=case.folder).fmus) == {"coil", "panel"}
+    assert [case.columns["motor"] for case in cases] == ["StepperMotor", "StepperMotorIdealCurrent"]

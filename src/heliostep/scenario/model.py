@@ -294,10 +294,13 @@ class Scenario(Section):
     def resolved_dict(self) -> dict:
         """The fully validated scenario as plain JSON-able data (for run metadata).
 
-        Defaults are filled in, ``fmus`` is merged over :data:`DEFAULT_FMUS` and
-        ``connections`` is the effective list; reading it back gives an equal scenario.
+        Defaults are filled in, ``fmus`` is merged over :data:`DEFAULT_FMUS` (a default instance
+        the scenario dropped stays as null, so it is not merged back) and ``connections`` is the
+        effective list; reading it back gives an equal scenario.
         """
         data = self.model_dump(mode="json")
+        data["fmus"] = {**{name: None for name in DEFAULT_FMUS if name not in self.fmus}, **data["fmus"]}
+        data["roles"] = self.resolved_roles()  # only the roles its FMUs can play (defaults of dropped instances go)
         data["connections"] = [list(pair) for pair in self.connection_pairs()]
         return data
 

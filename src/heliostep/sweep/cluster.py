@@ -140,7 +140,7 @@ def _ship_fmus(cases: Sequence[SweepCase]) -> tuple[list[SweepCase], dict[str, F
     paths: dict[str, Path] = {}
     for case in cases:
         for instance, reference in case.scenario["fmus"].items():
-            if reference not in paths:
+            if reference is not None and reference not in paths:  # None: a default instance dropped
                 try:
                     paths[reference] = Path(ensure_fmu(reference))
                 except InputError as exc:
@@ -152,7 +152,8 @@ def _ship_fmus(cases: Sequence[SweepCase]) -> tuple[list[SweepCase], dict[str, F
         payloads[sha] = FmuPayload(name=path.name, sha256=sha, data=data)
         sha_of[reference] = sha
     shipped = [dataclasses.replace(case, fmu_sha256={instance: sha_of[reference]
-                                                     for instance, reference in case.scenario["fmus"].items()})
+                                                     for instance, reference in case.scenario["fmus"].items()
+                                                     if reference is not None})
                for case in cases]
     return shipped, payloads
 

@@ -52,6 +52,20 @@ _SHORTHAND_COLUMNS = {
 CENTRAL_MIRROR = N_FIELD_MIRRORS // 2
 
 
+#: The role whose FMU instance the shorthand axes ``motor`` and ``mechanics`` swap.
+_SHORTHAND_ROLES = {"motor": "torque", "mechanics": "panel_angle"}
+
+
+def _by_role(setting: tuple[str, Any], axis: str, base: Mapping) -> tuple[str, Any]:
+    """``fmus.motor`` of the shorthand axes ``motor`` / ``mechanics`` as the instance that plays
+    the motor's (torque) or the mechanics' (panel angle) role in the base scenario."""
+    role = _SHORTHAND_ROLES.get(axis)
+    target = (base.get("roles") or {}).get(role) if role else None
+    if not target:
+        return setting
+    return (f"fmus.{target.partition('.')[0]}", setting[1])
+
+
 #: Mechanics models whose panel inertia and lever arm the shared primary's case sets.
 SHIPPED_MECHANICS = ("PanelMechanics", "PanelMechanicsSmallAngle")
 
@@ -279,7 +293,8 @@ def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, over
                          f"e.g. {{output.interval: 0.5}}, got {overrides!r}")
     common = tuple((_check_key(key, f"{source}: overrides"), value) for key, value in overrides.items())
     base_data = base.resolved_dict()
-    base_data["fmus"] = {instance: str(base.fmu_reference(instance)) for instance in base.fmus}
+    base_data["fmus"] = {instance: None if reference is None else str(base.fmu_reference(instance))
+                         for instance, reference in base_data["fmus"].items()}
     spec = SweepSpec(name=name, source=source, base_data=base_data, base_source=base_source,
                      base_folder=base.folder, axes=(), combine=combine, overrides=common,
                      shared_primary=shared_primary, description=description)
@@ -461,7 +476,8 @@ def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], inde
     """One validated case: the axis values ``chosen`` on the base, as a drive or the shared primary."""
     if role not in ROLES:
         raise ValueError(f"role must be one of {ROLES}, got {role!r}")
-    settings = [setting for axis, value in chosen.items() for setting in axis.overrides(value, year)]
+    settings = [_by_role(setting, axis.name, spec.base_data)
+                for axis, value in chosen.items() for setting in axis.overrides(value, year)]
     if role == "shared-primary":
         settings += [("mirror.distance", None), ("mirror.index", CENTRAL_MIRROR), ("mirror.axis", "primary")]
         settings += _primary_load(spec.base_data)
@@ -476,7 +492,8 @@ def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], inde
                        hint=_axis_hint(axis.name))
         raise
     resolved = scenario.resolved_dict()
-    resolved["fmus"] = {instance: str(scenario.fmu_reference(instance)) for instance in scenario.fmus}
+    resolved["fmus"] = {instance: None if reference is None else str(scenario.fmu_reference(instance))
+                        for instance, reference in resolved["fmus"].items()}
     case_id = hashlib.sha256(json.dumps(resolved, sort_keys=True).encode()).hexdigest()[:16]
     mirror = scenario.mirror
     columns = {

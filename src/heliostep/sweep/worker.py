@@ -161,7 +161,8 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
     try:
         data = copy.deepcopy(case.scenario)
         local = {instance: _local_fmu(payloads[sha]) for instance, sha in case.fmu_sha256.items()}
-        data["fmus"] = {instance: str(path) for instance, path in local.items()}
+        dropped = {instance: None for instance, reference in data["fmus"].items() if reference is None}
+        data["fmus"] = {**dropped, **{instance: str(path) for instance, path in local.items()}}
         scenario = validate_scenario(data, source=case.source, folder=case.folder)
         result = run_scenario(scenario)
         row.update(summary_figures(result.summary))
