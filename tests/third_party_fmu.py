@@ -41,24 +41,8 @@ def build_bouncing_ball(out_dir: Path) -> Path:
 
     Raises :class:`RuntimeError` with gcc's output when the compilation fails.
     """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fmu_path = out_dir / f"{MODEL_IDENTIFIER}.fmu"
-    with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
-        library = Path(tmp) / f"{MODEL_IDENTIFIER}.so"
-        gcc = shutil.which("gcc") or "gcc"
-        command = [gcc, *CFLAGS, "-I", str(fmi2_headers()),
-                   str(SOURCE_DIR / "bouncing_ball.c"), "-o", str(library), "-lm"]
-        completed = subprocess.run(command, capture_output=True, text=True)
-        if completed.returncode != 0:
-            raise RuntimeError(f"compiling {MODEL_IDENTIFIER} failed:\n{' '.join(command)}\n"
-                               f"{completed.stdout}{completed.stderr}")
-        partial = Path(tmp) / fmu_path.name
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as fmu:
-            fmu.write(SOURCE_DIR / "modelDescription.xml", "modelDescription.xml")
-            fmu.write(library, f"binaries/linux64/{MODEL_IDENTIFIER}.so")
-        partial.replace(fmu_path)  # atomic: a reader never sees a half-written FMU
-    return fmu_path
+    return _compile_and_pack(MODEL_IDENTIFIER, [SOURCE_DIR / "bouncing_ball.c"], [],
+                             (SOURCE_DIR / "modelDescription.xml").read_text(), out_dir)
 
 
 # ---------------------------------------------------------------------- the mini FMUs
@@ -154,21 +138,31 @@ def _model_description(name: str) -> str:
 
 def build_mini_fmu(name: str, out_dir: Path, platform: str = "linux64") -> Path:
     """Compile the mini FMU ``name`` (Counter, PassThrough, Switch, Gain) into ``out_dir/<name>.fmu``."""
+    return _compile_and_pack(name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], _model_description(name),
+                             out_dir, platform)
+
+
+def _compile_and_pack(identifier: str, sources, includes, model_description: str, out_dir: Path,
+                      platform: str = "linux64") -> Path:
+    """Compile ``sources`` with gcc against fmpy's FMI headers and pack ``out_dir/<identifier>.fmu``.
+
+    Raises :class:`RuntimeError` with gcc's output when the compilation fails.
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    fmu_path = out_dir / f"{name}.fmu"
+    fmu_path = out_dir / f"{identifier}.fmu"
     with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
-        library = Path(tmp) / f"{name}.so"
+        library = Path(tmp) / f"{identifier}.so"
         gcc = shutil.which("gcc") or "gcc"
-        command = [gcc, *CFLAGS, "-I", str(fmi2_headers()), "-I", str(MINI_DIR),
-                   str(MINI_DIR / MINI_FMUS[name][0]), "-o", str(library), "-lm"]
+        command = [gcc, *CFLAGS, "-I", str(fmi2_headers()), *[arg for folder in includes for arg in ("-I", str(folder))],
+                   *map(str, sources), "-o", str(library), "-lm"]
         completed = subprocess.run(command, capture_output=True, text=True)
         if completed.returncode != 0:
-            raise RuntimeError(f"compiling {name} failed:\n{' '.join(command)}\n"
+            raise RuntimeError(f"compiling {identifier} failed:\n{' '.join(command)}\n"
                                f"{completed.stdout}{completed.stderr}")
         partial = Path(tmp) / fmu_path.name
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as fmu:
-            fmu.writestr("modelDescription.xml", _model_description(name))
-            fmu.write(library, f"binaries/{platform}/{name}.so")
-        partial.replace(fmu_path)
+            fmu.writestr("modelDescription.xml", model_description)
+            fmu.write(library, f"binaries/{platform}/{identifier}.so")
+        partial.replace(fmu_path)  # atomic: a reader never sees a half-written FMU
     return fmu_path

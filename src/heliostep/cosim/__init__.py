@@ -6,8 +6,10 @@ ctypes code of heliostep: calls on instances of every variable type, per-instanc
 :mod:`~heliostep.cosim.master` (N FMUs on one CVODE, discrete exchange at events,
 terminateSimulation), :mod:`~heliostep.cosim.loops` (Newton on torn algebraic loops) and
 :mod:`~heliostep.cosim.signals` (the connections, input signals and solver settings it
-consumes). It imports nothing of heliostep but :mod:`heliostep.errors`: no scenario, drive or
-results type reaches it, so it serves any set of Model Exchange FMUs.
+consumes), :mod:`~heliostep.cosim.kernel` (the compiled right-hand side). It imports nothing of
+heliostep but :mod:`heliostep.errors`, :mod:`heliostep.paths` and :mod:`heliostep.toolchain` (the
+kernel's cache): no scenario, drive or results type reaches it, so it serves any set of Model
+Exchange FMUs.
 """
 
 from heliostep.cosim.fmi import FMIError, FMUInfo, read_fmu

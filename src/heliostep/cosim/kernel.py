@@ -25,7 +25,6 @@ interface the master uses from fmpy's ``CVodeSolver`` (``step``, ``reset``, ``x`
 from __future__ import annotations
 
 import ctypes
-import fcntl
 import hashlib
 import os
 import shutil
@@ -37,6 +36,7 @@ import numpy as np
 
 from heliostep.errors import HeliostepError
 from heliostep.paths import fmus_dir
+from heliostep.toolchain import compiler_version, exclusive_lock
 
 SOURCE = r"""
 #include <stddef.h>
@@ -200,7 +200,7 @@ def library_path() -> Path:
     """The compiled kernel, built at first use and cached by content (source + compiler version)."""
     cc = _compiler()
     try:
-        version = subprocess.run([cc, "--version"], capture_output=True, text=True, check=False).stdout
+        version = compiler_version(cc)
     except OSError as exc:
         raise KernelBuildError(f"no C compiler for the compiled kernel ({cc}): {exc}") from None
     digest = hashlib.sha256(SOURCE.encode() + b"\0" + version.encode()).hexdigest()[:24]
@@ -208,9 +208,7 @@ def library_path() -> Path:
     path = folder / f"heliostep_kernel_{digest}.so"
     if path.exists():
         return path
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / ".lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    with exclusive_lock(folder / ".lock"):
         if path.exists():
             return path
         with tempfile.TemporaryDirectory(dir=folder) as work:
@@ -324,6 +322,7 @@ class NativeSolver:
                  maxStep=float("inf"), relativeTolerance=1e-5, maxNumSteps=500):
         from fmpy.sundials import (
             CV_BDF,
+            NV_DATA_S,
             SUN_COMM_NULL,
             CVodeCreate,
             CVodeFree,
@@ -333,7 +332,6 @@ class NativeSolver:
             CVodeSetNoInactiveRootWarn,
             CVodeSVtolerances,
             N_VNew_Serial,
-            NV_DATA_S,
             SUNContext,
             SUNContext_Create,
             SUNContext_PushErrHandler,

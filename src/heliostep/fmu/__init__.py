@@ -4,5 +4,5 @@
 generation, modelDescription, gcc, zip), ``c/fmi2_model_exchange.c`` (the FMI C layer written
 once for every model), :mod:`~heliostep.fmu.build` (the content-keyed cache) and
 :mod:`~heliostep.fmu.reference` (variant name or path). Imports nothing of heliostep but
-:mod:`heliostep.errors` and :mod:`heliostep.paths`.
+:mod:`heliostep.errors`, :mod:`heliostep.paths` and :mod:`heliostep.toolchain`.
 """

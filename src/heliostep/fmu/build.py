@@ -14,15 +14,12 @@ Folders: :mod:`heliostep.paths` (shipped models; the per-user FMU cache, or
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import re
 import shutil
-import subprocess
 import tempfile
 import uuid
 import zipfile
-from contextlib import contextmanager
 from importlib import metadata, resources
 from pathlib import Path
 
@@ -32,6 +29,7 @@ from heliostep.fmu.export import FMI_LAYER, compiler, export_fmu
 from heliostep.fmu.modelica import available_models, load_model, model_files
 from heliostep.fmu.reference import is_variant_name
 from heliostep.paths import fmus_dir, models_dir
+from heliostep.toolchain import compiler_version, exclusive_lock
 
 _GUID = re.compile(rb'\sguid="([^"]*)"')
 
@@ -40,8 +38,7 @@ def _toolchain() -> list[str]:
     versions = [f"heliostep {__version__}"]
     for package in ("pymoca", "casadi", "fmpy"):
         versions.append(f"{package} {metadata.version(package)}")
-    compiler_version = subprocess.run([compiler(), "--version"], capture_output=True, text=True)
-    versions.append(compiler_version.stdout.splitlines()[0] if compiler_version.stdout else "cc ?")
+    versions.append(compiler_version(compiler()))
     return versions
 
 
@@ -73,18 +70,6 @@ def fmu_guid(path: Path) -> str | None:
     return match.group(1).decode() if match else None
 
 
-@contextmanager
-def _lock(path: Path):
-    """An exclusive lock on ``path`` (processes building the same FMU wait for each other)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
-
-
 def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None = None,
               force: bool = False) -> Path:
     """Build ``out_dir/model_name.fmu`` from ``models/model_name.mo`` unless it is up to date."""
@@ -97,7 +82,7 @@ def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None 
     guid = guid_of_key(key)
     fmu_path = out_dir / f"{model_name}.fmu"
     scratch = out_dir / ".build"
-    with _lock(scratch / f"{model_name}.lock"):
+    with exclusive_lock(scratch / f"{model_name}.lock"):
         if not force and fmu_path.exists() and fmu_guid(fmu_path) == guid:
             return fmu_path
         model = load_model(models, model_name)
