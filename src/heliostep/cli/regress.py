@@ -27,7 +27,8 @@ def regress_one(scenario: Path, tolerances, update: bool = False, report_dir: Pa
     except RunFailed as failed:
         return Outcome(scenario, None, f"the run failed: {failed}")
     metadata = run.trace_metadata()
-    outcome = check_against_reference(scenario, run.trace, metadata, run.metadata["roles"], tolerances, update)
+    outcome = check_against_reference(scenario, run.trace, metadata, run.metadata["roles"],
+                                      tolerances.for_scenario(run.scenario.name), update)
     if report_dir is not None and outcome.comparison is not None and not outcome.comparison.passed:
         from heliostep.plots.compare import write_report
 

@@ -13,7 +13,12 @@ CVODE, and refuses every further evaluation until the master has collected the e
 (:meth:`Kernel.take_error`) and turned it into the same :class:`~heliostep.cosim.fmi.FMIError`
 as the Python path.
 
-The C source is compiled with the system C compiler (``$CC`` or ``cc``) at first use into a
+:meth:`Kernel.advance` runs CVODE in one-step mode with the loop over internal steps in C
+(:c:func:`hs_advance`): after each internal step, and at the output times passed on the way
+(interpolated), it records a row (time, master inputs, every FMU's traced outputs) into a buffer
+the master takes in blocks, so no Python runs per internal step either.
+
+The C source (``c/kernel.c``) is compiled with the system C compiler (``$CC`` or ``cc``) at first use into a
 cache folder beside the FMU cache (``kernels/``), under a name derived from the SHA-256 of the
 source and the compiler's version: a changed source or compiler gives a new library.
 
@@ -30,6 +35,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -38,136 +44,29 @@ from heliostep.errors import HeliostepError
 from heliostep.paths import fmus_dir
 from heliostep.toolchain import compiler_version, exclusive_lock
 
-SOURCE = r"""
-#include <stddef.h>
-typedef void *fmi2Component;
-typedef int (*set_time_t)(fmi2Component, double);
-typedef int (*set_x_t)(fmi2Component, const double *, size_t);
-typedef int (*get_x_t)(fmi2Component, double *, size_t);
-typedef int (*get_real_t)(fmi2Component, const unsigned int *, size_t, double *);
-typedef int (*set_real_t)(fmi2Component, const unsigned int *, size_t, const double *);
-typedef double *(*data_t)(void *);
-
-typedef struct {
-    fmi2Component component;
-    set_time_t set_time;
-    set_x_t set_states;
-    get_x_t get_derivatives;
-    get_x_t get_event_indicators;
-    get_real_t get_real;
-    set_real_t set_real;
-    long nx, x_offset, nz, z_offset;
-} hs_unit;
-
-typedef struct {
-    long source, target, n;
-    const unsigned int *source_vrs, *target_vrs;
-    double *buffer;
-} hs_link;
-
-typedef struct {
-    long n_units;
-    hs_unit *units;
-    long n_links;
-    hs_link *links;
-    data_t data;              /* N_VGetArrayPointer */
-    long discrete, nx;
-    long rhs_count;
-    long status, failed_unit, failed_function;
-    double failed_time;
-} hs_kernel;
-
-enum { F_SET_TIME, F_SET_STATES, F_GET_REAL, F_SET_REAL, F_GET_DERIVATIVES, F_GET_EVENT_INDICATORS };
-
-static int fail(hs_kernel *k, int status, long unit, long function, double t) {
-    k->status = status;
-    k->failed_unit = unit;
-    k->failed_function = function;
-    k->failed_time = t;
-    return -1;
-}
-
-#define CHECK(call, unit, function) \
-    do { int s_ = (call); if (s_ > 1) return fail(k, s_, (unit), (function), t); } while (0)
-
-/* set time (and states), propagate the continuous connections */
-static int evaluate(hs_kernel *k, double t, const double *x) {
-    long i;
-    for (i = 0; i < k->n_units; i++) {
-        hs_unit *u = &k->units[i];
-        CHECK(u->set_time(u->component, t), i, F_SET_TIME);
-    }
-    if (k->discrete) return 0;
-    for (i = 0; i < k->n_units; i++) {
-        hs_unit *u = &k->units[i];
-        if (u->nx) CHECK(u->set_states(u->component, x + u->x_offset, (size_t)u->nx), i, F_SET_STATES);
-    }
-    return 0;
-}
-
-static int propagate(hs_kernel *k, double t) {
-    long j;
-    for (j = 0; j < k->n_links; j++) {
-        hs_link *l = &k->links[j];
-        hs_unit *s = &k->units[l->source], *d = &k->units[l->target];
-        CHECK(s->get_real(s->component, l->source_vrs, (size_t)l->n, l->buffer), l->source, F_GET_REAL);
-        CHECK(d->set_real(d->component, l->target_vrs, (size_t)l->n, l->buffer), l->target, F_SET_REAL);
-    }
-    return 0;
-}
-
-int hs_rhs(double t, void *y, void *ydot, void *user_data) {
-    hs_kernel *k = (hs_kernel *)user_data;
-    double *x = k->data(y), *dx = k->data(ydot);
-    long i;
-    if (k->status) return -1;
-    if (evaluate(k, t, x)) return -1;
-    if (k->discrete) {
-        for (i = 0; i < k->nx; i++) dx[i] = 0.0;
-        return 0;
-    }
-    k->rhs_count++;
-    if (propagate(k, t)) return -1;
-    for (i = 0; i < k->n_units; i++) {
-        hs_unit *u = &k->units[i];
-        if (u->nx) CHECK(u->get_derivatives(u->component, dx + u->x_offset, (size_t)u->nx), i, F_GET_DERIVATIVES);
-    }
-    return 0;
-}
-
-/* the FMUs at (t, x) with their connections propagated: for recording a solver step */
-int hs_prepare(hs_kernel *k, double t, const double *x) {
-    if (k->status) return -1;
-    if (evaluate(k, t, x)) return -1;
-    return propagate(k, t);
-}
-
-int hs_root(double t, void *y, double *gout, void *user_data) {
-    hs_kernel *k = (hs_kernel *)user_data;
-    long i;
-    if (k->status) return -1;
-    if (evaluate(k, t, k->data(y))) return -1;
-    if (propagate(k, t)) return -1;
-    for (i = 0; i < k->n_units; i++) {
-        hs_unit *u = &k->units[i];
-        if (u->nz)
-            CHECK(u->get_event_indicators(u->component, gout + u->z_offset, (size_t)u->nz), i,
-                  F_GET_EVENT_INDICATORS);
-    }
-    return 0;
-}
-"""
+#: The kernel's C source (package data beside this module).
+SOURCE_PATH = Path(__file__).resolve().parent / "c" / "kernel.c"
 
 #: The FMI function of each ``failed_function`` code of the C kernel.
 FUNCTIONS = ["fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetReal", "fmi2SetReal", "fmi2GetDerivatives",
-             "fmi2GetEventIndicators"]
+             "fmi2GetEventIndicators", "fmi2GetInteger", "fmi2GetBoolean"]
+
+#: What :c:func:`hs_advance` returns.
+ADVANCE_REACHED, ADVANCE_ROOT, ADVANCE_FULL, ADVANCE_MAX_STEPS = 0, 1, 2, 3
+ADVANCE_CVODE_FAILED, ADVANCE_FMU_FAILED, ADVANCE_DKY_FAILED = -1, -2, -3
+
+
+class _Outputs(ctypes.Structure):
+    _fields_ = [("n", ctypes.c_long), ("vrs", ctypes.c_void_p), ("columns", ctypes.c_void_p),
+                ("ints", ctypes.c_void_p)]
 
 
 class _Unit(ctypes.Structure):
     _fields_ = [("component", ctypes.c_void_p)] + [
         (name, ctypes.c_void_p) for name in ("set_time", "set_states", "get_derivatives", "get_event_indicators",
-                                             "get_real", "set_real")] + [
-        (name, ctypes.c_long) for name in ("nx", "x_offset", "nz", "z_offset")]
+                                             "get_real", "set_real", "get_integer", "get_boolean")] + [
+        (name, ctypes.c_long) for name in ("nx", "x_offset", "nz", "z_offset")] + [
+        (name, _Outputs) for name in ("real_outputs", "integer_outputs", "boolean_outputs")]
 
 
 class _Link(ctypes.Structure):
@@ -180,7 +79,10 @@ class _Kernel(ctypes.Structure):
                 ("links", ctypes.POINTER(_Link)), ("data", ctypes.c_void_p), ("discrete", ctypes.c_long),
                 ("nx", ctypes.c_long), ("rhs_count", ctypes.c_long), ("status", ctypes.c_long),
                 ("failed_unit", ctypes.c_long), ("failed_function", ctypes.c_long),
-                ("failed_time", ctypes.c_double)]
+                ("failed_time", ctypes.c_double),
+                ("cvode", ctypes.c_void_p), ("get_dky", ctypes.c_void_p), ("n_inputs", ctypes.c_long),
+                ("row_width", ctypes.c_long), ("inputs", ctypes.c_void_p), ("scratch", ctypes.c_void_p),
+                ("pending", ctypes.c_long), ("step_time", ctypes.c_double), ("step_flag", ctypes.c_int)]
 
 
 class KernelBuildError(HeliostepError):
@@ -203,7 +105,8 @@ def library_path() -> Path:
         version = compiler_version(cc)
     except OSError as exc:
         raise KernelBuildError(f"no C compiler for the compiled kernel ({cc}): {exc}") from None
-    digest = hashlib.sha256(SOURCE.encode() + b"\0" + version.encode()).hexdigest()[:24]
+    source_text = SOURCE_PATH.read_bytes()
+    digest = hashlib.sha256(source_text + b"\0" + version.encode()).hexdigest()[:24]
     folder = kernels_dir()
     path = folder / f"heliostep_kernel_{digest}.so"
     if path.exists():
@@ -213,9 +116,10 @@ def library_path() -> Path:
             return path
         with tempfile.TemporaryDirectory(dir=folder) as work:
             source = Path(work) / "kernel.c"
-            source.write_text(SOURCE)
+            source.write_bytes(source_text)
             target = Path(work) / path.name
-            result = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(target), str(source)],
+            result = subprocess.run([cc, "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", "-o", str(target),
+                                     str(source), "-lm"],
                                     capture_output=True, text=True)
             if result.returncode != 0:
                 raise KernelBuildError(f"compiling the kernel failed:\n{result.stderr}")
@@ -240,28 +144,46 @@ def _function_address(dll, name: str) -> int:
 class Kernel:
     """The C structures for one run: FMU handles and function pointers, connections, error record.
 
-    ``units`` is a list of (ModelExchangeInstance, state offset, indicator offset) in the master's
-    order; ``links`` a list of (source index, target index, source value references, target value
-    references) of the continuous Real connections in the master's propagation order.
+    ``units`` is a list of (ModelExchangeInstance, state offset, indicator offset, outputs) in the
+    master's order, ``outputs`` being the unit's traced outputs as (FMI type, value reference,
+    column of the row); ``links`` a list of (source index, target index, source value
+    references, target value references) of the continuous Real connections in the master's
+    propagation order; ``inputs`` the array the master keeps its inputs' current values in
+    (columns 1.. of a row; the master changes it in place, at events only).
     """
 
-    def __init__(self, units, links, n_states: int):
+    #: Rows one call of :c:func:`hs_advance` records before it hands them over.
+    ROWS_PER_BLOCK = 4096
+
+    def __init__(self, units, links, n_states: int, inputs: np.ndarray | None = None, row_width: int = 1):
+        from fmpy.sundials.cvode import sundials_cvode
         from fmpy.sundials.libraries import sundials_nvecserial
 
-        self.instances = [fmu for fmu, _, _ in units]
+        self.instances = [fmu for fmu, _, _, _ in units]
+        self._keep = []
         self._units = (_Unit * max(1, len(units)))()
-        for k, (fmu, x_offset, z_offset) in enumerate(units):
+        for k, (fmu, x_offset, z_offset, outputs) in enumerate(units):
             dll = fmu._model.dll
             u = self._units[k]
             u.component = fmu._component
-            u.set_time = _function_address(dll, "fmi2SetTime")
-            u.set_states = _function_address(dll, "fmi2SetContinuousStates")
-            u.get_derivatives = _function_address(dll, "fmi2GetDerivatives")
-            u.get_event_indicators = _function_address(dll, "fmi2GetEventIndicators")
-            u.get_real = _function_address(dll, "fmi2GetReal")
-            u.set_real = _function_address(dll, "fmi2SetReal")
+            for field, function in (("set_time", "fmi2SetTime"), ("set_states", "fmi2SetContinuousStates"),
+                                    ("get_derivatives", "fmi2GetDerivatives"),
+                                    ("get_event_indicators", "fmi2GetEventIndicators"), ("get_real", "fmi2GetReal"),
+                                    ("set_real", "fmi2SetReal"), ("get_integer", "fmi2GetInteger"),
+                                    ("get_boolean", "fmi2GetBoolean")):
+                setattr(u, field, _function_address(dll, function))
             u.nx, u.x_offset, u.nz, u.z_offset = fmu.n_states, x_offset, fmu.n_event_indicators, z_offset
-        self._keep = []
+            for field, kinds in (("real_outputs", ("Real",)), ("integer_outputs", ("Integer", "Enumeration")),
+                                 ("boolean_outputs", ("Boolean",))):
+                chosen = [(vr, column) for kind, vr, column in outputs if kind in kinds]
+                arrays = (np.array([vr for vr, _ in chosen], dtype=np.uint32),
+                          np.array([column for _, column in chosen], dtype=np.int64),
+                          np.zeros(len(chosen), dtype=np.int32))
+                self._keep.append(arrays)
+                group = getattr(u, field)
+                group.n = len(chosen)
+                group.vrs, group.columns = arrays[0].ctypes.data, arrays[1].ctypes.data
+                group.ints = arrays[2].ctypes.data if field != "real_outputs" else None
         self._links = (_Link * max(1, len(links)))()
         for k, (source, target, source_vrs, target_vrs) in enumerate(links):
             arrays = (np.array(source_vrs, dtype=np.uint32), np.array(target_vrs, dtype=np.uint32),
@@ -276,6 +198,15 @@ class Kernel:
         self.state.data = _function_address(sundials_nvecserial, "N_VGetArrayPointer")
         self.state.discrete = int(n_states == 0)
         self.state.nx = max(1, n_states)
+        self.state.cvode = _function_address(sundials_cvode, "CVode")
+        self.state.get_dky = _function_address(sundials_cvode, "CVodeGetDky")
+        self.inputs = np.zeros(0) if inputs is None else inputs
+        self.state.n_inputs, self.state.inputs = len(self.inputs), self.inputs.ctypes.data
+        self.state.row_width = row_width
+        self._scratch = np.zeros(max([1] + [len(outputs) for _, _, _, outputs in units]))
+        self.state.scratch = self._scratch.ctypes.data
+        self.rows = np.zeros((self.ROWS_PER_BLOCK, row_width))
+        self.kinds = np.zeros(self.ROWS_PER_BLOCK, dtype=np.int64)
         self.user_data = ctypes.cast(ctypes.pointer(self.state), ctypes.c_void_p)
         dll = library()
         self.rhs = _function_address(dll, "hs_rhs")
@@ -283,17 +214,74 @@ class Kernel:
         self._prepare = dll["hs_prepare"]
         self._prepare.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
         self._prepare.restype = ctypes.c_int
+        self._advance = dll["hs_advance"]
+        p, long_p = ctypes.c_void_p, ctypes.POINTER(ctypes.c_long)
+        self._advance.argtypes = [p, p, p, p, ctypes.c_double, p, ctypes.c_long, long_p, ctypes.c_int, p, p,
+                                  ctypes.c_long, long_p, ctypes.POINTER(ctypes.c_double), long_p, ctypes.c_long,
+                                  ctypes.POINTER(ctypes.c_int)]
+        self._advance.restype = ctypes.c_int
+        self._set_stop_time = sundials_cvode["CVodeSetStopTime"]
+        self._set_stop_time.argtypes, self._set_stop_time.restype = [p, ctypes.c_double], ctypes.c_int
 
     def prepare(self, t: float, x) -> None:
         """Set time ``t`` and the states at ``x`` (a pointer to doubles) into every FMU and
         propagate the continuous connections, in C; an FMI error is raised as FMIError."""
         if self._prepare(self.user_data, t, x):
-            failed = self.take_error()
-            if failed is not None:
-                raise failed[0]
-            raise RuntimeError("the compiled kernel refused to evaluate")
+            self._raise_error()
         for fmu in self.instances:
             fmu.time = t
+
+    def _raise_error(self):
+        failed = self.take_error()
+        if failed is not None:
+            raise failed[0]
+        raise RuntimeError("the compiled kernel refused to evaluate")
+
+    def advance(self, solver: NativeSolver, t_stop: float, grid: np.ndarray, next_output: int,
+                interpolate: bool, max_steps: int, take_rows: Callable[[np.ndarray, np.ndarray], None]):
+        """CVODE in one-step mode up to ``t_stop`` or the first root, the loop over internal steps in C.
+
+        Rows (time, master inputs, traced outputs) are recorded after each internal step but the
+        last (kind 0) and, with ``interpolate``, at the output times ``grid[next_output:]`` passed
+        on the way, from CVODE's interpolating polynomial (kind 1); ``take_rows(rows, kinds)`` gets
+        them in blocks, in time order (views valid during the call only; it may raise to stop).
+        Returns (root found, time reached, index of the next output time); the FMUs then hold
+        the solution at the time reached. When an FMU fails, its error stays recorded for
+        :meth:`take_error` (with the time of the failing evaluation) and RuntimeError is raised.
+        """
+        if not solver.discrete:
+            solver.get_x(solver.px, solver.nx)
+        if self._set_stop_time(solver.cvode_mem, t_stop) < 0:
+            raise RuntimeError(f"CVodeSetStopTime({t_stop}) failed")
+        grid = np.ascontiguousarray(grid, dtype=float)
+        next_index, n_rows, steps = ctypes.c_long(next_output), ctypes.c_long(0), ctypes.c_long(0)
+        reached, flag = ctypes.c_double(np.nan), ctypes.c_int(0)
+        while True:
+            n_rows.value = 0
+            status = self._advance(self.user_data, solver.cvode_mem, solver.x, solver.dky, t_stop,
+                                   grid.ctypes.data, len(grid), ctypes.byref(next_index), int(interpolate),
+                                   self.rows.ctypes.data, self.kinds.ctypes.data, self.ROWS_PER_BLOCK,
+                                   ctypes.byref(n_rows), ctypes.byref(reached), ctypes.byref(steps), max_steps,
+                                   ctypes.byref(flag))
+            for fmu in self.instances:
+                fmu.time = reached.value
+            if n_rows.value:
+                take_rows(self.rows[:n_rows.value], self.kinds[:n_rows.value])
+            if status == ADVANCE_FULL:
+                continue
+            if status in (ADVANCE_REACHED, ADVANCE_ROOT):
+                if not solver.discrete:
+                    solver.set_x(solver.px, solver.nx)
+                return status == ADVANCE_ROOT, float(reached.value), int(next_index.value)
+            if status == ADVANCE_FMU_FAILED:  # the error stays recorded for the master (take_error)
+                raise RuntimeError("an FMU failed inside the compiled one-step loop")
+            if status == ADVANCE_MAX_STEPS:
+                raise RuntimeError(f"CVode took {max_steps} internal steps (solver.max_num_steps) before reaching "
+                                   f"t = {t_stop:.9g} s, at t = {reached.value:.9g} s")
+            if status == ADVANCE_DKY_FAILED:
+                raise RuntimeError(f"CVodeGetDky failed between t = {reached.value:.9g} s and the step before")
+            raise RuntimeError("CVode error (code %s) in module %s, function %s: %s"
+                               % (solver.error_info or (flag.value, "CVODE", "", "no message")))
 
     @property
     def rhs_count(self) -> int:
@@ -352,6 +340,7 @@ class NativeSolver:
         self._check(SUNContext_Create(SUN_COMM_NULL, ctypes.byref(self.sunctx)), "SUNContext_Create")
         self.x = N_VNew_Serial(self.nx, self.sunctx)
         self.abstol = N_VNew_Serial(self.nx, self.sunctx)
+        self.dky = N_VNew_Serial(self.nx, self.sunctx)  # interpolated states (Kernel.advance)
         self.px = NV_DATA_S(self.x)
         self.pabstol = NV_DATA_S(self.abstol)
         self.npabstol = np.ctypeslib.as_array(self.pabstol, (self.nx,))

@@ -33,10 +33,14 @@ FMUs' own ``fmi2*`` function pointers, with no Python per evaluation; an FMI err
 a status recorded with its time and becomes the same :class:`~heliostep.cosim.fmi.FMIError`.
 Runs with algebraic loops keep the Python callbacks. The event logic stays here, in Python.
 
-With :data:`INTERPOLATE_OUTPUTS` (off by default: it changes the solver's path, so results move
-within the solver tolerance, and the regression references were made with stops), one-step
-CVODE stops only at input changes, time events and the stop time; output rows in between are
-recorded from CVODE's interpolating polynomial (``CVodeGetDky``).
+With a monitor (every run of heliostep's), CVODE runs in one-step mode and the loop over its
+internal steps is C too (:meth:`heliostep.cosim.kernel.Kernel.advance`): after each internal
+step it records the row the monitor sees into a buffer handed over in blocks. With
+:data:`INTERPOLATE_OUTPUTS` (on by default; ``HELIOSTEP_INTERPOLATE_OUTPUTS=0`` makes CVODE
+stop at every output time instead) CVODE stops only at input changes, time events and the
+stop time; output rows in between are recorded from CVODE's interpolating polynomial
+(``CVodeGetDky``). The two paths differ by the solver's error only; the regression tubes are
+set at twice it (``benchmarks/tolerance_study.py``).
 """
 
 from __future__ import annotations
@@ -80,14 +84,14 @@ class _Interrupted(HeliostepError):
 _CV_ONE_STEP = 2
 _CV_TSTOP_RETURN = 1
 
-#: With a monitor (one-step CVODE), stop the solver only at input changes, time events and the
-#: stop time, and record output times that fall between internal steps from CVODE's
-#: interpolating polynomial (CVodeGetDky) instead of making CVODE stop at each of them.
 #: CVODE calls the compiled right-hand side and root function (:mod:`heliostep.cosim.kernel`)
 #: directly; runs with algebraic loops keep the Python callbacks.
 COMPILED_RHS = os.environ.get("HELIOSTEP_COMPILED_RHS", "1") == "1"
 
-INTERPOLATE_OUTPUTS = os.environ.get("HELIOSTEP_INTERPOLATE_OUTPUTS", "0") == "1"
+#: With a monitor (one-step CVODE), stop the solver only at input changes, time events and the
+#: stop time, and record output times that fall between internal steps from CVODE's
+#: interpolating polynomial (CVodeGetDky) instead of making CVODE stop at each of them.
+INTERPOLATE_OUTPUTS = os.environ.get("HELIOSTEP_INTERPOLATE_OUTPUTS", "1") == "1"
 
 
 class _Terminated(HeliostepError):
@@ -299,9 +303,10 @@ class CoSimulation:
         and rows just before/after each event. On failure raises :class:`SimulationError`
         carrying the trace so far.
 
-        ``monitor``, when given, is called with a row (laid out like the trace's rows: time,
-        master inputs, FMU outputs) at **every internal step of the solver**, at every event
-        (both sides) and at every output time, so figures such as peaks and integrals can be
+        ``monitor``, when given, is called with blocks of rows (2-D arrays laid out like the
+        trace's rows: time, master inputs, FMU outputs; in time order; valid during the call only)
+        holding a row at **every internal step of the solver**, at every event (both sides) and
+        at every output time, so figures such as peaks and integrals can be
         computed from the solution itself rather than from the output grid (CVODE then runs in
         one-step mode up to each stop). ``should_stop`` is asked between solver calls; when it
         returns True the run stops there with a :class:`SimulationError` whose ``reason`` is
@@ -346,6 +351,7 @@ class _Run:
         self.callback_time = np.nan
         self.kernel = None  # the compiled right-hand side, when CVODE uses it
         self._dky = None  # CVODE's interpolated states at an output time (one-step mode)
+        self._no_outputs = np.zeros(0)
         self.input_values = np.array([item.values[0] for item in system.inputs], dtype=float)
         self.columns = ["time"] + [item.name for item in system.inputs]
         for name, info in system.fmus.items():
@@ -502,10 +508,26 @@ class _Run:
         return np.concatenate(parts)
 
     def record(self, t: float) -> None:
-        row = self._row(t)
-        self.rows.append(row)
+        row = self._row(t)[None, :]
+        self._store(row)
         if self.monitor is not None:
             self.monitor(row)
+
+    def _store(self, rows: np.ndarray) -> None:
+        """Keep trace rows (a 2-D block, in time order)."""
+        self.rows.append(rows)
+
+    def _take_rows(self, rows: np.ndarray, kinds: np.ndarray) -> None:
+        """Rows from the compiled one-step loop: all to the monitor, the output rows (kind 1) to
+        the trace; then ``should_stop`` is asked."""
+        if self.monitor is not None:
+            self.monitor(rows)
+        outputs = kinds == 1
+        if outputs.any():
+            self._store(rows[outputs].copy())
+        self.time = float(rows[-1, 0])
+        if self.should_stop is not None and self.should_stop():
+            raise _Interrupted()
 
     def _interpolate_outputs(self, solver, outputs: np.ndarray, k: int, t: float) -> int:
         """Record the rows at ``outputs[k:]`` earlier than ``t`` (the time CVODE just reached)
@@ -563,6 +585,9 @@ class _Run:
         if self.monitor is None:
             root, _, t = solver.step(self.time, t_next)
             return root, t, k
+        if self.kernel is not None:  # the loop over internal steps in C
+            return self.kernel.advance(solver, t_next, outputs if outputs is not None else self._no_outputs, k,
+                                       outputs is not None, self.options.max_num_steps, self._take_rows)
         from fmpy.sundials.cvode import CV_ROOT_RETURN, CVode, sundials_cvode
 
         set_stop_time = sundials_cvode.CVodeSetStopTime
@@ -595,7 +620,7 @@ class _Run:
                     solver.set_x(solver.px, solver.nx)
                 self.set_time(t)
                 self._propagate()
-            self.monitor(self._row(t))
+            self.monitor(self._row(t)[None, :])
 
     def trace(self) -> pd.DataFrame:
         data = np.vstack(self.rows) if self.rows else np.zeros((0, len(self.columns)))
@@ -618,7 +643,7 @@ class _Run:
         for unit in self.units_list:
             unit.fmu.enter_event_mode()
         if new_inputs:
-            self.input_values = np.array([item.value_at(t) for item in self.system.inputs], dtype=float)
+            self.input_values[:] = [item.value_at(t) for item in self.system.inputs]  # in place: the kernel reads it
             self._apply_inputs()
         self._discrete_fixed_point()
         for unit in self.units_list:
@@ -750,8 +775,14 @@ class _Run:
             return None
         from heliostep.cosim.kernel import Kernel, NativeSolver
 
-        units = [(u.fmu, int(x), int(z)) for u, x, z in zip(self.units_list, self.offsets[:-1], self.z_offsets[:-1])]
-        self.kernel = Kernel(units, self.native_links, self.n_states)
+        units, column = [], 1 + len(self.input_values)
+        for u, x, z in zip(self.units_list, self.offsets[:-1], self.z_offsets[:-1]):
+            outputs = [(u.info.variable(name).type, u.info.variable(name).value_reference, column + j)
+                       for j, name in enumerate(u.outputs)]
+            column += len(outputs)
+            units.append((u.fmu, int(x), int(z), outputs))
+        self.kernel = Kernel(units, self.native_links, self.n_states, inputs=self.input_values,
+                             row_width=len(self.columns))
         return NativeSolver(self.kernel, nx=self.n_states, nz=self.n_indicators, get_x=self.get_x,
                             set_x=self.set_x, get_nominals=self.get_nominals, startTime=start_time,
                             maxStep=self.options.max_step, relativeTolerance=self.options.rtol,

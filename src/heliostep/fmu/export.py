@@ -4,8 +4,10 @@ Steps, the same for every model:
 
 1. CasADi builds ``model_eval(t, x, u, p, guess) -> (computed, residual, scale)``: the model's
    implicit residual ``F(der(x), z; t, x, u, p) = 0`` is solved for the derivatives and
-   algebraic variables by CasADi's ``fast_newton`` rootfinder, so the Newton iteration runs
-   inside the generated C code; ``residual`` is ``F`` at the solution (checked by the C
+   algebraic variables. Where the equations can be solved one at a time, each affine in its
+   unknown (:func:`sequential_solution`, the sorting Modelica tools do), ``model_eval`` is
+   explicit code with no iteration; otherwise CasADi's ``fast_newton`` rootfinder runs the
+   Newton iteration inside the generated C code; ``residual`` is ``F`` at the solution (checked by the C
    layer, equation by equation, relative to ``scale``: the size of the terms the equation
    balances, ``|F_i| + sum_k |dF_i/dk_k| |k_k|`` over the known values with the unknowns at
    zero). ``model_solve`` is the same with a converging iteration first (see
@@ -122,14 +124,75 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
                             scale_fn(no_unknowns, known)],
                            ["t", "x", "u", "p", "guess"], ["computed", "residual", "scale"])
 
-    evaluate = solve("model_eval", polish(guess[:n_unknowns], known))
     converge = solve("model_solve", polish(robust(guess[:n_unknowns], known), known))
+    explicit = explicit_evaluation(model, residual_fn, scale_fn, calculated)
+    evaluate = explicit if explicit is not None else solve("model_eval", polish(guess[:n_unknowns], known))
     start = ca.Function("model_start", [p], [ca.vertcat(*model.state_start) if model.states else ca.MX(0, 1)],
                         ["p"], ["x0"])
     if start.has_free():
         raise HeliostepError(
             f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}")
     return evaluate, converge, start
+
+
+def sequential_solution(residual: ca.SX, unknowns: ca.SX) -> list[ca.SX] | None:
+    """The unknowns solved one equation at a time, as Modelica tools sort a model (BLT), or None.
+
+    Repeatedly takes an equation in which exactly one unknown is left and which is affine in it,
+    ``F_i = a u_j + b`` with ``a`` and ``b`` free of ``u_j``, solves it, ``u_j = -b / a``, and
+    substitutes the solution into the equations left. Returns the unknowns' expressions in the
+    known values, or None when some equations are left (a system of several unknowns, or one
+    nonlinear in its unknown): those models keep the Newton solve.
+    """
+    n = unknowns.numel()
+    equations = [residual[i] for i in range(n)]
+    solution: dict[int, ca.SX] = {}
+    left = list(range(n))
+    while left:
+        for i in left:
+            free = [j for j in range(n) if j not in solution and ca.depends_on(equations[i], unknowns[j])]
+            if len(free) != 1:
+                continue
+            j = free[0]
+            slope = ca.jacobian(equations[i], unknowns[j])
+            if ca.depends_on(slope, unknowns[j]):
+                continue
+            solution[j] = -ca.substitute(equations[i], unknowns[j], ca.SX(0)) / slope
+            left.remove(i)
+            for k in left:
+                equations[k] = ca.substitute(equations[k], unknowns[j], solution[j])
+            break
+        else:
+            return None
+    return [solution[j] for j in range(n)] if len(solution) == n else None
+
+
+def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, scale_fn: ca.Function,
+                        calculated: ca.MX) -> ca.Function | None:
+    """``model_eval`` as explicit code where :func:`sequential_solution` solves the model, else None.
+
+    Same inputs and outputs as the Newton form (``guess`` unused): the derivatives and
+    algebraic variables computed straight from the known values, with no iteration, so each
+    evaluation costs the model's own arithmetic; the residual and its scale are still
+    returned for the C layer's check.
+    """
+    sizes = [v.numel() for v in (model.time,)] + [len(model.states), len(model.inputs), len(model.parameters)]
+    t, x, u, p = (ca.SX.sym(name, size) for name, size in zip("txup", sizes))
+    n_unknowns = len(model.derivatives) + len(model.algebraics)
+    guess = ca.SX.sym("guess", n_unknowns + len(model.calculated_parameters))
+    known = ca.vertcat(t, x, u, p)
+    unknowns = ca.SX.sym("unknowns", n_unknowns)
+    solution = sequential_solution(residual_fn.expand()(unknowns, known), unknowns)
+    if solution is None:
+        return None
+    solved = ca.vertcat(*solution) if solution else ca.SX(0, 1)
+    parameters = ca.vertcat(*[model.symbols[v.name] for v in model.parameters])
+    values = ca.Function("calculated", [parameters], [calculated]).expand()(p) if model.calculated_parameters \
+        else ca.SX(0, 1)
+    return ca.Function("model_eval", [t, x, u, p, guess],
+                       [ca.vertcat(solved, values), residual_fn.expand()(solved, known),
+                        scale_fn.expand()(ca.SX.zeros(n_unknowns, 1), known)],
+                       ["t", "x", "u", "p", "guess"], ["computed", "residual", "scale"])
 
 
 def _c_double(value: float | None) -> str:

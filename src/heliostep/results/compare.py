@@ -100,6 +100,8 @@ class ToleranceSet:
 
     default: Tolerance = field(default_factory=Tolerance)
     signals: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    #: per scenario name, signal overrides that apply to that scenario only (:meth:`for_scenario`)
+    scenarios: Mapping[str, Mapping[str, Mapping[str, float]]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not isinstance(self.default, Tolerance):
@@ -124,6 +126,13 @@ class ToleranceSet:
         """The tolerance that applies to signal *name*."""
         return replace(self.default, **self.signals.get(name, {}))
 
+    def for_scenario(self, name: str) -> ToleranceSet:
+        """The tolerances that apply to scenario *name*: its own section's signals over these."""
+        own = self.scenarios.get(name, {})
+        merged = {signal: {**self.signals.get(signal, {}), **own.get(signal, {})}
+                  for signal in {*self.signals, *own}}
+        return ToleranceSet(self.default, merged)
+
     def with_default(self, **changes: float) -> ToleranceSet:
         """A copy whose default has the given fields (``abs``, ``rel``, ``time``) replaced."""
         return ToleranceSet(replace(self.default, **changes), self.signals)
@@ -137,6 +146,10 @@ def load_tolerances(path: str | Path) -> ToleranceSet:
         default: {abs: 1e-6, rel: 1e-4, time: 1e-3}
         signals:
           motor.tau: {abs: 1e-3}
+        scenarios:            # optional: overrides for one scenario (by its name)
+          jan21-weak-motor:
+            signals:
+              motor.tau: {abs: 1e-1}
 
     Fields missing from ``default`` keep the built-in defaults of :class:`Tolerance`.
     Unknown keys, non-numbers and negative numbers raise
@@ -164,15 +177,27 @@ def load_tolerances(path: str | Path) -> ToleranceSet:
                 raise InputError(f"{path}: {exc}") from None
         return out
 
+    def signal_sections(value: object, where: str) -> dict[str, dict[str, float]]:
+        if value is None:
+            return {}
+        if not isinstance(value, Mapping):
+            raise InputError(f"{path}: '{where}' must map signal names to tolerances")
+        return {str(name): section(entry, f"{where}.{name}") for name, entry in value.items()}
+
     for key in data:
-        if key not in ("default", "signals"):
-            raise InputError(f"{path}: unknown key {key!r} (expected 'default', 'signals')")
+        if key not in ("default", "signals", "scenarios"):
+            raise InputError(f"{path}: unknown key {key!r} (expected 'default', 'signals', 'scenarios')")
     default = Tolerance(**section(data.get("default"), "default"))
-    raw_signals = data.get("signals") or {}
-    if not isinstance(raw_signals, Mapping):
-        raise InputError(f"{path}: 'signals' must map signal names to tolerances")
-    signals = {str(name): section(value, f"signals.{name}") for name, value in raw_signals.items()}
-    return ToleranceSet(default, signals)
+    signals = signal_sections(data.get("signals"), "signals")
+    raw_scenarios = data.get("scenarios") or {}
+    if not isinstance(raw_scenarios, Mapping):
+        raise InputError(f"{path}: 'scenarios' must map scenario names to {{signals: ...}}")
+    scenarios = {}
+    for name, entry in raw_scenarios.items():
+        if not isinstance(entry, Mapping) or set(entry) - {"signals"}:
+            raise InputError(f"{path}: scenarios.{name}: expected a mapping with the key 'signals'")
+        scenarios[str(name)] = signal_sections(entry.get("signals"), f"scenarios.{name}.signals")
+    return ToleranceSet(default, signals, scenarios)
 
 
 def _as_tolerance_set(tolerances: Tolerance | ToleranceSet | Mapping[str, Tolerance] | None) -> ToleranceSet:

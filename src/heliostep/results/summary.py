@@ -80,6 +80,7 @@ class SolutionRecorder:
         self.sequencer, self.schedule, self.reference = sequencer, schedule, panel_reference
         self.block = block
         self._pending: list[np.ndarray] = []
+        self._pending_rows = 0
         self.count = 0
         self.unordered = 0  # rows earlier than a row already taken (none expected: the master is in order)
         self._first = self._last = None  # the first and the last row taken
@@ -99,19 +100,22 @@ class SolutionRecorder:
         self.outcomes: list[tuple] = []
         self.max_held = 0  # the most rotor rows held at once for a step not yet judged
 
-    def __call__(self, row: np.ndarray) -> None:
-        self._pending.append(np.array(row, dtype=float, copy=True))
-        if len(self._pending) >= self.block:
+    def __call__(self, rows: np.ndarray) -> None:
+        """Take rows: a 2-D block (the master's protocol) or a single row."""
+        rows = np.array(rows, dtype=float, copy=True, ndmin=2)
+        self._pending.append(rows)
+        self._pending_rows += len(rows)
+        if self._pending_rows >= self.block:
             self._take()
 
     def __len__(self) -> int:
-        return self.count + len(self._pending)
+        return self.count + self._pending_rows
 
     def _take(self) -> None:
         if not self._pending:
             return
         data = np.vstack(self._pending)
-        self._pending = []
+        self._pending, self._pending_rows = [], 0
         data = data[np.argsort(data[:, 0], kind="stable")]
         time = data[:, 0]
         if self._last is not None:
