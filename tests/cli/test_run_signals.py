@@ -44,13 +44,24 @@ def _wait_for_fmus(tmp: Path, process: subprocess.Popen, timeout: float = 60.0) 
         time.sleep(0.05)
 
 
+def _long_scenario(folder: Path) -> Path:
+    """jan21-day over five days from sunrise (a simulation of tens of seconds, still running when
+    the signal comes: one day alone now takes about a second)."""
+    text = (SCENARIOS / "jan21-day.yaml").read_text().replace("name: jan21-day", "name: jan21-five-days")
+    text = text.replace("end: sunset", "duration: 432000")
+    assert "duration: 432000" in text
+    path = folder / "jan21-five-days.yaml"
+    path.write_text(text)
+    return path
+
+
 @pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_paths):
     out = tmp_path / "run"
     (out).mkdir()
     (out / "fig08_panel_angle_ref.png").write_bytes(b"stale figure of an earlier run")
     (out / "notes.txt").write_text("not heliostep's")
-    process = _popen(["run", str(SCENARIOS / "jan21-day.yaml"), "--out", str(out)], tmp_path / "tmp")
+    process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)  # unpacked right before the simulation starts
     time.sleep(2.5)
     assert process.poll() is None, "the run ended before the signal"

@@ -519,7 +519,7 @@ class _Run:
 
     def _take_rows(self, rows: np.ndarray, kinds: np.ndarray) -> None:
         """Rows from the compiled one-step loop: all to the monitor, the output rows (kind 1) to
-        the trace; then ``should_stop`` is asked."""
+        the trace; then ``should_stop`` is asked (on a stop, the last row ends the trace)."""
         if self.monitor is not None:
             self.monitor(rows)
         outputs = kinds == 1
@@ -527,6 +527,8 @@ class _Run:
             self._store(rows[outputs].copy())
         self.time = float(rows[-1, 0])
         if self.should_stop is not None and self.should_stop():
+            if kinds[-1] != 1:  # the trace ends where the run stops: at the last solution row
+                self._store(rows[-1:].copy())
             raise _Interrupted()
 
     def _interpolate_outputs(self, solver, outputs: np.ndarray, k: int, t: float) -> int:
