@@ -9,7 +9,9 @@ Printed side by side in one run:
    values, tolerance and output grid) and the ratio master / fmpy;
 each for the master's paths: Python callbacks or the compiled right-hand side
 (heliostep.cosim.kernel), stopping CVODE at every output time or interpolating output rows.
-4. with --profile: where the time of the 5-minute case goes (cProfile, top functions).
+4. RHS evaluations per motor step of the paper's case with a smooth current loop, a chopper
+   that never saturates, a wider friction regularisation and a looser tolerance (what sets them);
+5. with --profile: where the time of the 5-minute case goes (cProfile, top functions).
 """
 
 from __future__ import annotations
@@ -125,6 +127,27 @@ def bench(name: str, repeat: int, against_fmpy: bool) -> None:
         print(line, flush=True)
 
 
+#: Variants of the paper's case that tell what sets the RHS evaluations per motor step: the
+#: chopper's saturation corners (min/max, no event indicators) against a smooth current loop and
+#: a chopper that never saturates, and the friction that ends the ringing.
+RHS_VARIANTS = [("StepperMotor (clamped chopper)", ()),
+                ("StepperMotorIdealCurrent (smooth)", ("fmus.motor=StepperMotorIdealCurrent",)),
+                ("chopper never saturates (V_supply 100 V)", ("parameters.motor.V_supply=100",)),
+                ("friction regularised 10x wider (w_s 0.1)", ("parameters.mechanics.w_s=0.1",)),
+                ("rtol 1e-5 instead of 1e-6", ("solver.rtol=1e-5",))]
+
+
+def rhs_per_step() -> None:
+    """RHS evaluations per motor step of the paper's case and its variants (exact counts)."""
+    from heliostep.run import run_scenario
+
+    for label, overrides in RHS_VARIANTS:
+        run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides)
+        rhs, steps = run.metadata["statistics"]["rhs"], max(1, int(run.summary["steps_commanded"]))
+        print(f"jan21-central  {label:42s} {rhs:>8,d} RHS  {rhs / steps:7.1f} RHS/motor step  "
+              f"peak torque {run.summary['peak_torque_Nm']:.3f} N.m", flush=True)
+
+
 def profile_paper_case(top: int = 15) -> None:
     from heliostep.run import run_scenario
 
@@ -147,6 +170,7 @@ def main() -> None:
 
     build_all()
     bench("jan21-central", args.repeat, against_fmpy=True)
+    rhs_per_step()
     if not args.skip_day:
         bench("jan21-day", 1, against_fmpy=True)
     if args.profile:

@@ -531,7 +531,7 @@ class _Run:
                 self._store(rows[-1:].copy())
             raise _Interrupted()
 
-    def _interpolate_outputs(self, solver, outputs: np.ndarray, k: int, t: float) -> int:
+    def _interpolate_outputs(self, solver, outputs: np.ndarray, k: int, t: float, final: bool = True) -> int:
         """Record the rows at ``outputs[k:]`` earlier than ``t`` (the time CVODE just reached)
         from CVODE's interpolating polynomial; return the index of the first output not recorded.
 
@@ -540,7 +540,10 @@ class _Run:
         the states at ``t`` afterwards. ``should_stop`` is asked after each row.
         """
         eps = 1e-12 * max(1.0, abs(t))
-        if k >= len(outputs) or outputs[k] >= t - eps:
+        # after a step that is not the last, outputs within rounding of it are taken too (as in
+        # the C kernel's hs_advance): CVODE interpolates only over its last step
+        end = t - eps if final else t + eps
+        if k >= len(outputs) or not (outputs[k] < end if final else outputs[k] <= end):
             return k
         from fmpy.sundials.cvode import sundials_cvode
 
@@ -554,10 +557,10 @@ class _Run:
             self._dky_owner = solver  # the vector belongs to this solver's SUNDIALS context
             self._pdky = NV_DATA_S(self._dky)
         get_dky = sundials_cvode.CVodeGetDky
-        while k < len(outputs) and outputs[k] < t - eps:
+        while k < len(outputs) and (outputs[k] < end if final else outputs[k] <= end):
             g = float(outputs[k])
             if not solver.discrete:
-                flag = get_dky(solver.cvode_mem, g, 0, self._dky)
+                flag = get_dky(solver.cvode_mem, min(g, t), 0, self._dky)
                 if flag < 0:
                     raise RuntimeError(f"CVodeGetDky at t = {g:.9g} s failed (flag {flag}) after a step to "
                                        f"t = {t:.9g} s")
@@ -609,9 +612,10 @@ class _Run:
             if flag < 0:
                 raise RuntimeError("CVode error (code %s) in module %s, function %s: %s" % solver.error_info)
             t = reached.value
+            final = flag == CV_ROOT_RETURN or flag == _CV_TSTOP_RETURN or t >= t_next
             if outputs is not None:
-                k = self._interpolate_outputs(solver, outputs, k, t)
-            if flag == CV_ROOT_RETURN or flag == _CV_TSTOP_RETURN or t >= t_next:
+                k = self._interpolate_outputs(solver, outputs, k, t, final)
+            if final:
                 if not solver.discrete:
                     solver.set_x(solver.px, solver.nx)
                 return flag == CV_ROOT_RETURN, t, k

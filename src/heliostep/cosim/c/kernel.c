@@ -204,6 +204,7 @@ int hs_advance(hs_kernel *k, void *cvode_mem, void *y, void *dky, double t_stop,
                double *rows, long *kinds, long capacity, long *n_rows,
                double *t_reached, long *steps, long max_steps, int *cvode_flag) {
     double t;
+    int final;
     for (;;) {
         if (k->status) return ADVANCE_FMU_FAILED;
         if (!k->pending) {
@@ -219,12 +220,17 @@ int hs_advance(hs_kernel *k, void *cvode_mem, void *y, void *dky, double t_stop,
         }
         t = k->step_time;
         *t_reached = t;
+        final = k->step_flag == CV_ROOT_RETURN || k->step_flag == CV_TSTOP_RETURN || t >= t_stop;
         if (interpolate) {
+            /* Output times up to the step: those within rounding (eps) of a last step are left to
+             * the master, which records the row at the time reached; after any other step they are
+             * taken here (at most the step's own time: CVODE interpolates only over the last step,
+             * so an output a rounding error past this one could not be reached after the next). */
             double eps = 1e-12 * (fabs(t) > 1.0 ? fabs(t) : 1.0);
-            while (*next_output < n_grid && grid[*next_output] < t - eps) {
+            while (*next_output < n_grid && (final ? grid[*next_output] < t - eps : grid[*next_output] <= t + eps)) {
                 double g = grid[*next_output];
                 if (*n_rows >= capacity) return ADVANCE_FULL;
-                if (!k->discrete && k->get_dky(cvode_mem, g, 0, dky) < 0) return ADVANCE_DKY_FAILED;
+                if (!k->discrete && k->get_dky(cvode_mem, g < t ? g : t, 0, dky) < 0) return ADVANCE_DKY_FAILED;
                 if (hs_prepare(k, g, k->discrete ? NULL : k->data(dky))) return ADVANCE_FMU_FAILED;
                 if (read_row(k, g, rows + *n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
                 kinds[*n_rows] = 1;
@@ -232,7 +238,7 @@ int hs_advance(hs_kernel *k, void *cvode_mem, void *y, void *dky, double t_stop,
                 (*next_output)++;
             }
         }
-        if (k->step_flag == CV_ROOT_RETURN || k->step_flag == CV_TSTOP_RETURN || t >= t_stop) {
+        if (final) {
             k->pending = 0;
             if (hs_prepare(k, t, k->data(y))) return ADVANCE_FMU_FAILED;
             return k->step_flag == CV_ROOT_RETURN ? ADVANCE_ROOT : ADVANCE_REACHED;
