@@ -53,6 +53,24 @@ def _weather_path(scenario):
     return path if path.is_absolute() or folder is None else Path(folder) / path
 
 
+def check_weather(scenario) -> None:
+    """Read a scenario's weather file for its window, before simulating.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the key (``weather_file``, ``latitude``, ``longitude``, ``dni``,
+        ``window``) when the file cannot be read, is for another site, or does not cover the
+        window (:mod:`heliostep.solar.irradiance`).
+    """
+    path = _weather_path(scenario)
+    if path is None:
+        return
+    start, end = scenario.window_bounds()
+    seconds = np.append(np.arange(0.0, (end - start).total_seconds(), 1800.0), (end - start).total_seconds())
+    irradiance.weather_dni(start + pd.to_timedelta(seconds, unit="s"), scenario.site.to_site(), path)
+
+
 def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.DataFrame:
     """Power on the tube at every row of the trace for the ideal, reference and actual attitudes.
 
@@ -134,7 +152,8 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
         ``light_energy_ideal_J``, ``light_energy_reference_J``, ``light_energy_J`` (actual;
         absent without the panel-angle column), ``light_lost_stepping_J`` (reference - actual),
         ``light_lost_stepping_fraction`` (of the reference), ``light_lost_shared_primary_J``
-        (ideal - reference), ``mean_intercept`` (actual, power-weighted by the ideal power),
+        (ideal - reference), ``light_lost_J`` and ``light_lost_fraction`` (ideal - actual, and
+        of the ideal: stepping and sharing together), ``mean_intercept`` (actual, power-weighted by the ideal power),
         ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the sun is up),
         ``dni_source``.
     """
@@ -149,6 +168,9 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
         figures["light_energy_J"] = actual
         figures["light_lost_stepping_J"] = reference - actual
         figures["light_lost_stepping_fraction"] = (reference - actual) / reference if reference > 0 else 0.0
+        ideal = figures["light_energy_ideal_J"]
+        figures["light_lost_J"] = ideal - actual
+        figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
         lit = series["power_ideal_W"].to_numpy() > 0
         weight = series["power_ideal_W"].to_numpy()
         figures["mean_intercept"] = (float(np.average(series["intercept_actual"], weights=weight))
