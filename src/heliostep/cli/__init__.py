@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "heliostep.cli.compare",
     "heliostep.cli.regress",
     "heliostep.cli.sweep",
+    "heliostep.cli.fieldlight",
 )
 
 

@@ -95,7 +95,7 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str,
     ax.set_yticks(y_ticks, [str(mirrors[k]) for k in y_ticks])
     ax.set_xlabel("day of year")
     ax.set_ylabel("mirror index (6: central)")
-    varied = [c for c in ("current_A", "motor", "mechanics", "wind_moment_Nm") if rows[c].nunique() > 1]
+    varied = [c for c in ("current_A", "motor", "mechanics", "wind_moment_Nm") if c in rows and rows[c].nunique() > 1]
     note = f" (max over {', '.join(varied)})" if varied else ""
     ax.set_title(f"{label}{note}")
     fig.colorbar(image, ax=ax, label=label)

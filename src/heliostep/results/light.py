@@ -119,19 +119,46 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.Dat
         if angle is not None:
             attitudes[name] = (shared_p, angle) if axis == "secondary" else (angle, ideal_q)
 
-    sigma = optics.beam_spread(conf.slope_error, conf.specularity)
-    chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
     out = {"time": seconds, "dni": dni}
     for name, (primary, secondary) in attitudes.items():
-        normal = optics.mirror_normal(primary, secondary)
-        cosine = optics.cosine_factor(*sun, *normal)
-        ray = optics.reflect(*sun, *normal)
-        transverse, longitudinal, slant = optics.receiver_miss(*ray, distance, h)
-        gamma = optics.intercept_factor(transverse, slant, conf.tube_diameter, sigma)
-        power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma, 0.0)
-        out.update({f"power_{name}_W": power, f"intercept_{name}": gamma, f"cosine_{name}": cosine,
-                    f"transverse_miss_{name}_m": transverse, f"longitudinal_miss_{name}_m": longitudinal})
+        light = attitude_light(sun, dni, up, primary, secondary, distance, h, conf)
+        out.update({f"power_{name}_W": light["power_W"], f"intercept_{name}": light["intercept"],
+                    f"cosine_{name}": light["cosine"], f"transverse_miss_{name}_m": light["transverse_miss_m"],
+                    f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"]})
     return pd.DataFrame(out)
+
+
+def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_height: float, conf) -> dict:
+    """Power on the tube of a mirror at one attitude, at each instant.
+
+    Parameters
+    ----------
+    sun : array (3, n)  [-]
+        Unit vector to the sun in the plant frame.
+    dni : array (n,)  [W/m^2]
+    up : array of bool (n,)
+        The sun above the horizon.
+    primary, secondary : arrays (n,)  [rad]
+        The mirror's two angles (:func:`heliostep.solar.optics.mirror_normal`).
+    distance, tube_height : float  [m]
+    conf : heliostep.scenario.OpticsConfig
+
+    Returns
+    -------
+    dict of arrays
+        ``power_W`` = DNI A cos rho tau alpha gamma [W], ``intercept``, ``cosine`` [-],
+        ``transverse_miss_m``, ``longitudinal_miss_m`` [m].
+    """
+    sigma = optics.beam_spread(conf.slope_error, conf.specularity)
+    chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
+    normal = optics.mirror_normal(primary, secondary)
+    cosine = optics.cosine_factor(*sun, *normal)
+    ray = optics.reflect(*sun, *normal)
+    transverse, longitudinal, slant = optics.receiver_miss(*ray, distance, tube_height)
+    gamma = optics.intercept_factor(transverse, slant, conf.tube_diameter, sigma)
+    power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma, 0.0)
+    return {"power_W": power, "intercept": gamma, "cosine": cosine, "transverse_miss_m": transverse,
+            "longitudinal_miss_m": longitudinal}
 
 
 def _energy(power: np.ndarray, time: np.ndarray) -> float:
