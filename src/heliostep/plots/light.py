@@ -3,7 +3,7 @@
 :func:`plot_light` draws :func:`heliostep.results.light.light_timeseries`'s power on the tube
 (absorbed, [kW]) for ideal two-axis tracking, for the stepped reference with the shared primary
 and for the actual panel, and below it what the drive loses against ideal tracking [W], split
-into the shared primary's part and the stepping part. The legend gives each energy [kJ].
+into the shared primary's part and the stepping part. The legend gives each energy [kJ, or J below 1 kJ].
 :func:`plot_light_run` computes the series from a run and writes ``POWER_FILE``.
 """
 
@@ -28,8 +28,10 @@ _DPI = 120
 _MAX_BUCKETS = 2000
 
 
-def _energy_kJ(power: np.ndarray, time: np.ndarray) -> float:
-    return float(np.trapezoid(power, time)) / 1e3 if len(time) > 1 else 0.0
+def _energy_text(power: np.ndarray, time: np.ndarray) -> str:
+    """The energy of a power series, in kJ (or J below 1 kJ)."""
+    energy = float(np.trapezoid(power, time)) if len(time) > 1 else 0.0
+    return f"{energy / 1e3:,.1f} kJ" if abs(energy) >= 1e3 else f"{energy:.3g} J"
 
 
 def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title: str = "") -> Path | None:
@@ -67,7 +69,7 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     for values, label, color, style, width in lines:
         keep = thin(time, values, max_buckets=_MAX_BUCKETS)
         top.plot(clock.x(time[keep]), values[keep] / 1e3, style, color=color, linewidth=width,
-                 label=f"{label}: {_energy_kJ(values, time):,.1f} kJ")
+                 label=f"{label}: {_energy_text(values, time)}")
     top.set_ylabel("power on the tube [kW]")
     top.set_ylim(bottom=0.0)
     top.legend(loc="best", fontsize="small")
@@ -78,7 +80,7 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     for values, label, color in losses:
         keep = thin(time, values, max_buckets=_MAX_BUCKETS)
         bottom.plot(clock.x(time[keep]), values[keep], color=color, linewidth=1.0,
-                    label=f"{label}: {_energy_kJ(values, time):,.3g} kJ")
+                    label=f"{label}: {_energy_text(values, time)}")
     bottom.axhline(0.0, color="0.5", linewidth=0.8)
     bottom.set_ylabel("power lost [W]")
     bottom.legend(loc="best", fontsize="small")
