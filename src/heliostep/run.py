@@ -40,7 +40,7 @@ from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.drive.sequencer import idle_currents
 from heliostep.errors import HeliostepError, InputError
 from heliostep.fmu.build import ensure_fmu
-from heliostep.results.light import light_figures
+from heliostep.results.light import check_weather, light_figures
 from heliostep.results.outputs import (
     TMP_PREFIX,
     atomic_path,
@@ -50,6 +50,7 @@ from heliostep.results.outputs import (
 from heliostep.results.summary import SolutionRecorder, summarize
 from heliostep.results.trace import UNITS, assemble_trace, drive_metadata
 from heliostep.results.trace_io import write_trace
+from heliostep.results.tradeoffs import tradeoff_figures
 from heliostep.scenario import (
     INPUT_ROLES,
     OUTPUT_ROLES,
@@ -57,7 +58,6 @@ from heliostep.scenario import (
     Scenario,
     load_scenario,
 )
-from heliostep.solar.irradiance import read_weather
 
 #: Packages whose versions go into a run's metadata.
 VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pandas")
@@ -96,7 +96,9 @@ class RunResult:
         return self.trace.copy()
 
     def plot(self, out_dir: str | Path) -> list[Path]:
-        """Write the paper's Figs. 8–14 for this run into ``out_dir`` (each file renamed into place)."""
+        """Write the paper's Figs. 8–14 and the power on the tube for this run into ``out_dir``
+        (each file renamed into place)."""
+        from heliostep.plots.light import plot_light_run
         from heliostep.plots.run import plot_run
 
         out_dir = Path(out_dir)
@@ -104,6 +106,7 @@ class RunResult:
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
             drawn = plot_run(self.trace, staging, self.trace_metadata())
+            drawn += plot_light_run(self.trace, self.metadata, self.scenario, staging)  # power on the tube
             written = []
             for path in drawn:
                 target = out_dir / Path(path).name
@@ -332,13 +335,10 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
         except InputError as exc:
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     roles = _present_roles(scenario, infos)
-    if scenario.optics.weather_file is not None:  # a bad weather file is bad input, found before simulating
-        weather = Path(scenario.optics.weather_file)
-        weather = weather if weather.is_absolute() else scenario.folder / weather
-        try:
-            read_weather(weather, scenario.site.to_site())
-        except InputError as exc:
-            raise InputError(f"{scenario.source}: optics.{exc}") from None
+    try:  # a weather file that cannot be read, is for another site or misses the window: bad input, found now
+        check_weather(scenario)
+    except InputError as exc:
+        raise InputError(f"{scenario.source}: optics.{exc}") from None
     inputs = prepare_inputs(scenario)
     parameters = _parameters(scenario, inputs, roles, infos)
     try:  # connections (types, units, loops), parameter names and values, checked before simulating
@@ -393,6 +393,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     summary = summarize(trace, meta) if len(trace) else {}
     if len(trace) > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
         summary.update(light_figures(trace, meta, scenario))
+        summary.update(tradeoff_figures(trace, meta, scenario, summary))  # holding vs wind, energy per day
     run = RunResult(scenario, trace, summary, meta, complete, error, inputs, reason, reached)
     if not complete:
         raise RunFailed(error, run)

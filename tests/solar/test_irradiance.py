@@ -9,6 +9,7 @@ import pytest
 from heliostep.errors import InputError
 from heliostep.solar import irradiance
 from heliostep.solar.sun import Site
+from weather_files import write_epw
 
 SITE = Site(latitude=40.0, longitude=-3.7, altitude=600.0, timezone="Etc/GMT-1")
 #: Order of magnitude of clear-sky DNI at noon, mid-latitudes: the solar constant 1361 W/m^2
@@ -16,24 +17,7 @@ SITE = Site(latitude=40.0, longitude=-3.7, altitude=600.0, timezone="Etc/GMT-1")
 SOLAR_CONSTANT = 1361.0  # [W/m^2]
 
 
-def _write_epw(path, latitude=40.0, longitude=-3.7, dni_of_hour=lambda h: 50.0 * h):
-    header = [
-        f"LOCATION,Test,NA,ESP,test,000000,{latitude},{longitude},1.0,600.0",
-        "DESIGN CONDITIONS,0",
-        "TYPICAL/EXTREME PERIODS,0",
-        "GROUND TEMPERATURES,0",
-        "HOLIDAYS/DAYLIGHT SAVINGS,No,0,0,0",
-        "COMMENTS 1,test",
-        "COMMENTS 2,test",
-        "DATA PERIODS,1,1,Data,Sunday, 1/21,1/21",
-    ]
-    rows = []
-    for hour in range(1, 25):  # EPW hours 1..24 label the hour ending then
-        values = [1999, 1, 21, hour, 0, "?", 10.0, 5.0, 60, 95000, 0, 0, 300, 0, dni_of_hour(hour), 0]
-        values += [0] * (35 - len(values))
-        rows.append(",".join(str(v) for v in values))
-    path.write_text("\n".join(header + rows) + "\n")
-    return path
+_write_epw = write_epw
 
 
 def test_clear_sky_dni_is_physical():

@@ -125,19 +125,3 @@ def test_end_effect_and_lit_length():
     assert optics.end_fraction(0.0, 1.5, 0.75, 0.0, 100.0) == 1.0
     assert optics.end_fraction(-0.75, 1.5, 0.75, 0.0, 100.0) == pytest.approx(0.5)
     assert optics.end_fraction(-10.0, 1.5, 0.75, 0.0, 100.0) == 0.0
-
-
-def test_end_loss_gain_paper_case():
-    # [paper] Section 2: 100 m plant, 5 m tube, 40 deg N, noon 21 December: about 10 m unlit
-    figures = optics.end_loss_gain([PAPER_NOON_DEC21_ELEVATION], [180.0], [0.0], PAPER_TUBE_HEIGHT, 100.0)
-    unlit = PAPER_TUBE_HEIGHT / np.tan(np.radians(PAPER_NOON_DEC21_ELEVATION))  # h / tan(alpha)
-    assert figures["unlit_length_m"][0] == pytest.approx(unlit, rel=1e-9)
-    assert figures["unlit_length_m"][0] == pytest.approx(PAPER_K_DEC21, rel=0.02)
-    assert figures["lit_fraction_single"][0] == pytest.approx(1 - unlit / 100.0)
-    assert figures["gain"][0] == pytest.approx(100.0 / (100.0 - unlit) - 1)
-    # rows off the axis shift their light further: sqrt(d^2 + h^2) / tan(alpha)
-    wide = optics.end_loss_gain([PAPER_NOON_DEC21_ELEVATION], [180.0], [-2.0, 0.0, 2.0], PAPER_TUBE_HEIGHT, 100.0)
-    assert wide["unlit_length_m"][0] == pytest.approx(np.hypot(2.0, PAPER_TUBE_HEIGHT) / np.tan(
-        np.radians(PAPER_NOON_DEC21_ELEVATION)), rel=1e-9)
-    night = optics.end_loss_gain([-5.0], [0.0], [0.0], PAPER_TUBE_HEIGHT, 100.0)
-    assert night["lit_fraction_two_axis"][0] == 0.0 and np.isnan(night["gain"][0])

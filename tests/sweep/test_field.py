@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 import pvlib
 import pytest
+from scipy.special import erf
 from distributed import Client, LocalCluster
 
 from heliostep.paths import scenarios_dir
@@ -47,6 +48,16 @@ def solar_noon_direction(scenario) -> np.ndarray:
     transit = pvlib.solarposition.sun_rise_set_transit_spa(day, site.latitude, site.longitude)["transit"]
     sun = pvlib.solarposition.get_solarposition(pd.DatetimeIndex(transit), site.latitude, site.longitude,
                                                 site.altitude, method="nrel_numpy")
+    elevation, azimuth = np.radians(sun["apparent_elevation"].iloc[0]), np.radians(sun["azimuth"].iloc[0])
+    return np.array([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth), np.sin(elevation)])
+
+
+def sun_direction(scenario, seconds: float) -> np.ndarray:
+    """Unit vector to the sun ``seconds`` after the window's start (pvlib SPA, apparent elevation)."""
+    start, _ = scenario.window_bounds()
+    site = scenario.site
+    sun = pvlib.solarposition.get_solarposition(pd.DatetimeIndex([start + pd.Timedelta(seconds=seconds)]),
+                                                site.latitude, site.longitude, site.altitude, method="nrel_numpy")
     elevation, azimuth = np.radians(sun["apparent_elevation"].iloc[0]), np.radians(sun["azimuth"].iloc[0])
     return np.array([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth), np.sin(elevation)])
 
@@ -111,6 +122,31 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
         magnitude, signed = expected[float(DISTANCES[index])]
         assert mirrors.loc[index, "primary_sharing_error_max_deg"] == pytest.approx(magnitude, rel=1e-9, abs=1e-12)
         assert mirrors.loc[index, "primary_sharing_error_signed_deg"] == pytest.approx(signed, rel=1e-9, abs=1e-12)
+
+    # light on the tube with the shared primary, beside each mirror's own figures
+    optics = scenario.optics
+    assert mirrors.loc[6, "light_lost_shared_primary_J"] == pytest.approx(
+        0.0, abs=1e-6 * mirrors.loc[6, "light_energy_ideal_J"])  # the central law is the central mirror's own
+    sigma = np.hypot(4.65e-3 / 2, 2 * optics.slope_error)  # sun (pillbox 4.65 mrad -> sigma R/2) and slope error
+    height, half = scenario.plant.tube_height, optics.tube_diameter / 2
+    to_sun = sun_direction(scenario, 10.0)  # mid-window: the error moves < 0.01 deg in 20 s
+    for index in range(13):
+        row, distance = mirrors.loc[index], DISTANCES[index]
+        assert row["light_energy_ideal_J"] > 0 and row["light_energy_J"] <= row["light_energy_ideal_J"]
+        # the mirror's own normal bisects sun and tube; the shared motor turns it by -delta about y
+        to_tube = np.array([-distance, 0.0, height]) / np.hypot(distance, height)
+        own = (to_sun + to_tube) / np.linalg.norm(to_sun + to_tube)
+        delta = -np.radians(expected[float(distance)][1])
+        normal = np.array([own[0] * np.cos(delta) + own[2] * np.sin(delta), own[1],
+                           -own[0] * np.sin(delta) + own[2] * np.cos(delta)])
+        ray = 2 * (to_sun @ normal) * normal - to_sun  # law of reflection
+        across = np.hypot(ray[0], ray[2])
+        miss = (-distance * ray[2] - height * ray[0]) / across  # distance of the axis from the ray, cross-section
+        slant = (-distance * ray[0] + height * ray[2]) / across**2 * np.linalg.norm(ray)
+        spread = np.sqrt(2) * slant * sigma
+        gamma = 0.5 * (erf((half - miss) / spread) + erf((half + miss) / spread))  # Gaussian share on the tube
+        assert row["mean_intercept"] == pytest.approx(gamma, abs=0.02), index
+    assert mirrors.loc[0, "mean_intercept"] < 0.01  # the outer West mirror's light misses the tube
 
 
 def test_sharing_errors_vanish_at_solar_noon_where_the_mirrors_are_mounted():

@@ -32,7 +32,9 @@ YEAR_FIELD = scenarios_dir() / "sweeps" / "year-field.yaml"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Summary key -> table column, for the figures that are plain numbers.
 PLAIN_FIGURES = ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
-                 "electrical_energy_J", "steps_commanded", "steps_executed", "missed_steps", "duration_s")
+                 "electrical_energy_J", "steps_commanded", "steps_executed", "missed_steps", "duration_s",
+                 "light_energy_J", "light_energy_ideal_J", "light_lost_J", "light_lost_stepping_J",
+                 "light_lost_shared_primary_J", "mean_intercept", "drive_energy_per_day_J")
 SHORT_WINDOW = {"window.duration": 20, "output.interval": 0.5}
 
 

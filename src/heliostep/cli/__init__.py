@@ -20,10 +20,12 @@ from heliostep.errors import HeliostepError
 COMMAND_MODULES = (
     "heliostep.cli.build",
     "heliostep.cli.geometry",
+    "heliostep.cli.endloss",
     "heliostep.cli.run",
     "heliostep.cli.compare",
     "heliostep.cli.regress",
     "heliostep.cli.sweep",
+    "heliostep.cli.fieldlight",
 )
 
 

@@ -2,10 +2,12 @@
 
 :func:`plot_sweep` writes, into a folder:
 
-* ``heatmap_peak_torque.png``, ``heatmap_max_tracking_error.png`` and
-  ``heatmap_primary_sharing_error.png``: the figure over day of year x mirror index
-  (the largest value over the other axes), when the table has at least two days and two
-  mirrors;
+* ``heatmap_peak_torque.png``, ``heatmap_max_tracking_error.png``,
+  ``heatmap_primary_sharing_error.png``, and the energy-loss maps ``heatmap_light_lost.png``
+  (light on the tube lost against ideal two-axis tracking, by the shared primary and the
+  stepping together [kJ]) and ``heatmap_light_lost_fraction.png`` (the same as a share of the
+  ideal [%]): the figure over day of year x mirror index (the largest value over the other
+  axes), when the table has at least two days and two mirrors;
 * ``torque_requirement.png``: per day of year, the required motor torque, the paper's
   2x margin for wind on the simulated peak torque (largest over the mirrors), against
   the motor's holding torque k_e x I (one line per phase current swept).
@@ -25,7 +27,7 @@ from matplotlib.figure import Figure
 
 from heliostep.solar import N_FIELD_MIRRORS
 
-__all__ = ["HEATMAPS", "TORQUE_FILE", "plot_heatmap", "plot_sweep", "plot_torque_requirement"]
+__all__ = ["HEATMAPS", "HEATMAP_SCALES", "TORQUE_FILE", "plot_heatmap", "plot_sweep", "plot_torque_requirement"]
 
 #: (column, PNG, colour-bar label) of each heatmap.
 HEATMAPS = (
@@ -33,7 +35,11 @@ HEATMAPS = (
     ("max_tracking_error_deg", "heatmap_max_tracking_error.png", "max secondary tracking error [deg]"),
     ("primary_sharing_error_max_deg", "heatmap_primary_sharing_error.png",
      "max primary error from sharing the central law [deg]"),
+    ("light_lost_J", "heatmap_light_lost.png", "light lost against ideal tracking, ideal - actual [kJ]"),
+    ("light_lost_fraction", "heatmap_light_lost_fraction.png", "light lost, share of ideal tracking [%]"),
 )
+#: Factor from a heatmap column's unit to its colour bar's (J -> kJ, fraction -> %).
+HEATMAP_SCALES = {"light_lost_J": 1e-3, "light_lost_fraction": 100.0}
 #: PNG of the torque requirement plot.
 TORQUE_FILE = "torque_requirement.png"
 #: Most tick labels on a heatmap axis: one per mirror of the field.
@@ -52,7 +58,7 @@ def _ticks(count: int) -> np.ndarray:
     return np.unique(np.linspace(0, count - 1, min(count, _MAX_TICKS)).round().astype(int))
 
 
-def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str) -> Path | None:
+def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str, scale: float = 1.0) -> Path | None:
     """One figure of the table over day of year (x) x mirror index (y).
 
     Parameters
@@ -65,6 +71,8 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str)
         PNG to write.
     label : str
         Colour-bar label (with unit).
+    scale : float, default 1
+        Factor from the column's unit to the label's.
 
     Returns
     -------
@@ -77,7 +85,7 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str)
     grid = rows.pivot_table(index="mirror_index", columns="day_of_year", values=column, aggfunc="max")
     days = [int(d) for d in grid.columns]
     mirrors = [int(m) for m in grid.index]
-    values = np.ma.masked_invalid(grid.to_numpy(dtype=float))
+    values = np.ma.masked_invalid(grid.to_numpy(dtype=float) * scale)
     fig = Figure(figsize=(max(6.0, min(14.0, 3.0 + 0.25 * len(days))), 5.0), layout="constrained")
     ax = fig.add_subplot()
     colormap = colormaps["viridis"].with_extremes(bad="0.85")  # failed cases: grey
@@ -87,7 +95,7 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str)
     ax.set_yticks(y_ticks, [str(mirrors[k]) for k in y_ticks])
     ax.set_xlabel("day of year")
     ax.set_ylabel("mirror index (6: central)")
-    varied = [c for c in ("current_A", "motor", "mechanics", "wind_moment_Nm") if rows[c].nunique() > 1]
+    varied = [c for c in ("current_A", "motor", "mechanics", "wind_moment_Nm") if c in rows and rows[c].nunique() > 1]
     note = f" (max over {', '.join(varied)})" if varied else ""
     ax.set_title(f"{label}{note}")
     fig.colorbar(image, ax=ax, label=label)
@@ -170,7 +178,7 @@ def plot_sweep(table: pd.DataFrame, out_dir: str | Path) -> list[Path]:
     drive = _ok_drive_rows(table)
     if drive["day_of_year"].nunique() >= 2 and drive["mirror_index"].nunique() >= 2:
         for column, name, label in HEATMAPS:
-            path = plot_heatmap(table, column, out_dir / name, label)
+            path = plot_heatmap(table, column, out_dir / name, label, HEATMAP_SCALES.get(column, 1.0))
             if path is not None:
                 written.append(path)
     path = plot_torque_requirement(table, out_dir / TORQUE_FILE)

@@ -53,6 +53,24 @@ def _weather_path(scenario):
     return path if path.is_absolute() or folder is None else Path(folder) / path
 
 
+def check_weather(scenario) -> None:
+    """Read a scenario's weather file for its window, before simulating.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the key (``weather_file``, ``latitude``, ``longitude``, ``dni``,
+        ``window``) when the file cannot be read, is for another site, or does not cover the
+        window (:mod:`heliostep.solar.irradiance`).
+    """
+    path = _weather_path(scenario)
+    if path is None:
+        return
+    start, end = scenario.window_bounds()
+    seconds = np.append(np.arange(0.0, (end - start).total_seconds(), 1800.0), (end - start).total_seconds())
+    irradiance.weather_dni(start + pd.to_timedelta(seconds, unit="s"), scenario.site.to_site(), path)
+
+
 def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.DataFrame:
     """Power on the tube at every row of the trace for the ideal, reference and actual attitudes.
 
@@ -101,19 +119,46 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.Dat
         if angle is not None:
             attitudes[name] = (shared_p, angle) if axis == "secondary" else (angle, ideal_q)
 
-    sigma = optics.beam_spread(conf.slope_error, conf.specularity)
-    chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
     out = {"time": seconds, "dni": dni}
     for name, (primary, secondary) in attitudes.items():
-        normal = optics.mirror_normal(primary, secondary)
-        cosine = optics.cosine_factor(*sun, *normal)
-        ray = optics.reflect(*sun, *normal)
-        transverse, longitudinal, slant = optics.receiver_miss(*ray, distance, h)
-        gamma = optics.intercept_factor(transverse, slant, conf.tube_diameter, sigma)
-        power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma, 0.0)
-        out.update({f"power_{name}_W": power, f"intercept_{name}": gamma, f"cosine_{name}": cosine,
-                    f"transverse_miss_{name}_m": transverse, f"longitudinal_miss_{name}_m": longitudinal})
+        light = attitude_light(sun, dni, up, primary, secondary, distance, h, conf)
+        out.update({f"power_{name}_W": light["power_W"], f"intercept_{name}": light["intercept"],
+                    f"cosine_{name}": light["cosine"], f"transverse_miss_{name}_m": light["transverse_miss_m"],
+                    f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"]})
     return pd.DataFrame(out)
+
+
+def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_height: float, conf) -> dict:
+    """Power on the tube of a mirror at one attitude, at each instant.
+
+    Parameters
+    ----------
+    sun : array (3, n)  [-]
+        Unit vector to the sun in the plant frame.
+    dni : array (n,)  [W/m^2]
+    up : array of bool (n,)
+        The sun above the horizon.
+    primary, secondary : arrays (n,)  [rad]
+        The mirror's two angles (:func:`heliostep.solar.optics.mirror_normal`).
+    distance, tube_height : float  [m]
+    conf : heliostep.scenario.OpticsConfig
+
+    Returns
+    -------
+    dict of arrays
+        ``power_W`` = DNI A cos rho tau alpha gamma [W], ``intercept``, ``cosine`` [-],
+        ``transverse_miss_m``, ``longitudinal_miss_m`` [m].
+    """
+    sigma = optics.beam_spread(conf.slope_error, conf.specularity)
+    chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
+    normal = optics.mirror_normal(primary, secondary)
+    cosine = optics.cosine_factor(*sun, *normal)
+    ray = optics.reflect(*sun, *normal)
+    transverse, longitudinal, slant = optics.receiver_miss(*ray, distance, tube_height)
+    gamma = optics.intercept_factor(transverse, slant, conf.tube_diameter, sigma)
+    power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma, 0.0)
+    return {"power_W": power, "intercept": gamma, "cosine": cosine, "transverse_miss_m": transverse,
+            "longitudinal_miss_m": longitudinal}
 
 
 def _energy(power: np.ndarray, time: np.ndarray) -> float:
@@ -134,7 +179,8 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
         ``light_energy_ideal_J``, ``light_energy_reference_J``, ``light_energy_J`` (actual;
         absent without the panel-angle column), ``light_lost_stepping_J`` (reference - actual),
         ``light_lost_stepping_fraction`` (of the reference), ``light_lost_shared_primary_J``
-        (ideal - reference), ``mean_intercept`` (actual, power-weighted by the ideal power),
+        (ideal - reference), ``light_lost_J`` and ``light_lost_fraction`` (ideal - actual, and
+        of the ideal: stepping and sharing together), ``mean_intercept`` (actual, power-weighted by the ideal power),
         ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the sun is up),
         ``dni_source``.
     """
@@ -149,6 +195,9 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
         figures["light_energy_J"] = actual
         figures["light_lost_stepping_J"] = reference - actual
         figures["light_lost_stepping_fraction"] = (reference - actual) / reference if reference > 0 else 0.0
+        ideal = figures["light_energy_ideal_J"]
+        figures["light_lost_J"] = ideal - actual
+        figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
         lit = series["power_ideal_W"].to_numpy() > 0
         weight = series["power_ideal_W"].to_numpy()
         figures["mean_intercept"] = (float(np.average(series["intercept_actual"], weights=weight))

@@ -40,7 +40,9 @@ Modules: :mod:`~heliostep.solar.sun` (site, plant, SPA), :mod:`~heliostep.solar.
 (tracking laws, reference panel angle), :mod:`~heliostep.solar.transmission` (rotor <-> panel),
 :mod:`~heliostep.solar.field` (the end mirrors' field, shared primary),
 :mod:`~heliostep.solar.optics` (reflected ray, miss, cosine and intercept factors),
-:mod:`~heliostep.solar.irradiance` (DNI: pvlib clear sky or a TMY3/EPW file), and
+:mod:`~heliostep.solar.irradiance` (DNI: pvlib clear sky or a TMY3/EPW file),
+:mod:`~heliostep.solar.endloss` (lit length and energy on the tube of a plant, single-axis vs
+two-axis end mirrors, per instant, day and year), and
 :mod:`~heliostep.solar.checks`. This package imports nothing of heliostep but
 :mod:`heliostep.errors`.
 """
@@ -61,7 +63,6 @@ from heliostep.solar.optics import (
     beam_spread,
     concentration_limit,
     cosine_factor,
-    end_loss_gain,
     end_fraction,
     facet_slope_error,
     intercept_factor,
@@ -110,6 +111,6 @@ __all__ = [
     "solar_noon_sun", "solar_position", "sun_events", "sun_vector", "time_window", "two_axis_angles",
     "two_axis_angles_from_normal", "two_axis_normal",
     "SUN_HALF_ANGLE", "beam_spread", "clear_sky_dni", "concentration_limit", "cosine_factor", "dni",
-    "end_fraction", "end_loss_gain", "facet_slope_error", "intercept_factor", "lit_length", "mirror_normal", "optical_chain",
+    "end_fraction", "facet_slope_error", "intercept_factor", "lit_length", "mirror_normal", "optical_chain",
     "read_weather", "receiver_miss", "reflect", "weather_dni",
 ]

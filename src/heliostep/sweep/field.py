@@ -11,7 +11,9 @@ sharing: the difference between its own primary motion and the central one's
 
 :func:`run_field` simulates the field as a sweep (:mod:`heliostep.sweep`): one case per
 mirror's secondary drive and one for the shared primary drive, and reports each
-mirror's primary sharing error beside its secondary tracking error.
+mirror's primary sharing error beside its secondary tracking error, and its light on the tube
+with the shared primary (intercept, energy, the energy ideal tracking would give and the part
+the shared primary loses; :mod:`heliostep.results.light`).
 :func:`heliostep.sweep.worker.primary_sharing_error` is the per-case figure, computed for every case of
 any sweep (columns ``primary_sharing_error_max_deg`` and
 ``primary_sharing_error_signed_deg``).
@@ -39,6 +41,7 @@ FIELD_COLUMNS = (
     "role", "mirror_index", "mirror_distance_m", "mirror_axis", "status",
     "max_tracking_error_deg", "primary_sharing_error_max_deg", "primary_sharing_error_signed_deg",
     "peak_torque_Nm", "required_torque_Nm", "holding_torque_Nm", "missed_steps",
+    "mean_intercept", "light_energy_J", "light_energy_ideal_J", "light_lost_shared_primary_J", "light_lost_J",
 )
 
 

@@ -45,6 +45,19 @@ FIGURE_COLUMNS = {
     "holding_torque_Nm": "float64",
     "primary_sharing_error_max_deg": "float64",
     "primary_sharing_error_signed_deg": "float64",
+    # light on the tube (heliostep.results.light) and the drive's trade-offs (heliostep.results.tradeoffs)
+    "light_energy_J": "float64",
+    "light_energy_ideal_J": "float64",
+    "light_energy_reference_J": "float64",
+    "light_lost_J": "float64",
+    "light_lost_fraction": "float64",
+    "light_lost_stepping_J": "float64",
+    "light_lost_shared_primary_J": "float64",
+    "mean_intercept": "float64",
+    "max_transverse_miss_m": "float64",
+    "drive_energy_per_day_J": "float64",
+    "idle_holding_moment_Nm": "float64",
+    "idle_holding_margin": "float64",
 }
 
 

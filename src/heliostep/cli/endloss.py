@@ -1,0 +1,90 @@
+"""``heliostep end-loss``: lit length and energy on the tube, single-axis plant vs two-axis end mirrors.
+
+For a plant of ``--length`` L with the tube at ``--tube-height`` h and ``--rows`` rows of
+mirrors ``--spacing`` apart (``--mirror-width`` wide), clear sky (pvlib Ineichen), writes to
+``--out`` (default ``end-loss-out``):
+
+* ``end_loss_days.csv``: per day of ``--year``, the energy absorbed by the single-axis plant
+  and by the plant with two-axis end sections of ``--end-length`` at both ends (default: the
+  year's largest shift k of the rows with the sun above 5 deg, as the paper sizes them), the
+  light the single-axis plant sends past the tube's end, the gain, and the dark and lit length
+  at the day's highest sun ([paper], eq. 2);
+* ``end_loss_year.png``: the same over the year;
+
+and prints the year's totals and the 21 December figures (:mod:`heliostep.solar.endloss`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+from pathlib import Path
+
+from heliostep.errors import InputError
+from heliostep.solar import field_distances
+from heliostep.solar.endloss import end_loss_days, largest_shift
+from heliostep.solar.optics import optical_chain
+from heliostep.solar.sun import Site
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    """Add the ``end-loss`` command."""
+    parser = subparsers.add_parser(
+        "end-loss", help="end-loss gain of two-axis end mirrors: lit length and energy per day and year",
+        description=__doc__.split("\n\n", 1)[0])
+    parser.add_argument("--latitude", type=float, default=40.0, help="[deg], +North (default 40, the paper's)")
+    parser.add_argument("--longitude", type=float, default=14.25, help="[deg], +East (default 14.25, assumed)")
+    parser.add_argument("--altitude", type=float, default=0.0, help="[m] (default 0)")
+    parser.add_argument("--timezone", default="Europe/Rome", help="IANA name (default Europe/Rome, assumed)")
+    parser.add_argument("--year", type=int, default=2025, help="(default 2025)")
+    parser.add_argument("--days", type=int, nargs="+", help="days of the year (default all)")
+    parser.add_argument("--length", type=float, default=100.0, help="[m] plant and tube length L (default 100)")
+    parser.add_argument("--tube-height", type=float, default=5.0, help="[m] h (default 5, the paper's)")
+    parser.add_argument("--rows", type=int, default=13, help="rows of mirrors across, odd (default 13)")
+    parser.add_argument("--spacing", type=float, default=0.6, help="[m] between rows (default 0.6, assumed)")
+    parser.add_argument("--mirror-width", type=float, help="[m] of each row (default: the spacing)")
+    parser.add_argument("--end-length", type=float, help="[m] of each two-axis end section (default: the year's "
+                                                         "largest k above 5 deg sun elevation)")
+    parser.add_argument("--reflectivity", type=float, default=0.80, help="rho (default 0.80, seed 004)")
+    parser.add_argument("--transmittance", type=float, default=0.85, help="tau (default 0.85)")
+    parser.add_argument("--absorptance", type=float, default=0.95, help="alpha (default 0.95)")
+    parser.add_argument("--step-minutes", type=float, default=5.0, help="[min] time step (default 5)")
+    parser.add_argument("--out", type=Path, default=Path("end-loss-out"), help="output folder")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG")
+    parser.set_defaults(func=_end_loss_command)
+    return parser
+
+
+def _end_loss_command(args: argparse.Namespace) -> int:
+    site = Site(latitude=args.latitude, longitude=args.longitude, altitude=args.altitude, timezone=args.timezone)
+    distances = field_distances(args.rows, args.spacing)
+    width = args.spacing if args.mirror_width is None else args.mirror_width
+    efficiency = optical_chain(args.reflectivity, args.transmittance, args.absorptance)
+    end = args.end_length
+    if end is None:
+        end = largest_shift(site, args.year, args.tube_height, distances)
+    if not 2 * end < args.length:
+        raise InputError(f"--end-length {end:.3g} m: two end sections must be shorter than --length {args.length:g} m")
+    days = end_loss_days(site, args.year, args.length, args.tube_height, distances, width, end, efficiency,
+                         days=args.days, step_minutes=args.step_minutes)
+    args.out.mkdir(parents=True, exist_ok=True)
+    days.to_csv(args.out / "end_loss_days.csv", float_format="%.6g")
+    written = [args.out / "end_loss_days.csv"]
+    if not args.no_plots:
+        from heliostep.plots.endloss import END_LOSS_FILE, plot_end_loss_year
+
+        title = f"\n{args.length:g} m plant, h = {args.tube_height:g} m, {args.rows} rows, {args.latitude:g} deg N"
+        path = plot_end_loss_year(days, args.out / END_LOSS_FILE, title)
+        written += [path] if path else []
+    single, two = days["energy_single_J"].sum(), days["energy_two_axis_J"].sum()
+    print(f"end sections of two-axis mirrors: {end:.2f} m at each end; {len(days)} days of {args.year}")
+    print(f"  energy on the tube, single-axis plant   {single / 3.6e9:10.2f} MWh")
+    print(f"  energy on the tube, two-axis end mirrors {two / 3.6e9:10.2f} MWh  (gain {100 * (two / single - 1):.2f} %)")
+    december = dt.date(args.year, 12, 21).timetuple().tm_yday
+    if december in days.index:
+        row = days.loc[december]
+        print(f"  21 December: dark length at noon {row['unlit_length_noon_m']:.2f} m, lit {row['lit_length_noon_m']:.2f} m, "
+              f"gain {100 * row['gain']:.1f} %")
+    for path in written:
+        print(f"  wrote {path}")
+    return 0

@@ -1,0 +1,187 @@
+"""The drive's trade-offs in a run's summary: holding torque against the wind, energy per day.
+
+What a stepper driver offers (microstepping, idle current reduction) costs or saves energy and
+holding torque; these figures let one sweep answer "which mode and current for this site".
+
+Holding torque under idle current
+---------------------------------
+The static torque of the two phases ([paper], eq. 9) is C = -k_e (i_a sin(N_c theta) +
+i_b cos(N_c theta)). Its largest value over the rotor angle, the holding (pull-out) torque, is
+
+- k_e I for one phase on (Table 1) and for sine/cosine microstepping (i_a = I cos phi,
+  i_b = -I sin phi gives C = -k_e I sin(N_c theta - phi)),
+- sqrt(2) k_e I for two phases on (i_a = +-I, i_b = +-I),
+- k_e I for half-stepping (its one-phase positions are the weaker ones),
+
+with I the current the drive holds: K I_ref / (K + R) for the averaged chopper
+(:func:`heliostep.drive.inputs.held_current`). After ``idle_delay`` the current falls to the
+fraction f of it, so the holding torque to f k_e I. Through the rack and pinion the panel sees
+g times the motor torque, g = s / (r cos^2 theta_p) ([paper], eq. 15): the holding moment on the
+panel axis is g f k_e I, smallest where cos^2 theta_p is largest. The run's window gives the
+panel angles; the holding moment is the smallest over them. Coulomb friction, which also
+resists the wind, is left out (the figure is on the safe side).
+
+The drive holds against the wind moment M (scenario ``wind.moment``, on the panel axis) while
+g f k_e I > |M|; ``idle_holding_margin`` is their ratio. Below :data:`REQUIRED_HOLDING_MARGIN`
+(the paper's factor 2 on the torque for the wind) the summary carries a warning; below 1 the
+rotor slips when the current drops (``tests/results/test_tradeoffs.py`` co-simulates both).
+
+Drive energy per day
+--------------------
+The electrical energy the run drew, as mean power over the window times the daylight of its
+date (sunrise to sunset, NREL SPA): the drive tracks while the sun is up. For a window from
+sunrise to sunset it is the run's energy itself.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+
+import numpy as np
+import pandas as pd
+
+from heliostep.drive.inputs import MOTOR_DEFAULTS, held_current
+from heliostep.solar.sun import sun_events
+
+logger = logging.getLogger(__name__)
+
+#: Margin the holding moment must keep over the wind moment: the paper asks for a motor with
+#: about twice the computed maximum torque to allow for the wind it leaves out ([paper], before Fig. 11).
+REQUIRED_HOLDING_MARGIN = 2.0
+
+#: Holding torque of each energising mode, in units of k_e I ([paper], eq. 9; see the module text).
+MODE_HOLDING_FACTOR = {"one-phase-on": 1.0, "two-phase-on": float(np.sqrt(2.0)), "half-step": 1.0}
+
+
+def holding_torque(current, torque_constant, mode: str = "one-phase-on", fraction=1.0):
+    """Holding (pull-out) torque of a two-phase stepper on its shaft.
+
+    Parameters
+    ----------
+    current : float or array-like  [A]
+        Phase current the drive holds (full-current level).
+    torque_constant : float  [N.m/A]
+        k_e ([paper], Table 3: 0.5 N.m/A).
+    mode : {'one-phase-on', 'two-phase-on', 'half-step'}
+        Microstepping is one-phase-on's sine/cosine currents: the same factor.
+    fraction : float or array-like, default 1  [-]
+        Idle current fraction f.
+
+    Returns
+    -------
+    float or array  [N.m]
+        factor(mode) * f * k_e * I ([paper], eq. 9).
+    """
+    return MODE_HOLDING_FACTOR[mode] * np.asarray(fraction) * torque_constant * np.asarray(current)  # [paper], eq. 9
+
+
+def drive_ratio(panel_angle, pinion_radius, lever_arm):
+    """Rotor angle per panel angle, g = s / (r cos^2 theta_p).
+
+    Parameters
+    ----------
+    panel_angle : float or array-like  [rad]
+    pinion_radius : float  [m]
+    lever_arm : float  [m]
+
+    Returns
+    -------
+    float or array  [-]
+        g ([paper], eq. 15); a motor torque C gives the panel the moment g C.
+    """
+    return lever_arm / (pinion_radius * np.cos(np.asarray(panel_angle)) ** 2)  # [paper], eq. 15
+
+
+def _motor_constants(scenario) -> dict:
+    motor = scenario.roles.instance_of("torque") or "motor"
+    return {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
+
+
+def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
+    """Holding torque at full and idle current against the wind moment.
+
+    Parameters
+    ----------
+    trace : pandas.DataFrame
+        With ``panel_angle_ref`` [rad].
+    metadata : Mapping
+        With ``drive`` (mode, current, idle_current_fraction).
+    scenario : heliostep.scenario.Scenario
+
+    Returns
+    -------
+    dict
+        ``holding_torque_full_Nm`` and ``holding_torque_idle_Nm`` (motor shaft) [N.m],
+        ``idle_holding_moment_Nm`` (panel axis, the smallest over the window) [N.m],
+        ``wind_moment_Nm`` [N.m], ``idle_holding_margin`` (holding moment / |wind moment|;
+        None without wind), ``idle_holds_wind`` (margin >= :data:`REQUIRED_HOLDING_MARGIN`,
+        None without wind), and ``warnings`` (a list, when the margin is short).
+    """
+    drive = metadata["drive"]
+    constants = _motor_constants(scenario)
+    current = held_current(scenario, float(drive["current"]))
+    fraction = float(drive.get("idle_current_fraction", 1.0))
+    full = float(holding_torque(current, constants["k_e"], drive["mode"]))
+    idle = float(holding_torque(current, constants["k_e"], drive["mode"], fraction))
+    panel = trace["panel_angle_ref"].to_numpy(dtype=float)
+    transmission = scenario.transmission
+    g = float(np.min(drive_ratio(panel, transmission.pinion_radius, transmission.lever_arm)))
+    moment = g * idle
+    wind = float(scenario.wind.moment)
+    figures = {"holding_torque_full_Nm": full, "holding_torque_idle_Nm": idle, "idle_holding_moment_Nm": moment,
+               "wind_moment_Nm": wind, "idle_holding_margin": None, "idle_holds_wind": None}
+    if wind == 0.0:
+        return figures
+    margin = moment / abs(wind)
+    figures["idle_holding_margin"] = margin
+    figures["idle_holds_wind"] = bool(margin >= REQUIRED_HOLDING_MARGIN)
+    if margin < REQUIRED_HOLDING_MARGIN:
+        consequence = ("the rotor slips when the current drops" if margin < 1.0 else
+                       f"less than the {REQUIRED_HOLDING_MARGIN:g}x margin the paper asks for wind")
+        text = (f"holding moment at idle current ({fraction:g} x {current:.3g} A) is {moment:.4g} N.m on the panel "
+                f"axis against a wind moment of {abs(wind):.4g} N.m (margin {margin:.3g}): {consequence}; "
+                f"raise sequencer.idle_current_fraction or the current")
+        figures["warnings"] = [text]
+        logger.warning("%s: %s", scenario.name, text)
+    return figures
+
+
+def daylight_seconds(date, site) -> float | None:
+    """Sunrise to sunset of a local date at a site [s] (NREL SPA); None on a polar day or night."""
+    events = sun_events(date, site)
+    if events["sunrise"] is None or events["sunset"] is None:
+        return None
+    return float((events["sunset"] - events["sunrise"]).total_seconds())
+
+
+def energy_per_day(summary: Mapping, scenario) -> dict:
+    """The drive's electrical energy per day and mean power.
+
+    Parameters
+    ----------
+    summary : Mapping
+        With ``electrical_energy_J`` and ``duration_s``.
+    scenario : heliostep.scenario.Scenario
+
+    Returns
+    -------
+    dict
+        ``drive_power_mean_W`` [W] = energy / duration and ``drive_energy_per_day_J`` [J] = that
+        times the daylight of the window's date; None when not known.
+    """
+    energy, duration = summary.get("electrical_energy_J"), summary.get("duration_s")
+    if energy is None or not duration:
+        return {"drive_power_mean_W": None, "drive_energy_per_day_J": None}
+    power = float(energy) / float(duration)
+    daylight = daylight_seconds(scenario.window.date, scenario.site.to_site())
+    return {"drive_power_mean_W": power, "drive_energy_per_day_J": None if daylight is None else power * daylight}
+
+
+def tradeoff_figures(trace: pd.DataFrame, metadata: Mapping, scenario, summary: Mapping) -> dict:
+    """:func:`holding_figures` and :func:`energy_per_day` of a run (its ``warnings`` appended to
+    the summary's own)."""
+    figures = {**holding_figures(trace, metadata, scenario), **energy_per_day(summary, scenario)}
+    if "warnings" in figures:
+        figures["warnings"] = list(summary.get("warnings", [])) + figures["warnings"]
+    return figures

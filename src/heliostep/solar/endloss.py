@@ -1,0 +1,257 @@
+"""The end-loss gain of two-axis end mirrors: lit length and energy on the tube, per instant, day and year.
+
+The plant: rows of mirrors of width ``w`` across at transverse distances d_i, all as long as
+the plant (L, along the tube), the tube at height h over x = 0 (frames as in
+:mod:`heliostep.solar`).
+
+**Single-axis plant** (the classic linear Fresnel). Row i turns about its longitudinal axis
+only ([paper], eq. 1): its normal bisects the sun projected on the cross-section and the
+direction to the tube, so the cosine of incidence is S . n_i with n_i = (cos beta_i, 0,
+sin beta_i). Its light keeps the sun's longitudinal component and lands shifted by k_i along
+the tube ([paper], eq. 2): the first |k_i| metres get none of it and the light of its last
+|k_i| metres falls past the far end. Absorbed power:
+P_single = DNI rho tau alpha w sum_i cos_i^single (L - |k_i|)+.
+
+**Two-axis end mirrors** (the paper's proposal). End sections of length L_e at both ends
+(the paper: as long as the largest k of the year) carry two-axis mirrors that send the sun to
+the tube point in their own cross-section ([paper], eqs. 3-6): their normal bisects S and
+T_i = (-d_i, 0, h)/sqrt(d_i^2 + h^2), cosine sqrt((1 + S . T_i)/2), and all their light lands
+on the tube. The single-axis middle (L - 2 L_e) sends its light to
+[L_e + k_i, L - L_e + k_i], on the tube while |k_i| <= L_e. Absorbed power:
+P_two = DNI rho tau alpha w sum_i [cos_i^single overlap_i + cos_i^two-axis 2 L_e].
+The gain has two parts, both reported: the end light recovered (``end_spill_single_W``, the
+light a single-axis plant sends past the end) and the two-axis mirrors' better cosine.
+
+**Lit length.** No single-axis row lights the first min_i |k_i| metres: the dark length
+(``unlit_length_m``; the paper's "first 10.4 m"); the lit length is L - min_i |k_i|. With the
+two-axis mirrors aimed at their own cross-sections the dark length stays as long (it moves
+from the tube's start to just past the upstream end section): what the end mirrors gain is
+energy, not lit length ([paper], Fig. 15: the last section gets about twice the power).
+
+The intercept factor is taken as 1 for every mirror here (the tube or its secondary catches
+the whole beam; :mod:`heliostep.solar.optics` gives it for one mirror).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import numpy as np
+import pandas as pd
+
+from heliostep.errors import InputError
+from heliostep.solar.checks import as_float_array, check_positive, check_range
+from heliostep.solar.irradiance import clear_sky_dni
+from heliostep.solar.sun import Site, solar_position, sun_vector
+from heliostep.solar.tracking import end_loss_length, single_axis_tilt
+
+
+def single_axis_cosine(elevation, azimuth, mirror_distance, tube_height, plant_azimuth: float = 0.0):
+    """Cosine of incidence on a single-axis row.
+
+    Parameters
+    ----------
+    elevation, azimuth : array-like  [deg]
+    mirror_distance : float or array-like  [m]
+    tube_height : float  [m]
+    plant_azimuth : float, default 0  [deg]
+
+    Returns
+    -------
+    array  [-]
+        S . n with n = (cos beta, 0, sin beta) ([paper], eq. 1), clipped at 0.
+    """
+    beta = as_float_array(single_axis_tilt(elevation, azimuth, mirror_distance, tube_height, plant_azimuth))
+    sun_x, _, sun_z = (as_float_array(c) for c in sun_vector(elevation, azimuth, plant_azimuth))
+    return np.clip(sun_x * np.cos(beta) + sun_z * np.sin(beta), 0.0, None)  # [paper], eq. 1; Lambert's law
+
+
+def two_axis_cosine(elevation, azimuth, mirror_distance, tube_height, plant_azimuth: float = 0.0):
+    """Cosine of incidence on a two-axis mirror aimed at the tube in its own cross-section.
+
+    Returns
+    -------
+    array  [-]
+        sqrt((1 + S . T) / 2), T = (-d, 0, h) / sqrt(d^2 + h^2): the normal bisects S and T
+        ([paper], eqs. 3-6).
+    """
+    tube_height = check_positive(tube_height, "tube_height", "m")
+    d = as_float_array(mirror_distance)
+    sun_x, _, sun_z = (as_float_array(c) for c in sun_vector(elevation, azimuth, plant_azimuth))
+    dot = (-d * sun_x + tube_height * sun_z) / np.hypot(d, tube_height)
+    return np.sqrt(np.clip((1.0 + dot) / 2.0, 0.0, None)) * (sun_z > 0)  # cosine of half the angle S, T
+
+
+def row_distance_for_shift(shift, elevation, azimuth, tube_height, plant_azimuth: float = 0.0):
+    """Transverse distance d of the row whose light is shifted by |k| = ``shift`` (eq. 2 inverted).
+
+    Parameters
+    ----------
+    shift : float or array-like  [m]
+        |k|.
+    elevation, azimuth : array-like  [deg]
+    tube_height : float  [m]
+
+    Returns
+    -------
+    array  [m]
+        d = sqrt((|k| sqrt(1 - yS^2) / |yS|)^2 - h^2), NaN where |k| is shorter than the
+        central row's (d = 0) shift.
+    """
+    tube_height = check_positive(tube_height, "tube_height", "m")
+    _, sun_y, _ = (as_float_array(c) for c in sun_vector(elevation, azimuth, plant_azimuth))
+    slant = np.abs(as_float_array(shift)) * np.sqrt(1.0 - sun_y**2) / np.abs(sun_y)  # [paper], eq. 2 solved
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(slant**2 - tube_height**2)
+
+
+def end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_distances, mirror_width,
+                   end_length, optical_efficiency: float = 1.0, plant_azimuth: float = 0.0) -> dict:
+    """Lit length and absorbed power of a plant with single-axis rows vs two-axis end mirrors.
+
+    Parameters
+    ----------
+    elevation, azimuth : array-like  [deg]
+        Apparent sun elevation and azimuth, one value per instant.
+    dni : array-like  [W/m^2]
+        Direct normal irradiance at the same instants.
+    plant_length : float  [m]
+        L, > 2 ``end_length``.
+    tube_height : float  [m]
+    mirror_distances : array-like  [m]
+        Transverse positions d_i of the rows.
+    mirror_width : float  [m]
+        Width w of each row across the tube, > 0.
+    end_length : float  [m]
+        L_e, the length of each end section of two-axis mirrors, >= 0.
+    optical_efficiency : float, default 1  [-]
+        rho tau alpha (:func:`heliostep.solar.optics.optical_chain`).
+    plant_azimuth : float, default 0  [deg]
+
+    Returns
+    -------
+    dict of arrays (one value per instant; 0 or NaN while the sun is down)
+        ``shift_min_m`` / ``shift_max_m``: min and max over the rows of |k| ([paper], eq. 2);
+        ``unlit_length_m`` (= shift_min_m), ``lit_length_m`` (L - that);
+        ``power_single_W``, ``power_two_axis_W``, ``end_spill_single_W`` (light a single-axis
+        plant sends past the tube's end) [W]; ``gain`` = power_two_axis / power_single - 1.
+    """
+    length = check_positive(plant_length, "plant_length", "m")
+    width = check_positive(mirror_width, "mirror_width", "m")
+    end = check_range(end_length, "end_length", 0.0, np.inf, "m")
+    if not 2.0 * end < length:
+        raise InputError(f"end_length {end:g} m: two end sections must be shorter than plant_length {length:g} m")
+    efficiency = check_range(optical_efficiency, "optical_efficiency", 0.0, 1.0, "-")
+    elevation = np.atleast_1d(as_float_array(elevation))[:, None]
+    azimuth = np.atleast_1d(as_float_array(azimuth))[:, None]
+    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()[None, :]
+    irradiance = np.atleast_1d(as_float_array(dni))
+    if irradiance.shape != elevation[:, 0].shape or np.any(irradiance < 0) or not np.all(np.isfinite(irradiance)):
+        raise InputError("dni: expected one finite value >= 0 [W/m^2] per instant")
+    up = elevation[:, 0] > 0.0
+    shift = np.abs(end_loss_length(elevation, azimuth, distances, tube_height, plant_azimuth))  # [paper], eq. 2
+    shift = np.where(up[:, None], shift, np.nan)
+    cos_single = single_axis_cosine(elevation, azimuth, distances, tube_height, plant_azimuth)
+    cos_two = two_axis_cosine(elevation, azimuth, distances, tube_height, plant_azimuth)
+    on_tube_single = np.clip(length - shift, 0.0, None)  # the part of a row whose light lands on the tube
+    middle = length - 2.0 * end
+    overlap = np.clip(np.minimum(middle, length - end - shift), 0.0, None)  # [L_e + k, L - L_e + k] on [0, L]
+    scale = irradiance * efficiency * width
+    power_single = scale * np.nansum(cos_single * on_tube_single, axis=1)
+    power_two = scale * np.nansum(cos_single * overlap + cos_two * 2.0 * end, axis=1)
+    spill = scale * np.nansum(cos_single * np.minimum(shift, length), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gain = np.where(power_single > 0, power_two / power_single - 1.0, np.nan)
+        shift_min = np.where(up, np.nanmin(np.where(up[:, None], shift, np.inf), axis=1), np.nan)
+        shift_max = np.where(up, np.nanmax(np.where(up[:, None], shift, -np.inf), axis=1), np.nan)
+    return {"shift_min_m": shift_min, "shift_max_m": shift_max, "unlit_length_m": np.minimum(shift_min, length),
+            "lit_length_m": np.clip(length - shift_min, 0.0, None), "power_single_W": np.where(up, power_single, 0.0),
+            "power_two_axis_W": np.where(up, power_two, 0.0), "end_spill_single_W": np.where(up, spill, 0.0),
+            "gain": gain}
+
+
+def _year_grid(site: Site, year: int, step_minutes: float, days=None) -> tuple[pd.DatetimeIndex, np.ndarray]:
+    """Instants every ``step_minutes`` from each chosen day's local midnight to the next, and their day of year."""
+    n_days = (dt.date(year + 1, 1, 1) - dt.date(year, 1, 1)).days
+    chosen = np.arange(1, n_days + 1) if days is None else np.asarray(list(days), dtype=int)
+    if chosen.size == 0 or chosen.min() < 1 or chosen.max() > n_days:
+        raise InputError(f"days: expected days of year 1 .. {n_days}, got {days!r}")
+    step = pd.Timedelta(minutes=check_positive(step_minutes, "step_minutes", "min"))
+    stamps, labels = [], []
+    for day in chosen:
+        date = dt.date(year, 1, 1) + dt.timedelta(days=int(day) - 1)
+        midnight = pd.Timestamp(date).tz_localize(site.timezone)
+        following = pd.Timestamp(date + dt.timedelta(days=1)).tz_localize(site.timezone)  # 23 or 25 h on DST days
+        grid = pd.date_range(midnight, following, freq=step, inclusive="left")
+        stamps.append(grid)
+        labels.append(np.full(len(grid), int(day)))
+    times = stamps[0].append(stamps[1:]) if len(stamps) > 1 else stamps[0]
+    return times, np.concatenate(labels)
+
+
+def largest_shift(site: Site, year: int, tube_height: float, mirror_distances, min_elevation: float = 5.0,
+                  step_minutes: float = 20.0, plant_azimuth: float = 0.0) -> float:
+    """Largest |k| over a year and the rows while the sun is above ``min_elevation`` [m].
+
+    The paper sizes the two-axis end sections by it ([paper], Section 3). Near the horizon
+    |k| grows without bound when the sun stands along the tube, hence ``min_elevation`` [deg].
+    """
+    times, _ = _year_grid(site, year, step_minutes)
+    sun = solar_position(times, site.latitude, site.longitude, site.altitude)
+    elevation, azimuth = sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy()
+    keep = elevation > min_elevation
+    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()[None, :]
+    shift = end_loss_length(elevation[keep, None], azimuth[keep, None], distances, tube_height, plant_azimuth)
+    return float(np.max(np.abs(shift)))
+
+
+def end_loss_days(site: Site, year: int, plant_length: float, tube_height: float, mirror_distances,
+                  mirror_width: float, end_length: float, optical_efficiency: float = 1.0, days=None,
+                  step_minutes: float = 5.0, plant_azimuth: float = 0.0) -> pd.DataFrame:
+    """Energy on the tube per day, single-axis plant vs two-axis end mirrors, clear sky (pvlib Ineichen).
+
+    Parameters
+    ----------
+    site : Site
+    year : int
+    plant_length, tube_height, mirror_distances, mirror_width, end_length, optical_efficiency
+        As :func:`end_loss_power`.
+    days : iterable of int, optional
+        Days of the year (default every day).
+    step_minutes : float, default 5  [min]
+        Time step of the sun's positions (trapezoidal integration over the day).
+    plant_azimuth : float, default 0  [deg]
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by ``day_of_year``: ``date``, ``energy_single_J``, ``energy_two_axis_J``,
+        ``end_spill_single_J`` [J], ``gain`` (energy_two_axis / energy_single - 1) [-],
+        ``unlit_length_noon_m`` and ``lit_length_noon_m`` at the day's highest sun [m].
+    """
+    times, labels = _year_grid(site, year, step_minutes, days)
+    sun = solar_position(times, site.latitude, site.longitude, site.altitude)
+    elevation, azimuth = sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy()
+    dni = clear_sky_dni(times, site).to_numpy()
+    power = end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_distances, mirror_width,
+                           end_length, optical_efficiency, plant_azimuth)
+    frame = pd.DataFrame({k: power[k] for k in ("power_single_W", "power_two_axis_W", "end_spill_single_W",
+                                                 "unlit_length_m", "lit_length_m")}, index=times)
+    frame["elevation"] = elevation
+    frame["seconds"] = (times - times[0]).total_seconds()
+    rows = []
+    for day, group in frame.groupby(labels, sort=True):
+        t = group["seconds"].to_numpy()
+        energy = {name: float(np.trapezoid(group[f"{name}_W"].to_numpy(), t))
+                  for name in ("power_single", "power_two_axis", "end_spill_single")}
+        noon = group.iloc[int(np.argmax(group["elevation"].to_numpy()))]
+        rows.append({"day_of_year": int(day), "date": group.index[0].date().isoformat(),
+                     "energy_single_J": energy["power_single"], "energy_two_axis_J": energy["power_two_axis"],
+                     "end_spill_single_J": energy["end_spill_single"],
+                     "gain": energy["power_two_axis"] / energy["power_single"] - 1.0 if energy["power_single"] > 0
+                     else np.nan,
+                     "unlit_length_noon_m": float(noon["unlit_length_m"]),
+                     "lit_length_noon_m": float(noon["lit_length_m"])})
+    table = pd.DataFrame(rows).set_index("day_of_year")
+    table.attrs["end_length_m"] = float(end_length)
+    return table

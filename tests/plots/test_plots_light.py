@@ -1,0 +1,40 @@
+"""Tests of heliostep.plots.light: power on the tube over a window, ideal against the drive."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from heliostep.plots.light import POWER_FILE, plot_light, plot_light_run
+from heliostep.scenario import validate_scenario
+from heliostep.solar.tracking import panel_angle_reference
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+METADATA = {"window_start": "2025-01-21T10:00:00+01:00", "timezone": "Europe/Rome", "roles": {"panel_angle": "p"}}
+
+
+def _scenario(distance):
+    return validate_scenario({
+        "name": "light-plot", "site": {"latitude": 40.0, "longitude": 14.25, "altitude": 0.0,
+                                       "timezone": "Europe/Rome"},
+        "window": {"date": "2025-01-21", "start": "10:00", "duration": 600},
+        "plant": {"orientation": "NS", "tube_height": 3.0}, "mirror": {"distance": distance, "axis": "secondary"}})
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_power_on_the_tube_is_drawn_from_a_run(tmp_path):
+    scenario = _scenario(-1.2)
+    seconds = np.arange(0.0, 601.0, 5.0)
+    times = pd.Timestamp("2025-01-21 10:00", tz="Europe/Rome") + pd.to_timedelta(seconds, unit="s")
+    ref = panel_angle_reference(times, scenario.site.to_site(), scenario.plant.to_plant(), -1.2).to_numpy()
+    trace = pd.DataFrame({"time": seconds, "panel_angle_ref": ref, "p": ref + 1e-4})
+    written = plot_light_run(trace, METADATA, scenario, tmp_path)
+    assert [p.name for p in written] == [POWER_FILE]
+    assert written[0].read_bytes().startswith(PNG_SIGNATURE) and written[0].stat().st_size > 20_000
+    assert plot_light_run(trace.iloc[:1], METADATA, scenario, tmp_path / "none") == []
+
+
+def test_short_series_draws_nothing(tmp_path):
+    series = pd.DataFrame({"time": [0.0], "power_ideal_W": [1.0], "power_reference_W": [1.0]})
+    assert plot_light(series, tmp_path / "x.png", METADATA) is None

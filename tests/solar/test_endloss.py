@@ -1,0 +1,123 @@
+"""Tests of heliostep.solar.endloss and ``heliostep end-loss``: the end-loss gain of two-axis end mirrors,
+against the paper's check values and vector geometry written here (pvlib SPA for the sun)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pvlib
+import pytest
+
+from heliostep import cli
+from heliostep.errors import InputError
+from heliostep.solar.endloss import end_loss_days, end_loss_power, largest_shift, row_distance_for_shift
+from heliostep.solar.sun import Site
+
+SITE = Site(latitude=40.0, longitude=14.25, altitude=0.0, timezone="Europe/Rome")
+H = 5.0  # [m] the paper's tube height for its end-loss figures (Fig. 2, Section 5)
+
+
+def _sun(times):
+    sun = pvlib.solarposition.get_solarposition(pd.DatetimeIndex(times), 40.0, 14.25, 0.0, method="nrel_numpy")
+    return sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy()
+
+
+def _noon(date="2025-12-21"):
+    day = pd.DatetimeIndex([pd.Timestamp(date, tz="Europe/Rome") + pd.Timedelta(hours=12)])
+    transit = pvlib.solarposition.sun_rise_set_transit_spa(day, 40.0, 14.25)["transit"]
+    return _sun(transit)
+
+
+def test_k_is_10_m_at_noon_on_21_december():
+    elevation, azimuth = _noon()
+    assert elevation[0] == pytest.approx(26.6, abs=0.05)  # 90 - 40 - 23.44 deg, plus refraction
+    power = end_loss_power(elevation, azimuth, [900.0], 100.0, H, [0.0], 1.0, 12.0)
+    # [paper], eq. 2 with d = 0 and the sun due South: k = h / tan(alpha) (Section 2: "10 meters at noon")
+    assert power["unlit_length_m"][0] == pytest.approx(H / np.tan(np.radians(elevation[0])), rel=1e-6)
+    assert power["unlit_length_m"][0] == pytest.approx(10.0, abs=0.05)
+    assert power["lit_length_m"][0] == pytest.approx(100.0 - power["unlit_length_m"][0], rel=1e-12)
+
+
+def test_papers_unlit_10_4_m_is_a_row_at_1_45_m_not_another_time_of_day():
+    # [paper], Section 5: "the first 10.4 m" of a 100 m plant, h = 5 m, 21 December at 12:00 get no
+    # light. It does not say at which d. With d = 0 the noon shift is its largest of the day ...
+    day = pd.date_range("2025-12-21 09:00", "2025-12-21 15:00", freq="1min", tz="Europe/Rome")
+    elevation, azimuth = _sun(day)
+    central = end_loss_power(elevation, azimuth, np.full(len(day), 900.0), 100.0, H, [0.0], 1.0, 12.0)
+    assert np.nanmax(central["unlit_length_m"]) < 10.0  # so no time of that day gives 10.4 m at d = 0
+    # ... so the innermost row of the paper's plant must stand off the tube's axis: eq. 2 solved for d
+    elevation, azimuth = _noon()
+    alpha = np.radians(elevation[0])
+    expected = np.sqrt((10.4 * np.tan(alpha)) ** 2 - H**2)  # k = sqrt(d^2 + h^2) / tan(alpha), sun due South
+    distance = row_distance_for_shift(10.4, elevation, azimuth, H)[0]
+    assert distance == pytest.approx(expected, rel=1e-4) and distance == pytest.approx(1.45, abs=0.01)
+    back = end_loss_power(elevation, azimuth, [900.0], 100.0, H, [distance, -distance, 2.0], 1.0, 12.0)
+    assert back["unlit_length_m"][0] == pytest.approx(10.4, rel=1e-6)
+
+
+def test_power_single_axis_vs_two_axis_end_mirrors_from_vectors():
+    times = pd.DatetimeIndex([pd.Timestamp("2025-12-21 10:30", tz="Europe/Rome"),
+                              pd.Timestamp("2025-12-21 12:01", tz="Europe/Rome"),
+                              pd.Timestamp("2025-03-21 15:00", tz="Europe/Rome")])
+    elevation, azimuth = _sun(times)
+    distances, length, end, width, dni, eta = np.array([-2.4, 0.0, 1.2, 3.6]), 100.0, 13.0, 0.6, 850.0, 0.646
+    power = end_loss_power(elevation, azimuth, np.full(3, dni), length, H, distances, width, end, eta)
+    a, z = np.radians(elevation), np.radians(azimuth)
+    for t in range(3):
+        s = np.array([np.cos(a[t]) * np.sin(z[t]), np.cos(a[t]) * np.cos(z[t]), np.sin(a[t])])  # x East, y North
+        single = two = 0.0
+        for d in distances:
+            to_tube = np.array([-d, 0.0, H]) / np.hypot(d, H)
+            across = np.array([s[0], 0.0, s[2]]) / np.hypot(s[0], s[2])  # the sun in the cross-section
+            n1 = (across + to_tube) / np.linalg.norm(across + to_tube)  # single axis: bisects them ([1])
+            n2 = (s + to_tube) / np.linalg.norm(s + to_tube)  # two axis: bisects S and T ([3]-[6])
+            k = abs(s[1]) / np.hypot(s[0], s[2]) * np.hypot(d, H)  # [2]
+            assert k < end
+            single += (s @ n1) * (length - k)
+            two += (s @ n1) * (length - 2 * end) + (s @ n2) * 2 * end
+        assert power["power_single_W"][t] == pytest.approx(dni * eta * width * single, rel=1e-9)
+        assert power["power_two_axis_W"][t] == pytest.approx(dni * eta * width * two, rel=1e-9)
+        assert power["gain"][t] > 0
+
+
+@pytest.mark.filterwarnings("ignore::Warning")  # pvlib's own pandas deprecations
+def test_day_energies_and_the_year_size_of_the_end_sections():
+    distances = np.arange(-6, 7) * 0.6
+    end = largest_shift(SITE, 2025, H, distances)
+    # the largest k of the year: about the outer row's at the winter solstice noon, sqrt(3.6^2 + h^2)/tan(26.6 deg)
+    assert end == pytest.approx(np.hypot(3.6, H) / np.tan(np.radians(26.6)), rel=0.02)
+    days = end_loss_days(SITE, 2025, 100.0, H, distances, 0.6, end, 0.646, days=[172, 355], step_minutes=10)
+    assert list(days.index) == [172, 355]
+    assert (days["energy_two_axis_J"] > days["energy_single_J"]).all()
+    assert days.loc[355, "gain"] > 5 * days.loc[172, "gain"] > 0  # the end loss is a winter loss
+    assert days.loc[355, "unlit_length_noon_m"] == pytest.approx(10.0, abs=0.05)
+    # the single-axis plant's day: pvlib clear-sky DNI times the rows' cosines and lit lengths, here
+    times = pd.date_range("2025-06-21 00:00", periods=144, freq="10min", tz="Europe/Rome")
+    elevation, azimuth = _sun(times)
+    dni = pvlib.location.Location(40.0, 14.25, "Europe/Rome", 0.0).get_clearsky(times, model="ineichen")["dni"]
+    power = end_loss_power(elevation, azimuth, dni.fillna(0.0).clip(lower=0.0).to_numpy(), 100.0, H, distances,
+                           0.6, end, 0.646)
+    seconds = (times - times[0]).total_seconds().to_numpy()
+    assert days.loc[172, "energy_single_J"] == pytest.approx(np.trapezoid(power["power_single_W"], seconds), rel=1e-9)
+
+
+@pytest.mark.parametrize("kwargs, key", [({"end_length": 60.0}, "end_length"), ({"mirror_width": -1.0}, "mirror_width"),
+                                         ({"plant_length": 0.0}, "plant_length"),
+                                         ({"optical_efficiency": 1.5}, "optical_efficiency")])
+def test_bad_plant_is_an_error_naming_the_key(kwargs, key):
+    args = {"plant_length": 100.0, "mirror_width": 0.6, "end_length": 10.0, "optical_efficiency": 0.6, **kwargs}
+    with pytest.raises(InputError, match=key):
+        end_loss_power([30.0], [180.0], [900.0], args["plant_length"], H, [0.0], args["mirror_width"],
+                       args["end_length"], args["optical_efficiency"])
+
+
+def test_end_loss_command_writes_the_days_and_the_year_plot(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli.main(["end-loss", "--days", "172", "355", "--step-minutes", "10", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "21 December: dark length at noon 9.99 m" in printed
+    table = pd.read_csv(out / "end_loss_days.csv", index_col="day_of_year")
+    assert list(table.index) == [172, 355] and (table["gain"] > 0).all()
+    assert (out / "end_loss_year.png").read_bytes().startswith(b"\x89PNG")
+    assert cli.main(["end-loss", "--days", "400", "--out", str(out)]) == 2
+    assert "days" in capsys.readouterr().err
