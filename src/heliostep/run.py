@@ -18,6 +18,7 @@ import shutil
 import sys
 import tempfile
 import time as clock
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata as package_metadata
@@ -48,8 +49,9 @@ from heliostep.results.outputs import (
     write_text_atomic,
 )
 from heliostep.results.summary import SolutionRecorder, summarize
-from heliostep.results.trace import UNITS, assemble_trace, drive_metadata
-from heliostep.results.trace_io import write_trace
+from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata
+from heliostep.results.trace_io import ROW_GROUP_ROWS, copy_trace_to_csv, read_trace, write_trace
+from heliostep.results.trace_stream import TraceStream
 from heliostep.results.tradeoffs import tradeoff_figures
 from heliostep.scenario import (
     INPUT_ROLES,
@@ -62,6 +64,15 @@ from heliostep.scenario import (
 #: Packages whose versions go into a run's metadata.
 VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pandas")
 
+#: Windows up to this long [s] keep their trace in memory (``RunResult.trace``, about 15,000 rows
+#: per simulated hour on the paper's case at a 10 s grid, ~2.5 MB). Longer windows stream the trace
+#: to Parquet row groups while simulating (:class:`~heliostep.results.trace_stream.TraceStream`)
+#: and read it back from the file when asked, so the run's memory does not grow with the window.
+HELD_TRACE_MAX_DURATION = 3600.0
+
+#: The master's rows per block handed to the trace stream (and the most it holds).
+SINK_ROWS = 4096
+
 
 @dataclass
 class RunResult:
@@ -71,6 +82,13 @@ class RunResult:
     says why, ``reason`` is ``"failed"`` or ``"interrupted"``, ``time_reached`` the simulated time
     reached [s], and ``trace`` holds the rows computed until then.
 
+    ``trace`` is the trace in memory (``held_trace``) for windows up to
+    :data:`HELD_TRACE_MAX_DURATION`; for longer windows it was streamed to ``trace_file`` (a
+    Parquet trace) while simulating and each access reads it from there (use
+    :meth:`trace_columns` for only some columns). After :meth:`write` ``trace_file`` is the
+    output folder's ``trace.parquet``; a file in a temporary folder of the run's own is removed
+    with the result.
+
     The summary of an interrupted run does not judge the step in progress at the cut: when the
     last step before the cut looks missed or unsettled there, the step figures (steps commanded,
     executed, missed, lost, settling) are those up to that step, and ``step_in_progress_at_cut_s``
@@ -78,7 +96,7 @@ class RunResult:
     """
 
     scenario: Scenario
-    trace: pd.DataFrame
+    held_trace: pd.DataFrame | None
     summary: dict
     metadata: dict
     complete: bool = True
@@ -86,10 +104,41 @@ class RunResult:
     inputs: DriveInputs | None = field(default=None, repr=False)
     reason: str | None = None
     time_reached: float | None = None
+    trace_file: Path | None = None
+    temporary_folder: Path | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
+        if self.held_trace is None and self.trace_file is None:
+            raise ValueError("a RunResult needs its trace in memory or in a trace file")
+        if self.temporary_folder is not None:  # the run's own folder goes with the result
+            weakref.finalize(self, shutil.rmtree, str(self.temporary_folder), True)
         if self.reason == "interrupted" and self.summary:
-            self.summary = _summary_at_cut(self.trace, self.metadata, self.summary)
+            frame = self.trace_columns(figure_columns(self.metadata.get("roles", {})))
+            self.summary = _summary_at_cut(frame, self.metadata, self.summary)
+
+    @property
+    def trace(self) -> pd.DataFrame:
+        """The trace: held in memory, or read from :attr:`trace_file` at each access."""
+        if self.held_trace is not None:
+            return self.held_trace
+        return read_trace(self.trace_file)[0]
+
+    @property
+    def trace_column_names(self) -> list[str]:
+        if self.held_trace is not None:
+            return list(self.held_trace.columns)
+        import pyarrow.parquet as pq
+
+        return list(pq.read_schema(self.trace_file).names)
+
+    def trace_columns(self, columns: list[str]) -> pd.DataFrame:
+        """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
+        streamed: the other columns are never loaded)."""
+        present = set(self.trace_column_names)
+        wanted = ["time"] + [c for c in dict.fromkeys(columns) if c in present and c != "time"]
+        if self.held_trace is not None:
+            return self.held_trace[wanted]
+        return read_trace(self.trace_file, wanted)[0]
 
     def to_pandas(self) -> pd.DataFrame:
         """The trace as a DataFrame (a copy)."""
@@ -105,7 +154,8 @@ class RunResult:
         out_dir.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
-            drawn = plot_run(self.trace, staging, self.trace_metadata())
+            source = self.held_trace if self.held_trace is not None else self.trace_file  # a file: read by column
+            drawn = plot_run(source, staging, self.trace_metadata())
             drawn += plot_light_run(self.trace, self.metadata, self.scenario, staging)  # power on the tube
             written = []
             for path in drawn:
@@ -117,16 +167,8 @@ class RunResult:
             shutil.rmtree(staging, ignore_errors=True)
 
     def trace_metadata(self) -> dict[str, str]:
-        units = {f"unit.{c}": u for c, u in self.metadata.get("units", {}).items() if c in self.trace}
-        roles = {f"role.{r}": c for r, c in self.metadata.get("roles", {}).items() if c in self.trace}
-        extra = {}
-        if not self.complete:
-            extra["reason"] = self.reason or "failed"
-            if self.time_reached is not None:
-                extra["time_reached"] = repr(float(self.time_reached))
-        return {"complete": str(self.complete).lower(), **extra, "scenario": self.scenario.name,
-                "window_start": self.metadata["window_start"], "timezone": self.metadata["timezone"],
-                **({"error": self.error} if self.error else {}), **units, **roles}
+        return trace_metadata(self.scenario, self.metadata, self.trace_column_names, self.complete,
+                              self.reason, self.time_reached, self.error)
 
     def summary_record(self) -> dict:
         """What ``summary.json`` holds: completeness (and why not), then the figures."""
@@ -150,11 +192,18 @@ class RunResult:
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         written = {}
-        for suffix in ("parquet", "csv") if csv else ("parquet",):
-            path = out_dir / f"trace.{suffix}"
-            with atomic_path(path) as tmp:
-                write_trace(self.trace, tmp, self.trace_metadata())
-            written[path.name] = path
+        if self.held_trace is not None:
+            for suffix in ("parquet", "csv") if csv else ("parquet",):
+                path = out_dir / f"trace.{suffix}"
+                with atomic_path(path) as tmp:
+                    write_trace(self.held_trace, tmp, self.trace_metadata())
+                written[path.name] = path
+        else:  # streamed: the finished file is renamed (or copied) into place, the CSV made from it
+            written["trace.parquet"] = self._place_trace_file(out_dir / "trace.parquet")
+            if csv:
+                with atomic_path(out_dir / "trace.csv") as tmp:
+                    copy_trace_to_csv(self.trace_file, tmp, self.trace_metadata())
+                written["trace.csv"] = out_dir / "trace.csv"
         status = {k: v for k, v in self.summary_record().items() if k in ("complete", "error", "reason", "time_reached_s")}
         for name, content in (("metadata.json", {**status, **self.metadata}), ("summary.json", self.summary_record())):
             written[name] = write_text_atomic(out_dir / name, json.dumps(content, indent=2, default=str) + "\n")
@@ -163,6 +212,46 @@ class RunResult:
                 written[path.name] = path
         remove_stale(out_dir, written.values())
         return written
+
+
+    def _place_trace_file(self, target: Path) -> Path:
+        """The streamed trace as ``target``: renamed when it is a temporary file of the same
+        folder, else copied (under a temporary name, then renamed)."""
+        source = Path(self.trace_file)
+        if source == target:
+            return target
+        if source.parent == target.parent and source.name.startswith(TMP_PREFIX):
+            os.replace(source, target)
+        else:
+            with atomic_path(target) as tmp:
+                shutil.copyfile(source, tmp)
+        if self.temporary_folder is None or source.parent == target.parent:
+            self.trace_file = target
+        return target
+
+
+def trace_metadata(scenario: Scenario, metadata: dict, columns: list[str], complete: bool, reason: str | None,
+                   time_reached: float | None, error: str | None) -> dict[str, str]:
+    """A trace file's metadata: ``complete`` (and, when not, ``reason`` and ``time_reached``),
+    scenario, window, error, and the unit and role of each of ``columns``."""
+    present = set(columns)
+    units = {f"unit.{c}": u for c, u in metadata.get("units", {}).items() if c in present}
+    roles = {f"role.{r}": c for r, c in metadata.get("roles", {}).items() if c in present}
+    extra = {}
+    if not complete:
+        extra["reason"] = reason or "failed"
+        if time_reached is not None:
+            extra["time_reached"] = repr(float(time_reached))
+    return {"complete": str(complete).lower(), **extra, "scenario": scenario.name,
+            "window_start": metadata["window_start"], "timezone": metadata["timezone"],
+            **({"error": error} if error else {}), **units, **roles}
+
+
+def figure_columns(roles: dict[str, str]) -> list[str]:
+    """The trace columns the run's figures are computed from (summary, light): the derived
+    columns and every role's column. A streamed trace is read back with only these."""
+    return ["time", "panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error",
+            *roles.values()]
 
 
 class RunFailed(HeliostepError):
@@ -224,11 +313,11 @@ def _summary_at_cut(trace: pd.DataFrame, metadata: dict, summary: dict) -> dict:
     return fixed
 
 
-def _raise_input_error(exc: SimulationError, raw: pd.DataFrame, scenario: Scenario) -> None:
+def _raise_input_error(exc: SimulationError, rows: int, scenario: Scenario) -> None:
     """An input error found while setting up the FMUs (e.g. an unknown parameter name), before
-    any row was computed, is bad input (exit 2), not a failed simulation."""
+    any row was computed (``rows`` computed), is bad input (exit 2), not a failed simulation."""
     cause = exc.__cause__
-    if getattr(exc, "reason", "failed") == "failed" and isinstance(cause, InputError) and not len(raw):
+    if getattr(exc, "reason", "failed") == "failed" and isinstance(cause, InputError) and not rows:
         raise InputError(f"{scenario.source}: {cause}") from None
 
 
@@ -316,13 +405,22 @@ def resolve_fmus(scenario: Scenario) -> dict[str, Path]:
 
 
 def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (),
-                 progress: bool = False, should_stop: Callable[[], bool] | None = None) -> RunResult:
+                 progress: bool = False, should_stop: Callable[[], bool] | None = None,
+                 trace_dir: str | Path | None = None, stream: bool | None = None,
+                 row_group_rows: int = ROW_GROUP_ROWS) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
 
     Raises :class:`RunFailed` (carrying the incomplete :class:`RunResult`) when the
     simulation fails part-way, and :class:`~heliostep.errors.InputError` for bad input.
     ``should_stop`` is asked between solver calls; when it returns True the run stops there and
     :class:`RunFailed` carries the trace so far with ``reason == "interrupted"``.
+
+    A window longer than :data:`HELD_TRACE_MAX_DURATION` (or any window with ``stream=True``)
+    streams its trace while simulating to a Parquet file of ``row_group_rows`` rows per row
+    group, under a temporary name in ``trace_dir`` (the output folder; :meth:`RunResult.write`
+    renames it into place) or, without one, in a temporary folder removed with the result. The
+    file's metadata says ``complete`` (or why not) once the run has ended, also when it failed
+    or was interrupted. With ``stream=False`` the trace is held in memory whatever the window.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
@@ -366,23 +464,51 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     columns = ["time"] + [item.name for item in system.inputs]  # the master's trace columns
     columns += [f"{name}.{output}" for name, info in system.fmus.items() for output in info.traced_outputs]
     solution = SolutionRecorder(columns, roles, inputs.sequencer, inputs.schedule, inputs.panel_reference())
+    assembler = TraceAssembler(inputs, roles)
+    streamed = inputs.duration > HELD_TRACE_MAX_DURATION if stream is None else stream
+    sink, temporary = None, None
+    if streamed:
+        if trace_dir is None:
+            temporary = Path(tempfile.mkdtemp(prefix=f"heliostep-trace-{scenario.name}-"))
+        folder = Path(trace_dir) if trace_dir is not None else temporary
+        sink = TraceStream(folder / f"{TMP_PREFIX}{os.getpid()}-{clock.time_ns():x}-trace.parquet", columns,
+                           assembler, row_group_rows)
+    try:
+        run = _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution,
+                                         assembler, sink, bar, should_stop, temporary)
+    except BaseException:
+        if sink is not None:
+            sink.abort()
+        if temporary is not None:
+            shutil.rmtree(temporary, ignore_errors=True)
+        raise
+    if not run.complete:
+        raise RunFailed(run.error, run)
+    return run
+
+
+def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution, assembler, sink, bar,
+                            should_stop, temporary):
+    """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
     error, complete, reason, reached = None, True, None, None
     try:
         result = system.simulate(0.0, inputs.duration, inputs.output_times, solver,
                                  progress=bar.update_to if bar else None, should_stop=should_stop,
-                                 monitor=solution)  # every solver step, for the figures
+                                 monitor=solution,  # every solver step, for the figures
+                                 sink=sink, sink_rows=SINK_ROWS)  # with a sink, the rows stream to the file
         raw, statistics = result.trace, result.statistics
     except SimulationError as exc:
         raw, statistics, error, complete = exc.trace, exc.statistics, str(exc), False
         reason = getattr(exc, "reason", "failed")
         reached = getattr(exc, "time", None)
+        rows = sink.rows if sink is not None else len(raw)
         if reached is None or not np.isfinite(reached):
-            reached = float(raw["time"].iloc[-1]) if len(raw) else 0.0
-        _raise_input_error(exc, raw, scenario)
+            last = sink.last_time if sink is not None else (float(raw["time"].iloc[-1]) if len(raw) else None)
+            reached = last if last is not None else 0.0
+        _raise_input_error(exc, rows, scenario)
     finally:
         if bar:
             bar.close()
-    trace = assemble_trace(raw, inputs, roles)
     meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started}
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
@@ -390,13 +516,20 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
         if list(raw.columns) != solution.columns:
             raise RuntimeError(f"solution recorder columns {solution.columns} differ from the trace's {list(raw.columns)}")
         meta["solution_figures"] = solution.figures()
+    if sink is None:
+        held, trace_file = assembler(raw), None
+        trace = held
+    else:  # the file is finished (its metadata says how the run ended); figures read back only their columns
+        held = None
+        trace_file = sink.close(trace_metadata(scenario, meta, sink.columns, complete, reason, reached, error))
+        trace = read_trace(trace_file, [c for c in figure_columns(roles) if c in sink.columns])[0]
     summary = summarize(trace, meta) if len(trace) else {}
     if len(trace) > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
         summary.update(light_figures(trace, meta, scenario))
         summary.update(tradeoff_figures(trace, meta, scenario, summary))  # holding vs wind, energy per day
-    run = RunResult(scenario, trace, summary, meta, complete, error, inputs, reason, reached)
-    if not complete:
-        raise RunFailed(error, run)
+    del trace  # a streamed trace's columns are not kept
+    run = RunResult(scenario, held, summary, meta, complete, error, inputs, reason, reached,
+                    trace_file=trace_file, temporary_folder=temporary)
     return run
 
 

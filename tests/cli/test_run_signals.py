@@ -112,3 +112,32 @@ def test_sigint_stops_sweep_cleanly(tmp_path, fmu_paths):
     # still log one of its own: distributed's logging, in the worker process)
     assert "KeyboardInterrupt" not in stderr and "heliostep/cli" not in stderr, stderr
     assert "stopped by SIGINT" in stderr and "rerun" in stderr
+
+
+def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(tmp_path, fmu_paths):
+    """The first SIGINT comes while the figures are drawn (the results are already written and
+    complete; the first signal only asks to stop). The second one ends the command there: exit 130
+    at once, the figures' staging folder and every temporary file removed, no traceback."""
+    out = tmp_path / "run"
+    process = _popen(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out),
+                      "--set", "window.duration=120"], tmp_path / "tmp")
+    deadline = time.monotonic() + 60.0
+    while not list(out.glob(".heliostep-tmp-figures-*")):  # drawing has begun
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < deadline, "no figures were drawn"
+        time.sleep(0.005)
+    process.send_signal(signal.SIGINT)
+    time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr and "stopped by SIGINT a second time" in stderr, stderr
+    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+    figures = [p for p in out.iterdir() if p.suffix == ".png"]
+    assert len(figures) < 7  # it did not go on drawing
+    # what had been renamed into place before is whole and says complete: the run had finished
+    trace, meta = read_trace(out / "trace.parquet")
+    summary = json.loads((out / "summary.json").read_text())
+    assert meta["complete"] == "true" and summary["complete"] is True and summary["rows"] == len(trace)
+    assert trace["time"].iloc[-1] == 120.0
+    assert _fmu_dirs(tmp_path / "tmp") == [], "FMU unpack folder left behind"

@@ -14,6 +14,7 @@ import importlib
 import sys
 
 from heliostep._version import __version__
+from heliostep.cli.signals import ForcedStop
 from heliostep.errors import HeliostepError
 
 #: Modules that provide a command, in the order ``--help`` lists them.
@@ -55,6 +56,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"heliostep {args.command}: interrupted", file=sys.stderr)
         return 130
+    except ForcedStop as forced:  # a second SIGINT/SIGTERM: left at once, temporary files removed
+        print(f"heliostep {args.command}: stopped by {forced}: exited without finishing the clean-up "
+              f"(no file was left claiming to be complete)", file=sys.stderr)
+        return forced.exit_status
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -32,7 +32,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "checked before simulating.\n\n"
                     "Ctrl+C (SIGINT) or SIGTERM stops the simulation at the next safe point: the trace so "
                     "far, summary.json and metadata.json are written, marked complete: false with reason "
-                    "interrupted and the time reached; no figures are drawn.\n\n"
+                    "interrupted and the time reached; no figures are drawn. A second one exits at once: "
+                    "files not finished are removed, none is left claiming to be complete.\n\n"
+                    "Windows over 1 h stream the trace to trace.parquet (row groups, written as the rows "
+                    "come) instead of holding it in memory.\n\n"
                     "A window with the sun below the horizon throughout runs, with a warning on stderr "
                     "and \"night\": true and a warning in summary.json.\n\n"
                     "Exit status: 0 complete; 1 the simulation failed part-way (the trace so far is "
@@ -59,8 +62,8 @@ def _run_command(args: argparse.Namespace) -> int:
         if stop.is_set():
             print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
             return stop.exit_status
-        try:
-            result = run_scenario(scenario, progress=True, should_stop=stop.is_set)
+        try:  # a long window streams its trace into out_dir while simulating (bounded memory)
+            result = run_scenario(scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir)
             status = 0
         except RunFailed as failed:
             result = failed.result
@@ -75,6 +78,9 @@ def _run_command(args: argparse.Namespace) -> int:
             if not existed:  # bad input found while setting up the FMUs: leave no empty folder
                 _remove_if_empty(out_dir)
             raise
+        except OSError as exc:  # the streamed trace could not be written
+            print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
+            return 1
         _note_night(result)
         csv = args.csv
         if csv is None:

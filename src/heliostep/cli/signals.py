@@ -1,29 +1,52 @@
-"""Stopping a command cleanly on SIGINT (Ctrl+C) and SIGTERM.
+"""Stopping a command cleanly on SIGINT (Ctrl+C) and SIGTERM, and at once on a second one.
 
-:func:`stop_requests` installs handlers that only record the signal (no exception is raised
+:func:`stop_requests` installs handlers that only record the first signal (no exception is raised
 inside the solver's ctypes callbacks), so a long computation can ask ``stop.is_set()`` at its next
-safe point and end with its results written. The previous handlers are restored on leaving.
-Exit status of a stopped command: 128 + the signal number (130 for SIGINT, 143 for SIGTERM).
+safe point and end with its results written. A **second** SIGINT or SIGTERM (the user does not
+want to wait for the clean-up and writing) raises :class:`ForcedStop`, a ``BaseException`` that no
+``except Exception`` swallows: on its way out every ``finally`` runs, so files being written
+under temporary names are removed (nothing is renamed into place half-written) and temporary
+folders are deleted; :func:`heliostep.cli.main` turns it into one line and the exit status. A
+third signal ends the process at once (``os._exit``), without any clean-up. The previous handlers
+are restored on leaving. Exit status of a stopped command: 128 + the signal number (130 for
+SIGINT, 143 for SIGTERM).
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-__all__ = ["STOP_SIGNALS", "StopRequest", "exit_status", "stop_requests"]
+__all__ = ["STOP_SIGNALS", "ForcedStop", "StopRequest", "exit_status", "stop_requests"]
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
+class ForcedStop(BaseException):
+    """A second stop signal: leave now (``finally`` blocks run), exit status 128 + ``signum``."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def exit_status(self) -> int:
+        return exit_status(self.signum)
+
+    def __str__(self) -> str:
+        return f"{signal.Signals(self.signum).name} a second time"
+
+
 class StopRequest:
-    """Set by the first stop signal; ``signum`` says which."""
+    """Set by the first stop signal; ``signum`` says which, ``count`` how many came."""
 
     def __init__(self) -> None:
         self._event = threading.Event()
         self.signum: int | None = None
+        self.count = 0
 
     def is_set(self) -> bool:
         return self._event.is_set()
@@ -49,7 +72,8 @@ def exit_status(signum: int) -> int:
 
 @contextmanager
 def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterator[StopRequest]:
-    """Within the block, SIGINT and SIGTERM set the returned :class:`StopRequest`.
+    """Within the block, SIGINT and SIGTERM set the returned :class:`StopRequest`; a second one
+    raises :class:`ForcedStop`, a third ends the process.
 
     With ``raise_exception``, the handler also raises it (for code that waits in Python, not in
     native callbacks, e.g. a Dask client). Outside the main thread nothing is installed, and a
@@ -61,10 +85,15 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         return
 
     def handler(signum, frame):
-        first = not request.is_set()
+        request.count += 1
         request.set(signum)
-        if raise_exception is not None and first:
-            raise raise_exception(signum)
+        if request.count == 1:
+            if raise_exception is not None:
+                raise raise_exception(signum)
+        elif request.count == 2:
+            raise ForcedStop(signum)
+        else:  # a third: no more clean-up
+            os._exit(exit_status(signum))
 
     previous = {}
     try:

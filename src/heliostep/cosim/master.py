@@ -296,7 +296,8 @@ class CoSimulation:
                  solver: SolverOptions | None = None,
                  progress: Callable[[float], None] | None = None,
                  monitor: Callable[[np.ndarray], None] | None = None,
-                 should_stop: Callable[[], bool] | None = None) -> MasterResult:
+                 should_stop: Callable[[], bool] | None = None,
+                 sink: Callable[[np.ndarray], None] | None = None, sink_rows: int = 4096) -> MasterResult:
         """Integrate from ``start_time`` to ``stop_time`` [s].
 
         Returns the trace with a row at each of ``output_times`` (default: start and stop)
@@ -311,13 +312,19 @@ class CoSimulation:
         one-step mode up to each stop). ``should_stop`` is asked between solver calls; when it
         returns True the run stops there with a :class:`SimulationError` whose ``reason`` is
         ``"interrupted"``.
+
+        ``sink``, when given, receives the trace rows as they are produced, in time order, as 2-D
+        blocks (rows × the trace's columns) of at most ``sink_rows`` rows; the master then holds
+        at most ``sink_rows`` rows (``statistics["max_buffered_rows"]``), and the trace it returns
+        (or carries in :class:`SimulationError`) has the columns but no rows. The last block is
+        handed over before this returns or raises, also when the run fails or is interrupted.
         """
         if not stop_time > start_time:
             raise InputError(f"stop time {stop_time} must be after start time {start_time}")
         solver = solver or SolverOptions()
         grid = np.unique(np.clip(np.asarray([start_time, stop_time] if output_times is None
                                             else output_times, dtype=float), start_time, stop_time))
-        run = _Run(self, solver, progress, monitor, should_stop)
+        run = _Run(self, solver, progress, monitor, should_stop, sink, sink_rows)
         try:
             run.execute(start_time, stop_time, grid)
         except _Interrupted:
@@ -335,14 +342,20 @@ class CoSimulation:
 class _Run:
     """State of one integration (instances, CVODE, recorded rows)."""
 
-    def __init__(self, system: CoSimulation, solver: SolverOptions, progress, monitor=None, should_stop=None):
+    def __init__(self, system: CoSimulation, solver: SolverOptions, progress, monitor=None, should_stop=None,
+                 sink: Callable[[np.ndarray], None] | None = None, sink_rows: int = 4096):
+        if sink is not None and sink_rows < 1:
+            raise InputError(f"sink_rows must be at least 1, not {sink_rows}")
         self.system = system
         self.options = solver
         self.progress = progress
         self.monitor = monitor
         self.should_stop = should_stop
         self.units: dict[str, _Unit] = {}
-        self.rows: list[np.ndarray] = []
+        self.rows: list[np.ndarray] = []  # blocks of trace rows not yet handed to the sink (all without one)
+        self.buffered = 0  # rows in self.rows
+        self.max_buffered = 0  # the most rows held at once
+        self.sink, self.sink_rows = sink, sink_rows
         self.time = np.nan
         self.counts = {"rhs": 0, "integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
         self.wall_start = clock.perf_counter()
@@ -514,8 +527,26 @@ class _Run:
             self.monitor(row)
 
     def _store(self, rows: np.ndarray) -> None:
-        """Keep trace rows (a 2-D block, in time order)."""
+        """Every trace row goes through here: ``rows`` is a 2-D block (rows × ``self.columns``)
+        in time order. Without a sink the rows are kept for :meth:`trace`; with one they are
+        handed over in blocks of at most ``sink_rows`` once that many are held."""
+        rows = np.asarray(rows, dtype=float)
+        if rows.ndim != 2 or rows.shape[1] != len(self.columns):
+            raise ValueError(f"trace rows must be a 2-D block of {len(self.columns)} columns, got shape {rows.shape}")
         self.rows.append(rows)
+        self.buffered += len(rows)
+        self.max_buffered = max(self.max_buffered, self.buffered)
+        if self.sink is not None and self.buffered >= self.sink_rows:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Hand the held rows to the sink, in blocks of at most ``sink_rows``."""
+        if self.sink is None or not self.buffered:
+            return
+        data = np.vstack(self.rows)
+        self.rows, self.buffered = [], 0
+        for start in range(0, len(data), self.sink_rows):
+            self.sink(data[start:start + self.sink_rows])
 
     def _take_rows(self, rows: np.ndarray, kinds: np.ndarray) -> None:
         """Rows from the compiled one-step loop: all to the monitor, the output rows (kind 1) to
@@ -629,6 +660,8 @@ class _Run:
             self.monitor(self._row(t)[None, :])
 
     def trace(self) -> pd.DataFrame:
+        """The rows held (all of them without a sink; none with one: they are flushed to it)."""
+        self._flush()
         data = np.vstack(self.rows) if self.rows else np.zeros((0, len(self.columns)))
         return pd.DataFrame(data, columns=self.columns)
 
@@ -640,6 +673,7 @@ class _Run:
                 "states": getattr(self, "n_states", 0), "event_indicators": getattr(self, "n_indicators", 0),
                 "terminated": self.terminated, "termination_reason": self.termination_reason,
                 "termination_time": self.termination_time, "algebraic_loops": list(self.system.loops),
+                "max_buffered_rows": self.max_buffered,
                 **(self.loop.statistics() if getattr(self, "loop", None) is not None else {})}
 
     # --------------------------------------------------------------- events

@@ -139,24 +139,60 @@ class _Clock:
 
 
 class _Trace:
-    """Columns of a trace as float arrays, fetched on demand; FMU columns found by role."""
+    """Columns of a trace as float arrays, fetched on demand; FMU columns found by role.
 
-    def __init__(self, frame: pd.DataFrame, roles: Mapping[str, str]):
-        self.frame = frame
+    The trace is a DataFrame or a Parquet trace file; from a file only the columns a figure
+    draws are read, and :meth:`release` drops them once it is drawn (a long trace is never
+    loaded whole).
+    """
+
+    def __init__(self, source: pd.DataFrame | Path, roles: Mapping[str, str]):
         self.roles = dict(roles)
-        self.time = frame["time"].to_numpy(dtype=float)
         self._cache = {}
+        if isinstance(source, pd.DataFrame):
+            self.frame, self.path = source, None
+            self.columns = [str(c) for c in source.columns]
+            self.time = source["time"].to_numpy(dtype=float)
+        else:
+            import pyarrow.parquet as pq
+
+            self.frame, self.path = None, Path(source)
+            try:
+                self.columns = list(pq.read_schema(self.path).names)
+            except Exception as exc:  # pyarrow raises several types for bad files
+                raise InputError(f"{self.path}: cannot read as Parquet: {exc}") from None
+            if "time" not in self.columns:
+                raise InputError(f"{self.path}: trace has no 'time' column")
+            self.time = self._read("time")
+
+    def _read(self, column: str) -> np.ndarray:
+        if self.frame is not None:
+            return self.frame[column].to_numpy(dtype=float)
+        import pyarrow.parquet as pq
+
+        # ParquetFile.read takes the name as it is (read_table would split "motor.tau" at the dot)
+        return pq.ParquetFile(self.path).read(columns=[column]).column(0).to_numpy().astype(float, copy=False)
+
+    def release(self) -> None:
+        """Forget the columns read from a file (a DataFrame's stay: they cost nothing)."""
+        if self.path is not None:
+            self._cache = {}
+
+    def step_times(self) -> np.ndarray:
+        if not self.has("step_index"):
+            return np.empty(0)
+        return step_times(pd.DataFrame({"time": self.time, "step_index": self["step_index"]}))
 
     def col(self, role: str) -> str:
         """The column of a role (a name no trace has when the role is absent)."""
         return self.roles.get(role, f"<no {role}>")
 
     def has(self, *columns: str) -> bool:
-        return all(column in self.frame.columns for column in columns)
+        return all(column in self.columns for column in columns)
 
     def __getitem__(self, column: str) -> np.ndarray:
         if column not in self._cache:
-            self._cache[column] = self.frame[column].to_numpy(dtype=float)
+            self._cache[column] = self._read(column)
         return self._cache[column]
 
     def degrees(self, column: str) -> np.ndarray:
@@ -277,7 +313,7 @@ def _fig13(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
 def _fig14(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
     if not trace.has(trace.col("torque")):
         return None
-    steps = step_times(trace.frame)
+    steps = trace.step_times()
     if steps.size == 0:
         return None
     time, torque = trace.time, trace[trace.col("torque")]
@@ -319,13 +355,14 @@ _FIGURES: tuple[tuple[str, Callable], ...] = tuple(
 
 
 # --------------------------------------------------------------------------- public
-def plot_run(trace: pd.DataFrame, out_dir, metadata: Mapping) -> list[Path]:
+def plot_run(trace: pd.DataFrame | str | Path, out_dir, metadata: Mapping) -> list[Path]:
     """Write the paper's Figs. 8-14 for one run as PNGs.
 
     Parameters
     ----------
-    trace : pandas.DataFrame
-        Column ``time`` [s from the window start], non-decreasing (a step instant
+    trace : pandas.DataFrame, or the path of a Parquet trace
+        From a file (a long window's streamed trace) only the columns each figure draws are
+        read, one figure at a time. Column ``time`` [s from the window start], non-decreasing (a step instant
         has two rows with the same time, before and after), and any of
         ``panel_angle_ref``, ``rotor_angle_ref``, ``rotor_angle_cmd`` [rad],
         ``step_index``, ``i_a_ref``, ``i_b_ref``, ``motor.i_a``, ``motor.i_b`` [A],
@@ -345,13 +382,15 @@ def plot_run(trace: pd.DataFrame, out_dir, metadata: Mapping) -> list[Path]:
         The PNGs written, in figure order (names in :data:`FIGURE_FILES`): a figure
         whose columns are missing is skipped, and so is Fig. 14 without steps.
     """
-    if not isinstance(trace, pd.DataFrame) or "time" not in trace.columns:
-        raise InputError("trace must be a pandas DataFrame with a 'time' column [s]")
-    if trace.empty:
-        raise InputError("trace is empty: nothing to plot")
+    if isinstance(trace, (str, Path)):
+        trace = Path(trace)
+    elif not isinstance(trace, pd.DataFrame) or "time" not in trace.columns:
+        raise InputError("trace must be a pandas DataFrame with a 'time' column [s] or a Parquet trace file")
     metadata = {} if metadata is None else metadata
     roles = {**RolesConfig().present(), **{k[5:]: v for k, v in metadata.items() if str(k).startswith("role.")}}
     columns = _Trace(trace, roles)
+    if not columns.time.size:
+        raise InputError("trace is empty: nothing to plot")
     if np.any(np.diff(columns.time) < 0.0) or not np.all(np.isfinite(columns.time)):
         raise InputError("trace time must be finite and non-decreasing")
     clock = _Clock(metadata, columns.time)
@@ -365,6 +404,7 @@ def plot_run(trace: pd.DataFrame, out_dir, metadata: Mapping) -> list[Path]:
     written = []
     for file_name, draw in _FIGURES:
         path = draw(columns, clock, context, out_dir / file_name)
+        columns.release()
         if path is None:
             logger.info("%s skipped: its columns (or steps) are not in the trace", file_name)
         else:

@@ -46,29 +46,61 @@ def drive_from_metadata(drive: dict) -> tuple[Sequencer, StepSchedule]:
     return sequencer, schedule
 
 
-def step_indices(times: np.ndarray, schedule: StepSchedule) -> np.ndarray:
-    """Commanded step index on each row: at a repeated time the first row is before the step."""
+def step_indices(times: np.ndarray, schedule: StepSchedule, previous_time: float | None = None) -> np.ndarray:
+    """Commanded step index on each row: at a repeated time the first row is before the step.
+
+    ``previous_time`` is the time of the row before ``times[0]`` (when the rows are a block of a
+    longer trace), so a block that starts at the repeated time of a step is indexed as the whole.
+    """
     times = np.asarray(times, dtype=float)
-    first_of_time = np.concatenate([[True], times[1:] != times[:-1]])
+    first = [True] if previous_time is None or not len(times) else [bool(times[0] != previous_time)]
+    first_of_time = np.concatenate([first, times[1:] != times[:-1]])[:len(times)]
     before = schedule.index_at(times, side="left")
     after = schedule.index_at(times, side="right")
     return np.where(first_of_time, before, after)
 
 
-def assemble_trace(master_trace: pd.DataFrame, inputs: DriveInputs, roles: dict[str, str]) -> pd.DataFrame:
-    """Add the reference, the commanded position and the tracking error to the master's trace.
+class TraceAssembler:
+    """Adds the derived columns to the master's rows, block by block (or all at once).
 
-    ``roles`` maps role names to trace columns (``instance.variable``); the tracking error
-    is the ``panel_angle`` role's column minus the reference.
+    Every derived column is a function of the row's own time and values, except the step index
+    at a repeated time, which depends on the row before: the assembler keeps the last time it
+    saw, so assembling a trace block by block gives the same rows as assembling it whole.
+    ``roles`` maps role names to trace columns (``instance.variable``); the tracking error is
+    the ``panel_angle`` role's column minus the reference.
     """
-    trace = master_trace.copy()
-    time = trace["time"].to_numpy()
-    trace["panel_angle_ref"] = inputs.panel_reference()(time)
-    trace["rotor_angle_ref"] = inputs.rotor_reference()(time)
-    index = step_indices(time, inputs.schedule)
-    trace["step_index"] = index.astype(float)
-    trace["rotor_angle_cmd"] = inputs.sequencer.position(index)
-    panel = roles.get("panel_angle")
-    if panel in trace:
-        trace["panel_angle_error"] = trace[panel] - trace["panel_angle_ref"]
-    return trace
+
+    def __init__(self, inputs: DriveInputs, roles: dict[str, str]):
+        self.inputs, self.roles = inputs, dict(roles)
+        self._panel_reference = inputs.panel_reference()
+        self._rotor_reference = inputs.rotor_reference()
+        self._previous_time: float | None = None
+
+    def __call__(self, master_rows: pd.DataFrame) -> pd.DataFrame:
+        """The next rows of the trace (the master's columns, then the derived ones)."""
+        trace = master_rows.copy()
+        time = trace["time"].to_numpy()
+        trace["panel_angle_ref"] = self._panel_reference(time)
+        trace["rotor_angle_ref"] = self._rotor_reference(time)
+        index = step_indices(time, self.inputs.schedule, self._previous_time)
+        trace["step_index"] = index.astype(float)
+        trace["rotor_angle_cmd"] = self.inputs.sequencer.position(index)
+        panel = self.roles.get("panel_angle")
+        if panel in trace:
+            trace["panel_angle_error"] = trace[panel] - trace["panel_angle_ref"]
+        if len(time):
+            self._previous_time = float(time[-1])
+        return trace
+
+    def columns(self, master_columns: list[str]) -> list[str]:
+        """The assembled trace's columns for the master's columns."""
+        derived = ["panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd"]
+        if self.roles.get("panel_angle") in master_columns:
+            derived.append("panel_angle_error")
+        return list(master_columns) + derived
+
+
+def assemble_trace(master_trace: pd.DataFrame, inputs: DriveInputs, roles: dict[str, str]) -> pd.DataFrame:
+    """Add the reference, the commanded position and the tracking error to the master's trace
+    (:class:`TraceAssembler` on the whole trace)."""
+    return TraceAssembler(inputs, roles)(master_trace)

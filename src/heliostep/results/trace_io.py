@@ -27,9 +27,12 @@ Two encodings, chosen by the file suffix:
 
 ``.parquet``
     An Apache Parquet file (written with pyarrow) with one float64 column per table
-    column; the metadata is the key-value metadata of the Arrow schema (UTF-8).
-    Keys that Arrow or pandas put there themselves (``pandas``, ``ARROW:*``) are not
-    returned as metadata.
+    column, in row groups; the metadata is the file's key-value metadata (UTF-8), which
+    Parquet keeps in the footer, written last: a file cut short while being written has no
+    footer and cannot be read, so it never claims to be complete. Keys that Arrow or pandas
+    put there themselves (``pandas``, ``ARROW:*``) are not returned as metadata.
+    :class:`TraceWriter` writes one row group at a time and its status keys (``complete``
+    and so on) only when closing.
 ``.csv``
     UTF-8 text. The metadata comes first, one ``# key: value`` line per entry, then
     the header line (``time,motor.tau,...``) and one line per row, comma-separated,
@@ -66,10 +69,12 @@ _RESERVED_PARQUET_KEYS = ("pandas",)
 # pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
 _EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
 _RESERVED_PARQUET_PREFIX = "ARROW:"
-#: Rows per Parquet row group (and per slice converted to Arrow at a time).
-ROW_GROUP_ROWS = 262_144
+#: Rows per Parquet row group (and per slice converted to Arrow at a time): with the 20 float64
+#: columns of a run's trace 2.6 MB, the most of a streamed trace held at once.
+ROW_GROUP_ROWS = 16_384
 
-__all__ = ["TIME", "SUFFIXES", "read_trace", "write_trace", "check_time", "is_complete"]
+__all__ = ["TIME", "SUFFIXES", "TraceWriter", "copy_trace_to_csv", "read_trace", "read_trace_metadata",
+           "write_trace", "check_time", "is_complete"]
 
 
 def _format(path: Path) -> str:
@@ -159,20 +164,16 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
     meta = _clean_metadata(metadata)
     table = _to_float_frame(df, str(path))
     if fmt == "parquet":
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
-        for key in meta:
-            if key in _RESERVED_PARQUET_KEYS or key.startswith(_RESERVED_PARQUET_PREFIX):
-                raise InputError(f"metadata key {key!r} is reserved in Parquet files")
-        schema = pa.schema([pa.field(c, pa.float64()) for c in table.columns],
-                           metadata={k.encode(): v.encode() for k, v in meta.items()})
-        columns = [table[c].to_numpy() for c in table.columns]
-        # row groups of ROW_GROUP_ROWS: Arrow holds one group at a time, not a copy of the table
-        with pq.ParquetWriter(path, schema, compression="zstd") as writer:
-            for start in range(0, max(len(table), 1), ROW_GROUP_ROWS):
-                chunk = [pa.array(c[start:start + ROW_GROUP_ROWS], type=pa.float64()) for c in columns]
-                writer.write_table(pa.Table.from_arrays(chunk, schema=schema))
+        writer = TraceWriter(path, list(table.columns))
+        try:
+            data = {c: table[c].to_numpy() for c in table.columns}
+            # row groups of ROW_GROUP_ROWS: Arrow holds one group at a time, not a copy of the table
+            for start in range(0, len(table), ROW_GROUP_ROWS):
+                writer.write({c: v[start:start + ROW_GROUP_ROWS] for c, v in data.items()})
+        except BaseException:
+            writer.abort()
+            raise
+        writer.close(meta)
     else:
         with open(path, "w", encoding="utf-8", newline="") as fh:
             for key, value in meta.items():
@@ -181,8 +182,120 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
     return path
 
 
-def read_trace(path: str | Path) -> tuple[pd.DataFrame, dict[str, str]]:
-    """Read a trace; returns ``(table, metadata)``.
+def _check_parquet_keys(meta: Mapping[str, str]) -> None:
+    for key in meta:
+        if key in _RESERVED_PARQUET_KEYS or key.startswith(_RESERVED_PARQUET_PREFIX):
+            raise InputError(f"metadata key {key!r} is reserved in Parquet files")
+
+
+class TraceWriter:
+    """A Parquet trace written as it is produced: :meth:`write` appends one row group of float64
+    columns, :meth:`close` writes the metadata (all of it, ``complete`` included) and the footer.
+
+    Until :meth:`close` the file has no footer: a reader sees no table and no metadata, so a file
+    cut short (killed process, full disk) never claims to be complete. Write to a temporary name
+    and rename into place afterwards (:func:`heliostep.results.outputs.atomic_path`).
+    """
+
+    def __init__(self, path: str | Path, columns: list[str]):
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        self.path = Path(path)
+        if _format(self.path) != "parquet":
+            raise InputError(f"{self.path}: TraceWriter writes Parquet (.parquet) files")
+        if not columns or columns[0] != TIME or len(set(columns)) != len(columns):
+            raise InputError(f"{self.path}: trace columns must be unique and start with {TIME!r}: {columns}")
+        self.columns = list(columns)
+        self.rows = 0
+        self._last_time = -np.inf
+        self._schema = pa.schema([pa.field(c, pa.float64()) for c in self.columns])
+        # no serialized Arrow schema (all columns are float64): readers then take the schema's
+        # metadata from the footer's key-value metadata, which close() writes
+        self._writer = pq.ParquetWriter(self.path, self._schema, compression="zstd", store_schema=False)
+        self._pa = pa
+
+    def write(self, columns: Mapping[str, np.ndarray]) -> None:
+        """Append rows as one row group; ``columns`` maps every column name to its values."""
+        pa = self._pa
+        missing = [c for c in self.columns if c not in columns]
+        if missing:
+            raise InputError(f"{self.path}: rows without column(s) {', '.join(missing)}")
+        arrays = [np.asarray(columns[c], dtype=np.float64) for c in self.columns]
+        if not len(arrays[0]):
+            return
+        time = arrays[0]
+        check_time(np.concatenate([[self._last_time], time]) if np.isfinite(self._last_time) else time,
+                   str(self.path))
+        self._last_time = float(time[-1])
+        self._writer.write_table(pa.Table.from_arrays([pa.array(a, type=pa.float64()) for a in arrays],
+                                                      schema=self._schema))
+        self.rows += len(time)
+
+    def close(self, metadata: Mapping[str, object] | None = None) -> Path:
+        """Write ``metadata`` and the footer; the file is then a complete Parquet trace."""
+        meta = _clean_metadata(metadata)
+        _check_parquet_keys(meta)
+        if self.rows == 0:  # a table with no rows still has its columns
+            self._writer.write_table(self._schema.empty_table())
+        if meta:
+            self._writer.add_key_value_metadata(meta)
+        self._writer.close()
+        return self.path
+
+    def abort(self) -> None:
+        """Close the file without metadata and remove it."""
+        try:
+            self._writer.close()
+        except Exception:  # noqa: BLE001 - the file is removed anyway
+            pass
+        self.path.unlink(missing_ok=True)
+
+
+def read_trace_metadata(path: str | Path) -> dict[str, str]:
+    """The metadata of a Parquet trace (from its footer), without reading its rows."""
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    try:
+        raw = pq.ParquetFile(path).metadata.metadata or {}
+    except Exception as exc:  # pyarrow raises several types for bad files
+        raise InputError(f"{path}: cannot read as Parquet: {exc}") from None
+    meta = {}
+    for key, value in raw.items():
+        k = key.decode("utf-8", "replace")
+        if k in _RESERVED_PARQUET_KEYS or k.startswith(_RESERVED_PARQUET_PREFIX):
+            continue
+        meta[k] = value.decode("utf-8", "replace")
+    return meta
+
+
+def copy_trace_to_csv(parquet: str | Path, csv_path: str | Path, metadata: Mapping[str, object] | None = None,
+                      batch_rows: int = ROW_GROUP_ROWS) -> Path:
+    """Write the CSV form of a Parquet trace, ``batch_rows`` rows at a time (never the whole
+    table in memory); the metadata is the Parquet file's unless ``metadata`` is given."""
+    import pyarrow.parquet as pq
+
+    parquet, csv_path = Path(parquet), Path(csv_path)
+    meta = _clean_metadata(read_trace_metadata(parquet) if metadata is None else metadata)
+    source = pq.ParquetFile(parquet)
+    with open(csv_path, "w", encoding="utf-8", newline="") as fh:
+        for key, value in meta.items():
+            fh.write(f"# {key}: {value}\n")
+        header = True
+        for batch in source.iter_batches(batch_size=batch_rows):
+            frame = pd.DataFrame({name: batch.column(i).to_numpy(zero_copy_only=False)
+                                  for i, name in enumerate(batch.schema.names)})
+            frame.to_csv(fh, index=False, header=header, lineterminator="\n", na_rep="")
+            header = False
+        if header:  # no rows: the header line alone
+            pd.DataFrame(columns=source.schema_arrow.names).to_csv(fh, index=False, lineterminator="\n")
+    return csv_path
+
+
+def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.DataFrame, dict[str, str]]:
+    """Read a trace; returns ``(table, metadata)``. ``columns`` (Parquet only) reads just those
+    (``time`` is always read), so a long trace need not be loaded whole.
 
     The table has float64 columns, ``time`` first. Raises
     :class:`~heliostep.errors.InputError` (naming the file, and the column where one
@@ -193,20 +306,21 @@ def read_trace(path: str | Path) -> tuple[pd.DataFrame, dict[str, str]]:
     fmt = _format(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
+    if columns is not None:
+        if fmt != "parquet":
+            raise InputError(f"{path}: reading selected columns needs a Parquet trace")
+        columns = [TIME] + [c for c in dict.fromkeys(columns) if c != TIME]
     if fmt == "parquet":
         import pyarrow.parquet as pq
 
-        try:
-            arrow = pq.read_table(path)
+        try:  # ParquetFile.read takes the names as they are (read_table would split "motor.tau" at the dot)
+            arrow = pq.ParquetFile(path).read(columns=columns)
         except Exception as exc:  # pyarrow raises several types for bad files
             raise InputError(f"{path}: cannot read as Parquet: {exc}") from None
-        raw = arrow.schema.metadata or {}
-        meta = {}
-        for key, value in raw.items():
-            k = key.decode("utf-8", "replace")
-            if k in _RESERVED_PARQUET_KEYS or k.startswith(_RESERVED_PARQUET_PREFIX):
-                continue
-            meta[k] = value.decode("utf-8", "replace")
+        if columns is not None and len(arrow.column_names) != len(columns):
+            missing = [c for c in columns if c not in arrow.column_names]
+            raise InputError(f"{path}: no column(s) {', '.join(map(repr, missing))}")
+        meta = read_trace_metadata(path)
         columns = arrow.column_names
         try:
             data = {c: arrow.column(i).to_numpy(zero_copy_only=False) for i, c in enumerate(columns)}

@@ -1,0 +1,93 @@
+"""A run's trace streamed to Parquet as the master produces it (long windows: bounded memory).
+
+:class:`TraceStream` is the master's row sink (``CoSimulation.simulate(..., sink=...)``): it takes
+the master's rows in blocks, adds the derived columns block by block
+(:class:`~heliostep.results.trace.TraceAssembler`, which gives the same rows as assembling the
+whole trace) and appends them to a Parquet file in row groups of ``row_group_rows`` rows
+(:class:`~heliostep.results.trace_io.TraceWriter`). It holds at most one row group's rows (plus
+one block): memory does not grow with the window. The file's metadata (``complete`` and the rest)
+is written only by :meth:`TraceStream.close`, once the run's outcome is known; until then the file
+has no footer and claims nothing. Write it under a temporary name and rename it into place.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from heliostep.results.trace import TraceAssembler
+from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriter
+
+__all__ = ["TraceStream"]
+
+
+class TraceStream:
+    """Row sink: the master's row blocks, assembled and written to ``path`` as Parquet row groups.
+
+    ``master_columns`` are the master's trace columns (the layout of each block's rows).
+    ``max_block_rows`` is the largest block received and ``max_held_rows`` the most assembled rows
+    held before a row group was written (at most ``row_group_rows`` + one block).
+    """
+
+    def __init__(self, path: str | Path, master_columns: list[str], assembler: TraceAssembler,
+                 row_group_rows: int = ROW_GROUP_ROWS):
+        if row_group_rows < 1:
+            raise ValueError(f"row_group_rows must be at least 1, not {row_group_rows}")
+        self.path = Path(path)
+        self.master_columns = list(master_columns)
+        self.assembler = assembler
+        self.columns = assembler.columns(self.master_columns)
+        self.row_group_rows = row_group_rows
+        self._writer = TraceWriter(self.path, self.columns)
+        self._held: list[pd.DataFrame] = []
+        self._held_rows = 0
+        self.rows = 0  # rows received
+        self.row_groups = 0
+        self.max_block_rows = 0
+        self.max_held_rows = 0
+        self.last_time: float | None = None
+        self.closed = False
+
+    def __call__(self, block: np.ndarray) -> None:
+        block = np.asarray(block, dtype=float)
+        if block.ndim != 2 or block.shape[1] != len(self.master_columns):
+            raise ValueError(f"{self.path}: a block of trace rows must have {len(self.master_columns)} columns, "
+                             f"got shape {block.shape}")
+        if not len(block):
+            return
+        self.max_block_rows = max(self.max_block_rows, len(block))
+        frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))
+        self._held.append(frame)
+        self._held_rows += len(frame)
+        self.rows += len(frame)
+        self.last_time = float(block[-1, 0])
+        self.max_held_rows = max(self.max_held_rows, self._held_rows)
+        while self._held_rows >= self.row_group_rows:
+            self._write(self.row_group_rows)
+
+    def _write(self, rows: int) -> None:
+        """Write the first ``rows`` held rows as one row group."""
+        held = pd.concat(self._held, ignore_index=True) if len(self._held) > 1 else self._held[0]
+        group, rest = held.iloc[:rows], held.iloc[rows:]
+        self._writer.write({c: group[c].to_numpy() for c in self.columns})
+        self.row_groups += 1
+        self._held = [rest.reset_index(drop=True)] if len(rest) else []
+        self._held_rows = len(rest)
+
+    def close(self, metadata: Mapping[str, object]) -> Path:
+        """Write the rows still held, then ``metadata`` and the footer: the file is complete."""
+        if self._held_rows:
+            self._write(self._held_rows)
+        self._writer.close(metadata)
+        self.closed = True
+        return self.path
+
+    def abort(self) -> None:
+        """Drop the file (an error before the run's outcome is known)."""
+        self._held, self._held_rows = [], 0
+        if not self.closed:
+            self._writer.abort()
+            self.closed = True

@@ -1,0 +1,147 @@
+"""A trace streamed to Parquet row groups while simulating (long windows) equals the trace held in
+memory; the master holds at most one sink block; a file being written claims nothing."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from heliostep.cli import main
+from heliostep.cosim.fmi import read_fmu
+from heliostep.cosim.master import Connection, CoSimulation, PiecewiseConstant, SimulationError
+from heliostep.drive.sequencer import Sequencer
+from heliostep.errors import InputError
+from heliostep.paths import scenarios_dir
+from heliostep.results.trace_io import copy_trace_to_csv, read_trace
+from heliostep.run import RunFailed, run_scenario
+
+SCENARIOS = scenarios_dir()
+WINDOW = ["window.duration=20"]  # 2 steps of the paper's case: about 300 rows
+
+
+@pytest.fixture(scope="module")
+def held(fmu_paths):
+    return run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=False)
+
+
+def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_path, monkeypatch):
+    import heliostep.run as run_module
+
+    monkeypatch.setattr(run_module, "SINK_ROWS", 5)  # the master's blocks: 5 rows, cut anywhere
+    rows_per_group = 23
+    streamed = run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=tmp_path,
+                            row_group_rows=rows_per_group)
+    assert streamed.held_trace is None and streamed.trace_file.parent == tmp_path
+    n = len(held.trace)
+    assert n > 10 * rows_per_group
+    assert pq.ParquetFile(streamed.trace_file).num_row_groups == -(-n // rows_per_group)  # ceil
+    trace, meta = read_trace(streamed.trace_file)
+    pd.testing.assert_frame_equal(trace, held.trace, check_exact=True)  # every column, bit for bit
+    # the step index at the two rows of a step instant: before, then after (blocks cut anywhere)
+    time = trace["time"].to_numpy()
+    first_step = held.inputs.schedule.times[0]
+    at_step = np.flatnonzero(time == first_step)
+    assert len(at_step) >= 2
+    index = trace["step_index"].to_numpy()
+    assert index[at_step[0]] == held.inputs.schedule.initial_index
+    assert index[at_step[-1]] == held.inputs.schedule.indices[0]
+    assert meta["complete"] == "true" and meta["unit.motor.tau"] == "N.m"
+    assert streamed.summary == held.summary
+    # written into place by renaming; the CSV copy is made from the Parquet in batches
+    out = tmp_path
+    streamed.write(out, plots=False, csv=True)
+    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+    assert streamed.trace_file == out / "trace.parquet"
+    csv_trace, csv_meta = read_trace(out / "trace.csv")
+    pd.testing.assert_frame_equal(csv_trace, held.trace, check_exact=True)
+    assert csv_meta == held.trace_metadata()
+
+
+@pytest.mark.parametrize("block", [1, 2, 3, 7])
+def test_trace_assembled_block_by_block_equals_the_whole(held, block):
+    from heliostep.results.trace import TraceAssembler
+
+    derived = ["panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error"]
+    master = held.trace.drop(columns=derived)
+    assembler = TraceAssembler(held.inputs, held.metadata["roles"])
+    parts = [assembler(master.iloc[k:k + block].reset_index(drop=True)) for k in range(0, len(master), block)]
+    pd.testing.assert_frame_equal(pd.concat(parts, ignore_index=True), held.trace, check_exact=True)
+    assert assembler.columns(list(master.columns)) == list(held.trace.columns)
+
+
+def test_csv_copy_in_small_batches_equals_the_parquet(held, tmp_path):
+    held.write(tmp_path, plots=False, csv=False)
+    parquet = tmp_path / "trace.parquet"
+    copy_trace_to_csv(parquet, tmp_path / "t.csv", batch_rows=7)
+    pd.testing.assert_frame_equal(read_trace(tmp_path / "t.csv")[0], read_trace(parquet)[0], check_exact=True)
+
+
+def test_master_holds_at_most_one_block_of_the_sink(fmu_paths):
+    drive = {"motor": read_fmu(fmu_paths["StepperMotor"]), "mechanics": read_fmu(fmu_paths["PanelMechanics"])}
+    connections = [Connection("motor.tau", "mechanics.tau"), Connection("mechanics.theta", "motor.theta"),
+                   Connection("mechanics.omega", "motor.omega")]
+    steps = np.array([0.05, 0.15, 0.25])
+    i_a, i_b = Sequencer().reference_currents(np.array([0, 1, 2, 3]))
+    inputs = [PiecewiseConstant("i_a_ref", "motor.i_a_ref", steps, i_a),
+              PiecewiseConstant("i_b_ref", "motor.i_b_ref", steps, i_b)]
+    grid = np.round(np.arange(0.0, 0.3 + 1e-9, 1e-3), 12)
+    whole = CoSimulation(drive, connections, inputs).simulate(0.0, 0.3, grid)
+    # 301 grid rows and two rows at each of the 3 steps (before and after): rows = 301 + 3
+    assert len(whole.trace) == len(grid) + len(steps)
+    blocks = []
+    result = CoSimulation(drive, connections, inputs).simulate(0.0, 0.3, grid, sink=blocks.append, sink_rows=16)
+    assert len(result.trace) == 0 and list(result.trace.columns) == list(whole.trace.columns)
+    assert max(len(b) for b in blocks) <= 16 and result.statistics["max_buffered_rows"] <= 16
+    assert sum(len(b) for b in blocks) == len(whole.trace)
+    np.testing.assert_array_equal(np.vstack(blocks), whole.trace.to_numpy())
+    # interrupted: the rows so far reach the sink before the error is raised
+    blocks.clear()
+    calls = []
+    with pytest.raises(SimulationError) as stopped:
+        CoSimulation(drive, connections, inputs).simulate(0.0, 0.3, grid, sink=blocks.append, sink_rows=16,
+                                                          should_stop=lambda: calls.append(1) or len(calls) > 100)
+    assert stopped.value.reason == "interrupted" and len(stopped.value.trace) == 0
+    rows = np.vstack(blocks)
+    assert rows[-1, 0] == pytest.approx(stopped.value.time) and 50 < len(rows) < len(whole.trace)
+    np.testing.assert_array_equal(rows, whole.trace.to_numpy()[:len(rows)])
+
+
+def test_interrupted_stream_is_written_marked_and_claims_nothing_while_written(fmu_paths, tmp_path):
+    seen = []
+
+    def should_stop():  # while simulating: the file being written has no footer, so no metadata
+        files = list(tmp_path.glob(".heliostep-tmp-*-trace.parquet"))
+        assert len(files) == 1
+        with pytest.raises(InputError):
+            read_trace(files[0])
+        seen.append(1)
+        return len(seen) > 2  # (asked between solver calls and blocks of solver steps)
+
+    with pytest.raises(RunFailed) as failed:
+        run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=tmp_path, row_group_rows=10,
+                     should_stop=should_stop)
+    run = failed.value.result
+    assert run.reason == "interrupted" and len(seen) == 3
+    trace, meta = read_trace(run.trace_file)
+    assert meta["complete"] == "false" and meta["reason"] == "interrupted"
+    assert float(meta["time_reached"]) == run.time_reached == pytest.approx(trace["time"].iloc[-1])
+    assert run.summary["rows"] == len(trace)
+    run.write(tmp_path, plots=False, csv=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["metadata.json", "summary.json", "trace.parquet"]
+    assert json.loads((tmp_path / "summary.json").read_text())["complete"] is False
+
+
+def test_plots_of_a_streamed_trace_are_read_by_column(held, fmu_paths, tmp_path):
+    out = tmp_path / "out"
+    assert main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--no-csv",
+                 "--set", "window.duration=3700", "--set", "output.interval=10"]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["fig08_panel_angle_ref.png", "fig09_rotor_angle_ref.png", "fig10_phase_currents.png",
+                     "fig11_torque.png", "fig12_rotor_angle.png", "fig13_panel_tracking.png",
+                     "fig14_torque_zoom.png", "metadata.json", "power_on_tube.png", "summary.json", "trace.parquet"]
+    summary = json.loads((out / "summary.json").read_text())
+    trace, meta = read_trace(out / "trace.parquet")
+    assert meta["complete"] == "true" and summary["rows"] == len(trace)
+    assert trace["time"].iloc[-1] == 3700.0
