@@ -2,18 +2,18 @@
 
 Steps, the same for every model:
 
-1. CasADi builds ``model_eval(t, x, u, p, guess) -> (computed, residual, scale)``: the model's
+1. CasADi builds ``model_eval(t, x, u, p, guess) -> (computed, residual)``: the model's
    implicit residual ``F(der(x), z; t, x, u, p) = 0`` is solved for the derivatives and
    algebraic variables. Where the equations can be solved one at a time, each affine in its
    unknown (:func:`sequential_solution`, the sorting Modelica tools do), ``model_eval`` is
    explicit code with no iteration; otherwise CasADi's ``fast_newton`` rootfinder runs the
    Newton iteration inside the generated C code; ``residual`` is ``F`` at the solution (checked by the C
-   layer, equation by equation, relative to ``scale``: the size of the terms the equation
-   balances, ``|F_i| + sum_k |dF_i/dk_k| |k_k|`` over the known values with the unknowns at
-   zero). ``model_solve`` is the same with a converging iteration first (see
-   :data:`POLISH_OPTIONS`); ``model_start(p) -> x0`` gives the start values of the states
-   bound to parameters.
-2. CasADi generates C for both (``equations.c``/``equations.h``).
+   layer, equation by equation, relative to ``model_scale(t, x, u, p)``: the size of the terms
+   the equation balances, ``|F_i| + sum_k |dF_i/dk_k| |k_k|`` over the known values with the
+   unknowns at zero, computed only when a residual exceeds the absolute bound). ``model_solve``
+   is the same with a converging iteration first (see :data:`POLISH_OPTIONS`);
+   ``model_start(p) -> x0`` gives the start values of the states bound to parameters.
+2. CasADi generates C for all of them (``equations.c``/``equations.h``).
 3. ``model.h`` describes the model to the FMI layer written once for all models
    (``heliostep/c/fmi2_model_exchange.c``): sizes, start values, names.
 4. ``modelDescription.xml``: causality, variability, initial, start values, units (with SI
@@ -93,11 +93,14 @@ class Layout:
         return next(i for i, v in enumerate(self.variables) if v.name == name)
 
 
-def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.Function]:
-    """CasADi functions ``model_eval``, ``model_solve`` and ``model_start`` of a flat model.
+def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.Function, ca.Function]:
+    """CasADi functions ``model_eval``, ``model_solve``, ``model_scale`` and ``model_start`` of a flat model.
 
-    ``model_eval`` polishes the previous solution with two Newton steps; ``model_solve``
-    iterates to convergence first (for a cold or far start), then polishes the same way.
+    ``model_eval`` is explicit code where the equations sort (:func:`explicit_evaluation`), else
+    it polishes the previous solution with two Newton steps; ``model_solve`` iterates to
+    convergence first (for a cold or far start), then polishes the same way. ``model_scale``
+    gives the size of the terms each equation balances, for the C layer's residual check (which
+    computes it only when a residual is not negligible outright).
     """
     sym = model.symbols
     stack = lambda variables: ca.vertcat(*[sym[v.name] for v in variables])  # noqa: E731
@@ -120,19 +123,20 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
 
     def solve(name: str, solution: ca.MX) -> ca.Function:
         return ca.Function(name, [model.time, x, u, p, guess],
-                           [ca.vertcat(solution, calculated), residual_fn(solution, known),
-                            scale_fn(no_unknowns, known)],
-                           ["t", "x", "u", "p", "guess"], ["computed", "residual", "scale"])
+                           [ca.vertcat(solution, calculated), residual_fn(solution, known)],
+                           ["t", "x", "u", "p", "guess"], ["computed", "residual"])
 
     converge = solve("model_solve", polish(robust(guess[:n_unknowns], known), known))
-    explicit = explicit_evaluation(model, residual_fn, scale_fn, calculated)
+    explicit = explicit_evaluation(model, residual_fn, calculated)
     evaluate = explicit if explicit is not None else solve("model_eval", polish(guess[:n_unknowns], known))
+    scale = ca.Function("model_scale", [model.time, x, u, p], [scale_fn(no_unknowns, known)],
+                        ["t", "x", "u", "p"], ["scale"]).expand()
     start = ca.Function("model_start", [p], [ca.vertcat(*model.state_start) if model.states else ca.MX(0, 1)],
                         ["p"], ["x0"])
     if start.has_free():
         raise HeliostepError(
             f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}")
-    return evaluate, converge, start
+    return evaluate, converge, scale, start
 
 
 def sequential_solution(residual: ca.SX, unknowns: ca.SX) -> list[ca.SX] | None:
@@ -167,14 +171,13 @@ def sequential_solution(residual: ca.SX, unknowns: ca.SX) -> list[ca.SX] | None:
     return [solution[j] for j in range(n)] if len(solution) == n else None
 
 
-def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, scale_fn: ca.Function,
-                        calculated: ca.MX) -> ca.Function | None:
+def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, calculated: ca.MX) -> ca.Function | None:
     """``model_eval`` as explicit code where :func:`sequential_solution` solves the model, else None.
 
     Same inputs and outputs as the Newton form (``guess`` unused): the derivatives and
     algebraic variables computed straight from the known values, with no iteration, so each
-    evaluation costs the model's own arithmetic; the residual and its scale are still
-    returned for the C layer's check.
+    evaluation costs the model's own arithmetic; the residual is still returned for the C
+    layer's check.
     """
     sizes = [v.numel() for v in (model.time,)] + [len(model.states), len(model.inputs), len(model.parameters)]
     t, x, u, p = (ca.SX.sym(name, size) for name, size in zip("txup", sizes))
@@ -190,9 +193,8 @@ def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, scale_fn: ca
     values = ca.Function("calculated", [parameters], [calculated]).expand()(p) if model.calculated_parameters \
         else ca.SX(0, 1)
     return ca.Function("model_eval", [t, x, u, p, guess],
-                       [ca.vertcat(solved, values), residual_fn.expand()(solved, known),
-                        scale_fn.expand()(ca.SX.zeros(n_unknowns, 1), known)],
-                       ["t", "x", "u", "p", "guess"], ["computed", "residual", "scale"])
+                       [ca.vertcat(solved, values), residual_fn.expand()(solved, known)],
+                       ["t", "x", "u", "p", "guess"], ["computed", "residual"])
 
 
 def _c_double(value: float | None) -> str:
@@ -395,10 +397,10 @@ def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path,
     sources = work_dir / "sources"
     sources.mkdir(parents=True, exist_ok=True)
     layout = Layout.of(model)
-    evaluate, converge, start = equation_functions(model)
+    evaluate, converge, scale, start = equation_functions(model)
 
     generator = ca.CodeGenerator("equations.c", {"with_header": True, "casadi_real": "double"})
-    for function in (evaluate, converge, start):
+    for function in (evaluate, converge, scale, start):
         generator.add(function)
     generator.generate(str(sources) + "/")
     (sources / "model.h").write_text(model_header(model, layout, guid))

@@ -4,12 +4,14 @@
  * A model contributes only two generated files: "model.h" (sizes, start values, names and
  * the layout of the value references) and the CasADi-generated equations ("equations.h"),
  * which provide
- *   model_eval(t, x, u, p, guess)  -> (computed, residual, scale)   two Newton steps from guess
- *   model_solve(t, x, u, p, guess) -> (computed, residual, scale)   converge, then the same steps
+ *   model_eval(t, x, u, p, guess)  -> (computed, residual)   explicit, or two Newton steps from guess
+ *   model_solve(t, x, u, p, guess) -> (computed, residual)   converge, then two Newton steps
+ *   model_scale(t, x, u, p)        -> scale                  the size of each equation's terms
  *   model_start(p)                 -> x0
  * where "computed" holds the state derivatives, the algebraic variables and the calculated
- * parameters, solved from the model's implicit residual by a Newton iteration inside the
- * generated code, and "residual" is the residual at that solution (checked here). The
+ * parameters, solved from the model's implicit residual (in straight-line code where the
+ * equations sort one unknown at a time, else by a Newton iteration inside the generated code),
+ * and "residual" is the residual at that solution (checked here, against the scale). The
  * previous solution is the guess; model_solve is the fallback when model_eval's residual
  * is not small (first call, large jumps), from the previous solution and then from zero.
  *
@@ -168,9 +170,15 @@ static int eval_equations(Instance *inst, EquationFunction equations, const doub
     inst->arg[4] = guess;
     inst->res[0] = inst->computed;
     inst->res[1] = inst->residual;
-    inst->res[2] = inst->scale;
     if (equations(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
+    int scaled = 0; /* the scale is computed only for a residual the absolute bound does not pass */
     for (int i = 0; i < N_UNKNOWNS; i++) {
+        if (fabs(inst->residual[i]) <= RESIDUAL_ATOL) continue;
+        if (!scaled) {
+            inst->res[0] = inst->scale;
+            if (model_scale(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
+            scaled = 1;
+        }
         if (!(fabs(inst->residual[i]) <= RESIDUAL_RTOL * fabs(inst->scale[i]) + RESIDUAL_ATOL)) return 0;
     }
     return 1;
@@ -270,8 +278,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     inst->state = Instantiated;
     inst->instance_name = (char *)allocate(functions, strlen(instanceName) + 1, 1);
     model_start_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-    for (int f = 0; f < 2; f++) {
-        (f == 0 ? model_eval_work : model_solve_work)(&n_arg, &n_res, &n_iw, &n_w);
+    for (int f = 0; f < 3; f++) {
+        (f == 0 ? model_eval_work : f == 1 ? model_solve_work : model_scale_work)(&n_arg, &n_res, &n_iw, &n_w);
         if (sz_arg < n_arg) sz_arg = n_arg;
         if (sz_res < n_res) sz_res = n_res;
         if (sz_iw < n_iw) sz_iw = n_iw;
