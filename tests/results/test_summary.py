@@ -130,3 +130,30 @@ def test_streamed_figures_of_a_slip_a_late_step_and_a_step_at_the_end(block):
         assert streamed[key] == pytest.approx(whole[key], rel=1e-12), key
     assert streamed["rms_tracking_error_deg"] == pytest.approx(whole["rms_tracking_error_deg"], rel=1e-12)
     assert streamed["settling_time_s"] == whole["settling_time_s"]
+
+
+def _idle_inputs(step_times, indices, fraction, delay):
+    metadata = _inputs(step_times, indices)
+    metadata["drive"].update(idle_current_fraction=fraction, idle_delay=delay)
+    return metadata
+
+
+@pytest.mark.parametrize("slips", [0, 1])
+def test_lost_steps_are_net_of_the_larger_lag_the_load_causes_at_the_idle_current(slips):
+    # The load holds the rotor 0.19 step behind at full current. The detent's torque is
+    # k_e I sin(N_c d) (eq. 9, a full step is a quarter period): at 30 % of the current the same
+    # load needs sin(N_c d) = sin(N_c 0.19 step) / 0.3, a lag of 0.87 step, still in its detent
+    # (the old rule, net of the start lag only, counted 1 lost step here); a slip adds 4.
+    n_c = np.pi / 2 / STEP
+    start_lag = 0.19 * STEP
+    idle_lag = np.arcsin(np.sin(n_c * start_lag) / 0.3) / n_c
+    assert idle_lag / STEP == pytest.approx(0.87, abs=0.01)
+    time = np.array([0.0, 0.5, 1.0, 2.0, 3.0])
+    end = -idle_lag - slips * 4 * STEP
+    rotor = np.array([-start_lag, -start_lag, -start_lag, end, end])
+    summary = summarize(_trace(time, rotor, np.zeros(5)), _idle_inputs([], [], fraction=0.3, delay=0.5))
+    assert summary["steps_lost"] == 4 * slips
+    assert summary["final_lag_steps"] == pytest.approx(idle_lag / STEP)
+    # with full current to the end (the drop comes after it) the start lag is the rule
+    held = summarize(_trace(time, np.full(5, -start_lag), np.zeros(5)), _idle_inputs([], [], fraction=0.3, delay=5.0))
+    assert held["steps_lost"] == 0 and held["final_lag_steps"] == pytest.approx(0.19)

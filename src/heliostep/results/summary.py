@@ -22,8 +22,9 @@ Definitions:
   falls back by whole electrical periods, 4 full steps). Steps executed = commanded − missed;
 - steps lost: how many step increments the rotor ends behind the commanded position, net of
   the elastic lag (the static deflection under load, which the run holds from its first row:
-  it starts at the loaded detent): round((cmd − rotor)/increment − lag at the start), negative
-  when ahead. A slip under load loses whole electrical periods (4 full steps).
+  it starts at the loaded detent): round((cmd − rotor)/increment − lag), negative when ahead.
+  The lag is the one at the start, or, when the run ends on a reduced idle current, the lag
+  the same load causes at that current (:func:`held_lag`, from the detent's sine torque law). A slip under load loses whole electrical periods (4 full steps).
   ``final_lag_steps`` is what is left, the elastic lag at the end, in increments;
 - settling time of a step: from the step until the rotor stays within ``settling_band`` ×
   the increment of its rest position (the commanded position minus the elastic lag held at
@@ -230,8 +231,8 @@ class SolutionRecorder:
             increment = self.sequencer.increment
             behind = (last_cmd - float(self._last[self._rotor])) / increment
             lag = (first_cmd - float(self._first[self._rotor])) / increment
-            result["steps_lost"] = int(np.round(behind - lag))
-            result["final_lag_steps"] = float(behind - result["steps_lost"])
+            result["steps_lost"], result["final_lag_steps"] = lost_steps(behind, lag, self.sequencer, self.schedule,
+                                                                         start, end)
             result["step_outcomes"] = [{"time_s": o[0], "missed": o[2], "settling_s": o[3], "move_steps": o[4]}
                                        for o in outcomes]
         result["solution_rows"] = int(self.count)
@@ -252,6 +253,39 @@ def _time_rms(values: np.ndarray, time: np.ndarray) -> float:
 def _peak(trace: pd.DataFrame, *columns: str) -> float | None:
     present = [c for c in columns if c in trace]
     return float(np.abs(trace[present].to_numpy()).max()) if present and len(trace) else None
+
+
+def held_lag(start_lag: float, current_fraction: float, sequencer: Sequencer) -> float:
+    """The elastic lag [rad] under the same load when the holding current has fallen to
+    ``current_fraction`` of the current that held ``start_lag`` [rad] (idle current reduction).
+
+    A detent holds the load with the torque k_e I sin(N_c δ) ([paper], eq. 9; one full step is a
+    quarter of the electrical period 2π/N_c), so sin(N_c δ_end) = sin(N_c δ_start) / fraction;
+    past the pull-out point (a ratio above 1) the lag is one full step, where the rotor slips.
+    """
+    quarter = np.pi / 2 / sequencer.step_angle  # N_c
+    ratio = np.sin(quarter * start_lag) / current_fraction
+    return float(np.arcsin(np.clip(ratio, -1.0, 1.0)) / quarter)
+
+
+def _end_current_fraction(sequencer: Sequencer, schedule: StepSchedule, start: float, end: float) -> float:
+    """The fraction of the full current the drive holds at ``end`` (see
+    :func:`heliostep.drive.sequencer.idle_currents`)."""
+    steps = schedule.times[(schedule.times > start) & (schedule.times <= end)]
+    last = float(steps[-1]) if len(steps) else start
+    return sequencer.idle_current_fraction if end - last > sequencer.idle_delay else 1.0
+
+
+def lost_steps(behind: float, start_lag: float, sequencer: Sequencer, schedule: StepSchedule, start: float,
+               end: float) -> tuple[int, float]:
+    """(steps lost, elastic lag left) [increments] from how far the rotor ends behind the command
+    and the lag it held at the start (both [increments]): the lost steps are net of the elastic
+    lag the load causes at the end, at the holding current of the end (:func:`held_lag`)."""
+    increment = sequencer.increment
+    fraction = _end_current_fraction(sequencer, schedule, start, end)
+    lag = start_lag if fraction == 1.0 else held_lag(start_lag * increment, fraction, sequencer) / increment
+    lost = int(np.round(behind - lag))
+    return lost, float(behind - lost)
 
 
 def _period(sequencer: Sequencer) -> float:
@@ -332,8 +366,8 @@ def figures(trace: pd.DataFrame, metadata: Mapping) -> dict:
         result.update(_step_fields(outcomes, len(outcomes)))
         behind = float(trace["rotor_angle_cmd"].iloc[-1] - trace[rotor_column].iloc[-1]) / sequencer.increment
         lag = float(trace["rotor_angle_cmd"].iloc[0] - trace[rotor_column].iloc[0]) / sequencer.increment
-        result["steps_lost"] = int(np.round(behind - lag))
-        result["final_lag_steps"] = float(behind - result["steps_lost"])
+        result["steps_lost"], result["final_lag_steps"] = lost_steps(behind, lag, sequencer, schedule,
+                                                                     float(time[0]), float(time[-1]))
         result["step_outcomes"] = [{"time_s": o[0], "missed": o[2], "settling_s": o[3], "move_steps": o[4]}
                                    for o in outcomes]
     return result
