@@ -334,12 +334,25 @@ def test_load_tolerances(tmp_path):
     assert load_tolerances(empty) == ToleranceSet()
 
 
+def test_a_scenario_section_overrides_the_signals_for_that_scenario_only(tmp_path):
+    path = tmp_path / "tol.yaml"
+    path.write_text("default: {abs: 1e-6, rel: 0, time: 0}\nsignals:\n  motor.tau: {abs: 1e-3, rel: 1e-4}\n"
+                    "scenarios:\n  weak:\n    signals:\n      motor.tau: {abs: 0.5}\n      motor.i_a: {time: 2e-3}\n")
+    tols = load_tolerances(path)
+    assert tols.for_signal("motor.tau") == Tolerance(abs=1e-3, rel=1e-4, time=0)
+    weak = tols.for_scenario("weak")
+    assert weak.for_signal("motor.tau") == Tolerance(abs=0.5, rel=1e-4, time=0)  # rel from signals, abs its own
+    assert weak.for_signal("motor.i_a") == Tolerance(abs=1e-6, rel=0, time=2e-3)
+    assert tols.for_scenario("other").for_signal("motor.tau") == tols.for_signal("motor.tau")
+
+
 @pytest.mark.parametrize(
     ("text", "key"),
     [
         ("default: {abss: 1}\n", "abss"),
         ("signals: {motor.tau: {atol: 1}}\n", "atol"),
         ("defaults: {abs: 1}\n", "defaults"),
+        ("scenarios: {weak: {signals: {motor.tau: {absolute: 1}}}}\n", "absolute"),
     ],
 )
 def test_unknown_tolerance_keys_are_named(tmp_path, text, key):
