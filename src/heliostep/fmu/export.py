@@ -206,8 +206,9 @@ def _c_array(ctype: str, name: str, values: list[str]) -> str:
     return f"static const {ctype} {name}[{max(len(values), 1)}] = {{{body}}};\n"
 
 
-def model_header(model: FlatModel, layout: Layout, guid: str) -> str:
-    """The per-model ``model.h`` read by the FMI layer."""
+def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool) -> str:
+    """The per-model ``model.h`` read by the FMI layer (``explicit``: ``model_eval`` needs no
+    Newton iteration, see :func:`explicit_evaluation`)."""
     starts = []
     for v in layout.variables:
         starts.append(_c_double(v.start) if v.kind in ("parameter", "state", "input") else "0.0")
@@ -223,6 +224,7 @@ def model_header(model: FlatModel, layout: Layout, guid: str) -> str:
         f"#define N_INPUTS {len(model.inputs)}\n"
         f"#define N_UNKNOWNS {len(model.derivatives) + len(model.algebraics)}\n"
         f"#define N_COMPUTED {n_computed}\n"
+        f"#define EXPLICIT_EVAL {int(explicit)}\n"
         + _c_array("double", "START_VALUES", starts)
         + _c_array("char", "STATE_START_CALCULATED",
                    ["1" if v.start is None else "0" for v in model.states])
@@ -403,7 +405,7 @@ def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path,
     for function in (evaluate, converge, scale, start):
         generator.add(function)
     generator.generate(str(sources) + "/")
-    (sources / "model.h").write_text(model_header(model, layout, guid))
+    (sources / "model.h").write_text(model_header(model, layout, guid, evaluate.is_a("SXFunction")))
     layer = resources.files("heliostep.fmu") / "c" / FMI_LAYER
     (sources / FMI_LAYER).write_bytes(layer.read_bytes())
 

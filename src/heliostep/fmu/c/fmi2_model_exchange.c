@@ -160,9 +160,11 @@ static void flush_tiny(double *values, int n) {
     }
 }
 
-static int eval_equations(Instance *inst, EquationFunction equations, const double *guess) {
-    flush_tiny(inst->r + OFF_X, N_STATES + N_INPUTS);
-    flush_tiny(inst->guess, N_COMPUTED);
+static int eval_equations(Instance *inst, EquationFunction equations, const double *guess, int newton) {
+    if (newton) { /* only the Newton step's QR factorisation needs it */
+        flush_tiny(inst->r + OFF_X, N_STATES + N_INPUTS);
+        flush_tiny(inst->guess, N_COMPUTED);
+    }
     inst->arg[0] = &inst->time;
     inst->arg[1] = inst->r + OFF_X;
     inst->arg[2] = inst->r + OFF_U;
@@ -200,9 +202,11 @@ static fmi2Status update(Instance *inst, const char *function) {
     static const double zeros[N_COMPUTED + 1] = {0};
     if (inst->computed_valid) return fmi2OK;
     if (inst->state & (Instantiated | InitializationMode)) compute_state_starts(inst);
-    memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED);
-    if (!eval_equations(inst, model_eval, inst->guess) && !eval_equations(inst, model_solve, inst->guess) &&
-        !eval_equations(inst, model_solve, zeros)) {
+    /* the previous solution is the Newton iteration's guess (an explicit model_eval needs none) */
+    if (!EXPLICIT_EVAL) memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED);
+    if (!eval_equations(inst, model_eval, inst->guess, !EXPLICIT_EVAL) &&
+        !(EXPLICIT_EVAL && (memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED), 0)) &&
+        !eval_equations(inst, model_solve, inst->guess, 1) && !eval_equations(inst, model_solve, zeros, 1)) {
         LOG_ERROR(inst, "%s: the model equations could not be solved at t = %g", function, inst->time);
         return enter_error_state(inst);
     }
