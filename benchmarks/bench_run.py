@@ -7,8 +7,9 @@ Printed side by side in one run:
 2. sunrise to sunset (scenarios/jan21-day.yaml): simulation wall time, RHS per motor step;
 3. the same day with fmpy.simulate_fmu on the monolithic DriveSystem FMU (same inputs, start
    values, tolerance and output grid) and the ratio master / fmpy;
-each for the master's paths: Python callbacks or the compiled right-hand side
-(heliostep.cosim.kernel), stopping CVODE at every output time or interpolating output rows.
+each for the master's paths: Python callbacks, or the compiled kernel (heliostep.cosim.kernel:
+right-hand side, root function and the loop over CVODE's internal steps in C) stopping CVODE at
+every output time or interpolating the output rows (the default).
 4. RHS evaluations per motor step of the paper's case with a smooth current loop, a chopper
    that never saturates, a wider friction regularisation and a looser tolerance (what sets them);
 5. with --profile: where the time of the 5-minute case goes (cProfile, top functions).
@@ -41,8 +42,8 @@ def best_of(function, repeat: int):
 
 #: the master's paths: (label, compiled right-hand side, interpolated output rows)
 PATHS = [("python callbacks, stops at outputs", False, False),
-         ("compiled RHS, stops at outputs", True, False),
-         ("compiled RHS, interpolated outputs", True, True)]
+         ("compiled kernel, stops at outputs", True, False),
+         ("compiled kernel, interpolated (default)", True, True)]
 
 
 def run_path(name: str, compiled: bool, interpolate: bool, repeat: int):
@@ -114,14 +115,14 @@ def bench(name: str, repeat: int, against_fmpy: bool) -> None:
         wall, run, captured = run_path(name, compiled, interpolate, repeat)
         stats = run.metadata["statistics"]
         steps = max(1, int(run.summary["steps_commanded"]))
-        line = (f"{name:14s} {label:36s} simulation {wall:7.3f} s  {stats['rhs']:>9,d} RHS  "
+        line = (f"{name:14s} {label:40s} simulation {wall:7.3f} s  {stats['rhs']:>9,d} RHS  "
                 f"{stats['rhs'] / steps:7.1f} RHS/motor step  {stats['integrator_calls']:>6,d} solver calls")
         if against_fmpy:
             if fmpy_wall is None:
                 fmpy_wall, reference = monolithic(captured, 1)
                 last = abs(run.trace["mechanics.theta"].iloc[-1] - reference["mechanics.theta"][-1]) \
                     if "mechanics.theta" in run.trace else float("nan")
-                print(f"{name:14s} {'fmpy.simulate_fmu on DriveSystem':36s} simulation {fmpy_wall:7.3f} s  "
+                print(f"{name:14s} {'fmpy.simulate_fmu on DriveSystem':40s} simulation {fmpy_wall:7.3f} s  "
                       f"(final rotor angles of the first path differ by {last:.1e} rad)")
             line += f"  = {wall / fmpy_wall:.2f}x fmpy"
         print(line, flush=True)
