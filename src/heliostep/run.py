@@ -509,7 +509,8 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
     finally:
         if bar:
             bar.close()
-    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started}
+    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started,
+                          "peak_rss_mb_simulating": _peak_rss_mb()}
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
     if len(solution):  # figures from every solver step, stored so summarize(trace, meta) recomputes them
@@ -530,6 +531,16 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
     run = RunResult(scenario, held, summary, meta, complete, error, inputs, reason, reached,
                     trace_file=trace_file, temporary_folder=temporary)
     return run
+
+
+def _peak_rss_mb() -> float | None:
+    """The process's peak resident memory so far [MB] (None where the OS does not say)."""
+    try:
+        import resource
+    except ImportError:  # not on Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return round(peak / (1024 * 1024 if sys.platform == "darwin" else 1024), 1)  # bytes on macOS, KiB on Linux
 
 
 def _progress_bar(duration: float):

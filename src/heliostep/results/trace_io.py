@@ -337,17 +337,23 @@ def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
     if missing:
         raise InputError(f"{path}: no column(s) {', '.join(map(repr, missing))}")
     order = [TIME] + [c for c in wanted if c != TIME]
-    data = np.empty((source.metadata.num_rows, len(order)), dtype=np.float64, order="F")
-    for j, name in enumerate(order):
-        try:  # ParquetFile.read takes the name as it is (read_table would split "motor.tau" at the dot)
-            column = source.read(columns=[name]).column(0)
-        except Exception as exc:
-            raise InputError(f"{path}: cannot read column {name!r}: {exc}") from None
-        kind = column.type
+    for name in order:
+        kind = source.schema_arrow.field(name).type
         if not (pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_boolean(kind)):
             raise InputError(f"{path}: column {name!r} is not numeric (type {kind})")
-        data[:, j] = column.cast(pa.float64()).to_numpy(zero_copy_only=False)  # nulls become NaN
-        del column
+    data = np.empty((source.metadata.num_rows, len(order)), dtype=np.float64, order="F")
+    start = 0
+    for group in range(source.num_row_groups):  # one row group at a time: Arrow holds no more
+        try:  # ParquetFile takes the names as they are (read_table would split "motor.tau" at the dot)
+            table = source.read_row_group(group, columns=order, use_threads=False)
+        except Exception as exc:
+            raise InputError(f"{path}: cannot read row group {group}: {exc}") from None
+        stop = start + table.num_rows
+        for j in range(len(order)):
+            data[start:stop, j] = table.column(j).cast(pa.float64()).to_numpy(zero_copy_only=False)  # nulls: NaN
+        start = stop
+        del table
+    pa.default_memory_pool().release_unused()  # Arrow's pool would keep the decoded groups' memory
     check_time(data[:, 0], str(path))
     return pd.DataFrame(data, columns=order, copy=False)
 
