@@ -49,7 +49,7 @@ from heliostep.results.outputs import (
     write_text_atomic,
 )
 from heliostep.results.summary import SolutionRecorder, summarize
-from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata
+from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
 from heliostep.results.trace_io import ROW_GROUP_ROWS, copy_trace_to_csv, read_trace, write_trace
 from heliostep.results.trace_stream import TraceStream
 from heliostep.scenario import (
@@ -164,7 +164,7 @@ class RunResult:
             shutil.rmtree(staging, ignore_errors=True)
 
     def trace_metadata(self) -> dict[str, str]:
-        return trace_metadata(self.scenario, self.metadata, self.trace_column_names, self.complete,
+        return trace_metadata(self.scenario.name, self.metadata, self.trace_column_names, self.complete,
                               self.reason, self.time_reached, self.error)
 
     def summary_record(self) -> dict:
@@ -225,30 +225,6 @@ class RunResult:
         if self.temporary_folder is None or source.parent == target.parent:
             self.trace_file = target
         return target
-
-
-def trace_metadata(scenario: Scenario, metadata: dict, columns: list[str], complete: bool, reason: str | None,
-                   time_reached: float | None, error: str | None) -> dict[str, str]:
-    """A trace file's metadata: ``complete`` (and, when not, ``reason`` and ``time_reached``),
-    scenario, window, error, and the unit and role of each of ``columns``."""
-    present = set(columns)
-    units = {f"unit.{c}": u for c, u in metadata.get("units", {}).items() if c in present}
-    roles = {f"role.{r}": c for r, c in metadata.get("roles", {}).items() if c in present}
-    extra = {}
-    if not complete:
-        extra["reason"] = reason or "failed"
-        if time_reached is not None:
-            extra["time_reached"] = repr(float(time_reached))
-    return {"complete": str(complete).lower(), **extra, "scenario": scenario.name,
-            "window_start": metadata["window_start"], "timezone": metadata["timezone"],
-            **({"error": error} if error else {}), **units, **roles}
-
-
-def figure_columns(roles: dict[str, str]) -> list[str]:
-    """The trace columns the run's figures are computed from (summary, light): the derived
-    columns and every role's column. A streamed trace is read back with only these."""
-    return ["time", "panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error",
-            *roles.values()]
 
 
 class RunFailed(HeliostepError):
@@ -522,7 +498,7 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
         trace = held
     else:  # the file is finished (its metadata says how the run ended); figures read back only their columns
         held = None
-        trace_file = sink.close(trace_metadata(scenario, meta, sink.columns, complete, reason, reached, error))
+        trace_file = sink.close(trace_metadata(scenario.name, meta, sink.columns, complete, reason, reached, error))
         trace = read_trace(trace_file, [c for c in figure_columns(roles) if c in sink.columns])[0]
     summary = summarize(trace, meta) if len(trace) else {}
     if len(trace) > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
