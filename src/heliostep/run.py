@@ -452,7 +452,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     try:
         run = _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution,
                                          assembler, sink, bar, should_stop, temporary)
-    except BaseException:
+    except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
         if sink is not None:
             sink.abort()
         if temporary is not None:

@@ -134,3 +134,27 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
     assert meta["complete"] == "true" and summary["complete"] is True and summary["rows"] == len(trace)
     assert trace["time"].iloc[-1] == 120.0
     assert _fmu_dirs(tmp_path / "tmp") == [], "FMU unpack folder left behind"
+
+
+def test_second_signal_mid_simulation_removes_the_trace_stream(tmp_path, fmu_paths):
+    """A long window streams its trace into --out; two SIGTERMs 30 ms apart: the first asks to
+    stop, the second lands while the run stops (or computes its figures) and ends it at once. The
+    half-finished stream is removed with everything else temporary."""
+    out = tmp_path / "run"
+    process = _popen(["run", str(SCENARIOS / "jan21-day.yaml"), "--out", str(out)], tmp_path / "tmp")
+    _wait_for_fmus(tmp_path / "tmp", process)
+    time.sleep(1.5)
+    assert process.poll() is None, "the run ended before the signal"
+    assert list(out.glob(".heliostep-tmp-*-trace.parquet")), "the trace is not being streamed"
+    process.send_signal(signal.SIGTERM)
+    time.sleep(0.03)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 143, stderr
+    assert "Traceback" not in stderr and "stopped by SIGTERM a second time" in stderr, stderr
+    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+    for name in ("trace.parquet", "summary.json"):  # if it got as far as renaming, it says incomplete
+        if (out / name).exists():
+            assert "true" not in (read_trace(out / name)[1]["complete"] if name.endswith("parquet")
+                                  else str(json.loads((out / name).read_text())["complete"]).lower())
+    assert _fmu_dirs(tmp_path / "tmp") == [], "FMU unpack folder left behind"
