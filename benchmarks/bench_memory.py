@@ -1,20 +1,25 @@
 """Peak memory (RSS) of ``heliostep run`` on long windows (prints figures; not a test).
 
-    .venv/bin/python benchmarks/bench_memory.py [--hours 0.5 2 8] [--max-rss-mb N] [--csv]
+    .venv/bin/python benchmarks/bench_memory.py [--hours 0.25 1 4 16] [--max-rss-mb N] [--csv] [--plots]
 
 Each window is a fresh ``heliostep run`` subprocess on the paper's case (scenarios/jan21-central.yaml)
 with ``window.duration`` set to the given hours and a 10 s output grid (the fine grid after every
-step is kept), without figures. Reported per window: wall time, trace rows, solver-step rows the
+step is kept), without figures unless ``--plots``. Reported per window: wall time, trace rows, solver-step rows the
 summary recorded, trace.parquet size, and the subprocess's peak RSS (``ru_maxrss`` from
 ``wait4``). The growth of peak RSS per simulated hour is the figure that decides how long a window
 fits in memory. With ``--max-rss-mb`` the exit status is 1 when a window's peak exceeds it.
 
 Measured (2026-11-23, paper's case, 10 s grid): before the streaming figures the summary kept every
 solver row and peak RSS grew 58 MB per simulated hour (236 MB at 0.25 h, 280 MB at 1 h). With the
-streaming :class:`~heliostep.results.summary.SolutionRecorder` (memory bounded by its block of 4096
-rows plus the rotor's rows over one step interval) it grows 10 MB per hour (225 MB at 0.25 h, 242 MB
-at 2 h, 264 MB at 4 h): what is left is the master's output rows and the trace built from them,
-which the row sink of issue 13 (streaming the trace to Parquet row groups) would remove.
+streaming :class:`~heliostep.results.summary.SolutionRecorder` it grew 7.6 MB per hour (228 MB at
+0.25 h, 268 MB at 4 h, 327 MB at 16 h, 592 MB at 48 h; commit c7d460a, 2026-12-01): the master's
+output rows and the trace built from them, and the figures computed from the trace.
+
+Measured (2026-12-01) with the trace streamed to Parquet row groups for windows over 1 h (the master
+holds at most 4 096 rows, the stream one row group of 16 384): while simulating, peak RSS is 210 MB at
+0.25 h, 218 MB at 1 h, 233 MB at 4 h, 236 MB at 16 h, 247 MB at 48 h (0.3 MB/h past 4 h: the window's
+inputs). The process's peak: 226, 237, 252, 291, 432 MB, 4.3 MB per simulated hour (508 B per trace
+row), all of it after the simulation: ``summarize`` and ``light_figures`` evaluate whole columns.
 """
 
 from __future__ import annotations
@@ -33,8 +38,8 @@ SCENARIO = ROOT / "scenarios" / "jan21-central.yaml"
 HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
 
 
-def measure(hours: float, out: Path, csv: bool) -> dict:
-    args = [*HELIOSTEP, "run", str(SCENARIO), "--out", str(out), "--no-plots",
+def measure(hours: float, out: Path, csv: bool, plots: bool) -> dict:
+    args = [*HELIOSTEP, "run", str(SCENARIO), "--out", str(out), *([] if plots else ["--no-plots"]),
             "--set", f"window.duration={hours * 3600:g}", "--set", "output.interval=10",
             "--csv" if csv else "--no-csv"]
     started = time.perf_counter()
@@ -50,28 +55,35 @@ def measure(hours: float, out: Path, csv: bool) -> dict:
     return {"hours": hours, "wall_s": wall, "rows": summary["rows"],
             "solution_rows": metadata.get("solution_figures", {}).get("solution_rows"),
             "parquet_mb": (out / "trace.parquet").stat().st_size / 1e6,
+            "simulating_mb": metadata.get("statistics", {}).get("peak_rss_mb_simulating") or float("nan"),
             "peak_rss_mb": usage.ru_maxrss / 1024}  # ru_maxrss is in KiB on Linux
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--hours", type=float, nargs="+", default=[0.5, 2.0, 4.0])
+    parser.add_argument("--hours", type=float, nargs="+", default=[0.25, 1.0, 4.0, 16.0])
     parser.add_argument("--max-rss-mb", type=float, default=None)
     parser.add_argument("--csv", action="store_true", help="also write trace.csv")
+    parser.add_argument("--plots", action="store_true", help="also draw the figures")
     args = parser.parse_args()
     rows = []
     with tempfile.TemporaryDirectory(prefix="heliostep-bench-memory-") as tmp:
-        print(f"{'hours':>6} {'wall [s]':>9} {'rows':>9} {'solver rows':>12} {'parquet [MB]':>13} {'peak RSS [MB]':>14}")
+        print(f"{'hours':>6} {'wall [s]':>9} {'rows':>9} {'solver rows':>12} {'parquet [MB]':>13} "
+              f"{'peak simulating [MB]':>21} {'peak RSS [MB]':>14}")
         for hours in args.hours:
-            r = measure(hours, Path(tmp) / f"h{hours:g}", args.csv)
+            r = measure(hours, Path(tmp) / f"h{hours:g}", args.csv, args.plots)
             rows.append(r)
             print(f"{r['hours']:6g} {r['wall_s']:9.1f} {r['rows']:9d} {r['solution_rows'] or 0:12d} "
-                  f"{r['parquet_mb']:13.2f} {r['peak_rss_mb']:14.0f}", flush=True)
+                  f"{r['parquet_mb']:13.2f} {r['simulating_mb']:21.0f} {r['peak_rss_mb']:14.0f}", flush=True)
     if len(rows) > 1:
         first, last = rows[0], rows[-1]
         slope = (last["peak_rss_mb"] - first["peak_rss_mb"]) / (last["hours"] - first["hours"])
-        print(f"peak RSS grows {slope:.1f} MB per simulated hour "
+        per_row = (last["peak_rss_mb"] - first["peak_rss_mb"]) * 1e6 / max(last["rows"] - first["rows"], 1)
+        print(f"peak RSS grows {slope:.1f} MB per simulated hour, {per_row:.0f} B per trace row "
               f"(a 10-day window: about {first['peak_rss_mb'] + slope * (240 - first['hours']):.0f} MB)")
+        sim_slope = (last["simulating_mb"] - first["simulating_mb"]) / (last["hours"] - first["hours"])
+        print(f"while simulating (master, trace stream, solution figures) it grows {sim_slope:.2f} MB per "
+              f"simulated hour; the rest is the figures computed after the simulation from whole columns")
     if args.max_rss_mb is not None:
         over = [r for r in rows if r["peak_rss_mb"] > args.max_rss_mb]
         for r in over:

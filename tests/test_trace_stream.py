@@ -133,7 +133,7 @@ def test_interrupted_stream_is_written_marked_and_claims_nothing_while_written(f
     assert json.loads((tmp_path / "summary.json").read_text())["complete"] is False
 
 
-def test_plots_of_a_streamed_trace_are_read_by_column(held, fmu_paths, tmp_path):
+def test_long_window_streams_its_trace_and_draws_every_figure_from_the_file(fmu_paths, tmp_path):
     out = tmp_path / "out"
     assert main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--no-csv",
                  "--set", "window.duration=3700", "--set", "output.interval=10"]) == 0
@@ -142,6 +142,9 @@ def test_plots_of_a_streamed_trace_are_read_by_column(held, fmu_paths, tmp_path)
                      "fig11_torque.png", "fig12_rotor_angle.png", "fig13_panel_tracking.png",
                      "fig14_torque_zoom.png", "metadata.json", "power_on_tube.png", "summary.json", "trace.parquet"]
     summary = json.loads((out / "summary.json").read_text())
+    metadata = json.loads((out / "metadata.json").read_text())
     trace, meta = read_trace(out / "trace.parquet")
     assert meta["complete"] == "true" and summary["rows"] == len(trace)
     assert trace["time"].iloc[-1] == 3700.0
+    # streamed: the master held at most its block of rows, not the window's
+    assert metadata["statistics"]["max_buffered_rows"] <= 4096 < len(trace)

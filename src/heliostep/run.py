@@ -49,7 +49,7 @@ from heliostep.results.outputs import (
     write_text_atomic,
 )
 from heliostep.results.summary import SolutionRecorder, summarize
-from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata
+from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
 from heliostep.results.trace_io import ROW_GROUP_ROWS, copy_trace_to_csv, read_trace, write_trace
 from heliostep.results.trace_stream import TraceStream
 from heliostep.results.tradeoffs import tradeoff_figures
@@ -167,7 +167,7 @@ class RunResult:
             shutil.rmtree(staging, ignore_errors=True)
 
     def trace_metadata(self) -> dict[str, str]:
-        return trace_metadata(self.scenario, self.metadata, self.trace_column_names, self.complete,
+        return trace_metadata(self.scenario.name, self.metadata, self.trace_column_names, self.complete,
                               self.reason, self.time_reached, self.error)
 
     def summary_record(self) -> dict:
@@ -228,30 +228,6 @@ class RunResult:
         if self.temporary_folder is None or source.parent == target.parent:
             self.trace_file = target
         return target
-
-
-def trace_metadata(scenario: Scenario, metadata: dict, columns: list[str], complete: bool, reason: str | None,
-                   time_reached: float | None, error: str | None) -> dict[str, str]:
-    """A trace file's metadata: ``complete`` (and, when not, ``reason`` and ``time_reached``),
-    scenario, window, error, and the unit and role of each of ``columns``."""
-    present = set(columns)
-    units = {f"unit.{c}": u for c, u in metadata.get("units", {}).items() if c in present}
-    roles = {f"role.{r}": c for r, c in metadata.get("roles", {}).items() if c in present}
-    extra = {}
-    if not complete:
-        extra["reason"] = reason or "failed"
-        if time_reached is not None:
-            extra["time_reached"] = repr(float(time_reached))
-    return {"complete": str(complete).lower(), **extra, "scenario": scenario.name,
-            "window_start": metadata["window_start"], "timezone": metadata["timezone"],
-            **({"error": error} if error else {}), **units, **roles}
-
-
-def figure_columns(roles: dict[str, str]) -> list[str]:
-    """The trace columns the run's figures are computed from (summary, light): the derived
-    columns and every role's column. A streamed trace is read back with only these."""
-    return ["time", "panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error",
-            *roles.values()]
 
 
 class RunFailed(HeliostepError):
@@ -476,7 +452,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     try:
         run = _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution,
                                          assembler, sink, bar, should_stop, temporary)
-    except BaseException:
+    except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
         if sink is not None:
             sink.abort()
         if temporary is not None:
@@ -509,7 +485,8 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
     finally:
         if bar:
             bar.close()
-    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started}
+    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started,
+                          "peak_rss_mb_simulating": _peak_rss_mb()}
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
     if len(solution):  # figures from every solver step, stored so summarize(trace, meta) recomputes them
@@ -521,7 +498,7 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
         trace = held
     else:  # the file is finished (its metadata says how the run ended); figures read back only their columns
         held = None
-        trace_file = sink.close(trace_metadata(scenario, meta, sink.columns, complete, reason, reached, error))
+        trace_file = sink.close(trace_metadata(scenario.name, meta, sink.columns, complete, reason, reached, error))
         trace = read_trace(trace_file, [c for c in figure_columns(roles) if c in sink.columns])[0]
     summary = summarize(trace, meta) if len(trace) else {}
     if len(trace) > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
@@ -531,6 +508,16 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
     run = RunResult(scenario, held, summary, meta, complete, error, inputs, reason, reached,
                     trace_file=trace_file, temporary_folder=temporary)
     return run
+
+
+def _peak_rss_mb() -> float | None:
+    """The process's peak resident memory so far [MB] (None where the OS does not say)."""
+    try:
+        import resource
+    except ImportError:  # not on Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return round(peak / (1024 * 1024 if sys.platform == "darwin" else 1024), 1)  # bytes on macOS, KiB on Linux
 
 
 def _progress_bar(duration: float):

@@ -96,7 +96,8 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
     assert _fmu_dirs(tmp_path / "tmp") == [], "FMU unpack folder left behind"
 
 
-def test_sigint_stops_sweep_cleanly(tmp_path, fmu_paths):
+@pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_signal_stops_sweep_cleanly_and_leaves_no_temporary_folder(sig, status, tmp_path, fmu_paths):
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(f"name: sigtest\nbase: {SCENARIOS / 'jan21-central.yaml'}\ncombine: product\n"
                      "axes:\n  day_of_year: [21, 22, 23, 24, 25, 26, 27, 28]\n"
@@ -105,13 +106,16 @@ def test_sigint_stops_sweep_cleanly(tmp_path, fmu_paths):
     process = _popen(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-plots"], tmp_path / "tmp")
     time.sleep(6.0)
     assert process.poll() is None, process.communicate()
-    process.send_signal(signal.SIGINT)
+    process.send_signal(sig)
     _, stderr = process.communicate(timeout=60)
-    assert process.returncode == 130, stderr
+    assert process.returncode == status, stderr
     # no traceback of the command itself (under load, a Dask worker torn down mid-heartbeat may
     # still log one of its own: distributed's logging, in the worker process)
     assert "KeyboardInterrupt" not in stderr and "heliostep/cli" not in stderr, stderr
-    assert "stopped by SIGINT" in stderr and "rerun" in stderr
+    assert f"stopped by {signal.Signals(sig).name}" in stderr and "rerun" in stderr
+    # the workers, killed by the cluster's shutdown, leave nothing in TMPDIR: no Dask scratch
+    # space, no FMU unpack folder, no trace stream of a case in progress
+    assert list((tmp_path / "tmp").iterdir()) == []
 
 
 def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(tmp_path, fmu_paths):
@@ -140,4 +144,28 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
     summary = json.loads((out / "summary.json").read_text())
     assert meta["complete"] == "true" and summary["complete"] is True and summary["rows"] == len(trace)
     assert trace["time"].iloc[-1] == 120.0
+    assert _fmu_dirs(tmp_path / "tmp") == [], "FMU unpack folder left behind"
+
+
+def test_second_signal_mid_simulation_removes_the_trace_stream(tmp_path, fmu_paths):
+    """A long window streams its trace into --out; two SIGTERMs 30 ms apart: the first asks to
+    stop, the second lands while the run stops (or computes its figures) and ends it at once. The
+    half-finished stream is removed with everything else temporary."""
+    out = tmp_path / "run"
+    process = _popen(["run", str(SCENARIOS / "jan21-day.yaml"), "--out", str(out)], tmp_path / "tmp")
+    _wait_for_fmus(tmp_path / "tmp", process)
+    time.sleep(1.5)
+    assert process.poll() is None, "the run ended before the signal"
+    assert list(out.glob(".heliostep-tmp-*-trace.parquet")), "the trace is not being streamed"
+    process.send_signal(signal.SIGTERM)
+    time.sleep(0.03)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 143, stderr
+    assert "Traceback" not in stderr and "stopped by SIGTERM a second time" in stderr, stderr
+    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+    for name in ("trace.parquet", "summary.json"):  # if it got as far as renaming, it says incomplete
+        if (out / name).exists():
+            assert "true" not in (read_trace(out / name)[1]["complete"] if name.endswith("parquet")
+                                  else str(json.loads((out / name).read_text())["complete"]).lower())
     assert _fmu_dirs(tmp_path / "tmp") == [], "FMU unpack folder left behind"

@@ -11,8 +11,13 @@ cases finished so far stay in results.parquet; a rerun runs the rest).
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import signal
 import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
@@ -70,7 +75,7 @@ def _run_command(args: argparse.Namespace) -> int:
         raise InputError(f"--connect-timeout must be > 0 s, got {args.connect_timeout}")
     results_path = None
     try:
-        with stop_requests(raise_exception=_Stopped):
+        with stop_requests(raise_exception=_Stopped), _scratch_tmpdir():
             spec = load_sweep(args.sweep)
             cases = expand_cases(spec)
             out_dir = args.out or Path("out") / spec.name
@@ -106,6 +111,28 @@ def _recorded(results_path: Path | None) -> str:
     except (OSError, HeliostepError):  # only for the message
         return f"the cases finished so far are in {results_path}"
     return f"{done} case(s) recorded in {results_path}; rerun the same command to run the rest"
+
+
+@contextmanager
+def _scratch_tmpdir() -> Iterator[Path]:
+    """TMPDIR of the sweep's local processes: a folder removed on every exit path.
+
+    Dask's scratch space and the workers' FMU unpack folders and trace streams go there. On
+    SIGINT/SIGTERM the cluster's shutdown kills the worker processes, which then cannot remove
+    their own temporary folders; this process removes the whole folder once the cluster is gone.
+    """
+    scratch = Path(tempfile.mkdtemp(prefix="heliostep-sweep-"))
+    saved_env, saved_tempdir = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"], tempfile.tempdir = str(scratch), None  # inherited by the workers
+    try:
+        yield scratch
+    finally:
+        if saved_env is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = saved_env
+        tempfile.tempdir = saved_tempdir
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 class _Stopped(KeyboardInterrupt):

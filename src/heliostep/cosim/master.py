@@ -315,7 +315,8 @@ class CoSimulation:
 
         ``sink``, when given, receives the trace rows as they are produced, in time order, as 2-D
         blocks (rows × the trace's columns) of at most ``sink_rows`` rows; the master then holds
-        at most ``sink_rows`` rows (``statistics["max_buffered_rows"]``), and the trace it returns
+        at most ``sink_rows`` rows, or one larger block stored at once, which it passes straight on
+        (``statistics["max_buffered_rows"]`` is the most it held), and the trace it returns
         (or carries in :class:`SimulationError`) has the columns but no rows. The last block is
         handed over before this returns or raises, also when the run fails or is interrupted.
         """

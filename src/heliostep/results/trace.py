@@ -23,6 +23,31 @@ UNITS = {
 
 
 
+def trace_metadata(scenario: str, metadata: dict, columns: list[str], complete: bool, reason: str | None,
+                   time_reached: float | None, error: str | None) -> dict[str, str]:
+    """A run's trace file metadata: ``complete`` (and, when not, ``reason`` and ``time_reached``),
+    the scenario's name, the window (from the run's ``metadata``), the error, and the unit and
+    role of each of ``columns``."""
+    present = set(columns)
+    units = {f"unit.{c}": u for c, u in metadata.get("units", {}).items() if c in present}
+    roles = {f"role.{r}": c for r, c in metadata.get("roles", {}).items() if c in present}
+    extra = {}
+    if not complete:
+        extra["reason"] = reason or "failed"
+        if time_reached is not None:
+            extra["time_reached"] = repr(float(time_reached))
+    return {"complete": str(complete).lower(), **extra, "scenario": scenario,
+            "window_start": metadata["window_start"], "timezone": metadata["timezone"],
+            **({"error": error} if error else {}), **units, **roles}
+
+
+def figure_columns(roles: dict[str, str]) -> list[str]:
+    """The trace columns the run's figures are computed from (summary, light): the derived
+    columns and every role's column. A streamed trace is read back with only these."""
+    return ["time", "panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error",
+            *roles.values()]
+
+
 def drive_metadata(inputs: DriveInputs) -> dict:
     """What the results need of the drive, as plain JSON data for a run's metadata."""
     sequencer, schedule = inputs.sequencer, inputs.schedule

@@ -311,28 +311,51 @@ def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.D
             raise InputError(f"{path}: reading selected columns needs a Parquet trace")
         columns = [TIME] + [c for c in dict.fromkeys(columns) if c != TIME]
     if fmt == "parquet":
-        import pyarrow.parquet as pq
-
-        try:  # ParquetFile.read takes the names as they are (read_table would split "motor.tau" at the dot)
-            arrow = pq.ParquetFile(path).read(columns=columns)
-        except Exception as exc:  # pyarrow raises several types for bad files
-            raise InputError(f"{path}: cannot read as Parquet: {exc}") from None
-        if columns is not None and len(arrow.column_names) != len(columns):
-            missing = [c for c in columns if c not in arrow.column_names]
-            raise InputError(f"{path}: no column(s) {', '.join(map(repr, missing))}")
-        meta = read_trace_metadata(path)
-        columns = arrow.column_names
-        try:
-            data = {c: arrow.column(i).to_numpy(zero_copy_only=False) for i, c in enumerate(columns)}
-        except Exception as exc:
-            raise InputError(f"{path}: cannot read as Parquet: {exc}") from None
-        if len(set(columns)) != len(columns):
-            dupes = sorted({c for c in columns if columns.count(c) > 1})
-            raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
-        frame = pd.DataFrame(data)
-        return _to_float_frame(frame, str(path)), meta
+        return _read_parquet(path, columns), read_trace_metadata(path)
     meta, frame = _read_csv(path)
     return _to_float_frame(frame, str(path)), meta
+
+
+def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
+    """The float64 table of a Parquet trace, ``time`` first, read one column at a time into one
+    array (the table in memory once, plus one column in Arrow form)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        source = pq.ParquetFile(path)
+        names = [str(n) for n in source.schema_arrow.names]
+    except Exception as exc:  # pyarrow raises several types for bad files
+        raise InputError(f"{path}: cannot read as Parquet: {exc}") from None
+    if len(set(names)) != len(names):
+        dupes = sorted({c for c in names if names.count(c) > 1})
+        raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
+    if TIME not in names:
+        raise InputError(f"{path}: no {TIME!r} column (columns: {', '.join(map(repr, names)) or 'none'})")
+    wanted = names if columns is None else columns
+    missing = [c for c in wanted if c not in names]
+    if missing:
+        raise InputError(f"{path}: no column(s) {', '.join(map(repr, missing))}")
+    order = [TIME] + [c for c in wanted if c != TIME]
+    for name in order:
+        kind = source.schema_arrow.field(name).type
+        if not (pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_boolean(kind)):
+            raise InputError(f"{path}: column {name!r} is not numeric (type {kind})")
+    data = np.empty((source.metadata.num_rows, len(order)), dtype=np.float64, order="F")
+    start = 0
+    for group in range(source.num_row_groups):  # one row group at a time: Arrow holds no more
+        try:  # ParquetFile takes the names as they are (read_table would split "motor.tau" at the dot)
+            table = source.read_row_group(group, columns=order, use_threads=False)
+        except Exception as exc:
+            raise InputError(f"{path}: cannot read row group {group}: {exc}") from None
+        stop = start + table.num_rows
+        for j in range(len(order)):
+            data[start:stop, j] = table.column(j).cast(pa.float64()).to_numpy(zero_copy_only=False)  # nulls: NaN
+        start = stop
+        del table
+    pa.default_memory_pool().release_unused()  # Arrow's pool would keep the decoded groups' memory
+    check_time(data[:, 0], str(path))
+    return pd.DataFrame(data, columns=order, copy=False)
 
 
 def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:

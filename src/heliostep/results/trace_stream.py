@@ -86,8 +86,9 @@ class TraceStream:
         return self.path
 
     def abort(self) -> None:
-        """Drop the file (an error before the run's outcome is known)."""
+        """Remove the file, finished or not (the run it belongs to ended without a result)."""
         self._held, self._held_rows = [], 0
         if not self.closed:
             self._writer.abort()
             self.closed = True
+        self.path.unlink(missing_ok=True)
