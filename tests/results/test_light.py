@@ -108,3 +108,25 @@ def test_bad_optics_are_errors_naming_the_key(key, value):
 def test_unknown_optics_key_is_an_error():
     with pytest.raises(InputError, match="colour"):
         _scenario(colour="silver")
+
+
+def test_end_effect_cuts_the_light_that_lands_past_the_tubes_end():
+    # a 1.5 m mirror centred 0.5 m before the tube's end: its ideal light lands in its own
+    # cross-section (no longitudinal shift), so 1.25 m of its 1.5 m length lights the tube
+    open_tube = _scenario(0.0)
+    at_end = _scenario(0.0, tube_ends=[-50.0, 0.5])
+    trace, metadata, _ = _trace(at_end)
+    ratio = light_figures(trace, metadata, at_end)["light_energy_ideal_J"] / light_figures(
+        trace, metadata, open_tube)["light_energy_ideal_J"]
+    assert ratio == pytest.approx(1.25 / 1.5, rel=1e-6)  # (the sun interpolated onto the rows: um shifts)
+    # a secondary error delta shifts the light by k along the tube: (0.5 + 0.75 - k) / 1.5 of it lands on it
+    delta = 0.01  # [rad]
+    series = light_timeseries(*_trace(at_end, offset=delta)[:2], at_end)
+    shift = series["longitudinal_miss_actual_m"].to_numpy()
+    assert np.all(np.abs(shift) > 0.5 * 3.0 * np.tan(2 * delta))  # about h tan(2 delta), tens of mm
+    np.testing.assert_allclose(series["end_fraction_actual"], np.clip(1.25 - shift, 0.0, 1.5) / 1.5, rtol=1e-12)
+
+
+def test_tube_ends_out_of_order_is_an_error_naming_the_key():
+    with pytest.raises(InputError, match="tube_ends"):
+        _scenario(tube_ends=[1.0, -1.0])

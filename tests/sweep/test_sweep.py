@@ -68,6 +68,16 @@ def same(value, expected) -> bool:
 
 
 # --------------------------------------------------------------------------- expansion
+def test_drive_tradeoffs_sweep_expands_microsteps_by_idle_current_by_wind():
+    cases = expand_cases(load_sweep(scenarios_dir() / "sweeps" / "drive-tradeoffs.yaml"))
+    assert len(cases) == 3 * 3 * 2
+    combos = {(c.scenario["sequencer"]["microsteps"], c.scenario["sequencer"]["idle_current_fraction"],
+               c.scenario["wind"]["moment"]) for c in cases}
+    assert combos == {(m, f, w) for m in (1, 4, 16) for f in (1.0, 0.5, 0.3) for w in (0.0, 100.0)}
+    assert all(c.scenario["sequencer"]["idle_delay"] == 0.5 and c.scenario["window"]["duration"] == 120
+               for c in cases)
+
+
 def test_smoke_sweep_expands_to_day_by_mirror_product():
     spec = load_sweep(SMOKE)
     cases = expand_cases(spec)

@@ -79,12 +79,13 @@ def _end_loss_command(args: argparse.Namespace) -> int:
     single, two = days["energy_single_J"].sum(), days["energy_two_axis_J"].sum()
     print(f"end sections of two-axis mirrors: {end:.2f} m at each end; {len(days)} days of {args.year}")
     print(f"  energy on the tube, single-axis plant   {single / 3.6e9:10.2f} MWh")
-    print(f"  energy on the tube, two-axis end mirrors {two / 3.6e9:10.2f} MWh  (gain {100 * (two / single - 1):.2f} %)")
+    print(f"  energy on the tube, two-axis end mirrors {two / 3.6e9:10.2f} MWh  "
+          f"(gain {100 * (two / single - 1):.2f} %)")
     december = dt.date(args.year, 12, 21).timetuple().tm_yday
     if december in days.index:
         row = days.loc[december]
-        print(f"  21 December: dark length at noon {row['unlit_length_noon_m']:.2f} m, lit {row['lit_length_noon_m']:.2f} m, "
-              f"gain {100 * row['gain']:.1f} %")
+        print(f"  21 December: dark length at noon {row['unlit_length_noon_m']:.2f} m, "
+              f"lit {row['lit_length_noon_m']:.2f} m, gain {100 * row['gain']:.1f} %")
     for path in written:
         print(f"  wrote {path}")
     return 0

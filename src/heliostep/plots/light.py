@@ -104,6 +104,7 @@ def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: st
         return []
     series = light_timeseries(trace, metadata, scenario)
     mirror = scenario.mirror
-    title = f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, {mirror.axis} driven)"
+    title = (f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, "
+             f"{mirror.axis} driven)")
     path = plot_light(series, Path(out_dir) / POWER_FILE, metadata, title)
     return [] if path is None else [path]

@@ -12,8 +12,9 @@ Three attitudes of the mirror are compared over the run's window:
   ``panel_angle``).
 
 Power on the tube (absorbed) at each row:
-P = DNI * A * cos(theta_i) * rho * tau * alpha * gamma, with gamma the intercept factor of
-:func:`heliostep.solar.optics.intercept_factor` (Gaussian error budget, erf closed form).
+P = DNI * A * cos(theta_i) * rho * tau * alpha * gamma * f_end, with gamma the intercept factor of
+:func:`heliostep.solar.optics.intercept_factor` (Gaussian error budget, erf closed form) and f_end
+the share of the light that lands on the tube's length (the end effect, with ``optics.tube_ends``).
 Energies are trapezoidal integrals over the trace's rows. The loss due to stepping is
 E_reference - E_actual, the loss due to the shared primary E_ideal - E_reference.
 The sun's vector and the DNI are evaluated on a :data:`SUN_GRID_S` grid and interpolated
@@ -87,8 +88,9 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.Dat
     Returns
     -------
     pandas.DataFrame
-        ``time`` [s], ``dni`` [W/m^2], ``cosine`` [-], and for each attitude ``power_<a>_W`` [W],
-        ``intercept_<a>`` [-], ``transverse_miss_<a>_m`` and ``longitudinal_miss_<a>_m`` [m].
+        ``time`` [s], ``dni`` [W/m^2], and for each attitude ``power_<a>_W`` [W], ``intercept_<a>``,
+        ``cosine_<a>``, ``end_fraction_<a>`` [-], ``transverse_miss_<a>_m`` and
+        ``longitudinal_miss_<a>_m`` [m] (:func:`attitude_light`).
     """
     site, plant, conf = scenario.site.to_site(), scenario.plant.to_plant(), scenario.optics
     distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
@@ -123,7 +125,8 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.Dat
     for name, (primary, secondary) in attitudes.items():
         light = attitude_light(sun, dni, up, primary, secondary, distance, h, conf)
         out.update({f"power_{name}_W": light["power_W"], f"intercept_{name}": light["intercept"],
-                    f"cosine_{name}": light["cosine"], f"transverse_miss_{name}_m": light["transverse_miss_m"],
+                    f"cosine_{name}": light["cosine"], f"end_fraction_{name}": light["end_fraction"],
+                    f"transverse_miss_{name}_m": light["transverse_miss_m"],
                     f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"]})
     return pd.DataFrame(out)
 
@@ -146,7 +149,9 @@ def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_heigh
     Returns
     -------
     dict of arrays
-        ``power_W`` = DNI A cos rho tau alpha gamma [W], ``intercept``, ``cosine`` [-],
+        ``power_W`` = DNI A cos rho tau alpha gamma f_end [W], ``intercept`` (gamma), ``cosine``,
+        ``end_fraction`` (f_end, the share of the mirror's light that lands on the tube's length,
+        :func:`heliostep.solar.optics.end_fraction`; 1 without ``tube_ends``) [-],
         ``transverse_miss_m``, ``longitudinal_miss_m`` [m].
     """
     sigma = optics.beam_spread(conf.slope_error, conf.specularity)
@@ -156,9 +161,11 @@ def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_heigh
     ray = optics.reflect(*sun, *normal)
     transverse, longitudinal, slant = optics.receiver_miss(*ray, distance, tube_height)
     gamma = optics.intercept_factor(transverse, slant, conf.tube_diameter, sigma)
-    power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma, 0.0)
-    return {"power_W": power, "intercept": gamma, "cosine": cosine, "transverse_miss_m": transverse,
-            "longitudinal_miss_m": longitudinal}
+    on_tube = (np.ones_like(gamma) if conf.tube_ends is None else  # the end effect: light past the tube's end
+               optics.end_fraction(longitudinal, conf.mirror_length, 0.0, *conf.tube_ends))
+    power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma * on_tube, 0.0)
+    return {"power_W": power, "intercept": gamma, "cosine": cosine, "end_fraction": on_tube,
+            "transverse_miss_m": transverse, "longitudinal_miss_m": longitudinal}
 
 
 def _energy(power: np.ndarray, time: np.ndarray) -> float:

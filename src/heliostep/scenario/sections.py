@@ -204,7 +204,8 @@ class OpticsConfig(Section):
 
     Defaults: a 1.5 m x 1 m panel (the paper's Table 2 length), the optical chain of seed 004
     (rho = 0.80, tau = 0.85, alpha = 0.95), a 70 mm tube, the faceted-mirror slope error
-    b / (8 f) = 2.22 mrad of seed 002, no specularity error, clear-sky DNI.
+    b / (8 f) = 2.22 mrad of seed 002, no specularity error, clear-sky DNI, a tube longer than
+    the mirror both ways (no end effect; ``tube_ends`` places its ends).
     """
 
     mirror_area: Real = Field(1.5, gt=0.0, description="[m^2], aperture of the mirror")
@@ -216,6 +217,16 @@ class OpticsConfig(Section):
     slope_error: Real = Field(2.22e-3, ge=0.0, description="[rad], RMS slope error of the mirror")
     specularity: Real = Field(0.0, ge=0.0, description="[rad], specularity error")
     weather_file: str | None = Field(None, description="TMY3 (.csv) or EPW (.epw) file; null: clear sky")
+    tube_ends: tuple[Real, Real] | None = Field(
+        None, description="[m], y of the tube's two ends from the mirror's centre, along the tube (+y: North "
+                          "for a NS plant); null: the tube runs on past the mirror both ways")
+
+    @model_validator(mode="after")
+    def _tube_ends_in_order(self) -> OpticsConfig:
+        if self.tube_ends is not None and not self.tube_ends[0] < self.tube_ends[1]:
+            raise KeyProblems([(("tube_ends",), f"expected [start, end] with start < end [m], "
+                                                 f"got {list(self.tube_ends)}")])
+        return self
 
 
 class WindConfig(Section):
