@@ -534,6 +534,8 @@ class _Run:
         rows = np.asarray(rows, dtype=float)
         if rows.ndim != 2 or rows.shape[1] != len(self.columns):
             raise ValueError(f"trace rows must be a 2-D block of {len(self.columns)} columns, got shape {rows.shape}")
+        if self.sink is not None and self.buffered + len(rows) > self.sink_rows:
+            self._flush()  # what is held goes first: held rows never exceed sink_rows or one block
         self.rows.append(rows)
         self.buffered += len(rows)
         self.max_buffered = max(self.max_buffered, self.buffered)
