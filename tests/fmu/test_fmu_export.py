@@ -165,6 +165,39 @@ def test_drive_system_equations_match_numpy_at_random_points(fmu_paths):
 
 # ----------------------------------------------------------------- step responses vs Radau
 
+def test_outputs_on_the_states_alone_are_read_without_the_new_input_and_stay_right(fmu_paths):
+    """The master's order on every evaluation: states set, the angle and speed read, then a new
+    torque set and the derivatives read. The C layer computes the outputs that depend on no
+    input by themselves (model_state_part: the mechanics' g, theta, omega, friction and
+    der(theta_p), not der(omega_p)), and keeps them over a new input: every value at every step
+    of that order equals the numpy model's."""
+    header = __import__("zipfile").ZipFile(fmu_paths["PanelMechanics"]).read("sources/model.h").decode()
+    assert "#define N_STATE_PART 5" in header  # everything but der(omega_p), which needs the torque
+    parameters = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3, "theta_p_start": 0.3,
+                  "theta_start": 2.0}
+    rng = np.random.default_rng(3)
+    info = read_fmu(fmu_paths["PanelMechanics"])
+    with ModelExchangeInstance(info, "order", parameters) as inst:
+        inst.setup_experiment(0.0)
+        inst.enter_initialization_mode()
+        inst.exit_initialization_mode()
+        inst.enter_continuous_time_mode()
+        read = inst.reader(["theta", "omega", "omega_p"])
+        set_torque = inst.writer(["tau", "m_ext"])
+        order = [info.states.index(name) for name in ("theta_p", "omega_p")]
+        for _ in range(50):
+            theta_p, omega_p, torque = rng.uniform(-1, 1), rng.uniform(-0.01, 0.01), rng.uniform(-3, 3)
+            x = np.zeros(2)
+            x[order] = theta_p, omega_p
+            inst.set_states(x)
+            _, _, theta, omega = panel_mechanics(theta_p, omega_p, 0.0, 0.0, **parameters)
+            np.testing.assert_allclose(read()[:2], [theta, omega], rtol=1e-12)  # before the new input
+            set_torque([torque, 5.0])
+            np.testing.assert_allclose(read(), [theta, omega, omega_p], rtol=1e-12)  # kept over it
+            dtheta_p, domega_p, _, _ = panel_mechanics(theta_p, omega_p, torque, 5.0, **parameters)
+            np.testing.assert_allclose(inst.get_derivatives()[order], [dtheta_p, domega_p], rtol=1e-9)
+
+
 def _step_input(names, values, stop_time):
     dtype = [("time", float)] + [(n, float) for n in names]
     return np.array([(0.0, *values), (stop_time, *values)], dtype=dtype)

@@ -197,6 +197,28 @@ def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, calculated: 
                        ["t", "x", "u", "p", "guess"], ["computed", "residual"])
 
 
+def state_part(evaluate: ca.Function) -> tuple[ca.Function | None, list[int]]:
+    """``model_state_part(t, x, u, p)``: the computed variables that depend on no input, alone.
+
+    For an explicit ``model_eval`` (straight-line code), the computed variables whose
+    expressions are free of the inputs (from the Jacobian's sparsity), and a function that
+    computes only them: CasADi keeps only the operations they need. The C layer uses it for an
+    output that depends on the states alone (a mechanics model's angle and speed) while an
+    input has changed since the last full evaluation, as Modelica tools evaluate only the
+    equations an output needs. None (and no indices) for a Newton-solved model.
+    """
+    if not evaluate.is_a("SXFunction"):
+        return None, []
+    on_inputs = set(evaluate.sparsity_jac(2, 0).row())
+    indices = [i for i in range(evaluate.size1_out(0)) if i not in on_inputs]
+    if not indices:
+        return None, []
+    t, x, u, p, guess = evaluate.sx_in()
+    computed = evaluate(t, x, u, p, guess)[0]
+    return ca.Function("model_state_part", [t, x, u, p], [ca.vertcat(*[computed[i] for i in indices])],
+                       ["t", "x", "u", "p"], ["computed"]), indices
+
+
 def _c_double(value: float | None) -> str:
     return repr(float(value or 0.0))
 
@@ -206,9 +228,10 @@ def _c_array(ctype: str, name: str, values: list[str]) -> str:
     return f"static const {ctype} {name}[{max(len(values), 1)}] = {{{body}}};\n"
 
 
-def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool) -> str:
+def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool, state_part_indices: list[int]) -> str:
     """The per-model ``model.h`` read by the FMI layer (``explicit``: ``model_eval`` needs no
-    Newton iteration, see :func:`explicit_evaluation`)."""
+    Newton iteration, see :func:`explicit_evaluation`; ``state_part_indices``: the computed
+    variables ``model_state_part`` computes, see :func:`state_part`)."""
     starts = []
     for v in layout.variables:
         starts.append(_c_double(v.start) if v.kind in ("parameter", "state", "input") else "0.0")
@@ -225,6 +248,9 @@ def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool) ->
         f"#define N_UNKNOWNS {len(model.derivatives) + len(model.algebraics)}\n"
         f"#define N_COMPUTED {n_computed}\n"
         f"#define EXPLICIT_EVAL {int(explicit)}\n"
+        f"#define N_STATE_PART {len(state_part_indices)}\n"
+        + _c_array("int", "STATE_PART_INDEX", [str(i) for i in state_part_indices])
+        + _c_array("char", "IN_STATE_PART", ["1" if i in state_part_indices else "0" for i in range(n_computed)])
         + _c_array("double", "START_VALUES", starts)
         + _c_array("char", "STATE_START_CALCULATED",
                    ["1" if v.start is None else "0" for v in model.states])
@@ -400,12 +426,14 @@ def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path,
     sources.mkdir(parents=True, exist_ok=True)
     layout = Layout.of(model)
     evaluate, converge, scale, start = equation_functions(model)
+    partial, partial_indices = state_part(evaluate)
 
     generator = ca.CodeGenerator("equations.c", {"with_header": True, "casadi_real": "double"})
-    for function in (evaluate, converge, scale, start):
-        generator.add(function)
+    for function in (evaluate, converge, scale, start, partial):
+        if function is not None:
+            generator.add(function)
     generator.generate(str(sources) + "/")
-    (sources / "model.h").write_text(model_header(model, layout, guid, evaluate.is_a("SXFunction")))
+    (sources / "model.h").write_text(model_header(model, layout, guid, evaluate.is_a("SXFunction"), partial_indices))
     layer = resources.files("heliostep.fmu") / "c" / FMI_LAYER
     (sources / FMI_LAYER).write_bytes(layer.read_bytes())
 

@@ -7,6 +7,8 @@
  *   model_eval(t, x, u, p, guess)  -> (computed, residual)   explicit, or two Newton steps from guess
  *   model_solve(t, x, u, p, guess) -> (computed, residual)   converge, then two Newton steps
  *   model_scale(t, x, u, p)        -> scale                  the size of each equation's terms
+ *   model_state_part(t, x, u, p)   -> the computed variables that depend on no input (explicit
+ *                                     models with such variables only: N_STATE_PART > 0)
  *   model_start(p)                 -> x0
  * where "computed" holds the state derivatives, the algebraic variables and the calculated
  * parameters, solved from the model's implicit residual (in straight-line code where the
@@ -66,7 +68,8 @@ typedef struct {
     fmi2Boolean logging_on;
     ModelState state;
     double time;
-    int computed_valid;
+    int computed_valid;   /* every computed variable is up to date */
+    int state_part_valid; /* those that depend on no input (IN_STATE_PART) are up to date */
     double r[N_REALS];
     double guess[N_COMPUTED + 1];
     double computed[N_COMPUTED + 1];
@@ -133,7 +136,7 @@ static int wrong_size(Instance *inst, const char *function, const char *name, si
 static fmi2Status enter_error_state(Instance *inst) {
     if (inst) {
         inst->state = ErrorState;
-        inst->computed_valid = 0;
+        inst->computed_valid = inst->state_part_valid = 0;
     }
     return fmi2Error;
 }
@@ -217,8 +220,33 @@ static fmi2Status update(Instance *inst, const char *function) {
         }
     }
     memcpy(inst->r + OFF_C, inst->computed, sizeof(double) * N_COMPUTED);
-    inst->computed_valid = 1;
+    inst->computed_valid = inst->state_part_valid = 1;
     return fmi2OK;
+}
+
+/* Brings the computed variables that depend on no input up to date (model_state_part, the
+ * straight-line code of only those: e.g. a mechanics model's angle and speed while its torque
+ * input is new), or everything where the model has no such part or is initializing. */
+static fmi2Status update_state_part(Instance *inst, const char *function) {
+#if N_STATE_PART
+    double part[N_STATE_PART];
+    if (inst->computed_valid || inst->state_part_valid) return fmi2OK;
+    if (inst->state & (Instantiated | InitializationMode)) return update(inst, function);
+    inst->arg[0] = &inst->time;
+    inst->arg[1] = inst->r + OFF_X;
+    inst->arg[2] = inst->r + OFF_U;
+    inst->arg[3] = inst->r;
+    inst->res[0] = part;
+    if (model_state_part(inst->arg, inst->res, inst->iw, inst->w, 0)) return update(inst, function);
+    for (int j = 0; j < N_STATE_PART; j++) {
+        if (!isfinite(part[j])) return update(inst, function); /* the full evaluation reports it */
+    }
+    for (int j = 0; j < N_STATE_PART; j++) inst->r[OFF_C + STATE_PART_INDEX[j]] = part[j];
+    inst->state_part_valid = 1;
+    return fmi2OK;
+#else
+    return update(inst, function);
+#endif
 }
 
 /* ---------------------------------------------------------------- life cycle */
@@ -240,7 +268,7 @@ static void release(const fmi2CallbackFunctions *functions, void *pointer) {
 static void reset_values(Instance *inst) {
     memcpy(inst->r, START_VALUES, sizeof(double) * N_REALS);
     inst->time = 0;
-    inst->computed_valid = 0;
+    inst->computed_valid = inst->state_part_valid = 0;
 }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories, const fmi2String categories[]) {
@@ -282,8 +310,13 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     inst->state = Instantiated;
     inst->instance_name = (char *)allocate(functions, strlen(instanceName) + 1, 1);
     model_start_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-    for (int f = 0; f < 3; f++) {
+    for (int f = 0; f < 4; f++) {
+#if N_STATE_PART
+        (f == 0 ? model_eval_work : f == 1 ? model_solve_work : f == 2 ? model_scale_work : model_state_part_work)(
+            &n_arg, &n_res, &n_iw, &n_w);
+#else
         (f == 0 ? model_eval_work : f == 1 ? model_solve_work : model_scale_work)(&n_arg, &n_res, &n_iw, &n_w);
+#endif
         if (sz_arg < n_arg) sz_arg = n_arg;
         if (sz_res < n_res) sz_res = n_res;
         if (sz_iw < n_iw) sz_iw = n_iw;
@@ -331,7 +364,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     (void)stopTime;
     if (invalid_state(inst, "fmi2SetupExperiment", Instantiated)) return fmi2Error;
     inst->time = startTime;
-    inst->computed_valid = 0;
+    inst->computed_valid = inst->state_part_valid = 0;
     return fmi2OK;
 }
 
@@ -339,7 +372,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     Instance *inst = (Instance *)c;
     if (invalid_state(inst, "fmi2EnterInitializationMode", Instantiated)) return fmi2Error;
     inst->state = InitializationMode;
-    inst->computed_valid = 0;
+    inst->computed_valid = inst->state_part_valid = 0;
     return fmi2OK;
 }
 
@@ -347,7 +380,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Instance *inst = (Instance *)c;
     fmi2Status status;
     if (invalid_state(inst, "fmi2ExitInitializationMode", InitializationMode)) return fmi2Error;
-    inst->computed_valid = 0;
+    inst->computed_valid = inst->state_part_valid = 0;
     status = update(inst, "fmi2ExitInitializationMode");
     if (status != fmi2OK) return status;
     inst->state = EventMode;
@@ -381,7 +414,9 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         if (invalid_vr(inst, "fmi2GetReal", vr[i])) return enter_error_state(inst);
     }
     for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] >= OFF_C && update(inst, "fmi2GetReal") != fmi2OK) return fmi2Error;
+        if (vr[i] >= OFF_C && (IN_STATE_PART[vr[i] - OFF_C] ? update_state_part(inst, "fmi2GetReal")
+                                                           : update(inst, "fmi2GetReal")) != fmi2OK)
+            return fmi2Error;
         value[i] = inst->r[vr[i]];
     }
     return fmi2OK;
@@ -414,8 +449,13 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
             return enter_error_state(inst);
         }
     }
-    for (size_t i = 0; i < nvr; i++) inst->r[vr[i]] = value[i];
+    int inputs_only = 1;
+    for (size_t i = 0; i < nvr; i++) {
+        inst->r[vr[i]] = value[i];
+        inputs_only &= vr[i] >= OFF_U;
+    }
     inst->computed_valid = 0;
+    if (!inputs_only) inst->state_part_valid = 0; /* a new input leaves the state part as it is */
     return fmi2OK;
 }
 
@@ -537,7 +577,7 @@ fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
     Instance *inst = (Instance *)c;
     if (invalid_state(inst, "fmi2SetTime", InitializationMode | EventMode | ContinuousTimeMode)) return fmi2Error;
     inst->time = time;
-    inst->computed_valid = 0;
+    inst->computed_valid = inst->state_part_valid = 0;
     return fmi2OK;
 }
 
@@ -554,7 +594,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
         }
     }
     memcpy(inst->r + OFF_X, x, sizeof(double) * nx);
-    inst->computed_valid = 0;
+    inst->computed_valid = inst->state_part_valid = 0;
     return fmi2OK;
 }
 
