@@ -149,7 +149,15 @@ def _report(result: RunResult, out_dir: Path) -> str:
                             ("electrical_energy_J", "electrical energy [J]", "{:.1f}"),
                             ("steps_commanded", "steps commanded", "{}"),
                             ("steps_executed", "steps executed", "{}"),
-                            ("missed_steps", "missed steps", "{}")):
+                            ("missed_steps", "missed steps", "{}"),
+                            ("steps_lost", "steps lost", "{}"),
+                            ("drive_energy_per_day_J", "drive energy per day [J]", "{:.0f}"),
+                            ("idle_holding_margin", "idle holding / wind moment", "{:.2f}"),
+                            ("light_energy_J", "light on the tube [J]", "{:.4g}"),
+                            ("light_energy_ideal_J", "  with ideal tracking [J]", "{:.4g}"),
+                            ("light_lost_stepping_J", "  lost to stepping [J]", "{:.3g}"),
+                            ("light_lost_shared_primary_J", "  lost to the shared primary [J]", "{:.3g}"),
+                            ("mean_intercept", "mean intercept factor", "{:.3f}")):
         if s.get(key) is not None:
             lines.append(f"  {label:28s} {fmt.format(s[key])}")
     wall = result.metadata.get("statistics", {}).get("run_wall_time")
