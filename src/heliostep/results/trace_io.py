@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -73,7 +73,7 @@ _RESERVED_PARQUET_PREFIX = "ARROW:"
 #: columns of a run's trace 2.6 MB, the most of a streamed trace held at once.
 ROW_GROUP_ROWS = 16_384
 
-__all__ = ["TIME", "SUFFIXES", "TraceWriter", "copy_trace_to_csv", "read_trace", "read_trace_metadata",
+__all__ = ["TIME", "SUFFIXES", "TraceWriter", "copy_trace_to_csv", "iter_trace_blocks", "read_trace", "read_trace_metadata",
            "write_trace", "check_time", "is_complete"]
 
 
@@ -316,9 +316,9 @@ def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.D
     return _to_float_frame(frame, str(path)), meta
 
 
-def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
-    """The float64 table of a Parquet trace, ``time`` first, read one column at a time into one
-    array (the table in memory once, plus one column in Arrow form)."""
+def _open_parquet(path: Path, columns: list[str] | None):
+    """The ParquetFile of a trace and the columns to read (``time`` first), checked: unique
+    names, a ``time`` column, the wanted columns present and numeric."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -341,21 +341,61 @@ def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
         kind = source.schema_arrow.field(name).type
         if not (pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_boolean(kind)):
             raise InputError(f"{path}: column {name!r} is not numeric (type {kind})")
+    return source, order
+
+
+def _row_group(source, path: Path, group: int, order: list[str]):
+    """One row group's columns as float64 arrays (nulls: NaN)."""
+    import pyarrow as pa
+
+    try:  # ParquetFile takes the names as they are (read_table would split "motor.tau" at the dot)
+        table = source.read_row_group(group, columns=order, use_threads=False)
+    except Exception as exc:
+        raise InputError(f"{path}: cannot read row group {group}: {exc}") from None
+    return [table.column(j).cast(pa.float64()).to_numpy(zero_copy_only=False) for j in range(len(order))]
+
+
+def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
+    """The float64 table of a Parquet trace, ``time`` first, read one row group at a time into
+    one array (the table in memory once, plus one row group in Arrow form)."""
+    import pyarrow as pa
+
+    source, order = _open_parquet(path, columns)
     data = np.empty((source.metadata.num_rows, len(order)), dtype=np.float64, order="F")
     start = 0
     for group in range(source.num_row_groups):  # one row group at a time: Arrow holds no more
-        try:  # ParquetFile takes the names as they are (read_table would split "motor.tau" at the dot)
-            table = source.read_row_group(group, columns=order, use_threads=False)
-        except Exception as exc:
-            raise InputError(f"{path}: cannot read row group {group}: {exc}") from None
-        stop = start + table.num_rows
-        for j in range(len(order)):
-            data[start:stop, j] = table.column(j).cast(pa.float64()).to_numpy(zero_copy_only=False)  # nulls: NaN
+        arrays = _row_group(source, path, group, order)
+        stop = start + len(arrays[0])
+        for j, values in enumerate(arrays):
+            data[start:stop, j] = values
         start = stop
-        del table
+        del arrays
     pa.default_memory_pool().release_unused()  # Arrow's pool would keep the decoded groups' memory
     check_time(data[:, 0], str(path))
     return pd.DataFrame(data, columns=order, copy=False)
+
+
+def iter_trace_blocks(path: str | Path, columns: list[str] | None = None) -> Iterator[pd.DataFrame]:
+    """A Parquet trace one row group at a time, as float64 frames (``time`` first, then
+    ``columns`` or every column): the rows :func:`read_trace` gives, in order, never more than
+    one row group in memory. The time is checked across the groups as a whole."""
+    path = Path(path)
+    if _format(path) != "parquet":
+        raise InputError(f"{path}: reading a trace by row groups needs a Parquet trace")
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if columns is not None:
+        columns = [TIME] + [c for c in dict.fromkeys(columns) if c != TIME]
+    source, order = _open_parquet(path, columns)
+    previous = None
+    for group in range(source.num_row_groups):
+        arrays = _row_group(source, path, group, order)
+        time = arrays[0]
+        if not len(time):
+            continue
+        check_time(time if previous is None else np.concatenate([[previous], time]), str(path))
+        previous = float(time[-1])
+        yield pd.DataFrame(dict(zip(order, arrays)), columns=order, copy=False)
 
 
 def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
