@@ -51,7 +51,7 @@ from heliostep.results.outputs import (
 from heliostep.results.run_figures import run_figures, summary_at_cut
 from heliostep.results.summary import SolutionRecorder
 from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
-from heliostep.results.trace_io import ROW_GROUP_ROWS, copy_trace_to_csv, read_trace, write_trace
+from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriteError, copy_trace_to_csv, read_trace, write_trace
 from heliostep.results.trace_stream import TraceStream
 from heliostep.scenario import (
     INPUT_ROLES,
@@ -444,6 +444,15 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
     finally:
         if bar:
             bar.close()
+    if sink is not None:
+        try:
+            sink.flush()  # the last rows: a write failing here fails the run as one during it
+        except TraceWriteError:
+            pass
+        if sink.failed is not None:  # the file keeps the row groups written before the failure
+            complete, reason, reached = False, "failed", sink.written_time or 0.0
+            error = (f"the trace could not be written: {sink.failed}; it keeps the {sink.written_rows} rows "
+                     f"up to t = {reached:.9g} s, not the {sink.rows_not_written} computed after them")
     meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started,
                           "peak_rss_mb_simulating": _peak_rss_mb()}
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
