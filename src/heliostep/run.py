@@ -133,6 +133,15 @@ class RunResult:
 
         return list(pq.read_schema(self.trace_file).names)
 
+    @property
+    def trace_rows(self) -> int:
+        """The trace's number of rows (a file's from its footer, no row read)."""
+        if self.held_trace is not None:
+            return len(self.held_trace)
+        import pyarrow.parquet as pq
+
+        return pq.ParquetFile(self.trace_file).metadata.num_rows
+
     def trace_columns(self, columns: list[str]) -> pd.DataFrame:
         """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
         streamed: the other columns are never loaded)."""
@@ -158,7 +167,8 @@ class RunResult:
         try:
             source = self.held_trace if self.held_trace is not None else self.trace_file  # a file: read by column
             drawn = plot_run(source, staging, self.trace_metadata())
-            drawn += plot_light_run(self.trace, self.metadata, self.scenario, staging, self.weather)  # power on the tube
+            light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
+            drawn += plot_light_run(light, self.metadata, self.scenario, staging, self.weather)  # power on the tube
             written = []
             for path in drawn:
                 target = out_dir / Path(path).name
@@ -209,7 +219,7 @@ class RunResult:
         status = {k: v for k, v in self.summary_record().items() if k in ("complete", "error", "reason", "time_reached_s")}
         for name, content in (("metadata.json", {**status, **self.metadata}), ("summary.json", self.summary_record())):
             written[name] = write_text_atomic(out_dir / name, json.dumps(content, indent=2, default=str) + "\n")
-        if plots and len(self.trace) and not (should_stop and should_stop()):
+        if plots and self.trace_rows and not (should_stop and should_stop()):
             for path in self.plot(out_dir):
                 written[path.name] = path
         remove_stale(out_dir, written.values())
