@@ -462,7 +462,8 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
         if sink.failed is not None:  # the file keeps the row groups written before the failure
             complete, reason, reached = False, "failed", sink.written_time or 0.0
             error = (f"the trace could not be written: {sink.failed}; it keeps the {sink.written_rows} rows "
-                     f"up to t = {reached:.9g} s, not the {sink.rows_not_written} computed after them")
+                     f"up to t = {reached:.9g} s, not the rows computed after them (at least "
+                     f"{sink.rows_not_written})")
     meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started,
                           "peak_rss_mb_simulating": _peak_rss_mb()}
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally

@@ -80,11 +80,6 @@ def load_weather(scenario) -> irradiance.WeatherDNI | None:
     return weather
 
 
-def check_weather(scenario) -> None:
-    """:func:`load_weather`, for its checks only."""
-    load_weather(scenario)
-
-
 def _weather(scenario, weather):
     """The DNI source of the light figures: ``weather`` when given (already read), else the
     scenario's file (read now) or None (clear sky)."""
