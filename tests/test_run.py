@@ -322,8 +322,9 @@ def test_night_window_warns_and_says_so_in_the_summary(tmp_path, fmu_paths, caps
 
 
 def test_interrupted_summary_does_not_count_the_step_in_progress(fmu_paths):
+    from heliostep.results.run_figures import summary_at_cut
     from heliostep.results.summary import summarize
-    from heliostep.run import _summary_at_cut
+    from heliostep.results.trace import figure_columns
 
     run = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=20"])
     steps = run.inputs.schedule.times
@@ -332,6 +333,6 @@ def test_interrupted_summary_does_not_count_the_step_in_progress(fmu_paths):
     metadata = {k: v for k, v in run.metadata.items() if k != "solution_figures"}  # those of the whole run
     naive = summarize(trace, metadata)
     assert naive["missed_steps"] == 1  # what a summary of the cut trace alone would say
-    fixed = _summary_at_cut(trace, metadata, naive)
+    fixed = summary_at_cut(trace, figure_columns(metadata["roles"]), metadata, naive)
     assert fixed["missed_steps"] == 0 and fixed["steps_lost"] == 0 and fixed["steps_commanded"] == 0
     assert fixed["step_in_progress_at_cut_s"] == pytest.approx(steps[0])

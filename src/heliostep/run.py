@@ -41,18 +41,18 @@ from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.drive.sequencer import idle_currents
 from heliostep.errors import HeliostepError, InputError
 from heliostep.fmu.build import ensure_fmu
-from heliostep.results.light import check_weather, light_figures
+from heliostep.results.light import load_weather
 from heliostep.results.outputs import (
     TMP_PREFIX,
     atomic_path,
     remove_stale,
     write_text_atomic,
 )
-from heliostep.results.summary import SolutionRecorder, summarize
+from heliostep.results.run_figures import run_figures, summary_at_cut
+from heliostep.results.summary import SolutionRecorder
 from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
-from heliostep.results.trace_io import ROW_GROUP_ROWS, copy_trace_to_csv, read_trace, write_trace
+from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriteError, copy_trace_to_csv, read_trace, write_trace
 from heliostep.results.trace_stream import TraceStream
-from heliostep.results.tradeoffs import tradeoff_figures
 from heliostep.scenario import (
     INPUT_ROLES,
     OUTPUT_ROLES,
@@ -106,6 +106,7 @@ class RunResult:
     time_reached: float | None = None
     trace_file: Path | None = None
     temporary_folder: Path | None = field(default=None, repr=False)
+    weather: object = field(default=None, repr=False)  # the weather file read once (None: clear sky)
 
     def __post_init__(self) -> None:
         if self.held_trace is None and self.trace_file is None:
@@ -113,8 +114,9 @@ class RunResult:
         if self.temporary_folder is not None:  # the run's own folder goes with the result
             weakref.finalize(self, shutil.rmtree, str(self.temporary_folder), True)
         if self.reason == "interrupted" and self.summary:
-            frame = self.trace_columns(figure_columns(self.metadata.get("roles", {})))
-            self.summary = _summary_at_cut(frame, self.metadata, self.summary)
+            source = self.held_trace if self.held_trace is not None else self.trace_file
+            self.summary = summary_at_cut(source, figure_columns(self.metadata.get("roles", {})), self.metadata,
+                                          self.summary)
 
     @property
     def trace(self) -> pd.DataFrame:
@@ -130,6 +132,15 @@ class RunResult:
         import pyarrow.parquet as pq
 
         return list(pq.read_schema(self.trace_file).names)
+
+    @property
+    def trace_rows(self) -> int:
+        """The trace's number of rows (a file's from its footer, no row read)."""
+        if self.held_trace is not None:
+            return len(self.held_trace)
+        import pyarrow.parquet as pq
+
+        return pq.ParquetFile(self.trace_file).metadata.num_rows
 
     def trace_columns(self, columns: list[str]) -> pd.DataFrame:
         """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
@@ -156,7 +167,8 @@ class RunResult:
         try:
             source = self.held_trace if self.held_trace is not None else self.trace_file  # a file: read by column
             drawn = plot_run(source, staging, self.trace_metadata())
-            drawn += plot_light_run(self.trace, self.metadata, self.scenario, staging)  # power on the tube
+            light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
+            drawn += plot_light_run(light, self.metadata, self.scenario, staging, self.weather)  # power on the tube
             written = []
             for path in drawn:
                 target = out_dir / Path(path).name
@@ -207,7 +219,7 @@ class RunResult:
         status = {k: v for k, v in self.summary_record().items() if k in ("complete", "error", "reason", "time_reached_s")}
         for name, content in (("metadata.json", {**status, **self.metadata}), ("summary.json", self.summary_record())):
             written[name] = write_text_atomic(out_dir / name, json.dumps(content, indent=2, default=str) + "\n")
-        if plots and len(self.trace) and not (should_stop and should_stop()):
+        if plots and self.trace_rows and not (should_stop and should_stop()):
             for path in self.plot(out_dir):
                 written[path.name] = path
         remove_stale(out_dir, written.values())
@@ -241,52 +253,6 @@ class RunFailed(HeliostepError):
     @property
     def interrupted(self) -> bool:
         return self.result.reason == "interrupted"
-
-
-#: Step figures of a summary that depend on judging each step (see :func:`_summary_at_cut`).
-_STEP_FIELDS = ("steps_commanded", "missed_steps", "steps_executed", "settling_time_s",
-                "missed_step_times_s", "steps_lost", "final_lag_steps")
-
-
-def _summary_at_cut(trace: pd.DataFrame, metadata: dict, summary: dict) -> dict:
-    """The summary of an interrupted run without judging the step in progress at the cut.
-
-    If the last step commanded before the cut is missed or unsettled at the cut (it has not had
-    its time to complete), the step figures are recomputed up to the row just before that step,
-    without it (the earlier steps judged at its time, as in a complete run).
-    """
-    drive = metadata.get("drive") or {}
-    times = np.asarray(drive.get("step_times", []), dtype=float)
-    if not len(trace) or "time" not in trace:
-        return summary
-    end = float(trace["time"].iloc[-1])
-    before = times[times <= end]
-    if not len(before):
-        return summary
-    last_step = float(before[-1])
-    missed_last = last_step in set(summary.get("missed_step_times_s") or [])
-    per_step = (summary.get("settling_time_s") or {}).get("per_step") or []
-    unsettled_last = bool(per_step) and per_step[-1] is None
-    lost = summary.get("steps_lost")
-    if not (missed_last or unsettled_last or (lost not in (None, 0))):
-        return summary
-    time = trace["time"].to_numpy()
-    i = int(np.searchsorted(time, last_step, side="left"))
-    head = trace.iloc[:i + 1] if i < len(time) and time[i] == last_step else trace.iloc[:i]
-    keep = times < last_step
-    drive_before = {**drive, "step_times": [float(t) for t in times[keep]],
-                    "step_indices": [int(k) for k in np.asarray(drive["step_indices"])[keep]]}
-    fixed = dict(summary)
-    if len(head):
-        partial = summarize(head, {**metadata, "drive": drive_before})
-        for key in _STEP_FIELDS:
-            if key in partial:
-                fixed[key] = partial[key]
-    else:
-        for key in _STEP_FIELDS:
-            fixed.pop(key, None)
-    fixed["step_in_progress_at_cut_s"] = last_step
-    return fixed
 
 
 def _raise_input_error(exc: SimulationError, rows: int, scenario: Scenario) -> None:
@@ -397,6 +363,9 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     renames it into place) or, without one, in a temporary folder removed with the result. The
     file's metadata says ``complete`` (or why not) once the run has ended, also when it failed
     or was interrupted. With ``stream=False`` the trace is held in memory whatever the window.
+    The figures after the simulation (summary, light, holding) are evaluated in chunks of
+    ``row_group_rows`` rows, a streamed trace read back one row group at a time, so held and
+    streamed runs with the same ``row_group_rows`` give the same figures bit for bit.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
@@ -410,7 +379,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     roles = _present_roles(scenario, infos)
     try:  # a weather file that cannot be read, is for another site or misses the window: bad input, found now
-        check_weather(scenario)
+        weather = load_weather(scenario)  # read once: the light figures take it from here
     except InputError as exc:
         raise InputError(f"{scenario.source}: optics.{exc}") from None
     inputs = prepare_inputs(scenario)
@@ -451,7 +420,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
                            assembler, row_group_rows)
     try:
         run = _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution,
-                                         assembler, sink, bar, should_stop, temporary)
+                                         assembler, sink, bar, should_stop, temporary, weather, row_group_rows)
     except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
         if sink is not None:
             sink.abort()
@@ -464,7 +433,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
 
 
 def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution, assembler, sink, bar,
-                            should_stop, temporary):
+                            should_stop, temporary, weather, row_group_rows):
     """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
     error, complete, reason, reached = None, True, None, None
     try:
@@ -485,6 +454,16 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
     finally:
         if bar:
             bar.close()
+    if sink is not None:
+        try:
+            sink.flush()  # the last rows: a write failing here fails the run as one during it
+        except TraceWriteError:
+            pass
+        if sink.failed is not None:  # the file keeps the row groups written before the failure
+            complete, reason, reached = False, "failed", sink.written_time or 0.0
+            error = (f"the trace could not be written: {sink.failed}; it keeps the {sink.written_rows} rows "
+                     f"up to t = {reached:.9g} s, not the rows computed after them (at least "
+                     f"{sink.rows_not_written})")
     meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started,
                           "peak_rss_mb_simulating": _peak_rss_mb()}
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
@@ -495,18 +474,18 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
         meta["solution_figures"] = solution.figures()
     if sink is None:
         held, trace_file = assembler(raw), None
-        trace = held
-    else:  # the file is finished (its metadata says how the run ended); figures read back only their columns
+    else:  # the file is finished (its metadata says how the run ended)
         held = None
         trace_file = sink.close(trace_metadata(scenario.name, meta, sink.columns, complete, reason, reached, error))
-        trace = read_trace(trace_file, [c for c in figure_columns(roles) if c in sink.columns])[0]
-    summary = summarize(trace, meta) if len(trace) else {}
-    if len(trace) > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
-        summary.update(light_figures(trace, meta, scenario))
-        summary.update(tradeoff_figures(trace, meta, scenario, summary))  # holding vs wind, energy per day
-    del trace  # a streamed trace's columns are not kept
+    # summary, light on the tube, holding vs wind: in chunks of row_group_rows rows, a streamed
+    # trace read back one row group at a time (only the figures' columns)
+    figures = run_figures(held if held is not None else trace_file, figure_columns(roles), meta, scenario, weather,
+                          row_group_rows)
+    summary = figures.figures()
+    meta["statistics"]["figure_rows_held_max"] = figures.max_rows_held  # trace rows held at once for them
+    meta["statistics"]["figure_step_rows_held_max"] = figures.summary.max_step_rows
     run = RunResult(scenario, held, summary, meta, complete, error, inputs, reason, reached,
-                    trace_file=trace_file, temporary_folder=temporary)
+                    trace_file=trace_file, temporary_folder=temporary, weather=weather)
     return run
 
 

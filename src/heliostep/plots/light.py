@@ -92,8 +92,10 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     return path
 
 
-def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path) -> list[Path]:
-    """Write ``POWER_FILE`` for a run (its trace, metadata and scenario) into ``out_dir``.
+def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path,
+                   weather=None) -> list[Path]:
+    """Write ``POWER_FILE`` for a run (its trace, metadata and scenario; ``weather``, its weather
+    file already read, see :func:`heliostep.results.light.light_timeseries`) into ``out_dir``.
 
     Returns
     -------
@@ -102,7 +104,7 @@ def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: st
     """
     if len(trace) < 2:
         return []
-    series = light_timeseries(trace, metadata, scenario)
+    series = light_timeseries(trace, metadata, scenario, weather)
     mirror = scenario.mirror
     title = (f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, "
              f"{mirror.axis} driven)")

@@ -17,8 +17,13 @@ P = DNI * A * cos(theta_i) * rho * tau * alpha * gamma * f_end, with gamma the i
 the share of the light that lands on the tube's length (the end effect, with ``optics.tube_ends``).
 Energies are trapezoidal integrals over the trace's rows. The loss due to stepping is
 E_reference - E_actual, the loss due to the shared primary E_ideal - E_reference.
-The sun's vector and the DNI are evaluated on a :data:`SUN_GRID_S` grid and interpolated
-linearly onto the rows (the sun moves 0.25 deg/min: the interpolation error is < 1e-5 rad).
+The sun's vector and the DNI are evaluated on a :data:`SUN_GRID_S` grid from the trace's first
+row and interpolated linearly onto the rows (the sun moves 0.25 deg/min: the interpolation error
+is < 1e-5 rad).
+
+The figures are accumulated block by block (:class:`LightIntegrals`: running trapezoids, sums and
+maxima, the grid points each block needs), so a streamed trace is read one row group at a time;
+:func:`light_figures` of a whole trace is the same accumulator fed the trace as one block.
 """
 
 from __future__ import annotations
@@ -54,8 +59,9 @@ def _weather_path(scenario):
     return path if path.is_absolute() or folder is None else Path(folder) / path
 
 
-def check_weather(scenario) -> None:
-    """Read a scenario's weather file for its window, before simulating.
+def load_weather(scenario) -> irradiance.WeatherDNI | None:
+    """A scenario's weather file, read once and checked for its window, before simulating
+    (None for clear sky); the run passes it on to the light figures.
 
     Raises
     ------
@@ -66,13 +72,21 @@ def check_weather(scenario) -> None:
     """
     path = _weather_path(scenario)
     if path is None:
-        return
+        return None
+    weather = irradiance.WeatherDNI.read(path, scenario.site.to_site())
     start, end = scenario.window_bounds()
     seconds = np.append(np.arange(0.0, (end - start).total_seconds(), 1800.0), (end - start).total_seconds())
-    irradiance.weather_dni(start + pd.to_timedelta(seconds, unit="s"), scenario.site.to_site(), path)
+    weather.at(start + pd.to_timedelta(seconds, unit="s"))  # covers the window, or InputError
+    return weather
 
 
-def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.DataFrame:
+def _weather(scenario, weather):
+    """The DNI source of the light figures: ``weather`` when given (already read), else the
+    scenario's file (read now) or None (clear sky)."""
+    return weather if weather is not None else _weather_path(scenario)
+
+
+def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario, weather=None) -> pd.DataFrame:
     """Power on the tube at every row of the trace for the ideal, reference and actual attitudes.
 
     Parameters
@@ -84,6 +98,9 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.Dat
         With ``window_start`` (ISO 8601) and ``roles``.
     scenario : heliostep.scenario.Scenario
         Its ``site``, ``plant``, ``mirror`` and ``optics`` sections.
+    weather : heliostep.solar.irradiance.WeatherDNI, optional
+        The scenario's weather file already read (:func:`load_weather`); read from the scenario
+        when not given.
 
     Returns
     -------
@@ -92,21 +109,34 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.Dat
         ``cosine_<a>``, ``end_fraction_<a>`` [-], ``transverse_miss_<a>_m`` and
         ``longitudinal_miss_<a>_m`` [m] (:func:`attitude_light`).
     """
+    seconds = trace["time"].to_numpy(dtype=float)
+    return pd.DataFrame(_light_rows(trace, metadata, scenario, _weather(scenario, weather),
+                                    float(seconds[0]) if len(seconds) else 0.0))
+
+
+def _light_rows(trace: pd.DataFrame, metadata: Mapping, scenario, weather, origin: float) -> dict:
+    """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
+    one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
+    points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
+    trace gives."""
     site, plant, conf = scenario.site.to_site(), scenario.plant.to_plant(), scenario.optics
     distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
     h = plant.tube_height
-    times = _row_times(trace, metadata)
     seconds = trace["time"].to_numpy(dtype=float)
 
-    grid_s = np.arange(seconds[0], seconds[-1] + SUN_GRID_S, SUN_GRID_S)
-    grid = times[0] + pd.to_timedelta(grid_s - seconds[0], unit="s")
+    first = max(int(np.floor((seconds[0] - origin) / SUN_GRID_S)), 0)
+    last = int(np.ceil((seconds[-1] - origin) / SUN_GRID_S))
+    if origin + last * SUN_GRID_S < seconds[-1]:
+        last += 1
+    grid_s = origin + np.arange(first, max(last, first + 1) + 1) * SUN_GRID_S
+    grid = _row_times(pd.DataFrame({"time": grid_s}), metadata)
     position = solar_position(grid, site.latitude, site.longitude, site.altitude)
     elevation, azimuth = position["apparent_elevation"].to_numpy(), position["azimuth"].to_numpy()
     sun_grid = np.stack(sun_vector(elevation, azimuth, plant.azimuth))
     sun = np.stack([np.interp(seconds, grid_s, c) for c in sun_grid])
     sun /= np.linalg.norm(sun, axis=0)
     up = np.interp(seconds, grid_s, elevation) > 0.0
-    dni = np.interp(seconds, grid_s, irradiance.dni(grid, site, _weather_path(scenario)).to_numpy())
+    dni = np.interp(seconds, grid_s, irradiance.dni(grid, site, weather).to_numpy())
 
     ideal_p, ideal_q = (np.interp(seconds, grid_s, a) for a in two_axis_angles(elevation, azimuth, distance, h,
                                                                              plant.azimuth))
@@ -128,7 +158,7 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario) -> pd.Dat
                     f"cosine_{name}": light["cosine"], f"end_fraction_{name}": light["end_fraction"],
                     f"transverse_miss_{name}_m": light["transverse_miss_m"],
                     f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"]})
-    return pd.DataFrame(out)
+    return out
 
 
 def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_height: float, conf) -> dict:
@@ -168,16 +198,84 @@ def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_heigh
             "transverse_miss_m": transverse, "longitudinal_miss_m": longitudinal}
 
 
+class LightIntegrals:
+    """:func:`light_figures` accumulated over a trace's rows taken in blocks, in time order
+    (each block a frame with :func:`light_timeseries`'s columns): trapezoids carried across the
+    blocks by the previous block's last row, the intercept's weighted sums, the largest misses.
+    It holds one block's rows (``max_block_rows``, the largest block) and nothing that grows with
+    the trace. ``weather``: see :func:`light_timeseries`."""
+
+    def __init__(self, metadata: Mapping, scenario, weather=None):
+        self.metadata, self.scenario = metadata, scenario
+        self._weather = _weather(scenario, weather)
+        self._origin: float | None = None
+        self._previous: dict | None = None  # the last row so far: time and power of each attitude
+        self._energy: dict[str, float] = {}
+        self._weighted = self._weight = 0.0  # sums of P_ideal * intercept_actual and of P_ideal
+        self._max_miss = {"transverse": np.nan, "longitudinal": np.nan}
+        self._lit = 0
+        self.rows = 0
+        self.max_block_rows = 0
+
+    def __call__(self, block: pd.DataFrame) -> None:
+        if not len(block):
+            return
+        seconds = block["time"].to_numpy(dtype=float)
+        if self._origin is None:
+            self._origin = float(seconds[0])
+        series = _light_rows(block, self.metadata, self.scenario, self._weather, self._origin)
+        powers = {key[len("power_"):-len("_W")]: value for key, value in series.items() if key.startswith("power_")}
+        for name, power in powers.items():
+            time = seconds
+            if self._previous is not None:
+                time = np.concatenate([[self._previous["time"]], seconds])
+                power = np.concatenate([[self._previous[name]], power])
+            self._energy[name] = self._energy.get(name, 0.0) + _energy(power, time)
+        self._previous = {"time": float(seconds[-1]), **{n: float(p[-1]) for n, p in powers.items()}}
+        if "power_actual_W" in series:
+            weight = series["power_ideal_W"]
+            self._weighted += float(np.sum(weight * series["intercept_actual"]))
+            self._weight += float(np.sum(weight))
+            lit = weight > 0
+            self._lit += int(np.count_nonzero(lit))
+            for key in self._max_miss:
+                miss = np.abs(series[f"{key}_miss_actual_m"][lit])
+                if miss.size:
+                    self._max_miss[key] = float(np.fmax(self._max_miss[key], np.fmax.reduce(miss)))
+        self.rows += len(block)
+        self.max_block_rows = max(self.max_block_rows, len(block))
+
+    def figures(self) -> dict:
+        """The figures of the rows taken (see :func:`light_figures`)."""
+        figures = {"light_energy_ideal_J": self._energy.get("ideal", 0.0),
+                   "light_energy_reference_J": self._energy.get("reference", 0.0)}
+        figures["light_lost_shared_primary_J"] = figures["light_energy_ideal_J"] - figures["light_energy_reference_J"]
+        if "actual" in self._energy:
+            actual = self._energy["actual"]
+            reference = figures["light_energy_reference_J"]
+            figures["light_energy_J"] = actual
+            figures["light_lost_stepping_J"] = reference - actual
+            figures["light_lost_stepping_fraction"] = (reference - actual) / reference if reference > 0 else 0.0
+            ideal = figures["light_energy_ideal_J"]
+            figures["light_lost_J"] = ideal - actual
+            figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
+            figures["mean_intercept"] = self._weighted / self._weight if self._weight > 0 else None
+            for key, value in self._max_miss.items():
+                figures[f"max_{key}_miss_m"] = value if self._lit else None
+        figures["dni_source"] = str(self.scenario.optics.weather_file or "clear sky (Ineichen-Perez, pvlib)")
+        return figures
+
+
 def _energy(power: np.ndarray, time: np.ndarray) -> float:
     return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(time))) if len(time) > 1 else 0.0
 
 
-def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
+def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario, weather=None) -> dict:
     """A run's light figures: energy on the tube (ideal, reference, actual) and the losses.
 
     Parameters
     ----------
-    trace, metadata, scenario
+    trace, metadata, scenario, weather
         See :func:`light_timeseries`.
 
     Returns
@@ -189,28 +287,8 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
         (ideal - reference), ``light_lost_J`` and ``light_lost_fraction`` (ideal - actual, and
         of the ideal: stepping and sharing together), ``mean_intercept`` (actual, power-weighted by the ideal power),
         ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the sun is up),
-        ``dni_source``.
+        ``dni_source``. (:class:`LightIntegrals` fed the whole trace as one block.)
     """
-    series = light_timeseries(trace, metadata, scenario)
-    time = series["time"].to_numpy()
-    figures = {"light_energy_ideal_J": _energy(series["power_ideal_W"].to_numpy(), time),
-               "light_energy_reference_J": _energy(series["power_reference_W"].to_numpy(), time)}
-    figures["light_lost_shared_primary_J"] = figures["light_energy_ideal_J"] - figures["light_energy_reference_J"]
-    if "power_actual_W" in series:
-        actual = _energy(series["power_actual_W"].to_numpy(), time)
-        reference = figures["light_energy_reference_J"]
-        figures["light_energy_J"] = actual
-        figures["light_lost_stepping_J"] = reference - actual
-        figures["light_lost_stepping_fraction"] = (reference - actual) / reference if reference > 0 else 0.0
-        ideal = figures["light_energy_ideal_J"]
-        figures["light_lost_J"] = ideal - actual
-        figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
-        lit = series["power_ideal_W"].to_numpy() > 0
-        weight = series["power_ideal_W"].to_numpy()
-        figures["mean_intercept"] = (float(np.average(series["intercept_actual"], weights=weight))
-                                     if weight.sum() > 0 else None)
-        for key in ("transverse", "longitudinal"):
-            miss = np.abs(series[f"{key}_miss_actual_m"].to_numpy()[lit])
-            figures[f"max_{key}_miss_m"] = float(np.nanmax(miss)) if miss.size else None
-    figures["dni_source"] = str(scenario.optics.weather_file or "clear sky (Ineichen-Perez, pvlib)")
-    return figures
+    integrals = LightIntegrals(metadata, scenario, weather)
+    integrals(trace)
+    return integrals.figures()

@@ -66,7 +66,9 @@ class SolutionRecorder:
     outcome from the rotor's rows between the step and the next step (kept only until that step
     is judged). Memory is bounded by ``block`` rows plus the rotor's (time, angle) over one step
     interval, whatever the window's length. ``columns`` are the master trace's columns;
-    ``panel_reference`` maps times [s] to the panel reference [rad].
+    ``panel_reference`` maps times [s] to the panel reference [rad]. With ``panel_reference=None``
+    the rows are an assembled trace's (:class:`TraceSummary`): the tracking error is its
+    ``panel_angle_error`` column.
     """
 
     def __init__(self, columns, roles: Mapping, sequencer: Sequencer, schedule: StepSchedule,
@@ -74,6 +76,8 @@ class SolutionRecorder:
         self.columns = list(columns)
         index = {c: i for i, c in enumerate(self.columns)}
         self._panel = index.get(roles.get("panel_angle"))
+        self._error = index.get("panel_angle_error") if panel_reference is None else None
+        self._tracking = self._error is not None or (self._panel is not None and panel_reference is not None)
         self._rotor = index.get(roles.get("rotor_angle"))
         self._torque = [index[c] for c in [roles.get("torque")] if c in index]
         self._currents = [index[roles[r]] for r in ("current_a", "current_b") if roles.get(r) in index]
@@ -138,8 +142,9 @@ class SolutionRecorder:
             else:
                 t = time
             self._energy += float(np.sum(np.diff(t) * (power[:-1] + power[1:]) / 2.0))
-        if self._panel is not None:
-            error = np.degrees(data[:, self._panel] - self.reference(time))
+        if self._tracking:
+            error = np.degrees(data[:, self._error] if self._error is not None
+                               else data[:, self._panel] - self.reference(time))
             self._error_max = max(self._error_max, float(np.abs(error).max()))
             self._error_sq_sum += float(np.sum(error * error))
             if self._last_error is not None:
@@ -203,7 +208,7 @@ class SolutionRecorder:
         if self.count == 0:
             return {"solution_rows": 0, "end_time_s": 0.0}
         start, end = float(self._first[0]), float(self._last[0])
-        if self._panel is not None:
+        if self._tracking:
             result["max_tracking_error_deg"] = self._error_max
             span = end - start
             result["rms_tracking_error_deg"] = float(np.sqrt(self._error_sq_int / span if span > 0
@@ -392,47 +397,97 @@ def solution_figures(solution: pd.DataFrame, metadata: Mapping) -> dict:
     return result
 
 
+class TraceSummary:
+    """:func:`summarize` accumulated over a trace's rows taken in blocks (frames with the
+    trace's ``columns``, in time order): the definitions evaluated on the output rows by a
+    :class:`SolutionRecorder` on the assembled trace, and the rows, first and last time and last
+    panel angle. It holds one block (``max_block_rows``, the largest) and the rotor's rows over
+    one step interval, whatever the trace's length."""
+
+    def __init__(self, columns, metadata: Mapping):
+        self.metadata = metadata
+        roles = metadata.get("roles", {})
+        sequencer, schedule = drive_from_metadata(metadata["drive"])
+        self.columns = list(columns)
+        self.schedule = schedule
+        self._recorder = SolutionRecorder(self.columns, roles, sequencer, schedule, None, block=1)
+        self._panel = roles.get("panel_angle") if roles.get("panel_angle") in self.columns else None
+        self.rows = 0
+        self.max_block_rows = 0
+        self._first_time = self._last_time = None
+        self._last_panel = None
+
+    def __call__(self, block: pd.DataFrame) -> None:
+        if not len(block):
+            return
+        time = block["time"].to_numpy(dtype=float)
+        self._recorder(block[self.columns].to_numpy(dtype=float))
+        if self._first_time is None:
+            self._first_time = float(time[0])
+        self._last_time = float(time[-1])
+        if self._panel is not None:
+            self._last_panel = float(block[self._panel].iloc[-1])
+        self.rows += len(block)
+        self.max_block_rows = max(self.max_block_rows, len(block))
+
+    @property
+    def max_step_rows(self) -> int:
+        """The most rotor rows held for a step not yet judged (one step interval)."""
+        return self._recorder.max_held
+
+    @property
+    def end_time(self) -> float | None:
+        return self._last_time
+
+    def summary(self, solution: Mapping | None = None) -> dict:
+        """The figures of the rows taken (see :func:`summarize`)."""
+        metadata, schedule = self.metadata, self.schedule
+        summary: dict = {"duration_s": self._last_time - self._first_time if self.rows else 0.0, "rows": self.rows}
+        end = self._last_time if self.rows else -np.inf
+        commanded = int(np.sum(schedule.times <= end))
+        grid = self._recorder.figures() if self.rows else {}
+        for key in ("solution_rows", "end_time_s"):
+            grid.pop(key, None)
+        solution = solution if solution is not None else metadata.get("solution_figures")
+        chosen = dict(grid)
+        if solution:
+            chosen.update({k: v for k, v in solution.items() if k not in STEP_FIELDS and k != "step_outcomes"
+                           and k in grid})
+            outcomes = [o for o in solution.get("step_outcomes", []) if o["time_s"] <= end]
+            if len(outcomes) == commanded and "step_outcomes" in grid:
+                chosen.update(_step_fields([(o["time_s"], None, o["missed"], o["settling_s"], o["move_steps"])
+                                            for o in outcomes], commanded))
+                if solution.get("end_time_s") == float(end):
+                    chosen["steps_lost"] = solution["steps_lost"]
+                    chosen["final_lag_steps"] = solution["final_lag_steps"]
+        chosen.pop("step_outcomes", None)
+        summary.update({k: chosen.get(k) for k in ("max_tracking_error_deg", "rms_tracking_error_deg")
+                        if k in chosen})
+        for key in ("peak_torque_Nm", "peak_phase_current_A", "electrical_energy_J"):
+            if key in chosen:
+                summary[key] = chosen[key]
+        summary["steps_commanded"] = commanded
+        for key in STEP_FIELDS:
+            if key in chosen:
+                summary[key] = chosen[key]
+        summary["figures_from"] = "solution" if solution else "output rows"
+        if self._last_panel is not None:
+            summary["final_panel_angle_deg"] = float(np.degrees(self._last_panel))
+        return summary
+
+
 def summarize(trace: pd.DataFrame, metadata: Mapping, solution: Mapping | None = None) -> dict:
     """The run's figures (see the module docstring) from its trace and metadata.
 
     ``metadata`` needs ``roles`` (role -> column) and ``drive`` (see
     :func:`heliostep.results.trace.drive_metadata`); its ``solution_figures`` (or
     ``solution``, the same dict) are the figures from every solver step, which take
-    precedence over the ones the trace's rows give.
+    precedence over the ones the trace's rows give. (:class:`TraceSummary` fed the whole trace
+    as one block.)
     """
-    roles = metadata.get("roles", {})
-    sequencer, schedule = drive_from_metadata(metadata["drive"])
-    panel_column = roles.get("panel_angle")
-    time = trace["time"].to_numpy()
-    summary: dict = {"duration_s": float(time[-1] - time[0]) if len(time) else 0.0, "rows": int(len(trace))}
-    end = time[-1] if len(time) else -np.inf
-    commanded = int(np.sum(schedule.times <= end))
-    grid = figures(trace, metadata) if len(trace) else {}
-    solution = solution if solution is not None else metadata.get("solution_figures")
-    chosen = dict(grid)
-    if solution:
-        chosen.update({k: v for k, v in solution.items() if k not in STEP_FIELDS and k != "step_outcomes"
-                       and k in grid})
-        outcomes = [o for o in solution.get("step_outcomes", []) if o["time_s"] <= end]
-        if len(outcomes) == commanded and "step_outcomes" in grid:
-            chosen.update(_step_fields([(o["time_s"], None, o["missed"], o["settling_s"], o["move_steps"])
-                                        for o in outcomes], commanded))
-            if solution.get("end_time_s") == float(end):
-                chosen["steps_lost"] = solution["steps_lost"]
-                chosen["final_lag_steps"] = solution["final_lag_steps"]
-    chosen.pop("step_outcomes", None)
-    summary.update({k: chosen.get(k) for k in ("max_tracking_error_deg", "rms_tracking_error_deg") if k in chosen})
-    for key in ("peak_torque_Nm", "peak_phase_current_A", "electrical_energy_J"):
-        if key in chosen:
-            summary[key] = chosen[key]
-    summary["steps_commanded"] = commanded
-    for key in STEP_FIELDS:
-        if key in chosen:
-            summary[key] = chosen[key]
-    summary["figures_from"] = "solution" if solution else "output rows"
-    if panel_column in trace and len(trace):
-        summary["final_panel_angle_deg"] = float(np.degrees(trace[panel_column].iloc[-1]))
-    return summary
+    accumulator = TraceSummary(list(trace.columns), metadata)
+    accumulator(trace)
+    return accumulator.summary(solution)
 
 
 def summarize_files(out_dir: str | Path) -> dict:

@@ -32,7 +32,9 @@ Two encodings, chosen by the file suffix:
     footer and cannot be read, so it never claims to be complete. Keys that Arrow or pandas
     put there themselves (``pandas``, ``ARROW:*``) are not returned as metadata.
     :class:`TraceWriter` writes one row group at a time and its status keys (``complete``
-    and so on) only when closing.
+    and so on) only when closing. When a row group cannot be written (disk full, a file-size
+    limit) the file is closed at the last row group written: those rows stay readable, and
+    the metadata given at closing says how the run ended.
 ``.csv``
     UTF-8 text. The metadata comes first, one ``# key: value`` line per entry, then
     the header line (``time,motor.tau,...``) and one line per row, comma-separated,
@@ -55,13 +57,14 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Mapping
+import os
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from heliostep.errors import InputError
+from heliostep.errors import HeliostepError, InputError
 
 TIME = "time"
 SUFFIXES = (".parquet", ".csv")
@@ -73,7 +76,7 @@ _RESERVED_PARQUET_PREFIX = "ARROW:"
 #: columns of a run's trace 2.6 MB, the most of a streamed trace held at once.
 ROW_GROUP_ROWS = 16_384
 
-__all__ = ["TIME", "SUFFIXES", "TraceWriter", "copy_trace_to_csv", "read_trace", "read_trace_metadata",
+__all__ = ["TIME", "SUFFIXES", "TraceWriteError", "TraceWriter", "copy_trace_to_csv", "iter_trace_blocks", "read_trace", "read_trace_metadata",
            "write_trace", "check_time", "is_complete"]
 
 
@@ -164,7 +167,7 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
     meta = _clean_metadata(metadata)
     table = _to_float_frame(df, str(path))
     if fmt == "parquet":
-        writer = TraceWriter(path, list(table.columns))
+        writer = TraceWriter(path, list(table.columns), keep_on_failure=False)  # a failure aborts it
         try:
             data = {c: table[c].to_numpy() for c in table.columns}
             # row groups of ROW_GROUP_ROWS: Arrow holds one group at a time, not a copy of the table
@@ -188,6 +191,37 @@ def _check_parquet_keys(meta: Mapping[str, str]) -> None:
             raise InputError(f"metadata key {key!r} is reserved in Parquet files")
 
 
+class TraceWriteError(HeliostepError):
+    """A row group of a trace could not be written (disk full, a file-size limit, an I/O error);
+    the rows written before it can still be kept (:meth:`TraceWriter.close`)."""
+
+
+class _ByteCounter(io.RawIOBase):
+    """A write-only sink that counts the bytes written to it and, once :meth:`keep` is called,
+    keeps those that follow."""
+
+    def __init__(self):
+        super().__init__()
+        self.position = 0
+        self.kept: bytearray | None = None
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        if self.kept is not None:
+            self.kept += view
+        self.position += len(view)
+        return len(view)
+
+    def tell(self) -> int:
+        return self.position
+
+    def keep(self) -> None:
+        self.kept = bytearray()
+
+
 class TraceWriter:
     """A Parquet trace written as it is produced: :meth:`write` appends one row group of float64
     columns, :meth:`close` writes the metadata (all of it, ``complete`` included) and the footer.
@@ -195,9 +229,18 @@ class TraceWriter:
     Until :meth:`close` the file has no footer: a reader sees no table and no metadata, so a file
     cut short (killed process, full disk) never claims to be complete. Write to a temporary name
     and rename into place afterwards (:func:`heliostep.results.outputs.atomic_path`).
+
+    A row group that cannot be written raises :class:`TraceWriteError` (``failed`` then holds
+    the cause) and writes nothing more; :meth:`close` then keeps the row groups written before
+    it: the file is cut back to their end and given the footer a second writer produced from the
+    same row groups (Parquet bytes are a function of the rows and the settings; the two files'
+    sizes are compared after every row group, ``recoverable`` says they agree). With
+    ``keep_on_failure=False`` there is no second writer (half the encoding work) and a failed
+    file cannot be closed, only aborted. ``rows`` counts the rows written, ``last_time`` the
+    time of the last one.
     """
 
-    def __init__(self, path: str | Path, columns: list[str]):
+    def __init__(self, path: str | Path, columns: list[str], keep_on_failure: bool = True):
         import pyarrow as pa
         import pyarrow.parquet as pq
 
@@ -208,16 +251,32 @@ class TraceWriter:
             raise InputError(f"{self.path}: trace columns must be unique and start with {TIME!r}: {columns}")
         self.columns = list(columns)
         self.rows = 0
+        self.failed: OSError | None = None
         self._last_time = -np.inf
         self._schema = pa.schema([pa.field(c, pa.float64()) for c in self.columns])
         # no serialized Arrow schema (all columns are float64): readers then take the schema's
         # metadata from the footer's key-value metadata, which close() writes
-        self._writer = pq.ParquetWriter(self.path, self._schema, compression="zstd", store_schema=False)
+        options = {"compression": "zstd", "store_schema": False}
+        self._writer = pq.ParquetWriter(self.path, self._schema, **options)
+        # the same row groups written nowhere: its footer is the one for the groups written so far
+        self._shadow_sink = _ByteCounter()
+        self._shadow = pq.ParquetWriter(self._shadow_sink, self._schema, **options) if keep_on_failure else None
         self._pa = pa
+
+    @property
+    def last_time(self) -> float | None:
+        return float(self._last_time) if self.rows else None
+
+    @property
+    def recoverable(self) -> bool:
+        """The file so far is the second writer's bytes: it can be closed at its last row group."""
+        return self._shadow is not None
 
     def write(self, columns: Mapping[str, np.ndarray]) -> None:
         """Append rows as one row group; ``columns`` maps every column name to its values."""
         pa = self._pa
+        if self.failed is not None:
+            raise TraceWriteError(f"{self.path}: no more rows after a failed write ({self.failed})")
         missing = [c for c in self.columns if c not in columns]
         if missing:
             raise InputError(f"{self.path}: rows without column(s) {', '.join(missing)}")
@@ -227,21 +286,72 @@ class TraceWriter:
         time = arrays[0]
         check_time(np.concatenate([[self._last_time], time]) if np.isfinite(self._last_time) else time,
                    str(self.path))
+        table = pa.Table.from_arrays([pa.array(a, type=pa.float64()) for a in arrays], schema=self._schema)
+        try:
+            self._writer.write_table(table)
+        except OSError as exc:
+            self.failed = exc
+            raise TraceWriteError(f"{self.path}: could not write rows {self.rows + 1}-{self.rows + len(time)} "
+                                  f"(t = {time[0]:.9g} to {time[-1]:.9g} s): {exc}") from exc
+        if self._shadow is not None:
+            self._shadow.write_table(table)
+            if self._shadow_sink.position != os.path.getsize(self.path):  # not the same bytes: no recovery
+                self._shadow = None
         self._last_time = float(time[-1])
-        self._writer.write_table(pa.Table.from_arrays([pa.array(a, type=pa.float64()) for a in arrays],
-                                                      schema=self._schema))
         self.rows += len(time)
 
     def close(self, metadata: Mapping[str, object] | None = None) -> Path:
-        """Write ``metadata`` and the footer; the file is then a complete Parquet trace."""
+        """Write ``metadata`` and the footer; the file is then a complete Parquet trace (after a
+        failed write: of the rows written before it). Raises OSError when not even that can
+        be written (the file then has no footer)."""
         meta = _clean_metadata(metadata)
         _check_parquet_keys(meta)
+        if self.failed is not None:
+            return self._close_at_last_row_group(meta)
         if self.rows == 0:  # a table with no rows still has its columns
             self._writer.write_table(self._schema.empty_table())
         if meta:
             self._writer.add_key_value_metadata(meta)
         self._writer.close()
+        self._close_shadow()
         return self.path
+
+    def _close_at_last_row_group(self, meta: dict[str, str]) -> Path:
+        """After a failed write: cut the file back to its last whole row group and append the
+        footer the second writer gives for the row groups up to there."""
+        try:
+            self._writer.close()
+        except Exception:  # noqa: BLE001 - its bytes past the last row group are cut off below
+            pass
+        if self._shadow is None:
+            raise OSError(f"{self.path}: the trace could not be closed after a failed write ({self.failed}): "
+                          f"its row groups cannot be recovered")
+        end = self._shadow_sink.position
+        self._shadow_sink.keep()
+        if self.rows == 0:
+            self._shadow.write_table(self._schema.empty_table())
+        if meta:
+            self._shadow.add_key_value_metadata(meta)
+        self._shadow.close()
+        footer, self._shadow = bytes(self._shadow_sink.kept), None
+        try:
+            os.truncate(self.path, end)  # frees what the failed row group took
+            with open(self.path, "r+b") as fh:
+                fh.seek(end)
+                fh.write(footer)
+                fh.truncate()
+        except OSError as exc:
+            raise OSError(f"{self.path}: after a failed write ({self.failed}) not even the footer of the "
+                          f"{self.rows} rows written could be written: {exc}") from exc
+        return self.path
+
+    def _close_shadow(self) -> None:
+        if self._shadow is not None:
+            try:
+                self._shadow.close()
+            except Exception:  # noqa: BLE001 - it writes nowhere
+                pass
+            self._shadow = None
 
     def abort(self) -> None:
         """Close the file without metadata and remove it."""
@@ -249,6 +359,7 @@ class TraceWriter:
             self._writer.close()
         except Exception:  # noqa: BLE001 - the file is removed anyway
             pass
+        self._close_shadow()
         self.path.unlink(missing_ok=True)
 
 
@@ -316,9 +427,9 @@ def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.D
     return _to_float_frame(frame, str(path)), meta
 
 
-def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
-    """The float64 table of a Parquet trace, ``time`` first, read one column at a time into one
-    array (the table in memory once, plus one column in Arrow form)."""
+def _open_parquet(path: Path, columns: list[str] | None):
+    """The ParquetFile of a trace and the columns to read (``time`` first), checked: unique
+    names, a ``time`` column, the wanted columns present and numeric."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -341,21 +452,61 @@ def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
         kind = source.schema_arrow.field(name).type
         if not (pa.types.is_floating(kind) or pa.types.is_integer(kind) or pa.types.is_boolean(kind)):
             raise InputError(f"{path}: column {name!r} is not numeric (type {kind})")
+    return source, order
+
+
+def _row_group(source, path: Path, group: int, order: list[str]):
+    """One row group's columns as float64 arrays (nulls: NaN)."""
+    import pyarrow as pa
+
+    try:  # ParquetFile takes the names as they are (read_table would split "motor.tau" at the dot)
+        table = source.read_row_group(group, columns=order, use_threads=False)
+    except Exception as exc:
+        raise InputError(f"{path}: cannot read row group {group}: {exc}") from None
+    return [table.column(j).cast(pa.float64()).to_numpy(zero_copy_only=False) for j in range(len(order))]
+
+
+def _read_parquet(path: Path, columns: list[str] | None) -> pd.DataFrame:
+    """The float64 table of a Parquet trace, ``time`` first, read one row group at a time into
+    one array (the table in memory once, plus one row group in Arrow form)."""
+    import pyarrow as pa
+
+    source, order = _open_parquet(path, columns)
     data = np.empty((source.metadata.num_rows, len(order)), dtype=np.float64, order="F")
     start = 0
     for group in range(source.num_row_groups):  # one row group at a time: Arrow holds no more
-        try:  # ParquetFile takes the names as they are (read_table would split "motor.tau" at the dot)
-            table = source.read_row_group(group, columns=order, use_threads=False)
-        except Exception as exc:
-            raise InputError(f"{path}: cannot read row group {group}: {exc}") from None
-        stop = start + table.num_rows
-        for j in range(len(order)):
-            data[start:stop, j] = table.column(j).cast(pa.float64()).to_numpy(zero_copy_only=False)  # nulls: NaN
+        arrays = _row_group(source, path, group, order)
+        stop = start + len(arrays[0])
+        for j, values in enumerate(arrays):
+            data[start:stop, j] = values
         start = stop
-        del table
+        del arrays
     pa.default_memory_pool().release_unused()  # Arrow's pool would keep the decoded groups' memory
     check_time(data[:, 0], str(path))
     return pd.DataFrame(data, columns=order, copy=False)
+
+
+def iter_trace_blocks(path: str | Path, columns: list[str] | None = None) -> Iterator[pd.DataFrame]:
+    """A Parquet trace one row group at a time, as float64 frames (``time`` first, then
+    ``columns`` or every column): the rows :func:`read_trace` gives, in order, never more than
+    one row group in memory. The time is checked across the groups as a whole."""
+    path = Path(path)
+    if _format(path) != "parquet":
+        raise InputError(f"{path}: reading a trace by row groups needs a Parquet trace")
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if columns is not None:
+        columns = [TIME] + [c for c in dict.fromkeys(columns) if c != TIME]
+    source, order = _open_parquet(path, columns)
+    previous = None
+    for group in range(source.num_row_groups):
+        arrays = _row_group(source, path, group, order)
+        time = arrays[0]
+        if not len(time):
+            continue
+        check_time(time if previous is None else np.concatenate([[previous], time]), str(path))
+        previous = float(time[-1])
+        yield pd.DataFrame(dict(zip(order, arrays)), columns=order, copy=False)
 
 
 def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:

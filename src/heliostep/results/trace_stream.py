@@ -8,6 +8,11 @@ whole trace) and appends them to a Parquet file in row groups of ``row_group_row
 one block): memory does not grow with the window. The file's metadata (``complete`` and the rest)
 is written only by :meth:`TraceStream.close`, once the run's outcome is known; until then the file
 has no footer and claims nothing. Write it under a temporary name and rename it into place.
+
+When a row group cannot be written (disk full, a file-size limit) the stream raises
+:class:`~heliostep.results.trace_io.TraceWriteError` (the master then ends the run as failed),
+takes no more rows, and :meth:`TraceStream.close` keeps the row groups written before it: the
+file is then a readable trace of the rows up to :attr:`TraceStream.written_time`.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.results.trace import TraceAssembler
-from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriter
+from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriteError, TraceWriter
 
 __all__ = ["TraceStream"]
 
@@ -50,6 +55,8 @@ class TraceStream:
         self.max_held_rows = 0
         self.last_time: float | None = None
         self.closed = False
+        self.failed: TraceWriteError | None = None  # a row group could not be written
+        self.rows_not_written = 0  # rows received that the file does not hold (after a failed write)
 
     def __call__(self, block: np.ndarray) -> None:
         block = np.asarray(block, dtype=float)
@@ -57,6 +64,11 @@ class TraceStream:
             raise ValueError(f"{self.path}: a block of trace rows must have {len(self.master_columns)} columns, "
                              f"got shape {block.shape}")
         if not len(block):
+            return
+        if self.failed is not None:  # nothing more is written; the rows are counted
+            self.rows += len(block)
+            self.rows_not_written += len(block)
+            self.last_time = float(block[-1, 0])
             return
         self.max_block_rows = max(self.max_block_rows, len(block))
         frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))
@@ -72,15 +84,40 @@ class TraceStream:
         """Write the first ``rows`` held rows as one row group."""
         held = pd.concat(self._held, ignore_index=True) if len(self._held) > 1 else self._held[0]
         group, rest = held.iloc[:rows], held.iloc[rows:]
-        self._writer.write({c: group[c].to_numpy() for c in self.columns})
+        try:
+            self._writer.write({c: group[c].to_numpy() for c in self.columns})
+        except TraceWriteError as exc:
+            self.failed = exc
+            self.rows_not_written += len(held)
+            self._held, self._held_rows = [], 0
+            raise
         self.row_groups += 1
         self._held = [rest.reset_index(drop=True)] if len(rest) else []
         self._held_rows = len(rest)
 
-    def close(self, metadata: Mapping[str, object]) -> Path:
-        """Write the rows still held, then ``metadata`` and the footer: the file is complete."""
-        if self._held_rows:
+    @property
+    def written_rows(self) -> int:
+        """Rows in the file (all those received unless a write failed)."""
+        return self._writer.rows
+
+    @property
+    def written_time(self) -> float | None:
+        """Time of the last row in the file (None: no row)."""
+        return self._writer.last_time
+
+    def flush(self) -> None:
+        """Write the rows still held as a row group (:class:`TraceWriteError` if it cannot be)."""
+        if self._held_rows and self.failed is None:
             self._write(self._held_rows)
+
+    def close(self, metadata: Mapping[str, object]) -> Path:
+        """Write the rows still held, then ``metadata`` and the footer: the file is complete
+        (after a failed write: of the rows written before it; call :meth:`flush` first to know
+        whether the last rows made it, so that ``metadata`` can say so)."""
+        try:
+            self.flush()
+        except TraceWriteError:
+            pass  # the file keeps the row groups written before; ``failed`` says why
         self._writer.close(metadata)
         self.closed = True
         return self.path

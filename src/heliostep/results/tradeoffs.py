@@ -98,6 +98,14 @@ def _motor_constants(scenario) -> dict:
     return {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
 
 
+def smallest_drive_ratio(panel_angle, scenario) -> float:
+    """The smallest :func:`drive_ratio` over panel angles [rad] with the scenario's transmission
+    (the smallest over a trace is the smallest of its blocks' smallest)."""
+    transmission = scenario.transmission
+    return float(np.min(drive_ratio(np.asarray(panel_angle, dtype=float), transmission.pinion_radius,
+                                    transmission.lever_arm)))
+
+
 def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
     """Holding torque at full and idle current against the wind moment.
 
@@ -118,16 +126,19 @@ def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
         None without wind), ``idle_holds_wind`` (margin >= :data:`REQUIRED_HOLDING_MARGIN`,
         None without wind), and ``warnings`` (a list, when the margin is short).
     """
+    return holding_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario)
+
+
+def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
+    """:func:`holding_figures` with the smallest drive ratio over the window, ``ratio``
+    (:func:`smallest_drive_ratio`), known."""
     drive = metadata["drive"]
     constants = _motor_constants(scenario)
     current = held_current(scenario, float(drive["current"]))
     fraction = float(drive.get("idle_current_fraction", 1.0))
     full = float(holding_torque(current, constants["k_e"], drive["mode"]))
     idle = float(holding_torque(current, constants["k_e"], drive["mode"], fraction))
-    panel = trace["panel_angle_ref"].to_numpy(dtype=float)
-    transmission = scenario.transmission
-    g = float(np.min(drive_ratio(panel, transmission.pinion_radius, transmission.lever_arm)))
-    moment = g * idle
+    moment = ratio * idle
     wind = float(scenario.wind.moment)
     figures = {"holding_torque_full_Nm": full, "holding_torque_idle_Nm": idle, "idle_holding_moment_Nm": moment,
                "wind_moment_Nm": wind, "idle_holding_margin": None, "idle_holds_wind": None}
@@ -181,7 +192,14 @@ def energy_per_day(summary: Mapping, scenario) -> dict:
 def tradeoff_figures(trace: pd.DataFrame, metadata: Mapping, scenario, summary: Mapping) -> dict:
     """:func:`holding_figures` and :func:`energy_per_day` of a run (its ``warnings`` appended to
     the summary's own)."""
-    figures = {**holding_figures(trace, metadata, scenario), **energy_per_day(summary, scenario)}
+    return tradeoff_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario,
+                               summary)
+
+
+def tradeoff_figures_at(ratio: float, metadata: Mapping, scenario, summary: Mapping) -> dict:
+    """:func:`tradeoff_figures` with the smallest drive ratio over the window known
+    (:func:`holding_figures_at`)."""
+    figures = {**holding_figures_at(ratio, metadata, scenario), **energy_per_day(summary, scenario)}
     if "warnings" in figures:
         figures["warnings"] = list(summary.get("warnings", [])) + figures["warnings"]
     return figures

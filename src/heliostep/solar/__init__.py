@@ -57,7 +57,7 @@ from heliostep.solar.field import (
     sharing_figures,
     solar_noon_sun,
 )
-from heliostep.solar.irradiance import clear_sky_dni, dni, read_weather, weather_dni
+from heliostep.solar.irradiance import WeatherDNI, clear_sky_dni, dni, read_weather, weather_dni
 from heliostep.solar.optics import (
     SUN_HALF_ANGLE,
     beam_spread,
@@ -112,5 +112,5 @@ __all__ = [
     "two_axis_angles_from_normal", "two_axis_normal",
     "SUN_HALF_ANGLE", "beam_spread", "clear_sky_dni", "concentration_limit", "cosine_factor", "dni",
     "end_fraction", "facet_slope_error", "intercept_factor", "lit_length", "mirror_normal", "optical_chain",
-    "read_weather", "receiver_miss", "reflect", "weather_dni",
+    "read_weather", "receiver_miss", "reflect", "weather_dni", "WeatherDNI",
 ]

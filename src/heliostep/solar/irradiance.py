@@ -9,6 +9,7 @@ the window by month, day and hour of the site's standard time and interpolated l
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +96,43 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Se
     return dni.rename("dni")
 
 
+@dataclass(frozen=True)
+class WeatherDNI:
+    """A typical-year weather file's hourly DNI, read once (:meth:`read`), evaluated at any
+    times of the year (:meth:`at`): matched by month, day and hour of the file's standard time
+    and interpolated linearly."""
+
+    path: Path
+    table: pd.Series  # DNI [W/m^2] by (month * 100 + day) * 100 + hour
+    timezone: object  # the file's timezone (None: naive local time)
+
+    @classmethod
+    def read(cls, path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> WeatherDNI:
+        """The file's DNI (:func:`read_weather`: raises InputError naming file and key)."""
+        hourly = read_weather(path, site, max_offset)
+        stamps = hourly.index
+        hour_key = (stamps.month * 100 + stamps.day) * 100 + stamps.hour  # typical year: ignore the year
+        table = pd.Series(hourly.to_numpy(), index=hour_key).groupby(level=0).mean()
+        return cls(Path(path), table, stamps.tz)
+
+    def at(self, times) -> pd.Series:
+        """DNI [W/m^2] at ``times`` (timezone-aware), named ``dni``; InputError (key ``window``)
+        when the file does not cover them."""
+        times = check_times(times)
+        local = times.tz_convert(self.timezone) if self.timezone is not None else times.tz_localize(None)
+        floor = local.floor("h")
+        fraction = ((local - floor) / pd.Timedelta(hours=1)).to_numpy()
+        values = []
+        for stamp in (floor, floor + pd.Timedelta(hours=1)):
+            key = (stamp.month * 100 + stamp.day) * 100 + stamp.hour
+            values.append(self.table.reindex(key).to_numpy())
+        if np.isnan(values[0]).any() or np.isnan(values[1][fraction > 0]).any():
+            raise InputError(f"weather_file {self.path}: does not cover the window {times[0]} - {times[-1]} "
+                             f"(key: window)")
+        low, high = values[0], np.where(fraction > 0, values[1], values[0])
+        return pd.Series(low + fraction * (high - low), index=times, name="dni")
+
+
 def weather_dni(times, site: Site, path, max_offset: float = MAX_SITE_OFFSET) -> pd.Series:
     """DNI of a typical-year file at the window's times (matched by month, day and hour).
 
@@ -109,28 +147,14 @@ def weather_dni(times, site: Site, path, max_offset: float = MAX_SITE_OFFSET) ->
     Returns
     -------
     pandas.Series  [W/m^2]
-        Named ``dni``, indexed by ``times``.
+        Named ``dni``, indexed by ``times`` (:meth:`WeatherDNI.at` of the file read once).
     """
-    times = check_times(times)
-    hourly = read_weather(path, site, max_offset)
-    stamps = hourly.index
-    hour_key = (stamps.month * 100 + stamps.day) * 100 + stamps.hour  # typical year: ignore the year
-    table = pd.Series(hourly.to_numpy(), index=hour_key).groupby(level=0).mean()
-    local = times.tz_convert(stamps.tz) if stamps.tz is not None else times.tz_localize(None)
-    floor = local.floor("h")
-    fraction = ((local - floor) / pd.Timedelta(hours=1)).to_numpy()
-    values = []
-    for stamp in (floor, floor + pd.Timedelta(hours=1)):
-        key = (stamp.month * 100 + stamp.day) * 100 + stamp.hour
-        values.append(table.reindex(key).to_numpy())
-    if np.isnan(values[0]).any() or np.isnan(values[1][fraction > 0]).any():
-        raise InputError(f"weather_file {path}: does not cover the window {times[0]} - {times[-1]} (key: window)")
-    low, high = values[0], np.where(fraction > 0, values[1], values[0])
-    return pd.Series(low + fraction * (high - low), index=times, name="dni")
+    return WeatherDNI.read(path, site, max_offset).at(times)
 
 
 def dni(times, site: Site, weather_file=None) -> pd.Series:
-    """DNI over a window: clear sky unless a weather file is given.
+    """DNI over a window: clear sky unless a weather file (a path, or a :class:`WeatherDNI`
+    already read) is given.
 
     Returns
     -------
@@ -138,4 +162,6 @@ def dni(times, site: Site, weather_file=None) -> pd.Series:
     """
     if weather_file is None:
         return clear_sky_dni(times, site)
+    if isinstance(weather_file, WeatherDNI):
+        return weather_file.at(times)
     return weather_dni(times, site, weather_file)
