@@ -100,7 +100,7 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
 def test_signal_stops_sweep_cleanly_and_leaves_no_temporary_folder(sig, status, tmp_path, fmu_paths):
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(f"name: sigtest\nbase: {SCENARIOS / 'jan21-central.yaml'}\ncombine: product\n"
-                     "axes:\n  day_of_year: [21, 22, 23, 24, 25, 26, 27, 28]\n"
+                     f"axes:\n  day_of_year: {list(range(21, 61))}\n"  # far more than 6 s of cases
                      "overrides:\n  window.duration: 7200\n  output.interval: 10.0\n")
     out = tmp_path / "out"
     process = _popen(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-plots"], tmp_path / "tmp")
@@ -152,7 +152,7 @@ def test_second_signal_mid_simulation_removes_the_trace_stream(tmp_path, fmu_pat
     stop, the second lands while the run stops (or computes its figures) and ends it at once. The
     half-finished stream is removed with everything else temporary."""
     out = tmp_path / "run"
-    process = _popen(["run", str(SCENARIOS / "jan21-day.yaml"), "--out", str(out)], tmp_path / "tmp")
+    process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)
     time.sleep(1.5)
     assert process.poll() is None, "the run ended before the signal"
