@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numbers
 
 import numpy as np
@@ -100,8 +102,12 @@ def field_primary_errors(
 
 
 
+@functools.lru_cache(maxsize=64)
 def solar_noon_sun(date, site: Site) -> tuple[float, float]:
-    """Sun (apparent elevation, azimuth) [deg] at solar noon (transit) of a local date at the site."""
+    """Sun (apparent elevation, azimuth) [deg] at solar noon (transit) of a local date at the site.
+
+    Remembered per (date, site): a run's light figures, taken block by block, ask for it once
+    per block."""
     transit = sun_events(date, site)["transit"]
     sun = solar_position(pd.DatetimeIndex([transit]), site.latitude, site.longitude, site.altitude)
     return float(sun["apparent_elevation"].iloc[0]), float(sun["azimuth"].iloc[0])
