@@ -211,9 +211,6 @@ class Kernel:
         dll = library()
         self.rhs = _function_address(dll, "hs_rhs")
         self.root = _function_address(dll, "hs_root")
-        self._prepare = dll["hs_prepare"]
-        self._prepare.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
-        self._prepare.restype = ctypes.c_int
         self._advance = dll["hs_advance"]
         p, long_p = ctypes.c_void_p, ctypes.POINTER(ctypes.c_long)
         self._advance.argtypes = [p, p, p, p, ctypes.c_double, p, ctypes.c_long, long_p, ctypes.c_int, p, p,
@@ -222,20 +219,6 @@ class Kernel:
         self._advance.restype = ctypes.c_int
         self._set_stop_time = sundials_cvode["CVodeSetStopTime"]
         self._set_stop_time.argtypes, self._set_stop_time.restype = [p, ctypes.c_double], ctypes.c_int
-
-    def prepare(self, t: float, x) -> None:
-        """Set time ``t`` and the states at ``x`` (a pointer to doubles) into every FMU and
-        propagate the continuous connections, in C; an FMI error is raised as FMIError."""
-        if self._prepare(self.user_data, t, x):
-            self._raise_error()
-        for fmu in self.instances:
-            fmu.time = t
-
-    def _raise_error(self):
-        failed = self.take_error()
-        if failed is not None:
-            raise failed[0]
-        raise RuntimeError("the compiled kernel refused to evaluate")
 
     def advance(self, solver: NativeSolver, t_stop: float, grid: np.ndarray, next_output: int,
                 interpolate: bool, max_steps: int, take_rows: Callable[[np.ndarray, np.ndarray], None]):

@@ -471,13 +471,10 @@ class _Run:
                 if flag < 0:
                     raise RuntimeError(f"CVodeGetDky at t = {g:.9g} s failed (flag {flag}) after a step to "
                                        f"t = {t:.9g} s")
-            if self.kernel is not None:
-                self.kernel.prepare(g, self._pdky)
-            else:
-                if not solver.discrete:
-                    self.set_x(self._pdky, solver.nx)
-                self.set_time(g)
-                self._propagate()
+            if not solver.discrete:
+                self.set_x(self._pdky, solver.nx)
+            self.set_time(g)
+            self._propagate()
             self.record(g)
             k += 1
             if self.should_stop is not None and self.should_stop():
@@ -488,7 +485,8 @@ class _Run:
     def _advance(self, solver, t_next: float, outputs: np.ndarray | None = None, k: int = 0):
         """Integrate to ``t_next`` or the first root: (root found, t reached, next output index).
 
-        Without a monitor this is one CVODE call in normal mode. With one, CVODE takes one
+        Without a monitor this is one CVODE call in normal mode. With one and the compiled kernel,
+        :meth:`~heliostep.cosim.kernel.Kernel.advance` runs the loop below in C. Otherwise CVODE takes one
         internal step at a time (stop time ``t_next``, so it never steps past it) and the
         monitor sees the solution after each. With ``outputs`` (one-step mode only), the rows
         at ``outputs[k:]`` passed on the way (earlier than the time reached) are recorded by
@@ -526,13 +524,10 @@ class _Run:
                 if not solver.discrete:
                     solver.set_x(solver.px, solver.nx)
                 return flag == CV_ROOT_RETURN, t, k
-            if self.kernel is not None:  # states, time and connections in one call
-                self.kernel.prepare(t, solver.px)
-            else:
-                if not solver.discrete:
-                    solver.set_x(solver.px, solver.nx)
-                self.set_time(t)
-                self._propagate()
+            if not solver.discrete:
+                solver.set_x(solver.px, solver.nx)
+            self.set_time(t)
+            self._propagate()
             self.monitor(self._row(t)[None, :])
 
     def trace(self) -> pd.DataFrame:

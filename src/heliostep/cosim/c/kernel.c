@@ -136,7 +136,7 @@ int hs_rhs(double t, void *y, void *ydot, void *user_data) {
 }
 
 /* the FMUs at (t, x) with their connections propagated: for recording a solver step */
-int hs_prepare(hs_kernel *k, double t, const double *x) {
+static int hs_prepare(hs_kernel *k, double t, const double *x) {
     if (k->status) return -1;
     if (evaluate(k, t, x)) return -1;
     return propagate(k, t);
