@@ -418,9 +418,10 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
         folder = Path(trace_dir) if trace_dir is not None else temporary
         sink = TraceStream(folder / f"{TMP_PREFIX}{os.getpid()}-{clock.time_ns():x}-trace.parquet", columns,
                            assembler, row_group_rows)
+    prepared = _PreparedRun(scenario, system, inputs, solver, roles, meta, started, weather, row_group_rows, solution,
+                            assembler, sink, temporary)
     try:
-        run = _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution,
-                                         assembler, sink, bar, should_stop, temporary, weather, row_group_rows)
+        run = _simulate_and_summarize(prepared, bar, should_stop)
     except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
         if sink is not None:
             sink.abort()
@@ -432,9 +433,30 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     return run
 
 
-def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, started, solution, assembler, sink, bar,
-                            should_stop, temporary, weather, row_group_rows):
+@dataclass
+class _PreparedRun:
+    """A run checked and set up by :func:`run_scenario`, ready to simulate."""
+
+    scenario: Scenario
+    system: CoSimulation
+    inputs: DriveInputs
+    solver: SolverOptions
+    roles: dict
+    meta: dict  # the run's metadata, completed by the simulation
+    started: float  # [s] perf_counter at the start of run_scenario
+    weather: object  # the weather file already read (None: clear sky)
+    row_group_rows: int
+    solution: SolutionRecorder  # the figures from every solver step
+    assembler: TraceAssembler
+    sink: TraceStream | None = None  # a streamed trace's file
+    temporary: Path | None = None  # the stream's own folder, without an output folder
+
+
+def _simulate_and_summarize(prepared: _PreparedRun, bar, should_stop) -> RunResult:
     """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
+    scenario, system, inputs, solver, roles, meta = (prepared.scenario, prepared.system, prepared.inputs,
+                                                     prepared.solver, prepared.roles, prepared.meta)
+    solution, assembler, sink, weather = prepared.solution, prepared.assembler, prepared.sink, prepared.weather
     error, complete, reason, reached = None, True, None, None
     try:
         result = system.simulate(0.0, inputs.duration, inputs.output_times, solver,
@@ -464,7 +486,7 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
             error = (f"the trace could not be written: {sink.failed}; it keeps the {sink.written_rows} rows "
                      f"up to t = {reached:.9g} s, not the rows computed after them (at least "
                      f"{sink.rows_not_written})")
-    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - started,
+    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - prepared.started,
                           "peak_rss_mb_simulating": _peak_rss_mb()}
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
@@ -480,12 +502,12 @@ def _simulate_and_summarize(scenario, system, inputs, solver, roles, meta, start
     # summary, light on the tube, holding vs wind: in chunks of row_group_rows rows, a streamed
     # trace read back one row group at a time (only the figures' columns)
     figures = run_figures(held if held is not None else trace_file, figure_columns(roles), meta, scenario, weather,
-                          row_group_rows)
+                          prepared.row_group_rows)
     summary = figures.figures()
     meta["statistics"]["figure_rows_held_max"] = figures.max_rows_held  # trace rows held at once for them
     meta["statistics"]["figure_step_rows_held_max"] = figures.summary.max_step_rows
     run = RunResult(scenario, held, summary, meta, complete, error, inputs, reason, reached,
-                    trace_file=trace_file, temporary_folder=temporary, weather=weather)
+                    trace_file=trace_file, temporary_folder=prepared.temporary, weather=weather)
     return run
 
 
