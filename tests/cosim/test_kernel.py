@@ -50,13 +50,16 @@ def _run(drive, monkeypatch, compiled: bool, interpolate: bool = False, monitor=
         0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=monitor)
 
 
-@pytest.mark.parametrize("with_monitor", [False, True])
-def test_compiled_rhs_gives_the_same_trace_bit_for_bit(drive, monkeypatch, with_monitor):
+@pytest.mark.parametrize("with_monitor, interpolate", [(False, False), (True, False), (True, True)])
+def test_compiled_rhs_gives_the_same_trace_bit_for_bit(drive, monkeypatch, with_monitor, interpolate):
+    """The compiled kernel (right-hand side, and with a monitor the one-step loop of hs_advance)
+    and the Python callbacks with their own one-step loop: the same rows, bit for bit, also
+    with interpolated output rows (the two loops' twin rules for which output goes where)."""
     rows = {True: [], False: []}
     results = {}
     for compiled in (False, True):
         monitor = (lambda block, keep=rows[compiled]: keep.append(block.copy())) if with_monitor else None
-        results[compiled] = _run(drive, monkeypatch, compiled, monitor=monitor)
+        results[compiled] = _run(drive, monkeypatch, compiled, interpolate=interpolate, monitor=monitor)
     assert results[True].statistics["compiled_rhs"] and not results[False].statistics["compiled_rhs"]
     pd.testing.assert_frame_equal(results[True].trace, results[False].trace, check_exact=True)
     assert results[True].statistics["rhs"] == results[False].statistics["rhs"] > 0

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from heliostep.cosim.signals import cvode_failure, too_many_steps
 from heliostep.errors import HeliostepError
 from heliostep.paths import fmus_dir
 from heliostep.toolchain import compiler_version, exclusive_lock
@@ -259,12 +260,10 @@ class Kernel:
             if status == ADVANCE_FMU_FAILED:  # the error stays recorded for the master (take_error)
                 raise RuntimeError("an FMU failed inside the compiled one-step loop")
             if status == ADVANCE_MAX_STEPS:
-                raise RuntimeError(f"CVode took {max_steps} internal steps (solver.max_num_steps) before reaching "
-                                   f"t = {t_stop:.9g} s, at t = {reached.value:.9g} s")
+                raise too_many_steps(max_steps, t_stop, reached.value)
             if status == ADVANCE_DKY_FAILED:
                 raise RuntimeError(f"CVodeGetDky failed between t = {reached.value:.9g} s and the step before")
-            raise RuntimeError("CVode error (code %s) in module %s, function %s: %s"
-                               % (solver.error_info or (flag.value, "CVODE", "", "no message")))
+            raise cvode_failure(solver.error_info, flag.value)
 
     @property
     def rhs_count(self) -> int:
@@ -373,7 +372,7 @@ class NativeSolver:
         reached = ctypes.c_double(0.0)
         flag = CVode(self.cvode_mem, tNext, self.x, ctypes.byref(reached), CV_NORMAL)
         if flag < 0:  # (the FMUs are not touched: an FMU in its error state keeps its messages)
-            raise RuntimeError("CVode error (code %s) in module %s, function %s: %s" % self.error_info)
+            raise cvode_failure(self.error_info, flag)
         if not self.discrete:
             self.set_x(self.px, self.nx)
         return flag > 0, None, reached.value

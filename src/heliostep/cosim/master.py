@@ -57,7 +57,7 @@ import pandas as pd
 from heliostep.cosim.fmi import FMUInfo, ModelExchangeInstance, address, convert_value
 from heliostep.cosim.connections import ConnectionGraph, split_name
 from heliostep.cosim.loops import LoopSolver
-from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
+from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions, cvode_failure, too_many_steps
 from heliostep.errors import HeliostepError, InputError
 
 
@@ -511,11 +511,10 @@ class _Run:
         while True:
             steps += 1
             if steps > self.options.max_num_steps:  # as CVODE's own limit in normal mode (mxstep)
-                raise RuntimeError(f"CVode took {self.options.max_num_steps} internal steps (solver.max_num_steps) "
-                                   f"before reaching t = {t_next:.9g} s, at t = {reached.value:.9g} s")
+                raise too_many_steps(self.options.max_num_steps, t_next, reached.value)
             flag = CVode(solver.cvode_mem, t_next, solver.x, ctypes.byref(reached), _CV_ONE_STEP)
             if flag < 0:
-                raise RuntimeError("CVode error (code %s) in module %s, function %s: %s" % solver.error_info)
+                raise cvode_failure(solver.error_info, flag)
             t = reached.value
             final = flag == CV_ROOT_RETURN or flag == _CV_TSTOP_RETURN or t >= t_next
             if outputs is not None:

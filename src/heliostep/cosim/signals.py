@@ -51,3 +51,15 @@ class SolverOptions:
     max_num_steps: int = 100_000
 
 
+def cvode_failure(error_info: tuple | None, flag: int) -> RuntimeError:
+    """The error for a CVODE call that returned ``flag`` < 0, with what CVODE's error handler
+    recorded (code, module, function, message), where it recorded anything."""
+    code, module, function, message = error_info or (flag, "CVODE", "", "no message")
+    return RuntimeError(f"CVode error (code {code}) in module {module}, function {function}: {message}")
+
+
+def too_many_steps(max_steps: int, t_stop: float, reached: float) -> RuntimeError:
+    """The error for a one-step CVODE loop that took ``max_steps`` internal steps (the limit
+    CVODE itself applies in normal mode, ``SolverOptions.max_num_steps``) short of ``t_stop``."""
+    return RuntimeError(f"CVode took {max_steps} internal steps (solver.max_num_steps) before reaching "
+                        f"t = {t_stop:.9g} s, at t = {reached:.9g} s")
