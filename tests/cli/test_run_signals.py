@@ -55,6 +55,18 @@ def _long_scenario(folder: Path) -> Path:
     return path
 
 
+def _signal_twice(process: subprocess.Popen, sig, gap: float, status: int, out: Path) -> None:
+    """Send ``sig`` twice, ``gap`` seconds apart: the run exits at once with ``status``, says so,
+    prints no traceback and leaves no temporary file in ``out``."""
+    process.send_signal(sig)
+    time.sleep(gap)
+    process.send_signal(sig)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == status, stderr
+    assert "Traceback" not in stderr and f"stopped by {signal.Signals(sig).name} a second time" in stderr, stderr
+    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+
+
 @pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_paths):
     out = tmp_path / "run"
@@ -130,13 +142,7 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, "no figures were drawn"
         time.sleep(0.005)
-    process.send_signal(signal.SIGINT)
-    time.sleep(0.05)
-    process.send_signal(signal.SIGINT)
-    stdout, stderr = process.communicate(timeout=60)
-    assert process.returncode == 130, stderr
-    assert "Traceback" not in stderr and "stopped by SIGINT a second time" in stderr, stderr
-    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+    _signal_twice(process, signal.SIGINT, 0.05, 130, out)
     figures = [p for p in out.iterdir() if p.suffix == ".png"]
     assert len(figures) < 7  # it did not go on drawing
     # what had been renamed into place before is whole and says complete: the run had finished
@@ -157,13 +163,7 @@ def test_second_signal_mid_simulation_removes_the_trace_stream(tmp_path, fmu_pat
     time.sleep(1.5)
     assert process.poll() is None, "the run ended before the signal"
     assert list(out.glob(".heliostep-tmp-*-trace.parquet")), "the trace is not being streamed"
-    process.send_signal(signal.SIGTERM)
-    time.sleep(0.03)
-    process.send_signal(signal.SIGTERM)
-    _, stderr = process.communicate(timeout=60)
-    assert process.returncode == 143, stderr
-    assert "Traceback" not in stderr and "stopped by SIGTERM a second time" in stderr, stderr
-    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+    _signal_twice(process, signal.SIGTERM, 0.03, 143, out)
     for name in ("trace.parquet", "summary.json"):  # if it got as far as renaming, it says incomplete
         if (out / name).exists():
             assert "true" not in (read_trace(out / name)[1]["complete"] if name.endswith("parquet")
