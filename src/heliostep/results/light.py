@@ -136,12 +136,12 @@ def _light_rows(trace: pd.DataFrame, metadata: Mapping, scenario, weather, origi
     sun = np.stack([np.interp(seconds, grid_s, c) for c in sun_grid])
     sun /= np.linalg.norm(sun, axis=0)
     up = np.interp(seconds, grid_s, elevation) > 0.0
-    dni = np.interp(seconds, grid_s, irradiance.dni(grid, site, weather).to_numpy())
+    dni = np.interp(seconds, grid_s, irradiance.dni(grid, site, weather, sun=position).to_numpy())
 
     ideal_p, ideal_q = (np.interp(seconds, grid_s, a) for a in two_axis_angles(elevation, azimuth, distance, h,
                                                                              plant.azimuth))
     # the shared primary: the central mirror's law plus a mounting offset exact at solar noon
-    sharing = np.nan_to_num(sharing_errors(grid, site, plant, scenario.window.date, [distance])[:, 0])
+    sharing = np.nan_to_num(sharing_errors(grid, site, plant, scenario.window.date, [distance], sun=position)[:, 0])
     shared_p = ideal_p - np.interp(seconds, grid_s, sharing)
     panel_column = metadata.get("roles", {}).get("panel_angle")
     driven = {"reference": trace["panel_angle_ref"].to_numpy(dtype=float),

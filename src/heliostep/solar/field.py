@@ -113,14 +113,16 @@ def solar_noon_sun(date, site: Site) -> tuple[float, float]:
     return float(sun["apparent_elevation"].iloc[0]), float(sun["azimuth"].iloc[0])
 
 
-def sharing_errors(times: pd.DatetimeIndex, site: Site, plant: Plant, date, mirror_distances) -> np.ndarray:
+def sharing_errors(times: pd.DatetimeIndex, site: Site, plant: Plant, date, mirror_distances,
+                   sun: pd.DataFrame | None = None) -> np.ndarray:
     """Primary sharing errors [rad] at ``times``, one column per mirror distance; NaN while the sun is down.
 
     Every primary turns by the central mirror's angle; each mirror is mounted with the offset
     that makes it exact at solar noon of ``date`` (:func:`field_primary_errors` with that
-    calibration).
+    calibration). ``sun``: :func:`solar_position` at ``times`` already computed (else computed here).
     """
-    sun = solar_position(times, site.latitude, site.longitude, site.altitude)
+    if sun is None:
+        sun = solar_position(times, site.latitude, site.longitude, site.altitude)
     elevation = sun["apparent_elevation"].to_numpy()
     errors = field_primary_errors(elevation, sun["azimuth"].to_numpy(), plant.tube_height, mirror_distances,
                                   plant.azimuth, calibration=solar_noon_sun(date, site)).to_numpy().copy()

@@ -23,7 +23,7 @@ from heliostep.solar.sun import Site
 MAX_SITE_OFFSET = 1.0
 
 
-def clear_sky_dni(times, site: Site) -> pd.Series:
+def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Series:
     """Clear-sky DNI at the site (Ineichen & Perez 2002, as implemented by pvlib).
 
     Parameters
@@ -31,6 +31,9 @@ def clear_sky_dni(times, site: Site) -> pd.Series:
     times : pandas.DatetimeIndex
         Timezone-aware.
     site : Site
+    sun : pandas.DataFrame, optional
+        :func:`heliostep.solar.solar_position` at ``times`` already computed (its
+        ``apparent_zenith`` is what the model takes); computed here when not given.
 
     Returns
     -------
@@ -43,7 +46,7 @@ def clear_sky_dni(times, site: Site) -> pd.Series:
     location = pvlib.location.Location(site.latitude, site.longitude, site.timezone, site.altitude)
     with warnings.catch_warnings():  # pvlib's pandas deprecations are not ours to fix
         warnings.simplefilter("ignore")
-        sky = location.get_clearsky(times, model="ineichen")  # Ineichen & Perez (2002), pvlib
+        sky = location.get_clearsky(times, model="ineichen", solar_position=sun)  # Ineichen & Perez (2002), pvlib
     return sky["dni"].fillna(0.0).clip(lower=0.0).rename("dni")
 
 
@@ -152,16 +155,16 @@ def weather_dni(times, site: Site, path, max_offset: float = MAX_SITE_OFFSET) ->
     return WeatherDNI.read(path, site, max_offset).at(times)
 
 
-def dni(times, site: Site, weather_file=None) -> pd.Series:
+def dni(times, site: Site, weather_file=None, sun: pd.DataFrame | None = None) -> pd.Series:
     """DNI over a window: clear sky unless a weather file (a path, or a :class:`WeatherDNI`
-    already read) is given.
+    already read) is given; ``sun``: see :func:`clear_sky_dni`.
 
     Returns
     -------
     pandas.Series  [W/m^2]
     """
     if weather_file is None:
-        return clear_sky_dni(times, site)
+        return clear_sky_dni(times, site, sun)
     if isinstance(weather_file, WeatherDNI):
         return weather_file.at(times)
     return weather_dni(times, site, weather_file)
