@@ -185,7 +185,8 @@ def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, calculated: 
     guess = ca.SX.sym("guess", n_unknowns + len(model.calculated_parameters))
     known = ca.vertcat(t, x, u, p)
     unknowns = ca.SX.sym("unknowns", n_unknowns)
-    solution = sequential_solution(residual_fn.expand()(unknowns, known), unknowns)
+    residual = residual_fn.expand()  # SX: the sorting substitutes expressions
+    solution = sequential_solution(residual(unknowns, known), unknowns)
     if solution is None:
         return None
     solved = ca.vertcat(*solution) if solution else ca.SX(0, 1)
@@ -193,7 +194,7 @@ def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, calculated: 
     values = ca.Function("calculated", [parameters], [calculated]).expand()(p) if model.calculated_parameters \
         else ca.SX(0, 1)
     return ca.Function("model_eval", [t, x, u, p, guess],
-                       [ca.vertcat(solved, values), residual_fn.expand()(solved, known)],
+                       [ca.vertcat(solved, values), residual(solved, known)],
                        ["t", "x", "u", "p", "guess"], ["computed", "residual"])
 
 
