@@ -48,7 +48,7 @@ from heliostep.results.outputs import (
     remove_stale,
     write_text_atomic,
 )
-from heliostep.results.run_figures import run_figures, summary_at_cut
+from heliostep.results.run_figures import present_columns, run_figures, summary_at_cut
 from heliostep.results.summary import SolutionRecorder
 from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
 from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriteError, copy_trace_to_csv, read_trace, write_trace
@@ -145,8 +145,7 @@ class RunResult:
     def trace_columns(self, columns: list[str]) -> pd.DataFrame:
         """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
         streamed: the other columns are never loaded)."""
-        present = set(self.trace_column_names)
-        wanted = ["time"] + [c for c in dict.fromkeys(columns) if c in present and c != "time"]
+        wanted = present_columns(self.held_trace if self.held_trace is not None else self.trace_file, columns)
         if self.held_trace is not None:
             return self.held_trace[wanted]
         return read_trace(self.trace_file, wanted)[0]
