@@ -78,6 +78,23 @@ def test_parquet_metadata_is_schema_key_value_metadata(tmp_path):
     assert schema_meta[b"complete"] == b"true"
 
 
+def test_parquet_columns_are_byte_stream_split_and_zstd_not_a_dictionary(tmp_path):
+    """Every float64 column is stored as its byte planes, zstd-compressed (readable by any
+    Parquet reader: the encoding is in the format since 2.8); a continuous signal gets no
+    dictionary, which it would overflow."""
+    path = tmp_path / "t.parquet"
+    rng = np.random.default_rng(0)
+    write_trace(pd.DataFrame({"time": np.arange(5000.0), "x": rng.normal(size=5000),
+                              "held": np.repeat([0.0, 1.5], 2500)}), path, {})
+    chunks = pq.ParquetFile(path).metadata.row_group(0)
+    for i in range(chunks.num_columns):
+        column = chunks.column(i)
+        assert "BYTE_STREAM_SPLIT" in column.encodings, (column.path_in_schema, column.encodings)
+        assert "PLAIN_DICTIONARY" not in column.encodings and "RLE_DICTIONARY" not in column.encodings
+        assert column.compression == "ZSTD"
+        assert not column.has_dictionary_page
+
+
 def test_complete_flag():
     assert is_complete({}) is True
     assert is_complete({"complete": "true"}) is True

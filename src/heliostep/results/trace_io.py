@@ -222,6 +222,10 @@ class _ByteCounter(io.RawIOBase):
         self.kept = bytearray()
 
 
+#: How a trace's float64 columns are encoded in Parquet (pyarrow.parquet.ParquetWriter options).
+TRACE_ENCODING = {"use_dictionary": False, "column_encoding": "BYTE_STREAM_SPLIT"}
+
+
 class TraceWriter:
     """A Parquet trace written as it is produced: :meth:`write` appends one row group of float64
     columns, :meth:`close` writes the metadata (all of it, ``complete`` included) and the footer.
@@ -255,8 +259,11 @@ class TraceWriter:
         self._last_time = -np.inf
         self._schema = pa.schema([pa.field(c, pa.float64()) for c in self.columns])
         # no serialized Arrow schema (all columns are float64): readers then take the schema's
-        # metadata from the footer's key-value metadata, which close() writes
-        options = {"compression": "zstd", "store_schema": False}
+        # metadata from the footer's key-value metadata, which close() writes. Encoding: each
+        # float64 split into its 8 byte planes (BYTE_STREAM_SPLIT), then zstd; against Parquet's
+        # default dictionary encoding, which the continuous columns overflow, the row groups are
+        # written 3-4x faster and take 40 % less space (benchmarks/bench_trace_io.py)
+        options = {"compression": "zstd", "store_schema": False, **TRACE_ENCODING}
         self._writer = pq.ParquetWriter(self.path, self._schema, **options)
         # the same row groups written nowhere: its footer is the one for the groups written so far
         self._shadow_sink = _ByteCounter()
