@@ -4,8 +4,11 @@ Runs (3 times, the median shown) a fixed set of 8 cases of the paper's 5-minute 
 mirrors 0 and 12) on a local cluster of 1 and of 2 single-threaded worker processes,
 and prints the cases per minute, the scaling factor, and the wall time of the full
 year (365 days) x 13 mirrors on N workers estimated from the measured time per case.
-With ``--full-day`` it also times one sunrise-to-sunset case, the case of
-``scenarios/sweeps/year-field.yaml``, and estimates that sweep (365 x 14 cases).
+With ``--full-day`` it also runs sunrise-to-sunset cases of ``scenarios/sweeps/year-field.yaml``
+(its overrides and its shared primary) on 6 days spread over the year (1, 62, 123, 184, 245,
+306) x mirrors 0 and 12, plus the longest day (172), on the smallest cluster of ``--workers``
+(one worker per core left free: a case's time is then one core's, not shared), and estimates that sweep (365 x 14 cases) from the mean time per case of the spread days
+(the days' lengths and step counts vary over the year; the longest day alone overstates it).
 
 The clusters are started and their workers warmed up (heliostep imported) before the
 clock starts; the FMUs are built before. Timed: validation, shipping the FMUs, the
@@ -39,12 +42,17 @@ MIRRORS = (0, 12)
 YEAR_CASES = 365 * 13  # the full year x 13 mirrors
 YEAR_FIELD_CASES = 365 * 14  # year-field.yaml: plus the shared primary per day
 CLUSTER_SIZES = (2, 16, 64)
+YEAR_SAMPLE_DAYS = (1, 62, 123, 184, 245, 306)  # every 61st day: the year's spread of day lengths
+LONGEST_DAY = 172
+YEAR_FIELD = ROOT / "scenarios" / "sweeps" / "year-field.yaml"
 
 
-def write_sweep(folder: Path, name: str, axes: dict, overrides: dict | None = None) -> Path:
+def write_sweep(folder: Path, name: str, axes: dict, overrides: dict | None = None,
+                shared_primary: bool = False) -> Path:
     path = folder / f"{name}.yaml"
     path.write_text(yaml.safe_dump({"name": name, "base": str(BASE), "axes": axes,
-                                    "overrides": overrides or {}}, sort_keys=False))
+                                    "overrides": overrides or {}, "shared_primary": shared_primary},
+                                   sort_keys=False))
     return path
 
 
@@ -111,18 +119,36 @@ def main(argv: list[str] | None = None) -> None:
             print(f"  {size:3d} workers: {duration_text(YEAR_CASES * one_case / size)}")
 
         if args.full_day:
-            day = write_sweep(folder, "day", {"day_of_year": [172]},
-                              {"window.start": "sunrise", "window.end": "sunset", "window.duration": None,
-                               "output.interval": 1.0})
-            _, wall, outcome = timed_sweep(day, folder / "day", 1)
-            simulated = outcome.table["duration_s"].item()
-            print(f"\none sunrise-to-sunset case (day 172, {simulated / 3600:.1f} h simulated, "
-                  f"{outcome.table['steps_commanded'].item()} steps): {wall:.1f} s on 1 worker")
-            print(f"year-field.yaml = {YEAR_FIELD_CASES} such cases (ideal scaling; shorter winter days "
-                  f"make it somewhat less):")
-            for size in CLUSTER_SIZES:
-                print(f"  {size:3d} workers: {duration_text(YEAR_FIELD_CASES * wall / size)}")
+            full_day(folder, min(args.workers))
 
+
+def full_day(folder: Path, n_workers: int) -> None:
+    """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml (see the module docstring)."""
+    overrides = yaml.safe_load(YEAR_FIELD.read_text())["overrides"]
+    days = write_sweep(folder, "days", {"day_of_year": [*YEAR_SAMPLE_DAYS, LONGEST_DAY], "mirror": [0, 12]},
+                       overrides, shared_primary=True)
+    _, wall, outcome = timed_sweep(days, folder / "days", n_workers)
+    table = outcome.table
+    primary = table["role"] == "shared-primary"
+    print(f"\nsunrise-to-sunset cases of year-field.yaml (days {YEAR_SAMPLE_DAYS} and {LONGEST_DAY} x "
+          f"mirrors 0, 12 and the shared primary: {len(table)} cases, {wall:.1f} s on {n_workers} worker(s)); "
+          f"mean time of a case on its worker:")
+    for day_of_year, rows in table.groupby("day_of_year"):
+        mirrors, shared = rows[~primary.loc[rows.index]], rows[primary.loc[rows.index]]
+        print(f"  day {int(day_of_year):3d}: {rows['duration_s'].iloc[0] / 3600:4.1f} h simulated, "
+              f"{int(mirrors['steps_commanded'].max()):5d} steps: mirrors {mirrors['wall_time_s'].mean():5.2f} s, "
+              f"primary ({int(shared['steps_commanded'].max())} steps) {shared['wall_time_s'].mean():5.2f} s")
+    spread = table["day_of_year"].isin(YEAR_SAMPLE_DAYS)
+    per_mirror = table.loc[spread & ~primary, "wall_time_s"].mean()
+    per_primary = table.loc[spread & primary, "wall_time_s"].mean()
+    core_seconds = 365 * 13 * per_mirror + 365 * per_primary
+    print(f"year-field.yaml = {YEAR_FIELD_CASES} cases: {core_seconds / 3600:.1f} core-hours from the spread "
+          f"days' means ({per_mirror:.2f} s a mirror case, {per_primary:.2f} s a primary case); ideal scaling:")
+    for size in CLUSTER_SIZES:
+        print(f"  {size:3d} workers: {duration_text(core_seconds / size)}")
+    longest = table.loc[table["day_of_year"] == LONGEST_DAY, "wall_time_s"].max()
+    print(f"  (were every case as slow as the longest day's slowest, {longest:.2f} s: "
+          f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)")
 
 if __name__ == "__main__":
     main()

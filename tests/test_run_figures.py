@@ -35,6 +35,27 @@ def test_streamed_figures_equal_the_held_ones_bit_for_bit(runs):
     assert "light_energy_J" in held.summary and "idle_holding_moment_Nm" in held.summary
 
 
+def test_a_run_without_trace_gives_the_same_figures_and_writes_only_its_summary(runs, monkeypatch, tmp_path):
+    """keep_trace=False (a sweep's cases): the master's blocks (of 7 rows here) go to the figures
+    as they come; every figure equals the held run's, bit for bit, with no more rows held than
+    a chunk and a block; nothing but summary.json and metadata.json is written, and asking for
+    the trace says why there is none."""
+    import heliostep.run as run_module
+    from heliostep.errors import HeliostepError
+
+    held, _ = runs
+    monkeypatch.setattr(run_module, "SINK_ROWS", 7)
+    bare = run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, row_group_rows=GROUP, keep_trace=False)
+    assert bare.summary == held.summary
+    assert bare.metadata["solution_figures"] == held.metadata["solution_figures"]
+    assert bare.metadata["statistics"]["figure_rows_held_max"] <= GROUP - 1 + 7
+    assert not bare.trace_kept and bare.held_trace is None and bare.trace_file is None
+    with pytest.raises(HeliostepError, match="kept no trace"):
+        bare.trace
+    assert sorted(bare.write(tmp_path / "out")) == ["metadata.json", "summary.json"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["metadata.json", "summary.json"]
+
+
 def test_streamed_figures_hold_a_bounded_number_of_rows(runs):
     held, streamed = runs
     rows = len(held.trace)

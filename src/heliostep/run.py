@@ -48,7 +48,7 @@ from heliostep.results.outputs import (
     remove_stale,
     write_text_atomic,
 )
-from heliostep.results.run_figures import present_columns, run_figures, summary_at_cut
+from heliostep.results.run_figures import FigureStream, present_columns, run_figures, summary_at_cut
 from heliostep.results.summary import SolutionRecorder
 from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
 from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriteError, copy_trace_to_csv, read_trace, write_trace
@@ -107,8 +107,13 @@ class RunResult:
     trace_file: Path | None = None
     temporary_folder: Path | None = field(default=None, repr=False)
     weather: object = field(default=None, repr=False)  # the weather file read once (None: clear sky)
+    trace_kept: bool = True  # False: run_scenario(..., keep_trace=False), figures only
 
     def __post_init__(self) -> None:
+        if not self.trace_kept:
+            if self.held_trace is not None or self.trace_file is not None:
+                raise ValueError("a RunResult without trace (trace_kept=False) has no held trace nor trace file")
+            return
         if self.held_trace is None and self.trace_file is None:
             raise ValueError("a RunResult needs its trace in memory or in a trace file")
         if self.temporary_folder is not None:  # the run's own folder goes with the result
@@ -118,15 +123,22 @@ class RunResult:
             self.summary = summary_at_cut(source, figure_columns(self.metadata.get("roles", {})), self.metadata,
                                           self.summary)
 
+    def _require_trace(self) -> None:
+        if not self.trace_kept:
+            raise HeliostepError(f"{self.scenario.name}: this run kept no trace (run_scenario(..., keep_trace=False)): "
+                                 "only its summary and metadata")
+
     @property
     def trace(self) -> pd.DataFrame:
         """The trace: held in memory, or read from :attr:`trace_file` at each access."""
+        self._require_trace()
         if self.held_trace is not None:
             return self.held_trace
         return read_trace(self.trace_file)[0]
 
     @property
     def trace_column_names(self) -> list[str]:
+        self._require_trace()
         if self.held_trace is not None:
             return list(self.held_trace.columns)
         import pyarrow.parquet as pq
@@ -136,6 +148,7 @@ class RunResult:
     @property
     def trace_rows(self) -> int:
         """The trace's number of rows (a file's from its footer, no row read)."""
+        self._require_trace()
         if self.held_trace is not None:
             return len(self.held_trace)
         import pyarrow.parquet as pq
@@ -145,6 +158,7 @@ class RunResult:
     def trace_columns(self, columns: list[str]) -> pd.DataFrame:
         """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
         streamed: the other columns are never loaded)."""
+        self._require_trace()
         wanted = present_columns(self.held_trace if self.held_trace is not None else self.trace_file, columns)
         if self.held_trace is not None:
             return self.held_trace[wanted]
@@ -157,6 +171,7 @@ class RunResult:
     def plot(self, out_dir: str | Path) -> list[Path]:
         """Write the paper's Figs. 8–14 and the power on the tube for this run into ``out_dir``
         (each file renamed into place)."""
+        self._require_trace()
         from heliostep.plots.light import plot_light_run
         from heliostep.plots.run import plot_run
 
@@ -192,8 +207,9 @@ class RunResult:
     def write(self, out_dir: str | Path, plots: bool = True, csv: bool = True,
               should_stop: Callable[[], bool] | None = None) -> dict[str, Path]:
         """Write trace (Parquet, and CSV unless ``csv=False``), summary.json, metadata.json and
-        plots into ``out_dir``. The trace's metadata, summary.json and metadata.json all say
-        ``complete`` (and, when not, ``reason`` and the time reached).
+        plots into ``out_dir`` (a run that kept no trace: summary.json and metadata.json). The
+        trace's metadata, summary.json and metadata.json all say ``complete`` (and, when not,
+        ``reason`` and the time reached).
 
         Every file is written under a temporary name in ``out_dir`` and renamed into place, so no
         file is ever cut short under its final name. Files of heliostep's own kinds left by an
@@ -203,7 +219,9 @@ class RunResult:
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         written = {}
-        if self.held_trace is not None:
+        if not self.trace_kept:  # figures only: summary.json and metadata.json
+            plots = False
+        elif self.held_trace is not None:
             for suffix in ("parquet", "csv") if csv else ("parquet",):
                 path = out_dir / f"trace.{suffix}"
                 with atomic_path(path) as tmp:
@@ -348,7 +366,7 @@ def resolve_fmus(scenario: Scenario) -> dict[str, Path]:
 def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (),
                  progress: bool = False, should_stop: Callable[[], bool] | None = None,
                  trace_dir: str | Path | None = None, stream: bool | None = None,
-                 row_group_rows: int = ROW_GROUP_ROWS) -> RunResult:
+                 row_group_rows: int = ROW_GROUP_ROWS, keep_trace: bool = True) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
 
     Raises :class:`RunFailed` (carrying the incomplete :class:`RunResult`) when the
@@ -365,6 +383,12 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     The figures after the simulation (summary, light, holding) are evaluated in chunks of
     ``row_group_rows`` rows, a streamed trace read back one row group at a time, so held and
     streamed runs with the same ``row_group_rows`` give the same figures bit for bit.
+
+    With ``keep_trace=False`` (a sweep's cases) no trace is kept: the rows go to the figures as
+    they come (:class:`~heliostep.results.run_figures.FigureStream`), nothing is written, and the
+    figures are those the run would give with its trace kept, bit for bit. The result then has
+    no trace and draws no plots; an interrupted run's summary is not corrected for the step in
+    progress at the cut (that needs the rows before it).
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
@@ -411,7 +435,9 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     assembler = TraceAssembler(inputs, roles)
     streamed = inputs.duration > HELD_TRACE_MAX_DURATION if stream is None else stream
     sink, temporary = None, None
-    if streamed:
+    if not keep_trace:
+        sink = FigureStream(columns, assembler, figure_columns(roles), meta, scenario, weather, row_group_rows)
+    elif streamed:
         if trace_dir is None:
             temporary = Path(tempfile.mkdtemp(prefix=f"heliostep-trace-{scenario.name}-"))
         folder = Path(trace_dir) if trace_dir is not None else temporary
@@ -422,7 +448,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     try:
         run = _simulate_and_summarize(prepared, bar, should_stop)
     except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
-        if sink is not None:
+        if isinstance(sink, TraceStream):
             sink.abort()
         if temporary is not None:
             shutil.rmtree(temporary, ignore_errors=True)
@@ -447,7 +473,7 @@ class _PreparedRun:
     row_group_rows: int
     solution: SolutionRecorder  # the figures from every solver step
     assembler: TraceAssembler
-    sink: TraceStream | None = None  # a streamed trace's file
+    sink: TraceStream | FigureStream | None = None  # a streamed trace's file, or the figures of a run without trace
     temporary: Path | None = None  # the stream's own folder, without an output folder
 
 
@@ -475,7 +501,7 @@ def _simulate_and_summarize(prepared: _PreparedRun, bar, should_stop) -> RunResu
     finally:
         if bar:
             bar.close()
-    if sink is not None:
+    if isinstance(sink, TraceStream):
         try:
             sink.flush()  # the last rows: a write failing here fails the run as one during it
         except TraceWriteError:
@@ -493,20 +519,25 @@ def _simulate_and_summarize(prepared: _PreparedRun, bar, should_stop) -> RunResu
         if list(raw.columns) != solution.columns:
             raise RuntimeError(f"solution recorder columns {solution.columns} differ from the trace's {list(raw.columns)}")
         meta["solution_figures"] = solution.figures()
+    held, trace_file = None, None
     if sink is None:
-        held, trace_file = assembler(raw), None
-    else:  # the file is finished (its metadata says how the run ended)
-        held = None
+        held = assembler(raw)
+    elif isinstance(sink, TraceStream):  # the file is finished (its metadata says how the run ended)
         trace_file = sink.close(trace_metadata(scenario.name, meta, sink.columns, complete, reason, reached, error))
     # summary, light on the tube, holding vs wind: in chunks of row_group_rows rows, a streamed
-    # trace read back one row group at a time (only the figures' columns)
-    figures = run_figures(held if held is not None else trace_file, figure_columns(roles), meta, scenario, weather,
-                          prepared.row_group_rows)
+    # trace read back one row group at a time (only the figures' columns); without a trace, as
+    # the rows came
+    if isinstance(sink, FigureStream):
+        figures = sink.accumulator
+    else:
+        figures = run_figures(held if held is not None else trace_file, figure_columns(roles), meta, scenario,
+                              weather, prepared.row_group_rows)
     summary = figures.figures()
     meta["statistics"]["figure_rows_held_max"] = figures.max_rows_held  # trace rows held at once for them
     meta["statistics"]["figure_step_rows_held_max"] = figures.summary.max_step_rows
     run = RunResult(scenario, held, summary, meta, complete, error, inputs, reason, reached,
-                    trace_file=trace_file, temporary_folder=prepared.temporary, weather=weather)
+                    trace_file=trace_file, temporary_folder=prepared.temporary, weather=weather,
+                    trace_kept=not isinstance(sink, FigureStream))
     return run
 
 

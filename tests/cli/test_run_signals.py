@@ -160,9 +160,13 @@ def test_second_signal_mid_simulation_removes_the_trace_stream(tmp_path, fmu_pat
     out = tmp_path / "run"
     process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)
-    time.sleep(1.5)
+    deadline = time.monotonic() + 60.0  # the stream's file is made before the simulation starts
+    while not list(out.glob(".heliostep-tmp-*-trace.parquet")):
+        assert process.poll() is None, "the run ended before the signal"
+        assert time.monotonic() < deadline, "the trace is not being streamed"
+        time.sleep(0.01)
+    time.sleep(0.5)  # into the simulation
     assert process.poll() is None, "the run ended before the signal"
-    assert list(out.glob(".heliostep-tmp-*-trace.parquet")), "the trace is not being streamed"
     _signal_twice(process, signal.SIGTERM, 0.03, 143, out)
     for name in ("trace.parquet", "summary.json"):  # if it got as far as renaming, it says incomplete
         if (out / name).exists():

@@ -8,7 +8,14 @@ want to wait for the clean-up and writing) raises :class:`ForcedStop`, a ``BaseE
 under temporary names are removed (nothing is renamed into place half-written) and temporary
 folders are deleted; :func:`heliostep.cli.main` turns it into one line and the exit status. A
 third signal ends the process at once (``os._exit``), without any clean-up. The previous handlers
-are restored on leaving. Exit status of a stopped command: 128 + the signal number (130 for
+are restored on leaving.
+
+Python runs a signal handler between any two bytecodes, also inside a weakref callback or a
+``__del__`` (matplotlib's transforms have such callbacks), where an exception cannot propagate:
+Python prints it as "Exception ignored" and goes on. Within :func:`stop_requests` a
+``sys.unraisablehook`` catches the handler's own exception there and arms a 1 ms timer
+(SIGALRM) that raises it anew once the callback has returned (not counted as another signal):
+no stop request dies inside a callback. Exit status of a stopped command: 128 + the signal number (130 for
 SIGINT, 143 for SIGTERM).
 """
 
@@ -16,6 +23,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -84,6 +92,12 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         yield request
         return
 
+    swallowed: list[BaseException] = []  # the handler's exception, lost in a callback: raise it again
+
+    def again(signum, frame):  # SIGALRM, armed by the hook below
+        if swallowed:
+            raise swallowed.pop()
+
     def handler(signum, frame):
         request.count += 1
         request.set(signum)
@@ -95,13 +109,31 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         else:  # a third: no more clean-up
             os._exit(exit_status(signum))
 
+    def unraisable(hook_args):
+        exc = hook_args.exc_value
+        if isinstance(exc, ForcedStop) or (raise_exception is not None and isinstance(exc, raise_exception)):
+            swallowed[:] = [exc]
+            # raised again 1 ms later by SIGALRM, once this hook has returned (raise_signal or
+            # os.kill here would run a handler at once, inside the hook)
+            previous_alarm.setdefault("handler", signal.signal(signal.SIGALRM, again))
+            signal.setitimer(signal.ITIMER_REAL, 1e-3)
+            return
+        previous_hook(hook_args)
+
     previous = {}
+    previous_alarm: dict = {}  # SIGALRM's handler before the hook first armed it
+    previous_hook = sys.unraisablehook
     try:
         for sig in STOP_SIGNALS:
             if signal.getsignal(sig) is signal.SIG_IGN:
                 continue  # ignored on purpose (e.g. SIGINT of a background job): keep it so
             previous[sig] = signal.signal(sig, handler)
+        sys.unraisablehook = unraisable
         yield request
     finally:
+        sys.unraisablehook = previous_hook
+        if previous_alarm:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, previous_alarm["handler"])
         for sig, old in previous.items():
             signal.signal(sig, old)

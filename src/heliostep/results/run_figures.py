@@ -25,7 +25,8 @@ from heliostep.results.summary import TraceSummary
 from heliostep.results.trace_io import ROW_GROUP_ROWS, iter_trace_blocks
 from heliostep.results.tradeoffs import smallest_drive_ratio, tradeoff_figures_at
 
-__all__ = ["RunFigures", "TraceSource", "present_columns", "run_figures", "summary_at_cut", "trace_blocks"]
+__all__ = ["FigureStream", "RunFigures", "TraceSource", "present_columns", "run_figures", "summary_at_cut",
+           "trace_blocks"]
 
 #: A trace: held in memory (a frame), or a Parquet trace file read by row groups.
 TraceSource = pd.DataFrame | Path
@@ -129,6 +130,41 @@ def run_figures(source: TraceSource, columns: list[str], metadata: Mapping, scen
     for block in trace_blocks(source, present):
         figures(block)
     return figures
+
+
+class FigureStream:
+    """Row sink of a run that keeps no trace: the master's row blocks, assembled block by block
+    (:class:`~heliostep.results.trace.TraceAssembler`) and fed to :class:`RunFigures` as they
+    come, nothing written or held beyond one chunk.
+
+    For sweeps, whose cases need the figures only. The figures equal, bit for bit, those of the
+    same run with its trace held or streamed (the same rows, in chunks of ``block_rows`` counted
+    from the first row). ``metadata`` is the run's metadata dict itself: the summary takes its
+    ``solution_figures`` when ``accumulator.figures()`` is asked, after the simulation. ``rows`` counts the
+    rows received, ``last_time`` is the time of the last one.
+    """
+
+    def __init__(self, master_columns: list[str], assembler, columns: list[str], metadata: Mapping, scenario,
+                 weather=None, block_rows: int = ROW_GROUP_ROWS):
+        self.master_columns = list(master_columns)
+        self.assembler = assembler
+        assembled = assembler.columns(self.master_columns)
+        self.columns = ["time"] + [c for c in dict.fromkeys(columns) if c in assembled and c != "time"]
+        self.accumulator = RunFigures(self.columns, metadata, scenario, weather, block_rows)
+        self.rows = 0
+        self.last_time: float | None = None
+
+    def __call__(self, block: np.ndarray) -> None:
+        block = np.asarray(block, dtype=float)
+        if block.ndim != 2 or block.shape[1] != len(self.master_columns):
+            raise ValueError(f"a block of trace rows must have {len(self.master_columns)} columns, "
+                             f"got shape {block.shape}")
+        if not len(block):
+            return
+        frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))
+        self.accumulator(frame[self.columns])
+        self.rows += len(frame)
+        self.last_time = float(block[-1, 0])
 
 
 #: Step figures of a summary that depend on judging each step (see :func:`summary_at_cut`).

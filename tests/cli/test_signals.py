@@ -1,0 +1,67 @@
+"""heliostep.cli.signals in-process: a stop signal that lands inside a callback Python cannot
+raise out of (a weakref callback, as matplotlib's transforms have) is not lost."""
+
+from __future__ import annotations
+
+import signal
+import time
+import weakref
+
+import pytest
+
+from heliostep.cli.signals import ForcedStop, stop_requests
+
+
+class _Node:
+    pass
+
+
+def _second_signal_inside_a_weakref_callback() -> list[str]:
+    """The first SIGINT in plain code, the second one while a weakref callback runs; returns
+    what the code after the callback got to do."""
+    reached = []
+    signal.raise_signal(signal.SIGINT)  # the first: only recorded
+    node = _Node()
+
+    def callback(_):
+        signal.raise_signal(signal.SIGINT)  # the second: its handler runs in this callback's bytecode
+        total = 0
+        for k in range(1000):
+            total += k
+        reached.append("callback ended")
+
+    ref = weakref.ref(node, callback)
+    del node  # the callback runs here; an exception raised in it cannot propagate
+    assert ref() is None and reached == []  # the handler's exception ended the callback
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline:  # plain code: where the stop must arrive
+        pass
+    reached.append("went on after the callback")
+    return reached
+
+
+def test_a_second_signal_inside_a_weakref_callback_still_forces_the_stop(capsys):
+    started = time.monotonic()
+    with pytest.raises(ForcedStop) as stopped:
+        with stop_requests() as request:
+            _second_signal_inside_a_weakref_callback()
+    assert time.monotonic() - started < 5.0  # raised after the callback, not at the end of the wait
+    assert stopped.value.signum == signal.SIGINT and request.count == 2  # raised again, not counted again
+    assert "Exception ignored" not in capsys.readouterr().err
+
+
+def test_the_hook_is_restored_and_other_unraisable_exceptions_reach_it():
+    import sys
+
+    before = sys.unraisablehook
+    seen = []
+    sys.unraisablehook = seen.append
+    try:
+        with stop_requests():
+            node = _Node()
+            weakref.finalize(node, lambda: 1 / 0)
+            del node
+        assert len(seen) == 1 and isinstance(seen[0].exc_value, ZeroDivisionError)
+        assert sys.unraisablehook == seen.append
+    finally:
+        sys.unraisablehook = before
