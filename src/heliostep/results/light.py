@@ -22,7 +22,8 @@ row and interpolated linearly onto the rows (the sun moves 0.25 deg/min: the int
 is < 1e-5 rad).
 
 The figures are accumulated block by block (:class:`LightIntegrals`: running trapezoids, sums and
-maxima, the grid points each block needs), so a streamed trace is read one row group at a time;
+maxima; the grid points of the whole window computed at the first block, :func:`sun_grid`), so
+a streamed trace is read one row group at a time;
 :func:`light_figures` of a whole trace is the same accumulator fed the trace as one block.
 """
 
@@ -114,35 +115,64 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario, weather=N
                                     float(seconds[0]) if len(seconds) else 0.0))
 
 
-def _light_rows(trace: pd.DataFrame, metadata: Mapping, scenario, weather, origin: float) -> dict:
-    """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
-    one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
-    points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
-    trace gives."""
-    site, plant, conf = scenario.site.to_site(), scenario.plant.to_plant(), scenario.optics
-    distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
-    h = plant.tube_height
-    seconds = trace["time"].to_numpy(dtype=float)
-
+def _grid_span(seconds: np.ndarray, origin: float) -> tuple[int, int]:
+    """The first and last index k of the grid points ``origin + k SUN_GRID_S`` that bracket ``seconds``."""
     first = max(int(np.floor((seconds[0] - origin) / SUN_GRID_S)), 0)
     last = int(np.ceil((seconds[-1] - origin) / SUN_GRID_S))
     if origin + last * SUN_GRID_S < seconds[-1]:
         last += 1
-    grid_s = origin + np.arange(first, max(last, first + 1) + 1) * SUN_GRID_S
+    return first, max(last, first + 1)
+
+
+def sun_grid(grid_s: np.ndarray, metadata: Mapping, scenario, weather) -> dict:
+    """What the light at the rows interpolates, at the grid times ``grid_s`` [s from the window's
+    start]: ``time`` [s], ``elevation`` [deg], ``sun`` (3, n) [-] (plant frame), ``dni``
+    [W/m^2], the ideal two-axis angles ``ideal_primary`` and ``ideal_secondary`` and the shared
+    primary's ``sharing`` error (0 while the sun is down) [rad]. Every value is a function of
+    its grid time alone."""
+    site, plant = scenario.site.to_site(), scenario.plant.to_plant()
+    distance, h = scenario.mirror.mirror_distance, plant.tube_height
     grid = _row_times(pd.DataFrame({"time": grid_s}), metadata)
     position = solar_position(grid, site.latitude, site.longitude, site.altitude)
     elevation, azimuth = position["apparent_elevation"].to_numpy(), position["azimuth"].to_numpy()
-    sun_grid = np.stack(sun_vector(elevation, azimuth, plant.azimuth))
-    sun = np.stack([np.interp(seconds, grid_s, c) for c in sun_grid])
-    sun /= np.linalg.norm(sun, axis=0)
-    up = np.interp(seconds, grid_s, elevation) > 0.0
-    dni = np.interp(seconds, grid_s, irradiance.dni(grid, site, weather, sun=position).to_numpy())
-
-    ideal_p, ideal_q = (np.interp(seconds, grid_s, a) for a in two_axis_angles(elevation, azimuth, distance, h,
-                                                                             plant.azimuth))
+    ideal_primary, ideal_secondary = two_axis_angles(elevation, azimuth, distance, h, plant.azimuth)
     # the shared primary: the central mirror's law plus a mounting offset exact at solar noon
-    sharing = np.nan_to_num(sharing_errors(grid, site, plant, scenario.window.date, [distance], sun=position)[:, 0])
-    shared_p = ideal_p - np.interp(seconds, grid_s, sharing)
+    sharing = sharing_errors(grid, site, plant, scenario.window.date, [distance], sun=position)[:, 0]
+    return {"time": grid_s, "elevation": elevation, "sun": np.stack(sun_vector(elevation, azimuth, plant.azimuth)),
+            "dni": irradiance.dni(grid, site, weather, sun=position).to_numpy(),
+            "ideal_primary": np.asarray(ideal_primary), "ideal_secondary": np.asarray(ideal_secondary),
+            "sharing": np.nan_to_num(sharing)}
+
+
+def _grid_slice(grid: dict, start: int, stop: int) -> dict:
+    return {key: value[..., start:stop] for key, value in grid.items()}
+
+
+def _light_rows(trace: pd.DataFrame, metadata: Mapping, scenario, weather, origin: float,
+                window_grid: dict | None = None) -> dict:
+    """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
+    one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
+    points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
+    trace gives. ``window_grid``: :func:`sun_grid` at the points k = 0, 1, ... already computed
+    (used where it covers the block's points, else they are computed)."""
+    conf = scenario.optics
+    distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
+    h = scenario.plant.to_plant().tube_height
+    seconds = trace["time"].to_numpy(dtype=float)
+
+    first, last = _grid_span(seconds, origin)
+    if window_grid is not None and last < len(window_grid["time"]):
+        points = _grid_slice(window_grid, first, last + 1)
+    else:
+        points = sun_grid(origin + np.arange(first, last + 1) * SUN_GRID_S, metadata, scenario, weather)
+    grid_s = points["time"]
+    sun = np.stack([np.interp(seconds, grid_s, c) for c in points["sun"]])
+    sun /= np.linalg.norm(sun, axis=0)
+    up = np.interp(seconds, grid_s, points["elevation"]) > 0.0
+    dni = np.interp(seconds, grid_s, points["dni"])
+
+    ideal_p, ideal_q = (np.interp(seconds, grid_s, points[key]) for key in ("ideal_primary", "ideal_secondary"))
+    shared_p = ideal_p - np.interp(seconds, grid_s, points["sharing"])
     panel_column = metadata.get("roles", {}).get("panel_angle")
     driven = {"reference": trace["panel_angle_ref"].to_numpy(dtype=float),
               "actual": trace[panel_column].to_numpy(dtype=float) if panel_column in trace else None}
@@ -216,6 +246,21 @@ class LightIntegrals:
         self._lit = 0
         self.rows = 0
         self.max_block_rows = 0
+        self._window_grid: dict | None = None  # sun_grid over the whole window, from the first row
+
+    def _whole_window_grid(self) -> dict | None:
+        """:func:`sun_grid` at every grid point from the first row to the window's end, computed
+        once (per block it cost pvlib's fixed overheads each time: about 10 ms a block); None
+        when the window's end is unknown. A block past it computes its own points."""
+        try:
+            start, end = self.scenario.window_bounds()
+        except (AttributeError, TypeError):
+            return None
+        duration = (end - start).total_seconds()
+        if not duration > self._origin:
+            return None
+        _, last = _grid_span(np.array([duration]), self._origin)
+        return sun_grid(self._origin + np.arange(last + 1) * SUN_GRID_S, self.metadata, self.scenario, self._weather)
 
     def __call__(self, block: pd.DataFrame) -> None:
         if not len(block):
@@ -223,7 +268,8 @@ class LightIntegrals:
         seconds = block["time"].to_numpy(dtype=float)
         if self._origin is None:
             self._origin = float(seconds[0])
-        series = _light_rows(block, self.metadata, self.scenario, self._weather, self._origin)
+            self._window_grid = self._whole_window_grid()
+        series = _light_rows(block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid)
         powers = {key[len("power_"):-len("_W")]: value for key, value in series.items() if key.startswith("power_")}
         for name, power in powers.items():
             time = seconds
