@@ -94,6 +94,15 @@ MINI_FMUS = {
         ("s", "Real", "output", "continuous", 0.0, None),
         ("der(s)", "Real", "local", "continuous", None, "s"),
     ]),
+    "Rescale": ("rescale.c", "{c0a7e1f2-0005-4000-8000-000000000005}", 0, [
+        ("x", "Real", "output", "continuous", 1.0, None),
+        ("der(x)", "Real", "local", "continuous", None, "x"),
+        ("period", "Real", "parameter", "fixed", 0.25, None),
+        ("t_switch", "Real", "parameter", "fixed", 1.0, None),
+        ("small", "Real", "parameter", "fixed", 1e-4, None),
+        ("nominal_reads", "Integer", "output", "discrete", None, None),
+        ("switched", "Boolean", "output", "discrete", None, None),
+    ]),
 }
 #: direct feedthrough: model -> output -> the input it depends on
 _FEEDTHROUGH = {"PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"},
@@ -137,7 +146,7 @@ def _model_description(name: str) -> str:
 
 
 def build_mini_fmu(name: str, out_dir: Path, platform: str = "linux64") -> Path:
-    """Compile the mini FMU ``name`` (Counter, PassThrough, Switch, Gain) into ``out_dir/<name>.fmu``."""
+    """Compile the mini FMU ``name`` (Counter, PassThrough, Switch, Gain, Rescale) into ``out_dir/<name>.fmu``."""
     return _compile_and_pack(name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], _model_description(name),
                              out_dir, platform)
 

@@ -30,7 +30,7 @@ from heliostep.errors import InputError
 @pytest.fixture(scope="module")
 def mini(tmp_path_factory):
     out = tmp_path_factory.mktemp("mini")
-    return {name: build_mini_fmu(name, out) for name in ("Counter", "PassThrough", "Switch")}
+    return {name: build_mini_fmu(name, out) for name in ("Counter", "PassThrough", "Switch", "Rescale")}
 
 
 @pytest.fixture(scope="module")
@@ -111,6 +111,25 @@ def test_switch_alone_matches_fmpy_and_switches_at_the_exact_times(mini, infos):
         assert rows["s.on"].iloc[0] == 1.0 - on_after and rows["s.on"].iloc[-1] == on_after
         assert rows["s.switches"].iloc[0] == k - 1 and rows["s.switches"].iloc[-1] == k
     assert at(ours, 4.0)["s.x"].iloc[-1] == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled kernel", "python callbacks"])
+def test_nominals_are_read_at_the_start_and_again_only_when_an_event_says_they_changed(infos, compiled,
+                                                                                       monkeypatch):
+    """FMI 2.0: the states' nominals change only where fmi2NewDiscreteStates says
+    nominalsOfContinuousStatesChanged. Rescale has a time event every 0.25 s and changes its
+    nominal at the one at t = 1: the master reads them twice (the FMU counts the calls), not at
+    every event, and the solution stays e^-t."""
+    import heliostep.cosim.master as master
+
+    monkeypatch.setattr(master, "COMPILED_RHS", compiled)
+    result = CoSimulation({"r": infos["Rescale"]}).simulate(0.0, 3.0, np.arange(0.0, 3.01, 0.5))
+    trace = result.trace
+    assert result.statistics["events"] >= 11  # 0.25, 0.5, ..., 2.75
+    assert trace["r.nominal_reads"].iloc[-1] == 2 and result.statistics["nominal_reads"] == 2
+    assert at(trace, 1.0)["r.switched"].iloc[-1] == 1.0 and at(trace, 0.5)["r.switched"].iloc[-1] == 0.0
+    assert trace["r.nominal_reads"][trace["time"] < 1.0].max() == 1  # the first read, before the switch
+    np.testing.assert_allclose(trace["r.x"], np.exp(-trace["time"]), rtol=1e-3)  # CVODE at rtol 1e-6 over 12 restarts
 
 
 # ------------------------------------------------------------------ connected, discrete exchange

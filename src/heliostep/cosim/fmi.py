@@ -124,6 +124,7 @@ class EventResult:
     terminate: bool = False
     states_changed: bool = False
     next_event_time: float | None = None
+    nominals_changed: bool = False  # nominalsOfContinuousStatesChanged: read them again
 
 
 class ModelExchangeInstance:
@@ -464,17 +465,19 @@ class ModelExchangeInstance:
         from fmpy.fmi2 import fmi2EventInfo
 
         info = fmi2EventInfo()
-        changed = False
+        changed = nominals = False
         for _ in range(max_iterations):
             self._call("fmi2NewDiscreteStates", ctypes.byref(info))
             changed |= bool(info.valuesOfContinuousStatesChanged)
+            nominals |= bool(info.nominalsOfContinuousStatesChanged)
             if info.terminateSimulation or not info.newDiscreteStatesNeeded:
                 break
         else:
             raise FMIError("fmi2NewDiscreteStates", self.name,
                            f"no fixed point after {max_iterations} event iterations", self.messages, self.time)
         return EventResult(terminate=bool(info.terminateSimulation), states_changed=changed,
-                           next_event_time=info.nextEventTime if info.nextEventTimeDefined else None)
+                           next_event_time=info.nextEventTime if info.nextEventTimeDefined else None,
+                           nominals_changed=nominals)
 
     def enter_continuous_time_mode(self) -> None:
         self._call("fmi2EnterContinuousTimeMode")

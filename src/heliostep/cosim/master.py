@@ -231,7 +231,10 @@ class _Run:
         self.max_buffered = 0  # the most rows held at once
         self.sink, self.sink_rows = sink, sink_rows
         self.time = np.nan
-        self.counts = {"rhs": 0, "integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
+        self.counts = {"rhs": 0, "integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0,
+                       "nominal_reads": 0}
+        self.nominals: np.ndarray | None = None  # the states' nominals as last read (get_nominals)
+        self.nominals_changed = False  # an event said they changed: read them again
         self.wall_start = clock.perf_counter()
         self.terminated, self.termination_reason, self.termination_time = False, "", None
         self.callback_error: BaseException | None = None  # raised inside a CVODE callback
@@ -367,12 +370,20 @@ class _Run:
             unit.fmu.get_event_indicators_at(base + offset)
 
     def get_nominals(self, pointer, n):
+        """The states' nominals (CVODE's atol = rtol * nominal): read from the FMUs at the start
+        and after an event whose fmi2NewDiscreteStates said nominalsOfContinuousStatesChanged
+        (FMI 2.0: they change at no other time), else the values read last."""
         nominals = self._view(pointer, n)
-        for unit, lo, hi in self._slices():
-            if unit.n_states:
-                nominals[lo:hi] = unit.fmu.get_nominals()
-        if self.options.atol is not None:  # CVodeSolver uses atol = rtol * nominal
-            nominals[:] = self.options.atol / self.options.rtol
+        if self.nominals is None or self.nominals_changed:
+            read = np.empty(n)
+            for unit, lo, hi in self._slices():
+                if unit.n_states:
+                    read[lo:hi] = unit.fmu.get_nominals()
+            if self.options.atol is not None:  # CVodeSolver uses atol = rtol * nominal
+                read[:] = self.options.atol / self.options.rtol
+            self.nominals, self.nominals_changed = read, False
+            self.counts["nominal_reads"] += 1
+        nominals[:] = self.nominals
 
     def set_time(self, t):
         for unit in self.units_list:
@@ -569,6 +580,7 @@ class _Run:
             for unit in self.units_list:
                 result = unit.fmu.update_discrete_states()
                 changed |= result.states_changed
+                self.nominals_changed |= result.nominals_changed
                 unit.next_event_time = result.next_event_time
                 if result.terminate:
                     stop.append(unit.name)

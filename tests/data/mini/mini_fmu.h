@@ -88,6 +88,9 @@ static int model_derivatives(Instance *m, double *dx);
 static void model_indicators(Instance *m, double *z);
 static void model_event(Instance *m, fmi2EventInfo *info);
 static void model_initialize(Instance *m);
+#ifdef MODEL_NOMINALS
+static void model_nominals(Instance *m, double *nominals); /* else every nominal is 1 */
+#endif
 
 /* ------------------------------------------------------------------ common */
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -333,6 +336,9 @@ fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x[], size
     size_t k;
     if (!allowed((Instance *)c, "fmi2GetNominalsOfContinuousStates", M_ANY)) return fmi2Error;
     for (k = 0; k < nx; k++) x[k] = 1.0;
+#ifdef MODEL_NOMINALS
+    if (nx == N_STATES) model_nominals((Instance *)c, x);
+#endif
     return fmi2OK;
 }
 
