@@ -571,9 +571,13 @@ class _Run:
             unit.fmu.enter_continuous_time_mode()
 
     def _discrete_fixed_point(self, max_rounds: int = 100) -> bool:
-        """NewDiscreteStates on every FMU, re-propagating outputs, until nothing changes."""
+        """NewDiscreteStates on every FMU, re-propagating outputs, until nothing changes.
+
+        The outputs are compared with those the round propagated from (read before the first
+        round): when NewDiscreteStates changed none, the inputs set from them are consistent
+        and one round is the fixed point (a step instant of the shipped drive needs one)."""
         changed = False
-        previous = None
+        previous = np.concatenate([unit.read_outputs() for unit in self.units_list] or [np.zeros(0)])
         for _ in range(max_rounds):
             self._propagate_at_event()
             stop = []

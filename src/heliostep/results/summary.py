@@ -119,9 +119,10 @@ class SolutionRecorder:
     def _take(self) -> None:
         if not self._pending:
             return
-        data = np.vstack(self._pending)
+        data = np.vstack(self._pending) if len(self._pending) > 1 else self._pending[0]
         self._pending, self._pending_rows = [], 0
-        data = data[np.argsort(data[:, 0], kind="stable")]
+        if np.any(data[1:, 0] < data[:-1, 0]):  # the master's rows are in order: no sort, no copy
+            data = data[np.argsort(data[:, 0], kind="stable")]
         time = data[:, 0]
         if self._last is not None:
             self.unordered += int(np.sum(time < self._last[0]))
