@@ -6,7 +6,8 @@ and prints the cases per minute, the scaling factor, and the wall time of the fu
 year (365 days) x 13 mirrors on N workers estimated from the measured time per case.
 With ``--full-day`` it also runs sunrise-to-sunset cases of ``scenarios/sweeps/year-field.yaml``
 (its overrides and its shared primary) on 6 days spread over the year (1, 62, 123, 184, 245,
-306) x mirrors 0 and 12, plus the longest day (172), on the smallest cluster of ``--workers``
+306) x mirrors 0, 3, 6, 9 and 12 (the field's ends, its centre and between), plus the longest
+day (172), on the smallest cluster of ``--workers``
 (one worker per core left free: a case's time is then one core's, not shared), and estimates that sweep (365 x 14 cases) from the mean time per case of the spread days
 (the days' lengths and step counts vary over the year; the longest day alone overstates it).
 
@@ -44,6 +45,7 @@ YEAR_FIELD_CASES = 365 * 14  # year-field.yaml: plus the shared primary per day
 CLUSTER_SIZES = (2, 16, 64)
 YEAR_SAMPLE_DAYS = (1, 62, 123, 184, 245, 306)  # every 61st day: the year's spread of day lengths
 LONGEST_DAY = 172
+YEAR_MIRRORS = (0, 3, 6, 9, 12)  # the field's ends, its centre and between
 YEAR_FIELD = ROOT / "scenarios" / "sweeps" / "year-field.yaml"
 
 
@@ -125,14 +127,15 @@ def main(argv: list[str] | None = None) -> None:
 def full_day(folder: Path, n_workers: int) -> None:
     """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml (see the module docstring)."""
     overrides = yaml.safe_load(YEAR_FIELD.read_text())["overrides"]
-    days = write_sweep(folder, "days", {"day_of_year": [*YEAR_SAMPLE_DAYS, LONGEST_DAY], "mirror": [0, 12]},
+    days = write_sweep(folder, "days", {"day_of_year": [*YEAR_SAMPLE_DAYS, LONGEST_DAY], "mirror": list(YEAR_MIRRORS)},
                        overrides, shared_primary=True)
     _, wall, outcome = timed_sweep(days, folder / "days", n_workers)
     table = outcome.table
     primary = table["role"] == "shared-primary"
     print(f"\nsunrise-to-sunset cases of year-field.yaml (days {YEAR_SAMPLE_DAYS} and {LONGEST_DAY} x "
-          f"mirrors 0, 12 and the shared primary: {len(table)} cases, {wall:.1f} s on {n_workers} worker(s)); "
-          f"mean time of a case on its worker:")
+          f"mirrors {YEAR_MIRRORS} and the shared primary: {len(table)} cases, {wall:.1f} s on {n_workers} "
+          f"worker(s)); mean time of a case on its worker:")
+    print("  (the mirror cases' mean weighs the sampled mirrors equally, as the field's 13 are)")
     for day_of_year, rows in table.groupby("day_of_year"):
         mirrors, shared = rows[~primary.loc[rows.index]], rows[primary.loc[rows.index]]
         print(f"  day {int(day_of_year):3d}: {rows['duration_s'].iloc[0] / 3600:4.1f} h simulated, "
