@@ -22,6 +22,7 @@ import pandas as pd
 
 from heliostep.results.light import LightIntegrals
 from heliostep.results.summary import TraceSummary
+from heliostep.results.trace import master_block
 from heliostep.results.trace_io import ROW_GROUP_ROWS, iter_trace_blocks
 from heliostep.results.tradeoffs import smallest_drive_ratio, tradeoff_figures_at
 
@@ -155,10 +156,7 @@ class FigureStream:
         self.last_time: float | None = None
 
     def __call__(self, block: np.ndarray) -> None:
-        block = np.asarray(block, dtype=float)
-        if block.ndim != 2 or block.shape[1] != len(self.master_columns):
-            raise ValueError(f"a block of trace rows must have {len(self.master_columns)} columns, "
-                             f"got shape {block.shape}")
+        block = master_block(block, self.master_columns, "the figures of a run without trace")
         if not len(block):
             return
         frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))

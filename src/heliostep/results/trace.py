@@ -85,6 +85,16 @@ def step_indices(times: np.ndarray, schedule: StepSchedule, previous_time: float
     return np.where(first_of_time, before, after)
 
 
+def master_block(block, master_columns: list[str], where: str = "") -> np.ndarray:
+    """A block of the master's trace rows as a float 2-D array (rows x ``master_columns``), or
+    ValueError naming ``where`` (the sink) and the shape expected."""
+    block = np.asarray(block, dtype=float)
+    if block.ndim != 2 or block.shape[1] != len(master_columns):
+        raise ValueError(f"{where + ': ' if where else ''}a block of trace rows must have {len(master_columns)} "
+                         f"columns, got shape {block.shape}")
+    return block
+
+
 class TraceAssembler:
     """Adds the derived columns to the master's rows, block by block (or all at once).
 

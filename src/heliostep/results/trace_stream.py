@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from heliostep.results.trace import TraceAssembler
+from heliostep.results.trace import TraceAssembler, master_block
 from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriteError, TraceWriter
 
 __all__ = ["TraceStream"]
@@ -59,10 +59,7 @@ class TraceStream:
         self.rows_not_written = 0  # rows received that the file does not hold (after a failed write)
 
     def __call__(self, block: np.ndarray) -> None:
-        block = np.asarray(block, dtype=float)
-        if block.ndim != 2 or block.shape[1] != len(self.master_columns):
-            raise ValueError(f"{self.path}: a block of trace rows must have {len(self.master_columns)} columns, "
-                             f"got shape {block.shape}")
+        block = master_block(block, self.master_columns, str(self.path))
         if not len(block):
             return
         if self.failed is not None:  # nothing more is written; the rows are counted
