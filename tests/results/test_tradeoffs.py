@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from heliostep.paths import scenarios_dir
-from heliostep.results.tradeoffs import REQUIRED_HOLDING_MARGIN, holding_torque
+from heliostep.results.tradeoffs import holding_torque
 from heliostep.run import run_scenario
 from physics_reference import RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
 

@@ -7,7 +7,6 @@ tube directions) and against :func:`heliostep.solar.two_axis_angles`.
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pandas as pd

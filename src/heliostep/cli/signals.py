@@ -111,7 +111,8 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
 
     def unraisable(hook_args):
         exc = hook_args.exc_value
-        if isinstance(exc, ForcedStop) or (raise_exception is not None and isinstance(exc, raise_exception)):
+        ours = isinstance(exc, ForcedStop) or (raise_exception is not None and isinstance(exc, raise_exception))
+        if ours and hasattr(signal, "setitimer"):  # (not on Windows: there it stays lost, as before)
             swallowed[:] = [exc]
             # raised again 1 ms later by SIGALRM, once this hook has returned (raise_signal or
             # os.kill here would run a handler at once, inside the hook)
