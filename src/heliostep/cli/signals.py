@@ -116,7 +116,8 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
             swallowed[:] = [exc]
             # raised again 1 ms later by SIGALRM, once this hook has returned (raise_signal or
             # os.kill here would run a handler at once, inside the hook)
-            previous_alarm.setdefault("handler", signal.signal(signal.SIGALRM, again))
+            if "handler" not in previous_alarm:  # installed once; restored on leaving
+                previous_alarm["handler"] = signal.signal(signal.SIGALRM, again)
             signal.setitimer(signal.ITIMER_REAL, 1e-3)
             return
         previous_hook(hook_args)

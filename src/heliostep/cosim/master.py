@@ -593,7 +593,7 @@ class _Run:
                 raise _Terminated(f"{', '.join(stop)} asked to terminate the simulation "
                                   "(fmi2NewDiscreteStates: terminateSimulation)", self.time)
             outputs = np.concatenate([unit.read_outputs() for unit in self.units_list] or [np.zeros(0)])
-            if previous is not None and np.array_equal(outputs, previous):
+            if np.array_equal(outputs, previous):
                 return changed
             previous = outputs
         raise HeliostepError(f"event iteration at t = {self.time} found no fixed point in {max_rounds} rounds")

@@ -251,11 +251,8 @@ class LightIntegrals:
     def _whole_window_grid(self) -> dict | None:
         """:func:`sun_grid` at every grid point from the first row to the window's end, computed
         once (per block it cost pvlib's fixed overheads each time: about 10 ms a block); None
-        when the window's end is unknown. A block past it computes its own points."""
-        try:
-            start, end = self.scenario.window_bounds()
-        except (AttributeError, TypeError):
-            return None
+        when the first row is at or past the window's end. A block past it computes its own points."""
+        start, end = self.scenario.window_bounds()
         duration = (end - start).total_seconds()
         if not duration > self._origin:
             return None

@@ -36,11 +36,17 @@ TraceSource = pd.DataFrame | Path
 def present_columns(source: TraceSource, columns: list[str]) -> list[str]:
     """``time`` and those of ``columns`` the trace has (a file: from its schema, no rows read)."""
     if isinstance(source, pd.DataFrame):
-        names = set(source.columns)
+        names = source.columns
     else:
         import pyarrow.parquet as pq
 
-        names = set(pq.read_schema(source).names)
+        names = pq.read_schema(source).names
+    return _present(names, columns)
+
+
+def _present(names, columns: list[str]) -> list[str]:
+    """``time`` and those of ``columns`` (once each, in their order) that are among ``names``."""
+    names = set(names)
     return ["time"] + [c for c in dict.fromkeys(columns) if c in names and c != "time"]
 
 
@@ -149,8 +155,7 @@ class FigureStream:
                  weather=None, block_rows: int = ROW_GROUP_ROWS):
         self.master_columns = list(master_columns)
         self.assembler = assembler
-        assembled = assembler.columns(self.master_columns)
-        self.columns = ["time"] + [c for c in dict.fromkeys(columns) if c in assembled and c != "time"]
+        self.columns = _present(assembler.columns(self.master_columns), columns)
         self.accumulator = RunFigures(self.columns, metadata, scenario, weather, block_rows)
         self.rows = 0
         self.last_time: float | None = None
