@@ -17,6 +17,7 @@ This is the second stage of heliostep's one-way data flow
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -92,7 +93,7 @@ def held_current(scenario: Scenario, reference: float) -> float:
     motor = scenario.roles.instance_of("torque") or "motor"
     if "IdealCurrent" in str(scenario.fmus.get(motor, "")):
         return reference
-    values = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
+    values: dict[str, Any] = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}  # as the scenario gives them
     return values["K_current"] * reference / (values["K_current"] + values["R"])
 
 

@@ -160,7 +160,7 @@ def _zoom_half_width(ev: SignalEvaluation, centre: float, duration: float) -> fl
     return half if half > 0 else 1.0
 
 
-def _fmt(x: float, spec: str = ".3g") -> str:
+def _fmt(x: float | None, spec: str = ".3g") -> str:
     return "–" if x is None or not np.isfinite(x) else format(x, spec)
 
 

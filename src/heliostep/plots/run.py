@@ -148,7 +148,7 @@ class _Trace:
 
     def __init__(self, source: pd.DataFrame | Path, roles: Mapping[str, str]):
         self.roles = dict(roles)
-        self._cache = {}
+        self._cache: dict[str, np.ndarray] = {}
         if isinstance(source, pd.DataFrame):
             self.frame, self.path = source, None
             self.columns = [str(c) for c in source.columns]

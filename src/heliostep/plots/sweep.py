@@ -19,6 +19,7 @@ are built with :class:`matplotlib.figure.Figure` (no pyplot state).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -129,7 +130,7 @@ def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | Non
     bars = len(days) <= 31
     series = list(rows.groupby(["role", "current_A"], sort=True))
     width = 0.8 / max(1, len(series))
-    colors = {}
+    colors: dict[float, Any] = {}  # current [A] -> its bars' colour
     for k, ((role, current), group) in enumerate(series):
         required = group.groupby("day_of_year")["required_torque_Nm"].max().reindex(days)
         who = "shared primary" if role == "shared-primary" else "max over mirrors"

@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
+from typing import cast
 
 import numpy as np
 
@@ -172,5 +173,6 @@ def as_tolerance_set(tolerances: Tolerance | ToleranceSet | Mapping[str, Toleran
     if isinstance(tolerances, Tolerance):
         return ToleranceSet(tolerances)
     if isinstance(tolerances, Mapping):
-        return ToleranceSet(Tolerance(), dict(tolerances))
+        # ToleranceSet turns Tolerance values into mappings of their fields
+        return ToleranceSet(Tolerance(), cast("dict[str, Mapping[str, float]]", dict(tolerances)))
     raise InputError(f"tolerances: expected a Tolerance or ToleranceSet, not {type(tolerances).__name__}")

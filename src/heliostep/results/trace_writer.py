@@ -43,8 +43,10 @@ class _ByteCounter(io.RawIOBase):
     def tell(self) -> int:
         return self.position
 
-    def keep(self) -> None:
+    def keep(self) -> bytearray:
+        """Keep the bytes written from now on (in the returned buffer, also :attr:`kept`)."""
         self.kept = bytearray()
+        return self.kept
 
 
 #: How a trace's float64 columns are encoded in Parquet (pyarrow.parquet.ParquetWriter options).
@@ -159,13 +161,13 @@ class TraceWriter:
             raise OSError(f"{self.path}: the trace could not be closed after a failed write ({self.failed}): "
                           f"its row groups cannot be recovered")
         end = self._shadow_sink.position
-        self._shadow_sink.keep()
+        kept = self._shadow_sink.keep()
         if self.rows == 0:
             self._shadow.write_table(self._schema.empty_table())
         if meta:
             self._shadow.add_key_value_metadata(meta)
         self._shadow.close()
-        footer, self._shadow = bytes(self._shadow_sink.kept), None
+        footer, self._shadow = bytes(kept), None
         try:
             os.truncate(self.path, end)  # frees what the failed row group took
             with open(self.path, "r+b") as fh:

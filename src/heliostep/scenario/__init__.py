@@ -26,8 +26,11 @@ mapping is an error instead of silently keeping the last value.
 Modules: :mod:`~heliostep.scenario.yaml_io` (the YAML reader), :mod:`~heliostep.scenario.keys`
 (dotted keys, ``--set``), :mod:`~heliostep.scenario.sections` and :mod:`~heliostep.scenario.model`
 (the typed models), :mod:`~heliostep.scenario.problems` (error lines) and
-:mod:`~heliostep.scenario.load`. This package may import :mod:`heliostep.solar` (sites, plants,
-field geometry) and nothing else of heliostep but :mod:`heliostep.errors`.
+:mod:`~heliostep.scenario.load`. This package imports only the layers below it (the contracts in
+``pyproject.toml``): :mod:`heliostep.solar` (sites, plants, field geometry, sun events),
+:mod:`heliostep.cosim.signals` (the solver options' defaults), :mod:`heliostep.fmu.reference`
+(which FMU references are variant names), and :mod:`heliostep.errors` and :mod:`heliostep.paths`
+(the shipped scenarios' folder).
 """
 
 from heliostep.scenario.keys import KeyProblems, apply_overrides, dotted, set_dotted_key

@@ -6,7 +6,7 @@ import datetime as dt
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Union
+from typing import Annotated, Union, cast
 
 import pandas as pd
 from pydantic import (
@@ -141,7 +141,7 @@ class Scenario(Section):
     @field_validator("fmus")
     @classmethod
     def _fmu_names(cls, fmus: dict[str, str]) -> dict[str, str]:
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         if not fmus:
             problems.append(((), "at least one FMU instance is needed"))
         for instance, variant in fmus.items():
@@ -159,7 +159,7 @@ class Scenario(Section):
     def _connection_endpoints(cls, connections):
         if connections is None:
             return None
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         for position, pair in enumerate(connections):
             for side, endpoint in enumerate(pair):
                 problem = _endpoint_problem(endpoint)
@@ -173,7 +173,7 @@ class Scenario(Section):
 
     @model_validator(mode="after")
     def _consistent_sections(self) -> Scenario:
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         instances = ", ".join(self.fmus)
         for instance in self.parameters:
             if instance not in self.fmus:
@@ -186,7 +186,7 @@ class Scenario(Section):
                                                    f"{', '.join(missing)}, not in fmus ({instances}); "
                                                    f"give 'connections' explicitly ([] for none)"))
         else:
-            targets = {}
+            targets: dict[str, int] = {}
             for position, (source, target) in enumerate(self.connections):
                 for side, endpoint in enumerate((source, target)):
                     instance = endpoint.partition(".")[0]
@@ -216,7 +216,7 @@ class Scenario(Section):
             (source, target) as "instance.variable".
         """
         pairs = DEFAULT_CONNECTIONS if self.connections is None else self.connections
-        return [tuple(pair) for pair in pairs]
+        return [cast("tuple[str, str]", tuple(pair)) for pair in pairs]
 
     def resolved_roles(self) -> dict[str, str]:
         """Role -> ``instance.variable`` for this scenario's FMUs.
@@ -229,7 +229,7 @@ class Scenario(Section):
                 if role in given or target.partition(".")[0] in self.fmus}
 
     def _role_problems(self) -> list:
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         given = self.roles.model_fields_set
         instances = ", ".join(self.fmus)
         for role, target in self.roles.model_dump().items():
@@ -340,13 +340,13 @@ class Scenario(Section):
                 raise KeyProblems([(("window", key), f"{window.date} {clock} does not exist or is "
                                                       f"ambiguous in {timezone} (daylight saving change)")]) from None
 
-        start = sun_event(SUNRISE, "start") if window.start == SUNRISE else local(window.start, "start")
+        start = sun_event(SUNRISE, "start") if window.start == SUNRISE else local(cast(dt.time, window.start), "start")
         if window.duration is not None:
             end = start + pd.Timedelta(seconds=window.duration)
         elif window.end == SUNSET:
             end = sun_event(SUNSET, "end")
         else:
-            end = local(window.end, "end")
+            end = local(cast(dt.time, window.end), "end")
         if end <= start:
             raise KeyProblems([(("window", "end"), f"must be after the start ({start}), got {end}")])
         return start, end

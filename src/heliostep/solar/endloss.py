@@ -136,18 +136,8 @@ def end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_di
         ``power_single_W``, ``power_two_axis_W``, ``end_spill_single_W`` (light a single-axis
         plant sends past the tube's end) [W]; ``gain`` = power_two_axis / power_single - 1.
     """
-    length = check_positive(plant_length, "plant_length", "m")
-    width = check_positive(mirror_width, "mirror_width", "m")
-    end = check_range(end_length, "end_length", 0.0, np.inf, "m")
-    if not 2.0 * end < length:
-        raise InputError(f"end_length {end:g} m: two end sections must be shorter than plant_length {length:g} m")
-    efficiency = check_range(optical_efficiency, "optical_efficiency", 0.0, 1.0, "-")
-    elevation = np.atleast_1d(as_float_array(elevation))[:, None]
-    azimuth = np.atleast_1d(as_float_array(azimuth))[:, None]
-    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()[None, :]
-    irradiance = np.atleast_1d(as_float_array(dni))
-    if irradiance.shape != elevation[:, 0].shape or np.any(irradiance < 0) or not np.all(np.isfinite(irradiance)):
-        raise InputError("dni: expected one finite value >= 0 [W/m^2] per instant")
+    length, width, end, efficiency = _checked_plant(plant_length, mirror_width, end_length, optical_efficiency)
+    elevation, azimuth, distances, irradiance = _instants_by_rows(elevation, azimuth, mirror_distances, dni)
     up = elevation[:, 0] > 0.0
     shift = np.abs(end_loss_length(elevation, azimuth, distances, tube_height, plant_azimuth))  # [paper], eq. 2
     shift = np.where(up[:, None], shift, np.nan)
@@ -168,6 +158,30 @@ def end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_di
             "lit_length_m": np.clip(length - shift_min, 0.0, None), "power_single_W": np.where(up, power_single, 0.0),
             "power_two_axis_W": np.where(up, power_two, 0.0), "end_spill_single_W": np.where(up, spill, 0.0),
             "gain": gain}
+
+
+def _checked_plant(plant_length, mirror_width, end_length, optical_efficiency) -> tuple[float, float, float, float]:
+    """Length L [m], row width w [m], end length L_e [m] and optical efficiency [-] of
+    :func:`end_loss_power`, checked (two end sections shorter than the plant)."""
+    length = check_positive(plant_length, "plant_length", "m")
+    width = check_positive(mirror_width, "mirror_width", "m")
+    end = check_range(end_length, "end_length", 0.0, np.inf, "m")
+    if not 2.0 * end < length:
+        raise InputError(f"end_length {end:g} m: two end sections must be shorter than plant_length {length:g} m")
+    efficiency = check_range(optical_efficiency, "optical_efficiency", 0.0, 1.0, "-")
+    return length, width, end, efficiency
+
+
+def _instants_by_rows(elevation, azimuth, mirror_distances, dni) -> tuple[np.ndarray, ...]:
+    """Sun elevation and azimuth [deg] as columns (one row per instant), the rows' distances [m] as
+    one row, and the DNI [W/m^2] per instant, checked (finite, >= 0, one per instant)."""
+    elevation = np.atleast_1d(as_float_array(elevation))[:, None]
+    azimuth = np.atleast_1d(as_float_array(azimuth))[:, None]
+    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()[None, :]
+    irradiance = np.atleast_1d(as_float_array(dni))
+    if irradiance.shape != elevation[:, 0].shape or np.any(irradiance < 0) or not np.all(np.isfinite(irradiance)):
+        raise InputError("dni: expected one finite value >= 0 [W/m^2] per instant")
+    return elevation, azimuth, distances, irradiance
 
 
 def _year_grid(site: Site, year: int, step_minutes: float, days=None) -> tuple[pd.DatetimeIndex, np.ndarray]:

@@ -189,8 +189,10 @@ def two_axis_angles(elevation, azimuth, mirror_distance, tube_height, plant_azim
         See :func:`two_axis_angles_from_normal` for the sign conventions.
     """
     template = series_template(elevation, azimuth, mirror_distance)
-    sun = sun_vector(as_float_array(elevation), as_float_array(azimuth), plant_azimuth)
-    normal = two_axis_normal(*sun, mirror_distance=as_float_array(mirror_distance), tube_height=tube_height)
+    sun_x, sun_y, sun_z = sun_vector(as_float_array(elevation), as_float_array(azimuth), plant_azimuth)
+    normal = two_axis_normal(
+        sun_x, sun_y, sun_z, mirror_distance=as_float_array(mirror_distance), tube_height=tube_height
+    )
     primary, secondary = two_axis_angles_from_normal(*normal)
     return wrap_like(primary, template, "primary"), wrap_like(secondary, template, "secondary")
 

@@ -203,13 +203,7 @@ def execute_cases(cases: Sequence[SweepCase], results_path: str | Path, *, clien
     cases, payloads = _ship_fmus(cases)
     if client is None and scheduler:
         _probe_scheduler(scheduler, connect_timeout)
-    table = _consolidate(results_path, metadata) if results_path.exists() or _parts_dir(results_path).is_dir() \
-        else _normalize(pd.DataFrame())
-    done_statuses = {"ok"} if retry_failed else {"ok", "failed"}
-    finished = {row.case_id: row for row in table.itertuples(index=False)
-                if row.status in done_statuses}
-    to_run = [case for case in cases
-              if case.case_id not in finished or finished[case.case_id].fmu_sha256 != _fmu_key(case.fmu_sha256)]
+    table, to_run = _table_and_cases_to_run(cases, results_path, metadata, retry_failed)
     executed = 0
     run_id = uuid.uuid4().hex[:12]
     try:
@@ -223,6 +217,20 @@ def execute_cases(cases: Sequence[SweepCase], results_path: str | Path, *, clien
     failed = int((table["status"] == "failed").sum())
     return SweepOutcome(table=table, results_path=results_path, executed=executed,
                         skipped=len(cases) - len(to_run), failed=failed)
+
+
+def _table_and_cases_to_run(cases: Sequence[SweepCase], results_path: Path, metadata: Mapping,
+                            retry_failed: bool) -> tuple[pd.DataFrame, list[SweepCase]]:
+    """The results table so far (its part files merged in) and the cases it has no finished row of:
+    none yet, one whose FMUs differ, or (with ``retry_failed``) a failed one."""
+    table = _consolidate(results_path, metadata) if results_path.exists() or _parts_dir(results_path).is_dir() \
+        else _normalize(pd.DataFrame())
+    done_statuses = {"ok"} if retry_failed else {"ok", "failed"}
+    finished = {row.case_id: row for row in table.itertuples(index=False)
+                if row.status in done_statuses}
+    to_run = [case for case in cases
+              if case.case_id not in finished or finished[case.case_id].fmu_sha256 != _fmu_key(case.fmu_sha256)]
+    return table, to_run
 
 
 def _run_on_dask(cases: Sequence[SweepCase], payloads: Mapping[str, FmuPayload], results_path: Path,

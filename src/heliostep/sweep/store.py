@@ -160,7 +160,8 @@ def read_results(results_path: str | Path) -> pd.DataFrame:
         columns, ...). Empty when nothing was written yet.
     """
     results_path = Path(results_path)
-    frames, metadata = [], {}
+    frames: list[pd.DataFrame] = []
+    metadata: dict = {}
     if results_path.exists():
         table, metadata = _read_parquet(results_path)
         frames.append(table)
