@@ -61,9 +61,7 @@ def _add_site_and_day_options(parser: argparse.ArgumentParser) -> None:
         "--longitude", type=float, default=ASSUMED_LONGITUDE, help="[deg], +East (default 14.25, assumed)"
     )
     site.add_argument("--altitude", type=float, default=0.0, help="[m] above sea level (default 0)")
-    site.add_argument(
-        "--timezone", default=ASSUMED_TIMEZONE, help="IANA name (default Europe/Rome, assumed)"
-    )
+    site.add_argument("--timezone", default=ASSUMED_TIMEZONE, help="IANA name (default Europe/Rome, assumed)")
     days = parser.add_argument_group("days")
     days.add_argument(
         "--date",
@@ -77,9 +75,7 @@ def _add_site_and_day_options(parser: argparse.ArgumentParser) -> None:
 def _add_plant_and_mirror_options(parser: argparse.ArgumentParser) -> None:
     plant = parser.add_argument_group("plant")
     plant.add_argument("--orientation", default="NS", help="tube direction: NS or EW (default NS)")
-    plant.add_argument(
-        "--azimuth-offset", type=float, default=0.0, help="extra tube azimuth, North toward East [deg]"
-    )
+    plant.add_argument("--azimuth-offset", type=float, default=0.0, help="extra tube azimuth, North toward East [deg]")
     plant.add_argument("--tube-height", type=float, default=5.0, help="receiver height h [m] (default 5)")
     mirrors = parser.add_argument_group("mirrors")
     mirrors.add_argument(

@@ -79,8 +79,10 @@ class Sequencer:
         if self.microsteps not in MICROSTEPS:
             raise InputError(f"sequencer microsteps {self.microsteps!r}: expected one of {MICROSTEPS}")
         if self.microsteps > 1 and self.mode != "one-phase-on":
-            raise InputError(f"sequencer microsteps {self.microsteps}: needs mode one-phase-on "
-                             f"(sine/cosine currents), got {self.mode!r}")
+            raise InputError(
+                f"sequencer microsteps {self.microsteps}: needs mode one-phase-on "
+                f"(sine/cosine currents), got {self.mode!r}"
+            )
         if not 0.0 < self.idle_current_fraction <= 1.0:
             raise InputError(f"sequencer idle_current_fraction {self.idle_current_fraction!r}: expected in (0, 1]")
         if not self.idle_delay >= 0.0:
@@ -151,8 +153,9 @@ def reference_interpolant(times: np.ndarray, rotor_angle_ref: np.ndarray) -> Pch
     return PchipInterpolator(times, rotor_angle_ref, extrapolate=False)
 
 
-def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
-                   initial_index: int | None = None, trigger: str = "midpoint") -> StepSchedule:
+def schedule_steps(
+    reference: PchipInterpolator, sequencer: Sequencer, initial_index: int | None = None, trigger: str = "midpoint"
+) -> StepSchedule:
     """Step instants where the reference moves a trigger fraction past the commanded position.
 
     Parameters
@@ -212,7 +215,7 @@ class _LevelCrossings:
         pieces = np.nonzero((self.piece_low - margin <= level) & (level <= self.piece_high + margin))[0]
         roots = []
         for k in pieces:
-            piece = PPoly(reference.c[:, k:k + 1], knots[k:k + 2], extrapolate=False)
+            piece = PPoly(reference.c[:, k : k + 1], knots[k : k + 2], extrapolate=False)
             roots += [t for t in piece.solve(level, extrapolate=False) if np.isfinite(t)]
         roots = sorted(roots)
         return [t for i, t in enumerate(roots) if i == 0 or t - roots[i - 1] > 1e-12 * max(1.0, abs(t))]

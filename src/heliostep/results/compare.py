@@ -146,7 +146,6 @@ class ComparisonResult:
         return frame.set_index("signal")
 
 
-
 def evaluate_signal(
     actual_time: np.ndarray,
     actual_values: np.ndarray,
@@ -256,10 +255,7 @@ def _time_outside(
     return float(
         np.sum(
             dt
-            * (
-                positive_fraction((aR - upR)[:-1], (aL - upL)[1:])
-                + positive_fraction((loR - aR)[:-1], (loL - aL)[1:])
-            )
+            * (positive_fraction((aR - upR)[:-1], (aL - upL)[1:]) + positive_fraction((loR - aR)[:-1], (loL - aL)[1:]))
         )
     )
 

@@ -92,8 +92,7 @@ class ToleranceSet:
     def for_scenario(self, name: str) -> ToleranceSet:
         """The tolerances that apply to scenario *name*: its own section's signals over these."""
         own = self.scenarios.get(name, {})
-        merged = {signal: {**self.signals.get(signal, {}), **own.get(signal, {})}
-                  for signal in {*self.signals, *own}}
+        merged = {signal: {**self.signals.get(signal, {}), **own.get(signal, {})} for signal in {*self.signals, *own}}
         return ToleranceSet(self.default, merged)
 
     def with_default(self, **changes: float) -> ToleranceSet:

@@ -13,8 +13,15 @@ import numpy as np
 from heliostep.errors import InputError
 
 __all__ = [
-    "ROW_GROUP_ROWS", "SUFFIXES", "TIME", "check_parquet_keys", "check_time", "clean_metadata", "is_complete",
-    "is_reserved_parquet_key", "trace_format",
+    "ROW_GROUP_ROWS",
+    "SUFFIXES",
+    "TIME",
+    "check_parquet_keys",
+    "check_time",
+    "clean_metadata",
+    "is_complete",
+    "is_reserved_parquet_key",
+    "trace_format",
 ]
 
 TIME = "time"
@@ -31,8 +38,7 @@ def trace_format(path: Path) -> str:
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise InputError(
-            f"{path}: unknown trace format {suffix or '(no suffix)'!r}; "
-            f"expected one of {', '.join(SUFFIXES)}"
+            f"{path}: unknown trace format {suffix or '(no suffix)'!r}; expected one of {', '.join(SUFFIXES)}"
         )
     return suffix[1:]
 
@@ -78,7 +84,6 @@ def check_time(time: np.ndarray, name: str) -> None:
         )
 
 
-
 def is_reserved_parquet_key(key: str) -> bool:
     """A Parquet key-value metadata key that Arrow or pandas put there themselves (not a trace's)."""
     return key in _RESERVED_PARQUET_KEYS or key.startswith(_RESERVED_PARQUET_PREFIX)
@@ -89,7 +94,6 @@ def check_parquet_keys(meta: Mapping[str, str]) -> None:
     for key in meta:
         if is_reserved_parquet_key(key):
             raise InputError(f"metadata key {key!r} is reserved in Parquet files")
-
 
 
 def is_complete(metadata: Mapping[str, str]) -> bool:

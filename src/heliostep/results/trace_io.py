@@ -84,8 +84,19 @@ from heliostep.results.trace_writer import TRACE_ENCODING, TraceWriteError, Trac
 _EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
 
 __all__ = [
-    "TIME", "SUFFIXES", "ROW_GROUP_ROWS", "TRACE_ENCODING", "TraceWriteError", "TraceWriter", "copy_trace_to_csv",
-    "iter_trace_blocks", "read_trace", "read_trace_metadata", "write_trace", "check_time", "is_complete",
+    "TIME",
+    "SUFFIXES",
+    "ROW_GROUP_ROWS",
+    "TRACE_ENCODING",
+    "TraceWriteError",
+    "TraceWriter",
+    "copy_trace_to_csv",
+    "iter_trace_blocks",
+    "read_trace",
+    "read_trace_metadata",
+    "write_trace",
+    "check_time",
+    "is_complete",
 ]
 
 
@@ -115,7 +126,6 @@ def _to_float_frame(df: pd.DataFrame, name: str) -> pd.DataFrame:
     return pd.DataFrame({c: data[c] for c in order})
 
 
-
 def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, object] | None = None) -> Path:
     """Write *df* (a ``time`` column and signal columns) as a trace to *path*.
 
@@ -133,7 +143,7 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
             data = {c: table[c].to_numpy() for c in table.columns}
             # row groups of ROW_GROUP_ROWS: Arrow holds one group at a time, not a copy of the table
             for start in range(0, len(table), ROW_GROUP_ROWS):
-                writer.write({c: v[start:start + ROW_GROUP_ROWS] for c, v in data.items()})
+                writer.write({c: v[start : start + ROW_GROUP_ROWS] for c, v in data.items()})
         except BaseException:
             writer.abort()
             raise
@@ -144,7 +154,6 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
                 fh.write(f"# {key}: {value}\n")
             table.to_csv(fh, index=False, lineterminator="\n", na_rep="")
     return path
-
 
 
 def read_trace_metadata(path: str | Path) -> dict[str, str]:
@@ -165,8 +174,12 @@ def read_trace_metadata(path: str | Path) -> dict[str, str]:
     return meta
 
 
-def copy_trace_to_csv(parquet: str | Path, csv_path: str | Path, metadata: Mapping[str, object] | None = None,
-                      batch_rows: int = ROW_GROUP_ROWS) -> Path:
+def copy_trace_to_csv(
+    parquet: str | Path,
+    csv_path: str | Path,
+    metadata: Mapping[str, object] | None = None,
+    batch_rows: int = ROW_GROUP_ROWS,
+) -> Path:
     """Write the CSV form of a Parquet trace, ``batch_rows`` rows at a time (never the whole
     table in memory); the metadata is the Parquet file's unless ``metadata`` is given."""
     import pyarrow.parquet as pq
@@ -179,8 +192,9 @@ def copy_trace_to_csv(parquet: str | Path, csv_path: str | Path, metadata: Mappi
             fh.write(f"# {key}: {value}\n")
         header = True
         for batch in source.iter_batches(batch_size=batch_rows):
-            frame = pd.DataFrame({name: batch.column(i).to_numpy(zero_copy_only=False)
-                                  for i, name in enumerate(batch.schema.names)})
+            frame = pd.DataFrame(
+                {name: batch.column(i).to_numpy(zero_copy_only=False) for i, name in enumerate(batch.schema.names)}
+            )
             frame.to_csv(fh, index=False, header=header, lineterminator="\n", na_rep="")
             header = False
         if header:  # no rows: the header line alone
@@ -318,7 +332,7 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     body = "".join(lines[start:])
     if not body.strip():
         raise InputError(f"{path}: no header line (expected a {TIME!r} column)")
-    sep, decimal = _dialect(lines[start], lines[start + 1:start + 50])
+    sep, decimal = _dialect(lines[start], lines[start + 1 : start + 50])
     try:
         names = [n.strip() for n in next(csv.reader(io.StringIO(lines[start]), delimiter=sep))]
     except csv.Error as exc:
@@ -327,8 +341,7 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     if dupes:
         raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
     try:
-        frame = pd.read_csv(io.StringIO(body), header=0, names=names, sep=sep, decimal=decimal,
-                            **_EXACT_FLOATS)
+        frame = pd.read_csv(io.StringIO(body), header=0, names=names, sep=sep, decimal=decimal, **_EXACT_FLOATS)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise InputError(f"{path}: cannot read as CSV: {exc}") from None
     return meta, frame
@@ -340,4 +353,3 @@ def _dialect(header: str, rows: list[str]) -> tuple[str, str]:
     if ";" in header and "," not in header:
         return ";", "," if any("," in row for row in rows) else "."
     return ",", "."
-

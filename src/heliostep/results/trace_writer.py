@@ -118,15 +118,16 @@ class TraceWriter:
         if not len(arrays[0]):
             return
         time = arrays[0]
-        check_time(np.concatenate([[self._last_time], time]) if np.isfinite(self._last_time) else time,
-                   str(self.path))
+        check_time(np.concatenate([[self._last_time], time]) if np.isfinite(self._last_time) else time, str(self.path))
         table = pa.Table.from_arrays([pa.array(a, type=pa.float64()) for a in arrays], schema=self._schema)
         try:
             self._writer.write_table(table)
         except OSError as exc:
             self.failed = exc
-            raise TraceWriteError(f"{self.path}: could not write rows {self.rows + 1}-{self.rows + len(time)} "
-                                  f"(t = {time[0]:.9g} to {time[-1]:.9g} s): {exc}") from exc
+            raise TraceWriteError(
+                f"{self.path}: could not write rows {self.rows + 1}-{self.rows + len(time)} "
+                f"(t = {time[0]:.9g} to {time[-1]:.9g} s): {exc}"
+            ) from exc
         if self._shadow is not None:
             self._shadow.write_table(table)
             if self._shadow_sink.position != os.path.getsize(self.path):  # not the same bytes: no recovery
@@ -158,8 +159,10 @@ class TraceWriter:
         except Exception:  # noqa: BLE001 - its bytes past the last row group are cut off below
             pass
         if self._shadow is None:
-            raise OSError(f"{self.path}: the trace could not be closed after a failed write ({self.failed}): "
-                          f"its row groups cannot be recovered")
+            raise OSError(
+                f"{self.path}: the trace could not be closed after a failed write ({self.failed}): "
+                f"its row groups cannot be recovered"
+            )
         end = self._shadow_sink.position
         kept = self._shadow_sink.keep()
         if self.rows == 0:
@@ -175,8 +178,10 @@ class TraceWriter:
                 fh.write(footer)
                 fh.truncate()
         except OSError as exc:
-            raise OSError(f"{self.path}: after a failed write ({self.failed}) not even the footer of the "
-                          f"{self.rows} rows written could be written: {exc}") from exc
+            raise OSError(
+                f"{self.path}: after a failed write ({self.failed}) not even the footer of the "
+                f"{self.rows} rows written could be written: {exc}"
+            ) from exc
         return self.path
 
     def _close_shadow(self) -> None:
@@ -195,4 +200,3 @@ class TraceWriter:
             pass
         self._close_shadow()
         self.path.unlink(missing_ok=True)
-

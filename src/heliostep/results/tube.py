@@ -18,11 +18,20 @@ import numpy as np
 from heliostep.results.tolerance import Tolerance
 
 __all__ = [
-    "WINDOW_FIELDS", "RangeMax", "Side", "Tube", "Window", "group_middle", "interp", "interp_at", "positive_fraction",
+    "WINDOW_FIELDS",
+    "RangeMax",
+    "Side",
+    "Tube",
+    "Window",
+    "group_middle",
+    "interp",
+    "interp_at",
+    "positive_fraction",
 ]
 
 #: Which limit of a polyline at a time: just before it (``"left"``) or just after it (``"right"``).
 Side = Literal["left", "right"]
+
 
 def interp_at(t: np.ndarray, y: np.ndarray, x: np.ndarray, idx: np.ndarray, side: Side) -> np.ndarray:
     """Value of the polyline (t, y) at *x*: its left limit (``side="left"``) or right limit.
@@ -146,9 +155,7 @@ class Tube:
             b_left, b_right = a_left, a_right
         return Window(x, a, b, a_left, a_right, b_left, b_right)
 
-    def _combine(
-        self, lo: np.ndarray, hi: np.ndarray, ya: np.ndarray, yb: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def _combine(self, lo: np.ndarray, hi: np.ndarray, ya: np.ndarray, yb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         upper = np.maximum(self._hi.query(lo, hi), np.maximum(self._g(ya, True), self._g(yb, True)))
         lower = np.minimum(-self._lo_neg.query(lo, hi), np.minimum(self._g(ya, False), self._g(yb, False)))
         return lower, upper

@@ -64,10 +64,10 @@ def format_validation_error(exc: ValidationError, source: str, root: type[BaseMo
         if loc and loc[-1] in _UNION_TAGS:  # one line for a value that is none of the union's types
             if loc[:-1] not in unions:
                 unions.add(loc[:-1])
-                lines.append(f"{source}: {dotted(loc[:-1])}: expected a number, true/false or a string, "
-                             f"got {error['input']!r}")
+                lines.append(
+                    f"{source}: {dotted(loc[:-1])}: expected a number, true/false or a string, got {error['input']!r}"
+                )
             continue
         for loc, message in _explain(root, error):
             lines.append(f"{source}: {dotted(loc) or '(top level)'}: {message}")
     return "\n".join(lines)
-

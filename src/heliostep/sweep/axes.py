@@ -16,8 +16,15 @@ from heliostep.errors import InputError
 from heliostep.solar import N_FIELD_MIRRORS
 
 __all__ = [
-    "CENTRAL_MIRROR", "SHORTHAND_AXES", "SweepAxis", "axis_hint", "axis_values", "check_axis_key",
-    "setting_by_role", "show_value", "table_value",
+    "CENTRAL_MIRROR",
+    "SHORTHAND_AXES",
+    "SweepAxis",
+    "axis_hint",
+    "axis_values",
+    "check_axis_key",
+    "setting_by_role",
+    "show_value",
+    "table_value",
 ]
 
 #: Shorthand axis name -> the dotted scenario key it sets (day_of_year and mirror are special).
@@ -33,8 +40,12 @@ SHORTHAND_AXES = {
 
 #: Table column of each shorthand axis (a column the table always has).
 _SHORTHAND_COLUMNS = {
-    "day_of_year": "day_of_year", "mirror": "mirror_index", "motor": "motor",
-    "mechanics": "mechanics", "current": "current_A", "wind_moment": "wind_moment_Nm",
+    "day_of_year": "day_of_year",
+    "mirror": "mirror_index",
+    "motor": "motor",
+    "mechanics": "mechanics",
+    "current": "current_A",
+    "wind_moment": "wind_moment_Nm",
 }
 
 
@@ -54,7 +65,6 @@ def setting_by_role(setting: tuple[str, Any], axis: str, base: Mapping) -> tuple
     if not target:
         return setting
     return (f"fmus.{target.partition('.')[0]}", setting[1])
-
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,11 +104,12 @@ class SweepAxis:
         return ((SHORTHAND_AXES.get(self.name, self.name), value),)
 
 
-
 def check_axis_key(key, where: str) -> str:
     if not isinstance(key, str) or not all(part.strip() for part in key.split(".")) or key != key.strip():
-        raise InputError(f"{where}: {key!r}: expected a shorthand ({', '.join(SHORTHAND_AXES)}) or a "
-                         f"dotted scenario key such as 'sequencer.current'")
+        raise InputError(
+            f"{where}: {key!r}: expected a shorthand ({', '.join(SHORTHAND_AXES)}) or a "
+            f"dotted scenario key such as 'sequencer.current'"
+        )
     return key
 
 
@@ -123,8 +134,9 @@ def axis_values(name: str, raw, year: int, where: str) -> tuple:
     elif isinstance(raw, (list, tuple)):
         values = tuple(raw)
     else:
-        raise InputError(f"{where}: expected a list of values, 'all' (day_of_year, mirror) or "
-                         f"{{start, stop, step}}, got {raw!r}")
+        raise InputError(
+            f"{where}: expected a list of values, 'all' (day_of_year, mirror) or {{start, stop, step}}, got {raw!r}"
+        )
     if not values:
         raise InputError(f"{where}: the axis is empty; give at least one value")
     seen = set()
@@ -136,13 +148,17 @@ def axis_values(name: str, raw, year: int, where: str) -> tuple:
         days = _days_in_year(year)
         for value in values:
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= days:
-                raise InputError(f"{where}: {value!r}: expected a day of year, an integer from 1 to {days} "
-                                 f"(the base scenario's year is {year})")
+                raise InputError(
+                    f"{where}: {value!r}: expected a day of year, an integer from 1 to {days} "
+                    f"(the base scenario's year is {year})"
+                )
     if name == "mirror":
         for value in values:
             if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < N_FIELD_MIRRORS:
-                raise InputError(f"{where}: {value!r}: expected a mirror index, an integer from 0 to "
-                                 f"{N_FIELD_MIRRORS - 1} ({CENTRAL_MIRROR} is the central mirror), or 'all'")
+                raise InputError(
+                    f"{where}: {value!r}: expected a mirror index, an integer from 0 to "
+                    f"{N_FIELD_MIRRORS - 1} ({CENTRAL_MIRROR} is the central mirror), or 'all'"
+                )
     return values
 
 
@@ -171,12 +187,10 @@ def _date_of_day(year: int, day_of_year: int) -> dt.date:
     return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
 
-
 def show_value(value) -> str:
     if isinstance(value, (dt.date, dt.time)):
         return value.isoformat()
     return json.dumps(value, default=str)
-
 
 
 def table_value(value):
@@ -184,4 +198,3 @@ def table_value(value):
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     return show_value(value)
-

@@ -35,8 +35,18 @@ from heliostep.sweep.axes import (
 )
 
 __all__ = [
-    "CENTRAL_MIRROR", "COMBINE_MODES", "ROLES", "SHIPPED_MECHANICS", "SHORTHAND_AXES", "SweepAxis", "SweepCase",
-    "SweepSpec", "expand_cases", "load_sweep", "sweep_from_scenario", "sweep_metadata",
+    "CENTRAL_MIRROR",
+    "COMBINE_MODES",
+    "ROLES",
+    "SHIPPED_MECHANICS",
+    "SHORTHAND_AXES",
+    "SweepAxis",
+    "SweepCase",
+    "SweepSpec",
+    "expand_cases",
+    "load_sweep",
+    "sweep_from_scenario",
+    "sweep_metadata",
 ]
 
 #: How the axes combine into cases.
@@ -55,8 +65,10 @@ def _primary_load(base: Mapping) -> list[tuple[str, Any]]:
     instance = str((base.get("roles") or {}).get("panel_angle") or "mechanics.theta_p").partition(".")[0]
     if (base.get("fmus") or {}).get(instance) not in SHIPPED_MECHANICS:
         return []
-    return [("transmission.lever_arm", PRIMARY_LEVER_ARM),
-            (f"parameters.{instance}.J_p", primary_panel_inertia(N_FIELD_MIRRORS))]
+    return [
+        ("transmission.lever_arm", PRIMARY_LEVER_ARM),
+        (f"parameters.{instance}.J_p", primary_panel_inertia(N_FIELD_MIRRORS)),
+    ]
 
 
 #: Roles of a case: one mirror's drive, or the field's shared primary drive.
@@ -178,18 +190,33 @@ def load_sweep(path: str | Path) -> SweepSpec:
         raise InputError(f"{source}: base: {exc}") from None
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\") or name.startswith("."):
-        raise InputError(f"{source}: name: expected a non-empty name usable as a folder name "
-                         f"(no '/', not starting with '.'), got {name!r}")
+        raise InputError(
+            f"{source}: name: expected a non-empty name usable as a folder name "
+            f"(no '/', not starting with '.'), got {name!r}"
+        )
     return _make_spec(
-        name=name.strip(), source=source, base=base, base_source=str(base_path),
-        axes=data.get("axes"), combine=data.get("combine", "product"),
-        overrides=data.get("overrides"), shared_primary=data.get("shared_primary", False),
-        description=data.get("description"))
+        name=name.strip(),
+        source=source,
+        base=base,
+        base_source=str(base_path),
+        axes=data.get("axes"),
+        combine=data.get("combine", "product"),
+        overrides=data.get("overrides"),
+        shared_primary=data.get("shared_primary", False),
+        description=data.get("description"),
+    )
 
 
-def sweep_from_scenario(scenario: Scenario, axes: Mapping[str, Any], *, combine: str = "product",
-                        overrides: Mapping[str, Any] | None = None, shared_primary: bool = False,
-                        name: str | None = None, source: str | None = None) -> SweepSpec:
+def sweep_from_scenario(
+    scenario: Scenario,
+    axes: Mapping[str, Any],
+    *,
+    combine: str = "product",
+    overrides: Mapping[str, Any] | None = None,
+    shared_primary: bool = False,
+    name: str | None = None,
+    source: str | None = None,
+) -> SweepSpec:
     """A sweep over an in-memory scenario (the Python form of a sweep file).
 
     Parameters
@@ -213,13 +240,22 @@ def sweep_from_scenario(scenario: Scenario, axes: Mapping[str, Any], *, combine:
     SweepSpec
     """
     label = source or f"sweep of {scenario.name}"
-    return _make_spec(name=name or scenario.name, source=label, base=scenario,
-                      base_source=f"scenario {scenario.name}", axes=axes, combine=combine,
-                      overrides=overrides, shared_primary=shared_primary, description=None)
+    return _make_spec(
+        name=name or scenario.name,
+        source=label,
+        base=scenario,
+        base_source=f"scenario {scenario.name}",
+        axes=axes,
+        combine=combine,
+        overrides=overrides,
+        shared_primary=shared_primary,
+        description=None,
+    )
 
 
-def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, overrides,
-               shared_primary, description) -> SweepSpec:
+def _make_spec(
+    *, name, source, base: Scenario, base_source, axes, combine, overrides, shared_primary, description
+) -> SweepSpec:
     if combine not in COMBINE_MODES:
         raise InputError(f"{source}: combine: expected one of {', '.join(COMBINE_MODES)}, got {combine!r}")
     if not isinstance(shared_primary, bool):
@@ -229,23 +265,48 @@ def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, over
     if overrides is None:
         overrides = {}
     if not isinstance(overrides, Mapping):
-        raise InputError(f"{source}: overrides: expected a mapping of dotted scenario keys to values, "
-                         f"e.g. {{output.interval: 0.5}}, got {overrides!r}")
+        raise InputError(
+            f"{source}: overrides: expected a mapping of dotted scenario keys to values, "
+            f"e.g. {{output.interval: 0.5}}, got {overrides!r}"
+        )
     common = tuple((check_axis_key(key, f"{source}: overrides"), value) for key, value in overrides.items())
     base_data = base.resolved_dict()
-    base_data["fmus"] = {instance: None if reference is None else str(base.fmu_reference(instance))
-                         for instance, reference in base_data["fmus"].items()}
-    spec = SweepSpec(name=name, source=source, base_data=base_data, base_source=base_source,
-                     base_folder=base.folder, axes=(), combine=combine, overrides=common,
-                     shared_primary=shared_primary, description=description)
+    base_data["fmus"] = {
+        instance: None if reference is None else str(base.fmu_reference(instance))
+        for instance, reference in base_data["fmus"].items()
+    }
+    spec = SweepSpec(
+        name=name,
+        source=source,
+        base_data=base_data,
+        base_source=base_source,
+        base_folder=base.folder,
+        axes=(),
+        combine=combine,
+        overrides=common,
+        shared_primary=shared_primary,
+        description=description,
+    )
     year = _validated(spec, (), f"{source}: overrides").window.date.year
 
+    parsed = _parsed_axes(axes, source, year, combine, shared_primary)
+    return dataclasses.replace(spec, axes=parsed)
+
+
+def _parsed_axes(axes, source: str, year: int, combine: str, shared_primary: bool) -> tuple[SweepAxis, ...]:
+    """The sweep's axes from their raw form, checked: at least one, no two setting one key, equal
+    lengths for ``zip``, a ``mirror`` axis for ``shared_primary``. *year*: the base window's."""
     if not isinstance(axes, Mapping) or not axes:
-        raise InputError(f"{source}: axes: expected a mapping of at least one axis (e.g. "
-                         f"day_of_year: [21, 172]), got {axes!r}")
-    parsed = tuple(SweepAxis(name=check_axis_key(axis_name, f"{source}: axes"),
-                             values=axis_values(axis_name, raw, year, f"{source}: axes.{axis_name}"))
-                   for axis_name, raw in axes.items())
+        raise InputError(
+            f"{source}: axes: expected a mapping of at least one axis (e.g. day_of_year: [21, 172]), got {axes!r}"
+        )
+    parsed = tuple(
+        SweepAxis(
+            name=check_axis_key(axis_name, f"{source}: axes"),
+            values=axis_values(axis_name, raw, year, f"{source}: axes.{axis_name}"),
+        )
+        for axis_name, raw in axes.items()
+    )
     owner: dict[str, str] = {}  # dotted key -> the axis that sets it
     for axis in parsed:
         for key, _ in axis.overrides(axis.values[0], year):
@@ -259,8 +320,7 @@ def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, over
             raise InputError(f"{source}: axes: combine: zip needs axes of equal length; {listed} values")
     if shared_primary and "mirror" not in [axis.name for axis in parsed]:
         raise InputError(f"{source}: shared_primary: needs a 'mirror' axis (e.g. mirror: all)")
-    return dataclasses.replace(spec, axes=parsed)
-
+    return parsed
 
 
 def _set_dotted(data: dict, key: str, value, where: str) -> None:
@@ -279,11 +339,11 @@ def _validated(spec: SweepSpec, settings: Sequence[tuple[str, Any]], where: str,
     data = _scenario_data(spec, settings, where)
     shown = ", ".join(f"{key}={show_value(value)}" for key, value in settings)
     try:
-        return validate_scenario(data, source=f"{spec.base_source}{' with ' + shown if shown else ''}",
-                                 folder=spec.base_folder)
+        return validate_scenario(
+            data, source=f"{spec.base_source}{' with ' + shown if shown else ''}", folder=spec.base_folder
+        )
     except InputError as exc:
         raise InputError(f"{where}: gives an invalid scenario{hint}:\n{exc}") from None
-
 
 
 def expand_cases(spec: SweepSpec) -> list[SweepCase]:
@@ -326,8 +386,10 @@ def expand_cases(spec: SweepSpec) -> list[SweepCase]:
     for case in cases:
         if case.case_id in first_of:
             other = first_of[case.case_id]
-            raise InputError(f"{spec.source}: axes: cases {other.index} ({other.label}) and {case.index} "
-                             f"({case.label}) are the same scenario")
+            raise InputError(
+                f"{spec.source}: axes: cases {other.index} ({other.label}) and {case.index} "
+                f"({case.label}) are the same scenario"
+            )
         first_of[case.case_id] = case
     return cases
 
@@ -336,8 +398,11 @@ def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], inde
     """One validated case: the axis values ``chosen`` on the base, as a drive or the shared primary."""
     if role not in ROLES:
         raise ValueError(f"role must be one of {ROLES}, got {role!r}")
-    settings = [setting_by_role(setting, axis.name, spec.base_data)
-                for axis, value in chosen.items() for setting in axis.overrides(value, year)]
+    settings = [
+        setting_by_role(setting, axis.name, spec.base_data)
+        for axis, value in chosen.items()
+        for setting in axis.overrides(value, year)
+    ]
     if role == "shared-primary":
         settings += [("mirror.distance", None), ("mirror.index", CENTRAL_MIRROR), ("mirror.axis", "primary")]
         settings += _primary_load(spec.base_data)
@@ -348,31 +413,54 @@ def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], inde
         scenario = _validated(spec, settings, f"{spec.source}: case {index} ({shown})")
     except InputError:
         for axis, value in chosen.items():  # name the axis when its value alone is invalid
-            _validated(spec, axis.overrides(value, year), f"{spec.source}: axes.{axis.name}: {show_value(value)}",
-                       hint=axis_hint(axis.name))
+            _validated(
+                spec,
+                axis.overrides(value, year),
+                f"{spec.source}: axes.{axis.name}: {show_value(value)}",
+                hint=axis_hint(axis.name),
+            )
         raise
     resolved = scenario.resolved_dict()
-    resolved["fmus"] = {instance: None if reference is None else str(scenario.fmu_reference(instance))
-                        for instance, reference in resolved["fmus"].items()}
+    resolved["fmus"] = {
+        instance: None if reference is None else str(scenario.fmu_reference(instance))
+        for instance, reference in resolved["fmus"].items()
+    }
     case_id = hashlib.sha256(json.dumps(resolved, sort_keys=True).encode()).hexdigest()[:16]
     mirror = scenario.mirror
     columns = {
-        "case_id": case_id, "case_index": index, "role": role,
+        "case_id": case_id,
+        "case_index": index,
+        "role": role,
         **{axis.column: table_value(value) for axis, value in chosen.items()},
-        "date": scenario.window.date.isoformat(), "day_of_year": scenario.window.date.timetuple().tm_yday,
-        "mirror_index": mirror.index, "mirror_distance_m": float(mirror.mirror_distance),
-        "mirror_axis": mirror.axis, "motor": scenario.fmus.get(scenario.roles.instance_of("torque")),
-        "mechanics": scenario.fmus.get(scenario.roles.instance_of("rotor_angle")), "current_A": scenario.sequencer.current,
+        "date": scenario.window.date.isoformat(),
+        "day_of_year": scenario.window.date.timetuple().tm_yday,
+        "mirror_index": mirror.index,
+        "mirror_distance_m": float(mirror.mirror_distance),
+        "mirror_axis": mirror.axis,
+        "motor": scenario.fmus.get(scenario.roles.instance_of("torque")),
+        "mechanics": scenario.fmus.get(scenario.roles.instance_of("rotor_angle")),
+        "current_A": scenario.sequencer.current,
         "wind_moment_Nm": scenario.wind.moment,
         "overrides": ", ".join(f"{key}={show_value(value)}" for key, value in (*spec.overrides, *settings)),
     }
-    return SweepCase(case_id=case_id, index=index, columns=columns, scenario=resolved,
-                     source=f"{spec.source}: case {index} ({shown})", folder=str(spec.base_folder))
-
+    return SweepCase(
+        case_id=case_id,
+        index=index,
+        columns=columns,
+        scenario=resolved,
+        source=f"{spec.source}: case {index} ({shown})",
+        folder=str(spec.base_folder),
+    )
 
 
 def sweep_metadata(spec: SweepSpec) -> dict:
     """What the table's Parquet metadata records about the sweep (name, source, axes, combine)."""
-    return {"name": spec.name, "source": spec.source, "base": spec.base_source, "combine": spec.combine,
-            "axes": {axis.name: axis.column for axis in spec.axes}, "shared_primary": spec.shared_primary,
-            "overrides": {key: show_value(value) for key, value in spec.overrides}}
+    return {
+        "name": spec.name,
+        "source": spec.source,
+        "base": spec.base_source,
+        "combine": spec.combine,
+        "axes": {axis.name: axis.column for axis in spec.axes},
+        "shared_primary": spec.shared_primary,
+        "overrides": {key: show_value(value) for key, value in spec.overrides},
+    }
