@@ -213,8 +213,9 @@ def _excel_csv(path, signals, sep, decimal, bom):
     return path
 
 
-@pytest.mark.parametrize("sep, decimal, bom", [(",", ".", True), (";", ",", False), (";", ",", True),
-                                               (";", ".", False)])
+@pytest.mark.parametrize(
+    "sep, decimal, bom", [(",", ".", True), (";", ",", False), (";", ",", True), (";", ".", False)]
+)
 def test_excel_csv_with_bom_or_semicolons_is_compared(traces, tmp_path, capsys, sep, decimal, bom):
     _, ref, signals = traces
     act = _excel_csv(tmp_path / "excel.csv", signals, sep, decimal, bom)

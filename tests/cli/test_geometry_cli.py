@@ -25,16 +25,25 @@ def run_output(tmp_path_factory):
     out = tmp_path_factory.mktemp("geometry") / "out"
     argv = [
         "geometry",
-        "--out", str(out),
-        "--date", "2025-12-21",
-        "--date", "2025-06-21",
-        "--step", "300",
-        "--mirror", "0",
-        "--mirror", "6",
-        "--spacing", "0.5",
+        "--out",
+        str(out),
+        "--date",
+        "2025-12-21",
+        "--date",
+        "2025-06-21",
+        "--step",
+        "300",
+        "--mirror",
+        "0",
+        "--mirror",
+        "6",
+        "--spacing",
+        "0.5",
         "--paper-case",
-        "--window-start", "12:00",  # near solar noon, for the half-zenith check below
-        "--window-step", "10",
+        "--window-start",
+        "12:00",  # near solar noon, for the half-zenith check below
+        "--window-step",
+        "10",
     ]
     status = main(argv)
     return status, out

@@ -4,11 +4,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
 from heliostep.drive.inputs import output_grid, prepare_inputs
 from heliostep.errors import InputError
 from heliostep.run import _signals
 from heliostep.scenario import RolesConfig, validate_scenario
+from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
 
 ROLES = RolesConfig().present()
 
@@ -50,8 +50,10 @@ def test_signals_switch_at_the_steps(paper_inputs):
     np.testing.assert_array_equal(i_a.times, paper_inputs.schedule.times)
     assert i_a.values[0] == 5.5  # Table 1 step 1, rated current
     implied = paper_inputs.implied_parameters
-    assert {k: implied[k] for k in ("current_a_start", "current_b_start")} == {"current_a_start": 5.5,
-                                                                            "current_b_start": 0.0}
+    assert {k: implied[k] for k in ("current_a_start", "current_b_start")} == {
+        "current_a_start": 5.5,
+        "current_b_start": 0.0,
+    }
 
 
 def test_output_grid_is_regular_plus_fine_after_steps():
@@ -65,6 +67,8 @@ def test_wind_signal_only_where_there_is_an_input_for_it():
     calm = prepare_inputs(validate_scenario({**PAPER_CASE, "window": {**PAPER_CASE["window"], "duration": 10}}))
     assert [s.name for s in _signals(calm, without_input)] == ["i_a_ref", "i_b_ref"]
     windy = {**PAPER_CASE, "window": {**PAPER_CASE["window"], "duration": 10}, "wind": {"moment": 20.0}}
-    assert [s.values[0] for s in _signals(prepare_inputs(validate_scenario(windy)), ROLES) if s.name == "m_ext"] == [20.0]
+    assert [s.values[0] for s in _signals(prepare_inputs(validate_scenario(windy)), ROLES) if s.name == "m_ext"] == [
+        20.0
+    ]
     with pytest.raises(InputError, match="wind_moment"):
         _signals(prepare_inputs(validate_scenario(windy)), without_input)

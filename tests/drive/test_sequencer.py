@@ -1,12 +1,12 @@
 """heliostep.drive.sequencer: phase patterns from the torque law, step instants by root finding."""
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 import pytest
+from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
-from heliostep.errors import InputError
 from heliostep.drive.sequencer import PATTERNS, Sequencer, reference_interpolant, schedule_steps
+from heliostep.errors import InputError
 
 N_C = 50  # rotor teeth, Table 3
 STEP = np.pi / (2 * N_C)  # 1.8 deg
@@ -56,8 +56,7 @@ def test_ramp_steps_exactly_at_half_step_crossings():
 def test_reach_trigger_steps_when_the_next_position_is_reached():
     rate = 0.01
     times = np.linspace(0, 60, 61)
-    schedule = schedule_steps(reference_interpolant(times, rate * times), Sequencer(step_angle=STEP),
-                              trigger="reach")
+    schedule = schedule_steps(reference_interpolant(times, rate * times), Sequencer(step_angle=STEP), trigger="reach")
     k = np.arange(len(schedule))
     np.testing.assert_allclose(schedule.times, (k + 1) * STEP / rate, rtol=1e-12)
 
@@ -95,8 +94,11 @@ def test_index_at_gives_values_before_and_after_a_step():
 
 
 # --------------------------------------------------------------------------- microstepping, idle current
-from heliostep.drive.sequencer import holding_energy, idle_currents  # noqa: E402
-from heliostep.drive.sequencer import StepSchedule  # noqa: E402
+from heliostep.drive.sequencer import (  # noqa: E402
+    StepSchedule,  # noqa: E402
+    holding_energy,
+    idle_currents,
+)
 
 R_PHASE = 0.1  # [ohm], Table 3
 
@@ -148,8 +150,9 @@ def test_idle_reduction_cuts_holding_energy_by_the_square(fraction, microsteps):
     schedule = StepSchedule(times=np.array([10.0, 25.0, 60.0]), indices=np.array([1, 2, 3]), initial_index=0)
     end, delay, current = 100.0, 0.5, 5.5
     full = Sequencer(current=current, step_angle=STEP, microsteps=microsteps)
-    idle = Sequencer(current=current, step_angle=STEP, microsteps=microsteps, idle_current_fraction=fraction,
-                     idle_delay=delay)
+    idle = Sequencer(
+        current=current, step_angle=STEP, microsteps=microsteps, idle_current_fraction=fraction, idle_delay=delay
+    )
     times, i_a, i_b = idle_currents(schedule, idle, end)
     # full current for `delay` after the start and each step, f * I for the rest: R (f I)^2 per phase
     assert np.all(np.hypot(i_a, i_b)[np.isin(times, [0.0, 10.0, 25.0, 60.0])] == pytest.approx(current))

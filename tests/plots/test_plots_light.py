@@ -15,11 +15,15 @@ METADATA = {"window_start": "2025-01-21T10:00:00+01:00", "timezone": "Europe/Rom
 
 
 def _scenario(distance):
-    return validate_scenario({
-        "name": "light-plot", "site": {"latitude": 40.0, "longitude": 14.25, "altitude": 0.0,
-                                       "timezone": "Europe/Rome"},
-        "window": {"date": "2025-01-21", "start": "10:00", "duration": 600},
-        "plant": {"orientation": "NS", "tube_height": 3.0}, "mirror": {"distance": distance, "axis": "secondary"}})
+    return validate_scenario(
+        {
+            "name": "light-plot",
+            "site": {"latitude": 40.0, "longitude": 14.25, "altitude": 0.0, "timezone": "Europe/Rome"},
+            "window": {"date": "2025-01-21", "start": "10:00", "duration": 600},
+            "plant": {"orientation": "NS", "tube_height": 3.0},
+            "mirror": {"distance": distance, "axis": "secondary"},
+        }
+    )
 
 
 @pytest.mark.filterwarnings("ignore::Warning")

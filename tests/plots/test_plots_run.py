@@ -44,21 +44,29 @@ def synthetic_trace(duration=20.0, step_period=1.0, interval=0.01, detail=0.05, 
     panel_ref = np.radians(20.0) + time * STEP_ANGLE / step_period * 0.0025 / 0.3
     theta_p = np.radians(20.0) + theta * 0.0025 / 0.3
     zeros = np.zeros_like(time)
-    return pd.DataFrame({
-        "time": time,
-        "panel_angle_ref": panel_ref,
-        "rotor_angle_ref": time * STEP_ANGLE / step_period,
-        "rotor_angle_cmd": command,
-        "step_index": step_index,
-        "i_a_ref": i_a_ref, "i_b_ref": i_b_ref,
-        "m_ext": zeros,
-        "motor.i_a": i_a_ref * rise, "motor.i_b": i_b_ref * rise,
-        "motor.tau": torque,
-        "motor.v_a": zeros, "motor.v_b": zeros, "motor.power": zeros,
-        "mechanics.theta": theta, "mechanics.omega": zeros,
-        "mechanics.theta_p": theta_p, "mechanics.omega_p": zeros,
-        "panel_angle_error": theta_p - panel_ref,
-    })
+    return pd.DataFrame(
+        {
+            "time": time,
+            "panel_angle_ref": panel_ref,
+            "rotor_angle_ref": time * STEP_ANGLE / step_period,
+            "rotor_angle_cmd": command,
+            "step_index": step_index,
+            "i_a_ref": i_a_ref,
+            "i_b_ref": i_b_ref,
+            "m_ext": zeros,
+            "motor.i_a": i_a_ref * rise,
+            "motor.i_b": i_b_ref * rise,
+            "motor.tau": torque,
+            "motor.v_a": zeros,
+            "motor.v_b": zeros,
+            "motor.power": zeros,
+            "mechanics.theta": theta,
+            "mechanics.omega": zeros,
+            "mechanics.theta_p": theta_p,
+            "mechanics.omega_p": zeros,
+            "panel_angle_error": theta_p - panel_ref,
+        }
+    )
 
 
 @pytest.fixture(scope="module")
@@ -76,8 +84,9 @@ def png_size(path):
 
 def test_step_times_are_where_the_commanded_index_changes():
     # rows as the master writes them: a row before and a row after each step, same time
-    table = pd.DataFrame({"time": [0.0, 0.5, 1.0, 1.0, 1.5, 2.25, 2.25, 3.0, 3.0, 4.0],
-                          "step_index": [0, 0, 0, 1, 1, 1, 2, 2, 1, 1]})
+    table = pd.DataFrame(
+        {"time": [0.0, 0.5, 1.0, 1.0, 1.5, 2.25, 2.25, 3.0, 3.0, 4.0], "step_index": [0, 0, 0, 1, 1, 1, 2, 2, 1, 1]}
+    )
     np.testing.assert_array_equal(run_plots.step_times(table), [1.0, 2.25, 3.0])
     assert run_plots.step_times(table.drop(columns="step_index")).size == 0
     assert run_plots.step_times(table.assign(step_index=0)).size == 0
@@ -85,9 +94,18 @@ def test_step_times_are_where_the_commanded_index_changes():
 
 def test_every_figure_is_written(trace, tmp_path):
     written = run_plots.plot_run(trace, tmp_path / "figures", METADATA)
-    expected = [tmp_path / "figures" / name for name in (
-        "fig08_panel_angle_ref.png", "fig09_rotor_angle_ref.png", "fig10_phase_currents.png",
-        "fig11_torque.png", "fig12_rotor_angle.png", "fig13_panel_tracking.png", "fig14_torque_zoom.png")]
+    expected = [
+        tmp_path / "figures" / name
+        for name in (
+            "fig08_panel_angle_ref.png",
+            "fig09_rotor_angle_ref.png",
+            "fig10_phase_currents.png",
+            "fig11_torque.png",
+            "fig12_rotor_angle.png",
+            "fig13_panel_tracking.png",
+            "fig14_torque_zoom.png",
+        )
+    ]
     assert written == expected
     for path in expected:
         assert path.stat().st_size > 20_000, f"{path.name} looks empty"
@@ -107,10 +125,14 @@ def test_no_steps_skips_the_torque_zoom(trace, tmp_path):
 @pytest.mark.parametrize(
     ("dropped", "skipped"),
     [
-        (["motor.i_a", "motor.i_b", "motor.tau", "motor.v_a", "motor.v_b", "motor.power"],
-         {"fig10_phase_currents.png", "fig11_torque.png", "fig14_torque_zoom.png"}),
-        (["mechanics.theta", "mechanics.theta_p", "mechanics.omega", "mechanics.omega_p", "panel_angle_error"],
-         {"fig12_rotor_angle.png", "fig13_panel_tracking.png"}),
+        (
+            ["motor.i_a", "motor.i_b", "motor.tau", "motor.v_a", "motor.v_b", "motor.power"],
+            {"fig10_phase_currents.png", "fig11_torque.png", "fig14_torque_zoom.png"},
+        ),
+        (
+            ["mechanics.theta", "mechanics.theta_p", "mechanics.omega", "mechanics.omega_p", "panel_angle_error"],
+            {"fig12_rotor_angle.png", "fig13_panel_tracking.png"},
+        ),
         (["step_index", "i_a_ref", "i_b_ref", "rotor_angle_cmd", "panel_angle_error"], {"fig14_torque_zoom.png"}),
         ([column for column in synthetic_trace(duration=1.0).columns if column != "time"], set(run_plots.FIGURE_FILES)),
     ],
@@ -177,8 +199,11 @@ def test_matplotlib_is_imported_only_by_the_plots():
     import heliostep
 
     package = Path(heliostep.__file__).parent
-    modules = sorted("heliostep." + ".".join(path.relative_to(package).with_suffix("").parts).removesuffix(".__init__")
-                     for path in package.rglob("*.py") if "plots" not in path.relative_to(package).parts)
+    modules = sorted(
+        "heliostep." + ".".join(path.relative_to(package).with_suffix("").parts).removesuffix(".__init__")
+        for path in package.rglob("*.py")
+        if "plots" not in path.relative_to(package).parts
+    )
     assert len(modules) > 40 and "heliostep.sweep.cluster" in modules and "heliostep.cli.run" in modules
     code = (
         "import importlib, sys\n"

@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
+from heliostep.errors import InputError
 from heliostep.results.compare import (
     ComparisonResult,
     Tolerance,
@@ -19,11 +20,12 @@ from heliostep.results.compare import (
     evaluate_signal,
     load_tolerances,
 )
-from heliostep.errors import InputError
 
 
 def trace(t, **signals) -> pd.DataFrame:
-    return pd.DataFrame({"time": np.asarray(t, dtype=float), **{k: np.asarray(v, dtype=float) for k, v in signals.items()}})
+    return pd.DataFrame(
+        {"time": np.asarray(t, dtype=float), **{k: np.asarray(v, dtype=float) for k, v in signals.items()}}
+    )
 
 
 def step_trace(t_jump: float, grid: np.ndarray, low: float = 0.0, high: float = 1.0) -> pd.DataFrame:
@@ -336,8 +338,10 @@ def test_load_tolerances(tmp_path):
 
 def test_a_scenario_section_overrides_the_signals_for_that_scenario_only(tmp_path):
     path = tmp_path / "tol.yaml"
-    path.write_text("default: {abs: 1e-6, rel: 0, time: 0}\nsignals:\n  motor.tau: {abs: 1e-3, rel: 1e-4}\n"
-                    "scenarios:\n  weak:\n    signals:\n      motor.tau: {abs: 0.5}\n      motor.i_a: {time: 2e-3}\n")
+    path.write_text(
+        "default: {abs: 1e-6, rel: 0, time: 0}\nsignals:\n  motor.tau: {abs: 1e-3, rel: 1e-4}\n"
+        "scenarios:\n  weak:\n    signals:\n      motor.tau: {abs: 0.5}\n      motor.i_a: {time: 2e-3}\n"
+    )
     tols = load_tolerances(path)
     assert tols.for_signal("motor.tau") == Tolerance(abs=1e-3, rel=1e-4, time=0)
     weak = tols.for_scenario("weak")

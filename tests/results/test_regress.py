@@ -11,8 +11,13 @@ from heliostep.results.regress import reference_path, shipped_scenarios
 
 def test_every_shipped_scenario_matches_its_reference(fmu_paths, capsys):
     scenarios = shipped_scenarios()
-    assert {p.stem for p in scenarios} >= {"jan21-central", "jan21-day", "jan21-ideal-current",
-                                           "jan21-small-angle", "jan21-weak-motor"}
+    assert {p.stem for p in scenarios} >= {
+        "jan21-central",
+        "jan21-day",
+        "jan21-ideal-current",
+        "jan21-small-angle",
+        "jan21-weak-motor",
+    }
     status = main(["regress"])
     out = capsys.readouterr().out
     assert status == 0, out

@@ -84,8 +84,11 @@ def test_parquet_columns_are_byte_stream_split_and_zstd_not_a_dictionary(tmp_pat
     dictionary, which it would overflow."""
     path = tmp_path / "t.parquet"
     rng = np.random.default_rng(0)
-    write_trace(pd.DataFrame({"time": np.arange(5000.0), "x": rng.normal(size=5000),
-                              "held": np.repeat([0.0, 1.5], 2500)}), path, {})
+    write_trace(
+        pd.DataFrame({"time": np.arange(5000.0), "x": rng.normal(size=5000), "held": np.repeat([0.0, 1.5], 2500)}),
+        path,
+        {},
+    )
     chunks = pq.ParquetFile(path).metadata.row_group(0)
     for i in range(chunks.num_columns):
         column = chunks.column(i)

@@ -101,16 +101,29 @@ def test_defaults_of_optional_sections(tmp_path):
     assert scenario.parameters == {}
     assert scenario.connections is None
     assert scenario.connection_pairs() == [
-        ("motor.tau", "mechanics.tau"), ("mechanics.theta", "motor.theta"), ("mechanics.omega", "motor.omega")
+        ("motor.tau", "mechanics.tau"),
+        ("mechanics.theta", "motor.theta"),
+        ("mechanics.omega", "motor.omega"),
     ]
     assert DEFAULT_CONNECTIONS == scenario.connection_pairs()
-    assert (scenario.sequencer.mode, scenario.sequencer.current, scenario.sequencer.step_angle,
-            scenario.sequencer.trigger) == ("one-phase-on", 5.5, 1.8, "midpoint")
+    assert (
+        scenario.sequencer.mode,
+        scenario.sequencer.current,
+        scenario.sequencer.step_angle,
+        scenario.sequencer.trigger,
+    ) == ("one-phase-on", 5.5, 1.8, "midpoint")
     assert scenario.wind.moment == 0.0
-    assert (scenario.solver.rtol, scenario.solver.atol, scenario.solver.max_step,
-            scenario.solver.max_num_steps) == (1e-6, None, None, 100_000)
+    assert (scenario.solver.rtol, scenario.solver.atol, scenario.solver.max_step, scenario.solver.max_num_steps) == (
+        1e-6,
+        None,
+        None,
+        100_000,
+    )
     assert (scenario.output.interval, scenario.output.step_detail, scenario.output.step_interval) == (
-        0.01, 0.05, 0.0005)
+        0.01,
+        0.05,
+        0.0005,
+    )
 
 
 def test_null_section_takes_its_defaults(tmp_path):
@@ -193,7 +206,7 @@ def test_unknown_timezone_reuses_the_geometry_message(tmp_path):
         ("duration: 300", "duration: 0", "window.duration"),
         ('start: "10:00"', 'start: "10h"', "window.start"),
         ('start: "10:00"', 'start: "24:00"', "window.start"),
-        ("start: \"10:00\", duration: 300", "start: \"18:00\", end: sunset", "window.end: must be after the start"),
+        ('start: "10:00", duration: 300', 'start: "18:00", end: sunset', "window.end: must be after the start"),
     ],
 )
 def test_section_consistency(tmp_path, replace, by, expected):
@@ -219,10 +232,13 @@ def test_parameters_and_connections_must_name_fmu_instances(tmp_path):
 def test_dropping_an_fmu_needs_explicit_connections(tmp_path):
     message, _ = error_of(tmp_path, MINIMAL + "fmus: {mechanics: null, drive: DriveSystem}\n")
     assert "connections: the default connections use FMU instance(s) mechanics" in message
-    scenario = load_text(tmp_path, MINIMAL + "fmus: {mechanics: null, motor: null, drive: DriveSystem}\n"
-                                             "connections: []\n"
-                                             "roles: {current_a_ref: drive.i_a_ref, current_b_ref: drive.i_b_ref, "
-                                             "rotor_angle: drive.theta}\n")
+    scenario = load_text(
+        tmp_path,
+        MINIMAL + "fmus: {mechanics: null, motor: null, drive: DriveSystem}\n"
+        "connections: []\n"
+        "roles: {current_a_ref: drive.i_a_ref, current_b_ref: drive.i_b_ref, "
+        "rotor_angle: drive.theta}\n",
+    )
     assert scenario.fmus == {"drive": "DriveSystem"} and scenario.connection_pairs() == []
 
 
@@ -257,12 +273,16 @@ def test_validate_scenario_from_a_mapping_names_its_source():
 
 # --------------------------------------------------------------------------- overrides
 def test_set_overrides_number_string_and_new_nested_key(tmp_path):
-    scenario = load_text(tmp_path, MINIMAL, [
-        "sequencer.current=3",
-        "fmus.motor=StepperMotorIdealCurrent",
-        "parameters.motor.K_current=100",
-        "window.start=10:15",
-    ])
+    scenario = load_text(
+        tmp_path,
+        MINIMAL,
+        [
+            "sequencer.current=3",
+            "fmus.motor=StepperMotorIdealCurrent",
+            "parameters.motor.K_current=100",
+            "window.start=10:15",
+        ],
+    )
     assert scenario.sequencer.current == 3.0 and isinstance(scenario.sequencer.current, float)
     assert scenario.fmus == {"motor": "StepperMotorIdealCurrent", "mechanics": "PanelMechanics"}
     assert scenario.parameters == {"motor": {"K_current": 100.0}}
@@ -336,8 +356,9 @@ def test_window_bounds_in_local_time(tmp_path):
     assert str(start.tz) == "Europe/Rome"
     assert start.tz_convert("UTC") == pd.Timestamp("2025-01-21 09:00", tz="UTC")  # CET = UTC+1 in winter
     assert end - start == pd.Timedelta(seconds=300)
-    summer = load_text(tmp_path, MINIMAL.replace("2025-01-21", "2025-07-01").replace(
-        "duration: 300", "end: '10:30:15'"))
+    summer = load_text(
+        tmp_path, MINIMAL.replace("2025-01-21", "2025-07-01").replace("duration: 300", "end: '10:30:15'")
+    )
     start, end = summer.window_bounds()
     assert start.tz_convert("UTC") == pd.Timestamp("2025-07-01 08:00", tz="UTC")  # CEST = UTC+2
     assert end.tz_convert("UTC") == pd.Timestamp("2025-07-01 08:30:15", tz="UTC")
@@ -356,11 +377,22 @@ def first_principles_sun_events(date, latitude, longitude):
     angle for a zenith of 90.833 deg (refraction plus solar radius).
     """
     gamma = 2 * math.pi / 365 * (date.day_of_year - 1)
-    eqtime = 229.18 * (0.000075 + 0.001868 * math.cos(gamma) - 0.032077 * math.sin(gamma)
-                       - 0.014615 * math.cos(2 * gamma) - 0.040849 * math.sin(2 * gamma))
-    decl = (0.006918 - 0.399912 * math.cos(gamma) + 0.070257 * math.sin(gamma)
-            - 0.006758 * math.cos(2 * gamma) + 0.000907 * math.sin(2 * gamma)
-            - 0.002697 * math.cos(3 * gamma) + 0.00148 * math.sin(3 * gamma))
+    eqtime = 229.18 * (
+        0.000075
+        + 0.001868 * math.cos(gamma)
+        - 0.032077 * math.sin(gamma)
+        - 0.014615 * math.cos(2 * gamma)
+        - 0.040849 * math.sin(2 * gamma)
+    )
+    decl = (
+        0.006918
+        - 0.399912 * math.cos(gamma)
+        + 0.070257 * math.sin(gamma)
+        - 0.006758 * math.cos(2 * gamma)
+        + 0.000907 * math.sin(2 * gamma)
+        - 0.002697 * math.cos(3 * gamma)
+        + 0.00148 * math.sin(3 * gamma)
+    )
     lat = math.radians(latitude)
     cos_hour = math.cos(math.radians(90.833)) / (math.cos(lat) * math.cos(decl)) - math.tan(lat) * math.tan(decl)
     hour = math.degrees(math.acos(cos_hour))

@@ -56,9 +56,13 @@ def test_papers_unlit_10_4_m_is_a_row_at_1_45_m_not_another_time_of_day():
 
 
 def test_power_single_axis_vs_two_axis_end_mirrors_from_vectors():
-    times = pd.DatetimeIndex([pd.Timestamp("2025-12-21 10:30", tz="Europe/Rome"),
-                              pd.Timestamp("2025-12-21 12:01", tz="Europe/Rome"),
-                              pd.Timestamp("2025-03-21 15:00", tz="Europe/Rome")])
+    times = pd.DatetimeIndex(
+        [
+            pd.Timestamp("2025-12-21 10:30", tz="Europe/Rome"),
+            pd.Timestamp("2025-12-21 12:01", tz="Europe/Rome"),
+            pd.Timestamp("2025-03-21 15:00", tz="Europe/Rome"),
+        ]
+    )
     elevation, azimuth = _sun(times)
     distances, length, end, width, dni, eta = np.array([-2.4, 0.0, 1.2, 3.6]), 100.0, 13.0, 0.6, 850.0, 0.646
     power = end_loss_power(elevation, azimuth, np.full(3, dni), length, H, distances, width, end, eta)
@@ -95,20 +99,36 @@ def test_day_energies_and_the_year_size_of_the_end_sections():
     times = pd.date_range("2025-06-21 00:00", periods=144, freq="10min", tz="Europe/Rome")
     elevation, azimuth = _sun(times)
     dni = pvlib.location.Location(40.0, 14.25, "Europe/Rome", 0.0).get_clearsky(times, model="ineichen")["dni"]
-    power = end_loss_power(elevation, azimuth, dni.fillna(0.0).clip(lower=0.0).to_numpy(), 100.0, H, distances,
-                           0.6, end, 0.646)
+    power = end_loss_power(
+        elevation, azimuth, dni.fillna(0.0).clip(lower=0.0).to_numpy(), 100.0, H, distances, 0.6, end, 0.646
+    )
     seconds = (times - times[0]).total_seconds().to_numpy()
     assert days.loc[172, "energy_single_J"] == pytest.approx(np.trapezoid(power["power_single_W"], seconds), rel=1e-9)
 
 
-@pytest.mark.parametrize("kwargs, key", [({"end_length": 60.0}, "end_length"), ({"mirror_width": -1.0}, "mirror_width"),
-                                         ({"plant_length": 0.0}, "plant_length"),
-                                         ({"optical_efficiency": 1.5}, "optical_efficiency")])
+@pytest.mark.parametrize(
+    "kwargs, key",
+    [
+        ({"end_length": 60.0}, "end_length"),
+        ({"mirror_width": -1.0}, "mirror_width"),
+        ({"plant_length": 0.0}, "plant_length"),
+        ({"optical_efficiency": 1.5}, "optical_efficiency"),
+    ],
+)
 def test_bad_plant_is_an_error_naming_the_key(kwargs, key):
     args = {"plant_length": 100.0, "mirror_width": 0.6, "end_length": 10.0, "optical_efficiency": 0.6, **kwargs}
     with pytest.raises(InputError, match=key):
-        end_loss_power([30.0], [180.0], [900.0], args["plant_length"], H, [0.0], args["mirror_width"],
-                       args["end_length"], args["optical_efficiency"])
+        end_loss_power(
+            [30.0],
+            [180.0],
+            [900.0],
+            args["plant_length"],
+            H,
+            [0.0],
+            args["mirror_width"],
+            args["end_length"],
+            args["optical_efficiency"],
+        )
 
 
 def test_end_loss_command_writes_the_days_and_the_year_plot(tmp_path, capsys):

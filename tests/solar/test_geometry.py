@@ -196,9 +196,7 @@ def test_single_axis_mirror_reflects_projected_sun_onto_the_tube(rng):
     height = rng.uniform(1.0, 10.0, n)
     elevation = np.degrees(np.arcsin(sun[:, 2]))
     azimuth = np.degrees(np.arctan2(sun[:, 0], sun[:, 1]))
-    beta = np.array(
-        [geometry.single_axis_tilt(e, a, d, h) for e, a, d, h in zip(elevation, azimuth, distance, height)]
-    )
+    beta = np.array([geometry.single_axis_tilt(e, a, d, h) for e, a, d, h in zip(elevation, azimuth, distance, height)])
     projected = sun[:, [0, 2]] / np.linalg.norm(sun[:, [0, 2]], axis=1, keepdims=True)
     normal = np.column_stack([np.cos(beta), np.sin(beta)])
     reflected = 2.0 * np.sum(projected * normal, axis=1, keepdims=True) * normal - projected
@@ -225,9 +223,7 @@ def test_primary_and_secondary_rebuild_the_normal(rng):
     distance = rng.uniform(-8.0, 8.0, 1000)
     normal = np.column_stack(geometry.two_axis_normal(sun[:, 0], sun[:, 1], sun[:, 2], distance, 5.0))
     primary, secondary = geometry.two_axis_angles_from_normal(normal[:, 0], normal[:, 1], normal[:, 2])
-    rebuilt = np.array(
-        [_rotation_y(p) @ _rotation_x(q) @ [0.0, 0.0, 1.0] for p, q in zip(primary, secondary)]
-    )
+    rebuilt = np.array([_rotation_y(p) @ _rotation_x(q) @ [0.0, 0.0, 1.0] for p, q in zip(primary, secondary)])
     np.testing.assert_allclose(rebuilt, normal, rtol=0, atol=1e-12)
 
 
@@ -259,9 +255,7 @@ def test_field_distances_and_primary_errors_at_noon():
     np.testing.assert_allclose(distances, (np.arange(13) - 6) * 0.5)
     assert distances[6] == 0.0
     altitude = 35.0
-    errors = geometry.field_primary_errors(
-        pd.Series([altitude]), pd.Series([180.0]), 3.0, distances
-    )
+    errors = geometry.field_primary_errors(pd.Series([altitude]), pd.Series([180.0]), 3.0, distances)
     assert errors.shape == (1, 13)
     # sun due South: the central primary is 0; a mirror at d tilts toward the tube only,
     # n ~ S + T with S_x = 0, so its primary is atan2(-d / L, sin(alt) + h / L)

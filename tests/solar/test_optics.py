@@ -44,7 +44,9 @@ def test_ideal_mirror_sends_central_ray_to_the_tube_axis(distance):
 
 def test_reflected_ray_is_unit_and_obeys_equal_angles():
     sun = _sun_grid()
-    normal = optics.mirror_normal(np.array([0.1, -0.3, 0.2, 0.0, 0.5, -0.1]), np.array([0.05, 0.0, -0.2, 0.3, 0.1, 0.0]))
+    normal = optics.mirror_normal(
+        np.array([0.1, -0.3, 0.2, 0.0, 0.5, -0.1]), np.array([0.05, 0.0, -0.2, 0.3, 0.1, 0.0])
+    )
     ray = optics.reflect(*sun, *normal)
     np.testing.assert_allclose(np.linalg.norm(np.stack(ray), axis=0), 1.0, rtol=1e-12)
     cos_in = sum(s * n for s, n in zip(sun, normal))
@@ -79,7 +81,10 @@ def test_cosine_factor():
 def test_intercept_equals_quadrature_of_gaussian(miss, sigma):
     diameter, slant = 0.07, 6.0
     s = slant * sigma
-    pdf = lambda u: np.exp(-0.5 * (u / s) ** 2) / (np.sqrt(2 * np.pi) * s)
+
+    def pdf(u):
+        return np.exp(-0.5 * (u / s) ** 2) / (np.sqrt(2 * np.pi) * s)
+
     expected, _ = integrate.quad(pdf, miss - diameter / 2, miss + diameter / 2, epsabs=1e-13)
     np.testing.assert_allclose(optics.intercept_factor(miss, slant, diameter, sigma), expected, atol=1e-10)
 

@@ -7,20 +7,18 @@ tube directions) and against :func:`heliostep.solar.two_axis_angles`.
 
 from __future__ import annotations
 
-
 import numpy as np
 import pandas as pd
 import pvlib
 import pytest
-from scipy.special import erf
 from distributed import Client, LocalCluster
+from scipy.special import erf
 
-from heliostep.paths import scenarios_dir
-from heliostep.sweep import field_sharing_errors, primary_sharing_error, run_field
-from heliostep.solar import two_axis_angles
 from heliostep.drive.inputs import reference_times
+from heliostep.paths import scenarios_dir
 from heliostep.scenario import load_scenario, validate_scenario
-from heliostep.sweep import expand_cases, sweep_from_scenario
+from heliostep.solar import two_axis_angles
+from heliostep.sweep import expand_cases, field_sharing_errors, primary_sharing_error, run_field, sweep_from_scenario
 
 BASE = scenarios_dir() / "jan21-central.yaml"
 
@@ -30,8 +28,12 @@ DISTANCES = (np.arange(13) - 6) * SPACING  # [m], mirror index 0 .. 12
 
 @pytest.fixture(scope="module")
 def client(fmu_paths):
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=":0") as cluster, Client(cluster) as dask_client:
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
+        ) as cluster,
+        Client(cluster) as dask_client,
+    ):
         dask_client.wait_for_workers(2)
         yield dask_client
 
@@ -45,8 +47,9 @@ def solar_noon_direction(scenario) -> np.ndarray:
     site = scenario.site
     day = pd.DatetimeIndex([pd.Timestamp(scenario.window.date).tz_localize(site.timezone) + pd.Timedelta(hours=12)])
     transit = pvlib.solarposition.sun_rise_set_transit_spa(day, site.latitude, site.longitude)["transit"]
-    sun = pvlib.solarposition.get_solarposition(pd.DatetimeIndex(transit), site.latitude, site.longitude,
-                                                site.altitude, method="nrel_numpy")
+    sun = pvlib.solarposition.get_solarposition(
+        pd.DatetimeIndex(transit), site.latitude, site.longitude, site.altitude, method="nrel_numpy"
+    )
     elevation, azimuth = np.radians(sun["apparent_elevation"].iloc[0]), np.radians(sun["azimuth"].iloc[0])
     return np.array([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth), np.sin(elevation)])
 
@@ -55,8 +58,13 @@ def sun_direction(scenario, seconds: float) -> np.ndarray:
     """Unit vector to the sun ``seconds`` after the window's start (pvlib SPA, apparent elevation)."""
     start, _ = scenario.window_bounds()
     site = scenario.site
-    sun = pvlib.solarposition.get_solarposition(pd.DatetimeIndex([start + pd.Timedelta(seconds=seconds)]),
-                                                site.latitude, site.longitude, site.altitude, method="nrel_numpy")
+    sun = pvlib.solarposition.get_solarposition(
+        pd.DatetimeIndex([start + pd.Timedelta(seconds=seconds)]),
+        site.latitude,
+        site.longitude,
+        site.altitude,
+        method="nrel_numpy",
+    )
     elevation, azimuth = np.radians(sun["apparent_elevation"].iloc[0]), np.radians(sun["azimuth"].iloc[0])
     return np.array([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth), np.sin(elevation)])
 
@@ -72,13 +80,15 @@ def first_principles_errors(scenario) -> dict[float, tuple[float, float]]:
     start, end = scenario.window_bounds()
     times = start + pd.to_timedelta(reference_times((end - start).total_seconds()), unit="s")
     site = scenario.site
-    sun = pvlib.solarposition.get_solarposition(times, site.latitude, site.longitude, site.altitude,
-                                                method="nrel_numpy")
+    sun = pvlib.solarposition.get_solarposition(
+        times, site.latitude, site.longitude, site.altitude, method="nrel_numpy"
+    )
     elevation = np.radians(sun["apparent_elevation"].to_numpy())
     azimuth = np.radians(sun["azimuth"].to_numpy())
     # North-South plant: x = East, y = North, z = up; the tube over x = 0 at height h
-    to_sun = np.stack([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth),
-                       np.sin(elevation)], axis=1)
+    to_sun = np.stack(
+        [np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth), np.sin(elevation)], axis=1
+    )
     height = scenario.plant.tube_height
 
     def primary(distance):
@@ -93,10 +103,10 @@ def first_principles_errors(scenario) -> dict[float, tuple[float, float]]:
     for distance in DISTANCES:
         offset = primary_at(noon, distance, height) - primary_at(noon, 0.0, height)
         error = np.degrees(primary(distance) - central - offset)
-        library, _ = two_axis_angles(sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy(),
-                                     distance, height)
-        library_central, _ = two_axis_angles(sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy(),
-                                             0.0, height)
+        library, _ = two_axis_angles(sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy(), distance, height)
+        library_central, _ = two_axis_angles(
+            sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy(), 0.0, height
+        )
         np.testing.assert_allclose(np.radians(error) + offset, library - library_central, rtol=0, atol=1e-12)
         worst = int(np.argmax(np.abs(error)))
         errors[float(distance)] = (abs(error[worst]), error[worst])
@@ -125,7 +135,8 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
     # light on the tube with the shared primary, beside each mirror's own figures
     optics = scenario.optics
     assert mirrors.loc[6, "light_lost_shared_primary_J"] == pytest.approx(
-        0.0, abs=1e-6 * mirrors.loc[6, "light_energy_ideal_J"])  # the central law is the central mirror's own
+        0.0, abs=1e-6 * mirrors.loc[6, "light_energy_ideal_J"]
+    )  # the central law is the central mirror's own
     sigma = np.hypot(4.65e-3 / 2, 2 * optics.slope_error)  # sun (pillbox 4.65 mrad -> sigma R/2) and slope error
     height, half = scenario.plant.tube_height, optics.tube_diameter / 2
     to_sun = sun_direction(scenario, 10.0)  # mid-window: the error moves < 0.01 deg in 20 s
@@ -136,8 +147,9 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
         to_tube = np.array([-distance, 0.0, height]) / np.hypot(distance, height)
         own = (to_sun + to_tube) / np.linalg.norm(to_sun + to_tube)
         delta = -np.radians(expected[float(distance)][1])
-        normal = np.array([own[0] * np.cos(delta) + own[2] * np.sin(delta), own[1],
-                           -own[0] * np.sin(delta) + own[2] * np.cos(delta)])
+        normal = np.array(
+            [own[0] * np.cos(delta) + own[2] * np.sin(delta), own[1], -own[0] * np.sin(delta) + own[2] * np.cos(delta)]
+        )
         ray = 2 * (to_sun @ normal) * normal - to_sun  # law of reflection
         across = np.hypot(ray[0], ray[2])
         miss = (-distance * ray[2] - height * ray[0]) / across  # distance of the axis from the ray, cross-section
@@ -150,7 +162,8 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
 
 def test_sharing_errors_vanish_at_solar_noon_where_the_mirrors_are_mounted():
     noon = pvlib.solarposition.sun_rise_set_transit_spa(
-        pd.DatetimeIndex([pd.Timestamp("2025-01-21 12:00", tz="Europe/Rome")]), 40.0, 14.25)["transit"].iloc[0]
+        pd.DatetimeIndex([pd.Timestamp("2025-01-21 12:00", tz="Europe/Rome")]), 40.0, 14.25
+    )["transit"].iloc[0]
     start = (pd.Timestamp(noon).tz_convert("Europe/Rome") - pd.Timedelta(seconds=1)).floor("s")
     errors = field_sharing_errors(short_scenario(start.strftime("%H:%M:%S"), duration=2.0))
     # within 2 s of noon the sun moves by ~0.008 deg: the motion errors are a small fraction of that
@@ -164,7 +177,8 @@ def test_field_sharing_errors_match_the_per_case_figure_and_first_principles():
     expected = first_principles_errors(scenario)
     for index in (0, 6, 9):
         assert errors.loc[index, "primary_sharing_error_max_deg"] == pytest.approx(
-            expected[float(DISTANCES[index])][0], rel=1e-9, abs=1e-12)
+            expected[float(DISTANCES[index])][0], rel=1e-9, abs=1e-12
+        )
     single = primary_sharing_error(load_scenario(BASE, ("window.duration=20", "mirror.distance=-3.6")))
     assert single["primary_sharing_error_max_deg"] == pytest.approx(errors.loc[0, "primary_sharing_error_max_deg"])
     night = primary_sharing_error(short_scenario("23:00"))
@@ -200,12 +214,18 @@ def test_shared_primary_case_carries_the_fields_panels_about_their_longitudinal_
 
 def test_shorthand_motor_axis_swaps_the_instance_that_plays_the_motor(tmp_path):
     # instances renamed: the 'motor' axis follows the torque role, not the name 'motor'
-    renamed = load_scenario(BASE, ["fmus.motor=null", "fmus.mechanics=null", "fmus.coil=StepperMotor",
-                                   "fmus.panel=PanelMechanics",
-                                   "connections=[[coil.tau, panel.tau], [panel.theta, coil.theta], "
-                                   "[panel.omega, coil.omega]]",
-                                   "roles={current_a_ref: coil.i_a_ref, current_b_ref: coil.i_b_ref, "
-                                   "torque: coil.tau, rotor_angle: panel.theta, panel_angle: panel.theta_p}"])
+    renamed = load_scenario(
+        BASE,
+        [
+            "fmus.motor=null",
+            "fmus.mechanics=null",
+            "fmus.coil=StepperMotor",
+            "fmus.panel=PanelMechanics",
+            "connections=[[coil.tau, panel.tau], [panel.theta, coil.theta], [panel.omega, coil.omega]]",
+            "roles={current_a_ref: coil.i_a_ref, current_b_ref: coil.i_b_ref, "
+            "torque: coil.tau, rotor_angle: panel.theta, panel_angle: panel.theta_p}",
+        ],
+    )
     spec = sweep_from_scenario(renamed, {"motor": ["StepperMotor", "StepperMotorIdealCurrent"]})
     cases = expand_cases(spec)
     assert [case.scenario["fmus"]["coil"] for case in cases] == ["StepperMotor", "StepperMotorIdealCurrent"]

@@ -21,8 +21,8 @@ from distributed import Client, LocalCluster
 
 from heliostep import cli
 from heliostep.errors import InputError
-from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE, plot_sweep
 from heliostep.paths import fmus_dir, scenarios_dir
+from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE, plot_sweep
 from heliostep.run import run_scenario
 from heliostep.sweep import expand_cases, load_sweep, read_results, run_sweep
 
@@ -31,24 +31,41 @@ SMOKE = scenarios_dir() / "sweeps" / "smoke.yaml"
 YEAR_FIELD = scenarios_dir() / "sweeps" / "year-field.yaml"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Summary key -> table column, for the figures that are plain numbers.
-PLAIN_FIGURES = ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
-                 "electrical_energy_J", "steps_commanded", "steps_executed", "missed_steps", "duration_s",
-                 "light_energy_J", "light_energy_ideal_J", "light_lost_J", "light_lost_stepping_J",
-                 "light_lost_shared_primary_J", "mean_intercept", "drive_energy_per_day_J")
+PLAIN_FIGURES = (
+    "max_tracking_error_deg",
+    "rms_tracking_error_deg",
+    "peak_torque_Nm",
+    "peak_phase_current_A",
+    "electrical_energy_J",
+    "steps_commanded",
+    "steps_executed",
+    "missed_steps",
+    "duration_s",
+    "light_energy_J",
+    "light_energy_ideal_J",
+    "light_lost_J",
+    "light_lost_stepping_J",
+    "light_lost_shared_primary_J",
+    "mean_intercept",
+    "drive_energy_per_day_J",
+)
 SHORT_WINDOW = {"window.duration": 20, "output.interval": 0.5}
 
 
 def local_cluster(**env) -> LocalCluster:
-    return LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                        dashboard_address=":0", env=env)
+    return LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0", env=env
+    )
 
 
 @pytest.fixture(scope="module")
 def client(fmu_paths, tmp_path_factory):
     """A client of a 2-worker local cluster whose workers cannot build or find FMUs themselves."""
     empty = tmp_path_factory.mktemp("no-models")
-    with local_cluster(HELIOSTEP_MODELS=str(empty), HELIOSTEP_FMUS=str(empty)) as cluster, \
-            Client(cluster) as dask_client:
+    with (
+        local_cluster(HELIOSTEP_MODELS=str(empty), HELIOSTEP_FMUS=str(empty)) as cluster,
+        Client(cluster) as dask_client,
+    ):
         dask_client.wait_for_workers(2)
         yield dask_client
 
@@ -71,18 +88,27 @@ def same(value, expected) -> bool:
 def test_drive_tradeoffs_sweep_expands_microsteps_by_idle_current_by_wind():
     cases = expand_cases(load_sweep(scenarios_dir() / "sweeps" / "drive-tradeoffs.yaml"))
     assert len(cases) == 3 * 3 * 2
-    combos = {(c.scenario["sequencer"]["microsteps"], c.scenario["sequencer"]["idle_current_fraction"],
-               c.scenario["wind"]["moment"]) for c in cases}
+    combos = {
+        (
+            c.scenario["sequencer"]["microsteps"],
+            c.scenario["sequencer"]["idle_current_fraction"],
+            c.scenario["wind"]["moment"],
+        )
+        for c in cases
+    }
     assert combos == {(m, f, w) for m in (1, 4, 16) for f in (1.0, 0.5, 0.3) for w in (0.0, 100.0)}
-    assert all(c.scenario["sequencer"]["idle_delay"] == 0.5 and c.scenario["window"]["duration"] == 120
-               for c in cases)
+    assert all(c.scenario["sequencer"]["idle_delay"] == 0.5 and c.scenario["window"]["duration"] == 120 for c in cases)
 
 
 def test_smoke_sweep_expands_to_day_by_mirror_product():
     spec = load_sweep(SMOKE)
     cases = expand_cases(spec)
     assert [(c.columns["date"], c.columns["mirror_index"]) for c in cases] == [
-        ("2025-01-21", 0), ("2025-01-21", 12), ("2025-06-21", 0), ("2025-06-21", 12)]
+        ("2025-01-21", 0),
+        ("2025-01-21", 12),
+        ("2025-06-21", 0),
+        ("2025-06-21", 12),
+    ]
     assert [c.columns["mirror_distance_m"] for c in cases] == [-3.6, 3.6, -3.6, 3.6]
     assert all(c.scenario["window"]["duration"] == 20 and c.scenario["output"]["interval"] == 0.5 for c in cases)
     assert all(c.scenario["mirror"]["distance"] is None for c in cases)
@@ -91,14 +117,19 @@ def test_smoke_sweep_expands_to_day_by_mirror_product():
 
 
 def test_zip_all_ranges_and_shared_primary(tmp_path):
-    zipped = write_sweep(tmp_path, "zipped", combine="zip",
-                         axes={"day_of_year": [21, 172], "sequencer.current": [5.5, 3.0]})
+    zipped = write_sweep(
+        tmp_path, "zipped", combine="zip", axes={"day_of_year": [21, 172], "sequencer.current": [5.5, 3.0]}
+    )
     cases = expand_cases(load_sweep(zipped))
     assert [(c.columns["day_of_year"], c.columns["current_A"]) for c in cases] == [(21, 5.5), (172, 3.0)]
     assert cases[1].columns["sequencer.current"] == 3.0
 
-    field = write_sweep(tmp_path, "field", shared_primary=True,
-                        axes={"day_of_year": {"start": 1, "stop": 15, "step": 7}, "mirror": "all"})
+    field = write_sweep(
+        tmp_path,
+        "field",
+        shared_primary=True,
+        axes={"day_of_year": {"start": 1, "stop": 15, "step": 7}, "mirror": "all"},
+    )
     cases = expand_cases(load_sweep(field))
     drives = [c for c in cases if c.columns["role"] == "drive"]
     primaries = [c for c in cases if c.columns["role"] == "shared-primary"]
@@ -122,8 +153,13 @@ def test_sweep_on_two_workers_equals_runs_one_by_one(client, tmp_path):
     assert list(table["status"]) == ["ok"] * 4
     assert table.equals(read_results(results))
     for row in table.itertuples(index=False):
-        overrides = ("window.duration=20", "output.interval=0.5", f"window.date={row.date}",
-                     "mirror.distance=null", f"mirror.index={row.mirror_index}")
+        overrides = (
+            "window.duration=20",
+            "output.interval=0.5",
+            f"window.date={row.date}",
+            "mirror.distance=null",
+            f"mirror.index={row.mirror_index}",
+        )
         summary = run_scenario(BASE, overrides).summary
         for key in PLAIN_FIGURES:
             assert same(getattr(row, key), summary[key]), key
@@ -163,8 +199,13 @@ def test_rerun_skips_finished_cases_and_runs_new_ones(client, tmp_path):
     for case_id, stamp in stamps.items():
         assert table.loc[table["case_id"] == case_id, "finished_at"].item() == stamp
 
-    edited = run_sweep(write_sweep(tmp_path, axes={"day_of_year": [21, 111, 172]},
-                                   overrides={**SHORT_WINDOW, "window.start": "11:00"}), results, client=client)
+    edited = run_sweep(
+        write_sweep(
+            tmp_path, axes={"day_of_year": [21, 111, 172]}, overrides={**SHORT_WINDOW, "window.start": "11:00"}
+        ),
+        results,
+        client=client,
+    )
     assert edited.executed == 3  # another base window: other scenarios, other case ids
     assert len(read_results(results)) == 3  # rows of cases no longer in the sweep are dropped
 
@@ -208,8 +249,11 @@ def test_failing_case_is_recorded_and_the_rest_complete(client, tmp_path):
 
 
 def test_killing_a_worker_mid_sweep_loses_nothing(fmu_paths, tmp_path):
-    sweep = write_sweep(tmp_path, axes={"day_of_year": [21, 111, 172], "mirror": [0, 12]},
-                        overrides={"window.duration": 60, "output.interval": 0.5})
+    sweep = write_sweep(
+        tmp_path,
+        axes={"day_of_year": [21, 111, 172], "mirror": [0, 12]},
+        overrides={"window.duration": 60, "output.interval": 0.5},
+    )
     results = tmp_path / "results.parquet"
     killed = []
 
@@ -227,30 +271,41 @@ def test_killing_a_worker_mid_sweep_loses_nothing(fmu_paths, tmp_path):
 
         outcome = run_sweep(sweep, results, client=dask_client, on_result=kill_a_worker_after_the_first_result)
         survivors = set(dask_client.run(os.getpid).values())
-    (victim_pid, victim_was_running_cases), = killed
+    ((victim_pid, victim_was_running_cases),) = killed
     assert victim_was_running_cases and victim_pid not in survivors
     table = read_results(results)
     assert outcome.executed == 6 and len(table) == 6
     assert list(table["status"]) == ["ok"] * 6
     assert sorted(zip(table["day_of_year"], table["mirror_index"])) == [
-        (21, 0), (21, 12), (111, 0), (111, 12), (172, 0), (172, 12)]
+        (21, 0),
+        (21, 12),
+        (111, 0),
+        (111, 12),
+        (172, 0),
+        (172, 12),
+    ]
 
 
 # --------------------------------------------------------------------------- bad input
-@pytest.mark.parametrize("content, words", [
-    ({"axes": {"sequencer.curent": [5.5]}}, ["axes.sequencer.curent", "unknown key"]),
-    ({"axes": {"mirror": []}}, ["axes.mirror", "empty"]),
-    ({"combine": "zip", "axes": {"day_of_year": [21, 172], "mirror": [0, 6, 12]}},
-     ["zip", "day_of_year has 2", "mirror has 3"]),
-    ({"axes": {"day_of_year": [21, 400]}}, ["axes.day_of_year", "400", "1 to 365"]),
-    ({"axes": {"mirror": [0, 13]}}, ["axes.mirror", "13"]),
-    ({"axes": {"mirror.index": [3]}}, ["axes.mirror.index", "'mirror' axis"]),
-    ({"axes": {"motor": ["NoSuchMotor"]}}, ["fmus.motor", "NoSuchMotor"]),
-    ({"axes": {"day_of_year": [21]}, "colour": "red"}, ["colour", "unknown key"]),
-    ({"axes": {"day_of_year": [21, 21]}}, ["axes.day_of_year", "repeated"]),
-    ({"axes": {"window.duration": [20, -1]}}, ["axes.window.duration", "-1"]),
-    ({"axes": {"day_of_year": [21]}, "overrides": {"solver.rtol": "tight"}}, ["overrides", "solver.rtol"]),
-])
+@pytest.mark.parametrize(
+    "content, words",
+    [
+        ({"axes": {"sequencer.curent": [5.5]}}, ["axes.sequencer.curent", "unknown key"]),
+        ({"axes": {"mirror": []}}, ["axes.mirror", "empty"]),
+        (
+            {"combine": "zip", "axes": {"day_of_year": [21, 172], "mirror": [0, 6, 12]}},
+            ["zip", "day_of_year has 2", "mirror has 3"],
+        ),
+        ({"axes": {"day_of_year": [21, 400]}}, ["axes.day_of_year", "400", "1 to 365"]),
+        ({"axes": {"mirror": [0, 13]}}, ["axes.mirror", "13"]),
+        ({"axes": {"mirror.index": [3]}}, ["axes.mirror.index", "'mirror' axis"]),
+        ({"axes": {"motor": ["NoSuchMotor"]}}, ["fmus.motor", "NoSuchMotor"]),
+        ({"axes": {"day_of_year": [21]}, "colour": "red"}, ["colour", "unknown key"]),
+        ({"axes": {"day_of_year": [21, 21]}}, ["axes.day_of_year", "repeated"]),
+        ({"axes": {"window.duration": [20, -1]}}, ["axes.window.duration", "-1"]),
+        ({"axes": {"day_of_year": [21]}, "overrides": {"solver.rtol": "tight"}}, ["overrides", "solver.rtol"]),
+    ],
+)
 def test_bad_sweep_gives_clear_error_before_any_case_runs(client, tmp_path, content, words):
     sweep = write_sweep(tmp_path, "bad", **content)
     results = tmp_path / "results.parquet"
@@ -296,15 +351,29 @@ def test_cli_runs_lists_and_reports_failures(client, tmp_path, capsys, heliostep
     assert listing.startswith("4 cases") and listing.count(" ok ") == 4
 
     failing = write_sweep(tmp_path, "failing", axes={"solver.max_num_steps": [5, 100000]})
-    assert heliostep_main(["sweep", str(failing), "--out", str(tmp_path / "f"), "--scheduler", address,
-                           "--no-plots"]) == 1
+    assert (
+        heliostep_main(["sweep", str(failing), "--out", str(tmp_path / "f"), "--scheduler", address, "--no-plots"]) == 1
+    )
     captured = capsys.readouterr()
     assert "FAILED case 0" in captured.out and "--retry-failed" in captured.err
 
     assert heliostep_main(["sweep", str(tmp_path / "missing.yaml")]) == 2
     assert "sweep file not found" in capsys.readouterr().err
-    assert heliostep_main(["sweep", str(sweep), "--out", str(tmp_path / "u"), "--scheduler", "tcp://127.0.0.1:1",
-                           "--connect-timeout", "2"]) == 2
+    assert (
+        heliostep_main(
+            [
+                "sweep",
+                str(sweep),
+                "--out",
+                str(tmp_path / "u"),
+                "--scheduler",
+                "tcp://127.0.0.1:1",
+                "--connect-timeout",
+                "2",
+            ]
+        )
+        == 2
+    )
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
 
 

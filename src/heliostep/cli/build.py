@@ -10,12 +10,17 @@ from heliostep.fmu.build import build_all
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "build-fmus", help="compile the Modelica models to FMI 2.0 Model Exchange FMUs",
+        "build-fmus",
+        help="compile the Modelica models to FMI 2.0 Model Exchange FMUs",
         description="Compile models/NAME.mo to NAME.fmu in the FMU cache (pymoca -> CasADi -> C -> gcc). "
-                    "Up-to-date FMUs are kept unless --force is given.")
-    parser.add_argument("--model", action="append", metavar="NAME",
-                        help="build only this model (repeatable); default: all models")
-    parser.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: the FMU cache, or $HELIOSTEP_FMUS)")
+        "Up-to-date FMUs are kept unless --force is given.",
+    )
+    parser.add_argument(
+        "--model", action="append", metavar="NAME", help="build only this model (repeatable); default: all models"
+    )
+    parser.add_argument(
+        "--out", type=Path, metavar="DIR", help="output folder (default: the FMU cache, or $HELIOSTEP_FMUS)"
+    )
     parser.add_argument("--models", type=Path, metavar="DIR", help="Modelica folder (default: models/)")
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     parser.set_defaults(func=_run_build)

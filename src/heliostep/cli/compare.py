@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--signals",
         metavar="A,B,...",
         help="comma-separated signals to compare (default: every signal of REFERENCE, each of which "
-             "ACTUAL must have: a missing one is bad input, exit 2)",
+        "ACTUAL must have: a missing one is bad input, exit 2)",
     )
     parser.add_argument("--abs-tol", metavar="X", help="absolute tolerance, signal units, for all signals")
     parser.add_argument("--rel-tol", metavar="X", help="relative tolerance (fraction of |reference|)")
@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         if missing:
             raise InputError(
                 f"{args.actual}: no column(s) {', '.join(map(repr, missing))} of the reference {args.reference}; "
-                f"to compare only some signals, name them with --signals")
+                f"to compare only some signals, name them with --signals"
+            )
     result = compare_traces(
         actual,
         reference,

@@ -30,8 +30,10 @@ from heliostep.solar.sun import Site
 def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``end-loss`` command."""
     parser = subparsers.add_parser(
-        "end-loss", help="end-loss gain of two-axis end mirrors: lit length and energy per day and year",
-        description=__doc__.split("\n\n", 1)[0])
+        "end-loss",
+        help="end-loss gain of two-axis end mirrors: lit length and energy per day and year",
+        description=__doc__.split("\n\n", 1)[0],
+    )
     parser.add_argument("--latitude", type=float, default=40.0, help="[deg], +North (default 40, the paper's)")
     parser.add_argument("--longitude", type=float, default=14.25, help="[deg], +East (default 14.25, assumed)")
     parser.add_argument("--altitude", type=float, default=0.0, help="[m] (default 0)")
@@ -43,8 +45,11 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--rows", type=int, default=13, help="rows of mirrors across, odd (default 13)")
     parser.add_argument("--spacing", type=float, default=0.6, help="[m] between rows (default 0.6, assumed)")
     parser.add_argument("--mirror-width", type=float, help="[m] of each row (default: the spacing)")
-    parser.add_argument("--end-length", type=float, help="[m] of each two-axis end section (default: the year's "
-                                                         "largest k above 5 deg sun elevation)")
+    parser.add_argument(
+        "--end-length",
+        type=float,
+        help="[m] of each two-axis end section (default: the year's largest k above 5 deg sun elevation)",
+    )
     parser.add_argument("--reflectivity", type=float, default=0.80, help="rho (default 0.80, seed 004)")
     parser.add_argument("--transmittance", type=float, default=0.85, help="tau (default 0.85)")
     parser.add_argument("--absorptance", type=float, default=0.95, help="alpha (default 0.95)")
@@ -65,8 +70,18 @@ def _end_loss_command(args: argparse.Namespace) -> int:
         end = largest_shift(site, args.year, args.tube_height, distances)
     if not 2 * end < args.length:
         raise InputError(f"--end-length {end:.3g} m: two end sections must be shorter than --length {args.length:g} m")
-    days = end_loss_days(site, args.year, args.length, args.tube_height, distances, width, end, efficiency,
-                         days=args.days, step_minutes=args.step_minutes)
+    days = end_loss_days(
+        site,
+        args.year,
+        args.length,
+        args.tube_height,
+        distances,
+        width,
+        end,
+        efficiency,
+        days=args.days,
+        step_minutes=args.step_minutes,
+    )
     args.out.mkdir(parents=True, exist_ok=True)
     days.to_csv(args.out / "end_loss_days.csv", float_format="%.6g")
     written = [args.out / "end_loss_days.csv"]
@@ -79,13 +94,16 @@ def _end_loss_command(args: argparse.Namespace) -> int:
     single, two = days["energy_single_J"].sum(), days["energy_two_axis_J"].sum()
     print(f"end sections of two-axis mirrors: {end:.2f} m at each end; {len(days)} days of {args.year}")
     print(f"  energy on the tube, single-axis plant   {single / 3.6e9:10.2f} MWh")
-    print(f"  energy on the tube, two-axis end mirrors {two / 3.6e9:10.2f} MWh  "
-          f"(gain {100 * (two / single - 1):.2f} %)")
+    print(
+        f"  energy on the tube, two-axis end mirrors {two / 3.6e9:10.2f} MWh  (gain {100 * (two / single - 1):.2f} %)"
+    )
     december = dt.date(args.year, 12, 21).timetuple().tm_yday
     if december in days.index:
         row = days.loc[december]
-        print(f"  21 December: dark length at noon {row['unlit_length_noon_m']:.2f} m, "
-              f"lit {row['lit_length_noon_m']:.2f} m, gain {100 * row['gain']:.1f} %")
+        print(
+            f"  21 December: dark length at noon {row['unlit_length_noon_m']:.2f} m, "
+            f"lit {row['lit_length_noon_m']:.2f} m, gain {100 * row['gain']:.1f} %"
+        )
     for path in written:
         print(f"  wrote {path}")
     return 0

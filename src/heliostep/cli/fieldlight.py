@@ -25,11 +25,14 @@ from heliostep.scenario import load_scenario
 def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``field-light`` command."""
     parser = subparsers.add_parser(
-        "field-light", help="energy on the tube per day and mirror of the field with the shared primary",
-        description=__doc__.split("\n\n", 1)[0])
+        "field-light",
+        help="energy on the tube per day and mirror of the field with the shared primary",
+        description=__doc__.split("\n\n", 1)[0],
+    )
     parser.add_argument("scenario", type=Path, help="scenario YAML (site, plant, optics, mirror.spacing)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a scenario key")
+    parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key"
+    )
     parser.add_argument("--days", type=int, nargs="+", help="days of the year (default all)")
     parser.add_argument("--step-minutes", type=float, default=10.0, help="[min] time step (default 10)")
     parser.add_argument("--out", type=Path, help="output folder (default out/<scenario name>-field-light)")
@@ -49,19 +52,29 @@ def _field_light_command(args: argparse.Namespace) -> int:
         from heliostep.plots.sweep import plot_heatmap
 
         for column, name, label, scale in (
-                ("light_lost_J", "heatmap_light_lost_year.png", "light lost to the shared primary per day [MJ]", 1e-6),
-                ("light_lost_fraction", "heatmap_light_lost_fraction_year.png",
-                 "light lost to the shared primary, share of ideal tracking [%]", 100.0)):
+            ("light_lost_J", "heatmap_light_lost_year.png", "light lost to the shared primary per day [MJ]", 1e-6),
+            (
+                "light_lost_fraction",
+                "heatmap_light_lost_fraction_year.png",
+                "light lost to the shared primary, share of ideal tracking [%]",
+                100.0,
+            ),
+        ):
             path = plot_heatmap(table, column, out / name, label, scale)
             written += [path] if path else []
     year = table.groupby("mirror_index")[["mirror_distance_m", "light_energy_ideal_J", "light_energy_J"]].agg(
-        {"mirror_distance_m": "first", "light_energy_ideal_J": "sum", "light_energy_J": "sum"})
-    print(f"{scenario.name}: {table['day_of_year'].nunique()} days of {scenario.window.date.year}, "
-          f"energy on the tube [MJ], ideal two-axis tracking vs the shared primary")
+        {"mirror_distance_m": "first", "light_energy_ideal_J": "sum", "light_energy_J": "sum"}
+    )
+    print(
+        f"{scenario.name}: {table['day_of_year'].nunique()} days of {scenario.window.date.year}, "
+        f"energy on the tube [MJ], ideal two-axis tracking vs the shared primary"
+    )
     for index, row in year.iterrows():
         lost = 1 - row["light_energy_J"] / row["light_energy_ideal_J"] if row["light_energy_ideal_J"] > 0 else 0.0
-        print(f"  mirror {index:2d} (d = {row['mirror_distance_m']:+.2f} m): {row['light_energy_ideal_J'] / 1e6:9.1f} "
-              f"ideal, {row['light_energy_J'] / 1e6:9.1f} shared primary ({100 * lost:5.1f} % lost)")
+        print(
+            f"  mirror {index:2d} (d = {row['mirror_distance_m']:+.2f} m): {row['light_energy_ideal_J'] / 1e6:9.1f} "
+            f"ideal, {row['light_energy_J'] / 1e6:9.1f} shared primary ({100 * lost:5.1f} % lost)"
+        )
     for path in written:
         print(f"  wrote {path}")
     return 0

@@ -46,15 +46,22 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="solar geometry: end loss, two-axis mirror angles, the paper's reference case",
         description=__doc__.split("\n\n", 1)[0],
     )
+    _add_site_and_day_options(parser)
+    _add_plant_and_mirror_options(parser)
+    _add_paper_case_options(parser)
+    parser.add_argument("--out", default="geometry-out", help="output directory (default geometry-out)")
+    parser.set_defaults(func=run)
+    return parser
+
+
+def _add_site_and_day_options(parser: argparse.ArgumentParser) -> None:
     site = parser.add_argument_group("site")
     site.add_argument("--latitude", type=float, default=PAPER_LATITUDE, help="[deg], +North (default 40)")
     site.add_argument(
         "--longitude", type=float, default=ASSUMED_LONGITUDE, help="[deg], +East (default 14.25, assumed)"
     )
     site.add_argument("--altitude", type=float, default=0.0, help="[m] above sea level (default 0)")
-    site.add_argument(
-        "--timezone", default=ASSUMED_TIMEZONE, help="IANA name (default Europe/Rome, assumed)"
-    )
+    site.add_argument("--timezone", default=ASSUMED_TIMEZONE, help="IANA name (default Europe/Rome, assumed)")
     days = parser.add_argument_group("days")
     days.add_argument(
         "--date",
@@ -63,11 +70,12 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="day to tabulate; repeatable (default: " + ", ".join(DEFAULT_DATES) + ")",
     )
     days.add_argument("--step", type=float, default=60.0, help="time step of the day tables [s] (default 60)")
+
+
+def _add_plant_and_mirror_options(parser: argparse.ArgumentParser) -> None:
     plant = parser.add_argument_group("plant")
     plant.add_argument("--orientation", default="NS", help="tube direction: NS or EW (default NS)")
-    plant.add_argument(
-        "--azimuth-offset", type=float, default=0.0, help="extra tube azimuth, North toward East [deg]"
-    )
+    plant.add_argument("--azimuth-offset", type=float, default=0.0, help="extra tube azimuth, North toward East [deg]")
     plant.add_argument("--tube-height", type=float, default=5.0, help="receiver height h [m] (default 5)")
     mirrors = parser.add_argument_group("mirrors")
     mirrors.add_argument(
@@ -86,6 +94,9 @@ def register(subparsers) -> argparse.ArgumentParser:
         default=geometry.DEFAULT_MIRROR_SPACING,
         help=f"transverse spacing of the field [m] (default {geometry.DEFAULT_MIRROR_SPACING:g}, assumed)",
     )
+
+
+def _add_paper_case_options(parser: argparse.ArgumentParser) -> None:
     paper = parser.add_argument_group("the paper's case (Figs. 8 and 9)")
     paper.add_argument("--paper-case", action="store_true", help="also write the paper's reference case")
     paper.add_argument("--paper-date", default=PAPER_DATE, help=f"day of the case (default {PAPER_DATE})")
@@ -98,9 +109,6 @@ def register(subparsers) -> argparse.ArgumentParser:
     paper.add_argument("--lever-arm", type=float, default=geometry.PAPER_LEVER_ARM, help="s [m] (default 0.3)")
     paper.add_argument("--stow", default="hold", help="policy with the sun down: hold or stow (default hold)")
     paper.add_argument("--stow-angle", type=float, default=0.0, help="stow panel angle [deg] (default 0)")
-    parser.add_argument("--out", default="geometry-out", help="output directory (default geometry-out)")
-    parser.set_defaults(func=run)
-    return parser
 
 
 # --------------------------------------------------------------------------- parsing
@@ -275,25 +283,14 @@ def run(args) -> int:
     dates = [_parse_date(text, "--date") for text in (args.date or DEFAULT_DATES)]
     step = _positive(args.step, "--step", "s")
     distances = _mirror_distances(args)
-    paper_inputs = None
-    if args.paper_case:
-        paper_inputs = dict(
-            date=_parse_date(args.paper_date, "--paper-date"),
-            window_start=_parse_clock(args.window_start, "--window-start"),
-            window_minutes=_positive(args.window_minutes, "--window-minutes", "min (empty window)"),
-            window_step=_positive(args.window_step, "--window-step", "s"),
-            pinion_radius=_positive(args.pinion_radius, "--pinion-radius", "m"),
-            lever_arm=_positive(args.lever_arm, "--lever-arm", "m"),
-            stow=_choice(args.stow, "--stow", geometry.STOW_POLICIES),
-            stow_angle=float(np.radians(args.stow_angle)),
-        )
+    paper_inputs = _paper_case_inputs(args) if args.paper_case else None
 
     # matplotlib only once the inputs are known to be good
     from heliostep.plots import geometry as plots
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    written = []
+    written: list[Path] = []
     end_loss, two_axis = day_tables(site, plant, dates, distances, step)
     end_loss.to_csv(out / "end_loss.csv", index=False)
     two_axis.to_csv(out / "two_axis_angles.csv", index=False)
@@ -302,34 +299,55 @@ def run(args) -> int:
     written.append(plots.plot_two_axis_angles(two_axis, out / "two_axis_angles.png", site.timezone))
 
     if paper_inputs is not None:
-        table = paper_case_table(site, **paper_inputs)
-        table.to_csv(out / "paper_case.csv", index=False)
-        written.append(out / "paper_case.csv")
-        where = f"{site.latitude:g}° lat, h = {PAPER_TUBE_HEIGHT:g} m, d = 0"
-        written.append(
-            plots.plot_panel_angle_reference(
-                table.index,
-                table["panel_angle_ref_deg"],
-                out / "paper_case_panel_angle.png",
-                site.timezone,
-                f"Reference secondary panel angle, {paper_inputs['date']} ({where})",
-            )
-        )
-        written.append(
-            plots.plot_rotor_angle_reference(
-                table.index,
-                table["rotor_angle_ref_deg"],
-                out / "paper_case_rotor_angle.png",
-                site.timezone,
-                f"Reference rotor angle from 0, r = {paper_inputs['pinion_radius'] * 1e3:g} mm, "
-                f"s = {paper_inputs['lever_arm']:g} m",
-            )
-        )
-        first, last = table.iloc[0], table.iloc[-1]
-        print(
-            f"paper case: panel angle {first.panel_angle_ref_deg:.4f}° -> {last.panel_angle_ref_deg:.4f}°, "
-            f"rotor angle 0° -> {last.rotor_angle_ref_deg:.3f}°"
-        )
+        written += _write_paper_case(plots, site, paper_inputs, out)
     for path in written:
         print(f"wrote {path}")
     return 0
+
+
+def _paper_case_inputs(args) -> dict:
+    """The keyword arguments of :func:`paper_case_table` from the ``--paper-*``/``--window-*`` options."""
+    return dict(
+        date=_parse_date(args.paper_date, "--paper-date"),
+        window_start=_parse_clock(args.window_start, "--window-start"),
+        window_minutes=_positive(args.window_minutes, "--window-minutes", "min (empty window)"),
+        window_step=_positive(args.window_step, "--window-step", "s"),
+        pinion_radius=_positive(args.pinion_radius, "--pinion-radius", "m"),
+        lever_arm=_positive(args.lever_arm, "--lever-arm", "m"),
+        stow=_choice(args.stow, "--stow", geometry.STOW_POLICIES),
+        stow_angle=float(np.radians(args.stow_angle)),
+    )
+
+
+def _write_paper_case(plots, site: geometry.Site, paper_inputs: dict, out: Path) -> list[Path]:
+    """Write the paper's case (table and Figs. 8, 9) to *out*, print its angles; returns the files."""
+    written: list[Path] = []
+    table = paper_case_table(site, **paper_inputs)
+    table.to_csv(out / "paper_case.csv", index=False)
+    written.append(out / "paper_case.csv")
+    where = f"{site.latitude:g}° lat, h = {PAPER_TUBE_HEIGHT:g} m, d = 0"
+    written.append(
+        plots.plot_panel_angle_reference(
+            table.index,
+            table["panel_angle_ref_deg"],
+            out / "paper_case_panel_angle.png",
+            site.timezone,
+            f"Reference secondary panel angle, {paper_inputs['date']} ({where})",
+        )
+    )
+    written.append(
+        plots.plot_rotor_angle_reference(
+            table.index,
+            table["rotor_angle_ref_deg"],
+            out / "paper_case_rotor_angle.png",
+            site.timezone,
+            f"Reference rotor angle from 0, r = {paper_inputs['pinion_radius'] * 1e3:g} mm, "
+            f"s = {paper_inputs['lever_arm']:g} m",
+        )
+    )
+    first, last = table.iloc[0], table.iloc[-1]
+    print(
+        f"paper case: panel angle {first.panel_angle_ref_deg:.4f}° -> {last.panel_angle_ref_deg:.4f}°, "
+        f"rotor angle 0° -> {last.rotor_angle_ref_deg:.3f}°"
+    )
+    return written

@@ -20,15 +20,18 @@ from heliostep.run import RunFailed, run_scenario
 def regress_one(scenario: Path, tolerances, update: bool = False, report_dir: Path | None = None) -> Outcome:
     """Run ``scenario`` and compare it with its reference (or rewrite the reference)."""
     if not update and not reference_path(scenario).exists():
-        raise InputError(f"{scenario}: no reference trace {reference_path(scenario).name}; "
-                         f"create it with: heliostep regress --update {scenario}")
+        raise InputError(
+            f"{scenario}: no reference trace {reference_path(scenario).name}; "
+            f"create it with: heliostep regress --update {scenario}"
+        )
     try:
         run = run_scenario(scenario)
     except RunFailed as failed:
         return Outcome(scenario, None, f"the run failed: {failed}")
     metadata = run.trace_metadata()
-    outcome = check_against_reference(scenario, run.trace, metadata, run.metadata["roles"],
-                                      tolerances.for_scenario(run.scenario.name), update)
+    outcome = check_against_reference(
+        scenario, run.trace, metadata, run.metadata["roles"], tolerances.for_scenario(run.scenario.name), update
+    )
     if report_dir is not None and outcome.comparison is not None and not outcome.comparison.passed:
         from heliostep.plots.compare import write_report
 
@@ -38,16 +41,27 @@ def regress_one(scenario: Path, tolerances, update: bool = False, report_dir: Pa
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "regress", help="run scenarios and compare them with their reference traces",
+        "regress",
+        help="run scenarios and compare them with their reference traces",
         description="Run each scenario and compare its trace with scenarios/NAME.reference.parquet "
-                    "(tolerance tube, tolerances from scenarios/regress-tolerances.yaml). "
-                    "Exit status 0 all pass, 1 any deviation, 2 bad input.")
-    parser.add_argument("scenarios", nargs="*", type=Path, metavar="SCENARIO",
-                        help="scenario files (default: every shipped scenario with a reference)")
-    parser.add_argument("--update", action="store_true",
-                        help="rewrite the reference traces (and say what changed)")
-    parser.add_argument("--tolerances", type=Path, default=None, metavar="FILE",
-                        help="tolerance YAML (default: scenarios/regress-tolerances.yaml)")
+        "(tolerance tube, tolerances from scenarios/regress-tolerances.yaml). "
+        "Exit status 0 all pass, 1 any deviation, 2 bad input.",
+    )
+    parser.add_argument(
+        "scenarios",
+        nargs="*",
+        type=Path,
+        metavar="SCENARIO",
+        help="scenario files (default: every shipped scenario with a reference)",
+    )
+    parser.add_argument("--update", action="store_true", help="rewrite the reference traces (and say what changed)")
+    parser.add_argument(
+        "--tolerances",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="tolerance YAML (default: scenarios/regress-tolerances.yaml)",
+    )
     parser.add_argument("--report", type=Path, metavar="DIR", help="write a report per failing scenario here")
     parser.set_defaults(func=_run_regress)
 
@@ -55,8 +69,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _run_regress(args: argparse.Namespace) -> int:
     scenarios = args.scenarios or shipped_scenarios()
     if not scenarios:
-        raise InputError("no shipped scenario has a reference trace; create them with "
-                         "heliostep regress --update SCENARIO")
+        raise InputError(
+            "no shipped scenario has a reference trace; create them with heliostep regress --update SCENARIO"
+        )
     tolerances = load_tolerances(args.tolerances or tolerances_path())
     status = 0
     for scenario in scenarios:

@@ -47,24 +47,38 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         From :meth:`argparse.ArgumentParser.add_subparsers`.
     """
     parser = subparsers.add_parser(
-        "sweep", help="run a sizing sweep (days x mirrors x motors ...) on Dask, results in one Parquet table",
+        "sweep",
+        help="run a sizing sweep (days x mirrors x motors ...) on Dask, results in one Parquet table",
         description="Run every case of a sweep file on a local dask.distributed cluster (one worker "
-                    "process per core) or on --scheduler, writing out/<name>/results.parquet as cases "
-                    "finish; a rerun skips the cases already done. See docs/sweep.md.")
+        "process per core) or on --scheduler, writing out/<name>/results.parquet as cases "
+        "finish; a rerun skips the cases already done. See docs/sweep.md.",
+    )
     parser.add_argument("sweep", type=Path, help="sweep YAML file")
-    parser.add_argument("--out", type=Path, metavar="DIR",
-                        help="folder of results.parquet and the plots (default: out/<sweep name>)")
-    parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help="run on this Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
-    parser.add_argument("--workers", type=int, metavar="N",
-                        help="worker processes of the local cluster (default: one per core)")
-    parser.add_argument("--connect-timeout", type=float, default=5.0, metavar="SECONDS",
-                        help="how long to try reaching --scheduler (default: 5)")
-    parser.add_argument("--retry-failed", action="store_true",
-                        help="run again the cases recorded as failed (they are skipped otherwise)")
+    parser.add_argument(
+        "--out", type=Path, metavar="DIR", help="folder of results.parquet and the plots (default: out/<sweep name>)"
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run on this Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local cluster)",
+    )
+    parser.add_argument(
+        "--workers", type=int, metavar="N", help="worker processes of the local cluster (default: one per core)"
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=5.0,
+        metavar="SECONDS",
+        help="how long to try reaching --scheduler (default: 5)",
+    )
+    parser.add_argument(
+        "--retry-failed",
+        action="store_true",
+        help="run again the cases recorded as failed (they are skipped otherwise)",
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    parser.add_argument("--list", action="store_true",
-                        help="list the cases and whether each is done; run nothing")
+    parser.add_argument("--list", action="store_true", help="list the cases and whether each is done; run nothing")
     parser.set_defaults(func=_run_command)
 
 
@@ -83,9 +97,16 @@ def _run_command(args: argparse.Namespace) -> int:
             if args.list:
                 print(_case_listing(cases, read_results(results_path)))
                 return 0
-            outcome = execute_cases(cases, results_path, scheduler=args.scheduler, n_workers=args.workers,
-                                    connect_timeout=args.connect_timeout, retry_failed=args.retry_failed,
-                                    progress=True, metadata=sweep_metadata(spec))
+            outcome = execute_cases(
+                cases,
+                results_path,
+                scheduler=args.scheduler,
+                n_workers=args.workers,
+                connect_timeout=args.connect_timeout,
+                retry_failed=args.retry_failed,
+                progress=True,
+                metadata=sweep_metadata(spec),
+            )
             plots = []
             if not args.no_plots and len(outcome.table):
                 from heliostep.plots.sweep import plot_sweep
@@ -93,13 +114,14 @@ def _run_command(args: argparse.Namespace) -> int:
                 plots = plot_sweep(outcome.table, out_dir)
     except KeyboardInterrupt as stopped:
         signum = stopped.signum if isinstance(stopped, _Stopped) else signal.SIGINT
-        print(f"heliostep sweep: stopped by {signal.Signals(signum).name}; {_recorded(results_path)}",
-              file=sys.stderr)
+        print(f"heliostep sweep: stopped by {signal.Signals(signum).name}; {_recorded(results_path)}", file=sys.stderr)
         return exit_status(signum)
     print(_report(spec.name, outcome, plots))
     if outcome.failed:
-        print(f"heliostep sweep: {outcome.failed} case(s) failed; rerun with --retry-failed to try them again",
-              file=sys.stderr)
+        print(
+            f"heliostep sweep: {outcome.failed} case(s) failed; rerun with --retry-failed to try them again",
+            file=sys.stderr,
+        )
     return 1 if outcome.failed else 0
 
 
@@ -153,21 +175,29 @@ def _case_listing(cases, table: pd.DataFrame) -> str:
 
 def _report(name: str, outcome: SweepOutcome, plots: list[Path]) -> str:
     table = outcome.table
-    lines = [f"{name}: {len(table)} cases: {outcome.executed} run now, {outcome.skipped} already done, "
-             f"{outcome.failed} failed -> {outcome.results_path}"]
+    lines = [
+        f"{name}: {len(table)} cases: {outcome.executed} run now, {outcome.skipped} already done, "
+        f"{outcome.failed} failed -> {outcome.results_path}"
+    ]
     ok = table[table["status"] == "ok"]
-    for column, label, unit in (("max_tracking_error_deg", "max tracking error", "deg"),
-                                ("peak_torque_Nm", "peak torque", "N.m"),
-                                ("required_torque_Nm", "required torque (2 x peak)", "N.m"),
-                                ("primary_sharing_error_max_deg", "primary sharing error", "deg")):
+    for column, label, unit in (
+        ("max_tracking_error_deg", "max tracking error", "deg"),
+        ("peak_torque_Nm", "peak torque", "N.m"),
+        ("required_torque_Nm", "required torque (2 x peak)", "N.m"),
+        ("primary_sharing_error_max_deg", "primary sharing error", "deg"),
+    ):
         values = ok[column].dropna()
         if len(values):
             worst = ok.loc[values.idxmax()]
-            lines.append(f"  {label + ' [' + unit + ']':36s} max {values.max():.4g} (case {worst['case_index']}: "
-                         f"{worst['overrides']})")
+            lines.append(
+                f"  {label + ' [' + unit + ']':36s} max {values.max():.4g} (case {worst['case_index']}: "
+                f"{worst['overrides']})"
+            )
     holding = ok["holding_torque_Nm"].dropna()
     if len(holding):
-        lines.append(f"  {'holding torque k_e x I [N.m]':36s} {', '.join(f'{h:.4g}' for h in sorted(holding.unique()))}")
+        lines.append(
+            f"  {'holding torque k_e x I [N.m]':36s} {', '.join(f'{h:.4g}' for h in sorted(holding.unique()))}"
+        )
     failed = table[table["status"] == "failed"]
     for row in failed.head(5).itertuples(index=False):
         first_line = (row.error or "").splitlines()[0] if row.error else ""

@@ -17,6 +17,7 @@ This is the second stage of heliostep's one-way data flow
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -71,8 +72,9 @@ def reference_times(duration: float) -> np.ndarray:
     return np.linspace(0.0, duration, n)
 
 
-def output_grid(duration: float, interval: float, step_times: np.ndarray,
-                step_detail: float, step_interval: float) -> np.ndarray:
+def output_grid(
+    duration: float, interval: float, step_times: np.ndarray, step_detail: float, step_interval: float
+) -> np.ndarray:
     """Regular grid plus, after each step, ``step_detail`` seconds at ``step_interval`` [s]."""
     regular = np.arange(0.0, duration, interval)
     detail = np.arange(0.0, step_detail, step_interval)
@@ -92,7 +94,7 @@ def held_current(scenario: Scenario, reference: float) -> float:
     motor = scenario.roles.instance_of("torque") or "motor"
     if "IdealCurrent" in str(scenario.fmus.get(motor, "")):
         return reference
-    values = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
+    values: dict[str, Any] = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}  # as the scenario gives them
     return values["K_current"] * reference / (values["K_current"] + values["R"])
 
 
@@ -121,20 +123,15 @@ def prepare_inputs(scenario: Scenario) -> DriveInputs:
     duration = (end - start).total_seconds()
     times = reference_times(duration)
     index = start + pd.to_timedelta(times, unit="s")
-    mirror = scenario.mirror
-    panel = panel_angle_reference(
-        index, scenario.site.to_site(), scenario.plant.to_plant(), mirror.mirror_distance,
-        axis=mirror.axis, stow=mirror.stow, stow_angle=np.radians(mirror.stow_angle)).to_numpy()
+    panel = _panel_angle_reference(scenario, index)
     transmission = scenario.transmission
-    rotor = rotor_angle_from_panel(panel, panel[0], transmission.pinion_radius, transmission.lever_arm,
-                                   rotor_angle0=0.0)  # [paper], eq. 14, rotor at 0 at the start
-    sequencer = Sequencer(mode=scenario.sequencer.mode, current=scenario.sequencer.current,
-                          step_angle=np.radians(scenario.sequencer.step_angle),
-                          microsteps=scenario.sequencer.microsteps,
-                          idle_current_fraction=scenario.sequencer.idle_current_fraction,
-                          idle_delay=scenario.sequencer.idle_delay)
-    schedule = schedule_steps(reference_interpolant(times, np.asarray(rotor)), sequencer,
-                              trigger=scenario.sequencer.trigger)
+    rotor = rotor_angle_from_panel(
+        panel, panel[0], transmission.pinion_radius, transmission.lever_arm, rotor_angle0=0.0
+    )  # [paper], eq. 14, rotor at 0 at the start
+    sequencer = _sequencer(scenario)
+    schedule = schedule_steps(
+        reference_interpolant(times, np.asarray(rotor)), sequencer, trigger=scenario.sequencer.trigger
+    )
 
     indices = np.concatenate([[schedule.initial_index], schedule.indices])
     i_a_ref, i_b_ref = sequencer.reference_currents(indices)
@@ -144,13 +141,54 @@ def prepare_inputs(scenario: Scenario) -> DriveInputs:
     # commanded position minus the elastic lag under the wind moment), the panel where the
     # transmission puts it; the motor model starts its currents at what its loop holds
     rotor0 = float(sequencer.position(schedule.initial_index)) - loaded_lag(
-        scenario, float(np.hypot(i_a_ref[0], i_b_ref[0])), float(panel[0]))
+        scenario, float(np.hypot(i_a_ref[0], i_b_ref[0])), float(panel[0])
+    )
     panel0 = float(np.arctan(np.tan(panel[0]) + rotor0 * transmission.pinion_radius / transmission.lever_arm))
-    implied = {"panel_angle_start": panel0, "rotor_angle_start": rotor0,
-               "pinion_radius": transmission.pinion_radius, "lever_arm": transmission.lever_arm,
-               "current_a_start": float(i_a_ref[0]), "current_b_start": float(i_b_ref[0])}
-    return DriveInputs(window_start=start, duration=duration, reference_times=times,
-                       panel_angle_ref=np.asarray(panel, dtype=float), rotor_angle_ref=np.asarray(rotor, dtype=float),
-                       sequencer=sequencer, schedule=schedule, current_a_ref=np.asarray(i_a_ref, dtype=float),
-                       current_b_ref=np.asarray(i_b_ref, dtype=float), wind_moment=scenario.wind.moment,
-                       output_times=grid, implied_parameters=implied)
+    implied = {
+        "panel_angle_start": panel0,
+        "rotor_angle_start": rotor0,
+        "pinion_radius": transmission.pinion_radius,
+        "lever_arm": transmission.lever_arm,
+        "current_a_start": float(i_a_ref[0]),
+        "current_b_start": float(i_b_ref[0]),
+    }
+    return DriveInputs(
+        window_start=start,
+        duration=duration,
+        reference_times=times,
+        panel_angle_ref=np.asarray(panel, dtype=float),
+        rotor_angle_ref=np.asarray(rotor, dtype=float),
+        sequencer=sequencer,
+        schedule=schedule,
+        current_a_ref=np.asarray(i_a_ref, dtype=float),
+        current_b_ref=np.asarray(i_b_ref, dtype=float),
+        wind_moment=scenario.wind.moment,
+        output_times=grid,
+        implied_parameters=implied,
+    )
+
+
+def _panel_angle_reference(scenario: Scenario, index: pd.DatetimeIndex) -> np.ndarray:
+    """The scenario's mirror's reference panel angle [rad] at the instants *index*."""
+    mirror = scenario.mirror
+    return panel_angle_reference(
+        index,
+        scenario.site.to_site(),
+        scenario.plant.to_plant(),
+        mirror.mirror_distance,
+        axis=mirror.axis,
+        stow=mirror.stow,
+        stow_angle=np.radians(mirror.stow_angle),
+    ).to_numpy()
+
+
+def _sequencer(scenario: Scenario) -> Sequencer:
+    """The scenario's sequencer (its step angle in [rad])."""
+    return Sequencer(
+        mode=scenario.sequencer.mode,
+        current=scenario.sequencer.current,
+        step_angle=np.radians(scenario.sequencer.step_angle),
+        microsteps=scenario.sequencer.microsteps,
+        idle_current_fraction=scenario.sequencer.idle_current_fraction,
+        idle_delay=scenario.sequencer.idle_delay,
+    )

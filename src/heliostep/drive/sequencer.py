@@ -20,6 +20,7 @@ Stable positions follow from the torque law C = −k_e i_a sin(N_c θ) − k_e i
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator, PPoly
@@ -78,8 +79,10 @@ class Sequencer:
         if self.microsteps not in MICROSTEPS:
             raise InputError(f"sequencer microsteps {self.microsteps!r}: expected one of {MICROSTEPS}")
         if self.microsteps > 1 and self.mode != "one-phase-on":
-            raise InputError(f"sequencer microsteps {self.microsteps}: needs mode one-phase-on "
-                             f"(sine/cosine currents), got {self.mode!r}")
+            raise InputError(
+                f"sequencer microsteps {self.microsteps}: needs mode one-phase-on "
+                f"(sine/cosine currents), got {self.mode!r}"
+            )
         if not 0.0 < self.idle_current_fraction <= 1.0:
             raise InputError(f"sequencer idle_current_fraction {self.idle_current_fraction!r}: expected in (0, 1]")
         if not self.idle_delay >= 0.0:
@@ -133,7 +136,7 @@ class StepSchedule:
     def __len__(self) -> int:
         return len(self.times)
 
-    def index_at(self, time, side: str = "right") -> np.ndarray:
+    def index_at(self, time, side: Literal["left", "right"] = "right") -> np.ndarray:
         """Commanded index at ``time`` [s]; ``side='left'`` gives the value just before a step."""
         k = np.searchsorted(self.times, time, side=side)
         all_indices = np.concatenate([[self.initial_index], self.indices])
@@ -150,8 +153,9 @@ def reference_interpolant(times: np.ndarray, rotor_angle_ref: np.ndarray) -> Pch
     return PchipInterpolator(times, rotor_angle_ref, extrapolate=False)
 
 
-def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
-                   initial_index: int | None = None, trigger: str = "midpoint") -> StepSchedule:
+def schedule_steps(
+    reference: PchipInterpolator, sequencer: Sequencer, initial_index: int | None = None, trigger: str = "midpoint"
+) -> StepSchedule:
     """Step instants where the reference moves a trigger fraction past the commanded position.
 
     Parameters
@@ -171,42 +175,10 @@ def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
     if trigger not in TRIGGERS:
         raise InputError(f"sequencer trigger {trigger!r}: expected one of {', '.join(TRIGGERS)}")
     fraction = TRIGGERS[trigger]
-    start, stop = reference.x[0], reference.x[-1]
+    start = reference.x[0]
     if initial_index is None:
         initial_index = sequencer.nearest_index(float(reference(start)))
-    slope = reference.derivative()
-    crossings: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-    # PCHIP is monotone on every interval, so only the pieces whose end values bracket a level
-    # can cross it: solve just those (solving the whole spline per level is O(pieces)).
-    knots = reference.x
-    ends = reference(knots)
-    piece_low, piece_high = np.minimum(ends[:-1], ends[1:]), np.maximum(ends[:-1], ends[1:])
-    margin = 1e-12 * max(1.0, float(np.abs(ends).max()))
-
-    def solve(level: float) -> list[float]:
-        pieces = np.nonzero((piece_low - margin <= level) & (level <= piece_high + margin))[0]
-        roots = []
-        for k in pieces:
-            piece = PPoly(reference.c[:, k:k + 1], knots[k:k + 2], extrapolate=False)
-            roots += [t for t in piece.solve(level, extrapolate=False) if np.isfinite(t)]
-        roots = sorted(roots)
-        return [t for i, t in enumerate(roots) if i == 0 or t - roots[i - 1] > 1e-12 * max(1.0, abs(t))]
-
-    def crossings_of(level: float) -> tuple[np.ndarray, np.ndarray]:
-        """Times in (start, stop] where the reference crosses ``level``, and the directions."""
-        if level not in crossings:
-            roots = [t for t in solve(level) if start < t <= stop]
-            directions = [_crossing_direction(reference, slope, t, level) for t in roots]
-            crossings[level] = (np.array(roots), np.array(directions, dtype=int))
-        return crossings[level]
-
-    def next_crossing(level: float, direction: int, after: float) -> float:
-        times, directions = crossings_of(level)
-        for k in range(np.searchsorted(times, after, side="right"), len(times)):
-            if directions[k] == direction:
-                return float(times[k])
-        return np.inf
-
+    next_crossing = _LevelCrossings(reference).next_crossing
     times, indices, index, t = [], [], initial_index, start
     while True:
         position = float(sequencer.position(index))
@@ -218,6 +190,51 @@ def schedule_steps(reference: PchipInterpolator, sequencer: Sequencer,
         times.append(t)
         indices.append(index)
     return StepSchedule(np.array(times, dtype=float), np.array(indices, dtype=int), initial_index)
+
+
+class _LevelCrossings:
+    """Where a PCHIP reference crosses levels, in which direction; each level solved once.
+
+    PCHIP is monotone on every interval, so only the pieces whose end values bracket a level
+    can cross it: just those are solved (solving the whole spline per level is O(pieces)).
+    """
+
+    def __init__(self, reference: PchipInterpolator) -> None:
+        self.reference = reference
+        self.start, self.stop = reference.x[0], reference.x[-1]
+        self.slope = reference.derivative()
+        self._crossings: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self.knots = reference.x
+        ends = reference(self.knots)
+        self.piece_low, self.piece_high = np.minimum(ends[:-1], ends[1:]), np.maximum(ends[:-1], ends[1:])
+        self.margin = 1e-12 * max(1.0, float(np.abs(ends).max()))
+
+    def solve(self, level: float) -> list[float]:
+        """The times where the reference equals ``level`` [rad], sorted, near-duplicates merged."""
+        reference, knots, margin = self.reference, self.knots, self.margin
+        pieces = np.nonzero((self.piece_low - margin <= level) & (level <= self.piece_high + margin))[0]
+        roots = []
+        for k in pieces:
+            piece = PPoly(reference.c[:, k : k + 1], knots[k : k + 2], extrapolate=False)
+            roots += [t for t in piece.solve(level, extrapolate=False) if np.isfinite(t)]
+        roots = sorted(roots)
+        return [t for i, t in enumerate(roots) if i == 0 or t - roots[i - 1] > 1e-12 * max(1.0, abs(t))]
+
+    def crossings_of(self, level: float) -> tuple[np.ndarray, np.ndarray]:
+        """Times in (start, stop] where the reference crosses ``level``, and the directions."""
+        if level not in self._crossings:
+            roots = [t for t in self.solve(level) if self.start < t <= self.stop]
+            directions = [_crossing_direction(self.reference, self.slope, t, level) for t in roots]
+            self._crossings[level] = (np.array(roots), np.array(directions, dtype=int))
+        return self._crossings[level]
+
+    def next_crossing(self, level: float, direction: int, after: float) -> float:
+        """The first time [s] after ``after`` where the reference crosses ``level`` in ``direction``."""
+        times, directions = self.crossings_of(level)
+        for k in range(np.searchsorted(times, after, side="right"), len(times)):
+            if directions[k] == direction:
+                return float(times[k])
+        return np.inf
 
 
 def _crossing_direction(reference, slope, t: float, level: float) -> int:
@@ -259,10 +276,14 @@ def idle_currents(schedule: StepSchedule, sequencer: Sequencer, end: float, star
     times, i_a, i_b = [], [], []
     f = sequencer.idle_current_fraction
     for t0, t1, a, b in zip(starts, stops, full_a, full_b):
-        times.append(t0), i_a.append(a), i_b.append(b)
+        times.append(t0)
+        i_a.append(a)
+        i_b.append(b)
         drop = t0 + sequencer.idle_delay
         if f < 1.0 and drop < t1:
-            times.append(drop), i_a.append(f * a), i_b.append(f * b)
+            times.append(drop)
+            i_a.append(f * a)
+            i_b.append(f * b)
     return np.array(times), np.array(i_a), np.array(i_b)
 
 

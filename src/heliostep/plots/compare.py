@@ -103,7 +103,8 @@ def plot_signal(
     fig, (full, zoom) = plt.subplots(2, 1, figsize=(10, 7.5), layout="constrained")
     verdict = "passed" if r.passed else "FAILED"
     worst = (
-        f"max {r.max_excess:.3g}{' ' + unit if unit else ''} outside the tube at t = {r.time_max_excess:.6g} {time_unit}"
+        f"max {r.max_excess:.3g}{' ' + unit if unit else ''} outside the tube "
+        f"at t = {r.time_max_excess:.6g} {time_unit}"
         if np.isfinite(r.max_excess) and r.max_excess > 0
         else (r.note or "inside the tube")
     )
@@ -160,7 +161,7 @@ def _zoom_half_width(ev: SignalEvaluation, centre: float, duration: float) -> fl
     return half if half > 0 else 1.0
 
 
-def _fmt(x: float, spec: str = ".3g") -> str:
+def _fmt(x: float | None, spec: str = ".3g") -> str:
     return "–" if x is None or not np.isfinite(x) else format(x, spec)
 
 
@@ -209,7 +210,16 @@ def write_report(
     return index
 
 
-_HEAD = ("signal", "verdict", "max outside tube", "at t", "max |diff|", "at t", "time outside", "tolerance abs / rel / time")
+_HEAD = (
+    "signal",
+    "verdict",
+    "max outside tube",
+    "at t",
+    "max |diff|",
+    "at t",
+    "time outside",
+    "tolerance abs / rel / time",
+)
 
 
 def _row(r: SignalResult) -> list[str]:
@@ -299,7 +309,9 @@ def _html(result, pngs, actual_meta, reference_meta) -> str:
         if r.note:
             cells[1] += f' <span title="{e(r.note)}">(note)</span>'
         parts.append(
-            f'<tr class="{"pass" if r.passed else "fail"}">' + "".join(f"<td>{c}</td>" for c in [*cells, link]) + "</tr>"
+            f'<tr class="{"pass" if r.passed else "fail"}">'
+            + "".join(f"<td>{c}</td>" for c in [*cells, link])
+            + "</tr>"
         )
     parts.append("</table>")
     for name, r in result.signals.items():

@@ -46,8 +46,14 @@ def plot_end_loss_year(days: pd.DataFrame, path: str | Path, title: str = "") ->
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     top.plot(x, days["energy_two_axis_J"] / _KWH, style, color="C2", label="with two-axis end mirrors")
     top.plot(x, days["energy_single_J"] / _KWH, style, color="C0", label="single-axis plant")
-    top.plot(x, days["end_spill_single_J"] / _KWH, style, color="C3", linewidth=1.0,
-             label="single-axis light past the tube's end")
+    top.plot(
+        x,
+        days["end_spill_single_J"] / _KWH,
+        style,
+        color="C3",
+        linewidth=1.0,
+        label="single-axis light past the tube's end",
+    )
     top.set_ylabel("energy on the tube [kWh/day]")
     top.set_ylim(bottom=0.0)
     top.legend(loc="best", fontsize="small")
@@ -56,8 +62,14 @@ def plot_end_loss_year(days: pd.DataFrame, path: str | Path, title: str = "") ->
     bottom.set_ylabel("gain [%]")
     bottom.set_ylim(bottom=0.0)
     dark = bottom.twinx()
-    dark.plot(x, days["unlit_length_noon_m"], "--", color="0.3", linewidth=1.0,
-              label="dark length at the tube's start, highest sun [m]")
+    dark.plot(
+        x,
+        days["unlit_length_noon_m"],
+        "--",
+        color="0.3",
+        linewidth=1.0,
+        label="dark length at the tube's start, highest sun [m]",
+    )
     dark.set_ylabel("dark length at noon [m]")
     dark.set_ylim(bottom=0.0)
     lines = bottom.get_legend_handles_labels()

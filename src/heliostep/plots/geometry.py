@@ -103,9 +103,7 @@ def _time_plot(times: pd.DatetimeIndex, values, path, timezone: str, ylabel: str
     return _save(fig, path)
 
 
-def plot_panel_angle_reference(
-    times: pd.DatetimeIndex, panel_angle_deg, path, timezone: str, title: str
-) -> Path:
+def plot_panel_angle_reference(times: pd.DatetimeIndex, panel_angle_deg, path, timezone: str, title: str) -> Path:
     """Reference panel angle over a window (the paper's Fig. 8).
 
     Parameters
@@ -120,9 +118,7 @@ def plot_panel_angle_reference(
     return _time_plot(times, panel_angle_deg, path, timezone, "reference panel angle [deg]", title)
 
 
-def plot_rotor_angle_reference(
-    times: pd.DatetimeIndex, rotor_angle_deg, path, timezone: str, title: str
-) -> Path:
+def plot_rotor_angle_reference(times: pd.DatetimeIndex, rotor_angle_deg, path, timezone: str, title: str) -> Path:
     """Reference rotor angle of the stepper over a window (the paper's Fig. 9).
 
     Parameters

@@ -62,28 +62,8 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     actual = series["power_actual_W"].to_numpy() if "power_actual_W" in series else None
     fig = Figure(figsize=(9.0, 6.5), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(2, 1))
-    lines = [(ideal, "ideal two-axis tracking", "k", "--", 1.6),
-             (reference, "stepped reference, shared primary", "C1", ":", 1.4)]
-    if actual is not None:
-        lines.append((actual, "actual panel (co-simulated)", "C0", "-", 1.0))
-    for values, label, color, style, width in lines:
-        keep = thin(time, values, max_buckets=_MAX_BUCKETS)
-        top.plot(clock.x(time[keep]), values[keep] / 1e3, style, color=color, linewidth=width,
-                 label=f"{label}: {_energy_text(values, time)}")
-    top.set_ylabel("power on the tube [kW]")
-    top.set_ylim(bottom=0.0)
-    top.legend(loc="best", fontsize="small")
-    top.set_title(f"Light absorbed by the tube{title}")
-    losses = [(ideal - reference, "shared primary (ideal - reference)", "C1")]
-    if actual is not None:
-        losses.append((reference - actual, "stepping (reference - actual)", "C0"))
-    for values, label, color in losses:
-        keep = thin(time, values, max_buckets=_MAX_BUCKETS)
-        bottom.plot(clock.x(time[keep]), values[keep], color=color, linewidth=1.0,
-                    label=f"{label}: {_energy_text(values, time)}")
-    bottom.axhline(0.0, color="0.5", linewidth=0.8)
-    bottom.set_ylabel("power lost [W]")
-    bottom.legend(loc="best", fontsize="small")
+    _draw_power(top, clock, time, ideal, reference, actual, title)
+    _draw_losses(bottom, clock, time, ideal, reference, actual)
     for ax in (top, bottom):
         ax.grid(True, alpha=0.3)
     clock.format_axis(bottom)
@@ -92,8 +72,60 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     return path
 
 
-def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path,
-                   weather=None) -> list[Path]:
+def _draw_power(
+    top,
+    clock: _Clock,
+    time: np.ndarray,
+    ideal: np.ndarray,
+    reference: np.ndarray,
+    actual: np.ndarray | None,
+    title: str,
+) -> None:
+    """The upper panel of :func:`plot_light`: the powers [kW] with their energies."""
+    lines = [
+        (ideal, "ideal two-axis tracking", "k", "--", 1.6),
+        (reference, "stepped reference, shared primary", "C1", ":", 1.4),
+    ]
+    if actual is not None:
+        lines.append((actual, "actual panel (co-simulated)", "C0", "-", 1.0))
+    for values, label, color, style, width in lines:
+        keep = thin(time, values, max_buckets=_MAX_BUCKETS)
+        top.plot(
+            clock.x(time[keep]),
+            values[keep] / 1e3,
+            style,
+            color=color,
+            linewidth=width,
+            label=f"{label}: {_energy_text(values, time)}",
+        )
+    top.set_ylabel("power on the tube [kW]")
+    top.set_ylim(bottom=0.0)
+    top.legend(loc="best", fontsize="small")
+    top.set_title(f"Light absorbed by the tube{title}")
+
+
+def _draw_losses(
+    bottom, clock: _Clock, time: np.ndarray, ideal: np.ndarray, reference: np.ndarray, actual: np.ndarray | None
+) -> None:
+    """The lower panel of :func:`plot_light`: the power lost [W] to sharing the primary and to stepping."""
+    losses = [(ideal - reference, "shared primary (ideal - reference)", "C1")]
+    if actual is not None:
+        losses.append((reference - actual, "stepping (reference - actual)", "C0"))
+    for values, label, color in losses:
+        keep = thin(time, values, max_buckets=_MAX_BUCKETS)
+        bottom.plot(
+            clock.x(time[keep]),
+            values[keep],
+            color=color,
+            linewidth=1.0,
+            label=f"{label}: {_energy_text(values, time)}",
+        )
+    bottom.axhline(0.0, color="0.5", linewidth=0.8)
+    bottom.set_ylabel("power lost [W]")
+    bottom.legend(loc="best", fontsize="small")
+
+
+def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path, weather=None) -> list[Path]:
     """Write ``POWER_FILE`` for a run (its trace, metadata and scenario; ``weather``, its weather
     file already read, see :func:`heliostep.results.light.light_timeseries`) into ``out_dir``.
 
@@ -106,7 +138,8 @@ def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: st
         return []
     series = light_timeseries(trace, metadata, scenario, weather)
     mirror = scenario.mirror
-    title = (f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, "
-             f"{mirror.axis} driven)")
+    title = (
+        f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, {mirror.axis} driven)"
+    )
     path = plot_light(series, Path(out_dir) / POWER_FILE, metadata, title)
     return [] if path is None else [path]

@@ -148,7 +148,7 @@ class _Trace:
 
     def __init__(self, source: pd.DataFrame | Path, roles: Mapping[str, str]):
         self.roles = dict(roles)
-        self._cache = {}
+        self._cache: dict[str, np.ndarray] = {}
         if isinstance(source, pd.DataFrame):
             self.frame, self.path = source, None
             self.columns = [str(c) for c in source.columns]
@@ -248,11 +248,27 @@ def _fig10(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
         return None
     fig, axes = _figure(2, _TALL)
     for ax, phase, color in zip(axes, ("a", "b"), ("C0", "C3")):
-        _line(ax, clock, trace.time, trace[trace.col(f"current_{phase}")], "-", color=color, linewidth=1.0,
-              label=f"actual i_{phase}")
+        _line(
+            ax,
+            clock,
+            trace.time,
+            trace[trace.col(f"current_{phase}")],
+            "-",
+            color=color,
+            linewidth=1.0,
+            label=f"actual i_{phase}",
+        )
         if trace.has(f"i_{phase}_ref"):
-            _line(ax, clock, trace.time, trace[f"i_{phase}_ref"], "--", color="k", linewidth=1.0,
-                  label=f"reference i_{phase},ref")
+            _line(
+                ax,
+                clock,
+                trace.time,
+                trace[f"i_{phase}_ref"],
+                "--",
+                color="k",
+                linewidth=1.0,
+                label=f"reference i_{phase},ref",
+            )
         ax.set_ylabel(f"phase {phase.upper()} current [A]")
         ax.legend(loc="upper right")
     axes[0].set_title(_title("phase currents", 10, context))
@@ -276,13 +292,21 @@ def _fig12(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
     fig, axes = _figure()
     ax = axes[0]
     if trace.has("rotor_angle_ref"):
-        _line(ax, clock, trace.time, trace.degrees("rotor_angle_ref"), ":", color="k", linewidth=1.2,
-              label="reference")
+        _line(ax, clock, trace.time, trace.degrees("rotor_angle_ref"), ":", color="k", linewidth=1.2, label="reference")
     if trace.has("rotor_angle_cmd"):
-        _line(ax, clock, trace.time, trace.degrees("rotor_angle_cmd"), "--", color="C1", linewidth=1.0,
-              label="commanded (sequencer)")
-    _line(ax, clock, trace.time, trace.degrees(trace.col("rotor_angle")), "-", color="C0", linewidth=1.0,
-          label="actual")
+        _line(
+            ax,
+            clock,
+            trace.time,
+            trace.degrees("rotor_angle_cmd"),
+            "--",
+            color="C1",
+            linewidth=1.0,
+            label="commanded (sequencer)",
+        )
+    _line(
+        ax, clock, trace.time, trace.degrees(trace.col("rotor_angle")), "-", color="C0", linewidth=1.0, label="actual"
+    )
     ax.set_ylabel("rotor angle [deg]")
     ax.set_title(_title("rotor angle", 12, context))
     ax.legend(loc="best")
@@ -293,10 +317,26 @@ def _fig13(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
     if not trace.has(trace.col("panel_angle"), "panel_angle_ref"):
         return None
     fig, axes = _figure(2, _TALL)
-    _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), "--", color="k", linewidth=1.2,
-          label="desired (reference)")
-    _line(axes[0], clock, trace.time, trace.degrees(trace.col("panel_angle")), "-", color="C0", linewidth=1.0,
-          label="actual")
+    _line(
+        axes[0],
+        clock,
+        trace.time,
+        trace.degrees("panel_angle_ref"),
+        "--",
+        color="k",
+        linewidth=1.2,
+        label="desired (reference)",
+    )
+    _line(
+        axes[0],
+        clock,
+        trace.time,
+        trace.degrees(trace.col("panel_angle")),
+        "-",
+        color="C0",
+        linewidth=1.0,
+        label="actual",
+    )
     axes[0].set_ylabel("panel angle [deg]")
     axes[0].set_title(_title("panel tracking", 13, context))
     axes[0].legend(loc="best")
@@ -332,14 +372,19 @@ def _fig14(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
     ax = fig.add_subplot()
     ax.grid(True, alpha=0.3)
     style = ".-" if keep.size <= 400 else "-"
-    ax.plot(relative_ms, window_torque[keep], style, color="C2", linewidth=1.0, markersize=3,
-            label="motor torque")
+    ax.plot(relative_ms, window_torque[keep], style, color="C2", linewidth=1.0, markersize=3, label="motor torque")
     nearby = steps[(steps >= window_time[0]) & (steps <= window_time[-1])]
     for other in nearby[nearby != centre]:
         ax.axvline((other - centre) * 1e3, color="0.6", linestyle=":", linewidth=0.9)
     ax.axvline(0.0, color="C1", linestyle="--", linewidth=0.9, label="step instant")
-    ax.plot((time[peak] - centre) * 1e3, torque[peak], "o", color="C3", markersize=5,
-            label=f"peak |torque| = {abs(torque[peak]):.3g} N.m")
+    ax.plot(
+        (time[peak] - centre) * 1e3,
+        torque[peak],
+        "o",
+        color="C3",
+        markersize=5,
+        label=f"peak |torque| = {abs(torque[peak]):.3g} N.m",
+    )
     ax.axhline(0.0, color="0.5", linewidth=0.8)
     ax.set_xlabel(f"time from the step at {clock.label(centre)} [ms]")
     ax.set_ylabel("motor torque [N.m]")

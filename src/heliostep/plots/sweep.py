@@ -19,6 +19,7 @@ are built with :class:`matplotlib.figure.Figure` (no pyplot state).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -33,8 +34,11 @@ __all__ = ["HEATMAPS", "HEATMAP_SCALES", "TORQUE_FILE", "plot_heatmap", "plot_sw
 HEATMAPS = (
     ("peak_torque_Nm", "heatmap_peak_torque.png", "peak motor torque [N.m]"),
     ("max_tracking_error_deg", "heatmap_max_tracking_error.png", "max secondary tracking error [deg]"),
-    ("primary_sharing_error_max_deg", "heatmap_primary_sharing_error.png",
-     "max primary error from sharing the central law [deg]"),
+    (
+        "primary_sharing_error_max_deg",
+        "heatmap_primary_sharing_error.png",
+        "max primary error from sharing the central law [deg]",
+    ),
     ("light_lost_J", "heatmap_light_lost.png", "light lost against ideal tracking, ideal - actual [kJ]"),
     ("light_lost_fraction", "heatmap_light_lost_fraction.png", "light lost, share of ideal tracking [%]"),
 )
@@ -129,7 +133,7 @@ def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | Non
     bars = len(days) <= 31
     series = list(rows.groupby(["role", "current_A"], sort=True))
     width = 0.8 / max(1, len(series))
-    colors = {}
+    colors: dict[float, Any] = {}  # current [A] -> its bars' colour
     for k, ((role, current), group) in enumerate(series):
         required = group.groupby("day_of_year")["required_torque_Nm"].max().reindex(days)
         who = "shared primary" if role == "shared-primary" else "max over mirrors"
@@ -143,8 +147,13 @@ def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | Non
             colors[current] = colors.get(current, line.get_color())
     for current, group in rows.groupby("current_A", sort=True):
         for holding in sorted(group["holding_torque_Nm"].dropna().unique()):
-            ax.axhline(holding, color=colors.get(current, "k"), linestyle="--", linewidth=1.2,
-                       label=f"holding torque k_e x I = {holding:.3g} N.m (I = {current:g} A)")
+            ax.axhline(
+                holding,
+                color=colors.get(current, "k"),
+                linestyle="--",
+                linewidth=1.2,
+                label=f"holding torque k_e x I = {holding:.3g} N.m (I = {current:g} A)",
+            )
     if bars:
         ax.set_xticks(np.arange(len(days)), [str(d) for d in days])
     ax.set_xlabel("day of year")

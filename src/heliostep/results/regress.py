@@ -35,8 +35,14 @@ def tolerances_path() -> Path:
 def reference_signals(roles: Mapping[str, str]) -> list[str]:
     """The trace columns a reference keeps for a run with these roles."""
     by_role = {role: roles[role] for role in REFERENCE_ROLES if role in roles}
-    ordered = [by_role.get("rotor_angle"), by_role.get("panel_angle"), *REFERENCE_COLUMNS,
-               by_role.get("torque"), by_role.get("current_a"), by_role.get("current_b")]
+    ordered = [
+        by_role.get("rotor_angle"),
+        by_role.get("panel_angle"),
+        *REFERENCE_COLUMNS,
+        by_role.get("torque"),
+        by_role.get("current_a"),
+        by_role.get("current_b"),
+    ]
     return [column for column in ordered if column]
 
 
@@ -67,8 +73,14 @@ class Outcome:
         return self.problem is None and self.comparison is not None and self.comparison.passed
 
 
-def check_against_reference(scenario: Path, trace: pd.DataFrame, metadata: Mapping[str, str],
-                            roles: Mapping[str, str], tolerances: ToleranceSet, update: bool = False) -> Outcome:
+def check_against_reference(
+    scenario: Path,
+    trace: pd.DataFrame,
+    metadata: Mapping[str, str],
+    roles: Mapping[str, str],
+    tolerances: ToleranceSet,
+    update: bool = False,
+) -> Outcome:
     """Compare a run of ``scenario`` with its reference trace (or rewrite the reference).
 
     ``trace`` and ``metadata`` are the run's trace and trace metadata; ``roles`` names its
@@ -82,8 +94,14 @@ def check_against_reference(scenario: Path, trace: pd.DataFrame, metadata: Mappi
     if reference_file.exists():
         reference, _ = read_trace(reference_file)
         common = [s for s in signals if s in reference]
-        comparison = compare_traces(actual, reference, tolerances, common,
-                                    actual_name=f"{scenario.name} (new run)", reference_name=str(reference_file))
+        comparison = compare_traces(
+            actual,
+            reference,
+            tolerances,
+            common,
+            actual_name=f"{scenario.name} (new run)",
+            reference_name=str(reference_file),
+        )
     if update:
         write_trace(actual, reference_file, metadata)
     return Outcome(scenario, comparison, actual=actual, reference=reference)

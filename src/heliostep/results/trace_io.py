@@ -51,82 +51,53 @@ Two encodings, chosen by the file suffix:
 
 Both encodings round-trip values (bit for bit), column order, duplicate time stamps
 and metadata.
+
+The rules both encodings share are in :mod:`~heliostep.results.trace_format`, the streaming
+Parquet writer in :mod:`~heliostep.results.trace_writer`; every public name of the two is
+importable from here.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import os
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from heliostep.errors import HeliostepError, InputError
+from heliostep.errors import InputError
+from heliostep.results.trace_format import (
+    ROW_GROUP_ROWS,
+    SUFFIXES,
+    TIME,
+    check_time,
+    clean_metadata,
+    is_complete,
+    is_reserved_parquet_key,
+    trace_format,
+)
+from heliostep.results.trace_writer import TRACE_ENCODING, TraceWriteError, TraceWriter
 
-TIME = "time"
-SUFFIXES = (".parquet", ".csv")
-_RESERVED_PARQUET_KEYS = ("pandas",)
 # pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
 _EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
-_RESERVED_PARQUET_PREFIX = "ARROW:"
-#: Rows per Parquet row group (and per slice converted to Arrow at a time): with the 20 float64
-#: columns of a run's trace 2.6 MB, the most of a streamed trace held at once.
-ROW_GROUP_ROWS = 16_384
 
-__all__ = ["TIME", "SUFFIXES", "TraceWriteError", "TraceWriter", "copy_trace_to_csv", "iter_trace_blocks", "read_trace", "read_trace_metadata",
-           "write_trace", "check_time", "is_complete"]
-
-
-def _format(path: Path) -> str:
-    suffix = path.suffix.lower()
-    if suffix not in SUFFIXES:
-        raise InputError(
-            f"{path}: unknown trace format {suffix or '(no suffix)'!r}; "
-            f"expected one of {', '.join(SUFFIXES)}"
-        )
-    return suffix[1:]
-
-
-def _clean_metadata(metadata: Mapping[str, object] | None) -> dict[str, str]:
-    out: dict[str, str] = {}
-    for key, value in (metadata or {}).items():
-        if not isinstance(key, str) or not key or key != key.strip():
-            raise InputError(f"metadata key {key!r}: must be a non-empty string without surrounding blanks")
-        if ":" in key or "\n" in key or "\r" in key:
-            raise InputError(f"metadata key {key!r}: must not contain ':' or a line break")
-        if isinstance(value, bool):
-            text = "true" if value else "false"
-        elif isinstance(value, str):
-            text = value
-        elif isinstance(value, (int, float, np.integer, np.floating)):
-            text = str(value)
-        else:
-            raise InputError(f"metadata {key!r}: value must be a string, not {type(value).__name__}")
-        if "\n" in text or "\r" in text:
-            raise InputError(f"metadata {key!r}: value must not contain a line break")
-        out[key] = text
-    return out
-
-
-def check_time(time: np.ndarray, name: str) -> None:
-    """Raise :class:`InputError` unless *time* is finite and non-decreasing.
-
-    *name* (a file name or a label) is used in the message.
-    """
-    bad = np.flatnonzero(~np.isfinite(time))
-    if bad.size:
-        i = int(bad[0])
-        raise InputError(f"{name}: column {TIME!r} has a non-finite value ({float(time[i])}) in data row {i + 1}")
-    drops = np.flatnonzero(np.diff(time) < 0)
-    if drops.size:
-        i = int(drops[0]) + 1
-        raise InputError(
-            f"{name}: column {TIME!r} decreases in data row {i + 1} "
-            f"({float(time[i])!r} after {float(time[i - 1])!r}); time must be non-decreasing"
-        )
+__all__ = [
+    "TIME",
+    "SUFFIXES",
+    "ROW_GROUP_ROWS",
+    "TRACE_ENCODING",
+    "TraceWriteError",
+    "TraceWriter",
+    "copy_trace_to_csv",
+    "iter_trace_blocks",
+    "read_trace",
+    "read_trace_metadata",
+    "write_trace",
+    "check_time",
+    "is_complete",
+]
 
 
 def _to_float_frame(df: pd.DataFrame, name: str) -> pd.DataFrame:
@@ -163,8 +134,8 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
     become ``"true"``/``"false"``, numbers their ``str``. Returns the path.
     """
     path = Path(path)
-    fmt = _format(path)
-    meta = _clean_metadata(metadata)
+    fmt = trace_format(path)
+    meta = clean_metadata(metadata)
     table = _to_float_frame(df, str(path))
     if fmt == "parquet":
         writer = TraceWriter(path, list(table.columns), keep_on_failure=False)  # a failure aborts it
@@ -172,7 +143,7 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
             data = {c: table[c].to_numpy() for c in table.columns}
             # row groups of ROW_GROUP_ROWS: Arrow holds one group at a time, not a copy of the table
             for start in range(0, len(table), ROW_GROUP_ROWS):
-                writer.write({c: v[start:start + ROW_GROUP_ROWS] for c, v in data.items()})
+                writer.write({c: v[start : start + ROW_GROUP_ROWS] for c, v in data.items()})
         except BaseException:
             writer.abort()
             raise
@@ -183,191 +154,6 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
                 fh.write(f"# {key}: {value}\n")
             table.to_csv(fh, index=False, lineterminator="\n", na_rep="")
     return path
-
-
-def _check_parquet_keys(meta: Mapping[str, str]) -> None:
-    for key in meta:
-        if key in _RESERVED_PARQUET_KEYS or key.startswith(_RESERVED_PARQUET_PREFIX):
-            raise InputError(f"metadata key {key!r} is reserved in Parquet files")
-
-
-class TraceWriteError(HeliostepError):
-    """A row group of a trace could not be written (disk full, a file-size limit, an I/O error);
-    the rows written before it can still be kept (:meth:`TraceWriter.close`)."""
-
-
-class _ByteCounter(io.RawIOBase):
-    """A write-only sink that counts the bytes written to it and, once :meth:`keep` is called,
-    keeps those that follow."""
-
-    def __init__(self):
-        super().__init__()
-        self.position = 0
-        self.kept: bytearray | None = None
-
-    def writable(self) -> bool:
-        return True
-
-    def write(self, data) -> int:
-        view = memoryview(data).cast("B")
-        if self.kept is not None:
-            self.kept += view
-        self.position += len(view)
-        return len(view)
-
-    def tell(self) -> int:
-        return self.position
-
-    def keep(self) -> None:
-        self.kept = bytearray()
-
-
-#: How a trace's float64 columns are encoded in Parquet (pyarrow.parquet.ParquetWriter options).
-TRACE_ENCODING = {"use_dictionary": False, "column_encoding": "BYTE_STREAM_SPLIT"}
-
-
-class TraceWriter:
-    """A Parquet trace written as it is produced: :meth:`write` appends one row group of float64
-    columns, :meth:`close` writes the metadata (all of it, ``complete`` included) and the footer.
-
-    Until :meth:`close` the file has no footer: a reader sees no table and no metadata, so a file
-    cut short (killed process, full disk) never claims to be complete. Write to a temporary name
-    and rename into place afterwards (:func:`heliostep.results.outputs.atomic_path`).
-
-    A row group that cannot be written raises :class:`TraceWriteError` (``failed`` then holds
-    the cause) and writes nothing more; :meth:`close` then keeps the row groups written before
-    it: the file is cut back to their end and given the footer a second writer produced from the
-    same row groups (Parquet bytes are a function of the rows and the settings; the two files'
-    sizes are compared after every row group, ``recoverable`` says they agree). With
-    ``keep_on_failure=False`` there is no second writer (half the encoding work) and a failed
-    file cannot be closed, only aborted. ``rows`` counts the rows written, ``last_time`` the
-    time of the last one.
-    """
-
-    def __init__(self, path: str | Path, columns: list[str], keep_on_failure: bool = True):
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
-        self.path = Path(path)
-        if _format(self.path) != "parquet":
-            raise InputError(f"{self.path}: TraceWriter writes Parquet (.parquet) files")
-        if not columns or columns[0] != TIME or len(set(columns)) != len(columns):
-            raise InputError(f"{self.path}: trace columns must be unique and start with {TIME!r}: {columns}")
-        self.columns = list(columns)
-        self.rows = 0
-        self.failed: OSError | None = None
-        self._last_time = -np.inf
-        self._schema = pa.schema([pa.field(c, pa.float64()) for c in self.columns])
-        # no serialized Arrow schema (all columns are float64): readers then take the schema's
-        # metadata from the footer's key-value metadata, which close() writes. Encoding: each
-        # float64 split into its 8 byte planes (BYTE_STREAM_SPLIT), then zstd; against Parquet's
-        # default dictionary encoding, which the continuous columns overflow, the row groups are
-        # written 3-4x faster and take 40 % less space (benchmarks/bench_trace_io.py)
-        options = {"compression": "zstd", "store_schema": False, **TRACE_ENCODING}
-        self._writer = pq.ParquetWriter(self.path, self._schema, **options)
-        # the same row groups written nowhere: its footer is the one for the groups written so far
-        self._shadow_sink = _ByteCounter()
-        self._shadow = pq.ParquetWriter(self._shadow_sink, self._schema, **options) if keep_on_failure else None
-        self._pa = pa
-
-    @property
-    def last_time(self) -> float | None:
-        return float(self._last_time) if self.rows else None
-
-    @property
-    def recoverable(self) -> bool:
-        """The file so far is the second writer's bytes: it can be closed at its last row group."""
-        return self._shadow is not None
-
-    def write(self, columns: Mapping[str, np.ndarray]) -> None:
-        """Append rows as one row group; ``columns`` maps every column name to its values."""
-        pa = self._pa
-        if self.failed is not None:
-            raise TraceWriteError(f"{self.path}: no more rows after a failed write ({self.failed})")
-        missing = [c for c in self.columns if c not in columns]
-        if missing:
-            raise InputError(f"{self.path}: rows without column(s) {', '.join(missing)}")
-        arrays = [np.asarray(columns[c], dtype=np.float64) for c in self.columns]
-        if not len(arrays[0]):
-            return
-        time = arrays[0]
-        check_time(np.concatenate([[self._last_time], time]) if np.isfinite(self._last_time) else time,
-                   str(self.path))
-        table = pa.Table.from_arrays([pa.array(a, type=pa.float64()) for a in arrays], schema=self._schema)
-        try:
-            self._writer.write_table(table)
-        except OSError as exc:
-            self.failed = exc
-            raise TraceWriteError(f"{self.path}: could not write rows {self.rows + 1}-{self.rows + len(time)} "
-                                  f"(t = {time[0]:.9g} to {time[-1]:.9g} s): {exc}") from exc
-        if self._shadow is not None:
-            self._shadow.write_table(table)
-            if self._shadow_sink.position != os.path.getsize(self.path):  # not the same bytes: no recovery
-                self._shadow = None
-        self._last_time = float(time[-1])
-        self.rows += len(time)
-
-    def close(self, metadata: Mapping[str, object] | None = None) -> Path:
-        """Write ``metadata`` and the footer; the file is then a complete Parquet trace (after a
-        failed write: of the rows written before it). Raises OSError when not even that can
-        be written (the file then has no footer)."""
-        meta = _clean_metadata(metadata)
-        _check_parquet_keys(meta)
-        if self.failed is not None:
-            return self._close_at_last_row_group(meta)
-        if self.rows == 0:  # a table with no rows still has its columns
-            self._writer.write_table(self._schema.empty_table())
-        if meta:
-            self._writer.add_key_value_metadata(meta)
-        self._writer.close()
-        self._close_shadow()
-        return self.path
-
-    def _close_at_last_row_group(self, meta: dict[str, str]) -> Path:
-        """After a failed write: cut the file back to its last whole row group and append the
-        footer the second writer gives for the row groups up to there."""
-        try:
-            self._writer.close()
-        except Exception:  # noqa: BLE001 - its bytes past the last row group are cut off below
-            pass
-        if self._shadow is None:
-            raise OSError(f"{self.path}: the trace could not be closed after a failed write ({self.failed}): "
-                          f"its row groups cannot be recovered")
-        end = self._shadow_sink.position
-        self._shadow_sink.keep()
-        if self.rows == 0:
-            self._shadow.write_table(self._schema.empty_table())
-        if meta:
-            self._shadow.add_key_value_metadata(meta)
-        self._shadow.close()
-        footer, self._shadow = bytes(self._shadow_sink.kept), None
-        try:
-            os.truncate(self.path, end)  # frees what the failed row group took
-            with open(self.path, "r+b") as fh:
-                fh.seek(end)
-                fh.write(footer)
-                fh.truncate()
-        except OSError as exc:
-            raise OSError(f"{self.path}: after a failed write ({self.failed}) not even the footer of the "
-                          f"{self.rows} rows written could be written: {exc}") from exc
-        return self.path
-
-    def _close_shadow(self) -> None:
-        if self._shadow is not None:
-            try:
-                self._shadow.close()
-            except Exception:  # noqa: BLE001 - it writes nowhere
-                pass
-            self._shadow = None
-
-    def abort(self) -> None:
-        """Close the file without metadata and remove it."""
-        try:
-            self._writer.close()
-        except Exception:  # noqa: BLE001 - the file is removed anyway
-            pass
-        self._close_shadow()
-        self.path.unlink(missing_ok=True)
 
 
 def read_trace_metadata(path: str | Path) -> dict[str, str]:
@@ -382,28 +168,33 @@ def read_trace_metadata(path: str | Path) -> dict[str, str]:
     meta = {}
     for key, value in raw.items():
         k = key.decode("utf-8", "replace")
-        if k in _RESERVED_PARQUET_KEYS or k.startswith(_RESERVED_PARQUET_PREFIX):
+        if is_reserved_parquet_key(k):
             continue
         meta[k] = value.decode("utf-8", "replace")
     return meta
 
 
-def copy_trace_to_csv(parquet: str | Path, csv_path: str | Path, metadata: Mapping[str, object] | None = None,
-                      batch_rows: int = ROW_GROUP_ROWS) -> Path:
+def copy_trace_to_csv(
+    parquet: str | Path,
+    csv_path: str | Path,
+    metadata: Mapping[str, object] | None = None,
+    batch_rows: int = ROW_GROUP_ROWS,
+) -> Path:
     """Write the CSV form of a Parquet trace, ``batch_rows`` rows at a time (never the whole
     table in memory); the metadata is the Parquet file's unless ``metadata`` is given."""
     import pyarrow.parquet as pq
 
     parquet, csv_path = Path(parquet), Path(csv_path)
-    meta = _clean_metadata(read_trace_metadata(parquet) if metadata is None else metadata)
+    meta = clean_metadata(read_trace_metadata(parquet) if metadata is None else metadata)
     source = pq.ParquetFile(parquet)
     with open(csv_path, "w", encoding="utf-8", newline="") as fh:
         for key, value in meta.items():
             fh.write(f"# {key}: {value}\n")
         header = True
         for batch in source.iter_batches(batch_size=batch_rows):
-            frame = pd.DataFrame({name: batch.column(i).to_numpy(zero_copy_only=False)
-                                  for i, name in enumerate(batch.schema.names)})
+            frame = pd.DataFrame(
+                {name: batch.column(i).to_numpy(zero_copy_only=False) for i, name in enumerate(batch.schema.names)}
+            )
             frame.to_csv(fh, index=False, header=header, lineterminator="\n", na_rep="")
             header = False
         if header:  # no rows: the header line alone
@@ -421,7 +212,7 @@ def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.D
     non-numeric column, or a time that is not finite and non-decreasing.
     """
     path = Path(path)
-    fmt = _format(path)
+    fmt = trace_format(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     if columns is not None:
@@ -498,7 +289,7 @@ def iter_trace_blocks(path: str | Path, columns: list[str] | None = None) -> Ite
     ``columns`` or every column): the rows :func:`read_trace` gives, in order, never more than
     one row group in memory. The time is checked across the groups as a whole."""
     path = Path(path)
-    if _format(path) != "parquet":
+    if trace_format(path) != "parquet":
         raise InputError(f"{path}: reading a trace by row groups needs a Parquet trace")
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -541,7 +332,7 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     body = "".join(lines[start:])
     if not body.strip():
         raise InputError(f"{path}: no header line (expected a {TIME!r} column)")
-    sep, decimal = _dialect(lines[start], lines[start + 1:start + 50])
+    sep, decimal = _dialect(lines[start], lines[start + 1 : start + 50])
     try:
         names = [n.strip() for n in next(csv.reader(io.StringIO(lines[start]), delimiter=sep))]
     except csv.Error as exc:
@@ -550,8 +341,7 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     if dupes:
         raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
     try:
-        frame = pd.read_csv(io.StringIO(body), header=0, names=names, sep=sep, decimal=decimal,
-                            **_EXACT_FLOATS)
+        frame = pd.read_csv(io.StringIO(body), header=0, names=names, sep=sep, decimal=decimal, **_EXACT_FLOATS)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise InputError(f"{path}: cannot read as CSV: {exc}") from None
     return meta, frame
@@ -563,9 +353,3 @@ def _dialect(header: str, rows: list[str]) -> tuple[str, str]:
     if ";" in header and "," not in header:
         return ";", "," if any("," in row for row in rows) else "."
     return ",", "."
-
-
-def is_complete(metadata: Mapping[str, str]) -> bool:
-    """False only when the metadata says ``complete: false`` (case-insensitive)."""
-    value = metadata.get("complete")
-    return not (isinstance(value, str) and value.strip().lower() == "false")

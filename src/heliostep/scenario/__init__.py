@@ -26,8 +26,11 @@ mapping is an error instead of silently keeping the last value.
 Modules: :mod:`~heliostep.scenario.yaml_io` (the YAML reader), :mod:`~heliostep.scenario.keys`
 (dotted keys, ``--set``), :mod:`~heliostep.scenario.sections` and :mod:`~heliostep.scenario.model`
 (the typed models), :mod:`~heliostep.scenario.problems` (error lines) and
-:mod:`~heliostep.scenario.load`. This package may import :mod:`heliostep.solar` (sites, plants,
-field geometry) and nothing else of heliostep but :mod:`heliostep.errors`.
+:mod:`~heliostep.scenario.load`. This package imports only the layers below it (the contracts in
+``pyproject.toml``): :mod:`heliostep.solar` (sites, plants, field geometry, sun events),
+:mod:`heliostep.cosim.signals` (the solver options' defaults), :mod:`heliostep.fmu.reference`
+(which FMU references are variant names), and :mod:`heliostep.errors` and :mod:`heliostep.paths`
+(the shipped scenarios' folder).
 """
 
 from heliostep.scenario.keys import KeyProblems, apply_overrides, dotted, set_dotted_key
@@ -61,9 +64,34 @@ from heliostep.scenario.sections import (
 from heliostep.scenario.yaml_io import parse_yaml_value, read_yaml_file, yaml_problem
 
 __all__ = [
-    "DEFAULT_CONNECTIONS", "DEFAULT_FMUS", "INPUT_ROLES", "OUTPUT_ROLES", "PARAMETER_ROLES", "REQUIRED_ROLES",
-    "SEQUENCER_MODES", "SEQUENCER_TRIGGERS", "KeyProblems", "MirrorConfig", "OutputConfig", "PlantConfig",
-    "RolesConfig", "Scenario", "SequencerConfig", "SiteConfig", "SolverConfig", "TransmissionConfig",
-    "WindConfig", "WindowConfig", "apply_overrides", "dotted", "load_scenario", "parse_yaml_value",
-    "read_yaml_file", "resolve_scenario_path", "set_dotted_key", "shipped_scenario_dir", "validate_scenario", "yaml_problem",
+    "DEFAULT_CONNECTIONS",
+    "DEFAULT_FMUS",
+    "INPUT_ROLES",
+    "OUTPUT_ROLES",
+    "PARAMETER_ROLES",
+    "REQUIRED_ROLES",
+    "SEQUENCER_MODES",
+    "SEQUENCER_TRIGGERS",
+    "KeyProblems",
+    "MirrorConfig",
+    "OutputConfig",
+    "PlantConfig",
+    "RolesConfig",
+    "Scenario",
+    "SequencerConfig",
+    "SiteConfig",
+    "SolverConfig",
+    "TransmissionConfig",
+    "WindConfig",
+    "WindowConfig",
+    "apply_overrides",
+    "dotted",
+    "load_scenario",
+    "parse_yaml_value",
+    "read_yaml_file",
+    "resolve_scenario_path",
+    "set_dotted_key",
+    "shipped_scenario_dir",
+    "validate_scenario",
+    "yaml_problem",
 ]

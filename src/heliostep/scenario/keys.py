@@ -28,7 +28,6 @@ def dotted(loc: Sequence) -> str:
     return text
 
 
-
 def apply_overrides(data: dict, overrides: Sequence[str], source: str) -> dict:
     """Set ``"dotted.key=value"`` overrides in ``data`` (in place); values are YAML."""
     for override in overrides:
@@ -37,14 +36,14 @@ def apply_overrides(data: dict, overrides: Sequence[str], source: str) -> dict:
         key, equals, text = override.partition("=")
         parts = key.strip().split(".")
         if not equals or not all(part.strip() for part in parts):
-            raise InputError(f"{source}: --set {override!r}: expected 'dotted.key=value', "
-                             f"e.g. 'sequencer.current=3'")
+            raise InputError(f"{source}: --set {override!r}: expected 'dotted.key=value', e.g. 'sequencer.current=3'")
         parts = [part.strip() for part in parts]
         try:
             value = parse_yaml_value(text)
         except yaml.YAMLError as exc:
-            raise InputError(f"{source}: --set {override!r}: the value is not valid YAML: "
-                             f"{yaml_problem(exc)}") from None
+            raise InputError(
+                f"{source}: --set {override!r}: the value is not valid YAML: {yaml_problem(exc)}"
+            ) from None
         set_dotted_key(data, parts, value, f"{source}: --set {override!r}")
     return data
 
@@ -61,8 +60,9 @@ def set_dotted_key(data: dict, parts: Sequence[str], value, where: str) -> None:
         if child is None:
             child = node[part] = {}
         elif not isinstance(child, dict):
-            raise InputError(f"{where}: {'.'.join(parts[:depth + 1])} is {child!r}, not a mapping, "
-                             f"so it has no key {parts[depth + 1]!r}")
+            raise InputError(
+                f"{where}: {'.'.join(parts[: depth + 1])} is {child!r}, not a mapping, "
+                f"so it has no key {parts[depth + 1]!r}"
+            )
         node = child
     node[parts[-1]] = value
-

@@ -37,8 +37,9 @@ def validate_scenario(data: Mapping, *, source: str = "<scenario>", folder=None)
         One line per problem: source, dotted key path, what was expected.
     """
     if not isinstance(data, Mapping):
-        raise InputError(f"{source}: the top level must be a mapping of keys (name, site, window, ...), "
-                         f"got {type(data).__name__}")
+        raise InputError(
+            f"{source}: the top level must be a mapping of keys (name, site, window, ...), got {type(data).__name__}"
+        )
     try:
         scenario = Scenario.model_validate(dict(data))
     except ValidationError as exc:
@@ -46,8 +47,6 @@ def validate_scenario(data: Mapping, *, source: str = "<scenario>", folder=None)
     scenario._folder = Path.cwd() if folder is None else Path(folder).absolute()
     scenario._source = source
     return scenario
-
-
 
 
 def shipped_scenario_dir() -> Path:
@@ -102,7 +101,8 @@ def load_scenario(path, overrides: Sequence[str] = ()) -> Scenario:
     data = read_yaml_file(path, "scenario")
     if not isinstance(data, dict):
         what = "empty" if data is None else f"a {type(data).__name__}"
-        raise InputError(f"{source}: the top level must be a mapping of keys (name, site, window, ...), "
-                         f"the file holds {what}")
+        raise InputError(
+            f"{source}: the top level must be a mapping of keys (name, site, window, ...), the file holds {what}"
+        )
     data = apply_overrides(data, overrides, source)
     return validate_scenario(data, source=source, folder=path.absolute().parent)

@@ -6,16 +6,16 @@ import datetime as dt
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Union
+from typing import Annotated, cast
 
 import pandas as pd
 from pydantic import (
-    StrictBool,
-    StrictInt,
-    StrictStr,
     BeforeValidator,
     Field,
     PrivateAttr,
+    StrictBool,
+    StrictInt,
+    StrictStr,
     field_validator,
     model_validator,
 )
@@ -52,13 +52,14 @@ DEFAULT_CONNECTIONS = [
 
 #: A parameter value of any FMI 2.0 type; the master checks it against the variable's declared type
 #: (a Boolean must be true/false, an Integer a whole number, a String quoted text).
-ParameterValue = Annotated[Union[StrictBool, StrictInt, Annotated[float, Field(strict=True, allow_inf_nan=False)],
-                                 StrictStr], Field(union_mode="left_to_right")]
+ParameterValue = Annotated[
+    StrictBool | StrictInt | Annotated[float, Field(strict=True, allow_inf_nan=False)] | StrictStr,
+    Field(union_mode="left_to_right"),
+]
 
 _INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 #: Top-level keys whose null value means "the defaults".
-_DEFAULTED_KEYS = ("transmission", "fmus", "parameters", "roles", "sequencer", "wind", "solver", "output",
-                   "optics")
+_DEFAULTED_KEYS = ("transmission", "fmus", "parameters", "roles", "sequencer", "wind", "solver", "output", "optics")
 
 
 def _merge_default_fmus(value):
@@ -100,11 +101,12 @@ class Scenario(Section):
     fmus: Annotated[dict[str, str], BeforeValidator(_merge_default_fmus)] = Field(
         default_factory=lambda: dict(DEFAULT_FMUS),
         description="instance name -> model variant or path to an .fmu; merged over the defaults "
-                    "motor: StepperMotor, mechanics: PanelMechanics (null drops one)",
+        "motor: StepperMotor, mechanics: PanelMechanics (null drops one)",
     )
     parameters: dict[str, dict[str, ParameterValue]] = Field(
-        default_factory=dict, description="instance name -> {parameter name: value (Real, Integer, Boolean or "
-                                          "String, as the FMU declares it)}"
+        default_factory=dict,
+        description="instance name -> {parameter name: value (Real, Integer, Boolean or "
+        "String, as the FMU declares it)}",
     )
     connections: list[Annotated[tuple[str, str], BeforeValidator(_connection_pair)]] | None = Field(
         None, description="[source, target] pairs 'instance.variable'; null: the default connections"
@@ -127,8 +129,9 @@ class Scenario(Section):
             return data
         data = {key: value for key, value in data.items() if not (value is None and key in _DEFAULTED_KEYS)}
         if isinstance(data.get("parameters"), Mapping):
-            data["parameters"] = {instance: {} if values is None else values
-                                  for instance, values in data["parameters"].items()}
+            data["parameters"] = {
+                instance: {} if values is None else values for instance, values in data["parameters"].items()
+            }
         return data
 
     @field_validator("name")
@@ -141,13 +144,14 @@ class Scenario(Section):
     @field_validator("fmus")
     @classmethod
     def _fmu_names(cls, fmus: dict[str, str]) -> dict[str, str]:
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         if not fmus:
             problems.append(((), "at least one FMU instance is needed"))
         for instance, variant in fmus.items():
             if not _INSTANCE_NAME.fullmatch(instance):
-                problems.append(((instance,), "instance names are identifiers (letters, digits, '_', "
-                                              "not starting with a digit)"))
+                problems.append(
+                    ((instance,), "instance names are identifiers (letters, digits, '_', not starting with a digit)")
+                )
             if not variant.strip():
                 problems.append(((instance,), "expected a model variant name or a path to an .fmu, got ''"))
         if problems:
@@ -159,7 +163,7 @@ class Scenario(Section):
     def _connection_endpoints(cls, connections):
         if connections is None:
             return None
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         for position, pair in enumerate(connections):
             for side, endpoint in enumerate(pair):
                 problem = _endpoint_problem(endpoint)
@@ -173,29 +177,44 @@ class Scenario(Section):
 
     @model_validator(mode="after")
     def _consistent_sections(self) -> Scenario:
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         instances = ", ".join(self.fmus)
         for instance in self.parameters:
             if instance not in self.fmus:
                 problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
         if self.connections is None:
-            missing = sorted({endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair}
-                             - set(self.fmus))
+            missing = sorted(
+                {endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair} - set(self.fmus)
+            )
             if missing:
-                problems.append((("connections",), f"the default connections use FMU instance(s) "
-                                                   f"{', '.join(missing)}, not in fmus ({instances}); "
-                                                   f"give 'connections' explicitly ([] for none)"))
+                problems.append(
+                    (
+                        ("connections",),
+                        f"the default connections use FMU instance(s) "
+                        f"{', '.join(missing)}, not in fmus ({instances}); "
+                        f"give 'connections' explicitly ([] for none)",
+                    )
+                )
         else:
-            targets = {}
+            targets: dict[str, int] = {}
             for position, (source, target) in enumerate(self.connections):
                 for side, endpoint in enumerate((source, target)):
                     instance = endpoint.partition(".")[0]
                     if instance not in self.fmus:
-                        problems.append((("connections", position, side), f"{endpoint!r}: unknown FMU instance "
-                                                                          f"{instance!r}; instances in fmus: {instances}"))
+                        problems.append(
+                            (
+                                ("connections", position, side),
+                                f"{endpoint!r}: unknown FMU instance {instance!r}; instances in fmus: {instances}",
+                            )
+                        )
                 if target in targets:
-                    problems.append((("connections", position), f"{target!r} is already the target of "
-                                                                f"connections[{targets[target]}]; an input has one source"))
+                    problems.append(
+                        (
+                            ("connections", position),
+                            f"{target!r} is already the target of "
+                            f"connections[{targets[target]}]; an input has one source",
+                        )
+                    )
                 targets.setdefault(target, position)
         problems += self._role_problems()
         try:
@@ -216,7 +235,7 @@ class Scenario(Section):
             (source, target) as "instance.variable".
         """
         pairs = DEFAULT_CONNECTIONS if self.connections is None else self.connections
-        return [tuple(pair) for pair in pairs]
+        return [cast("tuple[str, str]", tuple(pair)) for pair in pairs]
 
     def resolved_roles(self) -> dict[str, str]:
         """Role -> ``instance.variable`` for this scenario's FMUs.
@@ -225,11 +244,14 @@ class Scenario(Section):
         ``fmus`` is dropped (a required one is an error at validation).
         """
         given = self.roles.model_fields_set
-        return {role: target for role, target in self.roles.present().items()
-                if role in given or target.partition(".")[0] in self.fmus}
+        return {
+            role: target
+            for role, target in self.roles.present().items()
+            if role in given or target.partition(".")[0] in self.fmus
+        }
 
     def _role_problems(self) -> list:
-        problems = []
+        problems: list[tuple[tuple, str]] = []
         given = self.roles.model_fields_set
         instances = ", ".join(self.fmus)
         for role, target in self.roles.model_dump().items():
@@ -242,11 +264,17 @@ class Scenario(Section):
             if role in given and problem:
                 problems.append((("roles", role), problem))
             elif role in given and instance not in self.fmus:
-                problems.append((("roles", role), f"{target!r}: unknown FMU instance {instance!r}; "
-                                                  f"instances in fmus: {instances}"))
+                problems.append(
+                    (("roles", role), f"{target!r}: unknown FMU instance {instance!r}; instances in fmus: {instances}")
+                )
             elif role not in given and instance not in self.fmus and role in REQUIRED_ROLES:
-                problems.append((("roles", role), f"the default {target!r} uses FMU instance {instance!r}, not in "
-                                                  f"fmus ({instances}); give roles.{role} explicitly"))
+                problems.append(
+                    (
+                        ("roles", role),
+                        f"the default {target!r} uses FMU instance {instance!r}, not in "
+                        f"fmus ({instances}); give roles.{role} explicitly",
+                    )
+                )
         return problems
 
     def fmu_reference(self, instance: str) -> str | Path:
@@ -265,8 +293,7 @@ class Scenario(Section):
             (the current directory for a scenario not read from a file).
         """
         if instance not in self.fmus:
-            raise InputError(f"{self._source}: fmus: no FMU instance {instance!r}; "
-                             f"instances: {', '.join(self.fmus)}")
+            raise InputError(f"{self._source}: fmus: no FMU instance {instance!r}; instances: {', '.join(self.fmus)}")
         reference = self.fmus[instance]
         if is_variant_name(reference):
             return reference
@@ -288,8 +315,9 @@ class Scenario(Section):
         try:
             return self._resolve_window()
         except KeyProblems as exc:
-            raise InputError("\n".join(f"{self._source}: {dotted(path)}: {message}"
-                                       for path, message in exc.problems)) from None
+            raise InputError(
+                "\n".join(f"{self._source}: {dotted(path)}: {message}" for path, message in exc.problems)
+            ) from None
 
     def resolved_dict(self) -> dict:
         """The fully validated scenario as plain JSON-able data (for run metadata).
@@ -316,38 +344,42 @@ class Scenario(Section):
 
     # ----------------------------------------------------------------------- helpers
     def _resolve_window(self) -> tuple[pd.Timestamp, pd.Timestamp]:
-        timezone = self.site.timezone
-        window = self.window
-        events = None
+        return _window_bounds(self.window, self.site)
 
-        def sun_event(column: str, key: str) -> pd.Timestamp:
-            nonlocal events
-            if events is None:
-                events = sun_events(window.date, self.site.to_site())
-            stamp = events[column]
-            if stamp is None:
-                raise KeyProblems([(("window", key), f"the sun has no {column} on {window.date} at "
-                                                     f"latitude {self.site.latitude:g} deg")])
-            # whole seconds, inside the daylight: sunrise rounded up, sunset down
-            return stamp.ceil("s") if column == SUNRISE else stamp.floor("s")
 
-        def local(clock: dt.time, key: str) -> pd.Timestamp:
-            try:
-                return pd.Timestamp(dt.datetime.combine(window.date, clock)).tz_localize(
-                    timezone, ambiguous="raise", nonexistent="raise"
-                )
-            except ValueError:
-                raise KeyProblems([(("window", key), f"{window.date} {clock} does not exist or is "
-                                                      f"ambiguous in {timezone} (daylight saving change)")]) from None
+def _window_bounds(window: WindowConfig, site: SiteConfig) -> tuple[pd.Timestamp, pd.Timestamp]:
+    """Start and end of *window* at *site*, in its timezone (:class:`KeyProblems` naming ``window.*``
+    when a clock time does not exist there or the sun does not rise or set)."""
+    timezone = site.timezone
+    events = None
 
-        start = sun_event(SUNRISE, "start") if window.start == SUNRISE else local(window.start, "start")
-        if window.duration is not None:
-            end = start + pd.Timedelta(seconds=window.duration)
-        elif window.end == SUNSET:
-            end = sun_event(SUNSET, "end")
-        else:
-            end = local(window.end, "end")
-        if end <= start:
-            raise KeyProblems([(("window", "end"), f"must be after the start ({start}), got {end}")])
-        return start, end
+    def sun_event(column: str, key: str) -> pd.Timestamp:
+        nonlocal events
+        if events is None:
+            events = sun_events(window.date, site.to_site())
+        stamp = events[column]
+        if stamp is None:
+            message = f"the sun has no {column} on {window.date} at latitude {site.latitude:g} deg"
+            raise KeyProblems([(("window", key), message)])
+        # whole seconds, inside the daylight: sunrise rounded up, sunset down
+        return stamp.ceil("s") if column == SUNRISE else stamp.floor("s")
 
+    def local(clock: dt.time, key: str) -> pd.Timestamp:
+        try:
+            return pd.Timestamp(dt.datetime.combine(window.date, clock)).tz_localize(
+                timezone, ambiguous="raise", nonexistent="raise"
+            )
+        except ValueError:
+            message = f"{window.date} {clock} does not exist or is ambiguous in {timezone} (daylight saving change)"
+            raise KeyProblems([(("window", key), message)]) from None
+
+    start = sun_event(SUNRISE, "start") if window.start == SUNRISE else local(cast(dt.time, window.start), "start")
+    if window.duration is not None:
+        end = start + pd.Timedelta(seconds=window.duration)
+    elif window.end == SUNSET:
+        end = sun_event(SUNSET, "end")
+    else:
+        end = local(cast(dt.time, window.end), "end")
+    if end <= start:
+        raise KeyProblems([(("window", "end"), f"must be after the start ({start}), got {end}")])
+    return start, end

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import get_args
+from collections.abc import Mapping, Sequence
+from typing import Any, get_args
 
 from pydantic import BaseModel, ValidationError
 
@@ -22,7 +22,8 @@ def _model_of(annotation) -> type[BaseModel] | None:
 
 def _field_at(root: type[BaseModel], loc: Sequence):
     """(model holding the last key, its FieldInfo) for a key path, as far as models reach."""
-    model, info = root, None
+    model: type[BaseModel] | None = root
+    info = None
     for depth, part in enumerate(loc):
         if model is None or part not in model.model_fields:
             return (model if depth == len(loc) - 1 else None), None
@@ -32,7 +33,7 @@ def _field_at(root: type[BaseModel], loc: Sequence):
     return model, info
 
 
-def _explain(root: type[BaseModel], error: dict) -> list[tuple[tuple, str]]:
+def _explain(root: type[BaseModel], error: Mapping[str, Any]) -> list[tuple[tuple, str]]:
     """(key path, message) lines for one pydantic error."""
     loc, kind = tuple(error["loc"]), error["type"]
     cause = (error.get("ctx") or {}).get("error")
@@ -63,10 +64,10 @@ def format_validation_error(exc: ValidationError, source: str, root: type[BaseMo
         if loc and loc[-1] in _UNION_TAGS:  # one line for a value that is none of the union's types
             if loc[:-1] not in unions:
                 unions.add(loc[:-1])
-                lines.append(f"{source}: {dotted(loc[:-1])}: expected a number, true/false or a string, "
-                             f"got {error['input']!r}")
+                lines.append(
+                    f"{source}: {dotted(loc[:-1])}: expected a number, true/false or a string, got {error['input']!r}"
+                )
             continue
         for loc, message in _explain(root, error):
             lines.append(f"{source}: {dotted(loc) or '(top level)'}: {message}")
     return "\n".join(lines)
-

@@ -28,8 +28,14 @@ INPUT_ROLES = ("current_a_ref", "current_b_ref", "wind_moment")
 #: Roles of FMU *outputs* that the trace, the summary and the plots use.
 OUTPUT_ROLES = ("torque", "current_a", "current_b", "power", "rotor_angle", "panel_angle")
 #: Roles of FMU *parameters* the scenario implies (the drive holds its first step at the start).
-PARAMETER_ROLES = ("panel_angle_start", "rotor_angle_start", "pinion_radius", "lever_arm",
-                   "current_a_start", "current_b_start")
+PARAMETER_ROLES = (
+    "panel_angle_start",
+    "rotor_angle_start",
+    "pinion_radius",
+    "lever_arm",
+    "current_a_start",
+    "current_b_start",
+)
 #: Roles a run cannot do without.
 REQUIRED_ROLES = ("current_a_ref", "current_b_ref", "rotor_angle")
 

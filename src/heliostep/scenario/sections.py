@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import datetime as dt
 import re
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -95,8 +95,7 @@ class SiteConfig(Section):
 
     def to_site(self) -> Site:
         """The :class:`heliostep.solar.Site` of this section."""
-        return Site(latitude=self.latitude, longitude=self.longitude, altitude=self.altitude,
-                    timezone=self.timezone)
+        return Site(latitude=self.latitude, longitude=self.longitude, altitude=self.altitude, timezone=self.timezone)
 
 
 class WindowConfig(Section):
@@ -107,10 +106,10 @@ class WindowConfig(Section):
     """
 
     date: dt.date = Field(description="local calendar date, YYYY-MM-DD")
-    start: Annotated[Union[dt.time, Literal["sunrise"]], BeforeValidator(_start_time)] = Field(
+    start: Annotated[dt.time | Literal["sunrise"], BeforeValidator(_start_time)] = Field(
         description='local time "HH:MM" or "HH:MM:SS", or "sunrise"'
     )
-    end: Annotated[Union[dt.time, Literal["sunset"], None], BeforeValidator(_end_time)] = Field(
+    end: Annotated[dt.time | Literal["sunset"] | None, BeforeValidator(_end_time)] = Field(
         None, description='local time "HH:MM" or "HH:MM:SS", or "sunset"; instead of duration'
     )
     duration: Real | None = Field(None, gt=0.0, description="[s]; instead of end")
@@ -121,8 +120,7 @@ class WindowConfig(Section):
             given = "both" if self.end is not None else "neither"
             raise KeyProblems([((), f"give exactly one of 'end' or 'duration' ({given} given)")])
         if isinstance(self.start, dt.time) and isinstance(self.end, dt.time) and self.end <= self.start:
-            raise KeyProblems([(("end",), f"must be after start ({self.start}) on the same date, "
-                                           f"got {self.end}")])
+            raise KeyProblems([(("end",), f"must be after start ({self.start}) on the same date, got {self.end}")])
         return self
 
 
@@ -137,8 +135,7 @@ class PlantConfig(Section):
 
     def to_plant(self) -> Plant:
         """The :class:`heliostep.solar.Plant` of this section."""
-        return Plant(tube_height=self.tube_height, orientation=self.orientation,
-                     azimuth_offset=self.azimuth_offset)
+        return Plant(tube_height=self.tube_height, orientation=self.orientation, azimuth_offset=self.azimuth_offset)
 
 
 class MirrorConfig(Section):
@@ -150,10 +147,15 @@ class MirrorConfig(Section):
     """
 
     distance: Real | None = Field(None, description="[m], transverse position; instead of index")
-    index: Count | None = Field(None, ge=0, le=N_FIELD_MIRRORS - 1,
-                                 description=f"position in the field of {N_FIELD_MIRRORS}; instead of distance")
-    spacing: Real | None = Field(None, gt=0.0, description=f"[m] between mirrors, with index "
-                                                            f"(default {DEFAULT_MIRROR_SPACING})")
+    index: Count | None = Field(
+        None,
+        ge=0,
+        le=N_FIELD_MIRRORS - 1,
+        description=f"position in the field of {N_FIELD_MIRRORS}; instead of distance",
+    )
+    spacing: Real | None = Field(
+        None, gt=0.0, description=f"[m] between mirrors, with index (default {DEFAULT_MIRROR_SPACING})"
+    )
     axis: Literal[AXES] = Field("secondary", description="the driven axis")
     stow: Literal[STOW_POLICIES] = Field("hold", description="policy while the sun is down")
     stow_angle: Real = Field(0.0, ge=-90.0, le=90.0, description="[deg]")
@@ -164,8 +166,9 @@ class MirrorConfig(Section):
             given = "both" if self.index is not None else "neither"
             raise KeyProblems([((), f"give exactly one of 'distance' or 'index' ({given} given)")])
         if self.spacing is not None and self.index is None:
-            raise KeyProblems([(("spacing",), "only applies with 'index'; remove it or give 'index' "
-                                               "instead of 'distance'")])
+            raise KeyProblems(
+                [(("spacing",), "only applies with 'index'; remove it or give 'index' instead of 'distance'")]
+            )
         return self
 
     @property
@@ -191,11 +194,14 @@ class SequencerConfig(Section):
     current: Real = Field(5.5, gt=0.0, description="[A], phase current")
     step_angle: Real = Field(1.8, gt=0.0, description="[deg], full step of the rotor")
     trigger: Literal[SEQUENCER_TRIGGERS] = Field(
-        "midpoint", description="step when the reference crosses the midpoint to the next position, or reaches it")
+        "midpoint", description="step when the reference crosses the midpoint to the next position, or reaches it"
+    )
     microsteps: Literal[1, 2, 4, 8, 16] = Field(
-        1, description="sine/cosine phase currents in 1/N of a full step (one-phase-on only); 1: full steps")
+        1, description="sine/cosine phase currents in 1/N of a full step (one-phase-on only); 1: full steps"
+    )
     idle_current_fraction: Real = Field(
-        1.0, gt=0.0, le=1.0, description="[-], current held after idle_delay without a step; 1: no reduction")
+        1.0, gt=0.0, le=1.0, description="[-], current held after idle_delay without a step; 1: no reduction"
+    )
     idle_delay: Real = Field(0.0, ge=0.0, description="[s] after each step before the idle current reduction")
 
 
@@ -218,14 +224,17 @@ class OpticsConfig(Section):
     specularity: Real = Field(0.0, ge=0.0, description="[rad], specularity error")
     weather_file: str | None = Field(None, description="TMY3 (.csv) or EPW (.epw) file; null: clear sky")
     tube_ends: tuple[Real, Real] | None = Field(
-        None, description="[m], y of the tube's two ends from the mirror's centre, along the tube (+y: North "
-                          "for a NS plant); null: the tube runs on past the mirror both ways")
+        None,
+        description="[m], y of the tube's two ends from the mirror's centre, along the tube (+y: North "
+        "for a NS plant); null: the tube runs on past the mirror both ways",
+    )
 
     @model_validator(mode="after")
     def _tube_ends_in_order(self) -> OpticsConfig:
         if self.tube_ends is not None and not self.tube_ends[0] < self.tube_ends[1]:
-            raise KeyProblems([(("tube_ends",), f"expected [start, end] with start < end [m], "
-                                                 f"got {list(self.tube_ends)}")])
+            raise KeyProblems(
+                [(("tube_ends",), f"expected [start, end] with start < end [m], got {list(self.tube_ends)}")]
+            )
         return self
 
 
@@ -250,5 +259,3 @@ class OutputConfig(Section):
     interval: Real = Field(0.01, gt=0.0, description="[s], spacing of the regular grid")
     step_detail: Real = Field(0.05, gt=0.0, description="[s] after each step kept on the fine grid")
     step_interval: Real = Field(0.0005, gt=0.0, description="[s], spacing of the fine grid")
-
-

@@ -29,8 +29,10 @@ class HeliostepLoader(yaml.SafeLoader):
                     continue
                 if repeated:
                     raise yaml.constructor.ConstructorError(
-                        "while constructing a mapping", node.start_mark,
-                        f"found the key {key!r} twice", key_node.start_mark,
+                        "while constructing a mapping",
+                        node.start_mark,
+                        f"found the key {key!r} twice",
+                        key_node.start_mark,
                     )
                 seen.add(key)
         return super().construct_mapping(node, deep=deep)
@@ -78,7 +80,6 @@ def yaml_problem(exc: yaml.YAMLError) -> str:
     return f"line {mark.line + 1}, column {mark.column + 1}: {problem}"
 
 
-
 def parse_yaml_value(text: str):
     """One YAML value (a ``--set`` right-hand side) read like the files; :class:`yaml.YAMLError` on bad YAML."""
     return yaml.load(text, Loader=HeliostepLoader)  # noqa: S506 - a SafeLoader
@@ -102,4 +103,3 @@ def read_yaml_file(path: str | Path, what: str):
         return yaml.load(text, Loader=HeliostepLoader)  # noqa: S506 - a SafeLoader
     except yaml.YAMLError as exc:
         raise InputError(f"{source}: not valid YAML: {yaml_problem(exc)}") from None
-

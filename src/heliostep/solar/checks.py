@@ -41,9 +41,7 @@ def check_timezone(timezone: str) -> str:
     try:
         zoneinfo.ZoneInfo(timezone)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError) as exc:
-        raise InputError(
-            f"timezone {timezone!r} is unknown; use an IANA name such as 'Europe/Rome' or 'UTC'"
-        ) from exc
+        raise InputError(f"timezone {timezone!r} is unknown; use an IANA name such as 'Europe/Rome' or 'UTC'") from exc
     return timezone
 
 

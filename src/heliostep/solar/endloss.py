@@ -105,8 +105,18 @@ def row_distance_for_shift(shift, elevation, azimuth, tube_height, plant_azimuth
         return np.sqrt(slant**2 - tube_height**2)
 
 
-def end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_distances, mirror_width,
-                   end_length, optical_efficiency: float = 1.0, plant_azimuth: float = 0.0) -> dict:
+def end_loss_power(
+    elevation,
+    azimuth,
+    dni,
+    plant_length,
+    tube_height,
+    mirror_distances,
+    mirror_width,
+    end_length,
+    optical_efficiency: float = 1.0,
+    plant_azimuth: float = 0.0,
+) -> dict:
     """Lit length and absorbed power of a plant with single-axis rows vs two-axis end mirrors.
 
     Parameters
@@ -136,18 +146,8 @@ def end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_di
         ``power_single_W``, ``power_two_axis_W``, ``end_spill_single_W`` (light a single-axis
         plant sends past the tube's end) [W]; ``gain`` = power_two_axis / power_single - 1.
     """
-    length = check_positive(plant_length, "plant_length", "m")
-    width = check_positive(mirror_width, "mirror_width", "m")
-    end = check_range(end_length, "end_length", 0.0, np.inf, "m")
-    if not 2.0 * end < length:
-        raise InputError(f"end_length {end:g} m: two end sections must be shorter than plant_length {length:g} m")
-    efficiency = check_range(optical_efficiency, "optical_efficiency", 0.0, 1.0, "-")
-    elevation = np.atleast_1d(as_float_array(elevation))[:, None]
-    azimuth = np.atleast_1d(as_float_array(azimuth))[:, None]
-    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()[None, :]
-    irradiance = np.atleast_1d(as_float_array(dni))
-    if irradiance.shape != elevation[:, 0].shape or np.any(irradiance < 0) or not np.all(np.isfinite(irradiance)):
-        raise InputError("dni: expected one finite value >= 0 [W/m^2] per instant")
+    length, width, end, efficiency = _checked_plant(plant_length, mirror_width, end_length, optical_efficiency)
+    elevation, azimuth, distances, irradiance = _instants_by_rows(elevation, azimuth, mirror_distances, dni)
     up = elevation[:, 0] > 0.0
     shift = np.abs(end_loss_length(elevation, azimuth, distances, tube_height, plant_azimuth))  # [paper], eq. 2
     shift = np.where(up[:, None], shift, np.nan)
@@ -160,14 +160,57 @@ def end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_di
     power_single = scale * np.nansum(cos_single * on_tube_single, axis=1)
     power_two = scale * np.nansum(cos_single * overlap + cos_two * 2.0 * end, axis=1)
     spill = scale * np.nansum(cos_single * np.minimum(shift, length), axis=1)
+    return _end_loss_figures(up, shift, length, power_single, power_two, spill)
+
+
+def _end_loss_figures(
+    up: np.ndarray,
+    shift: np.ndarray,
+    length: float,
+    power_single: np.ndarray,
+    power_two: np.ndarray,
+    spill: np.ndarray,
+) -> dict:
+    """The figures :func:`end_loss_power` returns, from the instants with the sun *up*, the rows'
+    shifts [m] (instants by rows), the plant length [m] and the powers [W] per instant."""
     with np.errstate(invalid="ignore", divide="ignore"):
         gain = np.where(power_single > 0, power_two / power_single - 1.0, np.nan)
         shift_min = np.where(up, np.nanmin(np.where(up[:, None], shift, np.inf), axis=1), np.nan)
         shift_max = np.where(up, np.nanmax(np.where(up[:, None], shift, -np.inf), axis=1), np.nan)
-    return {"shift_min_m": shift_min, "shift_max_m": shift_max, "unlit_length_m": np.minimum(shift_min, length),
-            "lit_length_m": np.clip(length - shift_min, 0.0, None), "power_single_W": np.where(up, power_single, 0.0),
-            "power_two_axis_W": np.where(up, power_two, 0.0), "end_spill_single_W": np.where(up, spill, 0.0),
-            "gain": gain}
+    return {
+        "shift_min_m": shift_min,
+        "shift_max_m": shift_max,
+        "unlit_length_m": np.minimum(shift_min, length),
+        "lit_length_m": np.clip(length - shift_min, 0.0, None),
+        "power_single_W": np.where(up, power_single, 0.0),
+        "power_two_axis_W": np.where(up, power_two, 0.0),
+        "end_spill_single_W": np.where(up, spill, 0.0),
+        "gain": gain,
+    }
+
+
+def _checked_plant(plant_length, mirror_width, end_length, optical_efficiency) -> tuple[float, float, float, float]:
+    """Length L [m], row width w [m], end length L_e [m] and optical efficiency [-] of
+    :func:`end_loss_power`, checked (two end sections shorter than the plant)."""
+    length = check_positive(plant_length, "plant_length", "m")
+    width = check_positive(mirror_width, "mirror_width", "m")
+    end = check_range(end_length, "end_length", 0.0, np.inf, "m")
+    if not 2.0 * end < length:
+        raise InputError(f"end_length {end:g} m: two end sections must be shorter than plant_length {length:g} m")
+    efficiency = check_range(optical_efficiency, "optical_efficiency", 0.0, 1.0, "-")
+    return length, width, end, efficiency
+
+
+def _instants_by_rows(elevation, azimuth, mirror_distances, dni) -> tuple[np.ndarray, ...]:
+    """Sun elevation and azimuth [deg] as columns (one row per instant), the rows' distances [m] as
+    one row, and the DNI [W/m^2] per instant, checked (finite, >= 0, one per instant)."""
+    elevation = np.atleast_1d(as_float_array(elevation))[:, None]
+    azimuth = np.atleast_1d(as_float_array(azimuth))[:, None]
+    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()[None, :]
+    irradiance = np.atleast_1d(as_float_array(dni))
+    if irradiance.shape != elevation[:, 0].shape or np.any(irradiance < 0) or not np.all(np.isfinite(irradiance)):
+        raise InputError("dni: expected one finite value >= 0 [W/m^2] per instant")
+    return elevation, azimuth, distances, irradiance
 
 
 def _year_grid(site: Site, year: int, step_minutes: float, days=None) -> tuple[pd.DatetimeIndex, np.ndarray]:
@@ -189,8 +232,15 @@ def _year_grid(site: Site, year: int, step_minutes: float, days=None) -> tuple[p
     return times, np.concatenate(labels)
 
 
-def largest_shift(site: Site, year: int, tube_height: float, mirror_distances, min_elevation: float = 5.0,
-                  step_minutes: float = 20.0, plant_azimuth: float = 0.0) -> float:
+def largest_shift(
+    site: Site,
+    year: int,
+    tube_height: float,
+    mirror_distances,
+    min_elevation: float = 5.0,
+    step_minutes: float = 20.0,
+    plant_azimuth: float = 0.0,
+) -> float:
     """Largest |k| over a year and the rows while the sun is above ``min_elevation`` [m].
 
     The paper sizes the two-axis end sections by it ([paper], Section 3). Near the horizon
@@ -205,9 +255,19 @@ def largest_shift(site: Site, year: int, tube_height: float, mirror_distances, m
     return float(np.max(np.abs(shift)))
 
 
-def end_loss_days(site: Site, year: int, plant_length: float, tube_height: float, mirror_distances,
-                  mirror_width: float, end_length: float, optical_efficiency: float = 1.0, days=None,
-                  step_minutes: float = 5.0, plant_azimuth: float = 0.0) -> pd.DataFrame:
+def end_loss_days(
+    site: Site,
+    year: int,
+    plant_length: float,
+    tube_height: float,
+    mirror_distances,
+    mirror_width: float,
+    end_length: float,
+    optical_efficiency: float = 1.0,
+    days=None,
+    step_minutes: float = 5.0,
+    plant_azimuth: float = 0.0,
+) -> pd.DataFrame:
     """Energy on the tube per day, single-axis plant vs two-axis end mirrors, clear sky (pvlib Ineichen).
 
     Parameters
@@ -233,25 +293,55 @@ def end_loss_days(site: Site, year: int, plant_length: float, tube_height: float
     sun = solar_position(times, site.latitude, site.longitude, site.altitude)
     elevation, azimuth = sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy()
     dni = clear_sky_dni(times, site).to_numpy()
-    power = end_loss_power(elevation, azimuth, dni, plant_length, tube_height, mirror_distances, mirror_width,
-                           end_length, optical_efficiency, plant_azimuth)
-    frame = pd.DataFrame({k: power[k] for k in ("power_single_W", "power_two_axis_W", "end_spill_single_W",
-                                                 "unlit_length_m", "lit_length_m")}, index=times)
-    frame["elevation"] = elevation
-    frame["seconds"] = (times - times[0]).total_seconds()
-    rows = []
-    for day, group in frame.groupby(labels, sort=True):
-        t = group["seconds"].to_numpy()
-        energy = {name: float(np.trapezoid(group[f"{name}_W"].to_numpy(), t))
-                  for name in ("power_single", "power_two_axis", "end_spill_single")}
-        noon = group.iloc[int(np.argmax(group["elevation"].to_numpy()))]
-        rows.append({"day_of_year": int(day), "date": group.index[0].date().isoformat(),
-                     "energy_single_J": energy["power_single"], "energy_two_axis_J": energy["power_two_axis"],
-                     "end_spill_single_J": energy["end_spill_single"],
-                     "gain": energy["power_two_axis"] / energy["power_single"] - 1.0 if energy["power_single"] > 0
-                     else np.nan,
-                     "unlit_length_noon_m": float(noon["unlit_length_m"]),
-                     "lit_length_noon_m": float(noon["lit_length_m"])})
+    power = end_loss_power(
+        elevation,
+        azimuth,
+        dni,
+        plant_length,
+        tube_height,
+        mirror_distances,
+        mirror_width,
+        end_length,
+        optical_efficiency,
+        plant_azimuth,
+    )
+    frame = _power_frame(times, elevation, power)
+    rows = [_day_row(day, group) for day, group in frame.groupby(labels, sort=True)]
     table = pd.DataFrame(rows).set_index("day_of_year")
     table.attrs["end_length_m"] = float(end_length)
     return table
+
+
+def _power_frame(times: pd.DatetimeIndex, elevation: np.ndarray, power: dict) -> pd.DataFrame:
+    """:func:`end_loss_power`'s powers [W] and lengths [m] by instant, with the sun's elevation [deg] and
+    the seconds since the first instant."""
+    frame = pd.DataFrame(
+        {
+            k: power[k]
+            for k in ("power_single_W", "power_two_axis_W", "end_spill_single_W", "unlit_length_m", "lit_length_m")
+        },
+        index=times,
+    )
+    frame["elevation"] = elevation
+    frame["seconds"] = (times - times[0]).total_seconds()
+    return frame
+
+
+def _day_row(day, group: pd.DataFrame) -> dict:
+    """One day's row of :func:`end_loss_days` from its instants' powers [W], lengths [m] and elevations."""
+    t = group["seconds"].to_numpy()
+    energy = {
+        name: float(np.trapezoid(group[f"{name}_W"].to_numpy(), t))
+        for name in ("power_single", "power_two_axis", "end_spill_single")
+    }
+    noon = group.iloc[int(np.argmax(group["elevation"].to_numpy()))]
+    return {
+        "day_of_year": int(day),
+        "date": group.index[0].date().isoformat(),
+        "energy_single_J": energy["power_single"],
+        "energy_two_axis_J": energy["power_two_axis"],
+        "end_spill_single_J": energy["end_spill_single"],
+        "gain": energy["power_two_axis"] / energy["power_single"] - 1.0 if energy["power_single"] > 0 else np.nan,
+        "unlit_length_noon_m": float(noon["unlit_length_m"]),
+        "lit_length_noon_m": float(noon["lit_length_m"]),
+    }

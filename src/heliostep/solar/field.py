@@ -1,10 +1,8 @@
-"""The field of end mirrors across the tube and the error of a primary drive shared by all of them.
-"""
+"""The field of end mirrors across the tube and the error of a primary drive shared by all of them."""
 
 from __future__ import annotations
 
 import functools
-
 import numbers
 
 import numpy as np
@@ -47,7 +45,11 @@ def field_distances(n_mirrors: int = N_FIELD_MIRRORS, spacing: float = DEFAULT_M
 
 
 def field_primary_errors(
-    elevation, azimuth, tube_height, mirror_distances=None, plant_azimuth: float = 0.0,
+    elevation,
+    azimuth,
+    tube_height,
+    mirror_distances=None,
+    plant_azimuth: float = 0.0,
     calibration=None,
 ) -> pd.DataFrame:
     """Primary-angle error of each end mirror when all follow the central mirror's law.
@@ -100,8 +102,6 @@ def field_primary_errors(
     )
 
 
-
-
 @functools.lru_cache(maxsize=64)
 def solar_noon_sun(date, site: Site) -> tuple[float, float]:
     """Sun (apparent elevation, azimuth) [deg] at solar noon (transit) of a local date at the site.
@@ -113,8 +113,9 @@ def solar_noon_sun(date, site: Site) -> tuple[float, float]:
     return float(sun["apparent_elevation"].iloc[0]), float(sun["azimuth"].iloc[0])
 
 
-def sharing_errors(times: pd.DatetimeIndex, site: Site, plant: Plant, date, mirror_distances,
-                   sun: pd.DataFrame | None = None) -> np.ndarray:
+def sharing_errors(
+    times: pd.DatetimeIndex, site: Site, plant: Plant, date, mirror_distances, sun: pd.DataFrame | None = None
+) -> np.ndarray:
     """Primary sharing errors [rad] at ``times``, one column per mirror distance; NaN while the sun is down.
 
     Every primary turns by the central mirror's angle; each mirror is mounted with the offset
@@ -124,8 +125,18 @@ def sharing_errors(times: pd.DatetimeIndex, site: Site, plant: Plant, date, mirr
     if sun is None:
         sun = solar_position(times, site.latitude, site.longitude, site.altitude)
     elevation = sun["apparent_elevation"].to_numpy()
-    errors = field_primary_errors(elevation, sun["azimuth"].to_numpy(), plant.tube_height, mirror_distances,
-                                  plant.azimuth, calibration=solar_noon_sun(date, site)).to_numpy().copy()
+    errors = (
+        field_primary_errors(
+            elevation,
+            sun["azimuth"].to_numpy(),
+            plant.tube_height,
+            mirror_distances,
+            plant.azimuth,
+            calibration=solar_noon_sun(date, site),
+        )
+        .to_numpy()
+        .copy()
+    )
     errors[elevation <= 0.0, :] = np.nan
     return errors
 
@@ -137,8 +148,10 @@ def sharing_figures(errors: np.ndarray) -> dict:
         return {"primary_sharing_error_max_deg": None, "primary_sharing_error_signed_deg": None}
     degrees = np.degrees(np.where(finite, errors, 0.0))
     worst = int(np.argmax(np.abs(degrees)))
-    return {"primary_sharing_error_max_deg": float(abs(degrees[worst])),
-            "primary_sharing_error_signed_deg": float(degrees[worst])}
+    return {
+        "primary_sharing_error_max_deg": float(abs(degrees[worst])),
+        "primary_sharing_error_signed_deg": float(degrees[worst]),
+    }
 
 
 # --------------------------------------------------------------------------- the shared primary's load

@@ -88,7 +88,8 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Se
             raise InputError(f"weather_file {path}: {key} missing from the header") from None
         if abs(value - expected) > max_offset:
             raise InputError(
-                f"weather_file {path}: {key} {value:g} deg is more than {max_offset:g} deg from the site's {expected:g} deg"
+                f"weather_file {path}: {key} {value:g} deg is more than {max_offset:g} deg "
+                f"from the site's {expected:g} deg"
             )
     column = "dni" if "dni" in data else "DNI" if "DNI" in data else None
     if column is None:
@@ -130,8 +131,9 @@ class WeatherDNI:
             key = (stamp.month * 100 + stamp.day) * 100 + stamp.hour
             values.append(self.table.reindex(key).to_numpy())
         if np.isnan(values[0]).any() or np.isnan(values[1][fraction > 0]).any():
-            raise InputError(f"weather_file {self.path}: does not cover the window {times[0]} - {times[-1]} "
-                             f"(key: window)")
+            raise InputError(
+                f"weather_file {self.path}: does not cover the window {times[0]} - {times[-1]} (key: window)"
+            )
         low, high = values[0], np.where(fraction > 0, values[1], values[0])
         return pd.Series(low + fraction * (high - low), index=times, name="dni")
 

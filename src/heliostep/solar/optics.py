@@ -82,7 +82,9 @@ def cosine_factor(sun_x, sun_y, sun_z, normal_x, normal_y, normal_z):
     array  [-]
         max(S . n, 0): the fraction of the DNI falling on a unit of mirror area.
     """
-    dot = sum(as_float_array(a) * as_float_array(b) for a, b in zip((sun_x, sun_y, sun_z), (normal_x, normal_y, normal_z)))
+    dot = sum(
+        as_float_array(a) * as_float_array(b) for a, b in zip((sun_x, sun_y, sun_z), (normal_x, normal_y, normal_z))
+    )
     return np.clip(dot, 0.0, None)  # Lambert's cosine law
 
 
@@ -226,7 +228,10 @@ def optical_chain(reflectivity, transmittance, absorptance):
     float  [-]
         rho * tau * alpha (seed 004, Section 3: 0.80 * 0.85 * 0.95).
     """
-    values = [check_range(v, n, 0.0, 1.0, "-") for v, n in ((reflectivity, "reflectivity"), (transmittance, "transmittance"), (absorptance, "absorptance"))]
+    values = [
+        check_range(v, n, 0.0, 1.0, "-")
+        for v, n in ((reflectivity, "reflectivity"), (transmittance, "transmittance"), (absorptance, "absorptance"))
+    ]
     return values[0] * values[1] * values[2]  # seed 004, energy chain
 
 

@@ -53,9 +53,7 @@ class Site:
 
     def __post_init__(self):
         object.__setattr__(self, "latitude", check_range(self.latitude, "latitude", -90.0, 90.0, "deg"))
-        object.__setattr__(
-            self, "longitude", check_range(self.longitude, "longitude", -180.0, 180.0, "deg")
-        )
+        object.__setattr__(self, "longitude", check_range(self.longitude, "longitude", -180.0, 180.0, "deg"))
         object.__setattr__(self, "altitude", check_finite_scalar(self.altitude, "altitude", " [m]"))
         check_timezone(self.timezone)
 
@@ -82,13 +80,9 @@ class Plant:
         object.__setattr__(self, "tube_height", check_positive(self.tube_height, "tube_height", "m"))
         orientation = self.orientation.upper() if isinstance(self.orientation, str) else self.orientation
         if orientation not in ORIENTATIONS:
-            raise InputError(
-                f"orientation must be one of {', '.join(ORIENTATIONS)}, got {self.orientation!r}"
-            )
+            raise InputError(f"orientation must be one of {', '.join(ORIENTATIONS)}, got {self.orientation!r}")
         object.__setattr__(self, "orientation", orientation)
-        object.__setattr__(
-            self, "azimuth_offset", check_finite_scalar(self.azimuth_offset, "azimuth_offset", " [deg]")
-        )
+        object.__setattr__(self, "azimuth_offset", check_finite_scalar(self.azimuth_offset, "azimuth_offset", " [deg]"))
 
     @property
     def azimuth(self) -> float:
@@ -200,8 +194,6 @@ def sun_vector(elevation, azimuth, plant_azimuth: float = 0.0):
         wrap_like(sun_y, template, "sun_y"),
         wrap_like(sun_z, template, "sun_z"),
     )
-
-
 
 
 def sun_events(date, site: Site) -> dict[str, pd.Timestamp | None]:

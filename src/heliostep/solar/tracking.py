@@ -138,7 +138,9 @@ def normal_orientation(normal_x, normal_y, normal_z):
     normal_azimuth = np.mod(np.arctan2(x, y), 2.0 * np.pi)  # [paper], eq. 5
     normal_altitude = np.arctan2(z, np.hypot(x, y))  # [paper], eq. 6
     template = series_template(normal_x, normal_y, normal_z)
-    return wrap_like(normal_azimuth, template, "normal_azimuth"), wrap_like(normal_altitude, template, "normal_altitude")
+    return wrap_like(normal_azimuth, template, "normal_azimuth"), wrap_like(
+        normal_altitude, template, "normal_altitude"
+    )
 
 
 def two_axis_angles_from_normal(normal_x, normal_y, normal_z):
@@ -160,9 +162,7 @@ def two_axis_angles_from_normal(normal_x, normal_y, normal_z):
         normal toward -y.
     """
     template = series_template(normal_x, normal_y, normal_z)
-    azimuth, altitude = normal_orientation(
-        as_float_array(normal_x), as_float_array(normal_y), as_float_array(normal_z)
-    )
+    azimuth, altitude = normal_orientation(as_float_array(normal_x), as_float_array(normal_y), as_float_array(normal_z))
     # tan(p) = sin(az) / tan(alt): the paper's eq. 3 without its minus sign (our sign convention)
     primary = np.arctan2(np.sin(azimuth) * np.cos(altitude), np.sin(altitude))  # [paper], eq. 3
     # q = -arcsin(cos(alt) cos(az)), written as an arctan2 to stay exact near +-90 deg
@@ -189,11 +189,12 @@ def two_axis_angles(elevation, azimuth, mirror_distance, tube_height, plant_azim
         See :func:`two_axis_angles_from_normal` for the sign conventions.
     """
     template = series_template(elevation, azimuth, mirror_distance)
-    sun = sun_vector(as_float_array(elevation), as_float_array(azimuth), plant_azimuth)
-    normal = two_axis_normal(*sun, mirror_distance=as_float_array(mirror_distance), tube_height=tube_height)
+    sun_x, sun_y, sun_z = sun_vector(as_float_array(elevation), as_float_array(azimuth), plant_azimuth)
+    normal = two_axis_normal(
+        sun_x, sun_y, sun_z, mirror_distance=as_float_array(mirror_distance), tube_height=tube_height
+    )
     primary, secondary = two_axis_angles_from_normal(*normal)
     return wrap_like(primary, template, "primary"), wrap_like(secondary, template, "secondary")
-
 
 
 # --------------------------------------------------------------------------- reference angle
@@ -299,5 +300,3 @@ def panel_angle_reference(
         return angle.where(valid, stow_angle)
     held = angle.where(valid).ffill().bfill()
     return held.fillna(stow_angle)
-
-

@@ -1,5 +1,4 @@
-"""The rack-and-pinion transmission between rotor and panel ([paper], eqs. 12-15).
-"""
+"""The rack-and-pinion transmission between rotor and panel ([paper], eqs. 12-15)."""
 
 from __future__ import annotations
 

@@ -94,13 +94,16 @@ def _probe_scheduler(address: str, timeout: float) -> None:
         with socket.create_connection((host, port), timeout=timeout):
             pass
     except OSError as exc:
-        raise InputError(f"cannot reach the Dask scheduler at {address} ({exc.strerror or exc}); start one "
-                         f"with 'dask scheduler' or leave out --scheduler to run on a local cluster") from None
+        raise InputError(
+            f"cannot reach the Dask scheduler at {address} ({exc.strerror or exc}); start one "
+            f"with 'dask scheduler' or leave out --scheduler to run on a local cluster"
+        ) from None
 
 
 @contextlib.contextmanager
-def _dask_client(client=None, scheduler: str | None = None, n_workers: int | None = None,
-                 connect_timeout: float = 5.0) -> Iterator:
+def _dask_client(
+    client=None, scheduler: str | None = None, n_workers: int | None = None, connect_timeout: float = 5.0
+) -> Iterator:
     """A Dask client: the one given, one connected to ``scheduler``, or one on a new local cluster."""
     if client is not None:
         yield client
@@ -114,17 +117,28 @@ def _dask_client(client=None, scheduler: str | None = None, n_workers: int | Non
         except ValueError as exc:
             raise InputError(f"scheduler {scheduler!r}: not a usable Dask address ({exc})") from None
         except Exception as exc:  # noqa: BLE001 - timeouts, refusals, a non-Dask server answering
-            raise InputError(f"cannot connect to a Dask scheduler at {scheduler} within {connect_timeout:g} s "
-                             f"({type(exc).__name__}: {str(exc)[:200]}); start one with 'dask scheduler' or "
-                             f"leave out --scheduler to run on a local cluster") from None
+            raise InputError(
+                f"cannot connect to a Dask scheduler at {scheduler} within {connect_timeout:g} s "
+                f"({type(exc).__name__}: {str(exc)[:200]}); start one with 'dask scheduler' or "
+                f"leave out --scheduler to run on a local cluster"
+            ) from None
         with connected:
             yield connected
         return
     workers = n_workers or _worker_count()
     if workers < 1:
         raise InputError(f"n_workers must be >= 1, got {workers}")
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, Client(cluster) as local:
+    with (
+        LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=":0",
+            silence_logs=logging.ERROR,
+        ) as cluster,
+        Client(cluster) as local,
+    ):
         yield local
 
 
@@ -151,18 +165,33 @@ def _ship_fmus(cases: Sequence[SweepCase]) -> tuple[list[SweepCase], dict[str, F
         sha = hashlib.sha256(data).hexdigest()
         payloads[sha] = FmuPayload(name=path.name, sha256=sha, data=data)
         sha_of[reference] = sha
-    shipped = [dataclasses.replace(case, fmu_sha256={instance: sha_of[reference]
-                                                     for instance, reference in case.scenario["fmus"].items()
-                                                     if reference is not None})
-               for case in cases]
+    shipped = [
+        dataclasses.replace(
+            case,
+            fmu_sha256={
+                instance: sha_of[reference]
+                for instance, reference in case.scenario["fmus"].items()
+                if reference is not None
+            },
+        )
+        for case in cases
+    ]
     return shipped, payloads
 
 
-def execute_cases(cases: Sequence[SweepCase], results_path: str | Path, *, client=None,
-                  scheduler: str | None = None, n_workers: int | None = None, connect_timeout: float = 5.0,
-                  retry_failed: bool = False, progress: bool = False,
-                  on_result: Callable[[dict], None] | None = None,
-                  metadata: Mapping | None = None) -> SweepOutcome:
+def execute_cases(
+    cases: Sequence[SweepCase],
+    results_path: str | Path,
+    *,
+    client=None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    connect_timeout: float = 5.0,
+    retry_failed: bool = False,
+    progress: bool = False,
+    on_result: Callable[[dict], None] | None = None,
+    metadata: Mapping | None = None,
+) -> SweepOutcome:
     """Run the cases not yet in the results table on Dask, writing each row as it finishes.
 
     Parameters
@@ -203,47 +232,94 @@ def execute_cases(cases: Sequence[SweepCase], results_path: str | Path, *, clien
     cases, payloads = _ship_fmus(cases)
     if client is None and scheduler:
         _probe_scheduler(scheduler, connect_timeout)
-    table = _consolidate(results_path, metadata) if results_path.exists() or _parts_dir(results_path).is_dir() \
-        else _normalize(pd.DataFrame())
-    done_statuses = {"ok"} if retry_failed else {"ok", "failed"}
-    finished = {row.case_id: row for row in table.itertuples(index=False)
-                if row.status in done_statuses}
-    to_run = [case for case in cases
-              if case.case_id not in finished or finished[case.case_id].fmu_sha256 != _fmu_key(case.fmu_sha256)]
+    table, to_run = _table_and_cases_to_run(cases, results_path, metadata, retry_failed)
+    dask = _DaskSettings(client, scheduler, n_workers, connect_timeout, progress, on_result)
+    table, executed = _run_and_consolidate(to_run, cases, payloads, results_path, metadata, table, dask)
+    failed = int((table["status"] == "failed").sum())
+    skipped = len(cases) - len(to_run)
+    return SweepOutcome(table=table, results_path=results_path, executed=executed, skipped=skipped, failed=failed)
+
+
+@dataclasses.dataclass(frozen=True)
+class _DaskSettings:
+    """How a sweep reaches Dask and reports its rows (the options of :func:`execute_cases`)."""
+
+    client: object | None
+    scheduler: str | None
+    n_workers: int | None
+    connect_timeout: float
+    progress: bool
+    on_result: Callable[[dict], None] | None
+
+
+def _run_and_consolidate(
+    to_run: Sequence[SweepCase],
+    cases: Sequence[SweepCase],
+    payloads: Mapping[str, FmuPayload],
+    results_path: Path,
+    metadata: Mapping,
+    table: pd.DataFrame,
+    dask: _DaskSettings,
+) -> tuple[pd.DataFrame, int]:
+    """Run *to_run* on Dask; then (also when that fails) merge the part files into the table of *cases*.
+    Returns the table and how many cases ran."""
     executed = 0
     run_id = uuid.uuid4().hex[:12]
     try:
         if to_run:
-            executed = _run_on_dask(to_run, payloads, results_path, metadata, run_id, client=client,
-                                    scheduler=scheduler, n_workers=n_workers, connect_timeout=connect_timeout,
-                                    progress=progress, on_result=on_result)
+            executed = _run_on_dask(to_run, payloads, results_path, metadata, run_id, dask)
     finally:
         if results_path.exists() or _parts_dir(results_path).is_dir():
             table = _consolidate(results_path, metadata, cases=cases)
-    failed = int((table["status"] == "failed").sum())
-    return SweepOutcome(table=table, results_path=results_path, executed=executed,
-                        skipped=len(cases) - len(to_run), failed=failed)
+    return table, executed
 
 
-def _run_on_dask(cases: Sequence[SweepCase], payloads: Mapping[str, FmuPayload], results_path: Path,
-                 metadata: Mapping, run_id: str, *, client, scheduler, n_workers, connect_timeout,
-                 progress, on_result) -> int:
+def _table_and_cases_to_run(
+    cases: Sequence[SweepCase], results_path: Path, metadata: Mapping, retry_failed: bool
+) -> tuple[pd.DataFrame, list[SweepCase]]:
+    """The results table so far (its part files merged in) and the cases it has no finished row of:
+    none yet, one whose FMUs differ, or (with ``retry_failed``) a failed one."""
+    table = (
+        _consolidate(results_path, metadata)
+        if results_path.exists() or _parts_dir(results_path).is_dir()
+        else _normalize(pd.DataFrame())
+    )
+    done_statuses = {"ok"} if retry_failed else {"ok", "failed"}
+    finished = {row.case_id: row for row in table.itertuples(index=False) if row.status in done_statuses}
+    to_run = [
+        case
+        for case in cases
+        if case.case_id not in finished or finished[case.case_id].fmu_sha256 != _fmu_key(case.fmu_sha256)
+    ]
+    return table, to_run
+
+
+def _run_on_dask(
+    cases: Sequence[SweepCase],
+    payloads: Mapping[str, FmuPayload],
+    results_path: Path,
+    metadata: Mapping,
+    run_id: str,
+    dask: _DaskSettings,
+) -> int:
     from distributed import as_completed
 
-    with _dask_client(client, scheduler, n_workers, connect_timeout) as dask_client:
-        shipped = {sha: dask_client.submit(_fmu_payload, payload, key=f"heliostep-fmu-{sha[:16]}-{run_id}",
-                                           pure=False)
-                   for sha, payload in payloads.items()
-                   if any(sha in case.fmu_sha256.values() for case in cases)}
+    with _dask_client(dask.client, dask.scheduler, dask.n_workers, dask.connect_timeout) as dask_client:
+        shipped = {
+            sha: dask_client.submit(_fmu_payload, payload, key=f"heliostep-fmu-{sha[:16]}-{run_id}", pure=False)
+            for sha, payload in payloads.items()
+            if any(sha in case.fmu_sha256.values() for case in cases)
+        }
         futures = {}
         for case in cases:
             needed = {sha: shipped[sha] for sha in set(case.fmu_sha256.values())}
-            future = dask_client.submit(run_case, case, needed, run_id, pure=False,
-                                        key=f"heliostep-case-{case.case_id}-{run_id}")
+            future = dask_client.submit(
+                run_case, case, needed, run_id, pure=False, key=f"heliostep-case-{case.case_id}-{run_id}"
+            )
             futures[future] = case
         done = failed = 0
         last_merge = clock.monotonic()
-        with _progress_bar(len(cases), progress) as bar:
+        with _progress_bar(len(cases), dask.progress) as bar:
             for future in as_completed(futures):
                 case = futures.pop(future)
                 try:
@@ -256,8 +332,8 @@ def _run_on_dask(cases: Sequence[SweepCase], payloads: Mapping[str, FmuPayload],
                 failed += row["status"] == "failed"
                 bar.set_postfix(done=done, failed=failed, remaining=len(cases) - done, refresh=False)
                 bar.update(1)
-                if on_result is not None:
-                    on_result(row)
+                if dask.on_result is not None:
+                    dask.on_result(row)
                 if clock.monotonic() - last_merge > CONSOLIDATE_EVERY:
                     _consolidate(results_path, metadata)
                     last_merge = clock.monotonic()
@@ -266,10 +342,18 @@ def _run_on_dask(cases: Sequence[SweepCase], payloads: Mapping[str, FmuPayload],
     return done
 
 
-def run_sweep(sweep: SweepSpec | str | Path, results_path: str | Path | None = None, *, client=None,
-              scheduler: str | None = None, n_workers: int | None = None, connect_timeout: float = 5.0,
-              retry_failed: bool = False, progress: bool = False,
-              on_result: Callable[[dict], None] | None = None) -> SweepOutcome:
+def run_sweep(
+    sweep: SweepSpec | str | Path,
+    results_path: str | Path | None = None,
+    *,
+    client=None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    connect_timeout: float = 5.0,
+    retry_failed: bool = False,
+    progress: bool = False,
+    on_result: Callable[[dict], None] | None = None,
+) -> SweepOutcome:
     """Run a sweep: validate every case, then run the unfinished ones on Dask.
 
     Parameters
@@ -293,6 +377,15 @@ def run_sweep(sweep: SweepSpec | str | Path, results_path: str | Path | None = N
     spec = sweep if isinstance(sweep, SweepSpec) else load_sweep(sweep)
     cases = expand_cases(spec)
     path = Path(results_path) if results_path is not None else default_results_path(spec)
-    return execute_cases(cases, path, client=client, scheduler=scheduler, n_workers=n_workers,
-                         connect_timeout=connect_timeout, retry_failed=retry_failed, progress=progress,
-                         on_result=on_result, metadata=sweep_metadata(spec))
+    return execute_cases(
+        cases,
+        path,
+        client=client,
+        scheduler=scheduler,
+        n_workers=n_workers,
+        connect_timeout=connect_timeout,
+        retry_failed=retry_failed,
+        progress=progress,
+        on_result=on_result,
+        metadata=sweep_metadata(spec),
+    )

@@ -31,17 +31,30 @@ from heliostep.errors import InputError
 from heliostep.scenario import Scenario, load_scenario
 from heliostep.solar import DEFAULT_MIRROR_SPACING, N_FIELD_MIRRORS, field_distances, sharing_errors, sharing_figures
 from heliostep.sweep.cluster import execute_cases
-from heliostep.sweep.spec import expand_cases, sweep_from_scenario, sweep_metadata
+from heliostep.sweep.spec import SweepSpec, expand_cases, sweep_from_scenario, sweep_metadata
 from heliostep.sweep.worker import window_sun_times
 
 __all__ = ["FIELD_COLUMNS", "field_sharing_errors", "run_field"]
 
 #: Columns of :func:`run_field`'s table shown first.
 FIELD_COLUMNS = (
-    "role", "mirror_index", "mirror_distance_m", "mirror_axis", "status",
-    "max_tracking_error_deg", "primary_sharing_error_max_deg", "primary_sharing_error_signed_deg",
-    "peak_torque_Nm", "required_torque_Nm", "holding_torque_Nm", "missed_steps",
-    "mean_intercept", "light_energy_J", "light_energy_ideal_J", "light_lost_shared_primary_J", "light_lost_J",
+    "role",
+    "mirror_index",
+    "mirror_distance_m",
+    "mirror_axis",
+    "status",
+    "max_tracking_error_deg",
+    "primary_sharing_error_max_deg",
+    "primary_sharing_error_signed_deg",
+    "peak_torque_Nm",
+    "required_torque_Nm",
+    "holding_torque_Nm",
+    "missed_steps",
+    "mean_intercept",
+    "light_energy_J",
+    "light_energy_ideal_J",
+    "light_lost_shared_primary_J",
+    "light_lost_J",
 )
 
 
@@ -67,18 +80,31 @@ def field_sharing_errors(scenario: Scenario, mirror_indices: Iterable[int] | Non
             raise InputError(f"mirror index {index!r}: expected an integer from 0 to {N_FIELD_MIRRORS - 1}")
     spacing = scenario.mirror.spacing or DEFAULT_MIRROR_SPACING
     distances = field_distances(N_FIELD_MIRRORS, spacing)[indices]
-    errors = sharing_errors(window_sun_times(scenario), scenario.site.to_site(), scenario.plant.to_plant(),
-                            scenario.window.date, distances)
-    rows = [{"mirror_index": index, "mirror_distance_m": float(distance), **sharing_figures(errors[:, k])}
-            for k, (index, distance) in enumerate(zip(indices, distances))]
+    errors = sharing_errors(
+        window_sun_times(scenario), scenario.site.to_site(), scenario.plant.to_plant(), scenario.window.date, distances
+    )
+    rows = [
+        {"mirror_index": index, "mirror_distance_m": float(distance), **sharing_figures(errors[:, k])}
+        for k, (index, distance) in enumerate(zip(indices, distances))
+    ]
     return pd.DataFrame(rows).set_index("mirror_index")
 
 
-def run_field(scenario: Scenario | str | Path, results_path: str | Path | None = None, *,
-              mirror_indices: Iterable[int] | None = None, shared_primary: bool = True,
-              overrides: Mapping[str, object] | None = None, client=None, scheduler: str | None = None,
-              n_workers: int | None = None, connect_timeout: float = 5.0, retry_failed: bool = False,
-              progress: bool = False, on_result: Callable[[dict], None] | None = None) -> pd.DataFrame:
+def run_field(
+    scenario: Scenario | str | Path,
+    results_path: str | Path | None = None,
+    *,
+    mirror_indices: Iterable[int] | None = None,
+    shared_primary: bool = True,
+    overrides: Mapping[str, object] | None = None,
+    client=None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    connect_timeout: float = 5.0,
+    retry_failed: bool = False,
+    progress: bool = False,
+    on_result: Callable[[dict], None] | None = None,
+) -> pd.DataFrame:
     """Simulate the whole field of the scenario: each mirror's secondary drive and the shared primary.
 
     One case per mirror (``mirror.index`` = 0 .. 12, secondary axis, its own motor) and,
@@ -109,18 +135,44 @@ def run_field(scenario: Scenario | str | Path, results_path: str | Path | None =
         ``primary_sharing_error_max_deg`` [deg], then the shared primary (``role``
         "shared-primary").
     """
+    spec = _field_sweep(scenario, mirror_indices, shared_primary, overrides)
+    path = Path(results_path) if results_path is not None else Path("out") / spec.name / "results.parquet"
+    outcome = execute_cases(
+        expand_cases(spec),
+        path,
+        client=client,
+        scheduler=scheduler,
+        n_workers=n_workers,
+        connect_timeout=connect_timeout,
+        retry_failed=retry_failed,
+        progress=progress,
+        on_result=on_result,
+        metadata=sweep_metadata(spec),
+    )
+    return _field_columns_first(outcome.table)
+
+
+def _field_sweep(
+    scenario: Scenario | str | Path,
+    mirror_indices: Iterable[int] | None,
+    shared_primary: bool,
+    overrides: Mapping[str, object] | None,
+) -> SweepSpec:
+    """The sweep of :func:`run_field`: a ``mirror`` axis over *mirror_indices* on the secondary axis."""
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     indices = list(range(N_FIELD_MIRRORS) if mirror_indices is None else mirror_indices)
-    spec = sweep_from_scenario(scenario, {"mirror": indices}, overrides={"mirror.axis": "secondary",
-                                                                         **(overrides or {})},
-                               shared_primary=shared_primary, name=f"{scenario.name}-field")
-    cases = expand_cases(spec)
-    path = Path(results_path) if results_path is not None else Path("out") / spec.name / "results.parquet"
-    outcome = execute_cases(cases, path, client=client, scheduler=scheduler, n_workers=n_workers,
-                            connect_timeout=connect_timeout, retry_failed=retry_failed, progress=progress,
-                            on_result=on_result, metadata=sweep_metadata(spec))
-    table = outcome.table
+    return sweep_from_scenario(
+        scenario,
+        {"mirror": indices},
+        overrides={"mirror.axis": "secondary", **(overrides or {})},
+        shared_primary=shared_primary,
+        name=f"{scenario.name}-field",
+    )
+
+
+def _field_columns_first(table: pd.DataFrame) -> pd.DataFrame:
+    """*table* with :data:`FIELD_COLUMNS` first (those it has), its ``attrs`` kept."""
     first = [column for column in FIELD_COLUMNS if column in table]
     ordered = table[first + [column for column in table.columns if column not in first]]
     ordered.attrs = dict(table.attrs)

@@ -1,23 +1,18 @@
-"""Sweep files and their cases: axes, combinations, each case's validated scenario and identity."""
+"""Sweep files and their cases: combinations of the axes (:mod:`heliostep.sweep.axes`), each case's
+validated scenario and identity."""
 
 from __future__ import annotations
 
 import copy
 import dataclasses
-import datetime as dt
 import hashlib
 import itertools
 import json
-import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from heliostep.errors import InputError
-from heliostep.solar import N_FIELD_MIRRORS
-from heliostep.solar.field import PRIMARY_LEVER_ARM, primary_panel_inertia
 from heliostep.scenario import (
     Scenario,
     load_scenario,
@@ -25,45 +20,37 @@ from heliostep.scenario import (
     set_dotted_key,
     validate_scenario,
 )
+from heliostep.solar import N_FIELD_MIRRORS
+from heliostep.solar.field import PRIMARY_LEVER_ARM, primary_panel_inertia
+from heliostep.sweep.axes import (
+    CENTRAL_MIRROR,
+    SHORTHAND_AXES,
+    SweepAxis,
+    axis_hint,
+    axis_values,
+    check_axis_key,
+    setting_by_role,
+    show_value,
+    table_value,
+)
+
+__all__ = [
+    "CENTRAL_MIRROR",
+    "COMBINE_MODES",
+    "ROLES",
+    "SHIPPED_MECHANICS",
+    "SHORTHAND_AXES",
+    "SweepAxis",
+    "SweepCase",
+    "SweepSpec",
+    "expand_cases",
+    "load_sweep",
+    "sweep_from_scenario",
+    "sweep_metadata",
+]
 
 #: How the axes combine into cases.
 COMBINE_MODES = ("product", "zip")
-
-
-#: Shorthand axis name -> the dotted scenario key it sets (day_of_year and mirror are special).
-SHORTHAND_AXES = {
-    "day_of_year": "window.date",
-    "mirror": "mirror.index",
-    "motor": "fmus.motor",
-    "mechanics": "fmus.mechanics",
-    "current": "sequencer.current",
-    "wind_moment": "wind.moment",
-}
-
-
-#: Table column of each shorthand axis (a column the table always has).
-_SHORTHAND_COLUMNS = {
-    "day_of_year": "day_of_year", "mirror": "mirror_index", "motor": "motor",
-    "mechanics": "mechanics", "current": "current_A", "wind_moment": "wind_moment_Nm",
-}
-
-
-#: Index of the central mirror of the field (distance 0), whose law the shared primary follows.
-CENTRAL_MIRROR = N_FIELD_MIRRORS // 2
-
-
-#: The role whose FMU instance the shorthand axes ``motor`` and ``mechanics`` swap.
-_SHORTHAND_ROLES = {"motor": "torque", "mechanics": "panel_angle"}
-
-
-def _by_role(setting: tuple[str, Any], axis: str, base: Mapping) -> tuple[str, Any]:
-    """``fmus.motor`` of the shorthand axes ``motor`` / ``mechanics`` as the instance that plays
-    the motor's (torque) or the mechanics' (panel angle) role in the base scenario."""
-    role = _SHORTHAND_ROLES.get(axis)
-    target = (base.get("roles") or {}).get(role) if role else None
-    if not target:
-        return setting
-    return (f"fmus.{target.partition('.')[0]}", setting[1])
 
 
 #: Mechanics models whose panel inertia and lever arm the shared primary's case sets.
@@ -78,8 +65,10 @@ def _primary_load(base: Mapping) -> list[tuple[str, Any]]:
     instance = str((base.get("roles") or {}).get("panel_angle") or "mechanics.theta_p").partition(".")[0]
     if (base.get("fmus") or {}).get(instance) not in SHIPPED_MECHANICS:
         return []
-    return [("transmission.lever_arm", PRIMARY_LEVER_ARM),
-            (f"parameters.{instance}.J_p", primary_panel_inertia(N_FIELD_MIRRORS))]
+    return [
+        ("transmission.lever_arm", PRIMARY_LEVER_ARM),
+        (f"parameters.{instance}.J_p", primary_panel_inertia(N_FIELD_MIRRORS)),
+    ]
 
 
 #: Roles of a case: one mirror's drive, or the field's shared primary drive.
@@ -87,43 +76,6 @@ ROLES = ("drive", "shared-primary")
 
 
 _SWEEP_KEYS = ("name", "description", "base", "combine", "axes", "overrides", "shared_primary")
-
-
-@dataclasses.dataclass(frozen=True)
-class SweepAxis:
-    """One axis of a sweep.
-
-    Attributes
-    ----------
-    name : str
-        As written in the sweep: a shorthand of :data:`SHORTHAND_AXES` or a dotted key.
-    values : tuple
-        The expanded values ("all" and ranges resolved), in order.
-    """
-
-    name: str
-    values: tuple
-
-    @property
-    def column(self) -> str:
-        """The results-table column holding this axis's value."""
-        return _SHORTHAND_COLUMNS.get(self.name, self.name)
-
-    def overrides(self, value, year: int) -> tuple[tuple[str, Any], ...]:
-        """The (dotted key, value) settings for one value of this axis.
-
-        Parameters
-        ----------
-        value
-            One of :attr:`values`.
-        year : int
-            Year of the base scenario's window (for ``day_of_year``).
-        """
-        if self.name == "day_of_year":
-            return (("window.date", _date_of_day(year, value)),)
-        if self.name == "mirror":
-            return (("mirror.distance", None), ("mirror.index", value))
-        return ((SHORTHAND_AXES.get(self.name, self.name), value),)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -238,18 +190,33 @@ def load_sweep(path: str | Path) -> SweepSpec:
         raise InputError(f"{source}: base: {exc}") from None
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\") or name.startswith("."):
-        raise InputError(f"{source}: name: expected a non-empty name usable as a folder name "
-                         f"(no '/', not starting with '.'), got {name!r}")
+        raise InputError(
+            f"{source}: name: expected a non-empty name usable as a folder name "
+            f"(no '/', not starting with '.'), got {name!r}"
+        )
     return _make_spec(
-        name=name.strip(), source=source, base=base, base_source=str(base_path),
-        axes=data.get("axes"), combine=data.get("combine", "product"),
-        overrides=data.get("overrides"), shared_primary=data.get("shared_primary", False),
-        description=data.get("description"))
+        name=name.strip(),
+        source=source,
+        base=base,
+        base_source=str(base_path),
+        axes=data.get("axes"),
+        combine=data.get("combine", "product"),
+        overrides=data.get("overrides"),
+        shared_primary=data.get("shared_primary", False),
+        description=data.get("description"),
+    )
 
 
-def sweep_from_scenario(scenario: Scenario, axes: Mapping[str, Any], *, combine: str = "product",
-                        overrides: Mapping[str, Any] | None = None, shared_primary: bool = False,
-                        name: str | None = None, source: str | None = None) -> SweepSpec:
+def sweep_from_scenario(
+    scenario: Scenario,
+    axes: Mapping[str, Any],
+    *,
+    combine: str = "product",
+    overrides: Mapping[str, Any] | None = None,
+    shared_primary: bool = False,
+    name: str | None = None,
+    source: str | None = None,
+) -> SweepSpec:
     """A sweep over an in-memory scenario (the Python form of a sweep file).
 
     Parameters
@@ -273,13 +240,22 @@ def sweep_from_scenario(scenario: Scenario, axes: Mapping[str, Any], *, combine:
     SweepSpec
     """
     label = source or f"sweep of {scenario.name}"
-    return _make_spec(name=name or scenario.name, source=label, base=scenario,
-                      base_source=f"scenario {scenario.name}", axes=axes, combine=combine,
-                      overrides=overrides, shared_primary=shared_primary, description=None)
+    return _make_spec(
+        name=name or scenario.name,
+        source=label,
+        base=scenario,
+        base_source=f"scenario {scenario.name}",
+        axes=axes,
+        combine=combine,
+        overrides=overrides,
+        shared_primary=shared_primary,
+        description=None,
+    )
 
 
-def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, overrides,
-               shared_primary, description) -> SweepSpec:
+def _make_spec(
+    *, name, source, base: Scenario, base_source, axes, combine, overrides, shared_primary, description
+) -> SweepSpec:
     if combine not in COMBINE_MODES:
         raise InputError(f"{source}: combine: expected one of {', '.join(COMBINE_MODES)}, got {combine!r}")
     if not isinstance(shared_primary, bool):
@@ -289,24 +265,49 @@ def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, over
     if overrides is None:
         overrides = {}
     if not isinstance(overrides, Mapping):
-        raise InputError(f"{source}: overrides: expected a mapping of dotted scenario keys to values, "
-                         f"e.g. {{output.interval: 0.5}}, got {overrides!r}")
-    common = tuple((_check_key(key, f"{source}: overrides"), value) for key, value in overrides.items())
+        raise InputError(
+            f"{source}: overrides: expected a mapping of dotted scenario keys to values, "
+            f"e.g. {{output.interval: 0.5}}, got {overrides!r}"
+        )
+    common = tuple((check_axis_key(key, f"{source}: overrides"), value) for key, value in overrides.items())
     base_data = base.resolved_dict()
-    base_data["fmus"] = {instance: None if reference is None else str(base.fmu_reference(instance))
-                         for instance, reference in base_data["fmus"].items()}
-    spec = SweepSpec(name=name, source=source, base_data=base_data, base_source=base_source,
-                     base_folder=base.folder, axes=(), combine=combine, overrides=common,
-                     shared_primary=shared_primary, description=description)
+    base_data["fmus"] = {
+        instance: None if reference is None else str(base.fmu_reference(instance))
+        for instance, reference in base_data["fmus"].items()
+    }
+    spec = SweepSpec(
+        name=name,
+        source=source,
+        base_data=base_data,
+        base_source=base_source,
+        base_folder=base.folder,
+        axes=(),
+        combine=combine,
+        overrides=common,
+        shared_primary=shared_primary,
+        description=description,
+    )
     year = _validated(spec, (), f"{source}: overrides").window.date.year
 
+    parsed = _parsed_axes(axes, source, year, combine, shared_primary)
+    return dataclasses.replace(spec, axes=parsed)
+
+
+def _parsed_axes(axes, source: str, year: int, combine: str, shared_primary: bool) -> tuple[SweepAxis, ...]:
+    """The sweep's axes from their raw form, checked: at least one, no two setting one key, equal
+    lengths for ``zip``, a ``mirror`` axis for ``shared_primary``. *year*: the base window's."""
     if not isinstance(axes, Mapping) or not axes:
-        raise InputError(f"{source}: axes: expected a mapping of at least one axis (e.g. "
-                         f"day_of_year: [21, 172]), got {axes!r}")
-    parsed = tuple(SweepAxis(name=_check_key(axis_name, f"{source}: axes"),
-                             values=_axis_values(axis_name, raw, year, f"{source}: axes.{axis_name}"))
-                   for axis_name, raw in axes.items())
-    owner = {}
+        raise InputError(
+            f"{source}: axes: expected a mapping of at least one axis (e.g. day_of_year: [21, 172]), got {axes!r}"
+        )
+    parsed = tuple(
+        SweepAxis(
+            name=check_axis_key(axis_name, f"{source}: axes"),
+            values=axis_values(axis_name, raw, year, f"{source}: axes.{axis_name}"),
+        )
+        for axis_name, raw in axes.items()
+    )
+    owner: dict[str, str] = {}  # dotted key -> the axis that sets it
     for axis in parsed:
         for key, _ in axis.overrides(axis.values[0], year):
             if key in owner and key != "mirror.distance":
@@ -319,83 +320,7 @@ def _make_spec(*, name, source, base: Scenario, base_source, axes, combine, over
             raise InputError(f"{source}: axes: combine: zip needs axes of equal length; {listed} values")
     if shared_primary and "mirror" not in [axis.name for axis in parsed]:
         raise InputError(f"{source}: shared_primary: needs a 'mirror' axis (e.g. mirror: all)")
-    return dataclasses.replace(spec, axes=parsed)
-
-
-def _check_key(key, where: str) -> str:
-    if not isinstance(key, str) or not all(part.strip() for part in key.split(".")) or key != key.strip():
-        raise InputError(f"{where}: {key!r}: expected a shorthand ({', '.join(SHORTHAND_AXES)}) or a "
-                         f"dotted scenario key such as 'sequencer.current'")
-    return key
-
-
-def _axis_hint(name: str) -> str:
-    if name == "mirror.index":
-        return " (to sweep the field's mirrors use the 'mirror' axis, which also clears mirror.distance)"
-    if name == "window.date":
-        return " (or use the 'day_of_year' axis)"
-    return ""
-
-
-def _axis_values(name: str, raw, year: int, where: str) -> tuple:
-    """Expand one axis's values: a list, "all" (day_of_year, mirror) or {start, stop, step}."""
-    if isinstance(raw, str) and raw.strip().lower() == "all":
-        if name == "mirror":
-            return tuple(range(N_FIELD_MIRRORS))
-        if name == "day_of_year":
-            return tuple(range(1, _days_in_year(year) + 1))
-        raise InputError(f"{where}: 'all' is only for the day_of_year and mirror axes")
-    if isinstance(raw, Mapping):
-        values = _range_values(raw, where)
-    elif isinstance(raw, (list, tuple)):
-        values = tuple(raw)
-    else:
-        raise InputError(f"{where}: expected a list of values, 'all' (day_of_year, mirror) or "
-                         f"{{start, stop, step}}, got {raw!r}")
-    if not values:
-        raise InputError(f"{where}: the axis is empty; give at least one value")
-    seen = set()
-    for value in values:
-        if _show(value) in seen:
-            raise InputError(f"{where}: the value {value!r} is repeated")
-        seen.add(_show(value))
-    if name == "day_of_year":
-        days = _days_in_year(year)
-        for value in values:
-            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= days:
-                raise InputError(f"{where}: {value!r}: expected a day of year, an integer from 1 to {days} "
-                                 f"(the base scenario's year is {year})")
-    if name == "mirror":
-        for value in values:
-            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < N_FIELD_MIRRORS:
-                raise InputError(f"{where}: {value!r}: expected a mirror index, an integer from 0 to "
-                                 f"{N_FIELD_MIRRORS - 1} ({CENTRAL_MIRROR} is the central mirror), or 'all'")
-    return values
-
-
-def _range_values(raw: Mapping, where: str) -> tuple:
-    if set(raw) - {"start", "stop", "step"} or not {"start", "stop"} <= set(raw):
-        raise InputError(f"{where}: a range is {{start, stop, step}} (step optional, default 1), got {dict(raw)!r}")
-    start, stop, step = raw["start"], raw["stop"], raw.get("step", 1)
-    for key, value in (("start", start), ("stop", stop), ("step", step)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise InputError(f"{where}.{key}: expected a number, got {value!r}")
-    if step <= 0:
-        raise InputError(f"{where}.step: expected a number > 0, got {step!r}")
-    if stop < start:
-        raise InputError(f"{where}: stop ({stop}) is before start ({start})")
-    count = int(math.floor((stop - start) / step + 1e-9)) + 1
-    if all(isinstance(v, int) for v in (start, stop, step)):
-        return tuple(start + k * step for k in range(count))
-    return tuple(float(np.round(start + k * step, 12)) for k in range(count))
-
-
-def _days_in_year(year: int) -> int:
-    return 366 if (year % 4 == 0 and year % 100 != 0) or year % 400 == 0 else 365
-
-
-def _date_of_day(year: int, day_of_year: int) -> dt.date:
-    return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
+    return parsed
 
 
 def _set_dotted(data: dict, key: str, value, where: str) -> None:
@@ -412,18 +337,13 @@ def _scenario_data(spec: SweepSpec, settings: Iterable[tuple[str, Any]], where: 
 def _validated(spec: SweepSpec, settings: Sequence[tuple[str, Any]], where: str, hint: str = "") -> Scenario:
     """The base scenario with the sweep's and ``settings``' overrides, validated."""
     data = _scenario_data(spec, settings, where)
-    shown = ", ".join(f"{key}={_show(value)}" for key, value in settings)
+    shown = ", ".join(f"{key}={show_value(value)}" for key, value in settings)
     try:
-        return validate_scenario(data, source=f"{spec.base_source}{' with ' + shown if shown else ''}",
-                                 folder=spec.base_folder)
+        return validate_scenario(
+            data, source=f"{spec.base_source}{' with ' + shown if shown else ''}", folder=spec.base_folder
+        )
     except InputError as exc:
         raise InputError(f"{where}: gives an invalid scenario{hint}:\n{exc}") from None
-
-
-def _show(value) -> str:
-    if isinstance(value, (dt.date, dt.time)):
-        return value.isoformat()
-    return json.dumps(value, default=str)
 
 
 def expand_cases(spec: SweepSpec) -> list[SweepCase]:
@@ -450,7 +370,7 @@ def expand_cases(spec: SweepSpec) -> list[SweepCase]:
         combinations = list(zip(*(axis.values for axis in spec.axes)))
     else:
         combinations = list(itertools.product(*(axis.values for axis in spec.axes)))
-    cases = []
+    cases: list[SweepCase] = []
     for values in combinations:
         cases.append(_make_case(spec, year, dict(zip(spec.axes, values)), len(cases), "drive"))
     if spec.shared_primary:
@@ -458,16 +378,18 @@ def expand_cases(spec: SweepSpec) -> list[SweepCase]:
         seen = set()
         for values in combinations:
             chosen = {axis: value for axis, value in zip(spec.axes, values) if axis.name != "mirror"}
-            key = json.dumps([_show(chosen[axis]) for axis in others])
+            key = json.dumps([show_value(chosen[axis]) for axis in others])
             if key not in seen:
                 seen.add(key)
                 cases.append(_make_case(spec, year, chosen, len(cases), "shared-primary"))
-    first_of = {}
+    first_of: dict[str, SweepCase] = {}
     for case in cases:
         if case.case_id in first_of:
             other = first_of[case.case_id]
-            raise InputError(f"{spec.source}: axes: cases {other.index} ({other.label}) and {case.index} "
-                             f"({case.label}) are the same scenario")
+            raise InputError(
+                f"{spec.source}: axes: cases {other.index} ({other.label}) and {case.index} "
+                f"({case.label}) are the same scenario"
+            )
         first_of[case.case_id] = case
     return cases
 
@@ -476,49 +398,69 @@ def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], inde
     """One validated case: the axis values ``chosen`` on the base, as a drive or the shared primary."""
     if role not in ROLES:
         raise ValueError(f"role must be one of {ROLES}, got {role!r}")
-    settings = [_by_role(setting, axis.name, spec.base_data)
-                for axis, value in chosen.items() for setting in axis.overrides(value, year)]
+    settings = [
+        setting_by_role(setting, axis.name, spec.base_data)
+        for axis, value in chosen.items()
+        for setting in axis.overrides(value, year)
+    ]
     if role == "shared-primary":
         settings += [("mirror.distance", None), ("mirror.index", CENTRAL_MIRROR), ("mirror.axis", "primary")]
         settings += _primary_load(spec.base_data)
-    shown = ", ".join(f"{axis.name}={_show(value)}" for axis, value in chosen.items())
+    shown = ", ".join(f"{axis.name}={show_value(value)}" for axis, value in chosen.items())
     if role == "shared-primary":
         shown += " (shared primary)"
     try:
         scenario = _validated(spec, settings, f"{spec.source}: case {index} ({shown})")
     except InputError:
         for axis, value in chosen.items():  # name the axis when its value alone is invalid
-            _validated(spec, axis.overrides(value, year), f"{spec.source}: axes.{axis.name}: {_show(value)}",
-                       hint=_axis_hint(axis.name))
+            _validated(
+                spec,
+                axis.overrides(value, year),
+                f"{spec.source}: axes.{axis.name}: {show_value(value)}",
+                hint=axis_hint(axis.name),
+            )
         raise
     resolved = scenario.resolved_dict()
-    resolved["fmus"] = {instance: None if reference is None else str(scenario.fmu_reference(instance))
-                        for instance, reference in resolved["fmus"].items()}
+    resolved["fmus"] = {
+        instance: None if reference is None else str(scenario.fmu_reference(instance))
+        for instance, reference in resolved["fmus"].items()
+    }
     case_id = hashlib.sha256(json.dumps(resolved, sort_keys=True).encode()).hexdigest()[:16]
     mirror = scenario.mirror
     columns = {
-        "case_id": case_id, "case_index": index, "role": role,
-        **{axis.column: _table_value(value) for axis, value in chosen.items()},
-        "date": scenario.window.date.isoformat(), "day_of_year": scenario.window.date.timetuple().tm_yday,
-        "mirror_index": mirror.index, "mirror_distance_m": float(mirror.mirror_distance),
-        "mirror_axis": mirror.axis, "motor": scenario.fmus.get(scenario.roles.instance_of("torque")),
-        "mechanics": scenario.fmus.get(scenario.roles.instance_of("rotor_angle")), "current_A": scenario.sequencer.current,
+        "case_id": case_id,
+        "case_index": index,
+        "role": role,
+        **{axis.column: table_value(value) for axis, value in chosen.items()},
+        "date": scenario.window.date.isoformat(),
+        "day_of_year": scenario.window.date.timetuple().tm_yday,
+        "mirror_index": mirror.index,
+        "mirror_distance_m": float(mirror.mirror_distance),
+        "mirror_axis": mirror.axis,
+        "motor": scenario.fmus.get(scenario.roles.instance_of("torque")),
+        "mechanics": scenario.fmus.get(scenario.roles.instance_of("rotor_angle")),
+        "current_A": scenario.sequencer.current,
         "wind_moment_Nm": scenario.wind.moment,
-        "overrides": ", ".join(f"{key}={_show(value)}" for key, value in (*spec.overrides, *settings)),
+        "overrides": ", ".join(f"{key}={show_value(value)}" for key, value in (*spec.overrides, *settings)),
     }
-    return SweepCase(case_id=case_id, index=index, columns=columns, scenario=resolved,
-                     source=f"{spec.source}: case {index} ({shown})", folder=str(spec.base_folder))
-
-
-def _table_value(value):
-    """An axis value as a table cell: scalars as they are, dates as ISO text, the rest as JSON."""
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    return _show(value)
+    return SweepCase(
+        case_id=case_id,
+        index=index,
+        columns=columns,
+        scenario=resolved,
+        source=f"{spec.source}: case {index} ({shown})",
+        folder=str(spec.base_folder),
+    )
 
 
 def sweep_metadata(spec: SweepSpec) -> dict:
     """What the table's Parquet metadata records about the sweep (name, source, axes, combine)."""
-    return {"name": spec.name, "source": spec.source, "base": spec.base_source, "combine": spec.combine,
-            "axes": {axis.name: axis.column for axis in spec.axes}, "shared_primary": spec.shared_primary,
-            "overrides": {key: _show(value) for key, value in spec.overrides}}
+    return {
+        "name": spec.name,
+        "source": spec.source,
+        "base": spec.base_source,
+        "combine": spec.combine,
+        "axes": {axis.name: axis.column for axis in spec.axes},
+        "shared_primary": spec.shared_primary,
+        "overrides": {key: show_value(value) for key, value in spec.overrides},
+    }

@@ -63,18 +63,32 @@ FIGURE_COLUMNS = {
 
 #: Columns describing a case (from its resolved scenario), with dtypes.
 CASE_COLUMNS = {
-    "case_id": "string", "case_index": "Int64", "role": "string",
-    "date": "string", "day_of_year": "Int64", "mirror_index": "Int64",
-    "mirror_distance_m": "float64", "mirror_axis": "string", "motor": "string",
-    "mechanics": "string", "current_A": "float64", "wind_moment_Nm": "float64",
+    "case_id": "string",
+    "case_index": "Int64",
+    "role": "string",
+    "date": "string",
+    "day_of_year": "Int64",
+    "mirror_index": "Int64",
+    "mirror_distance_m": "float64",
+    "mirror_axis": "string",
+    "motor": "string",
+    "mechanics": "string",
+    "current_A": "float64",
+    "wind_moment_Nm": "float64",
     "overrides": "string",
 }
 
 
 #: Columns about the execution of a case, with dtypes.
 RUN_COLUMNS = {
-    "status": "string", "error_type": "string", "error": "string", "wall_time_s": "float64",
-    "finished_at": "string", "run_id": "string", "worker": "string", "fmu_sha256": "string",
+    "status": "string",
+    "error_type": "string",
+    "error": "string",
+    "wall_time_s": "float64",
+    "finished_at": "string",
+    "run_id": "string",
+    "worker": "string",
+    "fmu_sha256": "string",
 }
 
 
@@ -101,8 +115,9 @@ def _normalize(table: pd.DataFrame) -> pd.DataFrame:
         if dtype == "Int64":
             table[column] = pd.array([None if pd.isna(v) else int(v) for v in values], dtype="Int64")
         elif dtype == "float64":
-            table[column] = pd.to_numeric(values.astype(object).where(values.notna(), np.nan),
-                                          errors="coerce").astype("float64")
+            table[column] = pd.to_numeric(values.astype(object).where(values.notna(), np.nan), errors="coerce").astype(
+                "float64"
+            )
         else:
             table[column] = pd.array([None if _missing(v) else str(v) for v in values], dtype="string")
     for column in table.columns:
@@ -124,8 +139,9 @@ def _missing(value) -> bool:
 def _write_atomically(table: pd.DataFrame, path: Path, metadata: Mapping | None = None) -> None:
     arrow = pa.Table.from_pandas(_normalize(table), preserve_index=False)
     if metadata:
-        arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}),
-                                               _METADATA_KEY: json.dumps(metadata).encode()})
+        arrow = arrow.replace_schema_metadata(
+            {**(arrow.schema.metadata or {}), _METADATA_KEY: json.dumps(metadata).encode()}
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     scratch = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
     try:
@@ -160,7 +176,8 @@ def read_results(results_path: str | Path) -> pd.DataFrame:
         columns, ...). Empty when nothing was written yet.
     """
     results_path = Path(results_path)
-    frames, metadata = [], {}
+    frames: list[pd.DataFrame] = []
+    metadata: dict = {}
     if results_path.exists():
         table, metadata = _read_parquet(results_path)
         frames.append(table)
