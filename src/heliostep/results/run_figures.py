@@ -18,13 +18,14 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
+from typing import TypeAlias
 
 import numpy as np
 import pandas as pd
 
 from heliostep.drive.inputs import DriveInputs
 from heliostep.results.light import LightIntegrals
-from heliostep.results.run_summary import RunSummary, night
+from heliostep.results.run_summary import RunStatus, RunSummary, night
 from heliostep.results.solution import SolutionRecorder
 from heliostep.results.summary import OutputRows, build_summary, summary_at_cut
 from heliostep.results.trace import TraceAssembler, drive_from_metadata, master_block
@@ -34,7 +35,7 @@ from heliostep.results.tradeoffs import smallest_drive_ratio, tradeoff_figures_a
 __all__ = ["FigureStream", "RunFigures", "TraceSource", "present_columns", "run_figures", "trace_blocks"]
 
 #: A trace: held in memory (a frame), or a Parquet trace file read by row groups.
-TraceSource = pd.DataFrame | Path
+TraceSource: TypeAlias = pd.DataFrame | Path
 
 
 def present_columns(source: TraceSource, columns: list[str]) -> list[str]:
@@ -211,7 +212,7 @@ class FigureStream:
         self.rows += len(frame)
         self.last_time = float(block[-1, 0])
 
-    def finish(self, status):
+    def finish(self, status: RunStatus) -> RunStatus:
         return status
 
     def close(self, metadata: Mapping[str, str]) -> None:

@@ -107,10 +107,6 @@ class RunSummary:
             record["warnings"] = [*record.get("warnings", []), self.night_warning]
         return record
 
-    @property
-    def warnings(self) -> list[str]:
-        return list(self.figures().get("warnings", []))
-
 
 @dataclass(frozen=True)
 class RunStatus:

@@ -19,7 +19,8 @@ import numpy as np
 from heliostep.drive.sequencer import Sequencer, StepSchedule
 
 __all__ = ["FULL_STEPS_PER_PERIOD", "MISS_TOLERANCE", "SETTLING_BAND", "JudgedSteps", "Settling", "StepJudge",
-           "StepOutcome", "held_lag", "judged_steps", "lost_steps", "step_outcome"]
+           "StepOutcome", "held_lag", "judged_steps", "lost_between", "lost_steps", "outcome_records",
+           "step_outcome"]
 
 #: Band around the rest position that counts as settled, in step increments.
 SETTLING_BAND = 0.05
@@ -232,4 +233,5 @@ class StepJudge:
 
 
 def outcome_records(outcomes: Iterable[StepOutcome]) -> list[dict]:
+    """The outcomes as stored in ``metadata['solution_figures']['step_outcomes']``."""
     return [o.record() for o in outcomes]

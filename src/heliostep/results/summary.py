@@ -28,7 +28,8 @@ Definitions:
   the elastic lag (the static deflection under load, which the run holds from its first row:
   it starts at the loaded detent): round((cmd − rotor)/increment − lag), negative when ahead.
   The lag is the one at the start, or, when the run ends on a reduced idle current, the lag
-  the same load causes at that current (:func:`held_lag`, from the detent's sine torque law). A slip under load loses whole electrical periods (4 full steps).
+  the same load causes at that current (:func:`held_lag`, from the detent's sine torque law).
+  A slip under load loses whole electrical periods (4 full steps).
   ``final_lag_steps`` is what is left, the elastic lag at the end, in increments;
 - settling time of a step: from the step until the rotor stays within ``settling_band`` ×
   the increment of its rest position (the commanded position minus the elastic lag held at

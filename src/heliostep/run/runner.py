@@ -129,7 +129,7 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
             shutil.rmtree(temporary, ignore_errors=True)
         raise
     if not run.complete:
-        raise RunFailed(run.error, run)
+        raise RunFailed(run.error or run.reason or "failed", run)
     return run
 
 
@@ -181,7 +181,7 @@ def _row_sink(prepared: _PreparedRun, figures: RunFigures, keep_trace: bool, str
         return HeldTrace(columns, assembler, figures), None
     temporary = None if trace_dir is not None else Path(tempfile.mkdtemp(
         prefix=f"heliostep-trace-{prepared.scenario.name}-"))
-    folder = Path(trace_dir) if trace_dir is not None else temporary
+    folder = Path(trace_dir) if trace_dir is not None else Path(temporary or ".")
     path = folder / f"{TMP_PREFIX}{os.getpid()}-{clock.time_ns():x}-trace.parquet"
     return TraceStream(path, columns, assembler, row_group_rows, figures), temporary
 
@@ -220,7 +220,7 @@ def _simulate_and_summarize(prepared: _PreparedRun, figures: RunFigures, sink: R
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
     solution = figures.solution_figures()
-    if solution:  # figures from every solver step, stored so summarize(trace, meta) recomputes them
+    if solution and figures.solution is not None:  # every solver step's, so summarize(trace, meta) recomputes them
         if list(raw.columns) != figures.solution.columns:
             raise RuntimeError(f"solution recorder columns {figures.solution.columns} differ from the trace's "
                                f"{list(raw.columns)}")
