@@ -142,8 +142,9 @@ def test_weak_motor_misses_steps_and_says_so(fmu_paths):
 def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch, scenario):
     """The recorder's running figures (memory bounded by one step interval) are those that the
     definitions give on all the rows it was shown, kept and assembled as a trace."""
-    import heliostep.run as run_module
-    from heliostep.results.summary import SolutionRecorder, solution_figures
+    import heliostep.results.run_figures as figures_module
+    from figures_oracle import solution_figures
+    from heliostep.results.summary import SolutionRecorder
     from heliostep.results.trace import assemble_trace
 
     recorders = []
@@ -158,7 +159,7 @@ def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch,
             self.kept.append(np.array(row, dtype=float))
             super().__call__(row)
 
-    monkeypatch.setattr(run_module, "SolutionRecorder", Keeping)
+    monkeypatch.setattr(figures_module, "SolutionRecorder", Keeping)
     run = run_scenario(SCENARIOS / scenario, ["window.duration=60"])
     recorder = recorders[0]
     import pandas as pd
@@ -251,7 +252,7 @@ def test_out_folder_that_cannot_be_written_is_refused(tmp_path, fmu_paths, capsy
 
 
 def test_write_failure_says_where_the_result_could_not_go(tmp_path, fmu_paths, capsys, monkeypatch):
-    import heliostep.run as run_module
+    import heliostep.results.run_files as run_module
 
     out = tmp_path / "out"
     real = run_module.write_trace
@@ -276,7 +277,7 @@ def test_write_failure_says_where_the_result_could_not_go(tmp_path, fmu_paths, c
 
 
 def test_interrupted_write_leaves_no_file_claiming_completeness(tmp_path, fmu_paths, monkeypatch):
-    import heliostep.run as run_module
+    import heliostep.results.run_files as run_module
 
     run = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=2"])
     real = run_module.write_trace
@@ -323,17 +324,16 @@ def test_night_window_warns_and_says_so_in_the_summary(tmp_path, fmu_paths, caps
 
 
 def test_interrupted_summary_does_not_count_the_step_in_progress(fmu_paths):
-    from heliostep.results.run_figures import summary_at_cut
-    from heliostep.results.summary import summarize
-    from heliostep.results.trace import figure_columns
+    from heliostep.results.summary import summary_at_cut, trace_summary
 
     run = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=20"])
     steps = run.inputs.schedule.times
     cut = steps[0] + 0.001  # 1 ms into the first step: the rotor is on its way
     trace = run.trace[run.trace["time"] <= cut].reset_index(drop=True)
     metadata = {k: v for k, v in run.metadata.items() if k != "solution_figures"}  # those of the whole run
-    naive = summarize(trace, metadata)
+    summary, rows, solution = trace_summary(trace, metadata)
+    naive = summary.figures()
     assert naive["missed_steps"] == 1  # what a summary of the cut trace alone would say
-    fixed = summary_at_cut(trace, figure_columns(metadata["roles"]), metadata, naive)
+    fixed = summary_at_cut(summary, rows, solution).figures()
     assert fixed["missed_steps"] == 0 and fixed["steps_lost"] == 0 and fixed["steps_commanded"] == 0
     assert fixed["step_in_progress_at_cut_s"] == pytest.approx(steps[0])

@@ -40,7 +40,7 @@ def test_a_run_without_trace_gives_the_same_figures_and_writes_only_its_summary(
     as they come; every figure equals the held run's, bit for bit, with no more rows held than
     a chunk and a block; nothing but summary.json and metadata.json is written, and asking for
     the trace says why there is none."""
-    import heliostep.run as run_module
+    import heliostep.run.runner as run_module
     from heliostep.errors import HeliostepError
 
     held, _ = runs
@@ -93,8 +93,8 @@ def test_figures_in_other_chunks_agree_to_rounding(runs, chunk):
 
     held, _ = runs
     figures = run_figures(held.trace, figure_columns(held.metadata["roles"]), held.metadata, held.scenario,
-                          block_rows=chunk)
-    other = figures.figures()
+                          block_rows=chunk, window=(held.inputs.window_start, held.inputs.duration))
+    other = figures.summary().figures()
     assert figures.chunks == -(-len(held.trace) // chunk)
     energies = ("light_energy_ideal_J", "light_energy_reference_J", "light_energy_J")
     scale = max(held.summary[k] for k in energies)

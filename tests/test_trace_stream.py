@@ -27,7 +27,7 @@ def held(fmu_paths):
 
 
 def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_path, monkeypatch):
-    import heliostep.run as run_module
+    import heliostep.run.runner as run_module
 
     monkeypatch.setattr(run_module, "SINK_ROWS", 5)  # the master's blocks: 5 rows, cut anywhere
     rows_per_group = 23

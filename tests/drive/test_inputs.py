@@ -6,7 +6,7 @@ import pytest
 
 from heliostep.drive.inputs import output_grid, prepare_inputs
 from heliostep.errors import InputError
-from heliostep.run import _signals
+from heliostep.run.bindings import signals as _signals
 from heliostep.scenario import RolesConfig, validate_scenario
 from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
 

@@ -7,15 +7,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
 from heliostep.cli.signals import stop_requests
 from heliostep.errors import HeliostepError
 from heliostep.results.outputs import check_out_dir
 from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
 from heliostep.scenario import load_scenario
-from heliostep.solar import solar_position
 
 #: Windows longer than this [s] get no CSV copy of the trace unless --csv is given.
 CSV_DEFAULT_MAX_DURATION = 3600.0
@@ -56,14 +52,15 @@ def _run_command(args: argparse.Namespace) -> int:
     with stop_requests() as stop:
         scenario = load_scenario(args.scenario, args.overrides)
         out_dir = args.out or Path("out") / scenario.name
-        resolve_fmus(scenario)
+        fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
         existed = out_dir.exists()
         check_out_dir(out_dir)
         if stop.is_set():
             print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
             return stop.exit_status
         try:  # a long window streams its trace into out_dir while simulating (bounded memory)
-            result = run_scenario(scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir)
+            result = run_scenario(scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir,
+                                  fmu_paths=fmu_paths)
             status = 0
         except RunFailed as failed:
             result = failed.result
@@ -81,7 +78,8 @@ def _run_command(args: argparse.Namespace) -> int:
         except OSError as exc:  # the streamed trace could not be written
             print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
             return 1
-        _note_night(result)
+        if result.figures is not None and result.figures.night_warning:  # the summary says so too
+            print(f"heliostep run: warning: {result.figures.night_warning}", file=sys.stderr)
         csv = args.csv
         if csv is None:
             duration = result.inputs.duration if result.inputs is not None else 0.0
@@ -107,23 +105,6 @@ def _remove_if_empty(folder: Path) -> None:
         folder.rmdir()
     except OSError:
         pass
-
-
-def _note_night(result: RunResult) -> None:
-    """A window with the sun below the horizon all the time: warn, and say so in the summary."""
-    inputs = result.inputs
-    if inputs is None or not result.summary:
-        return
-    site = result.scenario.site
-    times = inputs.window_start + pd.to_timedelta(np.linspace(0.0, inputs.duration, 97), unit="s")
-    elevation = solar_position(pd.DatetimeIndex(times), site.latitude, site.longitude, site.altitude)["elevation"]
-    night = bool((elevation.to_numpy() <= 0.0).all())
-    result.summary["night"] = night
-    if night:
-        warning = (f"the sun is below the horizon during the whole window ({inputs.window_start} + "
-                   f"{inputs.duration:g} s): the drive holds still and the figures are those of a night")
-        result.summary.setdefault("warnings", []).append(warning)
-        print(f"heliostep run: warning: {warning}", file=sys.stderr)
 
 
 def _rescue(result: RunResult, csv: bool) -> Path | None:

@@ -1,36 +1,41 @@
-"""A run's figures after the simulation (``summary.json``), from its trace one block at a time.
+"""A run's figures (``summary.json``), computed in the one pass of its simulation.
 
-:class:`RunFigures` feeds each block of a trace's figure columns
-(:func:`~heliostep.results.trace.figure_columns`) to the accumulators of the summary
-(:class:`~heliostep.results.summary.TraceSummary`), the light on the tube
+:class:`RunFigures` is the one owner of a run's figures. The master shows its
+:attr:`~RunFigures.solution` (:class:`~heliostep.results.solution.SolutionRecorder`, the
+``monitor``) every solver step; the run's row sink (:mod:`heliostep.results.row_sinks`) hands it
+the assembled output rows as they come, which it evaluates in chunks of ``block_rows`` rows
+counted from the first row: the summary's output-row part
+(:class:`~heliostep.results.summary.OutputRows`), the light on the tube
 (:class:`~heliostep.results.light.LightIntegrals`) and the holding torque (the smallest drive
-ratio, :func:`~heliostep.results.tradeoffs.smallest_drive_ratio`). A trace held in memory is one
-block; a streamed trace is read back from its Parquet file one row group at a time
-(:func:`~heliostep.results.trace_io.iter_trace_blocks`), so the figures of a long window are
-computed in memory bounded by one row group (plus the rotor's rows over one step interval), and
-both are the same code. :func:`summary_at_cut` corrects the summary of an interrupted run the
-same way.
+ratio, :func:`~heliostep.results.tradeoffs.smallest_drive_ratio`). Held, streamed and
+figures-only runs feed it the same rows, so they give the same figures bit for bit; nothing
+reads the trace back. :meth:`RunFigures.summary` is the run's
+:class:`~heliostep.results.run_summary.RunSummary` (at a cut: :func:`~heliostep.results.summary.summary_at_cut`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping
+import dataclasses
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
+from typing import TypeAlias
 
 import numpy as np
 import pandas as pd
 
+from heliostep.drive.inputs import DriveInputs
 from heliostep.results.light import LightIntegrals
-from heliostep.results.summary import TraceSummary
-from heliostep.results.trace import master_block
+from heliostep.results.run_summary import RunStatus, RunSummary, night
+from heliostep.results.solution import SolutionRecorder
+from heliostep.results.summary import OutputRows, build_summary, summary_at_cut
+from heliostep.results.trace import TraceAssembler, drive_from_metadata, master_block
 from heliostep.results.trace_io import ROW_GROUP_ROWS, iter_trace_blocks
 from heliostep.results.tradeoffs import smallest_drive_ratio, tradeoff_figures_at
 
-__all__ = ["FigureStream", "RunFigures", "TraceSource", "present_columns", "run_figures", "summary_at_cut",
-           "trace_blocks"]
+__all__ = ["FigureStream", "RunFigures", "TraceSource", "present_columns", "run_figures", "trace_blocks"]
 
 #: A trace: held in memory (a frame), or a Parquet trace file read by row groups.
-TraceSource = pd.DataFrame | Path
+TraceSource: TypeAlias = pd.DataFrame | Path
 
 
 def present_columns(source: TraceSource, columns: list[str]) -> list[str]:
@@ -62,24 +67,29 @@ def trace_blocks(source: TraceSource, columns: list[str]) -> Iterator[pd.DataFra
 
 
 class RunFigures:
-    """The figures of a run's trace taken in blocks (time order): the summary, and for two rows
-    or more the light on the tube and the drive's trade-offs. ``columns`` are the blocks'
-    columns; ``weather`` the scenario's weather file already read (None: read when needed, or
-    clear sky).
+    """The figures of a run, fed while it simulates: the solver steps to :attr:`solution` (the
+    master's ``monitor``; None: ``metadata['solution_figures']`` are used), the output rows (frames
+    with at least ``columns``, in time order, blocks of any size) to the call. ``weather`` is the
+    scenario's weather file already read (None: read when needed, or clear sky); ``window``
+    (start, duration [s]) says whether the summary says ``night``.
 
-    The rows are evaluated in chunks of ``block_rows`` rows counted from the trace's first row,
-    whatever blocks they come in: a trace held whole and the same trace read by row groups give
-    the same figures, bit for bit. ``max_rows_held`` is the most trace rows held at once (under
+    The output rows are evaluated in chunks of ``block_rows`` rows counted from the first row,
+    whatever blocks they come in. ``max_rows_held`` is the most output rows held at once (under
     ``block_rows`` plus the largest block received); ``chunks`` how many were evaluated.
     """
 
-    def __init__(self, columns: list[str], metadata: Mapping, scenario, weather=None,
-                 block_rows: int = ROW_GROUP_ROWS):
+    def __init__(self, columns: Sequence[str], metadata: Mapping, scenario, weather=None,
+                 block_rows: int = ROW_GROUP_ROWS, solution: SolutionRecorder | None = None,
+                 window: tuple[pd.Timestamp, float] | None = None):
         if block_rows < 1:
             raise ValueError(f"block_rows must be at least 1, not {block_rows}")
+        self.columns = list(columns)
         self.metadata, self.scenario = metadata, scenario
         self.block_rows = block_rows
-        self.summary = TraceSummary(columns, metadata)
+        self.solution = solution
+        self.window = window
+        sequencer, schedule = drive_from_metadata(metadata["drive"])
+        self.output = OutputRows(self.columns, metadata.get("roles", {}), sequencer, schedule)
         self.light = LightIntegrals(metadata, scenario, weather)
         self._ratio = np.inf
         self._held: list[pd.DataFrame] = []
@@ -87,11 +97,22 @@ class RunFigures:
         self.rows = 0
         self.chunks = 0
         self.max_rows_held = 0
+        self._solution_figures: dict | None = None
+
+    @classmethod
+    def of_run(cls, master_columns: list[str], inputs: DriveInputs, roles: Mapping[str, str], columns: list[str],
+               metadata: Mapping, scenario, weather=None, block_rows: int = ROW_GROUP_ROWS) -> RunFigures:
+        """The figures of a run about to simulate: the master's ``master_columns``, the output rows'
+        ``columns`` (those of the figures, :func:`~heliostep.results.trace.figure_columns`)."""
+        solution = SolutionRecorder(master_columns, roles, inputs.sequencer, inputs.schedule, inputs.panel_reference())
+        present = _present(TraceAssembler(inputs, dict(roles)).columns(master_columns), columns)
+        return cls(present, metadata, scenario, weather, block_rows, solution,
+                   (inputs.window_start, inputs.duration))
 
     def __call__(self, block: pd.DataFrame) -> None:
         if not len(block):
             return
-        self._held.append(block)
+        self._held.append(block[self.columns])
         self._held_rows += len(block)
         self.rows += len(block)
         self.max_rows_held = max(self.max_rows_held, self._held_rows)
@@ -110,30 +131,50 @@ class RunFigures:
         self._held_rows = len(rest)
 
     def _chunk(self, chunk: pd.DataFrame) -> None:
-        self.summary(chunk)
+        self.output(chunk)
         self.light(chunk)
         self._ratio = min(self._ratio, smallest_drive_ratio(chunk["panel_angle_ref"], self.scenario))
         self.chunks += 1
 
-    def figures(self) -> dict:
-        """The run's summary figures (empty without rows)."""
+    def solution_figures(self) -> dict | None:
+        """The figures of every solver step (None: none was shown), for ``metadata['solution_figures']``."""
+        if self.solution is None:
+            return self.metadata.get("solution_figures")
+        if self._solution_figures is None and len(self.solution):
+            self._solution_figures = self.solution.figures()
+        return self._solution_figures
+
+    def summary(self, interrupted: bool = False) -> RunSummary | None:
+        """The run's summary (None without an output row); ``interrupted``: not judging the step in
+        progress at the cut (:func:`~heliostep.results.summary.summary_at_cut`)."""
         if self._held:
             self._evaluate(final=True)
         if not self.rows:
-            return {}
-        figures = self.summary.summary()
+            return None
+        solution = self.solution_figures()
+        summary = build_summary(solution, self.output, "solution" if solution else "output rows")
         if self.rows > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
-            figures.update(self.light.figures())
-            figures.update(tradeoff_figures_at(self._ratio, self.metadata, self.scenario, figures))
-        return figures
+            light = self.light.figures()
+            tradeoffs = tradeoff_figures_at(self._ratio, self.metadata, self.scenario, {**summary.figures(), **light})
+            summary = _replace(summary, light=light, tradeoffs=tradeoffs)
+        if interrupted:
+            summary = summary_at_cut(summary, self.output, solution)
+        if self.window is not None:
+            is_night, warning = night(self.scenario.site, *self.window)
+            summary = _replace(summary, night=is_night, night_warning=warning)
+        return summary
+
+
+def _replace(summary: RunSummary, **changes) -> RunSummary:
+    return dataclasses.replace(summary, **changes)
 
 
 def run_figures(source: TraceSource, columns: list[str], metadata: Mapping, scenario, weather=None,
-                block_rows: int = ROW_GROUP_ROWS) -> RunFigures:
-    """:class:`RunFigures` of a trace (held, or a Parquet file read one row group at a time),
-    fed every block of those of ``columns`` it has."""
+                block_rows: int = ROW_GROUP_ROWS, window: tuple[pd.Timestamp, float] | None = None) -> RunFigures:
+    """:class:`RunFigures` of a stored trace (held, or a Parquet file read one row group at a
+    time) and its metadata (``solution_figures``), fed every block of those of ``columns`` it has."""
     present = present_columns(source, columns)
-    figures = RunFigures(present, metadata, scenario, weather, block_rows)
+    figures = RunFigures(present, metadata, scenario, weather, block_rows, window=window)
     for block in trace_blocks(source, present):
         figures(block)
     return figures
@@ -141,22 +182,24 @@ def run_figures(source: TraceSource, columns: list[str], metadata: Mapping, scen
 
 class FigureStream:
     """Row sink of a run that keeps no trace: the master's row blocks, assembled block by block
-    (:class:`~heliostep.results.trace.TraceAssembler`) and fed to :class:`RunFigures` as they
-    come, nothing written or held beyond one chunk.
+    (:class:`~heliostep.results.trace.TraceAssembler`) and fed to ``figures`` as they come,
+    nothing written or held beyond one chunk (a
+    :class:`~heliostep.results.row_sinks.RowSink`).
 
     For sweeps, whose cases need the figures only. The figures equal, bit for bit, those of the
-    same run with its trace held or streamed (the same rows, in chunks of ``block_rows`` counted
-    from the first row). ``metadata`` is the run's metadata dict itself: the summary takes its
-    ``solution_figures`` when ``accumulator.figures()`` is asked, after the simulation. ``rows`` counts the
-    rows received, ``last_time`` is the time of the last one.
+    same run with its trace held or streamed (the same rows, in chunks counted from the first
+    row). ``rows`` counts the rows received, ``last_time`` is the time of the last one.
     """
 
-    def __init__(self, master_columns: list[str], assembler, columns: list[str], metadata: Mapping, scenario,
-                 weather=None, block_rows: int = ROW_GROUP_ROWS):
+    trace_kept = False
+    held_trace = None
+    trace_file = None
+
+    def __init__(self, master_columns: list[str], assembler: TraceAssembler, figures: RunFigures):
         self.master_columns = list(master_columns)
         self.assembler = assembler
-        self.columns = _present(assembler.columns(self.master_columns), columns)
-        self.accumulator = RunFigures(self.columns, metadata, scenario, weather, block_rows)
+        self.columns = assembler.columns(self.master_columns)
+        self.accumulator = figures
         self.rows = 0
         self.last_time: float | None = None
 
@@ -165,66 +208,15 @@ class FigureStream:
         if not len(block):
             return
         frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))
-        self.accumulator(frame[self.columns])
+        self.accumulator(frame)
         self.rows += len(frame)
         self.last_time = float(block[-1, 0])
 
+    def finish(self, status: RunStatus) -> RunStatus:
+        return status
 
-#: Step figures of a summary that depend on judging each step (see :func:`summary_at_cut`).
-_STEP_FIELDS = ("steps_commanded", "missed_steps", "steps_executed", "settling_time_s",
-                "missed_step_times_s", "steps_lost", "final_lag_steps")
+    def close(self, metadata: Mapping[str, str]) -> None:
+        pass
 
-
-def _head(blocks: Iterable[pd.DataFrame], step: float) -> Iterator[pd.DataFrame]:
-    """The rows before ``step`` [s] and the first row at it (the row just before the step)."""
-    for block in blocks:
-        time = block["time"].to_numpy()
-        i = int(np.searchsorted(time, step, side="left"))
-        if i < len(time):
-            yield block.iloc[:i + 1] if time[i] == step else block.iloc[:i]
-            return
-        yield block
-
-
-def summary_at_cut(source: TraceSource, columns: list[str], metadata: Mapping, summary: dict) -> dict:
-    """The summary of an interrupted run without judging the step in progress at the cut.
-
-    If the last step commanded before the cut is missed or unsettled at the cut (it has not had
-    its time to complete), the step figures are recomputed up to the row just before that step,
-    without it (the earlier steps judged at its time, as in a complete run). ``source`` is the
-    trace (held or a file, read in blocks of ``columns``).
-    """
-    drive = metadata.get("drive") or {}
-    times = np.asarray(drive.get("step_times", []), dtype=float)
-    end = None
-    for block in trace_blocks(source, ["time"]):
-        end = float(block["time"].iloc[-1])
-    if end is None:
-        return summary
-    before = times[times <= end]
-    if not len(before):
-        return summary
-    last_step = float(before[-1])
-    missed_last = last_step in set(summary.get("missed_step_times_s") or [])
-    per_step = (summary.get("settling_time_s") or {}).get("per_step") or []
-    unsettled_last = bool(per_step) and per_step[-1] is None
-    lost = summary.get("steps_lost")
-    if not (missed_last or unsettled_last or (lost not in (None, 0))):
-        return summary
-    keep = times < last_step
-    drive_before = {**drive, "step_times": [float(t) for t in times[keep]],
-                    "step_indices": [int(k) for k in np.asarray(drive["step_indices"])[keep]]}
-    head = TraceSummary(present_columns(source, columns), {**metadata, "drive": drive_before})
-    for block in _head(trace_blocks(source, columns), last_step):
-        head(block)
-    fixed = dict(summary)
-    if head.rows:
-        partial = head.summary()
-        for key in _STEP_FIELDS:
-            if key in partial:
-                fixed[key] = partial[key]
-    else:
-        for key in _STEP_FIELDS:
-            fixed.pop(key, None)
-    fixed["step_in_progress_at_cut_s"] = last_step
-    return fixed
+    def abort(self) -> None:
+        pass

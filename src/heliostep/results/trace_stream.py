@@ -5,7 +5,8 @@ the master's rows in blocks, adds the derived columns block by block
 (:class:`~heliostep.results.trace.TraceAssembler`, which gives the same rows as assembling the
 whole trace) and appends them to a Parquet file in row groups of ``row_group_rows`` rows
 (:class:`~heliostep.results.trace_io.TraceWriter`). It holds at most one row group's rows (plus
-one block): memory does not grow with the window. The file's metadata (``complete`` and the rest)
+one block): memory does not grow with the window. Each row group written goes on to the run's
+figures (``figures``), so they are those of the rows the file holds. The file's metadata (``complete`` and the rest)
 is written only by :meth:`TraceStream.close`, once the run's outcome is known; until then the file
 has no footer and claims nothing. Write it under a temporary name and rename it into place.
 
@@ -17,12 +18,13 @@ file is then a readable trace of the rows up to :attr:`TraceStream.written_time`
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from heliostep.results.run_summary import RunStatus
 from heliostep.results.trace import TraceAssembler, master_block
 from heliostep.results.trace_io import ROW_GROUP_ROWS, TraceWriteError, TraceWriter
 
@@ -34,11 +36,15 @@ class TraceStream:
 
     ``master_columns`` are the master's trace columns (the layout of each block's rows).
     ``max_block_rows`` is the largest block received and ``max_held_rows`` the most assembled rows
-    held before a row group was written (at most ``row_group_rows`` + one block).
+    held before a row group was written (at most ``row_group_rows`` + one block). A
+    :class:`~heliostep.results.row_sinks.RowSink`.
     """
 
+    trace_kept = True
+    held_trace = None
+
     def __init__(self, path: str | Path, master_columns: list[str], assembler: TraceAssembler,
-                 row_group_rows: int = ROW_GROUP_ROWS):
+                 row_group_rows: int = ROW_GROUP_ROWS, figures: Callable[[pd.DataFrame], None] | None = None):
         if row_group_rows < 1:
             raise ValueError(f"row_group_rows must be at least 1, not {row_group_rows}")
         self.path = Path(path)
@@ -46,6 +52,7 @@ class TraceStream:
         self.assembler = assembler
         self.columns = assembler.columns(self.master_columns)
         self.row_group_rows = row_group_rows
+        self.figures = figures
         self._writer = TraceWriter(self.path, self.columns)
         self._held: list[pd.DataFrame] = []
         self._held_rows = 0
@@ -89,6 +96,8 @@ class TraceStream:
             self._held, self._held_rows = [], 0
             raise
         self.row_groups += 1
+        if self.figures is not None:
+            self.figures(group)
         self._held = [rest.reset_index(drop=True)] if len(rest) else []
         self._held_rows = len(rest)
 
@@ -106,6 +115,24 @@ class TraceStream:
         """Write the rows still held as a row group (:class:`TraceWriteError` if it cannot be)."""
         if self._held_rows and self.failed is None:
             self._write(self._held_rows)
+
+    @property
+    def trace_file(self) -> Path:
+        return self.path
+
+    def finish(self, status: RunStatus) -> RunStatus:
+        """Write the rows still held; when a row group could not be written (now or before), the
+        run failed there: the file keeps the rows up to :attr:`written_time`."""
+        try:
+            self.flush()  # the last rows: a write failing here fails the run as one during it
+        except TraceWriteError:
+            pass
+        if self.failed is None:
+            return status
+        reached = self.written_time or 0.0
+        return RunStatus(False, f"the trace could not be written: {self.failed}; it keeps the {self.written_rows} "
+                                f"rows up to t = {reached:.9g} s, not the rows computed after them (at least "
+                                f"{self.rows_not_written})", "failed", reached)
 
     def close(self, metadata: Mapping[str, object]) -> Path:
         """Write the rows still held, then ``metadata`` and the footer: the file is complete

@@ -1,0 +1,15 @@
+"""Running a scenario: ``run_scenario``, heliostep's one public entry point (re-exported as
+``heliostep.run_scenario``).
+
+:mod:`~heliostep.run.runner` orchestrates a run (set up, simulate once, summarize);
+:mod:`~heliostep.run.fmus` resolves and reads the scenario's FMUs; :mod:`~heliostep.run.bindings`
+binds the scenario's roles, parameters and drive signals onto them; :mod:`~heliostep.run.result`
+is the outcome (:class:`RunResult`, written through :mod:`heliostep.results.run_files`).
+"""
+
+from heliostep.run.fmus import resolve_fmus
+from heliostep.run.result import RunFailed, RunResult
+from heliostep.run.runner import HELD_TRACE_MAX_DURATION, SINK_ROWS, VERSIONED_PACKAGES, run_scenario
+
+__all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "RunFailed", "RunResult", "resolve_fmus",
+           "run_scenario"]

@@ -1,0 +1,206 @@
+"""The outcome of a run: :class:`RunResult` (trace, figures, metadata; written by
+:meth:`RunResult.write`) and :class:`RunFailed`."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import weakref
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from heliostep.drive.inputs import DriveInputs
+from heliostep.errors import HeliostepError
+from heliostep.results.outputs import TMP_PREFIX, remove_stale
+from heliostep.results.run_figures import present_columns
+from heliostep.results.run_files import place_trace_file, write_held_trace, write_records, write_trace_csv
+from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, summary_record
+from heliostep.results.trace import trace_metadata
+from heliostep.results.trace_io import read_trace
+from heliostep.scenario import Scenario
+
+__all__ = ["RunFailed", "RunResult"]
+
+
+@dataclass
+class RunResult:
+    """The outcome of :func:`~heliostep.run.run_scenario`.
+
+    ``complete`` is False when the simulation failed or was interrupted part-way; ``error`` then
+    says why, ``reason`` is ``"failed"`` or ``"interrupted"``, ``time_reached`` the simulated time
+    reached [s], and ``trace`` holds the rows computed until then.
+
+    ``trace`` is the trace in memory (``held_trace``) for windows up to
+    :data:`~heliostep.run.HELD_TRACE_MAX_DURATION`; for longer windows it was streamed to
+    ``trace_file`` (a Parquet trace) while simulating and each access reads it from there (use
+    :meth:`trace_columns` for only some columns). After :meth:`write` ``trace_file`` is the
+    output folder's ``trace.parquet``; a file in a temporary folder of the run's own is removed
+    with the result.
+
+    ``figures`` is the run's :class:`~heliostep.results.run_summary.RunSummary` (None without a
+    trace row) and ``summary`` the same as a dict (``summary.json`` after the status). The
+    summary of an interrupted run does not judge the step in progress at the cut: when the
+    last step before the cut looks missed or unsettled there, the step figures (steps commanded,
+    executed, missed, lost, settling) are those up to that step, and ``step_in_progress_at_cut_s``
+    gives its time.
+    """
+
+    scenario: Scenario
+    held_trace: pd.DataFrame | None
+    figures: RunSummary | None
+    metadata: RunMetadata
+    complete: bool = True
+    error: str | None = None
+    inputs: DriveInputs | None = field(default=None, repr=False)
+    reason: str | None = None
+    time_reached: float | None = None
+    trace_file: Path | None = None
+    temporary_folder: Path | None = field(default=None, repr=False)
+    weather: object = field(default=None, repr=False)  # the weather file read once (None: clear sky)
+    trace_kept: bool = True  # False: run_scenario(..., keep_trace=False), figures only
+
+    def __post_init__(self) -> None:
+        if not self.trace_kept:
+            if self.held_trace is not None or self.trace_file is not None:
+                raise ValueError("a RunResult without trace (trace_kept=False) has no held trace nor trace file")
+            return
+        if self.held_trace is None and self.trace_file is None:
+            raise ValueError("a RunResult needs its trace in memory or in a trace file")
+        if self.temporary_folder is not None:  # the run's own folder goes with the result
+            weakref.finalize(self, shutil.rmtree, str(self.temporary_folder), True)
+
+    @property
+    def summary(self) -> dict:
+        """The figures (``summary.json`` after the status; empty without a trace row)."""
+        return self.figures.figures() if self.figures is not None else {}
+
+    @property
+    def status(self) -> RunStatus:
+        return RunStatus(self.complete, self.error, self.reason, self.time_reached)
+
+    def _require_trace(self) -> None:
+        if not self.trace_kept:
+            raise HeliostepError(f"{self.scenario.name}: this run kept no trace (run_scenario(..., keep_trace=False)): "
+                                 "only its summary and metadata")
+
+    @property
+    def trace(self) -> pd.DataFrame:
+        """The trace: held in memory, or read from :attr:`trace_file` at each access."""
+        self._require_trace()
+        if self.held_trace is not None:
+            return self.held_trace
+        return read_trace(self.trace_file)[0]
+
+    @property
+    def trace_column_names(self) -> list[str]:
+        self._require_trace()
+        if self.held_trace is not None:
+            return list(self.held_trace.columns)
+        import pyarrow.parquet as pq
+
+        return list(pq.read_schema(self.trace_file).names)
+
+    @property
+    def trace_rows(self) -> int:
+        """The trace's number of rows (a file's from its footer, no row read)."""
+        self._require_trace()
+        if self.held_trace is not None:
+            return len(self.held_trace)
+        import pyarrow.parquet as pq
+
+        return pq.ParquetFile(self.trace_file).metadata.num_rows
+
+    def trace_columns(self, columns: list[str]) -> pd.DataFrame:
+        """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
+        streamed: the other columns are never loaded)."""
+        self._require_trace()
+        wanted = present_columns(self.held_trace if self.held_trace is not None else self.trace_file, columns)
+        if self.held_trace is not None:
+            return self.held_trace[wanted]
+        return read_trace(self.trace_file, wanted)[0]
+
+    def to_pandas(self) -> pd.DataFrame:
+        """The trace as a DataFrame (a copy)."""
+        return self.trace.copy()
+
+    def plot(self, out_dir: str | Path) -> list[Path]:
+        """Write the paper's Figs. 8–14 and the power on the tube for this run into ``out_dir``
+        (each file renamed into place)."""
+        self._require_trace()
+        from heliostep.plots.light import plot_light_run
+        from heliostep.plots.run import plot_run
+
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
+        try:
+            source = self.held_trace if self.held_trace is not None else self.trace_file  # a file: read by column
+            drawn = plot_run(source, staging, self.trace_metadata())
+            light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
+            drawn += plot_light_run(light, self.metadata, self.scenario, staging, self.weather)  # power on the tube
+            written = []
+            for path in drawn:
+                target = out_dir / Path(path).name
+                os.replace(path, target)
+                written.append(target)
+            return written
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+
+    def trace_metadata(self) -> dict[str, str]:
+        return trace_metadata(self.scenario.name, self.metadata, self.trace_column_names, self.complete,
+                              self.reason, self.time_reached, self.error)
+
+    def summary_record(self) -> dict:
+        """What ``summary.json`` holds: completeness (and why not), then the figures."""
+        return summary_record(self.figures, self.status)
+
+    def write(self, out_dir: str | Path, plots: bool = True, csv: bool = True,
+              should_stop: Callable[[], bool] | None = None) -> dict[str, Path]:
+        """Write trace (Parquet, and CSV unless ``csv=False``), summary.json, metadata.json and
+        plots into ``out_dir`` (a run that kept no trace: summary.json and metadata.json). The
+        trace's metadata, summary.json and metadata.json all say ``complete`` (and, when not,
+        ``reason`` and the time reached).
+
+        Every file is written under a temporary name in ``out_dir`` and renamed into place, so no
+        file is ever cut short under its final name. Files of heliostep's own kinds left by an
+        earlier run and not written now are removed. When ``should_stop()`` turns true the
+        figures (drawn last) are skipped.
+        """
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        written: dict[str, Path] = {}
+        if not self.trace_kept:  # figures only: summary.json and metadata.json
+            plots = False
+        elif self.held_trace is not None:
+            written.update(write_held_trace(out_dir, self.held_trace, self.trace_metadata(), csv))
+        else:  # streamed: the finished file is renamed (or copied) into place, the CSV made from it
+            source, metadata = Path(self.trace_file), self.trace_metadata()
+            written["trace.parquet"] = place_trace_file(source, out_dir / "trace.parquet")
+            if self.temporary_folder is None or source.parent == out_dir:
+                self.trace_file = written["trace.parquet"]
+            if csv:
+                written.update(write_trace_csv(out_dir, written["trace.parquet"], metadata))
+        written.update(write_records(out_dir, self.figures, self.status, self.metadata))
+        if plots and self.trace_rows and not (should_stop and should_stop()):
+            for path in self.plot(out_dir):
+                written[path.name] = path
+        remove_stale(out_dir, written.values())
+        return written
+
+
+class RunFailed(HeliostepError):
+    """The simulation failed or was interrupted part-way; ``result`` holds the incomplete run
+    (``result.reason`` says which)."""
+
+    def __init__(self, message: str, result: RunResult):
+        super().__init__(message)
+        self.result = result
+
+    @property
+    def interrupted(self) -> bool:
+        return self.result.reason == "interrupted"

@@ -1,0 +1,260 @@
+"""``run_scenario``: a run set up, simulated once and summarized.
+
+scenario → FMUs (:mod:`~heliostep.run.fmus`) and bindings (:mod:`~heliostep.run.bindings`) →
+drive inputs (:mod:`heliostep.drive`) → master (:mod:`heliostep.cosim`), whose rows go, in the one
+pass, to the run's figures (:class:`~heliostep.results.run_figures.RunFigures`) and to its row
+sink (:mod:`heliostep.results.row_sinks`: the trace held, streamed to Parquet, or not kept) →
+:class:`~heliostep.run.result.RunResult`. A run that fails or is interrupted part-way still
+returns (and writes) the trace so far, marked incomplete. The command line is :mod:`heliostep.cli.run`.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import time as clock
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from importlib import metadata as package_metadata
+from pathlib import Path
+
+import numpy as np
+
+from heliostep._version import __version__
+from heliostep.cosim import Connection, CoSimulation, FMUInfo, SimulationError, SolverOptions
+from heliostep.drive.inputs import DriveInputs, prepare_inputs
+from heliostep.errors import InputError
+from heliostep.results.light import load_weather
+from heliostep.results.outputs import TMP_PREFIX
+from heliostep.results.row_sinks import HeldTrace, RowSink
+from heliostep.results.run_figures import FigureStream, RunFigures
+from heliostep.results.run_summary import RunMetadata, RunStatus
+from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
+from heliostep.results.trace_io import ROW_GROUP_ROWS
+from heliostep.results.trace_stream import TraceStream
+from heliostep.run.bindings import parameters, present_roles, signals
+from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
+from heliostep.run.result import RunFailed, RunResult
+from heliostep.scenario import Scenario, load_scenario
+
+__all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario"]
+
+#: Packages whose versions go into a run's metadata.
+VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pandas")
+
+#: Windows up to this long [s] keep their trace in memory (``RunResult.trace``, about 15,000 rows
+#: per simulated hour on the paper's case at a 10 s grid, ~2.5 MB). Longer windows stream the trace
+#: to Parquet row groups while simulating (:class:`~heliostep.results.trace_stream.TraceStream`)
+#: and read it back from the file when asked, so the run's memory does not grow with the window.
+HELD_TRACE_MAX_DURATION = 3600.0
+
+#: The master's rows per block handed to the row sink (and the most it holds).
+SINK_ROWS = 4096
+
+
+# removed at merge when the master raises InputError itself
+def _raise_input_error(exc: SimulationError, rows: int, scenario: Scenario) -> None:
+    """An input error found while setting up the FMUs (e.g. an unknown parameter name), before
+    any row was computed (``rows`` computed), is bad input (exit 2), not a failed simulation."""
+    cause = exc.__cause__
+    if getattr(exc, "reason", "failed") == "failed" and isinstance(cause, InputError) and not rows:
+        raise InputError(f"{scenario.source}: {cause}") from None
+
+
+@dataclass
+class _PreparedRun:
+    """A run checked and set up by :func:`run_scenario`, ready to simulate."""
+
+    scenario: Scenario
+    system: CoSimulation
+    inputs: DriveInputs
+    solver: SolverOptions
+    roles: dict[str, str]
+    meta: RunMetadata  # the run's metadata, completed by the simulation
+    started: float  # [s] perf_counter at the start of run_scenario
+    weather: object  # the weather file already read (None: clear sky)
+
+    @property
+    def columns(self) -> list[str]:
+        """The master's trace columns."""
+        columns = ["time"] + [item.name for item in self.system.inputs]
+        return columns + [f"{name}.{output}" for name, info in self.system.fmus.items()
+                          for output in info.traced_outputs]
+
+
+def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (),
+                 progress: bool = False, should_stop: Callable[[], bool] | None = None,
+                 trace_dir: str | Path | None = None, stream: bool | None = None,
+                 row_group_rows: int = ROW_GROUP_ROWS, keep_trace: bool = True,
+                 fmu_paths: Mapping[str, Path] | None = None) -> RunResult:
+    """Run a scenario (an object or a YAML path with ``--set``-style overrides).
+
+    Raises :class:`~heliostep.run.result.RunFailed` (carrying the incomplete
+    :class:`~heliostep.run.result.RunResult`) when the simulation fails part-way, and
+    :class:`~heliostep.errors.InputError` for bad input. ``should_stop`` is asked between solver
+    calls; when it returns True the run stops there and :class:`RunFailed` carries the trace so
+    far with ``reason == "interrupted"``. ``fmu_paths``: the scenario's FMUs already resolved
+    (:func:`~heliostep.run.fmus.resolve_fmus`); resolved here when not given.
+
+    A window longer than :data:`HELD_TRACE_MAX_DURATION` (or any window with ``stream=True``)
+    streams its trace while simulating to a Parquet file of ``row_group_rows`` rows per row
+    group, under a temporary name in ``trace_dir`` (the output folder; :meth:`RunResult.write`
+    renames it into place) or, without one, in a temporary folder removed with the result. The
+    file's metadata says ``complete`` (or why not) once the run has ended, also when it failed
+    or was interrupted. With ``stream=False`` the trace is held in memory whatever the window.
+    The figures (summary, light, holding) are computed while simulating, the output rows in
+    chunks of ``row_group_rows`` rows, so held and streamed runs with the same ``row_group_rows``
+    give the same figures bit for bit.
+
+    With ``keep_trace=False`` (a sweep's cases) no trace is kept: the rows go to the figures as
+    they come (:class:`~heliostep.results.run_figures.FigureStream`), nothing is written, and the
+    figures are those the run would give with its trace kept, bit for bit. The result then has
+    no trace and draws no plots; an interrupted run's summary is not corrected for the step in
+    progress at the cut (the sweep tables keep the figures as simulated).
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario, overrides)
+    prepared = _prepare(scenario, fmu_paths, clock.perf_counter())
+    figures = RunFigures.of_run(prepared.columns, prepared.inputs, prepared.roles, figure_columns(prepared.roles),
+                                prepared.meta, scenario, prepared.weather, row_group_rows)
+    sink, temporary = _row_sink(prepared, figures, keep_trace, stream, trace_dir, row_group_rows)
+    try:
+        run = _simulate_and_summarize(prepared, figures, sink, temporary, progress, should_stop)
+    except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
+        sink.abort()
+        if temporary is not None:
+            shutil.rmtree(temporary, ignore_errors=True)
+        raise
+    if not run.complete:
+        raise RunFailed(run.error or run.reason or "failed", run)
+    return run
+
+
+def _prepare(scenario: Scenario, fmu_paths: Mapping[str, Path] | None, started: float) -> _PreparedRun:
+    """The run checked and set up: FMUs, roles, weather, drive inputs, the coupled system."""
+    fmu_paths = dict(fmu_paths) if fmu_paths is not None else resolve_fmus(scenario)
+    infos = read_fmus(scenario, fmu_paths)
+    roles = present_roles(scenario, infos)
+    try:  # a weather file that cannot be read, is for another site or misses the window: bad input, found now
+        weather = load_weather(scenario)  # read once: the light figures take it from here
+    except InputError as exc:
+        raise InputError(f"{scenario.source}: optics.{exc}") from None
+    inputs = prepare_inputs(scenario)
+    values = parameters(scenario, inputs, roles, infos)
+    try:  # connections (types, units, loops), parameter names and values, checked before simulating
+        system = CoSimulation(infos, [Connection(s, t) for s, t in scenario.connection_pairs()],
+                              signals(inputs, roles), values)
+    except InputError as exc:
+        raise InputError(f"{scenario.source}: {exc}") from None
+    solver = SolverOptions(rtol=scenario.solver.rtol, atol=scenario.solver.atol,
+                           max_step=scenario.solver.max_step or float("inf"),
+                           max_num_steps=scenario.solver.max_num_steps)
+    meta = _metadata(scenario, fmu_paths, infos, values, roles, inputs)
+    return _PreparedRun(scenario, system, inputs, solver, roles, meta, started, weather)
+
+
+def _metadata(scenario: Scenario, fmu_paths: Mapping[str, Path], infos: Mapping[str, FMUInfo], values: dict,
+              roles: dict[str, str], inputs: DriveInputs) -> RunMetadata:
+    """The run's metadata before simulating (the simulation adds its statistics and figures)."""
+    units = dict(UNITS)
+    for name, info in infos.items():
+        units.update({f"{name}.{v}": info.variables[v].unit for v in info.outputs if info.variables[v].unit})
+    return RunMetadata(
+        heliostep=__version__, python=platform.python_version(),
+        packages={p: package_metadata.version(p) for p in VERSIONED_PACKAGES},
+        scenario=scenario.resolved_dict(), fmus=fmu_records(fmu_paths, infos),
+        parameters=values, roles=roles, drive=drive_metadata(inputs),
+        window_start=inputs.window_start.isoformat(), timezone=scenario.site.timezone, units=units)
+
+
+def _row_sink(prepared: _PreparedRun, figures: RunFigures, keep_trace: bool, stream: bool | None,
+              trace_dir: str | Path | None, row_group_rows: int) -> tuple[RowSink, Path | None]:
+    """Where the master's rows go (all feed ``figures``): not kept, held, or streamed to a file
+    (with the temporary folder made for it, without ``trace_dir``)."""
+    columns, assembler = prepared.columns, TraceAssembler(prepared.inputs, prepared.roles)
+    if not keep_trace:
+        return FigureStream(columns, assembler, figures), None
+    if not (prepared.inputs.duration > HELD_TRACE_MAX_DURATION if stream is None else stream):
+        return HeldTrace(columns, assembler, figures), None
+    temporary = None if trace_dir is not None else Path(tempfile.mkdtemp(
+        prefix=f"heliostep-trace-{prepared.scenario.name}-"))
+    folder = Path(trace_dir) if trace_dir is not None else Path(temporary or ".")
+    path = folder / f"{TMP_PREFIX}{os.getpid()}-{clock.time_ns():x}-trace.parquet"
+    return TraceStream(path, columns, assembler, row_group_rows, figures), temporary
+
+
+def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, progress: bool,
+                 should_stop: Callable[[], bool] | None):
+    """The co-simulation, its rows to ``figures`` and ``sink``: (status, the master's empty
+    trace frame, its statistics)."""
+    inputs = prepared.inputs
+    bar = _progress_bar(inputs.duration) if progress else None
+    try:
+        result = prepared.system.simulate(0.0, inputs.duration, inputs.output_times, prepared.solver,
+                                          progress=bar.update_to if bar else None, should_stop=should_stop,
+                                          monitor=figures.solution,  # every solver step, for the figures
+                                          sink=sink, sink_rows=SINK_ROWS)  # the trace rows, in blocks
+        return RunStatus(True), result.trace, result.statistics
+    except SimulationError as exc:
+        reached = getattr(exc, "time", None)
+        if reached is None or not np.isfinite(reached):
+            reached = sink.last_time if sink.last_time is not None else 0.0
+        _raise_input_error(exc, sink.rows, prepared.scenario)
+        return RunStatus(False, str(exc), getattr(exc, "reason", "failed"), reached), exc.trace, exc.statistics
+    finally:
+        if bar:
+            bar.close()
+
+
+def _simulate_and_summarize(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, temporary: Path | None,
+                            progress: bool, should_stop: Callable[[], bool] | None) -> RunResult:
+    """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
+    scenario, meta = prepared.scenario, prepared.meta
+    status, raw, statistics = _co_simulate(prepared, figures, sink, progress, should_stop)
+    status = sink.finish(status)  # the last rows kept (a streamed trace that cannot be written fails the run)
+    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - prepared.started,
+                          "peak_rss_mb_simulating": _peak_rss_mb()}
+    if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
+        meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
+    solution = figures.solution_figures()
+    if solution and figures.solution is not None:  # every solver step's, so summarize(trace, meta) recomputes them
+        if list(raw.columns) != figures.solution.columns:
+            raise RuntimeError(f"solution recorder columns {figures.solution.columns} differ from the trace's "
+                               f"{list(raw.columns)}")
+        meta["solution_figures"] = solution
+    sink.close(trace_metadata(scenario.name, meta, sink.columns, status.complete, status.reason,
+                              status.time_reached, status.error))  # a file's metadata says how the run ended
+    summary = figures.summary(interrupted=status.reason == "interrupted" and sink.trace_kept)
+    meta["statistics"]["figure_rows_held_max"] = figures.max_rows_held  # trace rows held at once for them
+    meta["statistics"]["figure_step_rows_held_max"] = figures.output.max_step_rows
+    return RunResult(scenario, sink.held_trace, summary, meta, status.complete, status.error, prepared.inputs,
+                     status.reason, status.time_reached, trace_file=sink.trace_file, temporary_folder=temporary,
+                     weather=prepared.weather, trace_kept=sink.trace_kept)
+
+
+def _peak_rss_mb() -> float | None:
+    """The process's peak resident memory so far [MB] (None where the OS does not say)."""
+    try:
+        import resource
+    except ImportError:  # not on Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return round(peak / (1024 * 1024 if sys.platform == "darwin" else 1024), 1)  # bytes on macOS, KiB on Linux
+
+
+def _progress_bar(duration: float):
+    """A tqdm bar over simulated time when on a terminal and not in CI (shown after 2 s); else None."""
+    if not sys.stderr.isatty() or os.environ.get("CI"):
+        return None
+    from tqdm import tqdm
+
+    class Bar(tqdm):
+        def update_to(self, t: float) -> None:
+            if t - self.n >= 0.01 * self.total or t >= self.total:
+                self.update(t - self.n)
+
+    return Bar(total=duration, unit="s", desc="simulating", mininterval=0.5, delay=2.0,
+               bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated [{elapsed}<{remaining}]")
