@@ -16,11 +16,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from heliostep.errors import HeliostepError
+from heliostep.errors import RunFailure
 
 
-class LoopError(HeliostepError):
-    """Newton's method found no solution of an algebraic loop."""
+class LoopError(RunFailure):
+    """Newton's method found no solution of an algebraic loop (a run failure, raised while simulating)."""
 
 
 class LoopSolver:

@@ -36,8 +36,8 @@ from pathlib import Path
 import casadi as ca
 
 from heliostep._version import __version__
-from heliostep.errors import HeliostepError
-from heliostep.fmu.modelica import FlatModel, Variable
+from heliostep.errors import RunFailure
+from heliostep.fmu.modelica import FlatModel, ModelicaError, Variable
 
 #: Exponents of the SI base units of the units the models use (FMI 2.0 ``BaseUnit``).
 BASE_UNITS = {
@@ -74,8 +74,8 @@ SOURCE_FILES = (FMI_LAYER, "equations.c")
 FMI2_PLATFORM = "linux64"
 
 
-class BuildError(HeliostepError):
-    """The C compiler or the packaging of an FMU failed."""
+class BuildError(RunFailure):
+    """The C compiler or the packaging of an FMU failed (a run failure: exit status 1)."""
 
 
 @dataclass(frozen=True)
@@ -134,7 +134,7 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
     start = ca.Function("model_start", [p], [ca.vertcat(*model.state_start) if model.states else ca.MX(0, 1)],
                         ["p"], ["x0"])
     if start.has_free():
-        raise HeliostepError(
+        raise ModelicaError(
             f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}")
     return evaluate, converge, scale, start
 
