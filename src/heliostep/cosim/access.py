@@ -121,7 +121,7 @@ class VariableAccess:
             raise InputError(
                 f"{self.info.path}: {self.info.model_name} has no parameter "
                 f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}")
-        by_type: dict[str, list[tuple[int, object]]] = {}
+        by_type: dict[str, list[tuple[int, Any]]] = {}
         for name, value in values.items():
             variable = self.info.variables[name]
             by_type.setdefault(variable.type, []).append((variable.value_reference, convert_value(variable, value)))

@@ -38,7 +38,7 @@ from heliostep.cosim.description import (  # noqa: F401 - re-exported: the FMI A
     convert_value,
     read_fmu,
 )
-from heliostep.errors import InputError, RunFailure
+from heliostep.errors import RunFailure
 
 
 class FMIError(RunFailure):

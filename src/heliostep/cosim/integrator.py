@@ -205,8 +205,8 @@ class CVodeIntegrator:
 
     def advance(self, t_stop: float, grid: np.ndarray, next_output: int, interpolate: bool,
                 take_rows: Callable[[np.ndarray, np.ndarray], None]) -> tuple[bool, float, int]:
-        if self.kernel is None:
-            raise RuntimeError("this integrator was built without the kernel's one-step loop")
+        if self.kernel is None or self.cvode_mem is None:
+            raise RuntimeError("this integrator has no kernel for the one-step loop, or is closed")
         if not self.discrete:
             self.states.get_x(self.px)
         if sundials.CVodeSetStopTime(self.cvode_mem, t_stop) < 0:
