@@ -7,7 +7,9 @@
  * hs_advance: CVODE in one-step mode up to a stop time, recording a row (time, master inputs,
  *   every FMU's traced outputs) after each internal step and, where asked, at the output times
  *   passed on the way from CVODE's interpolating polynomial (CVodeGetDky), into a buffer the
- *   master drains: the loop over internal steps runs here, not in Python.
+ *   master drains: heliostep's one loop over internal steps, whichever right-hand side CVODE
+ *   calls (hs_rhs, or the master's Python callbacks, which then hand the kernel a prepare
+ *   function that sets up the FMUs for each row: kernel.h, prepare_t).
  *
  * An FMI status worse than fmi2Warning stops the evaluation: the status, the instance, the
  * function and the time are recorded, and every further evaluation is refused until the master
