@@ -44,12 +44,12 @@ class Probe:
     def __enter__(self):
         from fmpy.sundials.libraries import sundials_cvode
 
-        import heliostep.cosim.kernel as kernel
+        import heliostep.cosim.integrator as integrator
         import heliostep.cosim.master as master
 
-        probe, solver, run = self, kernel.NativeSolver, master._Run
-        self._saved = (solver.__init__, solver.reset, solver.__del__, run._take_rows)
-        init, reset, delete, take_rows = self._saved
+        probe, solver, run = self, integrator.CompiledIntegrator, master._Run
+        self._saved = (solver.__init__, solver.reset, solver.close, run._take_rows)
+        init, reset, close, take_rows = self._saved
 
         def grab(native):
             for name in COUNTERS:
@@ -66,21 +66,21 @@ class Probe:
             grab(native)
             return reset(native, time)
 
-        def new_del(native):
-            if getattr(native, "cvode_mem", None):
+        def new_close(native):
+            if native.cvode_mem:
                 grab(native)
-            delete(native)
+            close(native)
 
         def new_take_rows(self_run, rows, kinds):
             probe.step_times.append(rows[kinds != 1, 0].copy())
             return take_rows(self_run, rows, kinds)
-        solver.__init__, solver.reset, solver.__del__, run._take_rows = new_init, new_reset, new_del, new_take_rows
+        solver.__init__, solver.reset, solver.close, run._take_rows = new_init, new_reset, new_close, new_take_rows
         self._classes = (solver, run)
         return self
 
     def __exit__(self, *exc):
         solver, run = self._classes
-        solver.__init__, solver.reset, solver.__del__, run._take_rows = self._saved
+        solver.__init__, solver.reset, solver.close, run._take_rows = self._saved
 
 
 def measure(overrides=(), max_order=None):
@@ -91,7 +91,7 @@ def measure(overrides=(), max_order=None):
 
     with Probe(max_order) as probe:
         run = run_scenario(SCENARIO, tuple(overrides))
-        gc.collect()  # the native solver's counters are read when it is freed
+        gc.collect()  # (the counters are read when the run closes its integrator)
     return run, probe.totals, np.concatenate(probe.step_times or [np.zeros(0)])
 
 

@@ -1,8 +1,13 @@
-"""The project's exception types.
+"""The project's exception types: two families, chosen by type where an error is raised.
 
-Every error that comes from bad input derives from :class:`HeliostepError`, so the
-command line can report it as one clear line and exit with status 2 instead of a
-traceback.
+- :class:`InputError` and its subclasses: the input is wrong (a parameter, file, key or
+  variable is not what was expected). The command line reports it as one line on stderr and
+  exits with status 2.
+- :class:`RunFailure` and its subclasses: the input was accepted but the run failed (a build,
+  an FMU, the solver). The command line reports it as one line on stderr and exits with status 1.
+
+Both derive from :class:`HeliostepError`; a :class:`HeliostepError` of neither family is
+reported like an input error (status 2).
 """
 
 
@@ -11,4 +16,8 @@ class HeliostepError(Exception):
 
 
 class InputError(HeliostepError, ValueError):
-    """A parameter, file, key or variable is not what was expected."""
+    """A parameter, file, key or variable is not what was expected (exit status 2)."""
+
+
+class RunFailure(HeliostepError):
+    """The input was accepted but the run failed: a build, an FMU or the solver (exit status 1)."""

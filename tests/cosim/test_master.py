@@ -120,6 +120,24 @@ def test_unknown_parameter_instance_is_named(drive):
         CoSimulation(drive, DRIVE_CONNECTIONS, parameters={"motr": {"L": 1e-3}})
 
 
+def test_unknown_parameter_name_found_setting_up_the_fmus_is_an_input_error(drive):
+    """Found while instantiating, before any row: bad input, raised as it is (not a SimulationError)."""
+    system = CoSimulation(drive, DRIVE_CONNECTIONS, parameters={"motor": {"Rxx": 3.0}})
+    with pytest.raises(InputError, match="has no parameter 'Rxx'") as failure:
+        system.simulate(0.0, 0.1)
+    assert not isinstance(failure.value, SimulationError)
+
+
+def test_failures_while_simulating_are_run_failures_and_input_errors_are_not():
+    from heliostep.cosim import FMIError, LoopError
+    from heliostep.cosim.kernel import KernelBuildError
+    from heliostep.errors import RunFailure
+
+    for error in (SimulationError, FMIError, LoopError, KernelBuildError):
+        assert issubclass(error, RunFailure) and not issubclass(error, InputError), error
+    assert not issubclass(InputError, RunFailure)
+
+
 def test_third_party_fmu_with_events_matches_fmpy(tmp_path):
     from third_party_fmu import build_bouncing_ball
 

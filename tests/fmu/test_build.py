@@ -115,3 +115,19 @@ def test_cli_reports_bad_model_with_exit_status_2(tmp_path, capsys):
     status = main(["build-fmus", "--models", str(models), "--out", str(tmp_path / "out")])
     assert status == 2
     assert "Broken.mo:3: syntax error" in capsys.readouterr().err
+
+
+def test_cli_reports_a_failed_build_as_a_run_failure_with_exit_status_1(tmp_path, capsys, monkeypatch):
+    """A compiler or packaging failure is a run failure (exit 1, one line on stderr), not bad input (2)."""
+    import heliostep.fmu.build as build
+    from heliostep.errors import RunFailure
+    from heliostep.fmu.export import BuildError
+
+    def failing_export(*args, **kwargs):
+        raise BuildError("gcc failed: no space left on device")
+
+    monkeypatch.setattr(build, "export_fmu", failing_export)
+    assert issubclass(BuildError, RunFailure) and not issubclass(BuildError, InputError)
+    status = main(["build-fmus", "--model", "StepperMotor", "--out", str(tmp_path / "out"), "--force"])
+    assert status == 1
+    assert capsys.readouterr().err == "heliostep build-fmus: error: gcc failed: no space left on device\n"

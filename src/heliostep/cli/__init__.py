@@ -3,8 +3,9 @@
 Each command lives in its own module of this package, which exposes ``register(subparsers)``; that
 function adds the command's parser and sets ``func`` (taking the parsed arguments and
 returning an exit status). This module only assembles them and turns a
-:class:`~heliostep.errors.HeliostepError` into one line on stderr and exit status 2 (and a
-KeyboardInterrupt that reaches it into one line and exit status 130).
+:class:`~heliostep.errors.HeliostepError` into one line on stderr: exit status 1 for a
+:class:`~heliostep.errors.RunFailure` (a build, an FMU or the solver failed), 2 for any other (bad
+input); a KeyboardInterrupt that reaches it becomes one line and exit status 130.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import sys
 
 from heliostep._version import __version__
 from heliostep.cli.signals import ForcedStop
-from heliostep.errors import HeliostepError
+from heliostep.errors import HeliostepError, RunFailure
 
 #: Modules that provide a command, in the order ``--help`` lists them.
 COMMAND_MODULES = (
@@ -52,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except HeliostepError as exc:
         print(f"heliostep {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return 1 if isinstance(exc, RunFailure) else 2
     except KeyboardInterrupt:
         print(f"heliostep {args.command}: interrupted", file=sys.stderr)
         return 130

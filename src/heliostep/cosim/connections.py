@@ -123,7 +123,8 @@ class ConnectionGraph:
         self.loops: list[str] = []
         index = {c: k for k, c in enumerate(self.connections)}
         while True:
-            order, state = [], {}  # state: 1 visiting, 2 done
+            order: list[Connection] = []
+            state: dict[Connection, int] = {}  # 1 visiting, 2 done
             cycle_found: list[Connection] = []
 
             def visit(c: Connection, path: list[Connection]) -> bool:

@@ -1,17 +1,20 @@
-"""The one module that talks to FMUs: fmpy's FMI 2.0 Model Exchange bindings behind a small API.
+"""FMU instances: fmpy's FMI 2.0 Model Exchange loading behind a small API, and the one error path.
 
-Everything FMI goes through here: reading and checking ``modelDescription.xml``
-(:func:`read_fmu`), loading the binary (``fmpy.fmi2.FMU2Model``) and every call on an
-instance (:class:`ModelExchangeInstance`). There is one error path: any FMI call that
-returns a status worse than warning raises :class:`FMIError`, which names the function,
-the instance, the simulation time and the messages the FMU logged. The rest of heliostep
-(master, sequencer, CLI, plots) never touches ctypes.
+The FMI API of heliostep lives here: reading and checking ``modelDescription.xml``
+(:func:`read_fmu`, re-exported from :mod:`~heliostep.cosim.description`), loading the binary
+(``fmpy.fmi2.FMU2Model``) and the calls on an instance (:class:`ModelExchangeInstance`: its life
+cycle and the calls on the integrator's hot path here, the typed access to its variables in
+:class:`~heliostep.cosim.access.VariableAccess`). The FMI functions are bound here with their own
+prototypes, from the loaded library. There is one error path: any FMI call that returns a status
+worse than warning raises :class:`FMIError`, which names the function, the instance, the
+simulation time and the messages the FMU logged (:meth:`ModelExchangeInstance.status_error`
+turns a status into it, also for the compiled kernel, which gets the instance's handle and
+function addresses from :attr:`ModelExchangeInstance.component` and
+:meth:`ModelExchangeInstance.function_address`). Outside :mod:`heliostep.cosim`, nothing of
+heliostep touches ctypes.
 
-Variables of every FMI 2.0 type are read and set with their own functions (Real with
-``fmi2GetReal``, Integer and Enumeration with ``fmi2GetInteger``, Boolean with
-``fmi2GetBoolean``, String with ``fmi2SetString``). Each instance gets its own logger
-callback identified by FMI's ``componentEnvironment``, so an FMU's messages always stay
-with its instance (fmpy's logger proxy keeps one logger per process).
+Each instance gets its own logger callback identified by FMI's ``componentEnvironment``, so an
+FMU's messages always stay with its instance (fmpy's logger proxy keeps one logger per process).
 """
 
 from __future__ import annotations
@@ -21,11 +24,12 @@ import itertools
 import logging as _logging
 import weakref
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from heliostep.cosim.access import VariableAccess
 from heliostep.cosim.description import (  # noqa: F401 - re-exported: the FMI API lives here
     REQUIRED_FUNCTIONS,
     FMUInfo,
@@ -34,11 +38,11 @@ from heliostep.cosim.description import (  # noqa: F401 - re-exported: the FMI A
     convert_value,
     read_fmu,
 )
-from heliostep.errors import HeliostepError, InputError
+from heliostep.errors import RunFailure
 
 
-class FMIError(HeliostepError):
-    """An FMI function returned fmi2Error or fmi2Fatal (or an FMU could not be loaded)."""
+class FMIError(RunFailure):
+    """An FMI function returned fmi2Error or fmi2Fatal (or an FMU could not be loaded): a run failure."""
 
     def __init__(self, function: str, instance: str, status: str, messages: Iterable[str] = (),
                  time: float | None = None):
@@ -94,14 +98,6 @@ def _logger():
     return _logger_callback
 
 
-#: ctypes element type and numpy dtype of the values of each FMI type, and its get/set functions
-_TYPES = {
-    "Real": (ctypes.c_double, np.float64, "fmi2GetReal", "fmi2SetReal"),
-    "Integer": (ctypes.c_int, np.int32, "fmi2GetInteger", "fmi2SetInteger"),
-    "Enumeration": (ctypes.c_int, np.int32, "fmi2GetInteger", "fmi2SetInteger"),
-    "Boolean": (ctypes.c_int, np.int32, "fmi2GetBoolean", "fmi2SetBoolean"),
-}
-
 #: Prototypes of the calls on the integrator's hot path, taking plain addresses (ints) for
 #: arrays: converting an int is much cheaper for ctypes than a typed pointer.
 _ARRAY_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t)
@@ -110,6 +106,23 @@ _TIME_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double)
 _HOT_CALLS = {"fmi2SetTime": _TIME_CALL, "fmi2SetContinuousStates": _ARRAY_CALL,
               "fmi2GetContinuousStates": _ARRAY_CALL, "fmi2GetDerivatives": _ARRAY_CALL,
               "fmi2GetEventIndicators": _ARRAY_CALL, "fmi2GetReal": _VALUES_CALL, "fmi2SetReal": _VALUES_CALL}
+
+#: Prototypes of every FMI function :meth:`ModelExchangeInstance._call` calls (pointers as void *).
+_STATUS_ONLY = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
+_CALLS = {
+    **{name: _VALUES_CALL for name in ("fmi2GetReal", "fmi2SetReal", "fmi2GetInteger", "fmi2SetInteger",
+                                       "fmi2GetBoolean", "fmi2SetBoolean", "fmi2GetString", "fmi2SetString")},
+    **{name: _ARRAY_CALL for name in ("fmi2GetContinuousStates", "fmi2SetContinuousStates", "fmi2GetDerivatives",
+                                      "fmi2GetNominalsOfContinuousStates")},
+    **{name: _STATUS_ONLY for name in ("fmi2EnterInitializationMode", "fmi2ExitInitializationMode",
+                                       "fmi2EnterEventMode", "fmi2EnterContinuousTimeMode", "fmi2Terminate",
+                                       "fmi2Reset")},
+    "fmi2SetupExperiment": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double,
+                                            ctypes.c_double, ctypes.c_int, ctypes.c_double),
+    "fmi2NewDiscreteStates": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p),
+    "fmi2CompletedIntegratorStep": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p,
+                                                    ctypes.c_void_p),
+}
 
 
 def address(pointer) -> int:
@@ -127,7 +140,7 @@ class EventResult:
     nominals_changed: bool = False  # nominalsOfContinuousStatesChanged: read them again
 
 
-class ModelExchangeInstance:
+class ModelExchangeInstance(VariableAccess):
     """One instance of an FMI 2.0 Model Exchange FMU.
 
     Parameters
@@ -140,6 +153,8 @@ class ModelExchangeInstance:
         Parameter values set right after instantiation (each with the set function of its
         type); an unknown name raises :class:`InputError` listing the valid names.
 
+    The typed access to variables (``set_real``, ``reader``, ``writer``, ``link``,
+    ``set_parameters`` ...) is inherited from :class:`~heliostep.cosim.access.VariableAccess`.
     ``mode`` follows FMI's state machine as seen from the master ("instantiated",
     "initialization", "event", "continuous", "terminated", "error", "fatal", "freed"), so that
     :meth:`close` calls ``fmi2Terminate`` only where the standard allows it.
@@ -189,7 +204,8 @@ class ModelExchangeInstance:
             raise FMIError("fmi2Instantiate", instance_name, f"failure ({exc})", self.messages) from None
         self.mode = "instantiated"
         self._component = self._model.component
-        self._functions = self._model._functions
+        dll = self._model.dll
+        self._functions = {name: prototype((name, dll)) for name, prototype in _CALLS.items()}
         self._hot = {name: prototype((name, self._model.dll)) for name, prototype in _HOT_CALLS.items()}
         # buffers with cached pointers for the calls on the integrator's hot path
         self._x, self._dx = np.zeros(self.n_states), np.zeros(self.n_states)
@@ -201,8 +217,23 @@ class ModelExchangeInstance:
                 self.free()
                 raise
 
+    # ------------------------------------------------------------------ for C code calling the FMU
+    @property
+    def component(self) -> int:
+        """The ``fmi2Component`` handle (an address; 0 once freed), for C code calling the FMU itself."""
+        return int(self._component or 0)
+
+    def function_address(self, name: str) -> int:
+        """The address of the FMU's FMI function ``name`` (e.g. ``"fmi2GetReal"``) in its loaded library."""
+        if self._model is None:
+            raise FMIError(name, self.name, "no instance (freed, library unloaded)", (), self.time)
+        return ctypes.cast(self._model.dll[name], ctypes.c_void_p).value or 0
+
     # ------------------------------------------------------------------ the error path
-    def _error(self, function: str, status) -> FMIError:
+    def status_error(self, function: str, status: int | str) -> FMIError:
+        """The :class:`FMIError` of ``function`` returning ``status`` (an fmi2Status or a text),
+        with the FMU's messages since the last call and the instance's time; an fmi2Error or
+        fmi2Fatal puts the instance in its error or fatal mode. The messages are not reported again."""
         if isinstance(status, int):
             if status == 3:
                 self.mode = "error"
@@ -216,7 +247,7 @@ class ModelExchangeInstance:
     def _call(self, function: str, *args):
         """Call the FMI function ``function``; raise :class:`FMIError` on error or fatal.
 
-        The raw ctypes function from fmpy's table of loaded functions is called directly
+        The function is called through heliostep's own prototype on the loaded library
         (fmpy's per-call wrapper costs more than the model evaluation itself).
         """
         if self._model is None:
@@ -225,26 +256,15 @@ class ModelExchangeInstance:
             self.messages.clear()
         status = self._functions[function](self._component, *args)
         if status > 1:  # worse than fmi2Warning
-            raise self._error(function, status)
+            raise self.status_error(function, status)
         return status
-
-    @staticmethod
-    def _pointer(array: np.ndarray, ctype=ctypes.c_double):
-        return array.ctypes.data_as(ctypes.POINTER(ctype))
-
-    @staticmethod
-    def _vrs(value_references: Iterable[int]):
-        from fmpy.fmi2 import fmi2ValueReference
-
-        refs = list(value_references)
-        return (fmi2ValueReference * len(refs))(*refs), len(refs)
 
     def _check(self, function: str, status: int) -> None:
         """The error path of the hot calls (same as :meth:`_call`)."""
         if status > 1:
-            raise self._error(function, status)
+            raise self.status_error(function, status)
 
-    def _freed(self, function: str):
+    def _freed(self, function: str) -> Callable[..., int]:
         def call(*args):
             raise FMIError(function, self.name, "no instance (freed, library unloaded)", (), self.time)
         return call
@@ -268,180 +288,6 @@ class ModelExchangeInstance:
         """fmi2GetEventIndicators into ``n_event_indicators`` doubles at ``address``."""
         self._check("fmi2GetEventIndicators",
                     self._hot["fmi2GetEventIndicators"](self._component, address, self.n_event_indicators))
-
-    def link(self, outputs: list[str], target: ModelExchangeInstance, inputs: list[str]):
-        """A call that copies this instance's ``outputs`` to ``target``'s ``inputs``.
-
-        Real variables go through one buffer with the hot-path calls; Integer/Enumeration and
-        Boolean ones with fmi2Get/SetInteger and fmi2Get/SetBoolean (the caller has checked
-        that connected variables have compatible types).
-        """
-        types = [self.info.variable(name).type for name in outputs]
-        if all(t == "Real" for t in types):
-            source_vrs = np.array(self.value_references(outputs), dtype=np.uint32)
-            target_vrs = np.array(target.value_references(inputs), dtype=np.uint32)
-            buffer = np.zeros(len(outputs))
-            n = len(outputs)
-            source_address, target_address = source_vrs.ctypes.data, target_vrs.ctypes.data
-            buffer_address = buffer.ctypes.data
-
-            def copy() -> None:
-                self._check("fmi2GetReal", self._hot["fmi2GetReal"](self._component, source_address, n,
-                                                                      buffer_address))
-                target._check("fmi2SetReal", target._hot["fmi2SetReal"](target._component, target_address,
-                                                                          n, buffer_address))
-            copy.keep = (source_vrs, target_vrs, buffer)  # must outlive the closure's addresses
-            return copy
-        groups = []
-        for kind in dict.fromkeys(types):
-            pairs = [(o, i) for o, i, t in zip(outputs, inputs, types) if t == kind]
-            groups.append((self._typed(kind, [o for o, _ in pairs]), target._typed(
-                target.info.variable(pairs[0][1]).type if kind != "Real" else "Real", [i for _, i in pairs])))
-
-        def copy_typed() -> None:
-            for (get, _, get_buffer), (_, put, put_buffer) in groups:
-                get()
-                put_buffer[:] = get_buffer
-                put()
-        return copy_typed
-
-    def _typed(self, kind: str, names: list[str]):
-        """(get, set, buffer) for variables of one type: the calls read into / write from buffer."""
-        if kind not in _TYPES:
-            raise InputError(f"{self.info.path}: {', '.join(names)}: {kind} variables cannot be exchanged")
-        ctype, dtype, getter, setter = _TYPES[kind]
-        vrs, n = self._vrs(self.value_references(names))
-        buffer = np.zeros(n, dtype=dtype)
-        pointer = self._pointer(buffer, ctype)
-
-        def get() -> None:
-            self._call(getter, vrs, n, pointer)
-
-        def put() -> None:
-            self._call(setter, vrs, n, pointer)
-        return get, put, buffer
-
-    # ------------------------------------------------------------------ variables
-    def value_references(self, names: Iterable[str]) -> list[int]:
-        return [self.info.variable(name).value_reference for name in names]
-
-    def set_parameters(self, values: Mapping[str, object]) -> None:
-        """Set parameters by name, each with the function of its type (Real, Integer,
-        Enumeration, Boolean, String): before initialization, or tunable ones in event mode."""
-        valid = self.info.parameters
-        unknown = [name for name in values if name not in valid]
-        if unknown:
-            raise InputError(
-                f"{self.info.path}: {self.info.model_name} has no parameter "
-                f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}")
-        by_type: dict[str, list[tuple[int, object]]] = {}
-        for name, value in values.items():
-            variable = self.info.variables[name]
-            by_type.setdefault(variable.type, []).append((variable.value_reference, convert_value(variable, value)))
-        for kind, items in by_type.items():
-            refs, data = [r for r, _ in items], [v for _, v in items]
-            if kind == "Real":
-                self.set_real(refs, data)
-            elif kind in ("Integer", "Enumeration"):
-                self.set_integer(refs, data)
-            elif kind == "Boolean":
-                self.set_boolean(refs, data)
-            else:
-                self.set_string(refs, data)
-
-    def set_real(self, value_references: Iterable[int], values: Iterable[float]) -> None:
-        vrs, n = self._vrs(value_references)
-        data = np.ascontiguousarray(np.fromiter(values, dtype=float, count=n))
-        self._call("fmi2SetReal", vrs, n, self._pointer(data))
-
-    def get_real(self, value_references: Iterable[int]) -> np.ndarray:
-        vrs, n = self._vrs(value_references)
-        out = np.zeros(n)
-        self._call("fmi2GetReal", vrs, n, self._pointer(out))
-        return out
-
-    def set_integer(self, value_references: Iterable[int], values: Iterable[int]) -> None:
-        vrs, n = self._vrs(value_references)
-        data = np.ascontiguousarray(np.fromiter(values, dtype=np.int32, count=n))
-        self._call("fmi2SetInteger", vrs, n, self._pointer(data, ctypes.c_int))
-
-    def get_integer(self, value_references: Iterable[int]) -> np.ndarray:
-        vrs, n = self._vrs(value_references)
-        out = np.zeros(n, dtype=np.int32)
-        self._call("fmi2GetInteger", vrs, n, self._pointer(out, ctypes.c_int))
-        return out
-
-    def set_boolean(self, value_references: Iterable[int], values: Iterable[bool]) -> None:
-        vrs, n = self._vrs(value_references)
-        data = np.ascontiguousarray(np.fromiter((bool(v) for v in values), dtype=np.int32, count=n))
-        self._call("fmi2SetBoolean", vrs, n, self._pointer(data, ctypes.c_int))
-
-    def get_boolean(self, value_references: Iterable[int]) -> np.ndarray:
-        vrs, n = self._vrs(value_references)
-        out = np.zeros(n, dtype=np.int32)
-        self._call("fmi2GetBoolean", vrs, n, self._pointer(out, ctypes.c_int))
-        return out.astype(bool)
-
-    def set_string(self, value_references: Iterable[int], values: Iterable[str]) -> None:
-        vrs, n = self._vrs(value_references)
-        data = (ctypes.c_char_p * n)(*[str(v).encode("utf-8") for v in values])
-        self._call("fmi2SetString", vrs, n, data)
-
-    def get_string(self, value_references: Iterable[int]) -> list[str]:
-        vrs, n = self._vrs(value_references)
-        out = (ctypes.c_char_p * n)()
-        self._call("fmi2GetString", vrs, n, out)
-        return [(v or b"").decode("utf-8", "replace") for v in out]
-
-    def reader(self, names: Iterable[str]):
-        """A fast getter of the named variables (Real, Integer, Enumeration, Boolean):
-        ``read() -> ndarray`` of floats in the order of ``names`` (no per-call lookup)."""
-        names = list(names)
-        types = [self.info.variable(name).type for name in names]
-        out = np.zeros(len(names))
-        if all(t == "Real" for t in types):
-            vrs, n = self._vrs(self.value_references(names))
-            pointer = self._pointer(out)
-
-            def read() -> np.ndarray:
-                self._call("fmi2GetReal", vrs, n, pointer)
-                return out.copy()
-            return read
-        groups = []
-        for kind in dict.fromkeys(types):
-            index = np.array([k for k, t in enumerate(types) if t == kind], dtype=int)
-            get, _, buffer = self._typed(kind, [names[k] for k in index])
-            groups.append((index, get, buffer))
-
-        def read_typed() -> np.ndarray:
-            for index, get, buffer in groups:
-                get()
-                out[index] = buffer
-            return out.copy()
-        return read_typed
-
-    def writer(self, names: Iterable[str]):
-        """A fast setter of the named variables: ``write(values)`` (floats, converted to each
-        variable's type: Integer rounded, Boolean true when non-zero)."""
-        names = list(names)
-        types = [self.info.variable(name).type for name in names]
-        groups = []
-        for kind in dict.fromkeys(types):
-            index = np.array([k for k, t in enumerate(types) if t == kind], dtype=int)
-            _, put, buffer = self._typed(kind, [names[k] for k in index])
-            groups.append((index, put, buffer, kind))
-
-        def write(values) -> None:
-            values = np.asarray(values, dtype=float)
-            for index, put, buffer, kind in groups:
-                if kind == "Real":
-                    buffer[:] = values[index]
-                elif kind == "Boolean":
-                    buffer[:] = values[index] != 0
-                else:
-                    buffer[:] = np.rint(values[index])
-                put()
-        return write
 
     # ------------------------------------------------------------------ life cycle
     def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:

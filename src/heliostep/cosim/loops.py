@@ -2,7 +2,8 @@
 
 A loop of direct feedthrough (an output that depends, through other FMUs, on the input it
 feeds) has no evaluation order. The master tears it: in each cycle, the connection that comes
-first in the order the connections were given is *torn* (:meth:`heliostep.cosim.connections.ConnectionGraph._propagation_order`).
+first in the order the connections were given is *torn*
+(:meth:`heliostep.cosim.connections.ConnectionGraph._propagation_order`).
 Its target input becomes an iteration variable ``v``; the other connections are copied in
 feedthrough order as usual, and the torn source output ``y(v)`` is read back. The loop is solved
 when ``y(v) = v``: Newton's method on ``r(v) = y(v) - v`` with a forward-difference Jacobian,
@@ -16,11 +17,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from heliostep.errors import HeliostepError
+from heliostep.errors import RunFailure
 
 
-class LoopError(HeliostepError):
-    """Newton's method found no solution of an algebraic loop."""
+class LoopError(RunFailure):
+    """Newton's method found no solution of an algebraic loop (a run failure, raised while simulating)."""
 
 
 class LoopSolver:

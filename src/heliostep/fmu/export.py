@@ -36,8 +36,8 @@ from pathlib import Path
 import casadi as ca
 
 from heliostep._version import __version__
-from heliostep.errors import HeliostepError
-from heliostep.fmu.modelica import FlatModel, Variable
+from heliostep.errors import RunFailure
+from heliostep.fmu.modelica import FlatModel, ModelicaError, Variable
 
 #: Exponents of the SI base units of the units the models use (FMI 2.0 ``BaseUnit``).
 BASE_UNITS = {
@@ -74,8 +74,8 @@ SOURCE_FILES = (FMI_LAYER, "equations.c")
 FMI2_PLATFORM = "linux64"
 
 
-class BuildError(HeliostepError):
-    """The C compiler or the packaging of an FMU failed."""
+class BuildError(RunFailure):
+    """The C compiler or the packaging of an FMU failed (a run failure: exit status 1)."""
 
 
 @dataclass(frozen=True)
@@ -134,7 +134,7 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
     start = ca.Function("model_start", [p], [ca.vertcat(*model.state_start) if model.states else ca.MX(0, 1)],
                         ["p"], ["x0"])
     if start.has_free():
-        raise HeliostepError(
+        raise ModelicaError(
             f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}")
     return evaluate, converge, scale, start
 
@@ -292,7 +292,25 @@ def model_description(model: FlatModel, layout: Layout, guid: str, evaluate: ca.
     source_files = ET.SubElement(me, "SourceFiles")
     for name in SOURCE_FILES:
         ET.SubElement(source_files, "File", {"name": name})
+    _unit_definitions(root, layout)
+    categories = ET.SubElement(root, "LogCategories")
+    for name, text in (("logStatusError", "errors"), ("logStatusFatal", "fatal errors"),
+                       ("logAll", "all messages")):
+        ET.SubElement(categories, "Category", {"name": name, "description": text})
+    ET.SubElement(root, "DefaultExperiment", {"startTime": "0", "stopTime": "1", "tolerance": "1e-06"})
+    variables = ET.SubElement(root, "ModelVariables")
+    state_index = {v.name: layout.vr(v.name) + 1 for v in model.states}
+    for vr, v in enumerate(layout.variables):
+        attributes, real = _scalar_variable(v, vr, state_index)
+        element = ET.SubElement(variables, "ScalarVariable", attributes)
+        ET.SubElement(element, "Real", real)
+    _model_structure(root, model, layout, _dependencies(evaluate, model, layout))
+    ET.indent(root)
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
+
+def _unit_definitions(root: ET.Element, layout: Layout) -> None:
+    """``UnitDefinitions``: every unit the variables use, with its SI base units where known."""
     units = sorted({v.unit for v in layout.variables if v.unit})
     if units:
         unit_definitions = ET.SubElement(root, "UnitDefinitions")
@@ -301,48 +319,43 @@ def model_description(model: FlatModel, layout: Layout, guid: str, evaluate: ca.
             if unit in BASE_UNITS:
                 ET.SubElement(element, "BaseUnit", {k: str(e) for k, e in BASE_UNITS[unit].items()})
 
-    categories = ET.SubElement(root, "LogCategories")
-    for name, text in (("logStatusError", "errors"), ("logStatusFatal", "fatal errors"),
-                       ("logAll", "all messages")):
-        ET.SubElement(categories, "Category", {"name": name, "description": text})
-    ET.SubElement(root, "DefaultExperiment", {"startTime": "0", "stopTime": "1", "tolerance": "1e-06"})
 
-    variables = ET.SubElement(root, "ModelVariables")
-    state_index = {v.name: layout.vr(v.name) + 1 for v in model.states}
-    for vr, v in enumerate(layout.variables):
-        attributes = {"name": v.name, "valueReference": str(vr)}
-        if v.description:
-            attributes["description"] = v.description
-        real: dict[str, str] = {}
-        if v.kind == "parameter":
-            attributes.update(causality="parameter", variability="tunable", initial="exact")
+def _scalar_variable(v: Variable, vr: int, state_index: dict[str, int]) -> tuple[dict[str, str], dict[str, str]]:
+    """The attributes of variable ``v``'s ``ScalarVariable`` (value reference ``vr``) and of its ``Real``."""
+    attributes = {"name": v.name, "valueReference": str(vr)}
+    if v.description:
+        attributes["description"] = v.description
+    real: dict[str, str] = {}
+    if v.kind == "parameter":
+        attributes.update(causality="parameter", variability="tunable", initial="exact")
+        real["start"] = repr(v.start)
+    elif v.kind == "calculated_parameter":
+        attributes.update(causality="calculatedParameter", variability="tunable", initial="calculated")
+    elif v.kind == "input":
+        attributes.update(causality="input", variability="continuous")
+        real["start"] = repr(v.start or 0.0)
+    else:
+        attributes.update(causality="output" if v.is_output else "local", variability="continuous")
+        if v.kind == "state" and v.start is not None:
+            attributes["initial"] = "exact"
             real["start"] = repr(v.start)
-        elif v.kind == "calculated_parameter":
-            attributes.update(causality="calculatedParameter", variability="tunable", initial="calculated")
-        elif v.kind == "input":
-            attributes.update(causality="input", variability="continuous")
-            real["start"] = repr(v.start or 0.0)
         else:
-            attributes.update(causality="output" if v.is_output else "local", variability="continuous")
-            if v.kind == "state" and v.start is not None:
-                attributes["initial"] = "exact"
-                real["start"] = repr(v.start)
-            else:
-                attributes["initial"] = "calculated"
-        if v.kind == "derivative":
-            real["derivative"] = str(state_index[v.state_name])
-        if v.unit:
-            real["unit"] = v.unit
-        if v.kind == "state" and v.nominal:
-            real["nominal"] = repr(v.nominal)
-        for bound in ("min", "max"):
-            value = getattr(v, bound)
-            if value is not None:
-                real[bound] = repr(value)
-        element = ET.SubElement(variables, "ScalarVariable", attributes)
-        ET.SubElement(element, "Real", real)
+            attributes["initial"] = "calculated"
+    if v.kind == "derivative":
+        real["derivative"] = str(state_index[v.state_name])
+    if v.unit:
+        real["unit"] = v.unit
+    if v.kind == "state" and v.nominal:
+        real["nominal"] = repr(v.nominal)
+    for bound in ("min", "max"):
+        value = getattr(v, bound)
+        if value is not None:
+            real[bound] = repr(value)
+    return attributes, real
 
-    deps = _dependencies(evaluate, model, layout)
+
+def _model_structure(root: ET.Element, model: FlatModel, layout: Layout, deps: dict[str, list[int]]) -> None:
+    """``ModelStructure``: outputs and derivatives with their dependencies, the initial unknowns."""
     structure = ET.SubElement(root, "ModelStructure")
     outputs = ET.SubElement(structure, "Outputs")
     for v in layout.variables:
@@ -360,8 +373,6 @@ def model_description(model: FlatModel, layout: Layout, guid: str, evaluate: ca.
         if (v.is_output and not (v.kind == "state" and v.start is not None)) or v.kind in (
                 "derivative", "calculated_parameter") or (v.kind == "state" and v.start is None):
             ET.SubElement(initial, "Unknown", {"index": str(vr + 1)})
-    ET.indent(root)
-    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
 def fmi_headers_dir() -> Path:

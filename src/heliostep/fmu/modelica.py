@@ -17,8 +17,10 @@ from __future__ import annotations
 import copy
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 
@@ -162,11 +164,11 @@ def _descriptions(tree, model_name: str) -> tuple[str, dict[str, str]]:
     return getattr(flat_class, "comment", "") or "", comments
 
 
-def load_model(models_dir: Path, model_name: str) -> FlatModel:
-    """Parse, flatten and translate ``model_name`` from the ``.mo`` files of ``models_dir``."""
+def _translate(models_dir: Path, model_name: str) -> tuple[Path, str, dict[str, str], Any]:
+    """pymoca's CasADi model of ``model_name`` with its source file and descriptions (model,
+    variables), or :class:`ModelicaError` naming the file."""
     from pymoca.backends.casadi.api import generate_model
 
-    models_dir = Path(models_dir)
     names = available_models(models_dir)
     if model_name not in names:
         raise ModelicaError(
@@ -184,20 +186,29 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
     for attribute in ("delay_states", "string_parameters", "string_constants"):
         if getattr(cas, attribute, None):
             raise ModelicaError(f"{source_file}: unsupported construct: {attribute} in {model_name}")
+    return source_file, description, comments, cas
 
-    outputs = set(cas.outputs)
-    symbols: dict[str, ca.MX] = {}
 
-    def make(var, kind, **extra) -> Variable:
+class _VariableFactory:
+    """Makes the :class:`Variable` of a pymoca variable and keeps its symbol (``symbols``, in the
+    order the variables are made)."""
+
+    def __init__(self, outputs: set[str], comments: dict[str, str]):
+        self.outputs, self.comments = outputs, comments
+        self.symbols: dict[str, ca.MX] = {}
+
+    def __call__(self, var: Any, kind: str, **extra: Any) -> Variable:
         name = var.symbol.name()
-        symbols[name] = var.symbol
+        self.symbols[name] = var.symbol
         unit = getattr(var, "unit", "") or ""
         return Variable(
-            name=name, kind=kind, is_output=name in outputs, unit=unit,
-            description=comments.get(name, ""), nominal=_number(var.nominal) or None,
+            name=name, kind=kind, is_output=name in self.outputs, unit=unit,
+            description=self.comments.get(name, ""), nominal=_number(var.nominal) or None,
             min=_number(var.min), max=_number(var.max), **extra)
 
-    # constants are substituted by their values everywhere
+
+def _constant_substitution(cas: Any) -> Callable[[list[ca.MX]], list[ca.MX]]:
+    """A function substituting the model's constants by their values everywhere."""
     constant_symbols = [c.symbol for c in cas.constants]
     constant_values = [ca.MX(_number(c.value) or 0.0) for c in cas.constants]
 
@@ -205,7 +216,12 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
         if not constant_symbols or not expressions:
             return expressions
         return ca.substitute(expressions, constant_symbols, constant_values)
+    return substitute_constants
 
+
+def _parameters(cas: Any, make: _VariableFactory, source_file: Path,
+                model_name: str) -> tuple[list[Variable], list[Variable], list[ca.MX]]:
+    """(parameters with a value, calculated parameters, their value expressions)."""
     parameters, calculated, calculated_values = [], [], []
     for var in cas.parameters:
         value = _number(var.value)
@@ -217,7 +233,28 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
         else:
             raise ModelicaError(
                 f"{source_file}: parameter {var.symbol.name()} of {model_name} has no value")
+    return parameters, calculated, calculated_values
 
+
+def _resolve_calculated(calc_symbols: list[ca.MX], values: list[ca.MX], source_file: Path,
+                        model_name: str) -> list[ca.MX]:
+    """The calculated parameters' values with no calculated parameter left in them (they may
+    refer to each other: substituted until none is left)."""
+    for _ in range(len(values) + 1):
+        if not values or not any(ca.depends_on(v, ca.vertcat(*calc_symbols)) for v in values):
+            break
+        values = ca.substitute(values, calc_symbols, values)
+    else:
+        raise ModelicaError(f"{source_file}: calculated parameters of {model_name} depend on each other in a cycle")
+    return values
+
+
+def load_model(models_dir: Path, model_name: str) -> FlatModel:
+    """Parse, flatten and translate ``model_name`` from the ``.mo`` files of ``models_dir``."""
+    source_file, description, comments, cas = _translate(Path(models_dir), model_name)
+    make = _VariableFactory(set(cas.outputs), comments)
+    substitute_constants = _constant_substitution(cas)
+    parameters, calculated, calculated_values = _parameters(cas, make, source_file, model_name)
     states, state_start = [], []
     for var in cas.states:
         start = var.start if isinstance(var.start, ca.MX) else ca.MX(_number(var.start) or 0.0)
@@ -229,6 +266,7 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
     ]
     inputs = [make(var, "input", start=_number(var.start) or 0.0) for var in cas.inputs]
     algebraics = [make(var, "algebraic") for var in cas.alg_states]
+    symbols = make.symbols
 
     residual = ca.vertcat(*substitute_constants(list(cas.equations)))
     n_unknowns = len(derivatives) + len(algebraics)
@@ -237,15 +275,8 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
             f"{source_file}: model {model_name} is not balanced: {residual.numel()} equations "
             f"for {n_unknowns} unknowns (derivatives and algebraic variables)")
 
-    # calculated parameters may refer to each other: substitute until none is left
     calc_symbols = [symbols[v.name] for v in calculated]
-    values = substitute_constants(calculated_values)
-    for _ in range(len(values) + 1):
-        if not values or not any(ca.depends_on(v, ca.vertcat(*calc_symbols)) for v in values):
-            break
-        values = ca.substitute(values, calc_symbols, values)
-    else:
-        raise ModelicaError(f"{source_file}: calculated parameters of {model_name} depend on each other in a cycle")
+    values = _resolve_calculated(calc_symbols, substitute_constants(calculated_values), source_file, model_name)
     if calc_symbols:
         residual = ca.substitute(residual, ca.vertcat(*calc_symbols), ca.vertcat(*values))
         state_start = ca.substitute(state_start, calc_symbols, values)

@@ -7,77 +7,21 @@
  * hs_advance: CVODE in one-step mode up to a stop time, recording a row (time, master inputs,
  *   every FMU's traced outputs) after each internal step and, where asked, at the output times
  *   passed on the way from CVODE's interpolating polynomial (CVodeGetDky), into a buffer the
- *   master drains: the loop over internal steps runs here, not in Python.
+ *   master drains: heliostep's one loop over internal steps, whichever right-hand side CVODE
+ *   calls (hs_rhs, or the master's Python callbacks, which then hand the kernel a prepare
+ *   function that sets up the FMUs for each row: kernel.h, prepare_t).
  *
  * An FMI status worse than fmi2Warning stops the evaluation: the status, the instance, the
  * function and the time are recorded, and every further evaluation is refused until the master
  * has collected the error.
+ *
+ * The structures and codes are in kernel.h; hs_describe reports their layout for the test that
+ * checks the ctypes mirror in kernel.py.
  */
-#include <stddef.h>
 #include <math.h>
+#include <string.h>
 
-typedef void *fmi2Component;
-typedef int (*set_time_t)(fmi2Component, double);
-typedef int (*set_x_t)(fmi2Component, const double *, size_t);
-typedef int (*get_x_t)(fmi2Component, double *, size_t);
-typedef int (*get_real_t)(fmi2Component, const unsigned int *, size_t, double *);
-typedef int (*set_real_t)(fmi2Component, const unsigned int *, size_t, const double *);
-typedef int (*get_int_t)(fmi2Component, const unsigned int *, size_t, int *);
-typedef double *(*data_t)(void *);
-typedef int (*cvode_t)(void *, double, void *, double *, int);
-typedef int (*get_dky_t)(void *, double, int, void *);
-
-/* one group of outputs of one FMI type, read into the row at the given columns */
-typedef struct {
-    long n;
-    const unsigned int *vrs;
-    const long *columns;
-    int *ints; /* buffer for Integer/Enumeration/Boolean values (NULL for Real) */
-} hs_outputs;
-
-typedef struct {
-    fmi2Component component;
-    set_time_t set_time;
-    set_x_t set_states;
-    get_x_t get_derivatives;
-    get_x_t get_event_indicators;
-    get_real_t get_real;
-    set_real_t set_real;
-    get_int_t get_integer;
-    get_int_t get_boolean;
-    long nx, x_offset, nz, z_offset;
-    hs_outputs real_outputs, integer_outputs, boolean_outputs;
-} hs_unit;
-
-typedef struct {
-    long source, target, n;
-    const unsigned int *source_vrs, *target_vrs;
-    double *buffer;
-} hs_link;
-
-typedef struct {
-    long n_units;
-    hs_unit *units;
-    long n_links;
-    hs_link *links;
-    data_t data;              /* N_VGetArrayPointer */
-    long discrete, nx;
-    long rhs_count;
-    long status, failed_unit, failed_function;
-    double failed_time;
-    /* recording (hs_advance) */
-    cvode_t cvode;
-    get_dky_t get_dky;
-    long n_inputs, row_width;
-    const double *inputs;     /* the master inputs' current values */
-    double *scratch;          /* one row: where a row is assembled */
-    long pending;             /* an internal step taken whose rows are not all recorded */
-    double step_time;
-    int step_flag;
-} hs_kernel;
-
-enum { F_SET_TIME, F_SET_STATES, F_GET_REAL, F_SET_REAL, F_GET_DERIVATIVES, F_GET_EVENT_INDICATORS,
-       F_GET_INTEGER, F_GET_BOOLEAN };
+#include "kernel.h"
 
 static int fail(hs_kernel *k, int status, long unit, long function, double t) {
     k->status = status;
@@ -135,9 +79,11 @@ int hs_rhs(double t, void *y, void *ydot, void *user_data) {
     return 0;
 }
 
-/* the FMUs at (t, x) with their connections propagated: for recording a solver step */
-static int hs_prepare(hs_kernel *k, double t, const double *x) {
+/* the FMUs at (t, x) with their connections propagated: for recording a solver step (the
+ * master's own preparation where it propagates itself, not after the last step: `final`) */
+static int hs_prepare(hs_kernel *k, double t, const double *x, int final) {
     if (k->status) return -1;
+    if (k->prepare) return final ? 0 : (k->prepare(t, k->discrete ? NULL : x, k->prepare_user) ? -1 : 0);
     if (evaluate(k, t, x)) return -1;
     return propagate(k, t);
 }
@@ -183,71 +129,107 @@ static int read_row(hs_kernel *k, double t, double *row) {
     return 0;
 }
 
-enum { ADVANCE_REACHED = 0, ADVANCE_ROOT = 1, ADVANCE_FULL = 2, ADVANCE_MAX_STEPS = 3,
-       ADVANCE_CVODE_FAILED = -1, ADVANCE_FMU_FAILED = -2, ADVANCE_DKY_FAILED = -3 };
 #define CV_ONE_STEP 2
 #define CV_TSTOP_RETURN 1
 #define CV_ROOT_RETURN 2
 
-/* CVODE in one-step mode towards t_stop (its stop time already set), recording rows.
+/* CVODE in one-step mode towards a->t_stop (its stop time already set), recording rows.
  *
- * After each internal step: the rows at the output times grid[*next_output...] passed on the
- * way (interpolated, kind 1; only with `interpolate`), then, unless the step is the last one
- * (a root, the stop time), the row at the step (kind 0). Rows go to rows[*n_rows...] (row_width
- * doubles each) with their kinds, up to `capacity` rows: when the buffer is full the call
- * returns ADVANCE_FULL and the next call goes on where it stopped. On every return but a
- * failure the FMUs hold the solution at the time reached (*t_reached). `steps` counts the
- * internal steps (refused past max_steps: ADVANCE_MAX_STEPS), `cvode_flag` the last flag.
+ * After each internal step: the rows at the output times grid[a->next_output...] passed on the
+ * way (interpolated, kind 1; only with a->interpolate), then, unless the step is the last one
+ * (a root, the stop time), the row at the step (kind 0). Rows go to rows[a->n_rows...]
+ * (row_width doubles each) with their kinds, up to a->capacity rows: when the buffer is full the
+ * call returns ADVANCE_FULL and the next call goes on where it stopped. On every return but a
+ * failure the FMUs hold the solution at the time reached (a->t_reached). a->steps counts the
+ * internal steps (refused past a->max_steps: ADVANCE_MAX_STEPS), a->cvode_flag is the last flag.
  */
-int hs_advance(hs_kernel *k, void *cvode_mem, void *y, void *dky, double t_stop,
-               const double *grid, long n_grid, long *next_output, int interpolate,
-               double *rows, long *kinds, long capacity, long *n_rows,
-               double *t_reached, long *steps, long max_steps, int *cvode_flag) {
+int hs_advance(hs_kernel *k, hs_advance_args *a) {
     double t;
     int final;
     for (;;) {
         if (k->status) return ADVANCE_FMU_FAILED;
         if (!k->pending) {
             int flag;
-            if (*steps >= max_steps) return ADVANCE_MAX_STEPS;
-            flag = k->cvode(cvode_mem, t_stop, y, &t, CV_ONE_STEP);
-            (*steps)++;
-            *cvode_flag = flag;
+            if (a->steps >= a->max_steps) return ADVANCE_MAX_STEPS;
+            flag = k->cvode(a->cvode_mem, a->t_stop, a->y, &t, CV_ONE_STEP);
+            a->steps++;
+            a->cvode_flag = flag;
             if (flag < 0) return k->status ? ADVANCE_FMU_FAILED : ADVANCE_CVODE_FAILED;
             k->pending = 1;
             k->step_time = t;
             k->step_flag = flag;
         }
         t = k->step_time;
-        *t_reached = t;
-        final = k->step_flag == CV_ROOT_RETURN || k->step_flag == CV_TSTOP_RETURN || t >= t_stop;
-        if (interpolate) {
+        a->t_reached = t;
+        final = k->step_flag == CV_ROOT_RETURN || k->step_flag == CV_TSTOP_RETURN || t >= a->t_stop;
+        if (a->interpolate) {
             /* Output times up to the step: those within rounding (eps) of a last step are left to
              * the master, which records the row at the time reached; after any other step they are
              * taken here (at most the step's own time: CVODE interpolates only over the last step,
              * so an output a rounding error past this one could not be reached after the next). */
             double eps = 1e-12 * (fabs(t) > 1.0 ? fabs(t) : 1.0);
-            while (*next_output < n_grid && (final ? grid[*next_output] < t - eps : grid[*next_output] <= t + eps)) {
-                double g = grid[*next_output];
-                if (*n_rows >= capacity) return ADVANCE_FULL;
-                if (!k->discrete && k->get_dky(cvode_mem, g < t ? g : t, 0, dky) < 0) return ADVANCE_DKY_FAILED;
-                if (hs_prepare(k, g, k->discrete ? NULL : k->data(dky))) return ADVANCE_FMU_FAILED;
-                if (read_row(k, g, rows + *n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
-                kinds[*n_rows] = 1;
-                (*n_rows)++;
-                (*next_output)++;
+            while (a->next_output < a->n_grid
+                   && (final ? a->grid[a->next_output] < t - eps : a->grid[a->next_output] <= t + eps)) {
+                double g = a->grid[a->next_output];
+                if (a->n_rows >= a->capacity) return ADVANCE_FULL;
+                if (!k->discrete && k->get_dky(a->cvode_mem, g < t ? g : t, 0, a->dky) < 0) return ADVANCE_DKY_FAILED;
+                if (hs_prepare(k, g, k->discrete ? NULL : k->data(a->dky), 0)) return ADVANCE_FMU_FAILED;
+                if (read_row(k, g, a->rows + a->n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
+                a->kinds[a->n_rows] = 1;
+                a->n_rows++;
+                a->next_output++;
             }
         }
         if (final) {
             k->pending = 0;
-            if (hs_prepare(k, t, k->data(y))) return ADVANCE_FMU_FAILED;
+            if (hs_prepare(k, t, k->data(a->y), 1)) return ADVANCE_FMU_FAILED;
             return k->step_flag == CV_ROOT_RETURN ? ADVANCE_ROOT : ADVANCE_REACHED;
         }
-        if (*n_rows >= capacity) return ADVANCE_FULL;
-        if (hs_prepare(k, t, k->data(y))) return ADVANCE_FMU_FAILED;
-        if (read_row(k, t, rows + *n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
-        kinds[*n_rows] = 0;
-        (*n_rows)++;
+        if (a->n_rows >= a->capacity) return ADVANCE_FULL;
+        if (hs_prepare(k, t, k->data(a->y), 0)) return ADVANCE_FMU_FAILED;
+        if (read_row(k, t, a->rows + a->n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
+        a->kinds[a->n_rows] = 0;
+        a->n_rows++;
         k->pending = 0;
     }
+}
+
+#define SIZE(s) {#s, (long)sizeof(s)}
+#define FIELD(s, f) {#s "." #f, (long)offsetof(s, f)}
+#define CODE(c) {#c, (long)(c)}
+
+static const struct { const char *name; long value; } layout[] = {
+    SIZE(hs_outputs), FIELD(hs_outputs, n), FIELD(hs_outputs, vrs), FIELD(hs_outputs, columns),
+    FIELD(hs_outputs, ints),
+    SIZE(hs_unit), FIELD(hs_unit, component), FIELD(hs_unit, set_time), FIELD(hs_unit, set_states),
+    FIELD(hs_unit, get_derivatives), FIELD(hs_unit, get_event_indicators), FIELD(hs_unit, get_real),
+    FIELD(hs_unit, set_real), FIELD(hs_unit, get_integer), FIELD(hs_unit, get_boolean), FIELD(hs_unit, nx),
+    FIELD(hs_unit, x_offset), FIELD(hs_unit, nz), FIELD(hs_unit, z_offset), FIELD(hs_unit, real_outputs),
+    FIELD(hs_unit, integer_outputs), FIELD(hs_unit, boolean_outputs),
+    SIZE(hs_link), FIELD(hs_link, source), FIELD(hs_link, target), FIELD(hs_link, n), FIELD(hs_link, source_vrs),
+    FIELD(hs_link, target_vrs), FIELD(hs_link, buffer),
+    SIZE(hs_kernel), FIELD(hs_kernel, n_units), FIELD(hs_kernel, units), FIELD(hs_kernel, n_links),
+    FIELD(hs_kernel, links), FIELD(hs_kernel, data), FIELD(hs_kernel, discrete), FIELD(hs_kernel, nx),
+    FIELD(hs_kernel, rhs_count), FIELD(hs_kernel, status), FIELD(hs_kernel, failed_unit),
+    FIELD(hs_kernel, failed_function), FIELD(hs_kernel, failed_time), FIELD(hs_kernel, cvode),
+    FIELD(hs_kernel, get_dky), FIELD(hs_kernel, n_inputs), FIELD(hs_kernel, row_width), FIELD(hs_kernel, inputs),
+    FIELD(hs_kernel, scratch), FIELD(hs_kernel, pending), FIELD(hs_kernel, step_time), FIELD(hs_kernel, step_flag),
+    FIELD(hs_kernel, prepare), FIELD(hs_kernel, prepare_user),
+    SIZE(hs_advance_args), FIELD(hs_advance_args, cvode_mem), FIELD(hs_advance_args, y),
+    FIELD(hs_advance_args, dky), FIELD(hs_advance_args, t_stop), FIELD(hs_advance_args, grid),
+    FIELD(hs_advance_args, n_grid), FIELD(hs_advance_args, interpolate), FIELD(hs_advance_args, rows),
+    FIELD(hs_advance_args, kinds), FIELD(hs_advance_args, capacity), FIELD(hs_advance_args, max_steps),
+    FIELD(hs_advance_args, next_output), FIELD(hs_advance_args, n_rows), FIELD(hs_advance_args, steps),
+    FIELD(hs_advance_args, t_reached), FIELD(hs_advance_args, cvode_flag),
+    CODE(F_SET_TIME), CODE(F_SET_STATES), CODE(F_GET_REAL), CODE(F_SET_REAL), CODE(F_GET_DERIVATIVES),
+    CODE(F_GET_EVENT_INDICATORS), CODE(F_GET_INTEGER), CODE(F_GET_BOOLEAN),
+    CODE(ADVANCE_REACHED), CODE(ADVANCE_ROOT), CODE(ADVANCE_FULL), CODE(ADVANCE_MAX_STEPS),
+    CODE(ADVANCE_CVODE_FAILED), CODE(ADVANCE_FMU_FAILED), CODE(ADVANCE_DKY_FAILED),
+};
+
+long hs_describe(const char *name) {
+    size_t i;
+    for (i = 0; i < sizeof(layout) / sizeof(layout[0]); i++)
+        if (strcmp(layout[i].name, name) == 0) return layout[i].value;
+    return -1;
 }
