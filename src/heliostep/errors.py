@@ -6,8 +6,8 @@
 - :class:`RunFailure` and its subclasses: the input was accepted but the run failed (a build,
   an FMU, the solver). The command line reports it as one line on stderr and exits with status 1.
 
-Both derive from :class:`HeliostepError`; a :class:`HeliostepError` of neither family is
-reported like an input error (status 2).
+Both derive from :class:`HeliostepError`, which nothing raises itself (``tests/test_errors.py``
+checks that every error class in the package belongs to one family).
 """
 
 

@@ -10,13 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from heliostep.errors import HeliostepError, InputError
+from heliostep.errors import InputError, RunFailure
 from heliostep.results.trace_format import TIME, check_parquet_keys, check_time, clean_metadata, trace_format
 
 __all__ = ["TRACE_ENCODING", "TraceWriteError", "TraceWriter"]
 
 
-class TraceWriteError(HeliostepError):
+class TraceWriteError(RunFailure):
     """A row group of a trace could not be written (disk full, a file-size limit, an I/O error);
     the rows written before it can still be kept (:meth:`TraceWriter.close`)."""
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 
 from heliostep.drive.inputs import DriveInputs
-from heliostep.errors import HeliostepError
+from heliostep.errors import InputError, RunFailure
 from heliostep.results.outputs import TMP_PREFIX, remove_stale
 from heliostep.results.run_figures import present_columns
 from heliostep.results.run_files import place_trace_file, write_held_trace, write_records, write_trace_csv
@@ -84,7 +84,7 @@ class RunResult:
 
     def _require_trace(self) -> None:
         if not self.trace_kept:
-            raise HeliostepError(f"{self.scenario.name}: this run kept no trace (run_scenario(..., keep_trace=False)): "
+            raise InputError(f"{self.scenario.name}: this run kept no trace (run_scenario(..., keep_trace=False)): "
                                  "only its summary and metadata")
 
     @property
@@ -193,7 +193,7 @@ class RunResult:
         return written
 
 
-class RunFailed(HeliostepError):
+class RunFailed(RunFailure):
     """The simulation failed or was interrupted part-way; ``result`` holds the incomplete run
     (``result.reason`` says which)."""
 

@@ -55,15 +55,6 @@ HELD_TRACE_MAX_DURATION = 3600.0
 SINK_ROWS = 4096
 
 
-# removed at merge when the master raises InputError itself
-def _raise_input_error(exc: SimulationError, rows: int, scenario: Scenario) -> None:
-    """An input error found while setting up the FMUs (e.g. an unknown parameter name), before
-    any row was computed (``rows`` computed), is bad input (exit 2), not a failed simulation."""
-    cause = exc.__cause__
-    if getattr(exc, "reason", "failed") == "failed" and isinstance(cause, InputError) and not rows:
-        raise InputError(f"{scenario.source}: {cause}") from None
-
-
 @dataclass
 class _PreparedRun:
     """A run checked and set up by :func:`run_scenario`, ready to simulate."""
@@ -198,11 +189,12 @@ def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, pro
                                           monitor=figures.solution,  # every solver step, for the figures
                                           sink=sink, sink_rows=SINK_ROWS)  # the trace rows, in blocks
         return RunStatus(True), result.trace, result.statistics
+    except InputError as exc:  # found while setting up the FMUs, before any row (e.g. an unknown parameter)
+        raise InputError(f"{prepared.scenario.source}: {exc}") from None
     except SimulationError as exc:
         reached = getattr(exc, "time", None)
         if reached is None or not np.isfinite(reached):
             reached = sink.last_time if sink.last_time is not None else 0.0
-        _raise_input_error(exc, sink.rows, prepared.scenario)
         return RunStatus(False, str(exc), getattr(exc, "reason", "failed"), reached), exc.trace, exc.statistics
     finally:
         if bar:
