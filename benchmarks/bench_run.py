@@ -41,9 +41,11 @@ def best_of(function, repeat: int):
 
 
 #: the master's paths: (label, compiled right-hand side, interpolated output rows)
-PATHS = [("python callbacks, stops at outputs", False, False),
-         ("compiled kernel, stops at outputs", True, False),
-         ("compiled kernel, interpolated (default)", True, True)]
+PATHS = [
+    ("python callbacks, stops at outputs", False, False),
+    ("compiled kernel, stops at outputs", True, False),
+    ("compiled kernel, interpolated (default)", True, True),
+]
 
 
 def run_path(name: str, compiled: bool, interpolate: bool, repeat: int):
@@ -57,6 +59,7 @@ def run_path(name: str, compiled: bool, interpolate: bool, repeat: int):
     def capture(self, *args, **kwargs):
         captured.update(system=self, args=args)
         return simulate(self, *args, **kwargs)
+
     master.COMPILED_RHS, master.INTERPOLATE_OUTPUTS = compiled, interpolate
     master.CoSimulation.simulate = capture
     try:
@@ -86,8 +89,12 @@ def monolithic(captured, repeat: int) -> tuple[float, dict]:
         values = tuple(s.value_at(edges[k]) for s in inputs)
         rows += [(edges[k], *values), (edges[k + 1], *values)]
     table = np.array(rows, dtype=[("time", float)] + [(s.target.split(".", 1)[1], float) for s in inputs])
-    start_values = {f"{instance}.{name}": value for instance, values in system._parameters.items()
-                    for name, value in values.items() if f"{instance}.{name}" in variables}
+    start_values = {
+        f"{instance}.{name}": value
+        for instance, values in system._parameters.items()
+        for name, value in values.items()
+        if f"{instance}.{name}" in variables
+    }
     interval = float(np.median(np.diff(grid)))
 
     def call():
@@ -99,13 +106,24 @@ def monolithic(captured, repeat: int) -> tuple[float, dict]:
         class Solver(original):
             def __init__(self, **kwargs):
                 super().__init__(**{**kwargs, "maxNumSteps": solver.max_num_steps})
+
         sundials.CVodeSolver = Solver
         try:
-            return simulate_fmu(drive, fmi_type="ModelExchange", solver="CVode", start_time=start, stop_time=stop,
-                                output_interval=interval, relative_tolerance=solver.rtol, input=table,
-                                start_values=start_values, output=["mechanics.theta", "motor.tau"])
+            return simulate_fmu(
+                drive,
+                fmi_type="ModelExchange",
+                solver="CVode",
+                start_time=start,
+                stop_time=stop,
+                output_interval=interval,
+                relative_tolerance=solver.rtol,
+                input=table,
+                start_values=start_values,
+                output=["mechanics.theta", "motor.tau"],
+            )
         finally:
             sundials.CVodeSolver = original
+
     return best_of(call, repeat)
 
 
@@ -115,15 +133,22 @@ def bench(name: str, repeat: int, against_fmpy: bool) -> None:
         wall, run, captured = run_path(name, compiled, interpolate, repeat)
         stats = run.metadata["statistics"]
         steps = max(1, int(run.summary["steps_commanded"]))
-        line = (f"{name:14s} {label:40s} simulation {wall:7.3f} s  {stats['rhs']:>9,d} RHS  "
-                f"{stats['rhs'] / steps:7.1f} RHS/motor step  {stats['integrator_calls']:>6,d} solver calls")
+        line = (
+            f"{name:14s} {label:40s} simulation {wall:7.3f} s  {stats['rhs']:>9,d} RHS  "
+            f"{stats['rhs'] / steps:7.1f} RHS/motor step  {stats['integrator_calls']:>6,d} solver calls"
+        )
         if against_fmpy:
             if fmpy_wall is None:
                 fmpy_wall, reference = monolithic(captured, 1)
-                last = abs(run.trace["mechanics.theta"].iloc[-1] - reference["mechanics.theta"][-1]) \
-                    if "mechanics.theta" in run.trace else float("nan")
-                print(f"{name:14s} {'fmpy.simulate_fmu on DriveSystem':40s} simulation {fmpy_wall:7.3f} s  "
-                      f"(final rotor angles of the first path differ by {last:.1e} rad)")
+                last = (
+                    abs(run.trace["mechanics.theta"].iloc[-1] - reference["mechanics.theta"][-1])
+                    if "mechanics.theta" in run.trace
+                    else float("nan")
+                )
+                print(
+                    f"{name:14s} {'fmpy.simulate_fmu on DriveSystem':40s} simulation {fmpy_wall:7.3f} s  "
+                    f"(final rotor angles of the first path differ by {last:.1e} rad)"
+                )
             line += f"  = {wall / fmpy_wall:.2f}x fmpy"
         print(line, flush=True)
 
@@ -131,11 +156,13 @@ def bench(name: str, repeat: int, against_fmpy: bool) -> None:
 #: Variants of the paper's case that tell what sets the RHS evaluations per motor step: the
 #: chopper's saturation corners (min/max, no event indicators) against a smooth current loop and
 #: a chopper that never saturates, and the friction that ends the ringing.
-RHS_VARIANTS = [("StepperMotor (clamped chopper)", ()),
-                ("StepperMotorIdealCurrent (smooth)", ("fmus.motor=StepperMotorIdealCurrent",)),
-                ("chopper never saturates (V_supply 100 V)", ("parameters.motor.V_supply=100",)),
-                ("friction regularised 10x wider (w_s 0.1)", ("parameters.mechanics.w_s=0.1",)),
-                ("rtol 1e-5 instead of 1e-6", ("solver.rtol=1e-5",))]
+RHS_VARIANTS = [
+    ("StepperMotor (clamped chopper)", ()),
+    ("StepperMotorIdealCurrent (smooth)", ("fmus.motor=StepperMotorIdealCurrent",)),
+    ("chopper never saturates (V_supply 100 V)", ("parameters.motor.V_supply=100",)),
+    ("friction regularised 10x wider (w_s 0.1)", ("parameters.mechanics.w_s=0.1",)),
+    ("rtol 1e-5 instead of 1e-6", ("solver.rtol=1e-5",)),
+]
 
 
 def rhs_per_step() -> None:
@@ -145,8 +172,11 @@ def rhs_per_step() -> None:
     for label, overrides in RHS_VARIANTS:
         run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides)
         rhs, steps = run.metadata["statistics"]["rhs"], max(1, int(run.summary["steps_commanded"]))
-        print(f"jan21-central  {label:42s} {rhs:>8,d} RHS  {rhs / steps:7.1f} RHS/motor step  "
-              f"peak torque {run.summary['peak_torque_Nm']:.3f} N.m", flush=True)
+        print(
+            f"jan21-central  {label:42s} {rhs:>8,d} RHS  {rhs / steps:7.1f} RHS/motor step  "
+            f"peak torque {run.summary['peak_torque_Nm']:.3f} N.m",
+            flush=True,
+        )
 
 
 def profile_paper_case(top: int = 15) -> None:

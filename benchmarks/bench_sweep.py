@@ -8,7 +8,8 @@ With ``--full-day`` it also runs sunrise-to-sunset cases of ``scenarios/sweeps/y
 (its overrides and its shared primary) on 6 days spread over the year (1, 62, 123, 184, 245,
 306) x mirrors 0, 3, 6, 9 and 12 (the field's ends, its centre and between), plus the longest
 day (172), on the smallest cluster of ``--workers``
-(one worker per core left free: a case's time is then one core's, not shared), and estimates that sweep (365 x 14 cases) from the mean time per case of the spread days
+(one worker per core left free: a case's time is then one core's, not shared), and estimates that
+sweep (365 x 14 cases) from the mean time per case of the spread days
 (the days' lengths and step counts vary over the year; the longest day alone overstates it).
 
 The clusters are started and their workers warmed up (heliostep imported) before the
@@ -49,12 +50,22 @@ YEAR_MIRRORS = (0, 3, 6, 9, 12)  # the field's ends, its centre and between
 YEAR_FIELD = ROOT / "scenarios" / "sweeps" / "year-field.yaml"
 
 
-def write_sweep(folder: Path, name: str, axes: dict, overrides: dict | None = None,
-                shared_primary: bool = False) -> Path:
+def write_sweep(
+    folder: Path, name: str, axes: dict, overrides: dict | None = None, shared_primary: bool = False
+) -> Path:
     path = folder / f"{name}.yaml"
-    path.write_text(yaml.safe_dump({"name": name, "base": str(BASE), "axes": axes,
-                                    "overrides": overrides or {}, "shared_primary": shared_primary},
-                                   sort_keys=False))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": name,
+                "base": str(BASE),
+                "axes": axes,
+                "overrides": overrides or {},
+                "shared_primary": shared_primary,
+            },
+            sort_keys=False,
+        )
+    )
     return path
 
 
@@ -65,8 +76,17 @@ def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> t
     ``n_workers`` started (and warmed up) before the clock.
     """
     validations, walls = [], []
-    with LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=":0",
+            silence_logs=logging.ERROR,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         client.wait_for_workers(n_workers)
         client.run(importlib.import_module, "heliostep.sweep")  # warm up: imports outside the clock
         for attempt in range(repeat):
@@ -99,24 +119,32 @@ def main(argv: list[str] | None = None) -> None:
         folder = Path(scratch)
         sweep = write_sweep(folder, "bench", {"day_of_year": list(DAYS), "mirror": list(MIRRORS)})
         n_cases = len(DAYS) * len(MIRRORS)
-        print(f"{n_cases} cases of the paper's 5-minute window (days {DAYS} x mirrors {MIRRORS}), "
-              f"single-threaded worker processes; median of {args.repeat} runs")
+        print(
+            f"{n_cases} cases of the paper's 5-minute window (days {DAYS} x mirrors {MIRRORS}), "
+            f"single-threaded worker processes; median of {args.repeat} runs"
+        )
         rates, per_case = {}, {}
         for n_workers in args.workers:
             validation, wall, outcome = timed_sweep(sweep, folder, n_workers, args.repeat)
             rates[n_workers] = n_cases / wall * 60.0
             per_case[n_workers] = wall / n_cases
             in_case = outcome.table["wall_time_s"]
-            print(f"  {n_workers} worker(s): {wall:6.2f} s wall -> {rates[n_workers]:6.1f} cases/min "
-                  f"(a case runs {in_case.mean():.3f} s on its worker, mean; validation {validation:.3f} s)")
+            print(
+                f"  {n_workers} worker(s): {wall:6.2f} s wall -> {rates[n_workers]:6.1f} cases/min "
+                f"(a case runs {in_case.mean():.3f} s on its worker, mean; validation {validation:.3f} s)"
+            )
         first, last = min(rates), max(rates)
         if last > first:
             scaling = rates[last] / rates[first]
-            print(f"  scaling {first} -> {last} workers: x{scaling:.2f} "
-                  f"(parallel efficiency {scaling / (last / first):.0%})")
+            print(
+                f"  scaling {first} -> {last} workers: x{scaling:.2f} "
+                f"(parallel efficiency {scaling / (last / first):.0%})"
+            )
         one_case = per_case[first] * first  # [s] of one worker per case, overheads included
-        print(f"\nfull year x 13 mirrors = {YEAR_CASES} cases of 5 minutes, from {one_case:.3f} s per case "
-              f"per worker (ideal scaling):")
+        print(
+            f"\nfull year x 13 mirrors = {YEAR_CASES} cases of 5 minutes, from {one_case:.3f} s per case "
+            f"per worker (ideal scaling):"
+        )
         for size in CLUSTER_SIZES:
             print(f"  {size:3d} workers: {duration_text(YEAR_CASES * one_case / size)}")
 
@@ -127,31 +155,45 @@ def main(argv: list[str] | None = None) -> None:
 def full_day(folder: Path, n_workers: int) -> None:
     """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml (see the module docstring)."""
     overrides = yaml.safe_load(YEAR_FIELD.read_text())["overrides"]
-    days = write_sweep(folder, "days", {"day_of_year": [*YEAR_SAMPLE_DAYS, LONGEST_DAY], "mirror": list(YEAR_MIRRORS)},
-                       overrides, shared_primary=True)
+    days = write_sweep(
+        folder,
+        "days",
+        {"day_of_year": [*YEAR_SAMPLE_DAYS, LONGEST_DAY], "mirror": list(YEAR_MIRRORS)},
+        overrides,
+        shared_primary=True,
+    )
     _, wall, outcome = timed_sweep(days, folder / "days", n_workers)
     table = outcome.table
     primary = table["role"] == "shared-primary"
-    print(f"\nsunrise-to-sunset cases of year-field.yaml (days {YEAR_SAMPLE_DAYS} and {LONGEST_DAY} x "
-          f"mirrors {YEAR_MIRRORS} and the shared primary: {len(table)} cases, {wall:.1f} s on {n_workers} "
-          f"worker(s)); mean time of a case on its worker:")
+    print(
+        f"\nsunrise-to-sunset cases of year-field.yaml (days {YEAR_SAMPLE_DAYS} and {LONGEST_DAY} x "
+        f"mirrors {YEAR_MIRRORS} and the shared primary: {len(table)} cases, {wall:.1f} s on {n_workers} "
+        f"worker(s)); mean time of a case on its worker:"
+    )
     print("  (the mirror cases' mean weighs the sampled mirrors equally, as the field's 13 are)")
     for day_of_year, rows in table.groupby("day_of_year"):
         mirrors, shared = rows[~primary.loc[rows.index]], rows[primary.loc[rows.index]]
-        print(f"  day {int(day_of_year):3d}: {rows['duration_s'].iloc[0] / 3600:4.1f} h simulated, "
-              f"{int(mirrors['steps_commanded'].max()):5d} steps: mirrors {mirrors['wall_time_s'].mean():5.2f} s, "
-              f"primary ({int(shared['steps_commanded'].max())} steps) {shared['wall_time_s'].mean():5.2f} s")
+        print(
+            f"  day {int(day_of_year):3d}: {rows['duration_s'].iloc[0] / 3600:4.1f} h simulated, "
+            f"{int(mirrors['steps_commanded'].max()):5d} steps: mirrors {mirrors['wall_time_s'].mean():5.2f} s, "
+            f"primary ({int(shared['steps_commanded'].max())} steps) {shared['wall_time_s'].mean():5.2f} s"
+        )
     spread = table["day_of_year"].isin(YEAR_SAMPLE_DAYS)
     per_mirror = table.loc[spread & ~primary, "wall_time_s"].mean()
     per_primary = table.loc[spread & primary, "wall_time_s"].mean()
     core_seconds = 365 * 13 * per_mirror + 365 * per_primary
-    print(f"year-field.yaml = {YEAR_FIELD_CASES} cases: {core_seconds / 3600:.1f} core-hours from the spread "
-          f"days' means ({per_mirror:.2f} s a mirror case, {per_primary:.2f} s a primary case); ideal scaling:")
+    print(
+        f"year-field.yaml = {YEAR_FIELD_CASES} cases: {core_seconds / 3600:.1f} core-hours from the spread "
+        f"days' means ({per_mirror:.2f} s a mirror case, {per_primary:.2f} s a primary case); ideal scaling:"
+    )
     for size in CLUSTER_SIZES:
         print(f"  {size:3d} workers: {duration_text(core_seconds / size)}")
     longest = table.loc[table["day_of_year"] == LONGEST_DAY, "wall_time_s"].max()
-    print(f"  (were every case as slow as the longest day's slowest, {longest:.2f} s: "
-          f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)")
+    print(
+        f"  (were every case as slow as the longest day's slowest, {longest:.2f} s: "
+        f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)"
+    )
+
 
 if __name__ == "__main__":
     main()

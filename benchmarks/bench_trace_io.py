@@ -35,14 +35,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args(argv)
     trace = run_scenario(ROOT / "scenarios" / "jan21-central.yaml", YEAR_FIELD_CASE, stream=False).trace
-    table = pa.Table.from_pandas(trace.iloc[:ROW_GROUP * GROUPS], preserve_index=False)
-    print(f"{table.num_rows} rows x {table.num_columns} float64 columns of a year-field case (21 January), "
-          f"{GROUPS} row groups of {ROW_GROUP}; best of {args.repeat}")
-    settings = [("trace (byte stream split + zstd)", {"compression": "zstd", **TRACE_ENCODING}),
-                ("dictionary + zstd (Parquet default)", {"compression": "zstd"}),
-                ("plain + zstd", {"compression": "zstd", "use_dictionary": False}),
-                ("plain, uncompressed", {"compression": "none", "use_dictionary": False}),
-                ("plain + lz4", {"compression": "lz4", "use_dictionary": False})]
+    table = pa.Table.from_pandas(trace.iloc[: ROW_GROUP * GROUPS], preserve_index=False)
+    print(
+        f"{table.num_rows} rows x {table.num_columns} float64 columns of a year-field case (21 January), "
+        f"{GROUPS} row groups of {ROW_GROUP}; best of {args.repeat}"
+    )
+    settings = [
+        ("trace (byte stream split + zstd)", {"compression": "zstd", **TRACE_ENCODING}),
+        ("dictionary + zstd (Parquet default)", {"compression": "zstd"}),
+        ("plain + zstd", {"compression": "zstd", "use_dictionary": False}),
+        ("plain, uncompressed", {"compression": "none", "use_dictionary": False}),
+        ("plain + lz4", {"compression": "lz4", "use_dictionary": False}),
+    ]
     for name, options in settings:
         writes, reads = [], []
         for _ in range(args.repeat):
@@ -58,8 +62,10 @@ def main(argv: list[str] | None = None) -> None:
             reads.append(time.perf_counter() - started)
             if not all(back.column(c).equals(table.column(c)) for c in table.column_names):
                 raise SystemExit(f"{name}: the rows read back differ from those written")
-        print(f"  {name:38s} write {min(writes) * 1e3:7.1f} ms   read {min(reads) * 1e3:6.1f} ms   "
-              f"{len(buffer.getvalue()) / 1e6:6.2f} MB")
+        print(
+            f"  {name:38s} write {min(writes) * 1e3:7.1f} ms   read {min(reads) * 1e3:6.1f} ms   "
+            f"{len(buffer.getvalue()) / 1e6:6.2f} MB"
+        )
 
 
 if __name__ == "__main__":

@@ -25,10 +25,22 @@ from heliostep.run import RunFailed, run_scenario
 from heliostep.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-FIGURES = ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
-           "electrical_energy_J", "settling_time_s.max", "settling_time_s.mean", "settling_time_s.not_settled",
-           "steps_commanded", "steps_executed", "missed_steps", "steps_lost", "final_lag_steps",
-           "final_panel_angle_deg")
+FIGURES = (
+    "max_tracking_error_deg",
+    "rms_tracking_error_deg",
+    "peak_torque_Nm",
+    "peak_phase_current_A",
+    "electrical_energy_J",
+    "settling_time_s.max",
+    "settling_time_s.mean",
+    "settling_time_s.not_settled",
+    "steps_commanded",
+    "steps_executed",
+    "missed_steps",
+    "steps_lost",
+    "final_lag_steps",
+    "final_panel_angle_deg",
+)
 
 
 def _value(summary: dict, key: str):
@@ -43,8 +55,10 @@ def fine_overrides(scenario_path: Path, factor: float, extra: list[str]) -> dict
     tolerance = [f"solver.rtol={scenario.solver.rtol / factor:g}"]
     if scenario.solver.atol is not None:
         tolerance.append(f"solver.atol={scenario.solver.atol / factor:g}")
-    grid = [f"output.interval={scenario.output.interval / factor:g}",
-            f"output.step_interval={scenario.output.step_interval / factor:g}"]
+    grid = [
+        f"output.interval={scenario.output.interval / factor:g}",
+        f"output.step_interval={scenario.output.step_interval / factor:g}",
+    ]
     return {"rtol": tolerance, "grid": grid, "both": tolerance + grid}
 
 
@@ -62,8 +76,11 @@ def main() -> int:
         started = time.perf_counter()
         try:
             runs[name] = run_scenario(path, [*args.overrides, *overrides]).summary
-            print(f"{name}: {time.perf_counter() - started:.1f} s wall, {runs[name]['rows']} trace rows "
-                  f"({', '.join(overrides) or 'as the scenario is'})", flush=True)
+            print(
+                f"{name}: {time.perf_counter() - started:.1f} s wall, {runs[name]['rows']} trace rows "
+                f"({', '.join(overrides) or 'as the scenario is'})",
+                flush=True,
+            )
         except RunFailed as exc:
             failed = True
             print(f"{name}: FAILED ({', '.join(overrides)}): {exc}", flush=True)

@@ -41,8 +41,9 @@ def rhs(_t, y, i_a_ref, i_b_ref):
     di_b = (v_b - R * i_b + K_E * omega * np.cos(N_C * theta)) / L  # eq 8
     torque = -K_E * i_a * np.sin(N_C * theta) - K_E * i_b * np.cos(N_C * theta)  # eq 9
     friction = (T_C + M_C * R_PINION * np.cos(theta_p) ** 2 / S_LEVER) * np.tanh(omega / W_S)
-    domega_p = (g * (torque - friction) - B * omega_p - J_M * g * 2 * g * np.tan(theta_p) * omega_p ** 2) \
-        / (J_P + J_M * g ** 2)  # eq 10, the exact (Lagrangian) form
+    domega_p = (g * (torque - friction) - B * omega_p - J_M * g * 2 * g * np.tan(theta_p) * omega_p**2) / (
+        J_P + J_M * g**2
+    )  # eq 10, the exact (Lagrangian) form
     return np.array([di_a, di_b, omega_p, domega_p]), torque
 
 
@@ -54,12 +55,12 @@ def main() -> None:
     atol = args.rtol if args.atol is None else args.atol
     held = K_CURRENT * CURRENT / (K_CURRENT + R)  # the loop's holding current, L di/dt = 0
     y0 = np.array([held, 0.0, THETA_P0, 0.0])
-    print(f"one full step (phase A -> B, {CURRENT} A) and 0.2 s of ring and creep, rtol {args.rtol:g}, "
-          f"atol {atol:g}:")
+    print(f"one full step (phase A -> B, {CURRENT} A) and 0.2 s of ring and creep, rtol {args.rtol:g}, atol {atol:g}:")
     for method in ("BDF", "Radau", "LSODA"):
         started = time.perf_counter()
-        solution = solve_ivp(lambda t, y: rhs(t, y, 0.0, CURRENT)[0], (0.0, 0.2), y0, method=method,
-                             rtol=args.rtol, atol=atol)
+        solution = solve_ivp(
+            lambda t, y: rhs(t, y, 0.0, CURRENT)[0], (0.0, 0.2), y0, method=method, rtol=args.rtol, atol=atol
+        )
         wall = time.perf_counter() - started
         if not solution.success:
             print(f"  {method:6s} failed: {solution.message}")
@@ -67,9 +68,11 @@ def main() -> None:
         torque = np.array([rhs(t, y, 0.0, CURRENT)[1] for t, y in zip(solution.t, solution.y.T)])
         theta = S_LEVER / R_PINION * (np.tan(solution.y[2]) - np.tan(THETA_P0))
         ring = solution.t[(solution.t > 5e-3) & (solution.t < 50e-3)]
-        print(f"  {method:6s} {len(solution.t) - 1:6d} steps ({len(ring):5d} of them 5-50 ms after the step) "
-              f"{solution.nfev:7d} RHS {solution.njev:4d} Jacobians  peak torque {np.abs(torque).max():.4f} N.m  "
-              f"rotor moved {theta[-1] / (np.pi / (2 * N_C)):+.4f} steps  ({wall:.1f} s)")
+        print(
+            f"  {method:6s} {len(solution.t) - 1:6d} steps ({len(ring):5d} of them 5-50 ms after the step) "
+            f"{solution.nfev:7d} RHS {solution.njev:4d} Jacobians  peak torque {np.abs(torque).max():.4f} N.m  "
+            f"rotor moved {theta[-1] / (np.pi / (2 * N_C)):+.4f} steps  ({wall:.1f} s)"
+        )
     print("  CVODE (BDF) in heliostep, a motor step of the paper's case: 613 steps, 1 007 RHS (solver_cost.py)")
 
 

@@ -74,6 +74,7 @@ class Probe:
         def new_take_rows(self_run, rows, kinds):
             probe.step_times.append(rows[kinds != 1, 0].copy())
             return take_rows(self_run, rows, kinds)
+
         solver.__init__, solver.reset, solver.close, run._take_rows = new_init, new_reset, new_close, new_take_rows
         self._classes = (solver, run)
         return self
@@ -99,10 +100,12 @@ def line(label: str, run, totals) -> str:
     steps = max(1, int(run.summary["steps_commanded"]))
     rhs = run.metadata["statistics"]["rhs"]
     per = {name: totals[name] / steps for name in COUNTERS}
-    return (f"  {label:48s} {per['NumSteps']:7.0f} steps {rhs / steps:7.0f} RHS "
-            f"{per['NumErrTestFails']:5.1f} err.fails {per['NumNonlinSolvConvFails']:5.1f} conv.fails "
-            f"{per['NumJacEvals']:5.1f} Jacobians ({per['NumLinRhsEvals']:4.0f} RHS)   "
-            f"peak torque {run.summary['peak_torque_Nm']:.4f} N.m")
+    return (
+        f"  {label:48s} {per['NumSteps']:7.0f} steps {rhs / steps:7.0f} RHS "
+        f"{per['NumErrTestFails']:5.1f} err.fails {per['NumNonlinSolvConvFails']:5.1f} conv.fails "
+        f"{per['NumJacEvals']:5.1f} Jacobians ({per['NumLinRhsEvals']:4.0f} RHS)   "
+        f"peak torque {run.summary['peak_torque_Nm']:.4f} N.m"
+    )
 
 
 def smooth_chopper_models(folder: Path) -> Path:
@@ -137,12 +140,14 @@ def main() -> None:
         print(f"  {low:6g} - {high:<6g} ms: {n / len(steps):6.1f} steps per motor step  ({n / len(times):5.1%})")
 
     print("\nvariants, each without one suspect:")
-    for label, overrides, order in (("BDF order at most 4", (), 4), ("BDF order at most 3", (), 3),
-                                    ("friction regularised 10x wider (w_s 0.1)", ("parameters.mechanics.w_s=0.1",), None),
-                                    ("friction regularised 100x wider (w_s 1)", ("parameters.mechanics.w_s=1",), None),
-                                    ("no Coulomb friction (T_c = M_c = 0)", ("parameters.mechanics.T_c=0",
-                                                                            "parameters.mechanics.M_c=0"), None),
-                                    ("rtol 1e-5 instead of 1e-6", ("solver.rtol=1e-5",), None)):
+    for label, overrides, order in (
+        ("BDF order at most 4", (), 4),
+        ("BDF order at most 3", (), 3),
+        ("friction regularised 10x wider (w_s 0.1)", ("parameters.mechanics.w_s=0.1",), None),
+        ("friction regularised 100x wider (w_s 1)", ("parameters.mechanics.w_s=1",), None),
+        ("no Coulomb friction (T_c = M_c = 0)", ("parameters.mechanics.T_c=0", "parameters.mechanics.M_c=0"), None),
+        ("rtol 1e-5 instead of 1e-6", ("solver.rtol=1e-5",), None),
+    ):
         run, totals, _ = measure(overrides, order)
         print(line(label, run, totals), flush=True)
     with tempfile.TemporaryDirectory(prefix="heliostep-smooth-") as scratch:

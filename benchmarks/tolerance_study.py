@@ -74,8 +74,10 @@ def main() -> int:
             tube = max(tolerance.abs, tolerance.rel * float(np.max(np.abs(default.trace[signal]))))
             ratio = tube / solver_error if solver_error > 0 else np.inf
             worst = min(worst, ratio)
-            print(f"{path.stem:22} {signal:20} {path_move:10.2e} {solver_error:10.2e} {tube:10.2e} {ratio:11.1f}",
-                  flush=True)
+            print(
+                f"{path.stem:22} {signal:20} {path_move:10.2e} {solver_error:10.2e} {tube:10.2e} {ratio:11.1f}",
+                flush=True,
+            )
     print(f"smallest tube / solver error: {worst:.1f}")
     return 0 if worst >= 2 else 1
 

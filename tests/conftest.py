@@ -4,8 +4,7 @@ import pytest
 
 from heliostep.fmu.build import build_fmu
 
-MODELS = ("StepperMotor", "StepperMotorIdealCurrent", "PanelMechanics",
-          "PanelMechanicsSmallAngle", "DriveSystem")
+MODELS = ("StepperMotor", "StepperMotorIdealCurrent", "PanelMechanics", "PanelMechanicsSmallAngle", "DriveSystem")
 
 
 @pytest.fixture(scope="session")

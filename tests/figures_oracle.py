@@ -44,8 +44,18 @@ def step_outcomes(trace: pd.DataFrame, rotor_column: str, sequencer, schedule, s
         first = int(np.searchsorted(time, t_step, side="left"))  # the row at the step (before it)
         last = int(np.searchsorted(time, t_next, side="left"))  # the row at the next step (before it)
         last = min(max(last, first), len(time) - 1)
-        outcomes.append(step_outcome(t_step, commanded, previous, time[first:last + 1], rotor[first:last + 1], lag,
-                                     sequencer, settling_band))
+        outcomes.append(
+            step_outcome(
+                t_step,
+                commanded,
+                previous,
+                time[first : last + 1],
+                rotor[first : last + 1],
+                lag,
+                sequencer,
+                settling_band,
+            )
+        )
         previous = commanded
     return outcomes
 
@@ -70,12 +80,17 @@ def figures(trace: pd.DataFrame, metadata: Mapping) -> dict:
     if rotor_column in trace and len(trace):
         outcomes = step_outcomes(trace, rotor_column, sequencer, schedule)
         judged = judged_steps(outcomes, len(outcomes))
-        result.update(missed_steps=judged.missed_steps, steps_executed=judged.steps_executed,
-                      settling_time_s=judged.settling_time_s.record(), missed_step_times_s=judged.missed_step_times_s)
+        result.update(
+            missed_steps=judged.missed_steps,
+            steps_executed=judged.steps_executed,
+            settling_time_s=judged.settling_time_s.record(),
+            missed_step_times_s=judged.missed_step_times_s,
+        )
         behind = float(trace["rotor_angle_cmd"].iloc[-1] - trace[rotor_column].iloc[-1]) / sequencer.increment
         lag = float(trace["rotor_angle_cmd"].iloc[0] - trace[rotor_column].iloc[0]) / sequencer.increment
-        result["steps_lost"], result["final_lag_steps"] = lost_steps(behind, lag, sequencer, schedule,
-                                                                     float(time[0]), float(time[-1]))
+        result["steps_lost"], result["final_lag_steps"] = lost_steps(
+            behind, lag, sequencer, schedule, float(time[0]), float(time[-1])
+        )
         result["step_outcomes"] = [o.record() for o in outcomes]
     return result
 
@@ -93,14 +108,24 @@ def solution_figures(solution: pd.DataFrame, metadata: Mapping) -> dict:
 # (``TraceSummary``), and the summary at a cut recomputed from the rows up to the cut's step. The
 # run's single-pass summary is checked against it (tests/test_run_one_pass.py).
 
-_STEP_KEYS = ("missed_steps", "steps_executed", "settling_time_s", "missed_step_times_s", "steps_lost",
-              "final_lag_steps")
+_STEP_KEYS = (
+    "missed_steps",
+    "steps_executed",
+    "settling_time_s",
+    "missed_step_times_s",
+    "steps_lost",
+    "final_lag_steps",
+)
 
 
 def _old_step_fields(outcomes, commanded: int) -> dict:
     judged = judged_steps(outcomes, commanded)
-    return {"missed_steps": judged.missed_steps, "steps_executed": judged.steps_executed,
-            "settling_time_s": judged.settling_time_s.record(), "missed_step_times_s": judged.missed_step_times_s}
+    return {
+        "missed_steps": judged.missed_steps,
+        "steps_executed": judged.steps_executed,
+        "settling_time_s": judged.settling_time_s.record(),
+        "missed_step_times_s": judged.missed_step_times_s,
+    }
 
 
 def trace_summary_before(trace: pd.DataFrame, metadata: Mapping) -> dict:
@@ -125,8 +150,7 @@ def trace_summary_before(trace: pd.DataFrame, metadata: Mapping) -> dict:
     solution = metadata.get("solution_figures")
     chosen = dict(grid)
     if solution:
-        chosen.update({k: v for k, v in solution.items() if k not in _STEP_KEYS and k != "step_outcomes"
-                       and k in grid})
+        chosen.update({k: v for k, v in solution.items() if k not in _STEP_KEYS and k != "step_outcomes" and k in grid})
         outcomes = [o for o in solution.get("step_outcomes", []) if o["time_s"] <= end]
         if len(outcomes) == commanded and "step_outcomes" in grid:
             chosen.update(_old_step_fields([StepOutcome.from_record(o) for o in outcomes], commanded))
@@ -167,11 +191,14 @@ def summary_at_cut_before(trace: pd.DataFrame, metadata: Mapping, summary: dict)
     if not (missed_last or unsettled_last or (lost not in (None, 0))):
         return summary
     keep = times < last_step
-    drive_before = {**drive, "step_times": [float(t) for t in times[keep]],
-                    "step_indices": [int(k) for k in np.asarray(drive["step_indices"])[keep]]}
+    drive_before = {
+        **drive,
+        "step_times": [float(t) for t in times[keep]],
+        "step_indices": [int(k) for k in np.asarray(drive["step_indices"])[keep]],
+    }
     time = trace["time"].to_numpy()
     i = int(np.searchsorted(time, last_step, side="left"))
-    head = trace.iloc[:i + 1] if i < len(time) and time[i] == last_step else trace.iloc[:i]
+    head = trace.iloc[: i + 1] if i < len(time) and time[i] == last_step else trace.iloc[:i]
     fixed = dict(summary)
     keys = ("steps_commanded", *_STEP_KEYS)
     if len(head):

@@ -35,8 +35,24 @@ def ideal_current_motor(i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, 
     return di_a, di_b, torque, v_a, v_b, v_a * i_a + v_b * i_b
 
 
-def panel_mechanics(theta_p, omega_p, torque, m_ext, *, J_p, J_m, b, r, s,
-                    theta_p_start, theta_start, small_angle=False, T_c=0.08, M_c=3.3e-3, w_s=1e-2):
+def panel_mechanics(
+    theta_p,
+    omega_p,
+    torque,
+    m_ext,
+    *,
+    J_p,
+    J_m,
+    b,
+    r,
+    s,
+    theta_p_start,
+    theta_start,
+    small_angle=False,
+    T_c=0.08,
+    M_c=3.3e-3,
+    w_s=1e-2,
+):
     """Returns dtheta_p/dt, domega_p/dt, rotor angle, rotor speed.
 
     Exact form: Lagrange's equation with T = J_p w_p^2/2 + J_m (g w_p)^2/2 gives
@@ -53,6 +69,7 @@ def panel_mechanics(theta_p, omega_p, torque, m_ext, *, J_p, J_m, b, r, s,
         theta = theta_start + s / r * (np.tan(theta_p) - np.tan(theta_p_start))  # eqs. 12-14
     omega = ratio * omega_p
     friction = (T_c + M_c / ratio) * np.tanh(omega / w_s)
-    domega_p = ((ratio * (torque - friction) - b * omega_p - m_ext - J_m * ratio * dratio * omega_p**2)
-                / (J_p + J_m * ratio**2))  # eq. 10, exact form
+    domega_p = (ratio * (torque - friction) - b * omega_p - m_ext - J_m * ratio * dratio * omega_p**2) / (
+        J_p + J_m * ratio**2
+    )  # eq. 10, exact form
     return omega_p, domega_p, theta, omega

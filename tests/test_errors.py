@@ -28,8 +28,16 @@ def test_every_error_class_is_in_exactly_one_family():
     classes = _error_classes()
     names = {c.__name__ for c in classes}
     # the ones a reader would look for first must be found by the walk
-    assert {"InputError", "RunFailure", "BuildError", "FMIError", "SimulationError", "TraceWriteError",
-            "RunFailed", "ModelicaError"} <= names, names
+    assert {
+        "InputError",
+        "RunFailure",
+        "BuildError",
+        "FMIError",
+        "SimulationError",
+        "TraceWriteError",
+        "RunFailed",
+        "ModelicaError",
+    } <= names, names
     for cls in classes:
         if cls is HeliostepError:
             continue

@@ -11,8 +11,13 @@ from physics_reference import RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MO
 
 K_CURRENT = 100.0  # [V/A] loop gain of the averaged chopper (StepperMotor's default)
 COARSE = ("output.interval=30", "output.step_detail=0.01", "output.step_interval=0.005")
-FIGURES = ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
-           "electrical_energy_J")
+FIGURES = (
+    "max_tracking_error_deg",
+    "rms_tracking_error_deg",
+    "peak_torque_Nm",
+    "peak_phase_current_A",
+    "electrical_energy_J",
+)
 
 
 def _run(name, *overrides):
@@ -103,8 +108,9 @@ def test_weak_motor_lost_steps_are_what_the_rotor_angle_shows(fmu_paths):
         return np.arcsin(110.0 / (g * TABLE3_MOTOR["k_e"] * held)) / TABLE3_MOTOR["N_c"]
 
     first, last = trace.iloc[0], trace.iloc[-1]
-    assert first["rotor_angle_cmd"] - first["mechanics.theta"] == pytest.approx(lag(first["mechanics.theta_p"]),
-                                                                                  rel=1e-3)
+    assert first["rotor_angle_cmd"] - first["mechanics.theta"] == pytest.approx(
+        lag(first["mechanics.theta_p"]), rel=1e-3
+    )
     behind = (last["rotor_angle_cmd"] - last["mechanics.theta"] - lag(last["mechanics.theta_p"])) / STEP_ANGLE
     assert summary["steps_lost"] == round(behind) > 0
     assert abs(behind - round(behind)) < 0.05  # the rotor sits in a detent: whole steps lost
@@ -128,8 +134,12 @@ def test_idle_current_reduction_cuts_the_holding_energy_by_the_square_of_the_fra
     # the co-simulated drive: full current for idle_delay after each step (and the start), then
     # the fraction f of it; the holding loss is R (K i/(K+R))^2 per second at each level
     fraction, delay = 0.5, 0.5
-    run = _run("jan21-central", "window.duration=60", f"sequencer.idle_current_fraction={fraction}",
-               f"sequencer.idle_delay={delay}")
+    run = _run(
+        "jan21-central",
+        "window.duration=60",
+        f"sequencer.idle_current_fraction={fraction}",
+        f"sequencer.idle_delay={delay}",
+    )
     duration = run.summary["duration_s"]
     starts = np.concatenate([[0.0], run.inputs.schedule.times[run.inputs.schedule.times < duration]])
     spans = np.diff(np.concatenate([starts, [duration]]))

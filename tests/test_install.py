@@ -19,9 +19,23 @@ def installed(tmp_path_factory) -> Path:
     """heliostep installed non-editable into a folder of its own (its dependencies: this venv's)."""
     target = tmp_path_factory.mktemp("site")
     result = subprocess.run(
-        [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--no-index",
-         "--target", str(target), str(PROJECT)],
-        capture_output=True, text=True, timeout=300)
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--no-build-isolation",
+            "--no-index",
+            "--target",
+            str(target),
+            str(PROJECT),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     return target
 
@@ -30,8 +44,9 @@ def _run(installed: Path, cwd: Path, *args: str, env: dict | None = None) -> sub
     environment = {k: v for k, v in os.environ.items() if k not in ("HELIOSTEP_MODELS", "PYTHONPATH")}
     environment.update(PYTHONPATH=str(installed), **(env or {}))
     code = "import sys; from heliostep.cli import main; sys.exit(main(sys.argv[1:]))"
-    return subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, env=environment,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-c", code, *args], cwd=cwd, env=environment, capture_output=True, text=True, timeout=300
+    )
 
 
 def test_installed_package_carries_models_and_scenarios(installed):
@@ -45,16 +60,35 @@ def test_installed_package_carries_models_and_scenarios(installed):
 def test_shipped_scenario_runs_from_another_directory(installed, tmp_path, fmu_paths):
     where = _run(installed, tmp_path, "--version")
     assert where.returncode == 0
-    probe = subprocess.run([sys.executable, "-c", "import heliostep, heliostep.paths as p; "
-                            "print(heliostep.__file__); print(p.models_dir()); print(p.scenarios_dir())"],
-                           cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(installed)},
-                           capture_output=True, text=True, timeout=60)
+    probe = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import heliostep, heliostep.paths as p; "
+            "print(heliostep.__file__); print(p.models_dir()); print(p.scenarios_dir())",
+        ],
+        cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(installed)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     module, models, scenarios = probe.stdout.split()
     assert Path(module).is_relative_to(installed)  # the installed copy, not the checkout
     assert Path(models).is_relative_to(installed) and Path(scenarios).is_relative_to(installed)
     fmus = tmp_path / "cache"
-    result = _run(installed, tmp_path, "run", "jan21-central", "--set", "window.duration=3", "--no-plots",
-                  "--out", "result", env={"HELIOSTEP_FMUS": str(fmus)})
+    result = _run(
+        installed,
+        tmp_path,
+        "run",
+        "jan21-central",
+        "--set",
+        "window.duration=3",
+        "--no-plots",
+        "--out",
+        "result",
+        env={"HELIOSTEP_FMUS": str(fmus)},
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     summary = json.loads((tmp_path / "result" / "summary.json").read_text())
     assert summary["complete"] is True and summary["duration_s"] == pytest.approx(3.0)
@@ -69,8 +103,19 @@ def test_users_own_fmus_folder_beside_the_scenario(installed, tmp_path, fmu_path
     (tmp_path / "mine.yaml").write_text(scenario)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    result = _run(installed, elsewhere, "run", str(tmp_path / "mine.yaml"), "--set", "fmus.motor=VendorMotor",
-                  "--set", "window.duration=2", "--no-plots", "--out", "out")
+    result = _run(
+        installed,
+        elsewhere,
+        "run",
+        str(tmp_path / "mine.yaml"),
+        "--set",
+        "fmus.motor=VendorMotor",
+        "--set",
+        "window.duration=2",
+        "--no-plots",
+        "--out",
+        "out",
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     metadata = json.loads((elsewhere / "out" / "metadata.json").read_text())
     assert metadata["fmus"]["motor"]["path"] == str(tmp_path / "fmus" / "VendorMotor.fmu")

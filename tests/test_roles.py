@@ -11,7 +11,10 @@ from heliostep.run import run_scenario
 SCENARIO = scenarios_dir() / "jan21-central.yaml"
 SHORT = ("window.duration=60",)
 RENAMED = (
-    "fmus.motor=null", "fmus.mechanics=null", "fmus.coil=StepperMotor", "fmus.panel=PanelMechanics",
+    "fmus.motor=null",
+    "fmus.mechanics=null",
+    "fmus.coil=StepperMotor",
+    "fmus.panel=PanelMechanics",
     "connections=[[coil.tau, panel.tau], [panel.theta, coil.theta], [panel.omega, coil.omega]]",
     "roles={current_a_ref: coil.i_a_ref, current_b_ref: coil.i_b_ref, wind_moment: panel.m_ext, "
     "torque: coil.tau, current_a: coil.i_a, current_b: coil.i_b, power: coil.power, rotor_angle: panel.theta, "
@@ -29,12 +32,16 @@ def test_renamed_instances_give_the_same_figures():
     for key, value in default.summary.items():
         if key != "rows":
             assert renamed.summary[key] == value, key
-    assert renamed.metadata["parameters"]["panel"]["theta_p_start"] == default.metadata["parameters"]["mechanics"][
-        "theta_p_start"]
+    assert (
+        renamed.metadata["parameters"]["panel"]["theta_p_start"]
+        == default.metadata["parameters"]["mechanics"]["theta_p_start"]
+    )
 
 
 def test_renamed_instances_without_roles_name_the_missing_roles():
-    with pytest.raises(InputError, match=r"roles\.current_a_ref: the default 'motor\.i_a_ref' uses FMU instance 'motor'"):
+    with pytest.raises(
+        InputError, match=r"roles\.current_a_ref: the default 'motor\.i_a_ref' uses FMU instance 'motor'"
+    ):
         run_scenario(SCENARIO, SHORT + RENAMED[:-1])
 
 

@@ -1,17 +1,17 @@
 """run_scenario and 'heliostep run': the paper's case end to end, outputs, variants, bad input."""
 
-import json
 import hashlib
+import json
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from heliostep.paths import scenarios_dir
 from heliostep.cli import main
-from heliostep.run import RunFailed, run_scenario
+from heliostep.paths import scenarios_dir
 from heliostep.results.trace_io import read_trace
+from heliostep.run import RunFailed, run_scenario
 
 SCENARIOS = scenarios_dir()
 STEP = np.pi / 100  # 1.8 deg, Table 3
@@ -93,25 +93,40 @@ def test_paper_case_energy_is_the_holding_loss(paper_run):
     # phase) pushes the current by at most k_e omega / (K + R) more
     omega = np.abs(paper_run.trace["mechanics.omega"]).max()
     assert paper_run.summary["peak_phase_current_A"] <= RATED_CURRENT + TORQUE_CONSTANT * omega / (
-        LOOP_GAIN + PHASE_RESISTANCE)
+        LOOP_GAIN + PHASE_RESISTANCE
+    )
 
 
 def test_run_command_writes_trace_summary_metadata_and_plots(tmp_path, fmu_paths, capsys):
     out = tmp_path / "run"
-    status = main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out),
-                   "--set", "window.duration=30"])
+    status = main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--set", "window.duration=30"])
     assert status == 0
     assert "jan21-central: complete" in capsys.readouterr().out
-    for name in ("trace.parquet", "trace.csv", "summary.json", "metadata.json",
-                 "fig08_panel_angle_ref.png", "fig13_panel_tracking.png"):
+    for name in (
+        "trace.parquet",
+        "trace.csv",
+        "summary.json",
+        "metadata.json",
+        "fig08_panel_angle_ref.png",
+        "fig13_panel_tracking.png",
+    ):
         assert (out / name).stat().st_size > 0, name
     trace, meta = read_trace(out / "trace.parquet")
     assert meta["complete"] == "true" and meta["unit.motor.tau"] == "N.m"
     csv_trace, _ = read_trace(out / "trace.csv")
     np.testing.assert_array_equal(csv_trace["motor.tau"], trace["motor.tau"])
     summary = json.loads((out / "summary.json").read_text())
-    for key in ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
-                "electrical_energy_J", "steps_commanded", "steps_executed", "missed_steps", "settling_time_s"):
+    for key in (
+        "max_tracking_error_deg",
+        "rms_tracking_error_deg",
+        "peak_torque_Nm",
+        "peak_phase_current_A",
+        "electrical_energy_J",
+        "steps_commanded",
+        "steps_executed",
+        "missed_steps",
+        "settling_time_s",
+    ):
         assert key in summary
     metadata = json.loads((out / "metadata.json").read_text())
     motor = metadata["fmus"]["motor"]
@@ -120,8 +135,7 @@ def test_run_command_writes_trace_summary_metadata_and_plots(tmp_path, fmu_paths
 
 
 def test_variant_swap_is_one_set(fmu_paths):
-    run = run_scenario(SCENARIOS / "jan21-central.yaml",
-                       ["fmus.motor=StepperMotorIdealCurrent", "window.duration=30"])
+    run = run_scenario(SCENARIOS / "jan21-central.yaml", ["fmus.motor=StepperMotorIdealCurrent", "window.duration=30"])
     assert run.metadata["fmus"]["motor"]["path"].endswith("StepperMotorIdealCurrent.fmu")
     # the lagged currents reach their references exactly (no proportional-loop offset)
     assert run.summary["peak_phase_current_A"] == pytest.approx(RATED_CURRENT, rel=1e-6)
@@ -163,13 +177,21 @@ def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch,
     run = run_scenario(SCENARIOS / scenario, ["window.duration=60"])
     recorder = recorders[0]
     import pandas as pd
+
     frame = pd.DataFrame(np.vstack(recorder.kept), columns=recorder.columns)
     assert recorder.unordered == 0 and np.all(np.diff(frame["time"].to_numpy()) >= 0)
     expected = solution_figures(assemble_trace(frame, run.inputs, run.metadata["roles"]), run.metadata)
     streamed = run.metadata["solution_figures"]
     assert set(streamed) == set(expected)
-    for key in ("max_tracking_error_deg", "rms_tracking_error_deg", "peak_torque_Nm", "peak_phase_current_A",
-                "electrical_energy_J", "final_lag_steps", "end_time_s"):
+    for key in (
+        "max_tracking_error_deg",
+        "rms_tracking_error_deg",
+        "peak_torque_Nm",
+        "peak_phase_current_A",
+        "electrical_energy_J",
+        "final_lag_steps",
+        "end_time_s",
+    ):
         assert streamed[key] == pytest.approx(expected[key], rel=1e-9), key
     for key in ("missed_steps", "steps_executed", "missed_step_times_s", "steps_lost", "solution_rows"):
         assert streamed[key] == expected[key], key
@@ -184,15 +206,21 @@ def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch,
     assert 0 < recorder.max_held <= longest < len(frame) / 2
 
 
-@pytest.mark.parametrize("override, message", [
-    ("fmus.motor=NoSuchMotor", "jan21-central.yaml: fmus.motor: unknown FMU variant 'NoSuchMotor'"),
-    ("fmus.motor=missing/motor.fmu", "jan21-central.yaml: fmus.motor: FMU file not found"),
-    ("parameters.motor.Rxx=3", "has no parameter 'Rxx'"),
-    ("connections=[[motor.tau, mechanics.torque]]", "has no variable 'torque'"),
-    ("connections=[[motor.power, mechanics.tau], [mechanics.theta, motor.theta], [mechanics.omega, motor.omega]]",
-     "units differ"),
-    ("sequencer.mode=wave", "sequencer.mode"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("fmus.motor=NoSuchMotor", "jan21-central.yaml: fmus.motor: unknown FMU variant 'NoSuchMotor'"),
+        ("fmus.motor=missing/motor.fmu", "jan21-central.yaml: fmus.motor: FMU file not found"),
+        ("parameters.motor.Rxx=3", "has no parameter 'Rxx'"),
+        ("connections=[[motor.tau, mechanics.torque]]", "has no variable 'torque'"),
+        (
+            "connections=[[motor.power, mechanics.tau], [mechanics.theta, motor.theta], "
+            "[mechanics.omega, motor.omega]]",
+            "units differ",
+        ),
+        ("sequencer.mode=wave", "sequencer.mode"),
+    ],
+)
 def test_bad_input_is_a_clear_error_and_exit_status_2(tmp_path, fmu_paths, capsys, override, message):
     out = tmp_path / "out"
     status = main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--set", override])
@@ -203,8 +231,15 @@ def test_bad_input_is_a_clear_error_and_exit_status_2(tmp_path, fmu_paths, capsy
 
 
 def test_failure_mid_run_writes_the_trace_so_far_marked_incomplete(tmp_path, fmu_paths, capsys):
-    args = ["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(tmp_path), "--no-plots",
-            "--set", "solver.max_num_steps=40"]
+    args = [
+        "run",
+        str(SCENARIOS / "jan21-central.yaml"),
+        "--out",
+        str(tmp_path),
+        "--no-plots",
+        "--set",
+        "solver.max_num_steps=40",
+    ]
     assert main(args) == 1
     assert "simulation failed at t =" in capsys.readouterr().err
     trace, meta = read_trace(tmp_path / "trace.parquet")
@@ -219,16 +254,29 @@ def test_failure_mid_run_writes_the_trace_so_far_marked_incomplete(tmp_path, fmu
 SHORT = ["--set", "window.duration=2", "--no-plots"]
 
 
-@pytest.mark.parametrize("make_out", [
-    lambda tmp: tmp / "a-file" / "out",  # a parent is a regular file (refused even to root)
-    lambda tmp: tmp / "a-file",  # the --out itself is a file
-])
+@pytest.mark.parametrize(
+    "make_out",
+    [
+        lambda tmp: tmp / "a-file" / "out",  # a parent is a regular file (refused even to root)
+        lambda tmp: tmp / "a-file",  # the --out itself is a file
+    ],
+)
 def test_unusable_out_folder_is_refused_before_simulating(tmp_path, fmu_paths, capsys, make_out):
     (tmp_path / "a-file").write_text("not a folder")
     out = make_out(tmp_path)
     started = time.perf_counter()
-    status = main(["run", str(SCENARIOS / "jan21-day.yaml"), "--out", str(out), "--set", "window.end=null",
-                   "--set", "window.duration=864000"])  # ten days: a run of about 20 s if started
+    status = main(
+        [
+            "run",
+            str(SCENARIOS / "jan21-day.yaml"),
+            "--out",
+            str(out),
+            "--set",
+            "window.end=null",
+            "--set",
+            "window.duration=864000",
+        ]
+    )  # ten days: a run of about 20 s if started
     assert status == 2 and time.perf_counter() - started < 5
     err = capsys.readouterr().err
     assert str(out) in err and "Traceback" not in err
@@ -266,6 +314,7 @@ def test_write_failure_says_where_the_result_could_not_go(tmp_path, fmu_paths, c
     monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
     (tmp_path / "tmp").mkdir()
     import tempfile
+
     monkeypatch.setattr(tempfile, "tempdir", None)
     assert main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), *SHORT]) == 1
     err = capsys.readouterr().err
@@ -316,8 +365,10 @@ def test_rerun_removes_stale_files_of_its_own_kinds_only(tmp_path, fmu_paths, ca
 
 def test_night_window_warns_and_says_so_in_the_summary(tmp_path, fmu_paths, capsys):
     out = tmp_path / "out"
-    assert main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--set", "window.start=22:00",
-                 *SHORT]) == 0
+    assert (
+        main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--set", "window.start=22:00", *SHORT])
+        == 0
+    )
     assert "below the horizon" in capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["night"] is True and "below the horizon" in summary["warnings"][0]

@@ -22,8 +22,9 @@ GROUP = 23  # rows per row group (and per figure chunk)
 def runs(fmu_paths, tmp_path_factory):
     folder = tmp_path_factory.mktemp("figures")
     held = run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=False, row_group_rows=GROUP)
-    streamed = run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=folder,
-                            row_group_rows=GROUP)
+    streamed = run_scenario(
+        SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=folder, row_group_rows=GROUP
+    )
     return held, streamed
 
 
@@ -51,7 +52,7 @@ def test_a_run_without_trace_gives_the_same_figures_and_writes_only_its_summary(
     assert bare.metadata["statistics"]["figure_rows_held_max"] <= GROUP - 1 + 7
     assert not bare.trace_kept and bare.held_trace is None and bare.trace_file is None
     with pytest.raises(HeliostepError, match="kept no trace"):
-        bare.trace
+        _ = bare.trace
     assert sorted(bare.write(tmp_path / "out")) == ["metadata.json", "summary.json"]
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["metadata.json", "summary.json"]
 
@@ -73,12 +74,14 @@ def test_run_light_figures_are_the_integrals_of_the_whole_series(runs):
     series = light_timeseries(held.trace, held.metadata, held.scenario)
     time = series["time"].to_numpy()
     summary = held.summary
-    for name, key in (("ideal", "light_energy_ideal_J"), ("reference", "light_energy_reference_J"),
-                      ("actual", "light_energy_J")):
+    for name, key in (
+        ("ideal", "light_energy_ideal_J"),
+        ("reference", "light_energy_reference_J"),
+        ("actual", "light_energy_J"),
+    ):
         assert summary[key] == pytest.approx(np.trapezoid(series[f"power_{name}_W"].to_numpy(), time), rel=1e-12)
     weight = series["power_ideal_W"].to_numpy()
-    assert summary["mean_intercept"] == pytest.approx(np.average(series["intercept_actual"], weights=weight),
-                                                      rel=1e-12)
+    assert summary["mean_intercept"] == pytest.approx(np.average(series["intercept_actual"], weights=weight), rel=1e-12)
     lit = weight > 0
     assert summary["max_transverse_miss_m"] == np.nanmax(np.abs(series["transverse_miss_actual_m"][lit]))
     # a second-order check of the scale: P ~ DNI A cos rho tau alpha gamma, integrated over the window
@@ -92,8 +95,14 @@ def test_figures_in_other_chunks_agree_to_rounding(runs, chunk):
     from heliostep.results.trace import figure_columns
 
     held, _ = runs
-    figures = run_figures(held.trace, figure_columns(held.metadata["roles"]), held.metadata, held.scenario,
-                          block_rows=chunk, window=(held.inputs.window_start, held.inputs.duration))
+    figures = run_figures(
+        held.trace,
+        figure_columns(held.metadata["roles"]),
+        held.metadata,
+        held.scenario,
+        block_rows=chunk,
+        window=(held.inputs.window_start, held.inputs.duration),
+    )
     other = figures.summary().figures()
     assert figures.chunks == -(-len(held.trace) // chunk)
     energies = ("light_energy_ideal_J", "light_energy_reference_J", "light_energy_J")
@@ -117,11 +126,17 @@ def test_light_integrals_in_blocks_equal_those_of_the_whole(runs, block):
     whole(trace)
     parts = LightIntegrals(held.metadata, held.scenario)
     for start in range(0, len(trace), block):
-        parts(trace.iloc[start:start + block])
+        parts(trace.iloc[start : start + block])
     assert parts.max_block_rows == min(block, len(trace))
     a, b = whole.figures(), parts.figures()
-    for key in ("light_energy_ideal_J", "light_energy_reference_J", "light_energy_J", "mean_intercept",
-                "max_transverse_miss_m", "max_longitudinal_miss_m"):
+    for key in (
+        "light_energy_ideal_J",
+        "light_energy_reference_J",
+        "light_energy_J",
+        "mean_intercept",
+        "max_transverse_miss_m",
+        "max_longitudinal_miss_m",
+    ):
         assert b[key] == pytest.approx(a[key], rel=1e-12), key
 
 

@@ -30,8 +30,7 @@ def _assert_summary_is_the_traces(run) -> None:
 @pytest.mark.parametrize("scenario", ["jan21-central.yaml", "jan21-weak-motor.yaml"])
 @pytest.mark.parametrize("stream", [False, True])
 @pytest.mark.parametrize("fraction", [0.15, 0.4, 0.6, 0.85, 0.97])
-def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, monkeypatch, scenario, stream,
-                                                         fraction):
+def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, monkeypatch, scenario, stream, fraction):
     import heliostep.run.runner as runner
 
     monkeypatch.setattr(runner, "SINK_ROWS", 5)
@@ -45,8 +44,14 @@ def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, mo
         return len(calls) > stops_after
 
     with pytest.raises(RunFailed) as failed:
-        run_scenario(SCENARIOS / scenario, WINDOWS[scenario], stream=stream, trace_dir=tmp_path if stream else None,
-                     row_group_rows=23, should_stop=should_stop)
+        run_scenario(
+            SCENARIOS / scenario,
+            WINDOWS[scenario],
+            stream=stream,
+            trace_dir=tmp_path if stream else None,
+            row_group_rows=23,
+            should_stop=should_stop,
+        )
     run = failed.value.result
     assert run.reason == "interrupted" and run.trace_rows > 0
     _assert_summary_is_the_traces(run)
@@ -64,6 +69,7 @@ def test_failed_run_summary_is_that_of_the_trace_so_far(fmu_paths):
 
 @pytest.mark.parametrize("stream", [False, True])
 def test_complete_run_summary_is_that_of_the_trace(fmu_paths, tmp_path, stream):
-    run = run_scenario(SCENARIOS / "jan21-weak-motor.yaml", WINDOW, stream=stream, trace_dir=tmp_path,
-                       row_group_rows=23)
+    run = run_scenario(
+        SCENARIOS / "jan21-weak-motor.yaml", WINDOW, stream=stream, trace_dir=tmp_path, row_group_rows=23
+    )
     _assert_summary_is_the_traces(run)

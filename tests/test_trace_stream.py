@@ -31,8 +31,9 @@ def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_p
 
     monkeypatch.setattr(run_module, "SINK_ROWS", 5)  # the master's blocks: 5 rows, cut anywhere
     rows_per_group = 23
-    streamed = run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=tmp_path,
-                            row_group_rows=rows_per_group)
+    streamed = run_scenario(
+        SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=tmp_path, row_group_rows=rows_per_group
+    )
     assert streamed.held_trace is None and streamed.trace_file.parent == tmp_path
     n = len(held.trace)
     assert n > 10 * rows_per_group
@@ -73,7 +74,7 @@ def test_trace_assembled_block_by_block_equals_the_whole(held, block):
     derived = ["panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error"]
     master = held.trace.drop(columns=derived)
     assembler = TraceAssembler(held.inputs, held.metadata["roles"])
-    parts = [assembler(master.iloc[k:k + block].reset_index(drop=True)) for k in range(0, len(master), block)]
+    parts = [assembler(master.iloc[k : k + block].reset_index(drop=True)) for k in range(0, len(master), block)]
     pd.testing.assert_frame_equal(pd.concat(parts, ignore_index=True), held.trace, check_exact=True)
     assert assembler.columns(list(master.columns)) == list(held.trace.columns)
 
@@ -87,12 +88,17 @@ def test_csv_copy_in_small_batches_equals_the_parquet(held, tmp_path):
 
 def test_master_holds_at_most_one_block_of_the_sink(fmu_paths):
     drive = {"motor": read_fmu(fmu_paths["StepperMotor"]), "mechanics": read_fmu(fmu_paths["PanelMechanics"])}
-    connections = [Connection("motor.tau", "mechanics.tau"), Connection("mechanics.theta", "motor.theta"),
-                   Connection("mechanics.omega", "motor.omega")]
+    connections = [
+        Connection("motor.tau", "mechanics.tau"),
+        Connection("mechanics.theta", "motor.theta"),
+        Connection("mechanics.omega", "motor.omega"),
+    ]
     steps = np.array([0.05, 0.15, 0.25])
     i_a, i_b = Sequencer().reference_currents(np.array([0, 1, 2, 3]))
-    inputs = [PiecewiseConstant("i_a_ref", "motor.i_a_ref", steps, i_a),
-              PiecewiseConstant("i_b_ref", "motor.i_b_ref", steps, i_b)]
+    inputs = [
+        PiecewiseConstant("i_a_ref", "motor.i_a_ref", steps, i_a),
+        PiecewiseConstant("i_b_ref", "motor.i_b_ref", steps, i_b),
+    ]
     grid = np.round(np.arange(0.0, 0.3 + 1e-9, 1e-3), 12)
     whole = CoSimulation(drive, connections, inputs).simulate(0.0, 0.3, grid)
     # 301 grid rows and two rows at each of the 3 steps (before and after): rows = 301 + 3
@@ -107,12 +113,13 @@ def test_master_holds_at_most_one_block_of_the_sink(fmu_paths):
     blocks.clear()
     calls = []
     with pytest.raises(SimulationError) as stopped:
-        CoSimulation(drive, connections, inputs).simulate(0.0, 0.3, grid, sink=blocks.append, sink_rows=16,
-                                                          should_stop=lambda: calls.append(1) or len(calls) > 100)
+        CoSimulation(drive, connections, inputs).simulate(
+            0.0, 0.3, grid, sink=blocks.append, sink_rows=16, should_stop=lambda: calls.append(1) or len(calls) > 100
+        )
     assert stopped.value.reason == "interrupted" and len(stopped.value.trace) == 0
     rows = np.vstack(blocks)
     assert rows[-1, 0] == pytest.approx(stopped.value.time) and 50 < len(rows) < len(whole.trace)
-    np.testing.assert_array_equal(rows, whole.trace.to_numpy()[:len(rows)])
+    np.testing.assert_array_equal(rows, whole.trace.to_numpy()[: len(rows)])
 
 
 def test_interrupted_stream_is_written_marked_and_claims_nothing_while_written(fmu_paths, tmp_path):
@@ -127,8 +134,14 @@ def test_interrupted_stream_is_written_marked_and_claims_nothing_while_written(f
         return len(seen) > 2  # (asked between solver calls and blocks of solver steps)
 
     with pytest.raises(RunFailed) as failed:
-        run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=tmp_path, row_group_rows=10,
-                     should_stop=should_stop)
+        run_scenario(
+            SCENARIOS / "jan21-central.yaml",
+            WINDOW,
+            stream=True,
+            trace_dir=tmp_path,
+            row_group_rows=10,
+            should_stop=should_stop,
+        )
     run = failed.value.result
     assert run.reason == "interrupted" and len(seen) == 3
     trace, meta = read_trace(run.trace_file)
@@ -142,12 +155,36 @@ def test_interrupted_stream_is_written_marked_and_claims_nothing_while_written(f
 
 def test_long_window_streams_its_trace_and_draws_every_figure_from_the_file(fmu_paths, tmp_path):
     out = tmp_path / "out"
-    assert main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--no-csv",
-                 "--set", "window.duration=3700", "--set", "output.interval=10"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(SCENARIOS / "jan21-central.yaml"),
+                "--out",
+                str(out),
+                "--no-csv",
+                "--set",
+                "window.duration=3700",
+                "--set",
+                "output.interval=10",
+            ]
+        )
+        == 0
+    )
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["fig08_panel_angle_ref.png", "fig09_rotor_angle_ref.png", "fig10_phase_currents.png",
-                     "fig11_torque.png", "fig12_rotor_angle.png", "fig13_panel_tracking.png",
-                     "fig14_torque_zoom.png", "metadata.json", "power_on_tube.png", "summary.json", "trace.parquet"]
+    assert names == [
+        "fig08_panel_angle_ref.png",
+        "fig09_rotor_angle_ref.png",
+        "fig10_phase_currents.png",
+        "fig11_torque.png",
+        "fig12_rotor_angle.png",
+        "fig13_panel_tracking.png",
+        "fig14_torque_zoom.png",
+        "metadata.json",
+        "power_on_tube.png",
+        "summary.json",
+        "trace.parquet",
+    ]
     summary = json.loads((out / "summary.json").read_text())
     metadata = json.loads((out / "metadata.json").read_text())
     trace, meta = read_trace(out / "trace.parquet")
@@ -183,8 +220,9 @@ def test_a_write_failing_mid_stream_keeps_the_row_groups_written(fmu_paths, tmp_
     import sys
 
     limit = 200_000  # bytes: about 6 of the ~14 row groups of 256 rows
-    process = subprocess.run([sys.executable, "-c", FULL_DISK_SCRIPT, str(tmp_path), str(limit)],
-                             capture_output=True, text=True, timeout=120)
+    process = subprocess.run(
+        [sys.executable, "-c", FULL_DISK_SCRIPT, str(tmp_path), str(limit)], capture_output=True, text=True, timeout=120
+    )
     assert process.returncode == 1, process.stderr
     held = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=600"], stream=False)
     trace, meta = read_trace(tmp_path / "trace.parquet")

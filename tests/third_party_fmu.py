@@ -21,12 +21,23 @@ from pathlib import Path
 
 SOURCE_DIR = Path(__file__).parent / "data" / "bouncing_ball"
 MODEL_IDENTIFIER = "BouncingBall"
-CFLAGS = ["-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
-          "-Wall", "-Wextra", "-Werror"]
+CFLAGS = ["-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror"]
 
 #: value references, as in modelDescription.xml
-VR = {"time": 0, "h": 1, "der(h)": 2, "v": 3, "der(v)": 4, "g": 5, "e": 6, "h0": 7,
-      "t_kick": 8, "f": 9, "height": 10, "bounce_count": 11}
+VR = {
+    "time": 0,
+    "h": 1,
+    "der(h)": 2,
+    "v": 3,
+    "der(v)": 4,
+    "g": 5,
+    "e": 6,
+    "h0": 7,
+    "t_kick": 8,
+    "f": 9,
+    "height": 10,
+    "bounce_count": 11,
+}
 
 
 def fmi2_headers() -> Path:
@@ -41,8 +52,13 @@ def build_bouncing_ball(out_dir: Path) -> Path:
 
     Raises :class:`RuntimeError` with gcc's output when the compilation fails.
     """
-    return _compile_and_pack(MODEL_IDENTIFIER, [SOURCE_DIR / "bouncing_ball.c"], [],
-                             (SOURCE_DIR / "modelDescription.xml").read_text(), out_dir)
+    return _compile_and_pack(
+        MODEL_IDENTIFIER,
+        [SOURCE_DIR / "bouncing_ball.c"],
+        [],
+        (SOURCE_DIR / "modelDescription.xml").read_text(),
+        out_dir,
+    )
 
 
 # ---------------------------------------------------------------------- the mini FMUs
@@ -52,71 +68,97 @@ def build_bouncing_ball(out_dir: Path) -> Path:
 #: its value reference is its index (as in the C source).
 MINI_DIR = Path(__file__).parent / "data" / "mini"
 MINI_FMUS = {
-    "Counter": ("counter.c", "{c0a7e1f2-0001-4000-8000-000000000001}", 0, [
-        ("count", "Integer", "output", "discrete", None, None),
-        ("x", "Real", "output", "continuous", 0.0, None),
-        ("der(x)", "Real", "local", "continuous", None, "x"),
-        ("period", "Real", "parameter", "fixed", 1.0, None),
-        ("t_stop", "Real", "parameter", "fixed", 9.0, None),
-        ("half", "Real", "output", "discrete", None, None),
-        ("even", "Boolean", "output", "discrete", None, None),
-        ("step", "Integer", "parameter", "fixed", 1, None),
-        ("enabled", "Boolean", "parameter", "fixed", True, None),
-        ("ticks", "Integer", "local", "discrete", None, None),
-    ]),
-    "PassThrough": ("pass_through.c", "{c0a7e1f2-0002-4000-8000-000000000002}", 0, [
-        ("u_c", "Real", "input", "continuous", 0.0, None),
-        ("u_d", "Real", "input", "discrete", 0.0, None),
-        ("u_i", "Integer", "input", "discrete", 0, None),
-        ("u_b", "Boolean", "input", "discrete", False, None),
-        ("y_c", "Real", "output", "continuous", None, None),
-        ("y_d", "Real", "output", "discrete", None, None),
-        ("y_i", "Integer", "output", "discrete", None, None),
-        ("y_b", "Boolean", "output", "discrete", None, None),
-        ("integral", "Real", "output", "continuous", 0.0, None),
-        ("der(integral)", "Real", "local", "continuous", None, "integral"),
-        ("u_max", "Real", "parameter", "fixed", 1e300, None),
-    ]),
-    "Switch": ("switch.c", "{c0a7e1f2-0003-4000-8000-000000000003}", 1, [
-        ("x", "Real", "output", "continuous", 0.0, None),
-        ("der(x)", "Real", "local", "continuous", None, "x"),
-        ("on", "Boolean", "output", "discrete", None, None),
-        ("switches", "Integer", "output", "discrete", None, None),
-        ("up", "Real", "parameter", "fixed", 1.0, None),
-        ("down", "Real", "parameter", "fixed", 2.0, None),
-        ("high", "Real", "parameter", "fixed", 1.0, None),
-    ]),
-    "Gain": ("gain.c", "{c0a7e1f2-0004-4000-8000-000000000004}", 0, [
-        ("u", "Real", "input", "continuous", 0.0, None),
-        ("y", "Real", "output", "continuous", None, None),
-        ("k", "Real", "parameter", "fixed", 0.5, None),
-        ("b", "Real", "parameter", "fixed", 1.0, None),
-        ("s", "Real", "output", "continuous", 0.0, None),
-        ("der(s)", "Real", "local", "continuous", None, "s"),
-    ]),
-    "Rescale": ("rescale.c", "{c0a7e1f2-0005-4000-8000-000000000005}", 0, [
-        ("x", "Real", "output", "continuous", 1.0, None),
-        ("der(x)", "Real", "local", "continuous", None, "x"),
-        ("period", "Real", "parameter", "fixed", 0.25, None),
-        ("t_switch", "Real", "parameter", "fixed", 1.0, None),
-        ("small", "Real", "parameter", "fixed", 1e-4, None),
-        ("nominal_reads", "Integer", "output", "discrete", None, None),
-        ("switched", "Boolean", "output", "discrete", None, None),
-    ]),
+    "Counter": (
+        "counter.c",
+        "{c0a7e1f2-0001-4000-8000-000000000001}",
+        0,
+        [
+            ("count", "Integer", "output", "discrete", None, None),
+            ("x", "Real", "output", "continuous", 0.0, None),
+            ("der(x)", "Real", "local", "continuous", None, "x"),
+            ("period", "Real", "parameter", "fixed", 1.0, None),
+            ("t_stop", "Real", "parameter", "fixed", 9.0, None),
+            ("half", "Real", "output", "discrete", None, None),
+            ("even", "Boolean", "output", "discrete", None, None),
+            ("step", "Integer", "parameter", "fixed", 1, None),
+            ("enabled", "Boolean", "parameter", "fixed", True, None),
+            ("ticks", "Integer", "local", "discrete", None, None),
+        ],
+    ),
+    "PassThrough": (
+        "pass_through.c",
+        "{c0a7e1f2-0002-4000-8000-000000000002}",
+        0,
+        [
+            ("u_c", "Real", "input", "continuous", 0.0, None),
+            ("u_d", "Real", "input", "discrete", 0.0, None),
+            ("u_i", "Integer", "input", "discrete", 0, None),
+            ("u_b", "Boolean", "input", "discrete", False, None),
+            ("y_c", "Real", "output", "continuous", None, None),
+            ("y_d", "Real", "output", "discrete", None, None),
+            ("y_i", "Integer", "output", "discrete", None, None),
+            ("y_b", "Boolean", "output", "discrete", None, None),
+            ("integral", "Real", "output", "continuous", 0.0, None),
+            ("der(integral)", "Real", "local", "continuous", None, "integral"),
+            ("u_max", "Real", "parameter", "fixed", 1e300, None),
+        ],
+    ),
+    "Switch": (
+        "switch.c",
+        "{c0a7e1f2-0003-4000-8000-000000000003}",
+        1,
+        [
+            ("x", "Real", "output", "continuous", 0.0, None),
+            ("der(x)", "Real", "local", "continuous", None, "x"),
+            ("on", "Boolean", "output", "discrete", None, None),
+            ("switches", "Integer", "output", "discrete", None, None),
+            ("up", "Real", "parameter", "fixed", 1.0, None),
+            ("down", "Real", "parameter", "fixed", 2.0, None),
+            ("high", "Real", "parameter", "fixed", 1.0, None),
+        ],
+    ),
+    "Gain": (
+        "gain.c",
+        "{c0a7e1f2-0004-4000-8000-000000000004}",
+        0,
+        [
+            ("u", "Real", "input", "continuous", 0.0, None),
+            ("y", "Real", "output", "continuous", None, None),
+            ("k", "Real", "parameter", "fixed", 0.5, None),
+            ("b", "Real", "parameter", "fixed", 1.0, None),
+            ("s", "Real", "output", "continuous", 0.0, None),
+            ("der(s)", "Real", "local", "continuous", None, "s"),
+        ],
+    ),
+    "Rescale": (
+        "rescale.c",
+        "{c0a7e1f2-0005-4000-8000-000000000005}",
+        0,
+        [
+            ("x", "Real", "output", "continuous", 1.0, None),
+            ("der(x)", "Real", "local", "continuous", None, "x"),
+            ("period", "Real", "parameter", "fixed", 0.25, None),
+            ("t_switch", "Real", "parameter", "fixed", 1.0, None),
+            ("small", "Real", "parameter", "fixed", 1e-4, None),
+            ("nominal_reads", "Integer", "output", "discrete", None, None),
+            ("switched", "Boolean", "output", "discrete", None, None),
+        ],
+    ),
 }
 #: direct feedthrough: model -> output -> the input it depends on
-_FEEDTHROUGH = {"PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"},
-                "Gain": {"y": "u"}}
+_FEEDTHROUGH = {"PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"}, "Gain": {"y": "u"}}
 
 
 def _model_description(name: str) -> str:
     _, guid, n_indicators, variables = MINI_FMUS[name]
     index = {v[0]: k + 1 for k, v in enumerate(variables)}
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>',
-             f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" '
-             f'numberOfEventIndicators="{n_indicators}" variableNamingConvention="structured">',
-             f'  <ModelExchange modelIdentifier="{name}"/>',
-             '  <ModelVariables>']
+    lines = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" '
+        f'numberOfEventIndicators="{n_indicators}" variableNamingConvention="structured">',
+        f'  <ModelExchange modelIdentifier="{name}"/>',
+        "  <ModelVariables>",
+    ]
     for vr, (var, type_, causality, variability, start, derivative) in enumerate(variables):
         attributes = f'name="{var}" valueReference="{vr}" causality="{causality}" variability="{variability}"'
         if start is not None and causality in ("output", "local"):
@@ -127,32 +169,34 @@ def _model_description(name: str) -> str:
             element += f' start="{text}"'
         if derivative:
             element += f' derivative="{index[derivative]}"'
-        lines.append(f'    <ScalarVariable {attributes}><{type_}{element}/></ScalarVariable>')
-    lines += ['  </ModelVariables>', '  <ModelStructure>', '    <Outputs>']
+        lines.append(f"    <ScalarVariable {attributes}><{type_}{element}/></ScalarVariable>")
+    lines += ["  </ModelVariables>", "  <ModelStructure>", "    <Outputs>"]
     for var, *_ in (v for v in variables if v[2] == "output"):
         source = _FEEDTHROUGH.get(name, {}).get(var)
         deps = f' dependencies="{index[source]}"' if source else ' dependencies=""'
         lines.append(f'      <Unknown index="{index[var]}"{deps}/>')
-    lines += ['    </Outputs>', '    <Derivatives>']
+    lines += ["    </Outputs>", "    <Derivatives>"]
     derivatives = [v for v in variables if v[5]]
     for var, *_ in derivatives:
         lines.append(f'      <Unknown index="{index[var]}"/>')
-    lines += ['    </Derivatives>', '    <InitialUnknowns>']
-    for var, type_, causality, variability, start, derivative in variables:
+    lines += ["    </Derivatives>", "    <InitialUnknowns>"]
+    for var, _type, causality, _variability, start, derivative in variables:
         if (causality == "output" and start is None) or derivative:
             lines.append(f'      <Unknown index="{index[var]}"/>')
-    lines += ['    </InitialUnknowns>', '  </ModelStructure>', '</fmiModelDescription>', '']
+    lines += ["    </InitialUnknowns>", "  </ModelStructure>", "</fmiModelDescription>", ""]
     return "\n".join(lines)
 
 
 def build_mini_fmu(name: str, out_dir: Path, platform: str = "linux64") -> Path:
     """Compile the mini FMU ``name`` (Counter, PassThrough, Switch, Gain, Rescale) into ``out_dir/<name>.fmu``."""
-    return _compile_and_pack(name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], _model_description(name),
-                             out_dir, platform)
+    return _compile_and_pack(
+        name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], _model_description(name), out_dir, platform
+    )
 
 
-def _compile_and_pack(identifier: str, sources, includes, model_description: str, out_dir: Path,
-                      platform: str = "linux64") -> Path:
+def _compile_and_pack(
+    identifier: str, sources, includes, model_description: str, out_dir: Path, platform: str = "linux64"
+) -> Path:
     """Compile ``sources`` with gcc against fmpy's FMI headers and pack ``out_dir/<identifier>.fmu``.
 
     Raises :class:`RuntimeError` with gcc's output when the compilation fails.
@@ -163,12 +207,22 @@ def _compile_and_pack(identifier: str, sources, includes, model_description: str
     with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
         library = Path(tmp) / f"{identifier}.so"
         gcc = shutil.which("gcc") or "gcc"
-        command = [gcc, *CFLAGS, "-I", str(fmi2_headers()), *[arg for folder in includes for arg in ("-I", str(folder))],
-                   *map(str, sources), "-o", str(library), "-lm"]
+        command = [
+            gcc,
+            *CFLAGS,
+            "-I",
+            str(fmi2_headers()),
+            *[arg for folder in includes for arg in ("-I", str(folder))],
+            *map(str, sources),
+            "-o",
+            str(library),
+            "-lm",
+        ]
         completed = subprocess.run(command, capture_output=True, text=True)
         if completed.returncode != 0:
-            raise RuntimeError(f"compiling {identifier} failed:\n{' '.join(command)}\n"
-                               f"{completed.stdout}{completed.stderr}")
+            raise RuntimeError(
+                f"compiling {identifier} failed:\n{' '.join(command)}\n{completed.stdout}{completed.stderr}"
+            )
         partial = Path(tmp) / fmu_path.name
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as fmu:
             fmu.writestr("modelDescription.xml", model_description)

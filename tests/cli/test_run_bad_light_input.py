@@ -21,8 +21,16 @@ def _run(tmp_path, capsys, *overrides):
     return status, capsys.readouterr().err
 
 
-@pytest.mark.parametrize("key, value", [("mirror_area", -1.5), ("tube_diameter", -0.07), ("reflectivity", 1.2),
-                                        ("transmittance", -0.1), ("absorptance", 2)])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("mirror_area", -1.5),
+        ("tube_diameter", -0.07),
+        ("reflectivity", 1.2),
+        ("transmittance", -0.1),
+        ("absorptance", 2),
+    ],
+)
 def test_bad_optics_value_is_exit_2_naming_the_file_and_key(tmp_path, capsys, key, value):
     status, err = _run(tmp_path, capsys, f"optics.{key}={value}")
     assert status == 2
@@ -30,11 +38,14 @@ def test_bad_optics_value_is_exit_2_naming_the_file_and_key(tmp_path, capsys, ke
     assert not (tmp_path / "out").exists()  # found before anything was written
 
 
-@pytest.mark.parametrize("make, expected", [
-    (lambda p: p.write_text("not a weather file\n") and p, "cannot read"),
-    (lambda p: write_epw(p, latitude=48.0, longitude=14.25), "latitude 48"),  # another site
-    (lambda p: write_epw(p, latitude=40.0, longitude=14.25, month=6, day=21), "does not cover the window"),
-])
+@pytest.mark.parametrize(
+    "make, expected",
+    [
+        (lambda p: p.write_text("not a weather file\n") and p, "cannot read"),
+        (lambda p: write_epw(p, latitude=48.0, longitude=14.25), "latitude 48"),  # another site
+        (lambda p: write_epw(p, latitude=40.0, longitude=14.25, month=6, day=21), "does not cover the window"),
+    ],
+)
 def test_bad_weather_file_is_exit_2_naming_the_file_and_key(tmp_path, capsys, make, expected):
     path = tmp_path / "site.epw"
     make(path)

@@ -32,8 +32,13 @@ def _fmu_dirs(tmp: Path) -> list[str]:
 def _popen(args: list[str], tmp: Path) -> subprocess.Popen:
     """The command in a subprocess with its own TMPDIR (to see what it leaves there)."""
     tmp.mkdir(exist_ok=True)
-    return subprocess.Popen([*HELIOSTEP, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "TMPDIR": str(tmp)})
+    return subprocess.Popen(
+        [*HELIOSTEP, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "TMPDIR": str(tmp)},
+    )
 
 
 def _wait_for_fmus(tmp: Path, process: subprocess.Popen, timeout: float = 60.0) -> None:
@@ -111,9 +116,11 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
 @pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_signal_stops_sweep_cleanly_and_leaves_no_temporary_folder(sig, status, tmp_path, fmu_paths):
     sweep = tmp_path / "sweep.yaml"
-    sweep.write_text(f"name: sigtest\nbase: {SCENARIOS / 'jan21-central.yaml'}\ncombine: product\n"
-                     f"axes:\n  day_of_year: {list(range(21, 61))}\n"  # far more than 6 s of cases
-                     "overrides:\n  window.duration: 7200\n  output.interval: 10.0\n")
+    sweep.write_text(
+        f"name: sigtest\nbase: {SCENARIOS / 'jan21-central.yaml'}\ncombine: product\n"
+        f"axes:\n  day_of_year: {list(range(21, 61))}\n"  # far more than 6 s of cases
+        "overrides:\n  window.duration: 7200\n  output.interval: 10.0\n"
+    )
     out = tmp_path / "out"
     process = _popen(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-plots"], tmp_path / "tmp")
     time.sleep(6.0)
@@ -135,8 +142,10 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
     complete; the first signal only asks to stop). The second one ends the command there: exit 130
     at once, the figures' staging folder and every temporary file removed, no traceback."""
     out = tmp_path / "run"
-    process = _popen(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out),
-                      "--set", "window.duration=120"], tmp_path / "tmp")
+    process = _popen(
+        ["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--set", "window.duration=120"],
+        tmp_path / "tmp",
+    )
     deadline = time.monotonic() + 60.0
     while not list(out.glob(".heliostep-tmp-figures-*")):  # drawing has begun
         assert process.poll() is None, process.communicate()
@@ -170,6 +179,9 @@ def test_second_signal_mid_simulation_removes_the_trace_stream(tmp_path, fmu_pat
     _signal_twice(process, signal.SIGTERM, 0.03, 143, out)
     for name in ("trace.parquet", "summary.json"):  # if it got as far as renaming, it says incomplete
         if (out / name).exists():
-            assert "true" not in (read_trace(out / name)[1]["complete"] if name.endswith("parquet")
-                                  else str(json.loads((out / name).read_text())["complete"]).lower())
+            assert "true" not in (
+                read_trace(out / name)[1]["complete"]
+                if name.endswith("parquet")
+                else str(json.loads((out / name).read_text())["complete"]).lower()
+            )
     assert _fmu_dirs(tmp_path / "tmp") == [], "FMU unpack folder left behind"

@@ -14,7 +14,6 @@ import zipfile
 import numpy as np
 import pytest
 from fmpy import simulate_fmu
-from third_party_fmu import build_mini_fmu
 
 from heliostep.cosim import (
     Connection,
@@ -25,6 +24,7 @@ from heliostep.cosim import (
 )
 from heliostep.cosim.fmi import FMIError, ModelExchangeInstance
 from heliostep.errors import InputError
+from third_party_fmu import build_mini_fmu
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +41,14 @@ def infos(mini):
 def connected(infos, **parameters):
     system = CoSimulation(
         {"counter": infos["Counter"], "pt": infos["PassThrough"], "sw": infos["Switch"]},
-        [Connection("counter.count", "pt.u_i"), Connection("counter.half", "pt.u_d"),
-         Connection("sw.on", "pt.u_b"), Connection("sw.x", "pt.u_c")], parameters=parameters)
+        [
+            Connection("counter.count", "pt.u_i"),
+            Connection("counter.half", "pt.u_d"),
+            Connection("sw.on", "pt.u_b"),
+            Connection("sw.x", "pt.u_c"),
+        ],
+        parameters=parameters,
+    )
     return system.simulate(0.0, 12.0, np.arange(0.0, 12.01, 0.5))
 
 
@@ -55,8 +61,13 @@ def at(trace, t):
 def test_read_fmu_knows_every_variable_type(infos):
     counter = infos["Counter"]
     assert {n: counter.variables[n].type for n in ("count", "x", "half", "even", "step", "enabled")} == {
-        "count": "Integer", "x": "Real", "half": "Real", "even": "Boolean", "step": "Integer",
-        "enabled": "Boolean"}
+        "count": "Integer",
+        "x": "Real",
+        "half": "Real",
+        "even": "Boolean",
+        "step": "Integer",
+        "enabled": "Boolean",
+    }
     assert counter.variables["enabled"].start == 1.0 and counter.variables["step"].start == 1.0
     assert counter.variables["half"].discrete and not counter.variables["x"].discrete
     assert counter.traced_outputs == ["count", "x", "half", "even"]
@@ -65,8 +76,9 @@ def test_read_fmu_knows_every_variable_type(infos):
 def test_counter_alone_matches_fmpy_and_terminates_at_9_s(mini, infos):
     grid = np.arange(0.0, 12.01, 0.5)
     ours = CoSimulation({"c": infos["Counter"]}).simulate(0.0, 12.0, grid)
-    theirs = simulate_fmu(str(mini["Counter"]), stop_time=12.0, output_interval=0.5, solver="CVode",
-                          output=["count", "x", "half", "even"])
+    theirs = simulate_fmu(
+        str(mini["Counter"]), stop_time=12.0, output_interval=0.5, solver="CVode", output=["count", "x", "half", "even"]
+    )
     # fmpy ends at the terminate request too
     assert theirs["time"][-1] == pytest.approx(9.0)
     assert ours.terminated and ours.termination_time == pytest.approx(9.0)
@@ -100,8 +112,9 @@ def test_integer_and_boolean_parameters_are_set_with_their_own_functions(infos):
 
 def test_switch_alone_matches_fmpy_and_switches_at_the_exact_times(mini, infos):
     ours = CoSimulation({"s": infos["Switch"]}).simulate(0.0, 4.0, np.arange(0.0, 4.01, 0.25)).trace
-    theirs = simulate_fmu(str(mini["Switch"]), stop_time=4.0, output_interval=0.25, solver="CVode",
-                          output=["x", "on", "switches"])
+    theirs = simulate_fmu(
+        str(mini["Switch"]), stop_time=4.0, output_interval=0.25, solver="CVode", output=["x", "on", "switches"]
+    )
     for t in (0.25, 0.5, 1.25, 2.0, 2.75, 3.5):
         assert at(ours, t)["s.x"].iloc[0] == pytest.approx(theirs[np.isclose(theirs["time"], t)]["x"][0], abs=1e-6)
     # x rises at 1/s to 1 (t = 1), falls at 2/s to 0 (t = 1.5), rises to 1 (2.5), falls to 0 (3.0)
@@ -114,8 +127,7 @@ def test_switch_alone_matches_fmpy_and_switches_at_the_exact_times(mini, infos):
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled kernel", "python callbacks"])
-def test_nominals_are_read_at_the_start_and_again_only_when_an_event_says_they_changed(infos, compiled,
-                                                                                       monkeypatch):
+def test_nominals_are_read_at_the_start_and_again_only_when_an_event_says_they_changed(infos, compiled, monkeypatch):
     """FMI 2.0: the states' nominals change only where fmi2NewDiscreteStates says
     nominalsOfContinuousStatesChanged. Rescale has a time event every 0.25 s and changes its
     nominal at the one at t = 1: the master reads them twice (the FMU counts the calls), not at
@@ -162,7 +174,9 @@ def test_discrete_input_in_continuous_time_mode_is_refused_by_the_fmu(infos):
         pt.exit_initialization_mode()
         pt.enter_continuous_time_mode()
         assert list(pt.reader(["y_i", "y_b", "y_c"])()) == [3.0, 1.0, 0.0]
-        with pytest.raises(FMIError, match="u_i can only be set after instantiation, in initialization mode or event mode"):
+        with pytest.raises(
+            FMIError, match="u_i can only be set after instantiation, in initialization mode or event mode"
+        ):
             pt.set_integer([2], [4])
 
 
@@ -173,12 +187,15 @@ def test_master_input_drives_an_integer_input_at_its_change_times(infos):
     assert trace["pt.y_i"].iloc[-1] == 7.0
 
 
-@pytest.mark.parametrize("connection, message", [
-    (Connection("sw.on", "pt.u_i"), r"types are incompatible \(sw.on is Boolean, pt.u_i is Integer\)"),
-    (Connection("counter.count", "pt.u_c"), r"types are incompatible \(counter.count is Integer, pt.u_c is Real\)"),
-    (Connection("sw.x", "pt.u_b"), r"types are incompatible \(sw.x is Real, pt.u_b is Boolean\)"),
-    (Connection("sw.x", "counter.x"), "expected an input, it is a Real output"),
-])
+@pytest.mark.parametrize(
+    "connection, message",
+    [
+        (Connection("sw.on", "pt.u_i"), r"types are incompatible \(sw.on is Boolean, pt.u_i is Integer\)"),
+        (Connection("counter.count", "pt.u_c"), r"types are incompatible \(counter.count is Integer, pt.u_c is Real\)"),
+        (Connection("sw.x", "pt.u_b"), r"types are incompatible \(sw.x is Real, pt.u_b is Boolean\)"),
+        (Connection("sw.x", "counter.x"), "expected an input, it is a Real output"),
+    ],
+)
 def test_incompatible_connections_are_refused_naming_both_ends(infos, connection, message):
     with pytest.raises(InputError, match=message):
         CoSimulation({"counter": infos["Counter"], "pt": infos["PassThrough"], "sw": infos["Switch"]}, [connection])
@@ -186,8 +203,11 @@ def test_incompatible_connections_are_refused_naming_both_ends(infos, connection
 
 # ------------------------------------------------------------------ errors, logging, life cycle
 def test_fmu_error_inside_the_integrator_keeps_its_message_and_time(infos, caplog):
-    system = CoSimulation({"pt": infos["PassThrough"], "sw": infos["Switch"]}, [Connection("sw.x", "pt.u_c")],
-                          parameters={"pt": {"u_max": 0.75}})
+    system = CoSimulation(
+        {"pt": infos["PassThrough"], "sw": infos["Switch"]},
+        [Connection("sw.x", "pt.u_c")],
+        parameters={"pt": {"u_max": 0.75}},
+    )
     with caplog.at_level(logging.DEBUG, logger="heliostep.fmu"):
         with pytest.raises(SimulationError) as failure:
             system.simulate(0.0, 2.0, np.arange(0.0, 2.01, 0.5))
@@ -264,8 +284,11 @@ def gain(tmp_path_factory):
 
 
 def gain_loop(gain, k_a, b_a, k_b, b_b):
-    return CoSimulation({"a": gain, "b": gain}, [Connection("a.y", "b.u"), Connection("b.y", "a.u")],
-                        parameters={"a": {"k": k_a, "b": b_a}, "b": {"k": k_b, "b": b_b}})
+    return CoSimulation(
+        {"a": gain, "b": gain},
+        [Connection("a.y", "b.u"), Connection("b.y", "a.u")],
+        parameters={"a": {"k": k_a, "b": b_a}, "b": {"k": k_b, "b": b_b}},
+    )
 
 
 def test_algebraic_loop_of_two_fmus_is_solved_to_its_closed_form(gain):
@@ -299,8 +322,9 @@ def test_algebraic_loop_through_a_discrete_connection_is_refused(infos):
 def test_three_fmu_loop_is_torn_at_the_connection_given_first(gain):
     # c.y -> a.u is given first: that is where the loop a -> b -> c -> a is torn
     loop = [Connection("c.y", "a.u"), Connection("a.y", "b.u"), Connection("b.y", "c.u")]
-    system = CoSimulation({"a": gain, "b": gain, "c": gain}, loop,
-                          parameters={name: {"k": 0.5, "b": 1.0} for name in "abc"})
+    system = CoSimulation(
+        {"a": gain, "b": gain, "c": gain}, loop, parameters={name: {"k": 0.5, "b": 1.0} for name in "abc"}
+    )
     assert system.torn == [loop[0]]
     assert system.loops == ["c.y -> a.u -> a.y -> b.u -> b.y -> c.u (torn at a.u)"]
     u = 1.0 * (1 + 0.5 + 0.25) / (1 - 0.125)  # u = k^3 u + b (1 + k + k^2)

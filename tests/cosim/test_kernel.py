@@ -10,7 +10,6 @@ stopped, interpolated and normal-mode rotor angles differ by up to 3e-5 rad from
 import numpy as np
 import pandas as pd
 import pytest
-from third_party_fmu import build_mini_fmu
 
 import heliostep.cosim.master as master
 from heliostep.cosim import Connection, CoSimulation, PiecewiseConstant, SimulationError, read_fmu
@@ -18,9 +17,13 @@ from heliostep.cosim.fmi import FMIError
 from heliostep.cosim.kernel import kernels_dir, library_path
 from heliostep.cosim.master import SolverOptions
 from heliostep.drive.sequencer import Sequencer
+from third_party_fmu import build_mini_fmu
 
-DRIVE_CONNECTIONS = [Connection("motor.tau", "mechanics.tau"), Connection("mechanics.theta", "motor.theta"),
-                     Connection("mechanics.omega", "motor.omega")]
+DRIVE_CONNECTIONS = [
+    Connection("motor.tau", "mechanics.tau"),
+    Connection("mechanics.theta", "motor.theta"),
+    Connection("mechanics.omega", "motor.omega"),
+]
 STEP_TIMES = np.array([0.05, 0.15, 0.25, 0.35, 0.45])
 STEP_INDICES = np.array([0, 1, 2, 3, 2, 1])
 
@@ -38,8 +41,10 @@ def mini(tmp_path_factory):
 
 def _inputs():
     i_a, i_b = Sequencer().reference_currents(STEP_INDICES)
-    return [PiecewiseConstant("i_a_ref", "motor.i_a_ref", STEP_TIMES, i_a),
-            PiecewiseConstant("i_b_ref", "motor.i_b_ref", STEP_TIMES, i_b)]
+    return [
+        PiecewiseConstant("i_a_ref", "motor.i_a_ref", STEP_TIMES, i_a),
+        PiecewiseConstant("i_b_ref", "motor.i_b_ref", STEP_TIMES, i_b),
+    ]
 
 
 def _run(drive, monkeypatch, compiled: bool, interpolate: bool = False, monitor=None):
@@ -47,7 +52,8 @@ def _run(drive, monkeypatch, compiled: bool, interpolate: bool = False, monitor=
     monkeypatch.setattr(master, "INTERPOLATE_OUTPUTS", interpolate)
     grid = np.round(np.arange(0.0, 0.6 + 1e-9, 1e-3), 12)
     return CoSimulation(drive, DRIVE_CONNECTIONS, _inputs()).simulate(
-        0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=monitor)
+        0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=monitor
+    )
 
 
 @pytest.mark.parametrize("with_monitor, interpolate", [(False, False), (True, False), (True, True)])
@@ -80,8 +86,11 @@ def test_kernel_is_compiled_once_into_the_cache_by_content():
 def test_fmu_error_inside_the_compiled_rhs_keeps_its_message_and_time(mini, monkeypatch, interpolate):
     monkeypatch.setattr(master, "COMPILED_RHS", True)
     monkeypatch.setattr(master, "INTERPOLATE_OUTPUTS", interpolate)
-    system = CoSimulation({"pt": mini["PassThrough"], "sw": mini["Switch"]}, [Connection("sw.x", "pt.u_c")],
-                          parameters={"pt": {"u_max": 0.75}})
+    system = CoSimulation(
+        {"pt": mini["PassThrough"], "sw": mini["Switch"]},
+        [Connection("sw.x", "pt.u_c")],
+        parameters={"pt": {"u_max": 0.75}},
+    )
     with pytest.raises(SimulationError) as failure:
         system.simulate(0.0, 2.0, np.arange(0.0, 2.01, 0.5), monitor=(lambda row: None) if interpolate else None)
     error = failure.value
@@ -99,8 +108,11 @@ def test_fmu_error_inside_the_compiled_rhs_keeps_its_message_and_time(mini, monk
 def test_algebraic_loops_fall_back_to_the_python_rhs(mini, monkeypatch):
     monkeypatch.setattr(master, "COMPILED_RHS", True)
     gain = mini["Gain"]
-    system = CoSimulation({"a": gain, "b": gain}, [Connection("a.y", "b.u"), Connection("b.y", "a.u")],
-                          parameters={"a": {"k": 0.5, "b": 1.0}, "b": {"k": -3.0, "b": 2.0}})
+    system = CoSimulation(
+        {"a": gain, "b": gain},
+        [Connection("a.y", "b.u"), Connection("b.y", "a.u")],
+        parameters={"a": {"k": 0.5, "b": 1.0}, "b": {"k": -3.0, "b": 2.0}},
+    )
     result = system.simulate(0.0, 2.0, np.linspace(0.0, 2.0, 5))
     assert not result.statistics["compiled_rhs"] and result.statistics["loop_solves"] > 0
     np.testing.assert_allclose(result.trace["b.y"], -0.4, rtol=1e-9)
@@ -110,8 +122,9 @@ def test_algebraic_loops_fall_back_to_the_python_rhs(mini, monkeypatch):
 def test_interpolated_output_rows_match_rows_where_the_solver_stops(drive, monkeypatch, compiled):
     monitor_rows = []
     stopped = _run(drive, monkeypatch, compiled, interpolate=False, monitor=lambda row: None)
-    interpolated = _run(drive, monkeypatch, compiled, interpolate=True,
-                        monitor=lambda block: monitor_rows.append(block.copy()))
+    interpolated = _run(
+        drive, monkeypatch, compiled, interpolate=True, monitor=lambda block: monitor_rows.append(block.copy())
+    )
     a, b = stopped.trace, interpolated.trace
     assert len(a) == len(b)
     np.testing.assert_array_equal(a["time"].to_numpy(), b["time"].to_numpy())  # same rows, events included
@@ -138,12 +151,14 @@ def test_an_output_time_a_rounding_error_before_an_internal_step_is_recorded(dri
     monkeypatch.setattr(master, "INTERPOLATE_OUTPUTS", True)
     seen = []
     system = CoSimulation(drive, DRIVE_CONNECTIONS, _inputs())
-    system.simulate(0.0, 0.6, np.array([0.0, 0.6]), SolverOptions(rtol=1e-6),
-                    monitor=lambda block: seen.append(block[:, 0].copy()))
+    system.simulate(
+        0.0, 0.6, np.array([0.0, 0.6]), SolverOptions(rtol=1e-6), monitor=lambda block: seen.append(block[:, 0].copy())
+    )
     times = np.concatenate(seen)
     step = float(times[(times > 0.35) & (times < 0.55)][0])  # an internal step between the inputs' changes
     output = step - 0.5e-12
     assert output < step
-    result = system.simulate(0.0, 0.6, np.array([0.0, output, 0.6]), SolverOptions(rtol=1e-6),
-                             monitor=lambda block: None)
+    result = system.simulate(
+        0.0, 0.6, np.array([0.0, output, 0.6]), SolverOptions(rtol=1e-6), monitor=lambda block: None
+    )
     assert output in set(result.trace["time"])

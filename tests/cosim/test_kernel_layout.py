@@ -22,8 +22,16 @@ def test_codes_match_the_c_side():
     assert len(codes) == 7
     for name, value in codes.items():
         assert kernel.describe(name) == value, name
-    c_names = ["F_SET_TIME", "F_SET_STATES", "F_GET_REAL", "F_SET_REAL", "F_GET_DERIVATIVES",
-               "F_GET_EVENT_INDICATORS", "F_GET_INTEGER", "F_GET_BOOLEAN"]
+    c_names = [
+        "F_SET_TIME",
+        "F_SET_STATES",
+        "F_GET_REAL",
+        "F_SET_REAL",
+        "F_GET_DERIVATIVES",
+        "F_GET_EVENT_INDICATORS",
+        "F_GET_INTEGER",
+        "F_GET_BOOLEAN",
+    ]
     assert [kernel.describe(name) for name in c_names] == list(range(len(kernel.FUNCTIONS)))
 
 

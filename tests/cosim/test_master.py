@@ -16,8 +16,11 @@ from heliostep.cosim.master import (
 from heliostep.drive.sequencer import Sequencer
 from heliostep.errors import InputError
 
-DRIVE_CONNECTIONS = [Connection("motor.tau", "mechanics.tau"), Connection("mechanics.theta", "motor.theta"),
-                     Connection("mechanics.omega", "motor.omega")]
+DRIVE_CONNECTIONS = [
+    Connection("motor.tau", "mechanics.tau"),
+    Connection("mechanics.theta", "motor.theta"),
+    Connection("mechanics.omega", "motor.omega"),
+]
 STEP_TIMES = np.array([0.05, 0.15, 0.25, 0.35, 0.45])
 STEP_INDICES = np.array([0, 1, 2, 3, 2, 1])  # forward three steps, back two
 
@@ -29,8 +32,10 @@ def drive(fmu_paths):
 
 def _current_inputs(prefix="motor"):
     i_a, i_b = Sequencer().reference_currents(STEP_INDICES)
-    return [PiecewiseConstant("i_a_ref", f"{prefix}.i_a_ref", STEP_TIMES, i_a),
-            PiecewiseConstant("i_b_ref", f"{prefix}.i_b_ref", STEP_TIMES, i_b)]
+    return [
+        PiecewiseConstant("i_a_ref", f"{prefix}.i_a_ref", STEP_TIMES, i_a),
+        PiecewiseConstant("i_b_ref", f"{prefix}.i_b_ref", STEP_TIMES, i_b),
+    ]
 
 
 def _fmpy_input(stop_time):
@@ -49,16 +54,29 @@ def _last_per_time(frame: pd.DataFrame) -> pd.DataFrame:
 def test_cosimulation_equals_monolithic_drive_system(drive, fmu_paths):
     stop, grid = 0.6, np.round(np.arange(0, 0.6 + 1e-9, 1e-3), 12)
     result = CoSimulation(drive, DRIVE_CONNECTIONS, _current_inputs()).simulate(
-        0.0, stop, grid, SolverOptions(rtol=1e-8))
-    mono = simulate_fmu(str(fmu_paths["DriveSystem"]), fmi_type="ModelExchange", solver="CVode",
-                        stop_time=stop, output_interval=1e-3, input=_fmpy_input(stop), relative_tolerance=1e-8,
-                        output=["motor.tau", "motor.i_a", "motor.i_b", "mechanics.theta", "mechanics.theta_p"])
+        0.0, stop, grid, SolverOptions(rtol=1e-8)
+    )
+    mono = simulate_fmu(
+        str(fmu_paths["DriveSystem"]),
+        fmi_type="ModelExchange",
+        solver="CVode",
+        stop_time=stop,
+        output_interval=1e-3,
+        input=_fmpy_input(stop),
+        relative_tolerance=1e-8,
+        output=["motor.tau", "motor.i_a", "motor.i_b", "mechanics.theta", "mechanics.theta_p"],
+    )
     ours, theirs = _last_per_time(result.trace), _last_per_time(pd.DataFrame(mono))
     common = ours.index.intersection(np.round(theirs.index, 12))
     assert len(common) > 550
     theirs.index = np.round(theirs.index, 12)
-    for column, tolerance in (("motor.tau", 1e-4), ("motor.i_a", 1e-4), ("motor.i_b", 1e-4),
-                              ("mechanics.theta", 1e-6), ("mechanics.theta_p", 1e-8)):
+    for column, tolerance in (
+        ("motor.tau", 1e-4),
+        ("motor.i_a", 1e-4),
+        ("motor.i_b", 1e-4),
+        ("mechanics.theta", 1e-6),
+        ("mechanics.theta_p", 1e-8),
+    ):
         difference = np.abs(ours.loc[common, column].to_numpy() - theirs.loc[common, column].to_numpy())
         assert difference.max() < tolerance, column
     # first principles: net one step forward (3 up, 2 down) from 0
@@ -85,13 +103,16 @@ def test_propagation_follows_direct_feedthrough(drive):
     assert order.index(("mechanics.theta", "motor.theta")) < order.index(("motor.tau", "mechanics.tau"))
 
 
-@pytest.mark.parametrize("connection, message", [
-    (Connection("motor.torque", "mechanics.tau"), "StepperMotor.fmu has no variable 'torque'; its outputs: i_a"),
-    (Connection("gearbox.tau", "mechanics.tau"), "no FMU instance 'gearbox'"),
-    (Connection("motor.tau", "mechanics.theta"), "expected an input, it is a Real output"),
-    (Connection("motor.power", "mechanics.tau"), r"units differ \('W' vs 'N.m'\)"),
-    (Connection("tau", "mechanics.tau"), "expected 'instance.variable'"),
-])
+@pytest.mark.parametrize(
+    "connection, message",
+    [
+        (Connection("motor.torque", "mechanics.tau"), "StepperMotor.fmu has no variable 'torque'; its outputs: i_a"),
+        (Connection("gearbox.tau", "mechanics.tau"), "no FMU instance 'gearbox'"),
+        (Connection("motor.tau", "mechanics.theta"), "expected an input, it is a Real output"),
+        (Connection("motor.power", "mechanics.tau"), r"units differ \('W' vs 'N.m'\)"),
+        (Connection("tau", "mechanics.tau"), "expected 'instance.variable'"),
+    ],
+)
 def test_bad_connections_are_named(drive, connection, message):
     with pytest.raises(InputError, match=message):
         CoSimulation(drive, [connection])
@@ -145,9 +166,17 @@ def test_third_party_fmu_with_events_matches_fmpy(tmp_path):
     stop = 2.0
     grid = np.round(np.arange(0.0, stop + 1e-9, 1e-3), 12)
     result = CoSimulation({"ball": read_fmu(path)}).simulate(0.0, stop, grid, SolverOptions(rtol=1e-8))
-    reference = pd.DataFrame(simulate_fmu(str(path), fmi_type="ModelExchange", solver="CVode", stop_time=stop,
-                                          output_interval=1e-3, relative_tolerance=1e-8,
-                                          output=["height", "bounce_count"]))
+    reference = pd.DataFrame(
+        simulate_fmu(
+            str(path),
+            fmi_type="ModelExchange",
+            solver="CVode",
+            stop_time=stop,
+            output_interval=1e-3,
+            relative_tolerance=1e-8,
+            output=["height", "bounce_count"],
+        )
+    )
     ours, theirs = _last_per_time(result.trace), _last_per_time(reference)
     theirs.index = np.round(theirs.index, 12)
     common = ours.index.intersection(theirs.index)

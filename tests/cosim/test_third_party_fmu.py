@@ -13,18 +13,24 @@ import numpy as np
 import pytest
 from fmpy import calloc, extract, free, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (FMU2Model, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2CoSimulation,
-                       fmi2ModelExchange)
+from fmpy.fmi2 import (
+    FMU2Model,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    fmi2CoSimulation,
+    fmi2ModelExchange,
+)
 from fmpy.validation import validate_fmu
 
 from third_party_fmu import VR, build_bouncing_ball
 
 G, E, H0, KICK_DV = 9.81, 0.7, 1.0, 2.0
-V_MIN = 0.1        # rebound speed below which the ball lies still (bouncing_ball.c)
-V1 = math.sqrt(2 * G * H0)   # impact speed of the first impact
-T1 = math.sqrt(2 * H0 / G)   # time of the first impact
-NO_KICK = {"t_kick": 10.0}   # beyond every stop time used here
+V_MIN = 0.1  # rebound speed below which the ball lies still (bouncing_ball.c)
+V1 = math.sqrt(2 * G * H0)  # impact speed of the first impact
+T1 = math.sqrt(2 * H0 / G)  # time of the first impact
+NO_KICK = {"t_kick": 10.0}  # beyond every stop time used here
 
 
 @pytest.fixture(scope="module")
@@ -34,9 +40,16 @@ def fmu(tmp_path_factory):
 
 def simulate(fmu, stop_time=3.0, **kwargs):
     """fmpy's ME loop with CVODE; events are recorded (a row before and one after each)."""
-    return simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode", stop_time=stop_time,
-                        output_interval=1e-3, relative_tolerance=1e-8,
-                        output=["h", "v", "height", "bounce_count"], **kwargs)
+    return simulate_fmu(
+        str(fmu),
+        fmi_type="ModelExchange",
+        solver="CVode",
+        stop_time=stop_time,
+        output_interval=1e-3,
+        relative_tolerance=1e-8,
+        output=["h", "v", "height", "bounce_count"],
+        **kwargs,
+    )
 
 
 def impacts(result):
@@ -47,6 +60,7 @@ def impacts(result):
 
 
 # ------------------------------------------------------------------ the model description
+
 
 def test_fmu_passes_fmpy_validation(fmu):
     assert validate_fmu(str(fmu)) == []
@@ -61,11 +75,14 @@ def test_model_description_declares_interface_states_and_events(fmu):
     variables = {v.name: v for v in description.modelVariables}
     assert {name: v.valueReference for name, v in variables.items()} == VR
     assert [v.name for v in description.modelVariables if v.causality == "input"] == ["f"]
-    assert [v.name for v in description.modelVariables if v.causality == "output"] == [
-        "height", "bounce_count"]
+    assert [v.name for v in description.modelVariables if v.causality == "output"] == ["height", "bounce_count"]
     assert variables["bounce_count"].variability == "discrete"
-    assert {v.name: float(v.start) for v in description.modelVariables
-            if v.causality == "parameter"} == {"g": G, "e": E, "h0": H0, "t_kick": 0.5}
+    assert {v.name: float(v.start) for v in description.modelVariables if v.causality == "parameter"} == {
+        "g": G,
+        "e": E,
+        "h0": H0,
+        "t_kick": 0.5,
+    }
     assert [d.variable.derivative.name for d in description.derivatives] == ["h", "v"]
     assert variables["h"].unit == "m" and variables["der(v)"].unit == "m/s2"
     # no output depends directly on the input
@@ -73,6 +90,7 @@ def test_model_description_declares_interface_states_and_events(fmu):
 
 
 # ------------------------------------------------------------------ state events: the bounces
+
 
 def test_free_fall_and_bounces_match_first_principles(fmu):
     result = simulate(fmu, start_values=NO_KICK)
@@ -98,10 +116,10 @@ def test_free_fall_and_bounces_match_first_principles(fmu):
     second = rows[1]
     flight = slice(first + 1, second + 1)
     energy = h[flight] + v[flight] ** 2 / (2 * G)
-    np.testing.assert_allclose(energy, E ** 2 * H0, rtol=0, atol=1e-6 * H0)
+    np.testing.assert_allclose(energy, E**2 * H0, rtol=0, atol=1e-6 * H0)
     top = first + 1 + int(np.argmax(h[flight]))
-    a, b, c = np.polyfit(t[top - 1:top + 2] - t[top], h[top - 1:top + 2], 2)
-    assert c - b * b / (4 * a) == pytest.approx(E ** 2 * H0, abs=1e-6 * H0)
+    a, b, c = np.polyfit(t[top - 1 : top + 2] - t[top], h[top - 1 : top + 2], 2)
+    assert c - b * b / (4 * a) == pytest.approx(E**2 * H0, abs=1e-6 * H0)
     assert t[top] - b / (2 * a) == pytest.approx(T1 + E * V1 / G, abs=1e-6)
 
     # every impact: times t_k = T1 + sum_{j<k} 2 e^j V1 / g, speeds e^(k-1) V1; at rest once
@@ -119,6 +137,7 @@ def test_free_fall_and_bounces_match_first_principles(fmu):
 
 # ------------------------------------------------------------------ the time event: the kick
 
+
 @pytest.mark.parametrize("t_kick", [0.2, None], ids=["t_kick=0.2", "default t_kick=0.5"])
 def test_kick_time_event_adds_two_metres_per_second(fmu, t_kick):
     result = simulate(fmu, start_values={} if t_kick is None else {"t_kick": t_kick})
@@ -134,9 +153,9 @@ def test_kick_time_event_adds_two_metres_per_second(fmu, t_kick):
     assert v[before] - v[before - 1] == pytest.approx(-G * 1e-3, abs=1e-7)
     assert v[after + 1] - v[after] == pytest.approx(-G * 1e-3, abs=1e-7)
     if t_kick == 0.2:  # still in the first fall: everything follows in closed form
-        h_kick, v_kick = H0 - G * t_kick ** 2 / 2, -G * t_kick + KICK_DV
+        h_kick, v_kick = H0 - G * t_kick**2 / 2, -G * t_kick + KICK_DV
         assert (h[after], v[after]) == (pytest.approx(h_kick, abs=1e-7), pytest.approx(v_kick, abs=1e-7))
-        first_impact = t_kick + (v_kick + math.sqrt(v_kick ** 2 + 2 * G * h_kick)) / G
+        first_impact = t_kick + (v_kick + math.sqrt(v_kick**2 + 2 * G * h_kick)) / G
         assert t[impacts(result)[0]] == pytest.approx(first_impact, abs=1e-6)
 
 
@@ -148,13 +167,14 @@ def test_kick_wakes_a_ball_lying_on_the_floor(fmu):
     assert np.all(h[resting] == 0.0) and np.all(v[resting] == 0.0) and np.all(count[resting] == 11)
     flight = (t > t_kick) & (t < t_kick + 2 * KICK_DV / G - 1e-6)
     dt = t[flight] - t_kick
-    np.testing.assert_allclose(h[flight], KICK_DV * dt - G * dt ** 2 / 2, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(h[flight], KICK_DV * dt - G * dt**2 / 2, rtol=0, atol=1e-7)
     landing = next(row for row in impacts(result) if t[row] > t_kick)
     assert t[landing] == pytest.approx(t_kick + 2 * KICK_DV / G, abs=1e-6)
     assert v[landing] == pytest.approx(-KICK_DV, rel=1e-6) and count[landing + 1] == 12
 
 
 # ------------------------------------------------------------------ the input
+
 
 @pytest.mark.parametrize("f", [G, G / 2])
 def test_input_acceleration_acts_on_the_ball(fmu, f):
@@ -174,6 +194,7 @@ def test_input_acceleration_acts_on_the_ball(fmu, f):
 
 # ------------------------------------------------------------------ the life cycle, call by call
 
+
 class Host:
     """An FMU2Model instance with callbacks that record log messages and count allocations."""
 
@@ -186,8 +207,9 @@ class Host:
         self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(self._allocate)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(self._free)
-        self.model = FMU2Model(guid=guid or description.guid, unzipDirectory=unzip_dir,
-                               modelIdentifier="BouncingBall", instanceName="ball")
+        self.model = FMU2Model(
+            guid=guid or description.guid, unzipDirectory=unzip_dir, modelIdentifier="BouncingBall", instanceName="ball"
+        )
 
     def _log(self, env, instance, status, category, message):
         self.messages.append((status, category.decode(), message.decode()))
@@ -250,12 +272,10 @@ def test_life_cycle_rejects_wrong_calls_without_crashing(fmu, unzip_dir):
 
     # the instance still works
     x, dx, z = (np.zeros(n) for n in (2, 2, 1))
-    for array, call in ((x, model.getContinuousStates), (dx, model.getDerivatives),
-                        (z, model.getEventIndicators)):
+    for array, call in ((x, model.getContinuousStates), (dx, model.getDerivatives), (z, model.getEventIndicators)):
         call(array.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), array.size)
     assert (x.tolist(), dx.tolist(), z.tolist()) == ([2.0, 0.0], [0.0, -G], [2.0])
-    host.fails(model.getDerivatives, dx.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), 3,
-               match="nx = 3")
+    host.fails(model.getDerivatives, dx.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), 3, match="nx = 3")
     model.setReal([VR["f"]], [1.0])  # inputs may change in continuous time
     model.setTime(0.25)
     model.enterEventMode()
@@ -280,12 +300,14 @@ def test_instantiate_checks_guid_and_interface_type(fmu, unzip_dir):
 
     host = Host(fmu, unzip_dir)
     resources = f"file://{unzip_dir}/resources".encode()
-    component = host.model.fmi2Instantiate(b"cs", fmi2CoSimulation, host.model.guid.encode(), resources,
-                                           ctypes.byref(host.callbacks), 0, 0)
+    component = host.model.fmi2Instantiate(
+        b"cs", fmi2CoSimulation, host.model.guid.encode(), resources, ctypes.byref(host.callbacks), 0, 0
+    )
     assert component is None
     assert any("Model Exchange only" in message for _, _, message in host.messages)
-    component = host.model.fmi2Instantiate(b"me", fmi2ModelExchange, host.model.guid.encode(),
-                                           resources, ctypes.byref(host.callbacks), 0, 0)
+    component = host.model.fmi2Instantiate(
+        b"me", fmi2ModelExchange, host.model.guid.encode(), resources, ctypes.byref(host.callbacks), 0, 0
+    )
     assert component is not None
     with pytest.raises(FMICallException):  # a NULL instance is refused, not dereferenced
         host.model.fmi2Terminate(None)

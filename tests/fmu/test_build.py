@@ -6,11 +6,11 @@ import shutil
 import pytest
 from fmpy import read_model_description
 
-from heliostep.fmu.build import build_fmu, ensure_fmu, fmu_guid
-from heliostep.paths import models_dir
 from heliostep.cli import main
 from heliostep.errors import InputError
+from heliostep.fmu.build import build_fmu, ensure_fmu, fmu_guid
 from heliostep.fmu.modelica import ModelicaError
+from heliostep.paths import models_dir
 
 MODELS = models_dir()
 
@@ -34,7 +34,7 @@ def test_up_to_date_fmu_is_not_rebuilt_and_an_edit_rebuilds_it(models_copy, tmp_
     assert build_fmu("PanelMechanicsSmallAngle", out, models_copy).stat().st_mtime_ns == stamp
 
     source = models_copy / "PanelMechanicsSmallAngle.mo"
-    source.write_text(source.read_text().replace("J_p(unit = \"kg.m2\") = 3.37", "J_p(unit = \"kg.m2\") = 4.2"))
+    source.write_text(source.read_text().replace('J_p(unit = "kg.m2") = 3.37', 'J_p(unit = "kg.m2") = 4.2'))
     rebuilt = build_fmu("PanelMechanicsSmallAngle", out, models_copy)
     assert fmu_guid(rebuilt) != guid
     variables = {v.name: v for v in read_model_description(str(rebuilt)).modelVariables}
@@ -51,8 +51,13 @@ def test_fmu_ships_its_sources_and_a_binary(fmu_paths):
     import zipfile
 
     names = zipfile.ZipFile(fmu_paths["DriveSystem"]).namelist()
-    for expected in ("modelDescription.xml", "binaries/linux64/DriveSystem.so",
-                     "sources/fmi2_model_exchange.c", "sources/equations.c", "sources/model.h"):
+    for expected in (
+        "modelDescription.xml",
+        "binaries/linux64/DriveSystem.so",
+        "sources/fmi2_model_exchange.c",
+        "sources/equations.c",
+        "sources/model.h",
+    ):
         assert expected in names
 
 
@@ -63,8 +68,9 @@ def _write_model(folder, name, body):
 
 
 def test_syntax_error_names_file_and_line_and_leaves_no_fmu(tmp_path):
-    models = _write_model(tmp_path / "bad", "Broken",
-                          "model Broken\n  Real x(start = 1)\nequation\n  der(x) = -x;\nend Broken;\n")
+    models = _write_model(
+        tmp_path / "bad", "Broken", "model Broken\n  Real x(start = 1)\nequation\n  der(x) = -x;\nend Broken;\n"
+    )
     out = tmp_path / "out"
     with pytest.raises(ModelicaError) as error:
         build_fmu("Broken", out, models)
@@ -73,16 +79,21 @@ def test_syntax_error_names_file_and_line_and_leaves_no_fmu(tmp_path):
 
 
 def test_unsupported_construct_names_file_line_and_reason(tmp_path):
-    body = ("model Bouncing\n  Real h(start = 1);\n  Real v;\nequation\n  der(h) = v;\n  der(v) = -9.81;\n"
-            "  when h < 0 then\n    reinit(v, -v);\n  end when;\nend Bouncing;\n")
+    body = (
+        "model Bouncing\n  Real h(start = 1);\n  Real v;\nequation\n  der(h) = v;\n  der(v) = -9.81;\n"
+        "  when h < 0 then\n    reinit(v, -v);\n  end when;\nend Bouncing;\n"
+    )
     models = _write_model(tmp_path / "bad", "Bouncing", body)
     with pytest.raises(ModelicaError, match=r"Bouncing\.mo:7: unsupported construct: discrete-time 'when'"):
         build_fmu("Bouncing", tmp_path / "out", models)
 
 
 def test_unbalanced_model_is_refused(tmp_path):
-    models = _write_model(tmp_path / "bad", "Loose",
-                          "model Loose\n  Real x(start = 1);\n  Real y;\nequation\n  der(x) = -x + y;\nend Loose;\n")
+    models = _write_model(
+        tmp_path / "bad",
+        "Loose",
+        "model Loose\n  Real x(start = 1);\n  Real y;\nequation\n  der(x) = -x + y;\nend Loose;\n",
+    )
     with pytest.raises(ModelicaError, match="Loose.mo: .*not balanced: 1 equations for 2 unknowns"):
         build_fmu("Loose", tmp_path / "out", models)
 

@@ -6,10 +6,16 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
-from heliostep.cosim.fmi import ModelExchangeInstance, read_fmu
-from physics_reference import (RATED_CURRENT, TABLE2_PANEL, TABLE3_MOTOR, ideal_current_motor,
-                               panel_mechanics, stepper_motor)
 from conftest import MODELS
+from heliostep.cosim.fmi import ModelExchangeInstance, read_fmu
+from physics_reference import (
+    RATED_CURRENT,
+    TABLE2_PANEL,
+    TABLE3_MOTOR,
+    ideal_current_motor,
+    panel_mechanics,
+    stepper_motor,
+)
 
 MOTOR_OUTPUTS = ["i_a", "i_b", "tau", "v_a", "v_b", "power"]
 MECHANICS_OUTPUTS = ["theta_p", "omega_p", "theta", "omega"]
@@ -22,8 +28,9 @@ def test_fmu_passes_fmpy_validation(fmu_paths, name):
 
 @pytest.mark.parametrize("name", MODELS)
 def test_fmu_simulates_alone_with_fmpy_cvode(fmu_paths, name):
-    result = simulate_fmu(str(fmu_paths[name]), fmi_type="ModelExchange", solver="CVode",
-                          stop_time=0.05, output_interval=1e-3)
+    result = simulate_fmu(
+        str(fmu_paths[name]), fmi_type="ModelExchange", solver="CVode", stop_time=0.05, output_interval=1e-3
+    )
     assert len(result) == 51
     for column in result.dtype.names:
         assert np.all(np.isfinite(result[column])), column
@@ -33,7 +40,11 @@ def test_model_description_declares_interface_units_and_descriptions(fmu_paths):
     description = read_model_description(str(fmu_paths["StepperMotor"]))
     variables = {v.name: v for v in description.modelVariables}
     assert [v.name for v in description.modelVariables if v.causality == "input"] == [
-        "i_a_ref", "i_b_ref", "theta", "omega"]
+        "i_a_ref",
+        "i_b_ref",
+        "theta",
+        "omega",
+    ]
     assert variables["tau"].causality == "output" and variables["tau"].unit == "N.m"
     assert variables["L"].causality == "parameter" and variables["L"].variability == "tunable"
     assert float(variables["L"].start) == TABLE3_MOTOR["L"]
@@ -63,6 +74,7 @@ def test_paper_panel_inertia_matches_eq_11(fmu_paths):
 
 
 # ----------------------------------------------------------------- equations at random points
+
 
 def assert_relative(actual, expected, rtol=1e-9):
     """Equal to ``rtol`` relative to each column's scale (differences of large terms cancel)."""
@@ -98,25 +110,41 @@ def _evaluate_fmu(path, parameters, states, inputs, outputs, points):
     return derivatives, values
 
 
-MOTOR_POINT_BOUNDS = {"i_a": (-7, 7), "i_b": (-7, 7), "i_a_ref": (-5.5, 5.5), "i_b_ref": (-5.5, 5.5),
-                      "theta": (-0.5, 0.5), "omega": (-20, 20)}
+MOTOR_POINT_BOUNDS = {
+    "i_a": (-7, 7),
+    "i_b": (-7, 7),
+    "i_a_ref": (-5.5, 5.5),
+    "i_b_ref": (-5.5, 5.5),
+    "theta": (-0.5, 0.5),
+    "omega": (-20, 20),
+}
 
 
-@pytest.mark.parametrize("name, reference, extra", [
-    ("StepperMotor", stepper_motor, {"V_supply": 3.1, "K_current": 100.0}),
-    ("StepperMotorIdealCurrent", ideal_current_motor, {"T_current": 1e-3}),
-])
+@pytest.mark.parametrize(
+    "name, reference, extra",
+    [
+        ("StepperMotor", stepper_motor, {"V_supply": 3.1, "K_current": 100.0}),
+        ("StepperMotorIdealCurrent", ideal_current_motor, {"T_current": 1e-3}),
+    ],
+)
 def test_motor_equations_match_numpy_at_random_points(fmu_paths, name, reference, extra):
     rng = np.random.default_rng(7)
     parameters = {k: TABLE3_MOTOR[k] * rng.uniform(0.8, 1.2) for k in ("L", "R", "k_e")}
     parameters["N_c"] = 50.0
     parameters.update({k: v * rng.uniform(0.8, 1.2) for k, v in extra.items()})
     points = _random_points(rng, 200, MOTOR_POINT_BOUNDS)
-    derivatives, outputs = _evaluate_fmu(fmu_paths[name], parameters, ["i_a", "i_b"],
-                                         ["i_a_ref", "i_b_ref", "theta", "omega"], MOTOR_OUTPUTS, points)
+    derivatives, outputs = _evaluate_fmu(
+        fmu_paths[name], parameters, ["i_a", "i_b"], ["i_a_ref", "i_b_ref", "theta", "omega"], MOTOR_OUTPUTS, points
+    )
     di_a, di_b, tau, v_a, v_b, power = reference(
-        points["i_a"], points["i_b"], points["i_a_ref"], points["i_b_ref"], points["theta"],
-        points["omega"], **parameters)
+        points["i_a"],
+        points["i_b"],
+        points["i_a_ref"],
+        points["i_b_ref"],
+        points["theta"],
+        points["omega"],
+        **parameters,
+    )
     assert_relative(derivatives, np.column_stack([di_a, di_b]))
     expected = np.column_stack([points["i_a"], points["i_b"], tau, v_a, v_b, power])
     assert_relative(outputs, expected)
@@ -128,13 +156,15 @@ def test_mechanics_equations_match_numpy_at_random_points(fmu_paths, name, small
     parameters = {"J_p": 3.37, "J_m": 1.4e-4, "b": 6500.0, "r": 2.5e-3, "s": 0.3}
     parameters = {k: v * rng.uniform(0.5, 1.5) for k, v in parameters.items()}
     parameters.update(theta_p_start=0.3, theta_start=2.0)
-    points = _random_points(rng, 200, {"theta_p": (-1.0, 1.0), "omega_p": (-0.01, 0.01),
-                                       "tau": (-3, 3), "m_ext": (-50, 50)})
-    derivatives, outputs = _evaluate_fmu(fmu_paths[name], parameters, ["theta_p", "omega_p"],
-                                         ["tau", "m_ext"], MECHANICS_OUTPUTS, points)
+    points = _random_points(
+        rng, 200, {"theta_p": (-1.0, 1.0), "omega_p": (-0.01, 0.01), "tau": (-3, 3), "m_ext": (-50, 50)}
+    )
+    derivatives, outputs = _evaluate_fmu(
+        fmu_paths[name], parameters, ["theta_p", "omega_p"], ["tau", "m_ext"], MECHANICS_OUTPUTS, points
+    )
     dtheta_p, domega_p, theta, omega = panel_mechanics(
-        points["theta_p"], points["omega_p"], points["tau"], points["m_ext"],
-        small_angle=small_angle, **parameters)
+        points["theta_p"], points["omega_p"], points["tau"], points["m_ext"], small_angle=small_angle, **parameters
+    )
     assert_relative(derivatives, np.column_stack([dtheta_p, domega_p]))
     expected = np.column_stack([points["theta_p"], points["omega_p"], theta, omega])
     assert_relative(outputs, expected)
@@ -143,20 +173,35 @@ def test_mechanics_equations_match_numpy_at_random_points(fmu_paths, name, small
 def test_drive_system_equations_match_numpy_at_random_points(fmu_paths):
     rng = np.random.default_rng(3)
     motor = {**TABLE3_MOTOR, "K_current": 100.0}
-    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3,
-                 "theta_p_start": 0.0, "theta_start": 0.0}
-    points = _random_points(rng, 100, {"theta_p": (-0.8, 0.8), "omega_p": (-0.01, 0.01),
-                                       "i_a": (-6, 6), "i_b": (-6, 6), "i_a_ref": (-5.5, 5.5),
-                                       "i_b_ref": (-5.5, 5.5), "m_ext": (-20, 20)})
+    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3, "theta_p_start": 0.0, "theta_start": 0.0}
+    points = _random_points(
+        rng,
+        100,
+        {
+            "theta_p": (-0.8, 0.8),
+            "omega_p": (-0.01, 0.01),
+            "i_a": (-6, 6),
+            "i_b": (-6, 6),
+            "i_a_ref": (-5.5, 5.5),
+            "i_b_ref": (-5.5, 5.5),
+            "m_ext": (-20, 20),
+        },
+    )
     states = ["mechanics.theta_p", "mechanics.omega_p", "motor.i_a", "motor.i_b"]
-    renamed = {"mechanics.theta_p": points["theta_p"], "mechanics.omega_p": points["omega_p"],
-               "motor.i_a": points["i_a"], "motor.i_b": points["i_b"], **points}
-    derivatives, outputs = _evaluate_fmu(fmu_paths["DriveSystem"], {}, states,
-                                         ["i_a_ref", "i_b_ref", "m_ext"], ["motor.tau", "mechanics.theta"],
-                                         renamed)
+    renamed = {
+        "mechanics.theta_p": points["theta_p"],
+        "mechanics.omega_p": points["omega_p"],
+        "motor.i_a": points["i_a"],
+        "motor.i_b": points["i_b"],
+        **points,
+    }
+    derivatives, outputs = _evaluate_fmu(
+        fmu_paths["DriveSystem"], {}, states, ["i_a_ref", "i_b_ref", "m_ext"], ["motor.tau", "mechanics.theta"], renamed
+    )
     dtheta_p, _, theta, omega = panel_mechanics(points["theta_p"], points["omega_p"], 0.0, 0.0, **mechanics)
-    di_a, di_b, tau, *_ = stepper_motor(points["i_a"], points["i_b"], points["i_a_ref"], points["i_b_ref"],
-                                        theta, omega, **motor)
+    di_a, di_b, tau, *_ = stepper_motor(
+        points["i_a"], points["i_b"], points["i_a_ref"], points["i_b_ref"], theta, omega, **motor
+    )
     _, domega_p, _, _ = panel_mechanics(points["theta_p"], points["omega_p"], tau, points["m_ext"], **mechanics)
     expected = np.column_stack([dtheta_p, domega_p, di_a, di_b])
     assert_relative(derivatives, expected)
@@ -164,6 +209,7 @@ def test_drive_system_equations_match_numpy_at_random_points(fmu_paths):
 
 
 # ----------------------------------------------------------------- step responses vs Radau
+
 
 def test_outputs_on_the_states_alone_are_read_without_the_new_input_and_stay_right(fmu_paths):
     """The master's order on every evaluation: states set, the angle and speed read, then a new
@@ -173,8 +219,7 @@ def test_outputs_on_the_states_alone_are_read_without_the_new_input_and_stay_rig
     of that order equals the numpy model's."""
     header = __import__("zipfile").ZipFile(fmu_paths["PanelMechanics"]).read("sources/model.h").decode()
     assert "#define N_STATE_PART 5" in header  # everything but der(omega_p), which needs the torque
-    parameters = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3, "theta_p_start": 0.3,
-                  "theta_start": 2.0}
+    parameters = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3, "theta_p_start": 0.3, "theta_start": 2.0}
     rng = np.random.default_rng(3)
     info = read_fmu(fmu_paths["PanelMechanics"])
     with ModelExchangeInstance(info, "order", parameters) as inst:
@@ -208,16 +253,24 @@ def test_phase_current_step_with_rotor_held_matches_radau(fmu_paths):
     motor = {**TABLE3_MOTOR, "K_current": 100.0}
     stop_time = 0.01
     signals = _step_input(["i_a_ref", "i_b_ref", "theta", "omega"], [RATED_CURRENT, 0.0, theta_held, 0.0], stop_time)
-    result = simulate_fmu(str(fmu_paths["StepperMotor"]), fmi_type="ModelExchange", solver="CVode",
-                          stop_time=stop_time, output_interval=1e-4, input=signals,
-                          relative_tolerance=1e-8, output=["i_a", "i_b", "tau"])
+    result = simulate_fmu(
+        str(fmu_paths["StepperMotor"]),
+        fmi_type="ModelExchange",
+        solver="CVode",
+        stop_time=stop_time,
+        output_interval=1e-4,
+        input=signals,
+        relative_tolerance=1e-8,
+        output=["i_a", "i_b", "tau"],
+    )
 
     def rhs(t, y):
         di_a, di_b, *_ = stepper_motor(y[0], y[1], RATED_CURRENT, 0.0, theta_held, 0.0, **motor)
         return [di_a, di_b]
 
-    radau = solve_ivp(rhs, (0, stop_time), [0.0, 0.0], method="Radau", t_eval=result["time"],
-                      rtol=1e-10, atol=1e-12, max_step=1e-5)
+    radau = solve_ivp(
+        rhs, (0, stop_time), [0.0, 0.0], method="Radau", t_eval=result["time"], rtol=1e-10, atol=1e-12, max_step=1e-5
+    )
     np.testing.assert_allclose(result["i_a"], radau.y[0], atol=2e-4 * RATED_CURRENT)
     np.testing.assert_allclose(result["i_b"], radau.y[1], atol=1e-9)
     # first principles: the current rises at (dV - R i)/L while the chopper is saturated ...
@@ -229,20 +282,26 @@ def test_phase_current_step_with_rotor_held_matches_radau(fmu_paths):
 
 
 def test_torque_step_into_mechanics_matches_radau(fmu_paths):
-    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3,
-                 "theta_p_start": 0.2, "theta_start": 0.0}
+    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3, "theta_p_start": 0.2, "theta_start": 0.0}
     stop_time = 2.0
     signals = _step_input(["tau", "m_ext"], [0.5, 2.0], stop_time)
-    result = simulate_fmu(str(fmu_paths["PanelMechanics"]), fmi_type="ModelExchange", solver="CVode",
-                          stop_time=stop_time, output_interval=0.01, input=signals, relative_tolerance=1e-9,
-                          start_values={"theta_p_start": 0.2}, output=["theta_p", "omega_p", "theta"])
+    result = simulate_fmu(
+        str(fmu_paths["PanelMechanics"]),
+        fmi_type="ModelExchange",
+        solver="CVode",
+        stop_time=stop_time,
+        output_interval=0.01,
+        input=signals,
+        relative_tolerance=1e-9,
+        start_values={"theta_p_start": 0.2},
+        output=["theta_p", "omega_p", "theta"],
+    )
 
     def rhs(t, y):
         dtheta_p, domega_p, _, _ = panel_mechanics(y[0], y[1], 0.5, 2.0, **mechanics)
         return [dtheta_p, domega_p]
 
-    radau = solve_ivp(rhs, (0, stop_time), [0.2, 0.0], method="Radau", t_eval=result["time"],
-                      rtol=1e-11, atol=1e-14)
+    radau = solve_ivp(rhs, (0, stop_time), [0.2, 0.0], method="Radau", t_eval=result["time"], rtol=1e-11, atol=1e-14)
     np.testing.assert_allclose(result["theta_p"], radau.y[0], rtol=1e-6, atol=1e-10)
     np.testing.assert_allclose(result["omega_p"], radau.y[1], rtol=1e-5, atol=1e-10)
     rotor = mechanics["s"] / mechanics["r"] * (np.tan(radau.y[0]) - np.tan(0.2))

@@ -23,11 +23,25 @@ def _sequence_input(patterns, step_period, stop_time):
 
 
 def _simulate_drive(path, patterns, step_period, stop_time, interval=1e-4, **kwargs):
-    return simulate_fmu(str(path), fmi_type="ModelExchange", solver="CVode", stop_time=stop_time,
-                        output_interval=interval, relative_tolerance=1e-8,
-                        input=_sequence_input(patterns, step_period, stop_time),
-                        output=["motor.i_a", "motor.i_b", "motor.tau", "motor.power", "mechanics.theta",
-                                "mechanics.omega", "mechanics.theta_p"], **kwargs)
+    return simulate_fmu(
+        str(path),
+        fmi_type="ModelExchange",
+        solver="CVode",
+        stop_time=stop_time,
+        output_interval=interval,
+        relative_tolerance=1e-8,
+        input=_sequence_input(patterns, step_period, stop_time),
+        output=[
+            "motor.i_a",
+            "motor.i_b",
+            "motor.tau",
+            "motor.power",
+            "mechanics.theta",
+            "mechanics.omega",
+            "mechanics.theta_p",
+        ],
+        **kwargs,
+    )
 
 
 def _at(result, time):
@@ -74,13 +88,20 @@ def test_single_step_rings_down_under_coulomb_friction_and_moves_the_panel(fmu_p
 
 def test_motor_starts_at_the_current_its_loop_holds(fmu_paths):
     # L di/dt = K (i_ref - i) - R i = 0 at i = K i_ref / (K + R): the first instant is a steady state
-    result = simulate_fmu(str(fmu_paths["StepperMotor"]), fmi_type="ModelExchange", solver="CVode",
-                          stop_time=0.01, output_interval=1e-3, relative_tolerance=1e-9,
-                          start_values={"i_a_start": RATED_CURRENT},
-                          input=np.array([(0.0, RATED_CURRENT, 0.0, 0.0, 0.0), (0.01, RATED_CURRENT, 0.0, 0.0, 0.0)],
-                                         dtype=[("time", float), ("i_a_ref", float), ("i_b_ref", float),
-                                                ("theta", float), ("omega", float)]),
-                          output=["i_a"])
+    result = simulate_fmu(
+        str(fmu_paths["StepperMotor"]),
+        fmi_type="ModelExchange",
+        solver="CVode",
+        stop_time=0.01,
+        output_interval=1e-3,
+        relative_tolerance=1e-9,
+        start_values={"i_a_start": RATED_CURRENT},
+        input=np.array(
+            [(0.0, RATED_CURRENT, 0.0, 0.0, 0.0), (0.01, RATED_CURRENT, 0.0, 0.0, 0.0)],
+            dtype=[("time", float), ("i_a_ref", float), ("i_b_ref", float), ("theta", float), ("omega", float)],
+        ),
+        output=["i_a"],
+    )
     np.testing.assert_allclose(result["i_a"], 100 * RATED_CURRENT / 100.1, rtol=1e-12)
 
 
@@ -102,9 +123,19 @@ def test_small_angle_mechanics_agree_with_exact_form_near_zero(fmu_paths):
     # at theta_p ~ 0, cos^2 theta_p ~ 1: the paper's eq. 10 and the exact form coincide
     stop = 0.5
     signals = np.array([(0.0, 0.3, 0.0), (stop, 0.3, 0.0)], dtype=[("time", float), ("tau", float), ("m_ext", float)])
-    runs = [simulate_fmu(str(fmu_paths[name]), fmi_type="ModelExchange", solver="CVode", stop_time=stop,
-                         output_interval=0.01, input=signals, relative_tolerance=1e-9,
-                         output=["theta_p"]) for name in ("PanelMechanics", "PanelMechanicsSmallAngle")]
+    runs = [
+        simulate_fmu(
+            str(fmu_paths[name]),
+            fmi_type="ModelExchange",
+            solver="CVode",
+            stop_time=stop,
+            output_interval=0.01,
+            input=signals,
+            relative_tolerance=1e-9,
+            output=["theta_p"],
+        )
+        for name in ("PanelMechanics", "PanelMechanicsSmallAngle")
+    ]
     exact, small = runs[0]["theta_p"], runs[1]["theta_p"]
     assert exact[-1] > 0
     # they differ at second order in theta_p (cos^2 and tan - theta): relative ~ theta_p^2

@@ -40,8 +40,9 @@ def _expected_day(scenario, day: int, distance: float, step_minutes: float = 10.
         n = sun + np.array([-d, 0.0, h]) / np.hypot(d, h)
         return np.arctan2(n[..., 0], n[..., 2])
 
-    noon = pvlib.solarposition.sun_rise_set_transit_spa(pd.DatetimeIndex([start + pd.Timedelta(hours=12)]),
-                                                        40.0, 14.25)["transit"]
+    noon = pvlib.solarposition.sun_rise_set_transit_spa(
+        pd.DatetimeIndex([start + pd.Timedelta(hours=12)]), 40.0, 14.25
+    )["transit"]
     s_noon = _sun(pd.DatetimeIndex(noon))[0][0]
     sharing = (primary(s, distance) - primary(s, 0.0)) - (primary(s_noon, distance) - primary(s_noon, 0.0))
     own = (s + to_tube) / np.linalg.norm(s + to_tube, axis=1)[:, None]
@@ -72,8 +73,9 @@ def test_field_light_per_day_and_mirror_against_ray_geometry():
     assert len(table) == 8 and set(table["status"]) == {"ok"}
     rows = table.set_index(["day_of_year", "mirror_index"])
     for day in (21, 172):
-        assert rows.loc[(day, 6), "light_lost_J"] == pytest.approx(0.0, abs=1e-9 * rows.loc[(day, 6),
-                                                                                              "light_energy_ideal_J"])
+        assert rows.loc[(day, 6), "light_lost_J"] == pytest.approx(
+            0.0, abs=1e-9 * rows.loc[(day, 6), "light_energy_ideal_J"]
+        )
         # East and West outer mirrors lose alike over a day calibrated at its noon
         assert rows.loc[(day, 12), "light_lost_J"] == pytest.approx(rows.loc[(day, 0), "light_lost_J"], rel=0.01)
         for index, distance in ((9, 1.8), (12, 3.6)):

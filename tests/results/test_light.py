@@ -19,14 +19,16 @@ PANEL_COLUMN = "mechanics.theta_p"
 
 
 def _scenario(distance=0.0, axis="secondary", **optics):
-    return validate_scenario({
-        "name": "light-test",
-        "site": {"latitude": 40.0, "longitude": 14.25, "altitude": 0.0, "timezone": "Europe/Rome"},
-        "window": {"date": "2025-01-21", "start": "10:00", "duration": 1800},
-        "plant": {"orientation": "NS", "tube_height": 3.0},
-        "mirror": {"distance": distance, "axis": axis},
-        **({"optics": optics} if optics else {}),
-    })
+    return validate_scenario(
+        {
+            "name": "light-test",
+            "site": {"latitude": 40.0, "longitude": 14.25, "altitude": 0.0, "timezone": "Europe/Rome"},
+            "window": {"date": "2025-01-21", "start": "10:00", "duration": 1800},
+            "plant": {"orientation": "NS", "tube_height": 3.0},
+            "mirror": {"distance": distance, "axis": axis},
+            **({"optics": optics} if optics else {}),
+        }
+    )
 
 
 def _trace(scenario, offset=0.0, step=1.0):
@@ -79,7 +81,9 @@ def test_primary_offset_loses_light_as_the_intercept_says():
     trace, metadata, _ = _trace(scenario, offset=delta)
     series = light_timeseries(trace, metadata, scenario)
     miss = series["transverse_miss_actual_m"].to_numpy()
-    assert np.all(np.abs(miss) > 0.5 * 3.0 * np.sin(2 * delta))  # about h sin(2 delta) (exact with the sun in the plane)
+    assert np.all(
+        np.abs(miss) > 0.5 * 3.0 * np.sin(2 * delta)
+    )  # about h sin(2 delta) (exact with the sun in the plane)
     half = scenario.optics.tube_diameter / 2
     spread = np.sqrt(2) * 3.0 * SUN_SIGMA  # slant = h at d = 0, miss << h
     ratio = 0.5 * (erf((half - miss) / spread) + erf((half + miss) / spread)) / erf(half / spread)
@@ -98,8 +102,9 @@ def test_secondary_stepping_error_moves_light_along_the_tube():
     assert figures["max_longitudinal_miss_m"] == pytest.approx(3.0 * np.tan(2 * delta), rel=0.05)
 
 
-@pytest.mark.parametrize("key, value", [("mirror_area", -1.0), ("tube_diameter", 0.0), ("reflectivity", 1.2),
-                                        ("absorptance", -0.1)])
+@pytest.mark.parametrize(
+    "key, value", [("mirror_area", -1.0), ("tube_diameter", 0.0), ("reflectivity", 1.2), ("absorptance", -0.1)]
+)
 def test_bad_optics_are_errors_naming_the_key(key, value):
     with pytest.raises(InputError, match=key):
         _scenario(**{key: value})
@@ -116,8 +121,10 @@ def test_end_effect_cuts_the_light_that_lands_past_the_tubes_end():
     open_tube = _scenario(0.0)
     at_end = _scenario(0.0, tube_ends=[-50.0, 0.5])
     trace, metadata, _ = _trace(at_end)
-    ratio = light_figures(trace, metadata, at_end)["light_energy_ideal_J"] / light_figures(
-        trace, metadata, open_tube)["light_energy_ideal_J"]
+    ratio = (
+        light_figures(trace, metadata, at_end)["light_energy_ideal_J"]
+        / light_figures(trace, metadata, open_tube)["light_energy_ideal_J"]
+    )
     assert ratio == pytest.approx(1.25 / 1.5, rel=1e-6)  # (the sun interpolated onto the rows: um shifts)
     # a secondary error delta shifts the light by k along the tube: (0.5 + 0.75 - k) / 1.5 of it lands on it
     delta = 0.01  # [rad]

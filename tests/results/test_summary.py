@@ -4,27 +4,41 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from heliostep.scenario import RolesConfig
 from figures_oracle import figures
 from heliostep.results.summary import summarize
+from heliostep.scenario import RolesConfig
 
 STEP = np.pi / 100
 
 
 def _inputs(step_times, indices):
     """A run's metadata as written to metadata.json: the roles and the drive record (no DriveInputs)."""
-    drive = {"mode": "one-phase-on", "current": 5.5, "step_angle": STEP, "initial_index": 0,
-             "step_times": list(step_times), "step_indices": list(indices)}
+    drive = {
+        "mode": "one-phase-on",
+        "current": 5.5,
+        "step_angle": STEP,
+        "initial_index": 0,
+        "step_times": list(step_times),
+        "step_indices": list(indices),
+    }
     return {"roles": RolesConfig().present(), "drive": drive}
 
 
 def _trace(time, rotor, command, error=None, tau=None, power=None):
     n = len(time)
-    return pd.DataFrame({
-        "time": time, "mechanics.theta": rotor, "rotor_angle_cmd": command,
-        "panel_angle_error": np.zeros(n) if error is None else error,
-        "motor.tau": np.zeros(n) if tau is None else tau, "motor.i_a": np.full(n, 5.5), "motor.i_b": np.zeros(n),
-        "motor.power": np.zeros(n) if power is None else power, "mechanics.theta_p": np.zeros(n)})
+    return pd.DataFrame(
+        {
+            "time": time,
+            "mechanics.theta": rotor,
+            "rotor_angle_cmd": command,
+            "panel_angle_error": np.zeros(n) if error is None else error,
+            "motor.tau": np.zeros(n) if tau is None else tau,
+            "motor.i_a": np.full(n, 5.5),
+            "motor.i_b": np.zeros(n),
+            "motor.power": np.zeros(n) if power is None else power,
+            "mechanics.theta_p": np.zeros(n),
+        }
+    )
 
 
 def test_settling_time_and_executed_steps():
@@ -54,8 +68,10 @@ def test_step_not_reached_by_the_next_step_is_missed():
 def test_error_energy_and_peaks():
     time = np.linspace(0.0, 3.0, 301)
     error = np.radians(0.01) * np.sin(2 * np.pi * time)  # RMS of a sine over whole periods: amplitude/sqrt(2)
-    summary = summarize(_trace(time, np.zeros(301), np.zeros(301), error=error,
-                               tau=-0.6 * np.sin(time), power=np.full(301, 3.0)), _inputs([], []))
+    summary = summarize(
+        _trace(time, np.zeros(301), np.zeros(301), error=error, tau=-0.6 * np.sin(time), power=np.full(301, 3.0)),
+        _inputs([], []),
+    )
     assert summary["max_tracking_error_deg"] == pytest.approx(0.01, rel=1e-3)
     assert summary["rms_tracking_error_deg"] == pytest.approx(0.01 / np.sqrt(2), rel=1e-3)
     assert summary["peak_torque_Nm"] == pytest.approx(0.6)
@@ -94,7 +110,10 @@ def _streamed(trace, metadata, block):
     sequencer, schedule = drive_from_metadata(metadata["drive"])
     columns = ["time", "mechanics.theta", "motor.tau", "motor.i_a", "motor.i_b", "motor.power", "mechanics.theta_p"]
     error = trace.set_index("time")["panel_angle_error"]
-    reference = lambda t: -np.interp(t, error.index.to_numpy(), error.to_numpy())  # the panel is at 0
+
+    def reference(t):  # the panel is at 0
+        return -np.interp(t, error.index.to_numpy(), error.to_numpy())
+
     recorder = SolutionRecorder(columns, metadata["roles"], sequencer, schedule, reference, block=block)
     for row in trace[columns].to_numpy():
         recorder(row)

@@ -14,8 +14,12 @@ from physics_reference import RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MO
 
 K_CURRENT = 100.0  # [V/A] the averaged chopper's loop gain (StepperMotor's default)
 HELD = K_CURRENT * RATED_CURRENT / (K_CURRENT + TABLE3_MOTOR["R"])  # L di/dt = K (I - i) - R i = 0
-IDLE = ("window.duration=1.0", "sequencer.idle_current_fraction=0.3", "sequencer.idle_delay=0.2",
-        "output.interval=0.01")
+IDLE = (
+    "window.duration=1.0",
+    "sequencer.idle_current_fraction=0.3",
+    "sequencer.idle_delay=0.2",
+    "output.interval=0.01",
+)
 
 
 def _run(*overrides):
@@ -29,11 +33,14 @@ def _static_torque_peak(i_a, i_b):
     return float(np.max(np.abs(TABLE3_MOTOR["k_e"] * (i_a * np.sin(phase) + i_b * np.cos(phase)))))
 
 
-@pytest.mark.parametrize("mode, patterns", [
-    ("one-phase-on", [(1, 0), (0, -1), (-1, 0), (0, 1)]),  # [paper], Table 1
-    ("two-phase-on", [(1, -1), (-1, -1), (-1, 1), (1, 1)]),
-    ("half-step", [(1, 0), (1, -1), (0, -1), (-1, -1)]),
-])
+@pytest.mark.parametrize(
+    "mode, patterns",
+    [
+        ("one-phase-on", [(1, 0), (0, -1), (-1, 0), (0, 1)]),  # [paper], Table 1
+        ("two-phase-on", [(1, -1), (-1, -1), (-1, 1), (1, 1)]),
+        ("half-step", [(1, 0), (1, -1), (0, -1), (-1, -1)]),
+    ],
+)
 def test_holding_torque_is_the_weakest_positions_peak_of_eq_9(mode, patterns):
     current, fraction = 4.0, 0.4
     weakest = min(_static_torque_peak(fraction * current * a, fraction * current * b) for a, b in patterns)

@@ -58,8 +58,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"heliostep {args.command}: interrupted", file=sys.stderr)
         return 130
     except ForcedStop as forced:  # a second SIGINT/SIGTERM: left at once, temporary files removed
-        print(f"heliostep {args.command}: stopped by {forced}: exited without finishing the clean-up "
-              f"(no file was left claiming to be complete)", file=sys.stderr)
+        print(
+            f"heliostep {args.command}: stopped by {forced}: exited without finishing the clean-up "
+            f"(no file was left claiming to be complete)",
+            file=sys.stderr,
+        )
         return forced.exit_status
 
 

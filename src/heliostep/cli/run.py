@@ -19,32 +19,44 @@ CSV_DEFAULT_MAX_DURATION = 3600.0
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "run", help="run a scenario YAML: trace, summary.json, plots and metadata",
+        "run",
+        help="run a scenario YAML: trace, summary.json, plots and metadata",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Co-simulate a scenario and write trace.parquet, trace.csv (see --csv), summary.json, "
-                    "metadata.json and the figures into --out.\n\n"
-                    "Every file is written under a temporary name and renamed into place; files of these "
-                    "kinds left in --out by an earlier run and not written now are removed. --out is "
-                    "checked before simulating.\n\n"
-                    "Ctrl+C (SIGINT) or SIGTERM stops the simulation at the next safe point: the trace so "
-                    "far, summary.json and metadata.json are written, marked complete: false with reason "
-                    "interrupted and the time reached; no figures are drawn. A second one exits at once: "
-                    "files not finished are removed, none is left claiming to be complete.\n\n"
-                    "Windows over 1 h stream the trace to trace.parquet (row groups, written as the rows "
-                    "come) instead of holding it in memory.\n\n"
-                    "A window with the sun below the horizon throughout runs, with a warning on stderr "
-                    "and \"night\": true and a warning in summary.json.\n\n"
-                    "Exit status: 0 complete; 1 the simulation failed part-way (the trace so far is "
-                    "written, complete: false) or the results could not be written; 2 bad input "
-                    "(scenario, override, FMU, unusable --out); 130 / 143 stopped by SIGINT / SIGTERM.")
+        "metadata.json and the figures into --out.\n\n"
+        "Every file is written under a temporary name and renamed into place; files of these "
+        "kinds left in --out by an earlier run and not written now are removed. --out is "
+        "checked before simulating.\n\n"
+        "Ctrl+C (SIGINT) or SIGTERM stops the simulation at the next safe point: the trace so "
+        "far, summary.json and metadata.json are written, marked complete: false with reason "
+        "interrupted and the time reached; no figures are drawn. A second one exits at once: "
+        "files not finished are removed, none is left claiming to be complete.\n\n"
+        "Windows over 1 h stream the trace to trace.parquet (row groups, written as the rows "
+        "come) instead of holding it in memory.\n\n"
+        "A window with the sun below the horizon throughout runs, with a warning on stderr "
+        'and "night": true and a warning in summary.json.\n\n'
+        "Exit status: 0 complete; 1 the simulation failed part-way (the trace so far is "
+        "written, complete: false) or the results could not be written; 2 bad input "
+        "(scenario, override, FMU, unusable --out); 130 / 143 stopped by SIGINT / SIGTERM.",
+    )
     parser.add_argument("scenario", type=Path, help="scenario YAML file")
     parser.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a scenario key, e.g. --set fmus.motor=StepperMotorIdealCurrent")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario key, e.g. --set fmus.motor=StepperMotorIdealCurrent",
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    parser.add_argument("--csv", action=argparse.BooleanOptionalAction, default=None,
-                        help="also write the trace as trace.csv (default: only for windows up to "
-                             f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)")
+    parser.add_argument(
+        "--csv",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="also write the trace as trace.csv (default: only for windows up to "
+        f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)",
+    )
     parser.set_defaults(func=_run_command)
 
 
@@ -59,15 +71,19 @@ def _run_command(args: argparse.Namespace) -> int:
             print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
             return stop.exit_status
         try:  # a long window streams its trace into out_dir while simulating (bounded memory)
-            result = run_scenario(scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir,
-                                  fmu_paths=fmu_paths)
+            result = run_scenario(
+                scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir, fmu_paths=fmu_paths
+            )
             status = 0
         except RunFailed as failed:
             result = failed.result
             if failed.interrupted:
                 status = stop.exit_status
-                print(f"heliostep run: stopped by {stop.name or 'a stop request'} at t = "
-                      f"{result.time_reached:.6g} s; writing the trace so far (complete: false)", file=sys.stderr)
+                print(
+                    f"heliostep run: stopped by {stop.name or 'a stop request'} at t = "
+                    f"{result.time_reached:.6g} s; writing the trace so far (complete: false)",
+                    file=sys.stderr,
+                )
             else:
                 status = 1
                 print(f"heliostep run: error: {failed}", file=sys.stderr)
@@ -94,8 +110,11 @@ def _run_command(args: argparse.Namespace) -> int:
             return status or 1
         print(_report(result, out_dir))
         if stop.is_set() and status == 0:
-            print(f"heliostep run: stopped by {stop.name} while writing; the results are complete, "
-                  f"the figures may be missing", file=sys.stderr)
+            print(
+                f"heliostep run: stopped by {stop.name} while writing; the results are complete, "
+                f"the figures may be missing",
+                file=sys.stderr,
+            )
             status = stop.exit_status
     return status
 
@@ -119,26 +138,34 @@ def _rescue(result: RunResult, csv: bool) -> Path | None:
 
 def _report(result: RunResult, out_dir: Path) -> str:
     s = result.summary
-    state = "complete" if result.complete else (
-        f"INCOMPLETE ({result.reason or 'failed'} at t = {result.time_reached:.6g} s)"
-        if result.time_reached is not None else "INCOMPLETE")
+    state = (
+        "complete"
+        if result.complete
+        else (
+            f"INCOMPLETE ({result.reason or 'failed'} at t = {result.time_reached:.6g} s)"
+            if result.time_reached is not None
+            else "INCOMPLETE"
+        )
+    )
     lines = [f"{result.scenario.name}: {state} -> {out_dir}"]
-    for key, label, fmt in (("max_tracking_error_deg", "max tracking error [deg]", "{:.4f}"),
-                            ("rms_tracking_error_deg", "RMS tracking error [deg]", "{:.4f}"),
-                            ("peak_torque_Nm", "peak torque [N.m]", "{:.3f}"),
-                            ("peak_phase_current_A", "peak phase current [A]", "{:.3f}"),
-                            ("electrical_energy_J", "electrical energy [J]", "{:.1f}"),
-                            ("steps_commanded", "steps commanded", "{}"),
-                            ("steps_executed", "steps executed", "{}"),
-                            ("missed_steps", "missed steps", "{}"),
-                            ("steps_lost", "steps lost", "{}"),
-                            ("drive_energy_per_day_J", "drive energy per day [J]", "{:.0f}"),
-                            ("idle_holding_margin", "idle holding / wind moment", "{:.2f}"),
-                            ("light_energy_J", "light on the tube [J]", "{:.4g}"),
-                            ("light_energy_ideal_J", "  with ideal tracking [J]", "{:.4g}"),
-                            ("light_lost_stepping_J", "  lost to stepping [J]", "{:.3g}"),
-                            ("light_lost_shared_primary_J", "  lost to the shared primary [J]", "{:.3g}"),
-                            ("mean_intercept", "mean intercept factor", "{:.3f}")):
+    for key, label, fmt in (
+        ("max_tracking_error_deg", "max tracking error [deg]", "{:.4f}"),
+        ("rms_tracking_error_deg", "RMS tracking error [deg]", "{:.4f}"),
+        ("peak_torque_Nm", "peak torque [N.m]", "{:.3f}"),
+        ("peak_phase_current_A", "peak phase current [A]", "{:.3f}"),
+        ("electrical_energy_J", "electrical energy [J]", "{:.1f}"),
+        ("steps_commanded", "steps commanded", "{}"),
+        ("steps_executed", "steps executed", "{}"),
+        ("missed_steps", "missed steps", "{}"),
+        ("steps_lost", "steps lost", "{}"),
+        ("drive_energy_per_day_J", "drive energy per day [J]", "{:.0f}"),
+        ("idle_holding_margin", "idle holding / wind moment", "{:.2f}"),
+        ("light_energy_J", "light on the tube [J]", "{:.4g}"),
+        ("light_energy_ideal_J", "  with ideal tracking [J]", "{:.4g}"),
+        ("light_lost_stepping_J", "  lost to stepping [J]", "{:.3g}"),
+        ("light_lost_shared_primary_J", "  lost to the shared primary [J]", "{:.3g}"),
+        ("mean_intercept", "mean intercept factor", "{:.3f}"),
+    ):
         if s.get(key) is not None:
             lines.append(f"  {label:28s} {fmt.format(s[key])}")
     wall = result.metadata.get("statistics", {}).get("run_wall_time")

@@ -33,5 +33,15 @@ from heliostep.cosim.loops import LoopError
 from heliostep.cosim.master import CoSimulation, MasterResult, SimulationError
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 
-__all__ = ["CoSimulation", "Connection", "FMIError", "FMUInfo", "LoopError", "MasterResult",
-           "PiecewiseConstant", "SimulationError", "SolverOptions", "read_fmu"]
+__all__ = [
+    "CoSimulation",
+    "Connection",
+    "FMIError",
+    "FMUInfo",
+    "LoopError",
+    "MasterResult",
+    "PiecewiseConstant",
+    "SimulationError",
+    "SolverOptions",
+    "read_fmu",
+]

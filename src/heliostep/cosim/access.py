@@ -41,6 +41,7 @@ class VariableAccess:
     _hot: dict[str, Callable[..., int]]
 
     if TYPE_CHECKING:
+
         def _call(self, function: str, *args: Any) -> int: ...
 
         def _check(self, function: str, status: int) -> None: ...
@@ -73,24 +74,32 @@ class VariableAccess:
             buffer_address = buffer.ctypes.data
 
             def copy() -> None:
-                self._check("fmi2GetReal", self._hot["fmi2GetReal"](self._component, source_address, n,
-                                                                      buffer_address))
-                target._check("fmi2SetReal", target._hot["fmi2SetReal"](target._component, target_address,
-                                                                          n, buffer_address))
+                self._check("fmi2GetReal", self._hot["fmi2GetReal"](self._component, source_address, n, buffer_address))
+                target._check(
+                    "fmi2SetReal", target._hot["fmi2SetReal"](target._component, target_address, n, buffer_address)
+                )
+
             # the arrays must outlive the closure's addresses
             copy.keep = (source_vrs, target_vrs, buffer)  # type: ignore[attr-defined]
             return copy
         groups = []
         for kind in dict.fromkeys(types):
             pairs = [(o, i) for o, i, t in zip(outputs, inputs, types) if t == kind]
-            groups.append((self._typed(kind, [o for o, _ in pairs]), target._typed(
-                target.info.variable(pairs[0][1]).type if kind != "Real" else "Real", [i for _, i in pairs])))
+            groups.append(
+                (
+                    self._typed(kind, [o for o, _ in pairs]),
+                    target._typed(
+                        target.info.variable(pairs[0][1]).type if kind != "Real" else "Real", [i for _, i in pairs]
+                    ),
+                )
+            )
 
         def copy_typed() -> None:
             for (get, _, get_buffer), (_, put, put_buffer) in groups:
                 get()
                 put_buffer[:] = get_buffer
                 put()
+
         return copy_typed
 
     def _typed(self, kind: str, names: list[str]) -> tuple[Callable[[], None], Callable[[], None], np.ndarray]:
@@ -107,6 +116,7 @@ class VariableAccess:
 
         def put() -> None:
             self._call(setter, vrs, n, pointer)
+
         return get, put, buffer
 
     def value_references(self, names: Iterable[str]) -> list[int]:
@@ -120,7 +130,8 @@ class VariableAccess:
         if unknown:
             raise InputError(
                 f"{self.info.path}: {self.info.model_name} has no parameter "
-                f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}")
+                f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}"
+            )
         by_type: dict[str, list[tuple[int, Any]]] = {}
         for name, value in values.items():
             variable = self.info.variables[name]
@@ -193,6 +204,7 @@ class VariableAccess:
             def read() -> np.ndarray:
                 self._call("fmi2GetReal", vrs, n, pointer)
                 return out.copy()
+
             return read
         groups = []
         for kind in dict.fromkeys(types):
@@ -205,6 +217,7 @@ class VariableAccess:
                 get()
                 out[index] = buffer
             return out.copy()
+
         return read_typed
 
     def writer(self, names: Iterable[str]) -> Callable[[Any], None]:
@@ -228,4 +241,5 @@ class VariableAccess:
                 else:
                     buffer[:] = np.rint(values[index])
                 put()
+
         return write

@@ -36,8 +36,12 @@ class ConnectionGraph:
     description of each loop.
     """
 
-    def __init__(self, fmus: Mapping[str, FMUInfo], connections: Sequence[Connection] = (),
-                 inputs: Sequence[PiecewiseConstant] = ()):
+    def __init__(
+        self,
+        fmus: Mapping[str, FMUInfo],
+        connections: Sequence[Connection] = (),
+        inputs: Sequence[PiecewiseConstant] = (),
+    ):
         self.fmus = dict(fmus)
         self.inputs = list(inputs)
         self.connections = self._check_connections(connections)
@@ -51,12 +55,13 @@ class ConnectionGraph:
         info = self.fmus[instance]
         if variable not in info.variables:
             names = info.outputs if causality == "output" else info.inputs
-            raise InputError(f"{what} {qualified!r}: {info.path.name} has no variable {variable!r}; "
-                             f"its {causality}s: {', '.join(names)}")
+            raise InputError(
+                f"{what} {qualified!r}: {info.path.name} has no variable {variable!r}; "
+                f"its {causality}s: {', '.join(names)}"
+            )
         var = info.variables[variable]
         if var.causality != causality:
-            raise InputError(f"{what} {qualified!r}: expected an {causality}, it is a "
-                             f"{var.type} {var.causality}")
+            raise InputError(f"{what} {qualified!r}: expected an {causality}, it is a {var.type} {var.causality}")
         if var.type not in _TYPE_CLASS:
             raise InputError(f"{what} {qualified!r}: {var.type} variables cannot be connected or driven")
         return instance, var
@@ -79,11 +84,14 @@ class ConnectionGraph:
             _, source = self._variable(c.source, "connection source", "output")
             _, target = self._variable(c.target, "connection target", "input")
             if _TYPE_CLASS[source.type] != _TYPE_CLASS[target.type]:
-                raise InputError(f"connection {c.source} -> {c.target}: types are incompatible "
-                                 f"({c.source} is {source.type}, {c.target} is {target.type})")
+                raise InputError(
+                    f"connection {c.source} -> {c.target}: types are incompatible "
+                    f"({c.source} is {source.type}, {c.target} is {target.type})"
+                )
             if source.unit and target.unit and source.unit != target.unit:
-                raise InputError(f"connection {c.source} -> {c.target}: units differ "
-                                 f"({source.unit!r} vs {target.unit!r})")
+                raise InputError(
+                    f"connection {c.source} -> {c.target}: units differ ({source.unit!r} vs {target.unit!r})"
+                )
 
     def _prerequisites(self, c: Connection) -> list[Connection]:
         """Connections that set an input which ``c``'s source output depends on directly."""
@@ -127,11 +135,17 @@ class ConnectionGraph:
             state: dict[Connection, int] = {}  # 1 visiting, 2 done
             cycle_found: list[Connection] = []
 
-            def visit(c: Connection, path: list[Connection]) -> bool:
+            def visit(  # this iteration's search state bound as defaults: each round searches afresh
+                c: Connection,
+                path: list[Connection],
+                state: dict[Connection, int] = state,
+                order: list[Connection] = order,
+                cycle_found: list[Connection] = cycle_found,
+            ) -> bool:
                 if state.get(c) == 2:
                     return False
                 if state.get(c) == 1:
-                    cycle_found.extend(path[path.index(c):])
+                    cycle_found.extend(path[path.index(c) :])
                     return True
                 state[c] = 1
                 for before in self._prerequisites(c):
@@ -150,9 +164,11 @@ class ConnectionGraph:
             description = " -> ".join(f"{x.source} -> {x.target}" for x in cycle)
             discrete = [x for x in cycle if self.is_discrete(x)]
             if discrete:
-                raise InputError(f"algebraic loop of direct feedthrough between FMUs: {description}; "
-                                 f"it runs through the discrete-time connection {discrete[0].source} -> "
-                                 f"{discrete[0].target} and cannot be solved: break it with a state "
-                                 "or remove a connection")
+                raise InputError(
+                    f"algebraic loop of direct feedthrough between FMUs: {description}; "
+                    f"it runs through the discrete-time connection {discrete[0].source} -> "
+                    f"{discrete[0].target} and cannot be solved: break it with a state "
+                    "or remove a connection"
+                )
             self.torn.append(tear)
             self.loops.append(f"{description} (torn at {tear.target})")

@@ -81,8 +81,9 @@ class FMUInfo:
         try:
             return self.variables[name]
         except KeyError:
-            raise InputError(f"{self.path}: no variable {name!r} in {self.model_name}; "
-                             f"variables: {', '.join(self.variables)}") from None
+            raise InputError(
+                f"{self.path}: no variable {name!r} in {self.model_name}; variables: {', '.join(self.variables)}"
+            ) from None
 
 
 def _unit(variable) -> str:
@@ -106,8 +107,10 @@ def read_fmu(path: str | Path) -> FMUInfo:
     if description.fmiVersion != "2.0":
         raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0")
     if description.modelExchange is None:
-        raise InputError(f"{path}: the FMU does not support Model Exchange (co-simulation only); "
-                         "heliostep integrates Model Exchange FMUs itself")
+        raise InputError(
+            f"{path}: the FMU does not support Model Exchange (co-simulation only); "
+            "heliostep integrates Model Exchange FMUs itself"
+        )
     _check_binary(path, description.modelExchange.modelIdentifier)
     variables = {}
     for v in description.modelVariables:
@@ -115,8 +118,15 @@ def read_fmu(path: str | Path) -> FMUInfo:
         if v.start is not None:
             start = _parse_start(v.type, v.start)
         variables[v.name] = VariableInfo(
-            name=v.name, value_reference=v.valueReference, type=v.type, causality=v.causality,
-            variability=v.variability, unit=_unit(v), start=start, description=v.description or "")
+            name=v.name,
+            value_reference=v.valueReference,
+            type=v.type,
+            causality=v.causality,
+            variability=v.variability,
+            unit=_unit(v),
+            start=start,
+            description=v.description or "",
+        )
     states = [d.variable.derivative.name for d in description.derivatives]
     inputs = {v.name for v in description.modelVariables if v.causality == "input"}
     feedthrough = {}
@@ -128,12 +138,17 @@ def read_fmu(path: str | Path) -> FMUInfo:
             names = [d.name for d in dependencies if d.name in inputs]
         feedthrough[unknown.variable.name] = names
     return FMUInfo(
-        path=path, model_name=description.modelName,
-        model_identifier=description.modelExchange.modelIdentifier, guid=description.guid,
-        variables=variables, states=states,
+        path=path,
+        model_name=description.modelName,
+        model_identifier=description.modelExchange.modelIdentifier,
+        guid=description.guid,
+        variables=variables,
+        states=states,
         n_event_indicators=description.numberOfEventIndicators or 0,
-        output_feedthrough=feedthrough, description=description,
-        needs_completed_integrator_step=bool(description.modelExchange.needsCompletedIntegratorStep))
+        output_feedthrough=feedthrough,
+        description=description,
+        needs_completed_integrator_step=bool(description.modelExchange.needsCompletedIntegratorStep),
+    )
 
 
 def _parse_start(type_: str, start) -> float | str | None:
@@ -149,13 +164,35 @@ def _parse_start(type_: str, start) -> float | str | None:
 
 #: The functions every FMI 2.0 Model Exchange binary must export (fmpy binds all of them).
 REQUIRED_FUNCTIONS = (
-    "fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging", "fmi2Instantiate",
-    "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
-    "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2Reset", "fmi2GetReal", "fmi2GetInteger",
-    "fmi2GetBoolean", "fmi2GetString", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean",
-    "fmi2SetString", "fmi2EnterEventMode", "fmi2NewDiscreteStates", "fmi2EnterContinuousTimeMode",
-    "fmi2CompletedIntegratorStep", "fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetDerivatives",
-    "fmi2GetEventIndicators", "fmi2GetContinuousStates", "fmi2GetNominalsOfContinuousStates")
+    "fmi2GetTypesPlatform",
+    "fmi2GetVersion",
+    "fmi2SetDebugLogging",
+    "fmi2Instantiate",
+    "fmi2FreeInstance",
+    "fmi2SetupExperiment",
+    "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode",
+    "fmi2Terminate",
+    "fmi2Reset",
+    "fmi2GetReal",
+    "fmi2GetInteger",
+    "fmi2GetBoolean",
+    "fmi2GetString",
+    "fmi2SetReal",
+    "fmi2SetInteger",
+    "fmi2SetBoolean",
+    "fmi2SetString",
+    "fmi2EnterEventMode",
+    "fmi2NewDiscreteStates",
+    "fmi2EnterContinuousTimeMode",
+    "fmi2CompletedIntegratorStep",
+    "fmi2SetTime",
+    "fmi2SetContinuousStates",
+    "fmi2GetDerivatives",
+    "fmi2GetEventIndicators",
+    "fmi2GetContinuousStates",
+    "fmi2GetNominalsOfContinuousStates",
+)
 
 
 def _check_binary(path: Path, model_identifier: str) -> None:
@@ -170,10 +207,13 @@ def _check_binary(path: Path, model_identifier: str) -> None:
     with zipfile.ZipFile(path) as archive:
         names = archive.namelist()
     if member not in names:
-        available = sorted({n.split("/")[1] for n in names
-                            if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[1]})
-        raise InputError(f"{path}: no binary for this platform ({platform}): {member} is missing; "
-                         f"the FMU has binaries for: {', '.join(available) or 'no platform'}")
+        available = sorted(
+            {n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[1]}
+        )
+        raise InputError(
+            f"{path}: no binary for this platform ({platform}): {member} is missing; "
+            f"the FMU has binaries for: {', '.join(available) or 'no platform'}"
+        )
     library = Path(_extract(path)) / member
     try:
         dll = ctypes.CDLL(str(library))
@@ -187,8 +227,10 @@ def _check_binary(path: Path, model_identifier: str) -> None:
 
         _ctypes.dlclose(dll._handle)
     if missing:
-        raise InputError(f"{path}: the binary for {platform} ({member}) lacks the FMI 2.0 Model "
-                         f"Exchange function(s) {', '.join(missing)}")
+        raise InputError(
+            f"{path}: the binary for {platform} ({member}) lacks the FMI 2.0 Model "
+            f"Exchange function(s) {', '.join(missing)}"
+        )
 
 
 _extracted: dict[tuple[str, float], str] = {}

@@ -44,8 +44,9 @@ from heliostep.errors import RunFailure
 class FMIError(RunFailure):
     """An FMI function returned fmi2Error or fmi2Fatal (or an FMU could not be loaded): a run failure."""
 
-    def __init__(self, function: str, instance: str, status: str, messages: Iterable[str] = (),
-                 time: float | None = None):
+    def __init__(
+        self, function: str, instance: str, status: str, messages: Iterable[str] = (), time: float | None = None
+    ):
         self.function = function
         self.instance = instance
         self.status = status
@@ -83,8 +84,13 @@ def _dispatch_log(environment, instance_name, status, category, message) -> None
         label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
         if instance is not None:
             instance.messages.append(text)
-        _log.log(_logging.WARNING if status >= 1 else _logging.DEBUG, "%s [%s] %s",
-                 instance.name if instance is not None else name, label, text)
+        _log.log(
+            _logging.WARNING if status >= 1 else _logging.DEBUG,
+            "%s [%s] %s",
+            instance.name if instance is not None else name,
+            label,
+            text,
+        )
     except Exception:  # noqa: BLE001 - a logger must never raise into the FMU
         pass
 
@@ -103,25 +109,59 @@ def _logger():
 _ARRAY_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t)
 _VALUES_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p)
 _TIME_CALL = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double)
-_HOT_CALLS = {"fmi2SetTime": _TIME_CALL, "fmi2SetContinuousStates": _ARRAY_CALL,
-              "fmi2GetContinuousStates": _ARRAY_CALL, "fmi2GetDerivatives": _ARRAY_CALL,
-              "fmi2GetEventIndicators": _ARRAY_CALL, "fmi2GetReal": _VALUES_CALL, "fmi2SetReal": _VALUES_CALL}
+_HOT_CALLS = {
+    "fmi2SetTime": _TIME_CALL,
+    "fmi2SetContinuousStates": _ARRAY_CALL,
+    "fmi2GetContinuousStates": _ARRAY_CALL,
+    "fmi2GetDerivatives": _ARRAY_CALL,
+    "fmi2GetEventIndicators": _ARRAY_CALL,
+    "fmi2GetReal": _VALUES_CALL,
+    "fmi2SetReal": _VALUES_CALL,
+}
 
 #: Prototypes of every FMI function :meth:`ModelExchangeInstance._call` calls (pointers as void *).
 _STATUS_ONLY = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
 _CALLS = {
-    **{name: _VALUES_CALL for name in ("fmi2GetReal", "fmi2SetReal", "fmi2GetInteger", "fmi2SetInteger",
-                                       "fmi2GetBoolean", "fmi2SetBoolean", "fmi2GetString", "fmi2SetString")},
-    **{name: _ARRAY_CALL for name in ("fmi2GetContinuousStates", "fmi2SetContinuousStates", "fmi2GetDerivatives",
-                                      "fmi2GetNominalsOfContinuousStates")},
-    **{name: _STATUS_ONLY for name in ("fmi2EnterInitializationMode", "fmi2ExitInitializationMode",
-                                       "fmi2EnterEventMode", "fmi2EnterContinuousTimeMode", "fmi2Terminate",
-                                       "fmi2Reset")},
-    "fmi2SetupExperiment": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double,
-                                            ctypes.c_double, ctypes.c_int, ctypes.c_double),
+    **{
+        name: _VALUES_CALL
+        for name in (
+            "fmi2GetReal",
+            "fmi2SetReal",
+            "fmi2GetInteger",
+            "fmi2SetInteger",
+            "fmi2GetBoolean",
+            "fmi2SetBoolean",
+            "fmi2GetString",
+            "fmi2SetString",
+        )
+    },
+    **{
+        name: _ARRAY_CALL
+        for name in (
+            "fmi2GetContinuousStates",
+            "fmi2SetContinuousStates",
+            "fmi2GetDerivatives",
+            "fmi2GetNominalsOfContinuousStates",
+        )
+    },
+    **{
+        name: _STATUS_ONLY
+        for name in (
+            "fmi2EnterInitializationMode",
+            "fmi2ExitInitializationMode",
+            "fmi2EnterEventMode",
+            "fmi2EnterContinuousTimeMode",
+            "fmi2Terminate",
+            "fmi2Reset",
+        )
+    },
+    "fmi2SetupExperiment": ctypes.CFUNCTYPE(
+        ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_int, ctypes.c_double
+    ),
     "fmi2NewDiscreteStates": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p),
-    "fmi2CompletedIntegratorStep": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p,
-                                                    ctypes.c_void_p),
+    "fmi2CompletedIntegratorStep": ctypes.CFUNCTYPE(
+        ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p
+    ),
 }
 
 
@@ -138,6 +178,26 @@ class EventResult:
     states_changed: bool = False
     next_event_time: float | None = None
     nominals_changed: bool = False  # nominalsOfContinuousStatesChanged: read them again
+
+
+def _callbacks(environment: int):
+    """fmi2CallbackFunctions for one instance: heliostep's logger (its messages routed by
+    ``componentEnvironment``), memory through fmpy's calloc/free."""
+    from fmpy import calloc, free
+    from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = _logger()
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    callbacks.componentEnvironment = environment
+    try:  # fmpy's native proxy formats the printf-style arguments, then calls _dispatch_log
+        from fmpy.logging import addLoggerProxy
+
+        addLoggerProxy(ctypes.byref(callbacks))
+    except Exception:  # noqa: BLE001 - without it messages stay unformatted
+        pass
+    return callbacks
 
 
 class ModelExchangeInstance(VariableAccess):
@@ -160,15 +220,10 @@ class ModelExchangeInstance(VariableAccess):
     :meth:`close` calls ``fmi2Terminate`` only where the standard allows it.
     """
 
-    def __init__(self, info: FMUInfo, instance_name: str,
-                 parameters: Mapping[str, object] | None = None, logging: bool = False):
-        from fmpy import calloc, free
-        from fmpy.fmi2 import (
-            FMU2Model,
-            fmi2CallbackAllocateMemoryTYPE,
-            fmi2CallbackFreeMemoryTYPE,
-            fmi2CallbackFunctions,
-        )
+    def __init__(
+        self, info: FMUInfo, instance_name: str, parameters: Mapping[str, object] | None = None, logging: bool = False
+    ):
+        from fmpy.fmi2 import FMU2Model
 
         self.info = info
         self.name = instance_name
@@ -180,19 +235,14 @@ class ModelExchangeInstance(VariableAccess):
         self._model = None
         self._environment = next(_environment_ids)
         _by_environment[self._environment] = self
-        self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = _logger()
-        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self._callbacks.componentEnvironment = self._environment
-        try:  # fmpy's native proxy formats the printf-style arguments, then calls _dispatch_log
-            from fmpy.logging import addLoggerProxy
-            addLoggerProxy(ctypes.byref(self._callbacks))
-        except Exception:  # noqa: BLE001 - without it messages stay unformatted
-            pass
+        self._callbacks = _callbacks(self._environment)
         try:
-            self._model = FMU2Model(guid=info.guid, unzipDirectory=_extract(info.path),
-                                    modelIdentifier=info.model_identifier, instanceName=instance_name)
+            self._model = FMU2Model(
+                guid=info.guid,
+                unzipDirectory=_extract(info.path),
+                modelIdentifier=info.model_identifier,
+                instanceName=instance_name,
+            )
             self._model.instantiate(callbacks=self._callbacks, loggingOn=logging)
         except Exception as exc:
             if self._model is not None:
@@ -267,18 +317,21 @@ class ModelExchangeInstance(VariableAccess):
     def _freed(self, function: str) -> Callable[..., int]:
         def call(*args):
             raise FMIError(function, self.name, "no instance (freed, library unloaded)", (), self.time)
+
         return call
 
     # ------------------------------------------------------------------ hot path (addresses)
     def set_states_at(self, address: int) -> None:
         """fmi2SetContinuousStates from ``n_states`` doubles at ``address``."""
-        self._check("fmi2SetContinuousStates",
-                    self._hot["fmi2SetContinuousStates"](self._component, address, self.n_states))
+        self._check(
+            "fmi2SetContinuousStates", self._hot["fmi2SetContinuousStates"](self._component, address, self.n_states)
+        )
 
     def get_states_at(self, address: int) -> None:
         """fmi2GetContinuousStates into ``n_states`` doubles at ``address``."""
-        self._check("fmi2GetContinuousStates",
-                    self._hot["fmi2GetContinuousStates"](self._component, address, self.n_states))
+        self._check(
+            "fmi2GetContinuousStates", self._hot["fmi2GetContinuousStates"](self._component, address, self.n_states)
+        )
 
     def get_derivatives_at(self, address: int) -> None:
         """fmi2GetDerivatives into ``n_states`` doubles at ``address``."""
@@ -286,8 +339,10 @@ class ModelExchangeInstance(VariableAccess):
 
     def get_event_indicators_at(self, address: int) -> None:
         """fmi2GetEventIndicators into ``n_event_indicators`` doubles at ``address``."""
-        self._check("fmi2GetEventIndicators",
-                    self._hot["fmi2GetEventIndicators"](self._component, address, self.n_event_indicators))
+        self._check(
+            "fmi2GetEventIndicators",
+            self._hot["fmi2GetEventIndicators"](self._component, address, self.n_event_indicators),
+        )
 
     # ------------------------------------------------------------------ life cycle
     def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:
@@ -319,11 +374,19 @@ class ModelExchangeInstance(VariableAccess):
             if info.terminateSimulation or not info.newDiscreteStatesNeeded:
                 break
         else:
-            raise FMIError("fmi2NewDiscreteStates", self.name,
-                           f"no fixed point after {max_iterations} event iterations", self.messages, self.time)
-        return EventResult(terminate=bool(info.terminateSimulation), states_changed=changed,
-                           next_event_time=info.nextEventTime if info.nextEventTimeDefined else None,
-                           nominals_changed=nominals)
+            raise FMIError(
+                "fmi2NewDiscreteStates",
+                self.name,
+                f"no fixed point after {max_iterations} event iterations",
+                self.messages,
+                self.time,
+            )
+        return EventResult(
+            terminate=bool(info.terminateSimulation),
+            states_changed=changed,
+            next_event_time=info.nextEventTime if info.nextEventTimeDefined else None,
+            nominals_changed=nominals,
+        )
 
     def enter_continuous_time_mode(self) -> None:
         self._call("fmi2EnterContinuousTimeMode")

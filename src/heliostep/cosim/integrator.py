@@ -41,6 +41,7 @@ from heliostep.cosim.kernel import (
     Kernel,
 )
 from heliostep.cosim.signals import SolverOptions, cvode_failure, too_many_steps
+from heliostep.cosim.system import CoupledSystem
 
 
 class Integrator(Protocol):
@@ -53,8 +54,14 @@ class Integrator(Protocol):
         """CVODE in normal mode to ``t_next`` or the first root: (root found, time reached [s])."""
         ...
 
-    def advance(self, t_stop: float, grid: np.ndarray, next_output: int, interpolate: bool,
-                take_rows: Callable[[np.ndarray, np.ndarray], None]) -> tuple[bool, float, int]:
+    def advance(
+        self,
+        t_stop: float,
+        grid: np.ndarray,
+        next_output: int,
+        interpolate: bool,
+        take_rows: Callable[[np.ndarray, np.ndarray], None],
+    ) -> tuple[bool, float, int]:
         """One-step mode to ``t_stop`` or the first root, rows to ``take_rows`` on the way:
         (root found, time reached [s], index of the next output time of ``grid``)."""
         ...
@@ -134,9 +141,19 @@ class CVodeIntegrator:
 
     compiled = False
 
-    def __init__(self, states: StateAccess, rhs: int, root: int, user_data: int | None, nx: int, nz: int,
-                 start_time: float, options: SolverOptions, kernel: Kernel | None,
-                 errors: CallbackErrors | None = None):
+    def __init__(
+        self,
+        states: StateAccess,
+        rhs: int,
+        root: int,
+        user_data: int | None,
+        nx: int,
+        nz: int,
+        start_time: float,
+        options: SolverOptions,
+        kernel: Kernel | None,
+        errors: CallbackErrors | None = None,
+    ):
         self.states, self.kernel, self.errors = states, kernel, errors
         self.max_num_steps = options.max_num_steps
         self.error_info: tuple | None = None
@@ -147,8 +164,7 @@ class CVodeIntegrator:
         self.cvode_mem: int | None = None
         self._create(rhs, root, user_data, start_time, options)
 
-    def _create(self, rhs: int, root: int, user_data: int | None, start_time: float,
-                options: SolverOptions) -> None:
+    def _create(self, rhs: int, root: int, user_data: int | None, start_time: float, options: SolverOptions) -> None:
         context = ctypes.c_void_p()
         self._check(sundials.SUNContext_Create(sundials.SUN_COMM_NULL, ctypes.byref(context)), "SUNContext_Create")
         self.sunctx = context.value
@@ -179,16 +195,18 @@ class CVodeIntegrator:
         self._check(sundials.CVodeSetMaxNumSteps(mem, options.max_num_steps), "CVodeSetMaxNumSteps")
         self._check(sundials.CVodeSetNoInactiveRootWarn(mem), "CVodeSetNoInactiveRootWarn")
         self._error_handler = sundials.ERROR_HANDLER(self._record_error)
-        self._check(sundials.SUNContext_PushErrHandler(self.sunctx, self._error_handler, None),
-                    "SUNContext_PushErrHandler")
+        self._check(
+            sundials.SUNContext_PushErrHandler(self.sunctx, self._error_handler, None), "SUNContext_PushErrHandler"
+        )
 
     @staticmethod
     def _check(flag: int, what: str) -> None:
         if flag != 0:
             raise RuntimeError(f"{what} failed (flag {flag})")
 
-    def _record_error(self, line: int, func: bytes, file: bytes, msg: bytes, err_code: int, err_user_data: Any,
-                      sunctx: Any) -> None:
+    def _record_error(
+        self, line: int, func: bytes, file: bytes, msg: bytes, err_code: int, err_user_data: Any, sunctx: Any
+    ) -> None:
         self.error_info = (err_code, func.decode("utf-8"), file.decode("utf-8"), msg.decode("utf-8"))
 
     # ------------------------------------------------------------------ the protocol
@@ -203,8 +221,14 @@ class CVodeIntegrator:
             self.states.set_x(self.px)
         return flag > 0, reached.value
 
-    def advance(self, t_stop: float, grid: np.ndarray, next_output: int, interpolate: bool,
-                take_rows: Callable[[np.ndarray, np.ndarray], None]) -> tuple[bool, float, int]:
+    def advance(
+        self,
+        t_stop: float,
+        grid: np.ndarray,
+        next_output: int,
+        interpolate: bool,
+        take_rows: Callable[[np.ndarray, np.ndarray], None],
+    ) -> tuple[bool, float, int]:
         if self.kernel is None or self.cvode_mem is None:
             raise RuntimeError("this integrator has no kernel for the one-step loop, or is closed")
         if not self.discrete:
@@ -212,7 +236,8 @@ class CVodeIntegrator:
         if sundials.CVodeSetStopTime(self.cvode_mem, t_stop) < 0:
             raise RuntimeError(f"CVodeSetStopTime({t_stop}) failed")
         status, reached, next_output, flag = self.kernel.advance(
-            self.cvode_mem, self.x, self.dky, t_stop, grid, next_output, interpolate, self.max_num_steps, take_rows)
+            self.cvode_mem, self.x, self.dky, t_stop, grid, next_output, interpolate, self.max_num_steps, take_rows
+        )
         if status in (ADVANCE_REACHED, ADVANCE_ROOT):
             if not self.discrete:
                 self.states.set_x(self.px)
@@ -255,8 +280,9 @@ class CompiledIntegrator(CVodeIntegrator):
 
     compiled = True
 
-    def __init__(self, states: StateAccess, kernel: Kernel, nx: int, nz: int, start_time: float,
-                 options: SolverOptions):
+    def __init__(
+        self, states: StateAccess, kernel: Kernel, nx: int, nz: int, start_time: float, options: SolverOptions
+    ):
         super().__init__(states, kernel.rhs, kernel.root, kernel.user_data.value, nx, nz, start_time, options, kernel)
 
     def rhs_evaluations(self) -> int:
@@ -269,13 +295,22 @@ class CallbackIntegrator(CVodeIntegrator):
     states, then read the derivatives (``get_dx``) or the event indicators (``get_z``), as fmpy's
     ``CVodeSolver`` does. What a callback raises is kept in ``errors`` (:meth:`take_error`)."""
 
-    def __init__(self, system: CallbackSystem, nx: int, nz: int, start_time: float, options: SolverOptions,
-                 kernel: Kernel | None, errors: CallbackErrors):
+    def __init__(
+        self,
+        system: CallbackSystem,
+        nx: int,
+        nz: int,
+        start_time: float,
+        options: SolverOptions,
+        kernel: Kernel | None,
+        errors: CallbackErrors,
+    ):
         self.system = system
         self._rhs = sundials.RHS_CALLBACK(lambda t, y, ydot, user: errors.guard(self._f, t, y, ydot))
         self._root = sundials.ROOT_CALLBACK(lambda t, y, gout, user: errors.guard(self._g, t, y, gout))
-        super().__init__(system, _address(self._rhs), _address(self._root), None, nx, nz, start_time, options,
-                         kernel, errors)
+        super().__init__(
+            system, _address(self._rhs), _address(self._root), None, nx, nz, start_time, options, kernel, errors
+        )
 
     def _f(self, t: float, y: int, ydot: int) -> None:
         self.system.set_time(t)
@@ -298,3 +333,35 @@ def _address(function: Any) -> int:
 
 def _doubles(address: int) -> Any:
     return ctypes.cast(address, ctypes.POINTER(ctypes.c_double))
+
+
+def make_integrator(
+    system: CoupledSystem,
+    start_time: float,
+    options: SolverOptions,
+    input_values: np.ndarray,
+    row_width: int,
+    monitored: bool,
+    compiled: bool = True,
+) -> Integrator:
+    """CVODE on the compiled kernel (``compiled`` and the system allows it) or, where the Python
+    callbacks are needed (switched off, algebraic loops, non-Real continuous connections), on
+    those; the kernel's one-step loop in both cases when the run is ``monitored``. The kernel
+    reads the master's inputs from ``input_values`` (updated in place) and records rows of
+    ``row_width`` values."""
+    nx, nz = system.n_states, system.n_indicators
+    if compiled and system.loop is None and system.native_links is not None:
+        kernel = Kernel(system.kernel_units(), system.native_links, nx, inputs=input_values, row_width=row_width)
+        return CompiledIntegrator(system, kernel, nx, nz, start_time, options)
+    errors = CallbackErrors()
+    native = None
+    if monitored:
+        native = Kernel(
+            system.kernel_units(),
+            [],
+            nx,
+            inputs=input_values,
+            row_width=row_width,
+            prepare=lambda t, x: errors.guard(system.prepare_row, t, x),
+        )
+    return CallbackIntegrator(system, nx, nz, start_time, options, native, errors)

@@ -56,8 +56,16 @@ SOURCE_PATH = Path(__file__).resolve().parent / "c" / "kernel.c"
 HEADER_PATH = SOURCE_PATH.with_name("kernel.h")
 
 #: The FMI function of each ``failed_function`` code of the C kernel (kernel.h: F_SET_TIME ...).
-FUNCTIONS = ["fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetReal", "fmi2SetReal", "fmi2GetDerivatives",
-             "fmi2GetEventIndicators", "fmi2GetInteger", "fmi2GetBoolean"]
+FUNCTIONS = [
+    "fmi2SetTime",
+    "fmi2SetContinuousStates",
+    "fmi2GetReal",
+    "fmi2SetReal",
+    "fmi2GetDerivatives",
+    "fmi2GetEventIndicators",
+    "fmi2GetInteger",
+    "fmi2GetBoolean",
+]
 
 #: What :c:func:`hs_advance` returns (kernel.h).
 ADVANCE_REACHED, ADVANCE_ROOT, ADVANCE_FULL, ADVANCE_MAX_STEPS = 0, 1, 2, 3
@@ -70,54 +78,106 @@ PREPARE_CALLBACK = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, ctypes.c_void
 class Outputs(ctypes.Structure):
     """kernel.h ``hs_outputs``."""
 
-    _fields_ = [("n", ctypes.c_long), ("vrs", ctypes.c_void_p), ("columns", ctypes.c_void_p),
-                ("ints", ctypes.c_void_p)]
+    _fields_ = [("n", ctypes.c_long), ("vrs", ctypes.c_void_p), ("columns", ctypes.c_void_p), ("ints", ctypes.c_void_p)]
 
 
 class Unit(ctypes.Structure):
     """kernel.h ``hs_unit``."""
 
-    _fields_ = [("component", ctypes.c_void_p)] + [
-        (name, ctypes.c_void_p) for name in ("set_time", "set_states", "get_derivatives", "get_event_indicators",
-                                             "get_real", "set_real", "get_integer", "get_boolean")] + [
-        (name, ctypes.c_long) for name in ("nx", "x_offset", "nz", "z_offset")] + [
-        (name, Outputs) for name in ("real_outputs", "integer_outputs", "boolean_outputs")]
+    _fields_ = (
+        [("component", ctypes.c_void_p)]
+        + [
+            (name, ctypes.c_void_p)
+            for name in (
+                "set_time",
+                "set_states",
+                "get_derivatives",
+                "get_event_indicators",
+                "get_real",
+                "set_real",
+                "get_integer",
+                "get_boolean",
+            )
+        ]
+        + [(name, ctypes.c_long) for name in ("nx", "x_offset", "nz", "z_offset")]
+        + [(name, Outputs) for name in ("real_outputs", "integer_outputs", "boolean_outputs")]
+    )
 
 
 class Link(ctypes.Structure):
     """kernel.h ``hs_link``."""
 
-    _fields_ = [("source", ctypes.c_long), ("target", ctypes.c_long), ("n", ctypes.c_long),
-                ("source_vrs", ctypes.c_void_p), ("target_vrs", ctypes.c_void_p), ("buffer", ctypes.c_void_p)]
+    _fields_ = [
+        ("source", ctypes.c_long),
+        ("target", ctypes.c_long),
+        ("n", ctypes.c_long),
+        ("source_vrs", ctypes.c_void_p),
+        ("target_vrs", ctypes.c_void_p),
+        ("buffer", ctypes.c_void_p),
+    ]
 
 
 class KernelState(ctypes.Structure):
     """kernel.h ``hs_kernel``."""
 
-    _fields_ = [("n_units", ctypes.c_long), ("units", ctypes.POINTER(Unit)), ("n_links", ctypes.c_long),
-                ("links", ctypes.POINTER(Link)), ("data", ctypes.c_void_p), ("discrete", ctypes.c_long),
-                ("nx", ctypes.c_long), ("rhs_count", ctypes.c_long), ("status", ctypes.c_long),
-                ("failed_unit", ctypes.c_long), ("failed_function", ctypes.c_long),
-                ("failed_time", ctypes.c_double),
-                ("cvode", ctypes.c_void_p), ("get_dky", ctypes.c_void_p), ("n_inputs", ctypes.c_long),
-                ("row_width", ctypes.c_long), ("inputs", ctypes.c_void_p), ("scratch", ctypes.c_void_p),
-                ("pending", ctypes.c_long), ("step_time", ctypes.c_double), ("step_flag", ctypes.c_int),
-                ("prepare", ctypes.c_void_p), ("prepare_user", ctypes.c_void_p)]
+    _fields_ = [
+        ("n_units", ctypes.c_long),
+        ("units", ctypes.POINTER(Unit)),
+        ("n_links", ctypes.c_long),
+        ("links", ctypes.POINTER(Link)),
+        ("data", ctypes.c_void_p),
+        ("discrete", ctypes.c_long),
+        ("nx", ctypes.c_long),
+        ("rhs_count", ctypes.c_long),
+        ("status", ctypes.c_long),
+        ("failed_unit", ctypes.c_long),
+        ("failed_function", ctypes.c_long),
+        ("failed_time", ctypes.c_double),
+        ("cvode", ctypes.c_void_p),
+        ("get_dky", ctypes.c_void_p),
+        ("n_inputs", ctypes.c_long),
+        ("row_width", ctypes.c_long),
+        ("inputs", ctypes.c_void_p),
+        ("scratch", ctypes.c_void_p),
+        ("pending", ctypes.c_long),
+        ("step_time", ctypes.c_double),
+        ("step_flag", ctypes.c_int),
+        ("prepare", ctypes.c_void_p),
+        ("prepare_user", ctypes.c_void_p),
+    ]
 
 
 class AdvanceArgs(ctypes.Structure):
     """kernel.h ``hs_advance_args``: one call of :c:func:`hs_advance`."""
 
-    _fields_ = [("cvode_mem", ctypes.c_void_p), ("y", ctypes.c_void_p), ("dky", ctypes.c_void_p),
-                ("t_stop", ctypes.c_double), ("grid", ctypes.c_void_p), ("n_grid", ctypes.c_long),
-                ("interpolate", ctypes.c_int), ("rows", ctypes.c_void_p), ("kinds", ctypes.c_void_p),
-                ("capacity", ctypes.c_long), ("max_steps", ctypes.c_long),
-                ("next_output", ctypes.c_long), ("n_rows", ctypes.c_long), ("steps", ctypes.c_long),
-                ("t_reached", ctypes.c_double), ("cvode_flag", ctypes.c_int)]
+    _fields_ = [
+        ("cvode_mem", ctypes.c_void_p),
+        ("y", ctypes.c_void_p),
+        ("dky", ctypes.c_void_p),
+        ("t_stop", ctypes.c_double),
+        ("grid", ctypes.c_void_p),
+        ("n_grid", ctypes.c_long),
+        ("interpolate", ctypes.c_int),
+        ("rows", ctypes.c_void_p),
+        ("kinds", ctypes.c_void_p),
+        ("capacity", ctypes.c_long),
+        ("max_steps", ctypes.c_long),
+        ("next_output", ctypes.c_long),
+        ("n_rows", ctypes.c_long),
+        ("steps", ctypes.c_long),
+        ("t_reached", ctypes.c_double),
+        ("cvode_flag", ctypes.c_int),
+    ]
+
 
 #: The ctypes mirror of each structure of kernel.h, by its C name.
 STRUCTURES: dict[str, type[ctypes.Structure]] = {
-    "hs_outputs": Outputs, "hs_unit": Unit, "hs_link": Link, "hs_kernel": KernelState, "hs_advance_args": AdvanceArgs}
+    "hs_outputs": Outputs,
+    "hs_unit": Unit,
+    "hs_link": Link,
+    "hs_kernel": KernelState,
+    "hs_advance_args": AdvanceArgs,
+}
 
 
 class KernelBuildError(RunFailure):
@@ -154,9 +214,11 @@ def library_path() -> Path:
             source.write_bytes(source_text)
             (Path(work) / HEADER_PATH.name).write_bytes(header_text)
             target = Path(work) / path.name
-            result = subprocess.run([cc, "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", "-o", str(target),
-                                     str(source), "-lm"],
-                                    capture_output=True, text=True)
+            result = subprocess.run(
+                [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", "-o", str(target), str(source), "-lm"],
+                capture_output=True,
+                text=True,
+            )
             if result.returncode != 0:
                 raise KernelBuildError(f"compiling the kernel failed:\n{result.stderr}")
             os.replace(target, path)  # atomic: other processes see no half-written library
@@ -208,9 +270,15 @@ class Kernel:
     #: Rows one call of :c:func:`hs_advance` records before it hands them over.
     ROWS_PER_BLOCK = 4096
 
-    def __init__(self, units: Sequence[KernelUnit], links: Sequence[KernelLink], n_states: int,
-                 inputs: np.ndarray | None = None, row_width: int = 1,
-                 prepare: Callable[[float, int | None], int] | None = None):
+    def __init__(
+        self,
+        units: Sequence[KernelUnit],
+        links: Sequence[KernelLink],
+        n_states: int,
+        inputs: np.ndarray | None = None,
+        row_width: int = 1,
+        prepare: Callable[[float, int | None], int] | None = None,
+    ):
         self.instances = [fmu for fmu, _, _, _ in units]
         self._keep: list[Any] = []  # arrays whose addresses the C structures hold
         self._units = (Unit * max(1, len(units)))()
@@ -218,8 +286,11 @@ class Kernel:
             self._fill_unit(self._units[k], *unit)
         self._links = (Link * max(1, len(links)))()
         for k, (source, target, source_vrs, target_vrs) in enumerate(links):
-            arrays = (np.array(source_vrs, dtype=np.uint32), np.array(target_vrs, dtype=np.uint32),
-                      np.zeros(len(source_vrs)))
+            arrays = (
+                np.array(source_vrs, dtype=np.uint32),
+                np.array(target_vrs, dtype=np.uint32),
+                np.zeros(len(source_vrs)),
+            )
             self._keep.append(arrays)
             link = self._links[k]
             link.source, link.target, link.n = source, target, len(source_vrs)
@@ -248,31 +319,51 @@ class Kernel:
         self.rhs = sundials.function_address(self._library, "hs_rhs")
         self.root = sundials.function_address(self._library, "hs_root")
 
-    def _fill_unit(self, u: Unit, fmu: ModelExchangeInstance, x_offset: int, z_offset: int,
-                   outputs: Sequence[tuple[str, int, int]]) -> None:
+    def _fill_unit(
+        self, u: Unit, fmu: ModelExchangeInstance, x_offset: int, z_offset: int, outputs: Sequence[tuple[str, int, int]]
+    ) -> None:
         u.component = fmu.component
-        for field, function in (("set_time", "fmi2SetTime"), ("set_states", "fmi2SetContinuousStates"),
-                                ("get_derivatives", "fmi2GetDerivatives"),
-                                ("get_event_indicators", "fmi2GetEventIndicators"), ("get_real", "fmi2GetReal"),
-                                ("set_real", "fmi2SetReal"), ("get_integer", "fmi2GetInteger"),
-                                ("get_boolean", "fmi2GetBoolean")):
+        for field, function in (
+            ("set_time", "fmi2SetTime"),
+            ("set_states", "fmi2SetContinuousStates"),
+            ("get_derivatives", "fmi2GetDerivatives"),
+            ("get_event_indicators", "fmi2GetEventIndicators"),
+            ("get_real", "fmi2GetReal"),
+            ("set_real", "fmi2SetReal"),
+            ("get_integer", "fmi2GetInteger"),
+            ("get_boolean", "fmi2GetBoolean"),
+        ):
             setattr(u, field, fmu.function_address(function))
         u.nx, u.x_offset, u.nz, u.z_offset = fmu.n_states, x_offset, fmu.n_event_indicators, z_offset
-        for field, kinds in (("real_outputs", ("Real",)), ("integer_outputs", ("Integer", "Enumeration")),
-                             ("boolean_outputs", ("Boolean",))):
+        for field, kinds in (
+            ("real_outputs", ("Real",)),
+            ("integer_outputs", ("Integer", "Enumeration")),
+            ("boolean_outputs", ("Boolean",)),
+        ):
             chosen = [(vr, column) for kind, vr, column in outputs if kind in kinds]
-            arrays = (np.array([vr for vr, _ in chosen], dtype=np.uint32),
-                      np.array([column for _, column in chosen], dtype=np.int64),
-                      np.zeros(len(chosen), dtype=np.int32))
+            arrays = (
+                np.array([vr for vr, _ in chosen], dtype=np.uint32),
+                np.array([column for _, column in chosen], dtype=np.int64),
+                np.zeros(len(chosen), dtype=np.int32),
+            )
             self._keep.append(arrays)
             group = getattr(u, field)
             group.n = len(chosen)
             group.vrs, group.columns = arrays[0].ctypes.data, arrays[1].ctypes.data
             group.ints = arrays[2].ctypes.data if field != "real_outputs" else None
 
-    def advance(self, cvode_mem: int, y: int, dky: int, t_stop: float, grid: np.ndarray, next_output: int,
-                interpolate: bool, max_steps: int,
-                take_rows: Callable[[np.ndarray, np.ndarray], None]) -> AdvanceOutcome:
+    def advance(
+        self,
+        cvode_mem: int,
+        y: int,
+        dky: int,
+        t_stop: float,
+        grid: np.ndarray,
+        next_output: int,
+        interpolate: bool,
+        max_steps: int,
+        take_rows: Callable[[np.ndarray, np.ndarray], None],
+    ) -> AdvanceOutcome:
         """CVODE (its stop time set to ``t_stop``) in one-step mode up to ``t_stop`` or the first root,
         the loop over internal steps in C (:c:func:`hs_advance`).
 
@@ -286,17 +377,28 @@ class Kernel:
         :meth:`take_error`.
         """
         grid = np.ascontiguousarray(grid, dtype=float)
-        args = AdvanceArgs(cvode_mem=cvode_mem, y=y, dky=dky, t_stop=t_stop, grid=grid.ctypes.data,
-                           n_grid=len(grid), interpolate=int(interpolate), rows=self.rows.ctypes.data,
-                           kinds=self.kinds.ctypes.data, capacity=self.ROWS_PER_BLOCK, max_steps=max_steps,
-                           next_output=next_output, t_reached=np.nan)
+        args = AdvanceArgs(
+            cvode_mem=cvode_mem,
+            y=y,
+            dky=dky,
+            t_stop=t_stop,
+            grid=grid.ctypes.data,
+            n_grid=len(grid),
+            interpolate=int(interpolate),
+            rows=self.rows.ctypes.data,
+            kinds=self.kinds.ctypes.data,
+            capacity=self.ROWS_PER_BLOCK,
+            max_steps=max_steps,
+            next_output=next_output,
+            t_reached=np.nan,
+        )
         while True:
             args.n_rows = 0
             status = self._library.hs_advance(self.user_data, ctypes.byref(args))
             for fmu in self.instances:
                 fmu.time = args.t_reached
             if args.n_rows:
-                take_rows(self.rows[:args.n_rows], self.kinds[:args.n_rows])
+                take_rows(self.rows[: args.n_rows], self.kinds[: args.n_rows])
             if status != ADVANCE_FULL:
                 return status, float(args.t_reached), int(args.next_output), int(args.cvode_flag)
 

@@ -31,8 +31,15 @@ class LoopSolver:
     ``read()`` returns the torn sources' outputs.
     """
 
-    def __init__(self, names: list[str], write: Callable[[np.ndarray], None], read: Callable[[], np.ndarray],
-                 rtol: float = 1e-10, atol: float = 1e-12, max_iterations: int = 50):
+    def __init__(
+        self,
+        names: list[str],
+        write: Callable[[np.ndarray], None],
+        read: Callable[[], np.ndarray],
+        rtol: float = 1e-10,
+        atol: float = 1e-12,
+        max_iterations: int = 50,
+    ):
         self.names = names
         self.write, self.read = write, read
         self.rtol, self.atol, self.max_iterations = rtol, atol, max_iterations
@@ -69,14 +76,21 @@ class LoopSolver:
             try:
                 step = np.linalg.solve(jacobian, -r)
             except np.linalg.LinAlgError:
-                raise LoopError(f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: "
-                                "singular Jacobian (the loop has no unique solution)") from None
+                raise LoopError(
+                    f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: "
+                    "singular Jacobian (the loop has no unique solution)"
+                ) from None
             v = v + step
             r = self._residual(v, propagate)
-        raise LoopError(f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: no "
-                        f"convergence in {self.max_iterations} Newton iterations (residual "
-                        f"{np.max(np.abs(r)):.3g})")
+        raise LoopError(
+            f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: no "
+            f"convergence in {self.max_iterations} Newton iterations (residual "
+            f"{np.max(np.abs(r)):.3g})"
+        )
 
     def statistics(self) -> dict:
-        return {"loop_solves": self.solves, "loop_iterations": self.iterations,
-                "loop_most_iterations": self.most_iterations}
+        return {
+            "loop_solves": self.solves,
+            "loop_iterations": self.iterations,
+            "loop_most_iterations": self.most_iterations,
+        }

@@ -1,8 +1,9 @@
 """The co-simulation master: several FMI 2.0 Model Exchange FMUs solved as one system.
 
-This module owns the run: the event logic and the main loop over solver calls. The parts it
-drives live beside it: the coupled system (:mod:`~heliostep.cosim.system`: instances, links,
-algebraic loops, propagation, the states as one vector), the integrator
+This module owns the run: when events happen and the main loop over solver calls. The parts it
+drives live beside it: FMI's event mode (:mod:`~heliostep.cosim.events`), the coupled system
+(:mod:`~heliostep.cosim.system`: instances, links, algebraic loops, propagation, the states as
+one vector), the integrator
 (:mod:`~heliostep.cosim.integrator`: one SUNDIALS CVODE, BDF with Newton iteration and a dense
 Jacobian, behind the :class:`~heliostep.cosim.integrator.Integrator` protocol), the compiled
 kernel (:mod:`~heliostep.cosim.kernel`) and the row buffer (:mod:`~heliostep.cosim.rows`). On
@@ -33,24 +34,14 @@ recorded (an unknown parameter, say), is raised as it is.
 The trace has a row at every output time and a row just before and just after every event
 (two rows with the same time), so nothing that happens at a step is lost to interpolation.
 
-CVODE's right-hand side and root function are compiled C (:mod:`heliostep.cosim.kernel`,
-switch :data:`COMPILED_RHS`): per evaluation they set time and states, copy the continuous Real
-connections in the same propagation order and read derivatives or event indicators through the
-FMUs' own ``fmi2*`` function pointers, with no Python per evaluation; an FMI error comes back as
-a status recorded with its time and becomes the same :class:`~heliostep.cosim.fmi.FMIError`.
-Runs with algebraic loops or non-Real continuous connections (and all runs with
-``HELIOSTEP_COMPILED_RHS=0``) give CVODE Python callbacks instead. The event logic stays here,
-in Python.
-
-With a monitor (every run of heliostep's), CVODE runs in one-step mode and the loop over its
-internal steps is C on either right-hand side (:meth:`heliostep.cosim.kernel.Kernel.advance`, the
-one such loop): after each internal step it records the row the monitor sees into a buffer
-handed over in blocks. With
-:data:`INTERPOLATE_OUTPUTS` (on by default; ``HELIOSTEP_INTERPOLATE_OUTPUTS=0`` makes CVODE
-stop at every output time instead) CVODE stops only at input changes, time events and the
-stop time; output rows in between are recorded from CVODE's interpolating polynomial
-(``CVodeGetDky``). The two paths differ by the solver's error only; the regression tubes are
-set at twice it (``benchmarks/tolerance_study.py``).
+CVODE's right-hand side and root function are compiled C (:class:`~heliostep.cosim.integrator.CompiledIntegrator`,
+switch :data:`COMPILED_RHS`), or Python callbacks for runs with algebraic loops or non-Real
+continuous connections (:class:`~heliostep.cosim.integrator.CallbackIntegrator`). With a monitor
+(every run of heliostep's) the loop over CVODE's internal steps is C on either
+(:meth:`heliostep.cosim.kernel.Kernel.advance`, the one such loop), recording the rows the monitor
+sees in blocks; with :data:`INTERPOLATE_OUTPUTS` (``HELIOSTEP_INTERPOLATE_OUTPUTS=0`` stops CVODE
+at every output time instead) output rows between stops come from CVODE's interpolating
+polynomial. The two paths differ by the solver's error only (``benchmarks/tolerance_study.py``).
 """
 
 from __future__ import annotations
@@ -64,15 +55,24 @@ import numpy as np
 import pandas as pd
 
 from heliostep.cosim.connections import ConnectionGraph
+from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
 from heliostep.cosim.fmi import FMUInfo, convert_value
-from heliostep.cosim.integrator import CallbackErrors, CallbackIntegrator, CompiledIntegrator, Integrator
+from heliostep.cosim.integrator import Integrator, make_integrator
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 from heliostep.cosim.system import CoupledSystem
 from heliostep.errors import HeliostepError, InputError, RunFailure
 
-__all__ = ["COMPILED_RHS", "INTERPOLATE_OUTPUTS", "CoSimulation", "Connection", "MasterResult", "PiecewiseConstant",
-           "SimulationError", "SolverOptions"]
+__all__ = [
+    "COMPILED_RHS",
+    "INTERPOLATE_OUTPUTS",
+    "CoSimulation",
+    "Connection",
+    "MasterResult",
+    "PiecewiseConstant",
+    "SimulationError",
+    "SolverOptions",
+]
 
 
 class SimulationError(RunFailure):
@@ -82,8 +82,9 @@ class SimulationError(RunFailure):
     the simulation time reached [s].
     """
 
-    def __init__(self, message: str, trace: pd.DataFrame, statistics: dict, reason: str = "failed",
-                 time: float = float("nan")):
+    def __init__(
+        self, message: str, trace: pd.DataFrame, statistics: dict, reason: str = "failed", time: float = float("nan")
+    ):
         super().__init__(message)
         self.trace = trace
         self.statistics = statistics
@@ -103,15 +104,6 @@ COMPILED_RHS = os.environ.get("HELIOSTEP_COMPILED_RHS", "1") == "1"
 #: stop time, and record output times that fall between internal steps from CVODE's
 #: interpolating polynomial (CVodeGetDky) instead of making CVODE stop at each of them.
 INTERPOLATE_OUTPUTS = os.environ.get("HELIOSTEP_INTERPOLATE_OUTPUTS", "1") == "1"
-
-
-class _Terminated(Exception):
-    """An FMU asked to terminate the simulation (fmi2NewDiscreteStates/CompletedIntegratorStep)."""
-
-    def __init__(self, reason: str, time: float):
-        super().__init__(reason)
-        self.reason = reason
-        self.time = time
 
 
 @dataclass
@@ -144,14 +136,19 @@ class CoSimulation(ConnectionGraph):
         Parameter values per instance.
     """
 
-    def __init__(self, fmus: Mapping[str, FMUInfo], connections: Sequence[Connection] = (),
-                 inputs: Sequence[PiecewiseConstant] = (),
-                 parameters: Mapping[str, Mapping[str, float]] | None = None):
+    def __init__(
+        self,
+        fmus: Mapping[str, FMUInfo],
+        connections: Sequence[Connection] = (),
+        inputs: Sequence[PiecewiseConstant] = (),
+        parameters: Mapping[str, Mapping[str, float]] | None = None,
+    ):
         parameters = parameters or {}
         unknown = set(parameters) - set(fmus)
         if unknown:
-            raise InputError(f"parameters given for unknown FMU instance(s) {sorted(unknown)}; "
-                             f"instances: {', '.join(fmus)}")
+            raise InputError(
+                f"parameters given for unknown FMU instance(s) {sorted(unknown)}; instances: {', '.join(fmus)}"
+            )
         super().__init__(fmus, connections, inputs)
         self.parameters = {name: dict(parameters.get(name, {})) for name in fmus}
         for name, values in self.parameters.items():  # every value must fit its type, up front
@@ -161,12 +158,18 @@ class CoSimulation(ConnectionGraph):
                     convert_value(info.variables[parameter], value)
 
     # ------------------------------------------------------------------ simulation
-    def simulate(self, start_time: float, stop_time: float, output_times: np.ndarray | None = None,
-                 solver: SolverOptions | None = None,
-                 progress: Callable[[float], None] | None = None,
-                 monitor: Callable[[np.ndarray], None] | None = None,
-                 should_stop: Callable[[], bool] | None = None,
-                 sink: Callable[[np.ndarray], None] | None = None, sink_rows: int = 4096) -> MasterResult:
+    def simulate(
+        self,
+        start_time: float,
+        stop_time: float,
+        output_times: np.ndarray | None = None,
+        solver: SolverOptions | None = None,
+        progress: Callable[[float], None] | None = None,
+        monitor: Callable[[np.ndarray], None] | None = None,
+        should_stop: Callable[[], bool] | None = None,
+        sink: Callable[[np.ndarray], None] | None = None,
+        sink_rows: int = 4096,
+    ) -> MasterResult:
         """Integrate from ``start_time`` to ``stop_time`` [s].
 
         Returns the trace with a row at each of ``output_times`` (default: start and stop)
@@ -192,34 +195,56 @@ class CoSimulation(ConnectionGraph):
         """
         if not stop_time > start_time:
             raise InputError(f"stop time {stop_time} must be after start time {start_time}")
-        solver = solver or SolverOptions()
-        grid = np.unique(np.clip(np.asarray([start_time, stop_time] if output_times is None
-                                            else output_times, dtype=float), start_time, stop_time))
-        run = _Run(self, solver, progress, monitor, should_stop, sink, sink_rows)
-        try:
-            run.execute(start_time, stop_time, grid)
-        except _Interrupted:
-            raise SimulationError(f"interrupted at t = {run.time:.9g} s", run.rows.trace(), run.statistics(),
-                                  reason="interrupted", time=run.time) from None
-        except InputError as exc:
-            if not run.rows.total:  # found setting up the FMUs: bad input, not a failed simulation
-                raise
-            raise run.failure(exc) from exc
-        except (HeliostepError, RuntimeError) as exc:
-            raise run.failure(exc) from exc
-        finally:
-            run.close()
-        return MasterResult(run.rows.trace(), run.statistics(), terminated=run.terminated,
-                            termination_reason=run.termination_reason, termination_time=run.termination_time)
+        points = [start_time, stop_time] if output_times is None else output_times
+        grid = np.unique(np.clip(np.asarray(points, dtype=float), start_time, stop_time))
+        run = _Run(self, solver or SolverOptions(), progress, monitor, should_stop, sink, sink_rows)
+        return _completed(run, start_time, stop_time, grid)
+
+
+def _completed(run: _Run, start_time: float, stop_time: float, grid: np.ndarray) -> MasterResult:
+    """``run`` executed from ``start_time`` to ``stop_time`` [s] with output rows at ``grid``, its
+    FMUs freed on every path: the result, or a :class:`SimulationError` carrying the rows so far
+    (an :class:`~heliostep.errors.InputError` before any row raised as it is)."""
+    try:
+        run.execute(start_time, stop_time, grid)
+    except _Interrupted:
+        raise SimulationError(
+            f"interrupted at t = {run.time:.9g} s",
+            run.rows.trace(),
+            run.statistics(),
+            reason="interrupted",
+            time=run.time,
+        ) from None
+    except InputError as exc:
+        if not run.rows.total:  # found setting up the FMUs: bad input, not a failed simulation
+            raise
+        raise run.failure(exc) from exc
+    except (HeliostepError, RuntimeError) as exc:
+        raise run.failure(exc) from exc
+    finally:
+        run.close()
+    return MasterResult(
+        run.rows.trace(),
+        run.statistics(),
+        terminated=run.terminated,
+        termination_reason=run.termination_reason,
+        termination_time=run.termination_time,
+    )
 
 
 class _Run:
     """One integration: the coupled system, its integrator, the events and the recorded rows."""
 
-    def __init__(self, graph: CoSimulation, options: SolverOptions, progress: Callable[[float], None] | None,
-                 monitor: Callable[[np.ndarray], None] | None = None,
-                 should_stop: Callable[[], bool] | None = None,
-                 sink: Callable[[np.ndarray], None] | None = None, sink_rows: int = 4096):
+    def __init__(
+        self,
+        graph: CoSimulation,
+        options: SolverOptions,
+        progress: Callable[[float], None] | None,
+        monitor: Callable[[np.ndarray], None] | None = None,
+        should_stop: Callable[[], bool] | None = None,
+        sink: Callable[[np.ndarray], None] | None = None,
+        sink_rows: int = 4096,
+    ):
         self.graph = graph
         self.options = options
         self.progress = progress
@@ -242,22 +267,29 @@ class _Run:
     # --------------------------------------------------------------- results
     def failure(self, exc: BaseException) -> SimulationError:
         """The SimulationError of a run that failed with ``exc`` at the time reached."""
-        return SimulationError(f"simulation failed at t = {self.time:.9g} s: {exc}", self.rows.trace(),
-                               self.statistics(), time=self.time)
+        return SimulationError(
+            f"simulation failed at t = {self.time:.9g} s: {exc}", self.rows.trace(), self.statistics(), time=self.time
+        )
 
     def statistics(self) -> dict:
         system, integrator = self.system, self.integrator
         rhs = (system.rhs_evaluations if system is not None else 0) + (
-            integrator.rhs_evaluations() if integrator is not None else 0)
+            integrator.rhs_evaluations() if integrator is not None else 0
+        )
         counts = {"rhs": rhs, **self.counts, "nominal_reads": system.nominal_reads if system is not None else 0}
-        return {**counts, "compiled_rhs": integrator is not None and integrator.compiled,
-                "wall_time": clock.perf_counter() - self.wall_start,
-                "states": system.n_states if system is not None else 0,
-                "event_indicators": system.n_indicators if system is not None else 0,
-                "terminated": self.terminated, "termination_reason": self.termination_reason,
-                "termination_time": self.termination_time, "algebraic_loops": list(self.graph.loops),
-                "max_buffered_rows": self.rows.max_buffered,
-                **(system.loop.statistics() if system is not None and system.loop is not None else {})}
+        return {
+            **counts,
+            "compiled_rhs": integrator is not None and integrator.compiled,
+            "wall_time": clock.perf_counter() - self.wall_start,
+            "states": system.n_states if system is not None else 0,
+            "event_indicators": system.n_indicators if system is not None else 0,
+            "terminated": self.terminated,
+            "termination_reason": self.termination_reason,
+            "termination_time": self.termination_time,
+            "algebraic_loops": list(self.graph.loops),
+            "max_buffered_rows": self.rows.max_buffered,
+            **(system.loop.statistics() if system is not None and system.loop is not None else {}),
+        }
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
@@ -293,42 +325,8 @@ class _Run:
     def _event_iteration(self, system: CoupledSystem, t: float, new_inputs: bool) -> None:
         """Event mode at ``t``: set inputs, iterate discrete states to a fixed point."""
         self.counts["events"] += 1
-        for unit in system.unit_list:
-            unit.fmu.enter_event_mode()
-        if new_inputs:
-            self.input_values[:] = [item.value_at(t) for item in self.graph.inputs]  # in place: the kernel reads it
-            system.apply_inputs()
-        self._discrete_fixed_point(system)
-        for unit in system.unit_list:
-            unit.fmu.enter_continuous_time_mode()
-
-    def _discrete_fixed_point(self, system: CoupledSystem, max_rounds: int = 100) -> bool:
-        """NewDiscreteStates on every FMU, re-propagating outputs, until nothing changes.
-
-        The outputs are compared with those the round propagated from (read before the first
-        round): when NewDiscreteStates changed none, the inputs set from them are consistent
-        and one round is the fixed point (a step instant of the shipped drive needs one)."""
-        changed = False
-        previous = system.outputs()
-        for _ in range(max_rounds):
-            system.propagate_at_event()
-            stop = []
-            for unit in system.unit_list:
-                result = unit.fmu.update_discrete_states()
-                changed |= result.states_changed
-                system.nominals_changed |= result.nominals_changed
-                unit.next_event_time = result.next_event_time
-                if result.terminate:
-                    stop.append(unit.name)
-            if stop:  # the round is complete: pass the final outputs on, then end the run
-                system.propagate_at_event()
-                raise _Terminated(f"{', '.join(stop)} asked to terminate the simulation "
-                                  "(fmi2NewDiscreteStates: terminateSimulation)", self.time)
-            outputs = system.outputs()
-            if np.array_equal(outputs, previous):
-                return changed
-            previous = outputs
-        raise RunFailure(f"event iteration at t = {self.time} found no fixed point in {max_rounds} rounds")
+        new_values = [item.value_at(t) for item in self.graph.inputs] if new_inputs else None
+        event_iteration(system, self.input_values, new_values, self.time)
 
     def _event(self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool) -> None:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after."""
@@ -355,45 +353,31 @@ class _Run:
         """Instantiate and initialize the FMUs (inputs set, connections propagated, the first
         event iteration) and record the row at ``start_time``."""
         self.time = start_time
-        self.system = system = CoupledSystem(self.graph, self.graph.parameters, start_time, self.input_values,
-                                             self.options, lambda: self.time)
+        self.system = system = CoupledSystem(
+            self.graph, self.graph.parameters, start_time, self.input_values, self.options, lambda: self.time
+        )
         system.apply_inputs()
         system.propagate_at_event()
         for unit in system.unit_list:
             unit.fmu.exit_initialization_mode()
-        self._discrete_fixed_point(system)
+        discrete_fixed_point(system, self.time)
         for unit in system.unit_list:
             unit.fmu.enter_continuous_time_mode()
         self.record(start_time)
         return system
-
-    def _integrator(self, system: CoupledSystem, start_time: float) -> Integrator:
-        """CVODE on the compiled kernel or, where the Python callbacks are needed (switched off,
-        algebraic loops, non-Real continuous connections), on those; the kernel's one-step loop
-        in both cases when there is a monitor."""
-        from heliostep.cosim.kernel import Kernel
-
-        nx, nz, width = system.n_states, system.n_indicators, len(self.rows.columns)
-        if COMPILED_RHS and system.loop is None and system.native_links is not None:
-            kernel = Kernel(system.kernel_units(), system.native_links, nx, inputs=self.input_values, row_width=width)
-            return CompiledIntegrator(system, kernel, nx, nz, start_time, self.options)
-        errors = CallbackErrors()
-        prepare = None if self.monitor is None else (lambda t, x: errors.guard(system.prepare_row, t, x))
-        native = None if prepare is None else Kernel(system.kernel_units(), [], nx, inputs=self.input_values,
-                                                     row_width=width, prepare=prepare)
-        return CallbackIntegrator(system, nx, nz, start_time, self.options, native, errors)
 
     # --------------------------------------------------------------- main loop
     def execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
         """Run the integration; an FMU's terminateSimulation ends it normally at that time."""
         try:
             self._execute(start_time, stop_time, grid)
-        except _Terminated as stop:
+        except Terminated as stop:
             self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
             self.record(stop.time)
 
-    def _advance(self, integrator: Integrator, t_next: float, outputs: np.ndarray | None = None,
-                 k: int = 0) -> tuple[bool, float, int]:
+    def _advance(
+        self, integrator: Integrator, t_next: float, outputs: np.ndarray | None = None, k: int = 0
+    ) -> tuple[bool, float, int]:
         """Integrate to ``t_next`` or the first root: (root found, t reached, next output index).
 
         Without a monitor this is one CVODE call in normal mode. With one, the kernel's one-step
@@ -404,15 +388,23 @@ class _Run:
         if self.monitor is None:
             root, t = integrator.step(t_next)
             return root, t, k
-        return integrator.advance(t_next, outputs if outputs is not None else self._no_outputs, k,
-                                  outputs is not None, self._take_rows)
+        return integrator.advance(
+            t_next, outputs if outputs is not None else self._no_outputs, k, outputs is not None, self._take_rows
+        )
 
     def _execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
         system = self._initialize(start_time)
-        change_times = np.unique(np.concatenate(
-            [item.times for item in self.graph.inputs] or [np.zeros(0)]))
+        change_times = np.unique(np.concatenate([item.times for item in self.graph.inputs] or [np.zeros(0)]))
         change_times = change_times[(change_times > start_time) & (change_times <= stop_time)]
-        self.integrator = integrator = self._integrator(system, start_time)
+        self.integrator = integrator = make_integrator(
+            system,
+            start_time,
+            self.options,
+            self.input_values,
+            len(self.rows.columns),
+            self.monitor is not None,
+            compiled=COMPILED_RHS,
+        )
         interpolate = self.monitor is not None and INTERPOLATE_OUTPUTS
         t = start_time
         next_output = next_change = 0
@@ -427,8 +419,11 @@ class _Run:
                 continue
             if t >= stop_time - eps:
                 break
-            time_events = [u.next_event_time for u in system.unit_list
-                           if u.next_event_time is not None and u.next_event_time > t + eps]
+            time_events = [
+                u.next_event_time
+                for u in system.unit_list
+                if u.next_event_time is not None and u.next_event_time > t + eps
+            ]
             t_output = grid[next_output] if next_output < len(grid) else stop_time
             t_change = change_times[next_change] if next_change < len(change_times) else np.inf
             t_time_event = min(time_events) if time_events else np.inf
@@ -437,15 +432,23 @@ class _Run:
             else:
                 t_next = min(t_output, t_change, t_time_event, stop_time)
             self.counts["integrator_calls"] += 1
-            state_event, t, next_output, t_output = self._integrate(integrator, t_next, grid, next_output, t_output,
-                                                                    interpolate)
+            state_event, t, next_output, t_output = self._integrate(
+                integrator, t_next, grid, next_output, t_output, interpolate
+            )
             input_event = t >= t_change
             if input_event:
                 next_change += 1
             self._after_step(system, integrator, t, t_output, state_event, input_event, t >= t_time_event)
 
-    def _integrate(self, integrator: Integrator, t_next: float, grid: np.ndarray, next_output: int,
-                   t_output: float, interpolate: bool) -> tuple[bool, float, int, float]:
+    def _integrate(
+        self,
+        integrator: Integrator,
+        t_next: float,
+        grid: np.ndarray,
+        next_output: int,
+        t_output: float,
+        interpolate: bool,
+    ) -> tuple[bool, float, int, float]:
         """One solver call towards ``t_next``: (root found, t reached, next output index, the
         output time to record at the time reached or later); a callback's error re-raised."""
         try:
@@ -462,8 +465,16 @@ class _Run:
         self._raise_callback_error(integrator)
         return state_event, t, next_output, t_output
 
-    def _after_step(self, system: CoupledSystem, integrator: Integrator, t: float, t_output: float,
-                    state_event: bool, input_event: bool, time_event: bool) -> None:
+    def _after_step(
+        self,
+        system: CoupledSystem,
+        integrator: Integrator,
+        t: float,
+        t_output: float,
+        state_event: bool,
+        input_event: bool,
+        time_event: bool,
+    ) -> None:
         """At the time reached: the FMUs' completed step, then the event there or the output row."""
         self.time = t
         system.set_time(t)
@@ -473,8 +484,10 @@ class _Run:
             enter, terminate = unit.fmu.completed_integrator_step()
             step_event |= enter
             if terminate:
-                raise _Terminated(f"{unit.name} asked to terminate the simulation "
-                                  "(fmi2CompletedIntegratorStep: terminateSimulation)", t)
+                raise Terminated(
+                    f"{unit.name} asked to terminate the simulation (fmi2CompletedIntegratorStep: terminateSimulation)",
+                    t,
+                )
         if state_event or step_event or input_event or time_event:
             self.counts["state_events"] += int(state_event)
             self.counts["time_events"] += int(time_event)

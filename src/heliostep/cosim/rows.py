@@ -23,8 +23,7 @@ class RowBuffer:
     handed over).
     """
 
-    def __init__(self, columns: Sequence[str], sink: Callable[[np.ndarray], None] | None = None,
-                 sink_rows: int = 4096):
+    def __init__(self, columns: Sequence[str], sink: Callable[[np.ndarray], None] | None = None, sink_rows: int = 4096):
         if sink is not None and sink_rows < 1:
             raise InputError(f"sink_rows must be at least 1, not {sink_rows}")
         self.columns = list(columns)
@@ -57,7 +56,7 @@ class RowBuffer:
         data = np.vstack(self.blocks)
         self.blocks, self.buffered = [], 0
         for start in range(0, len(data), self.sink_rows):
-            self.sink(data[start:start + self.sink_rows])
+            self.sink(data[start : start + self.sink_rows])
 
     def trace(self) -> pd.DataFrame:
         """The rows held (all of them without a sink; none with one: they are flushed to it)."""

@@ -61,5 +61,7 @@ def cvode_failure(error_info: tuple | None, flag: int) -> RuntimeError:
 def too_many_steps(max_steps: int, t_stop: float, reached: float) -> RuntimeError:
     """The error for a one-step CVODE loop that took ``max_steps`` internal steps (the limit
     CVODE itself applies in normal mode, ``SolverOptions.max_num_steps``) short of ``t_stop``."""
-    return RuntimeError(f"CVode took {max_steps} internal steps (solver.max_num_steps) before reaching "
-                        f"t = {t_stop:.9g} s, at t = {reached:.9g} s")
+    return RuntimeError(
+        f"CVode took {max_steps} internal steps (solver.max_num_steps) before reaching "
+        f"t = {t_stop:.9g} s, at t = {reached:.9g} s"
+    )

@@ -50,8 +50,15 @@ class CoupledSystem:
     the loop solver's messages). An error while instantiating frees the instances made so far.
     """
 
-    def __init__(self, graph: ConnectionGraph, parameters: Mapping[str, Mapping[str, Any]], start_time: float,
-                 input_values: np.ndarray, options: SolverOptions, now: Callable[[], float]):
+    def __init__(
+        self,
+        graph: ConnectionGraph,
+        parameters: Mapping[str, Mapping[str, Any]],
+        start_time: float,
+        input_values: np.ndarray,
+        options: SolverOptions,
+        now: Callable[[], float],
+    ):
         self.graph, self.options, self.now = graph, options, now
         self.input_values = input_values
         self.units: dict[str, Unit] = {}
@@ -81,8 +88,9 @@ class CoupledSystem:
         self.needs_step_call = [u for u in self.unit_list if u.info.needs_completed_integrator_step]
         # (unit, byte offset of its states, of its event indicators) in the coupled vectors
         self.state_units = [(u, 8 * int(lo)) for u, lo in zip(self.unit_list, self.offsets[:-1]) if u.n_states]
-        self.indicator_units = [(u, 8 * int(lo)) for u, lo in zip(self.unit_list, self.z_offsets[:-1])
-                                if u.n_indicators]
+        self.indicator_units = [
+            (u, 8 * int(lo)) for u, lo in zip(self.unit_list, self.z_offsets[:-1]) if u.n_indicators
+        ]
 
     def _connect(self) -> None:
         """The copy calls of every connection group: ``links`` (continuous), ``event_links`` (all)
@@ -105,10 +113,17 @@ class CoupledSystem:
                     continue
                 self.links.append(link)
                 real = all(source_fmu.info.variable(o).type == "Real" for o in outputs) and all(
-                    target_fmu.info.variable(i).type == "Real" for i in inputs)
+                    target_fmu.info.variable(i).type == "Real" for i in inputs
+                )
                 if self.native_links is not None and real:
-                    self.native_links.append((index[source], index[target], source_fmu.value_references(outputs),
-                                              target_fmu.value_references(inputs)))
+                    self.native_links.append(
+                        (
+                            index[source],
+                            index[target],
+                            source_fmu.value_references(outputs),
+                            target_fmu.value_references(inputs),
+                        )
+                    )
                 else:
                     self.native_links = None
 
@@ -126,6 +141,7 @@ class CoupledSystem:
 
         def read() -> np.ndarray:
             return np.array([get()[0] for get in readers])
+
         return LoopSolver([c.target for c in self.graph.torn], write, read)
 
     # --------------------------------------------------------------- inputs and propagation
@@ -224,8 +240,10 @@ class CoupledSystem:
         units: list[KernelUnit] = []
         column = 1 + len(self.input_values)
         for u, x, z in zip(self.unit_list, self.offsets[:-1], self.z_offsets[:-1]):
-            outputs = [(u.info.variable(name).type, u.info.variable(name).value_reference, column + j)
-                       for j, name in enumerate(u.outputs)]
+            outputs = [
+                (u.info.variable(name).type, u.info.variable(name).value_reference, column + j)
+                for j, name in enumerate(u.outputs)
+            ]
             column += len(outputs)
             units.append((u.fmu, int(x), int(z), outputs))
         return units

@@ -49,7 +49,7 @@ def build_key(model_name: str, models: Path) -> str:
     for path in model_files(models):
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     package = resources.files("heliostep.fmu")
-    for name in ("c/" + FMI_LAYER, "export.py", "modelica.py"):
+    for name in ("c/" + FMI_LAYER, "export.py", "model_xml.py", "modelica.py"):
         digest.update((package / name).read_bytes())
     for line in _toolchain():
         digest.update(line.encode() + b"\0")
@@ -70,14 +70,12 @@ def fmu_guid(path: Path) -> str | None:
     return match.group(1).decode() if match else None
 
 
-def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None = None,
-              force: bool = False) -> Path:
+def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None = None, force: bool = False) -> Path:
     """Build ``out_dir/model_name.fmu`` from ``models/model_name.mo`` unless it is up to date."""
     models = Path(models or models_dir())
     out_dir = Path(out_dir or fmus_dir())
     if model_name not in available_models(models):
-        raise InputError(f"{models}: no model {model_name!r}; available: "
-                         f"{', '.join(available_models(models))}")
+        raise InputError(f"{models}: no model {model_name!r}; available: {', '.join(available_models(models))}")
     key = build_key(model_name, models)
     guid = guid_of_key(key)
     fmu_path = out_dir / f"{model_name}.fmu"
@@ -94,15 +92,17 @@ def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None 
             shutil.rmtree(work_dir, ignore_errors=True)
 
 
-def build_all(names: list[str] | None = None, out_dir: Path | None = None,
-              models: Path | None = None, force: bool = False) -> list[Path]:
+def build_all(
+    names: list[str] | None = None, out_dir: Path | None = None, models: Path | None = None, force: bool = False
+) -> list[Path]:
     """Build every model of the folder (or the ones named)."""
     models = Path(models or models_dir())
     return [build_fmu(name, out_dir, models, force) for name in names or available_models(models)]
 
 
-def ensure_fmu(name_or_path: str | Path, search: tuple[Path, ...] = (), fmus: Path | None = None,
-               models: Path | None = None) -> Path:
+def ensure_fmu(
+    name_or_path: str | Path, search: tuple[Path, ...] = (), fmus: Path | None = None, models: Path | None = None
+) -> Path:
     """The FMU for a variant name or a path, building it from the models when missing or stale.
 
     A path to an ``.fmu`` file is returned as it is (after checking it exists). A bare name
@@ -127,5 +127,7 @@ def ensure_fmu(name_or_path: str | Path, search: tuple[Path, ...] = (), fmus: Pa
             return dropped
     known = sorted(set(available_models(models)) | {p.stem for f in folders for p in Path(f).glob("*.fmu")})
     looked = ", ".join(str(Path(f) / f"{text}.fmu") for f in folders)
-    raise InputError(f"unknown FMU variant {text!r}: neither {models}/{text}.mo nor any of {looked} "
-                     f"exists; known variants: {', '.join(known)}")
+    raise InputError(
+        f"unknown FMU variant {text!r}: neither {models}/{text}.mo nor any of {looked} "
+        f"exists; known variants: {', '.join(known)}"
+    )

@@ -27,9 +27,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import xml.etree.ElementTree as ET
 import zipfile
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
@@ -37,28 +35,8 @@ import casadi as ca
 
 from heliostep._version import __version__
 from heliostep.errors import RunFailure
-from heliostep.fmu.modelica import FlatModel, ModelicaError, Variable
-
-#: Exponents of the SI base units of the units the models use (FMI 2.0 ``BaseUnit``).
-BASE_UNITS = {
-    "1": {},
-    "s": {"s": 1},
-    "m": {"m": 1},
-    "rad": {"rad": 1},
-    "rad/s": {"rad": 1, "s": -1},
-    "A": {"A": 1},
-    "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
-    "W": {"kg": 1, "m": 2, "s": -3},
-    "J": {"kg": 1, "m": 2, "s": -2},
-    "H": {"kg": 1, "m": 2, "s": -2, "A": -2},
-    "Ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
-    "V/A": {"kg": 1, "m": 2, "s": -3, "A": -2},
-    "N.m": {"kg": 1, "m": 2, "s": -2},
-    "N.m/A": {"kg": 1, "m": 2, "s": -2, "A": -1},
-    "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
-    "kg": {"kg": 1},
-    "kg.m2": {"kg": 1, "m": 2},
-}
+from heliostep.fmu.model_xml import Layout, model_description
+from heliostep.fmu.modelica import FlatModel, ModelicaError
 
 #: The everyday solve: exactly two Newton steps from the previous solution, never stopping
 #: early on an absolute residual test. A warm start that is already "close enough" would
@@ -76,21 +54,6 @@ FMI2_PLATFORM = "linux64"
 
 class BuildError(RunFailure):
     """The C compiler or the packaging of an FMU failed (a run failure: exit status 1)."""
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Value references of the flat model's variables: the index into the C layer's r[]."""
-
-    variables: list[Variable]
-
-    @classmethod
-    def of(cls, model: FlatModel) -> "Layout":
-        return cls(model.parameters + model.states + model.inputs + model.derivatives
-                   + model.algebraics + model.calculated_parameters)
-
-    def vr(self, name: str) -> int:
-        return next(i for i, v in enumerate(self.variables) if v.name == name)
 
 
 def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.Function, ca.Function]:
@@ -122,20 +85,27 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
     calculated = ca.vertcat(*model.calculated_parameter_values) if model.calculated_parameters else ca.MX(0, 1)
 
     def solve(name: str, solution: ca.MX) -> ca.Function:
-        return ca.Function(name, [model.time, x, u, p, guess],
-                           [ca.vertcat(solution, calculated), residual_fn(solution, known)],
-                           ["t", "x", "u", "p", "guess"], ["computed", "residual"])
+        return ca.Function(
+            name,
+            [model.time, x, u, p, guess],
+            [ca.vertcat(solution, calculated), residual_fn(solution, known)],
+            ["t", "x", "u", "p", "guess"],
+            ["computed", "residual"],
+        )
 
     converge = solve("model_solve", polish(robust(guess[:n_unknowns], known), known))
     explicit = explicit_evaluation(model, residual_fn, calculated)
     evaluate = explicit if explicit is not None else solve("model_eval", polish(guess[:n_unknowns], known))
-    scale = ca.Function("model_scale", [model.time, x, u, p], [scale_fn(no_unknowns, known)],
-                        ["t", "x", "u", "p"], ["scale"]).expand()
-    start = ca.Function("model_start", [p], [ca.vertcat(*model.state_start) if model.states else ca.MX(0, 1)],
-                        ["p"], ["x0"])
+    scale = ca.Function(
+        "model_scale", [model.time, x, u, p], [scale_fn(no_unknowns, known)], ["t", "x", "u", "p"], ["scale"]
+    ).expand()
+    start = ca.Function(
+        "model_start", [p], [ca.vertcat(*model.state_start) if model.states else ca.MX(0, 1)], ["p"], ["x0"]
+    )
     if start.has_free():
         raise ModelicaError(
-            f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}")
+            f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}"
+        )
     return evaluate, converge, scale, start
 
 
@@ -191,11 +161,18 @@ def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, calculated: 
         return None
     solved = ca.vertcat(*solution) if solution else ca.SX(0, 1)
     parameters = ca.vertcat(*[model.symbols[v.name] for v in model.parameters])
-    values = ca.Function("calculated", [parameters], [calculated]).expand()(p) if model.calculated_parameters \
+    values = (
+        ca.Function("calculated", [parameters], [calculated]).expand()(p)
+        if model.calculated_parameters
         else ca.SX(0, 1)
-    return ca.Function("model_eval", [t, x, u, p, guess],
-                       [ca.vertcat(solved, values), residual(solved, known)],
-                       ["t", "x", "u", "p", "guess"], ["computed", "residual"])
+    )
+    return ca.Function(
+        "model_eval",
+        [t, x, u, p, guess],
+        [ca.vertcat(solved, values), residual(solved, known)],
+        ["t", "x", "u", "p", "guess"],
+        ["computed", "residual"],
+    )
 
 
 def state_part(evaluate: ca.Function) -> tuple[ca.Function | None, list[int]]:
@@ -216,8 +193,13 @@ def state_part(evaluate: ca.Function) -> tuple[ca.Function | None, list[int]]:
         return None, []
     t, x, u, p, guess = evaluate.sx_in()
     computed = evaluate(t, x, u, p, guess)[0]
-    return ca.Function("model_state_part", [t, x, u, p], [ca.vertcat(*[computed[i] for i in indices])],
-                       ["t", "x", "u", "p"], ["computed"]), indices
+    return ca.Function(
+        "model_state_part",
+        [t, x, u, p],
+        [ca.vertcat(*[computed[i] for i in indices])],
+        ["t", "x", "u", "p"],
+        ["computed"],
+    ), indices
 
 
 def _c_double(value: float | None) -> str:
@@ -253,126 +235,11 @@ def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool, st
         + _c_array("int", "STATE_PART_INDEX", [str(i) for i in state_part_indices])
         + _c_array("char", "IN_STATE_PART", ["1" if i in state_part_indices else "0" for i in range(n_computed)])
         + _c_array("double", "START_VALUES", starts)
-        + _c_array("char", "STATE_START_CALCULATED",
-                   ["1" if v.start is None else "0" for v in model.states])
+        + _c_array("char", "STATE_START_CALCULATED", ["1" if v.start is None else "0" for v in model.states])
         + _c_array("double", "STATE_NOMINALS", [_c_double(v.nominal or 1.0) for v in model.states])
         + _c_array("char *const", "VARIABLE_NAMES", names)
         + "#endif\n"
     )
-
-
-def _dependencies(evaluate: ca.Function, model: FlatModel, layout: Layout) -> dict[str, list[int]]:
-    """For every computed variable, the 1-based indices of the states and inputs it depends on."""
-    computed = model.derivatives + model.algebraics + model.calculated_parameters
-    knowns = [(1, model.states), (2, model.inputs)]
-    deps: dict[str, list[int]] = {v.name: [] for v in computed}
-    for input_index, variables in knowns:
-        if not variables:
-            continue
-        sparsity = evaluate.sparsity_jac(input_index, 0)
-        columns = sparsity.get_col()
-        for k, row in enumerate(sparsity.row()):
-            deps[computed[row].name].append(layout.vr(variables[columns[k]].name) + 1)
-    return {name: sorted(set(indices)) for name, indices in deps.items()}
-
-
-def model_description(model: FlatModel, layout: Layout, guid: str, evaluate: ca.Function,
-                      generation_tool: str) -> bytes:
-    """``modelDescription.xml`` for the model (FMI 2.0, Model Exchange only)."""
-    root = ET.Element("fmiModelDescription", {
-        "fmiVersion": "2.0", "modelName": model.name, "guid": guid,
-        "description": model.description, "generationTool": generation_tool,
-        "variableNamingConvention": "structured", "numberOfEventIndicators": "0",
-    })
-    me = ET.SubElement(root, "ModelExchange", {
-        "modelIdentifier": model.name, "canGetAndSetFMUstate": "false",
-        "canSerializeFMUstate": "false", "providesDirectionalDerivative": "false",
-        "canNotUseMemoryManagementFunctions": "false", "completedIntegratorStepNotNeeded": "true",
-    })
-    source_files = ET.SubElement(me, "SourceFiles")
-    for name in SOURCE_FILES:
-        ET.SubElement(source_files, "File", {"name": name})
-    _unit_definitions(root, layout)
-    categories = ET.SubElement(root, "LogCategories")
-    for name, text in (("logStatusError", "errors"), ("logStatusFatal", "fatal errors"),
-                       ("logAll", "all messages")):
-        ET.SubElement(categories, "Category", {"name": name, "description": text})
-    ET.SubElement(root, "DefaultExperiment", {"startTime": "0", "stopTime": "1", "tolerance": "1e-06"})
-    variables = ET.SubElement(root, "ModelVariables")
-    state_index = {v.name: layout.vr(v.name) + 1 for v in model.states}
-    for vr, v in enumerate(layout.variables):
-        attributes, real = _scalar_variable(v, vr, state_index)
-        element = ET.SubElement(variables, "ScalarVariable", attributes)
-        ET.SubElement(element, "Real", real)
-    _model_structure(root, model, layout, _dependencies(evaluate, model, layout))
-    ET.indent(root)
-    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
-
-
-def _unit_definitions(root: ET.Element, layout: Layout) -> None:
-    """``UnitDefinitions``: every unit the variables use, with its SI base units where known."""
-    units = sorted({v.unit for v in layout.variables if v.unit})
-    if units:
-        unit_definitions = ET.SubElement(root, "UnitDefinitions")
-        for unit in units:
-            element = ET.SubElement(unit_definitions, "Unit", {"name": unit})
-            if unit in BASE_UNITS:
-                ET.SubElement(element, "BaseUnit", {k: str(e) for k, e in BASE_UNITS[unit].items()})
-
-
-def _scalar_variable(v: Variable, vr: int, state_index: dict[str, int]) -> tuple[dict[str, str], dict[str, str]]:
-    """The attributes of variable ``v``'s ``ScalarVariable`` (value reference ``vr``) and of its ``Real``."""
-    attributes = {"name": v.name, "valueReference": str(vr)}
-    if v.description:
-        attributes["description"] = v.description
-    real: dict[str, str] = {}
-    if v.kind == "parameter":
-        attributes.update(causality="parameter", variability="tunable", initial="exact")
-        real["start"] = repr(v.start)
-    elif v.kind == "calculated_parameter":
-        attributes.update(causality="calculatedParameter", variability="tunable", initial="calculated")
-    elif v.kind == "input":
-        attributes.update(causality="input", variability="continuous")
-        real["start"] = repr(v.start or 0.0)
-    else:
-        attributes.update(causality="output" if v.is_output else "local", variability="continuous")
-        if v.kind == "state" and v.start is not None:
-            attributes["initial"] = "exact"
-            real["start"] = repr(v.start)
-        else:
-            attributes["initial"] = "calculated"
-    if v.kind == "derivative":
-        real["derivative"] = str(state_index[v.state_name])
-    if v.unit:
-        real["unit"] = v.unit
-    if v.kind == "state" and v.nominal:
-        real["nominal"] = repr(v.nominal)
-    for bound in ("min", "max"):
-        value = getattr(v, bound)
-        if value is not None:
-            real[bound] = repr(value)
-    return attributes, real
-
-
-def _model_structure(root: ET.Element, model: FlatModel, layout: Layout, deps: dict[str, list[int]]) -> None:
-    """``ModelStructure``: outputs and derivatives with their dependencies, the initial unknowns."""
-    structure = ET.SubElement(root, "ModelStructure")
-    outputs = ET.SubElement(structure, "Outputs")
-    for v in layout.variables:
-        if v.is_output:
-            index = layout.vr(v.name) + 1
-            dependencies = [index] if v.kind == "state" else deps[v.name]
-            ET.SubElement(outputs, "Unknown", {"index": str(index),
-                                               "dependencies": " ".join(map(str, dependencies))})
-    derivatives = ET.SubElement(structure, "Derivatives")
-    for v in model.derivatives:
-        ET.SubElement(derivatives, "Unknown", {"index": str(layout.vr(v.name) + 1),
-                                               "dependencies": " ".join(map(str, deps[v.name]))})
-    initial = ET.SubElement(structure, "InitialUnknowns")
-    for vr, v in enumerate(layout.variables):
-        if (v.is_output and not (v.kind == "state" and v.start is not None)) or v.kind in (
-                "derivative", "calculated_parameter") or (v.kind == "state" and v.start is None):
-            ET.SubElement(initial, "Unknown", {"index": str(vr + 1)})
 
 
 def fmi_headers_dir() -> Path:
@@ -402,8 +269,17 @@ def _run(command: list[str], what: str) -> None:
 def compile_binary(source_dir: Path, library: Path) -> None:
     """Compile the FMI layer and the generated equations into a shared library."""
     cc = compiler()
-    common = ["-std=c99", "-O2", "-fPIC", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror",
-              f"-I{fmi_headers_dir()}", f"-I{source_dir}"]
+    common = [
+        "-std=c99",
+        "-O2",
+        "-fPIC",
+        "-fvisibility=hidden",
+        "-Wall",
+        "-Wextra",
+        "-Werror",
+        f"-I{fmi_headers_dir()}",
+        f"-I{source_dir}",
+    ]
     objects = []
     for name in SOURCE_FILES:
         extra = []
@@ -427,8 +303,7 @@ def write_zip(fmu_path: Path, files: dict[str, Path]) -> None:
             archive.writestr(info, files[name].read_bytes())
 
 
-def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path,
-               generation_tool: str) -> Path:
+def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path, generation_tool: str) -> Path:
     """Generate, compile and zip ``model`` into ``fmu_path`` (written whole or not at all).
 
     ``work_dir`` must be on the same file system as ``fmu_path``.
@@ -452,10 +327,9 @@ def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path,
     library = work_dir / "binaries" / FMI2_PLATFORM / f"{model.name}.so"
     compile_binary(sources, library)
     description = work_dir / "modelDescription.xml"
-    description.write_bytes(model_description(model, layout, guid, evaluate, generation_tool))
+    description.write_bytes(model_description(model, layout, guid, evaluate, generation_tool, SOURCE_FILES))
 
-    files = {"modelDescription.xml": description,
-             f"binaries/{FMI2_PLATFORM}/{model.name}.so": library}
+    files = {"modelDescription.xml": description, f"binaries/{FMI2_PLATFORM}/{model.name}.so": library}
     for name in (*SOURCE_FILES, "equations.h", "model.h"):
         files[f"sources/{name}"] = sources / name
     files[f"sources/{model.source_file.name}"] = model.source_file

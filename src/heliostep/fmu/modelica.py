@@ -91,8 +91,14 @@ class FlatModel:
     calculated_parameter_values: list[ca.MX] = field(default_factory=list)
 
     def variables(self) -> list[Variable]:
-        return (self.parameters + self.calculated_parameters + self.states + self.inputs
-                + self.derivatives + self.algebraics)
+        return (
+            self.parameters
+            + self.calculated_parameters
+            + self.states
+            + self.inputs
+            + self.derivatives
+            + self.algebraics
+        )
 
 
 def model_files(models_dir: Path) -> list[Path]:
@@ -171,8 +177,7 @@ def _translate(models_dir: Path, model_name: str) -> tuple[Path, str, dict[str, 
 
     names = available_models(models_dir)
     if model_name not in names:
-        raise ModelicaError(
-            f"{models_dir}: no model {model_name!r}; available: {', '.join(names)}")
+        raise ModelicaError(f"{models_dir}: no model {model_name!r}; available: {', '.join(names)}")
     source_file = models_dir / f"{model_name}.mo"
     tree = parse_models(models_dir)
     try:
@@ -202,9 +207,16 @@ class _VariableFactory:
         self.symbols[name] = var.symbol
         unit = getattr(var, "unit", "") or ""
         return Variable(
-            name=name, kind=kind, is_output=name in self.outputs, unit=unit,
-            description=self.comments.get(name, ""), nominal=_number(var.nominal) or None,
-            min=_number(var.min), max=_number(var.max), **extra)
+            name=name,
+            kind=kind,
+            is_output=name in self.outputs,
+            unit=unit,
+            description=self.comments.get(name, ""),
+            nominal=_number(var.nominal) or None,
+            min=_number(var.min),
+            max=_number(var.max),
+            **extra,
+        )
 
 
 def _constant_substitution(cas: Any) -> Callable[[list[ca.MX]], list[ca.MX]]:
@@ -216,11 +228,13 @@ def _constant_substitution(cas: Any) -> Callable[[list[ca.MX]], list[ca.MX]]:
         if not constant_symbols or not expressions:
             return expressions
         return ca.substitute(expressions, constant_symbols, constant_values)
+
     return substitute_constants
 
 
-def _parameters(cas: Any, make: _VariableFactory, source_file: Path,
-                model_name: str) -> tuple[list[Variable], list[Variable], list[ca.MX]]:
+def _parameters(
+    cas: Any, make: _VariableFactory, source_file: Path, model_name: str
+) -> tuple[list[Variable], list[Variable], list[ca.MX]]:
     """(parameters with a value, calculated parameters, their value expressions)."""
     parameters, calculated, calculated_values = [], [], []
     for var in cas.parameters:
@@ -231,13 +245,13 @@ def _parameters(cas: Any, make: _VariableFactory, source_file: Path,
             calculated.append(make(var, "calculated_parameter"))
             calculated_values.append(var.value)
         else:
-            raise ModelicaError(
-                f"{source_file}: parameter {var.symbol.name()} of {model_name} has no value")
+            raise ModelicaError(f"{source_file}: parameter {var.symbol.name()} of {model_name} has no value")
     return parameters, calculated, calculated_values
 
 
-def _resolve_calculated(calc_symbols: list[ca.MX], values: list[ca.MX], source_file: Path,
-                        model_name: str) -> list[ca.MX]:
+def _resolve_calculated(
+    calc_symbols: list[ca.MX], values: list[ca.MX], source_file: Path, model_name: str
+) -> list[ca.MX]:
     """The calculated parameters' values with no calculated parameter left in them (they may
     refer to each other: substituted until none is left)."""
     for _ in range(len(values) + 1):
@@ -260,10 +274,7 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
         start = var.start if isinstance(var.start, ca.MX) else ca.MX(_number(var.start) or 0.0)
         states.append(make(var, "state", start=_number(start)))
         state_start.append(start)
-    derivatives = [
-        make(der, "derivative", state_name=state.name)
-        for der, state in zip(cas.der_states, states)
-    ]
+    derivatives = [make(der, "derivative", state_name=state.name) for der, state in zip(cas.der_states, states)]
     inputs = [make(var, "input", start=_number(var.start) or 0.0) for var in cas.inputs]
     algebraics = [make(var, "algebraic") for var in cas.alg_states]
     symbols = make.symbols
@@ -273,7 +284,8 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
     if residual.numel() != n_unknowns:
         raise ModelicaError(
             f"{source_file}: model {model_name} is not balanced: {residual.numel()} equations "
-            f"for {n_unknowns} unknowns (derivatives and algebraic variables)")
+            f"for {n_unknowns} unknowns (derivatives and algebraic variables)"
+        )
 
     calc_symbols = [symbols[v.name] for v in calculated]
     values = _resolve_calculated(calc_symbols, substitute_constants(calculated_values), source_file, model_name)
@@ -282,9 +294,18 @@ def load_model(models_dir: Path, model_name: str) -> FlatModel:
         state_start = ca.substitute(state_start, calc_symbols, values)
 
     return FlatModel(
-        name=model_name, description=description, source_file=source_file, time=cas.time,
-        states=states, derivatives=derivatives, inputs=inputs, parameters=parameters,
-        calculated_parameters=calculated, algebraics=algebraics, symbols=symbols,
-        residual=residual, state_start=substitute_constants(list(state_start)),
+        name=model_name,
+        description=description,
+        source_file=source_file,
+        time=cas.time,
+        states=states,
+        derivatives=derivatives,
+        inputs=inputs,
+        parameters=parameters,
+        calculated_parameters=calculated,
+        algebraics=algebraics,
+        symbols=symbols,
+        residual=residual,
+        state_start=substitute_constants(list(state_start)),
         calculated_parameter_values=values,
     )

@@ -24,7 +24,7 @@ import pandas as pd
 
 from heliostep.errors import InputError
 from heliostep.results.light import _weather_path, attitude_light
-from heliostep.solar import N_FIELD_MIRRORS, DEFAULT_MIRROR_SPACING, field_distances, irradiance, sharing_errors
+from heliostep.solar import DEFAULT_MIRROR_SPACING, N_FIELD_MIRRORS, field_distances, irradiance, sharing_errors
 from heliostep.solar.sun import solar_position, sun_vector
 from heliostep.solar.tracking import two_axis_angles
 
@@ -50,7 +50,6 @@ def field_light_days(scenario, days=None, step_minutes: float = 10.0, mirror_ind
         ``light_lost_shared_primary_J`` = ``light_lost_J`` [J], ``light_lost_fraction`` [-] and
         ``status`` "ok" (the columns of the sweep table, for :func:`heliostep.plots.sweep.plot_heatmap`).
     """
-    site, plant, conf = scenario.site.to_site(), scenario.plant.to_plant(), scenario.optics
     year = scenario.window.date.year
     n_days = (dt.date(year + 1, 1, 1) - dt.date(year, 1, 1)).days
     chosen = list(range(1, n_days + 1)) if days is None else [int(d) for d in days]
@@ -62,30 +61,46 @@ def field_light_days(scenario, days=None, step_minutes: float = 10.0, mirror_ind
     if not step_minutes > 0:
         raise InputError(f"step_minutes {step_minutes!r}: expected > 0 [min]")
     distances = field_distances(N_FIELD_MIRRORS, scenario.mirror.spacing or DEFAULT_MIRROR_SPACING)[indices]
-    weather = _weather_path(scenario)
     rows = []
     for day in chosen:
         date = dt.date(year, 1, 1) + dt.timedelta(days=day - 1)
-        start = pd.Timestamp(date).tz_localize(site.timezone)
-        stop = pd.Timestamp(date + dt.timedelta(days=1)).tz_localize(site.timezone)
-        times = pd.date_range(start, stop, freq=pd.Timedelta(minutes=step_minutes))
-        position = solar_position(times, site.latitude, site.longitude, site.altitude)
-        elevation, azimuth = position["apparent_elevation"].to_numpy(), position["azimuth"].to_numpy()
-        up = elevation > 0.0
-        sun = np.stack(sun_vector(elevation, azimuth, plant.azimuth))
-        dni = irradiance.dni(times, site, weather).to_numpy()
-        seconds = (times - start).total_seconds().to_numpy()
-        sharing = np.nan_to_num(sharing_errors(times, site, plant, date, distances))
-        for k, (index, distance) in enumerate(zip(indices, distances)):
-            primary, secondary = two_axis_angles(elevation, azimuth, distance, plant.tube_height, plant.azimuth)
-            ideal = attitude_light(sun, dni, up, primary, secondary, distance, plant.tube_height, conf)["power_W"]
-            shared = attitude_light(sun, dni, up, primary - sharing[:, k], secondary, distance, plant.tube_height,
-                                    conf)["power_W"]
-            e_ideal, e_shared = float(np.trapezoid(ideal, seconds)), float(np.trapezoid(shared, seconds))
-            rows.append({"day_of_year": day, "date": date.isoformat(), "mirror_index": index,
-                         "mirror_distance_m": float(distance), "light_energy_ideal_J": e_ideal,
-                         "light_energy_J": e_shared, "light_lost_shared_primary_J": e_ideal - e_shared,
-                         "light_lost_J": e_ideal - e_shared,
-                         "light_lost_fraction": (e_ideal - e_shared) / e_ideal if e_ideal > 0 else 0.0,
-                         "status": "ok"})
+        rows += _day_rows(scenario, date, day, step_minutes, indices, distances)
     return pd.DataFrame(rows)
+
+
+def _day_rows(scenario, date: dt.date, day: int, step_minutes: float, indices: list[int], distances) -> list[dict]:
+    """The table's rows of one day (see :func:`field_light_days`), one per mirror."""
+    site, plant, conf = scenario.site.to_site(), scenario.plant.to_plant(), scenario.optics
+    start = pd.Timestamp(date).tz_localize(site.timezone)
+    stop = pd.Timestamp(date + dt.timedelta(days=1)).tz_localize(site.timezone)
+    times = pd.date_range(start, stop, freq=pd.Timedelta(minutes=step_minutes))
+    position = solar_position(times, site.latitude, site.longitude, site.altitude)
+    elevation, azimuth = position["apparent_elevation"].to_numpy(), position["azimuth"].to_numpy()
+    up = elevation > 0.0
+    sun = np.stack(sun_vector(elevation, azimuth, plant.azimuth))
+    dni = irradiance.dni(times, site, _weather_path(scenario)).to_numpy()
+    seconds = (times - start).total_seconds().to_numpy()
+    sharing = np.nan_to_num(sharing_errors(times, site, plant, date, distances))
+    rows = []
+    for k, (index, distance) in enumerate(zip(indices, distances)):
+        primary, secondary = two_axis_angles(elevation, azimuth, distance, plant.tube_height, plant.azimuth)
+        ideal = attitude_light(sun, dni, up, primary, secondary, distance, plant.tube_height, conf)["power_W"]
+        shared = attitude_light(sun, dni, up, primary - sharing[:, k], secondary, distance, plant.tube_height, conf)[
+            "power_W"
+        ]
+        e_ideal, e_shared = float(np.trapezoid(ideal, seconds)), float(np.trapezoid(shared, seconds))
+        rows.append(
+            {
+                "day_of_year": day,
+                "date": date.isoformat(),
+                "mirror_index": index,
+                "mirror_distance_m": float(distance),
+                "light_energy_ideal_J": e_ideal,
+                "light_energy_J": e_shared,
+                "light_lost_shared_primary_J": e_ideal - e_shared,
+                "light_lost_J": e_ideal - e_shared,
+                "light_lost_fraction": (e_ideal - e_shared) / e_ideal if e_ideal > 0 else 0.0,
+                "status": "ok",
+            }
+        )
+    return rows

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -111,8 +112,9 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario, weather=N
         ``longitudinal_miss_<a>_m`` [m] (:func:`attitude_light`).
     """
     seconds = trace["time"].to_numpy(dtype=float)
-    return pd.DataFrame(_light_rows(trace, metadata, scenario, _weather(scenario, weather),
-                                    float(seconds[0]) if len(seconds) else 0.0))
+    return pd.DataFrame(
+        _light_rows(trace, metadata, scenario, _weather(scenario, weather), float(seconds[0]) if len(seconds) else 0.0)
+    )
 
 
 def _grid_span(seconds: np.ndarray, origin: float) -> tuple[int, int]:
@@ -138,18 +140,24 @@ def sun_grid(grid_s: np.ndarray, metadata: Mapping, scenario, weather) -> dict:
     ideal_primary, ideal_secondary = two_axis_angles(elevation, azimuth, distance, h, plant.azimuth)
     # the shared primary: the central mirror's law plus a mounting offset exact at solar noon
     sharing = sharing_errors(grid, site, plant, scenario.window.date, [distance], sun=position)[:, 0]
-    return {"time": grid_s, "elevation": elevation, "sun": np.stack(sun_vector(elevation, azimuth, plant.azimuth)),
-            "dni": irradiance.dni(grid, site, weather, sun=position).to_numpy(),
-            "ideal_primary": np.asarray(ideal_primary), "ideal_secondary": np.asarray(ideal_secondary),
-            "sharing": np.nan_to_num(sharing)}
+    return {
+        "time": grid_s,
+        "elevation": elevation,
+        "sun": np.stack(sun_vector(elevation, azimuth, plant.azimuth)),
+        "dni": irradiance.dni(grid, site, weather, sun=position).to_numpy(),
+        "ideal_primary": np.asarray(ideal_primary),
+        "ideal_secondary": np.asarray(ideal_secondary),
+        "sharing": np.nan_to_num(sharing),
+    }
 
 
 def _grid_slice(grid: dict, start: int, stop: int) -> dict:
     return {key: value[..., start:stop] for key, value in grid.items()}
 
 
-def _light_rows(trace: pd.DataFrame, metadata: Mapping, scenario, weather, origin: float,
-                window_grid: dict | None = None) -> dict:
+def _light_rows(
+    trace: pd.DataFrame, metadata: Mapping, scenario, weather, origin: float, window_grid: dict | None = None
+) -> dict:
     """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
     one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
     points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
@@ -174,8 +182,10 @@ def _light_rows(trace: pd.DataFrame, metadata: Mapping, scenario, weather, origi
     ideal_p, ideal_q = (np.interp(seconds, grid_s, points[key]) for key in ("ideal_primary", "ideal_secondary"))
     shared_p = ideal_p - np.interp(seconds, grid_s, points["sharing"])
     panel_column = metadata.get("roles", {}).get("panel_angle")
-    driven = {"reference": trace["panel_angle_ref"].to_numpy(dtype=float),
-              "actual": trace[panel_column].to_numpy(dtype=float) if panel_column in trace else None}
+    driven = {
+        "reference": trace["panel_angle_ref"].to_numpy(dtype=float),
+        "actual": trace[panel_column].to_numpy(dtype=float) if panel_column in trace else None,
+    }
     attitudes = {"ideal": (ideal_p, ideal_q)}
     for name, angle in driven.items():
         if angle is not None:
@@ -184,10 +194,16 @@ def _light_rows(trace: pd.DataFrame, metadata: Mapping, scenario, weather, origi
     out = {"time": seconds, "dni": dni}
     for name, (primary, secondary) in attitudes.items():
         light = attitude_light(sun, dni, up, primary, secondary, distance, h, conf)
-        out.update({f"power_{name}_W": light["power_W"], f"intercept_{name}": light["intercept"],
-                    f"cosine_{name}": light["cosine"], f"end_fraction_{name}": light["end_fraction"],
-                    f"transverse_miss_{name}_m": light["transverse_miss_m"],
-                    f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"]})
+        out.update(
+            {
+                f"power_{name}_W": light["power_W"],
+                f"intercept_{name}": light["intercept"],
+                f"cosine_{name}": light["cosine"],
+                f"end_fraction_{name}": light["end_fraction"],
+                f"transverse_miss_{name}_m": light["transverse_miss_m"],
+                f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"],
+            }
+        )
     return out
 
 
@@ -218,14 +234,24 @@ def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_heigh
     chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
     normal = optics.mirror_normal(primary, secondary)
     cosine = optics.cosine_factor(*sun, *normal)
-    ray = optics.reflect(*sun, *normal)
-    transverse, longitudinal, slant = optics.receiver_miss(*ray, distance, tube_height)
+    ray_x, ray_y, ray_z = optics.reflect(*sun, *normal)
+    transverse, longitudinal, slant = optics.receiver_miss(ray_x, ray_y, ray_z, distance, tube_height)
     gamma = optics.intercept_factor(transverse, slant, conf.tube_diameter, sigma)
-    on_tube = (np.ones_like(gamma) if conf.tube_ends is None else  # the end effect: light past the tube's end
-               optics.end_fraction(longitudinal, conf.mirror_length, 0.0, *conf.tube_ends))
+    on_tube = (
+        np.ones_like(gamma)
+        if conf.tube_ends is None
+        # the end effect: light past the tube's end
+        else optics.end_fraction(longitudinal, conf.mirror_length, 0.0, *conf.tube_ends)
+    )
     power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma * on_tube, 0.0)
-    return {"power_W": power, "intercept": gamma, "cosine": cosine, "end_fraction": on_tube,
-            "transverse_miss_m": transverse, "longitudinal_miss_m": longitudinal}
+    return {
+        "power_W": power,
+        "intercept": gamma,
+        "cosine": cosine,
+        "end_fraction": on_tube,
+        "transverse_miss_m": transverse,
+        "longitudinal_miss_m": longitudinal,
+    }
 
 
 class LightIntegrals:
@@ -248,16 +274,17 @@ class LightIntegrals:
         self.max_block_rows = 0
         self._window_grid: dict | None = None  # sun_grid over the whole window, from the first row
 
-    def _whole_window_grid(self) -> dict | None:
-        """:func:`sun_grid` at every grid point from the first row to the window's end, computed
-        once (per block it cost pvlib's fixed overheads each time: about 10 ms a block); None
-        when the first row is at or past the window's end. A block past it computes its own points."""
+    def _whole_window_grid(self, origin: float) -> dict | None:
+        """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
+        window's end, computed once (per block it cost pvlib's fixed overheads each time: about
+        10 ms a block); None when the first row is at or past the window's end. A block past it
+        computes its own points."""
         start, end = self.scenario.window_bounds()
         duration = (end - start).total_seconds()
-        if not duration > self._origin:
+        if not duration > origin:
             return None
-        _, last = _grid_span(np.array([duration]), self._origin)
-        return sun_grid(self._origin + np.arange(last + 1) * SUN_GRID_S, self.metadata, self.scenario, self._weather)
+        _, last = _grid_span(np.array([duration]), origin)
+        return sun_grid(origin + np.arange(last + 1) * SUN_GRID_S, self.metadata, self.scenario, self._weather)
 
     def __call__(self, block: pd.DataFrame) -> None:
         if not len(block):
@@ -265,9 +292,9 @@ class LightIntegrals:
         seconds = block["time"].to_numpy(dtype=float)
         if self._origin is None:
             self._origin = float(seconds[0])
-            self._window_grid = self._whole_window_grid()
+            self._window_grid = self._whole_window_grid(self._origin)
         series = _light_rows(block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid)
-        powers = {key[len("power_"):-len("_W")]: value for key, value in series.items() if key.startswith("power_")}
+        powers = {key[len("power_") : -len("_W")]: value for key, value in series.items() if key.startswith("power_")}
         for name, power in powers.items():
             time = seconds
             if self._previous is not None:
@@ -290,8 +317,10 @@ class LightIntegrals:
 
     def figures(self) -> dict:
         """The figures of the rows taken (see :func:`light_figures`)."""
-        figures = {"light_energy_ideal_J": self._energy.get("ideal", 0.0),
-                   "light_energy_reference_J": self._energy.get("reference", 0.0)}
+        figures: dict[str, Any] = {
+            "light_energy_ideal_J": self._energy.get("ideal", 0.0),
+            "light_energy_reference_J": self._energy.get("reference", 0.0),
+        }
         figures["light_lost_shared_primary_J"] = figures["light_energy_ideal_J"] - figures["light_energy_reference_J"]
         if "actual" in self._energy:
             actual = self._energy["actual"]

@@ -39,8 +39,9 @@ class RowSink(Protocol):
     def finish(self, status: RunStatus) -> RunStatus:
         """The rows still held go out; the run's status, failed if they could not be kept."""
 
-    def close(self, metadata: Mapping[str, str]) -> None:
-        """The run has ended (``metadata``: the trace's, saying how): the trace is final."""
+    def close(self, metadata: Mapping[str, str]) -> Path | None:
+        """The run has ended (``metadata``: the trace's, saying how): the trace is final; the
+        trace file, if streamed."""
 
     def abort(self) -> None:
         """The run ended without a result: whatever was kept goes."""
@@ -62,8 +63,12 @@ class HeldTrace:
     trace_kept = True
     trace_file = None
 
-    def __init__(self, master_columns: list[str], assembler: TraceAssembler,
-                 figures: Callable[[pd.DataFrame], None] | None = None) -> None:
+    def __init__(
+        self,
+        master_columns: list[str],
+        assembler: TraceAssembler,
+        figures: Callable[[pd.DataFrame], None] | None = None,
+    ) -> None:
         self.master_columns = list(master_columns)
         self.assembler = assembler
         self.columns = assembler.columns(self.master_columns)
@@ -91,8 +96,9 @@ class HeldTrace:
         if self._blocks:
             self._trace = pd.concat(self._blocks, ignore_index=True) if len(self._blocks) > 1 else self._blocks[0]
         else:
-            self._trace = self.assembler(pd.DataFrame(np.zeros((0, len(self.master_columns))),
-                                                      columns=self.master_columns))
+            self._trace = self.assembler(
+                pd.DataFrame(np.zeros((0, len(self.master_columns))), columns=self.master_columns)
+            )
         self._blocks = []
 
     def abort(self) -> None:

@@ -78,9 +78,16 @@ class RunFigures:
     ``block_rows`` plus the largest block received); ``chunks`` how many were evaluated.
     """
 
-    def __init__(self, columns: Sequence[str], metadata: Mapping, scenario, weather=None,
-                 block_rows: int = ROW_GROUP_ROWS, solution: SolutionRecorder | None = None,
-                 window: tuple[pd.Timestamp, float] | None = None):
+    def __init__(
+        self,
+        columns: Sequence[str],
+        metadata: Mapping,
+        scenario,
+        weather=None,
+        block_rows: int = ROW_GROUP_ROWS,
+        solution: SolutionRecorder | None = None,
+        window: tuple[pd.Timestamp, float] | None = None,
+    ):
         if block_rows < 1:
             raise ValueError(f"block_rows must be at least 1, not {block_rows}")
         self.columns = list(columns)
@@ -100,14 +107,22 @@ class RunFigures:
         self._solution_figures: dict | None = None
 
     @classmethod
-    def of_run(cls, master_columns: list[str], inputs: DriveInputs, roles: Mapping[str, str], columns: list[str],
-               metadata: Mapping, scenario, weather=None, block_rows: int = ROW_GROUP_ROWS) -> RunFigures:
+    def of_run(
+        cls,
+        master_columns: list[str],
+        inputs: DriveInputs,
+        roles: Mapping[str, str],
+        columns: list[str],
+        metadata: Mapping,
+        scenario,
+        weather=None,
+        block_rows: int = ROW_GROUP_ROWS,
+    ) -> RunFigures:
         """The figures of a run about to simulate: the master's ``master_columns``, the output rows'
         ``columns`` (those of the figures, :func:`~heliostep.results.trace.figure_columns`)."""
         solution = SolutionRecorder(master_columns, roles, inputs.sequencer, inputs.schedule, inputs.panel_reference())
         present = _present(TraceAssembler(inputs, dict(roles)).columns(master_columns), columns)
-        return cls(present, metadata, scenario, weather, block_rows, solution,
-                   (inputs.window_start, inputs.duration))
+        return cls(present, metadata, scenario, weather, block_rows, solution, (inputs.window_start, inputs.duration))
 
     def __call__(self, block: pd.DataFrame) -> None:
         if not len(block):
@@ -124,7 +139,7 @@ class RunFigures:
         held = pd.concat(self._held, ignore_index=True) if len(self._held) > 1 else self._held[0]
         start = 0
         while len(held) - start >= self.block_rows or (final and start < len(held)):
-            self._chunk(held.iloc[start:start + self.block_rows])
+            self._chunk(held.iloc[start : start + self.block_rows])
             start += self.block_rows
         rest = held.iloc[start:]
         self._held = [rest] if len(rest) else []
@@ -169,8 +184,15 @@ def _replace(summary: RunSummary, **changes) -> RunSummary:
     return dataclasses.replace(summary, **changes)
 
 
-def run_figures(source: TraceSource, columns: list[str], metadata: Mapping, scenario, weather=None,
-                block_rows: int = ROW_GROUP_ROWS, window: tuple[pd.Timestamp, float] | None = None) -> RunFigures:
+def run_figures(
+    source: TraceSource,
+    columns: list[str],
+    metadata: Mapping,
+    scenario,
+    weather=None,
+    block_rows: int = ROW_GROUP_ROWS,
+    window: tuple[pd.Timestamp, float] | None = None,
+) -> RunFigures:
     """:class:`RunFigures` of a stored trace (held, or a Parquet file read one row group at a
     time) and its metadata (``solution_figures``), fed every block of those of ``columns`` it has."""
     present = present_columns(source, columns)

@@ -57,7 +57,9 @@ def write_trace_csv(out_dir: Path, trace_file: Path, metadata: Mapping[str, str]
 def write_records(out_dir: Path, summary: RunSummary | None, status: RunStatus, metadata: Mapping) -> dict[str, Path]:
     """``metadata.json`` (the status, then ``metadata``) and ``summary.json`` (:func:`summary_record`)."""
     written = {}
-    for name, content in (("metadata.json", {**status_record(status), **metadata}),
-                          ("summary.json", summary_record(summary, status))):
+    for name, content in (
+        ("metadata.json", {**status_record(status), **metadata}),
+        ("summary.json", summary_record(summary, status)),
+    ):
         written[name] = write_text_atomic(out_dir / name, json.dumps(content, indent=2, default=str) + "\n")
     return written

@@ -19,8 +19,18 @@ import pandas as pd
 from heliostep.results.steps import JudgedSteps, Settling
 from heliostep.solar import solar_position
 
-__all__ = ["STEP_FIELDS", "Peaks", "RunMetadata", "RunStatus", "RunSummary", "StepFigures", "Tracking", "night",
-           "status_record", "summary_record"]
+__all__ = [
+    "STEP_FIELDS",
+    "Peaks",
+    "RunMetadata",
+    "RunStatus",
+    "RunSummary",
+    "StepFigures",
+    "Tracking",
+    "night",
+    "status_record",
+    "summary_record",
+]
 
 
 @dataclass(frozen=True)
@@ -53,8 +63,14 @@ class StepFigures:
     @classmethod
     def of(cls, judged: JudgedSteps, lost: tuple[int, float]) -> StepFigures:
         """From the judged steps and (steps lost, elastic lag left) [increments]."""
-        return cls(judged.missed_steps, judged.steps_executed, judged.settling_time_s, judged.missed_step_times_s,
-                   lost[0], lost[1])
+        return cls(
+            judged.missed_steps,
+            judged.steps_executed,
+            judged.settling_time_s,
+            judged.missed_step_times_s,
+            lost[0],
+            lost[1],
+        )
 
 
 #: The summary's keys that depend on judging each step (what the summary at a cut recomputes).
@@ -96,9 +112,9 @@ class RunSummary:
         record["figures_from"] = self.figures_from
         if self.final_panel_angle_deg is not None:
             record["final_panel_angle_deg"] = self.final_panel_angle_deg
-        for part in (self.light, self.tradeoffs):
-            if part is not None:
-                record.update(part)
+        for figures in (self.light, self.tradeoffs):
+            if figures is not None:
+                record.update(figures)
         if self.step_in_progress_at_cut_s is not None:
             record["step_in_progress_at_cut_s"] = self.step_in_progress_at_cut_s
         if self.night is not None:
@@ -142,8 +158,10 @@ def night(site, window_start: pd.Timestamp, duration: float) -> tuple[bool, str 
     is_night = bool((elevation.to_numpy() <= 0.0).all())
     if not is_night:
         return False, None
-    return True, (f"the sun is below the horizon during the whole window ({window_start} + "
-                  f"{duration:g} s): the drive holds still and the figures are those of a night")
+    return True, (
+        f"the sun is below the horizon during the whole window ({window_start} + "
+        f"{duration:g} s): the drive holds still and the figures are those of a night"
+    )
 
 
 class RunMetadata(TypedDict, total=False):

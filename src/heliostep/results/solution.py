@@ -36,18 +36,24 @@ class SolutionRecorder:
     error is its ``panel_angle_error`` column.
     """
 
-    def __init__(self, columns: Sequence[str], roles: Mapping[str, str], sequencer: Sequencer,
-                 schedule: StepSchedule, panel_reference: Callable[[np.ndarray], np.ndarray] | None,
-                 block: int = 4096) -> None:
+    def __init__(
+        self,
+        columns: Sequence[str],
+        roles: Mapping[str, str],
+        sequencer: Sequencer,
+        schedule: StepSchedule,
+        panel_reference: Callable[[np.ndarray], np.ndarray] | None,
+        block: int = 4096,
+    ) -> None:
         self.columns = list(columns)
         index = {c: i for i, c in enumerate(self.columns)}
-        self._panel = index.get(roles.get("panel_angle"))
+        self._panel = _role_column(index, roles, "panel_angle")
         self._error = index.get("panel_angle_error") if panel_reference is None else None
         self._tracking = self._error is not None or (self._panel is not None and panel_reference is not None)
-        self._rotor = index.get(roles.get("rotor_angle"))
+        self._rotor = _role_column(index, roles, "rotor_angle")
         self._torque = [index[c] for c in [roles.get("torque")] if c in index]
         self._currents = [index[roles[r]] for r in ("current_a", "current_b") if roles.get(r) in index]
-        self._power = index.get(roles.get("power"))
+        self._power = _role_column(index, roles, "power")
         self.sequencer, self.schedule, self.reference = sequencer, schedule, panel_reference
         self.block = block
         self._pending: list[np.ndarray] = []
@@ -118,8 +124,12 @@ class SolutionRecorder:
         self._energy += float(np.sum(np.diff(t) * (power[:-1] + power[1:]) / 2.0))
 
     def _take_error(self, data: np.ndarray, time: np.ndarray, times: np.ndarray) -> None:
-        error = np.degrees(data[:, self._error] if self._error is not None
-                           else data[:, self._panel] - self.reference(time))
+        if self._error is not None:
+            error = np.degrees(data[:, self._error])
+        elif self._panel is not None and self.reference is not None:
+            error = np.degrees(data[:, self._panel] - self.reference(time))
+        else:  # tracking needs the error's column or the panel angle and its reference
+            raise RuntimeError("tracking error asked without the panel angle's error or its reference")
         self._error_max = max(self._error_max, float(np.abs(error).max()))
         self._error_sq_sum += float(np.sum(error * error))
         if self._last_error is not None:
@@ -138,21 +148,38 @@ class SolutionRecorder:
         result: dict = {}
         if self.count == 0:
             return {"solution_rows": 0, "end_time_s": 0.0}
-        start, end = float(self._first[0]), float(self._last[0])
+        first, last = self._first, self._last
+        if first is None or last is None:  # set by the first rows taken
+            raise RuntimeError("rows counted but not kept")
+        start, end = float(first[0]), float(last[0])
         if self._tracking:
             span = end - start
             rms = float(np.sqrt(self._error_sq_int / span if span > 0 else self._error_sq_sum / self.count))
             result.update(dataclasses.asdict(Tracking(self._error_max, rms)))
-        result.update(dataclasses.asdict(Peaks(self._peak_torque if self._torque else None,
-                                               self._peak_current if self._currents else None)))
+        result.update(
+            dataclasses.asdict(
+                Peaks(self._peak_torque if self._torque else None, self._peak_current if self._currents else None)
+            )
+        )
         if self._power is not None and self.count > 1:
             result["electrical_energy_J"] = self._energy
         if self._rotor is not None:
             outcomes = self.steps.outcomes_at_end(end)
-            lost = lost_between((start, self._first[self._rotor]), (end, self._last[self._rotor]),
-                                self._last_time_repeated, self.sequencer, self.schedule)
+            lost = lost_between(
+                (start, first[self._rotor]),
+                (end, last[self._rotor]),
+                self._last_time_repeated,
+                self.sequencer,
+                self.schedule,
+            )
             result.update(dataclasses.asdict(StepFigures.of(judged_steps(outcomes, len(outcomes)), lost)))
             result["step_outcomes"] = outcome_records(outcomes)
         result["solution_rows"] = int(self.count)
         result["end_time_s"] = end
         return result
+
+
+def _role_column(index: Mapping[str, int], roles: Mapping[str, str], role: str) -> int | None:
+    """The index of the column that has ``role`` (None: no such role or no such column)."""
+    column = roles.get(role)
+    return None if column is None else index.get(column)

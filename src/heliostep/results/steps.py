@@ -12,15 +12,27 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 
 from heliostep.drive.sequencer import Sequencer, StepSchedule
 
-__all__ = ["FULL_STEPS_PER_PERIOD", "MISS_TOLERANCE", "SETTLING_BAND", "JudgedSteps", "Settling", "StepJudge",
-           "StepOutcome", "held_lag", "judged_steps", "lost_between", "lost_steps", "outcome_records",
-           "step_outcome"]
+__all__ = [
+    "FULL_STEPS_PER_PERIOD",
+    "MISS_TOLERANCE",
+    "SETTLING_BAND",
+    "JudgedSteps",
+    "Settling",
+    "StepJudge",
+    "StepOutcome",
+    "held_lag",
+    "judged_steps",
+    "lost_between",
+    "lost_steps",
+    "outcome_records",
+    "step_outcome",
+]
 
 #: Band around the rest position that counts as settled, in step increments.
 SETTLING_BAND = 0.05
@@ -41,8 +53,12 @@ class StepOutcome(NamedTuple):
 
     def record(self) -> dict:
         """As stored in ``metadata['solution_figures']['step_outcomes']``."""
-        return {"time_s": self.time_s, "missed": self.missed, "settling_s": self.settling_s,
-                "move_steps": self.move_steps}
+        return {
+            "time_s": self.time_s,
+            "missed": self.missed,
+            "settling_s": self.settling_s,
+            "move_steps": self.move_steps,
+        }
 
     @classmethod
     def from_record(cls, record: Mapping) -> StepOutcome:
@@ -77,10 +93,17 @@ def judged_steps(outcomes: Sequence[StepOutcome], commanded: int) -> JudgedSteps
     missed = [o for o in outcomes if o.missed]
     settling = [o.settling_s for o in outcomes]
     settled = [s for s in settling if s is not None]
-    return JudgedSteps(len(missed), commanded - len(missed),
-                       Settling(max(settled) if settled else None, float(np.mean(settled)) if settled else None,
-                                sum(1 for s in settling if s is None), settling),
-                       [o.time_s for o in missed])
+    return JudgedSteps(
+        len(missed),
+        commanded - len(missed),
+        Settling(
+            max(settled) if settled else None,
+            float(np.mean(settled)) if settled else None,
+            sum(1 for s in settling if s is None),
+            settling,
+        ),
+        [o.time_s for o in missed],
+    )
 
 
 def held_lag(start_lag: float, current_fraction: float, sequencer: Sequencer) -> float:
@@ -104,8 +127,9 @@ def _end_current_fraction(sequencer: Sequencer, schedule: StepSchedule, start: f
     return sequencer.idle_current_fraction if end - last > sequencer.idle_delay else 1.0
 
 
-def lost_steps(behind: float, start_lag: float, sequencer: Sequencer, schedule: StepSchedule, start: float,
-               end: float) -> tuple[int, float]:
+def lost_steps(
+    behind: float, start_lag: float, sequencer: Sequencer, schedule: StepSchedule, start: float, end: float
+) -> tuple[int, float]:
     """(steps lost, elastic lag left) [increments] from how far the rotor ends behind the command
     and the lag it held at the start (both [increments]): the lost steps are net of the elastic
     lag the load causes at the end, at the holding current of the end (:func:`held_lag`)."""
@@ -116,14 +140,19 @@ def lost_steps(behind: float, start_lag: float, sequencer: Sequencer, schedule: 
     return lost, float(behind - lost)
 
 
-def lost_between(first: tuple[float, float], last: tuple[float, float], last_time_repeated: bool,
-                 sequencer: Sequencer, schedule: StepSchedule) -> tuple[int, float]:
+def lost_between(
+    first: tuple[float, float],
+    last: tuple[float, float],
+    last_time_repeated: bool,
+    sequencer: Sequencer,
+    schedule: StepSchedule,
+) -> tuple[int, float]:
     """:func:`lost_steps` of rows from ``first`` to ``last`` (each (time [s], rotor angle [rad])):
     the command at the first row is the one before a step at its time, at the last row the one
     after it when the row before it has the same time (a step's second row)."""
     start, end = first[0], last[0]
     first_cmd = float(sequencer.position(schedule.index_at(np.array([start]), side="left"))[0])
-    side = "right" if last_time_repeated else "left"
+    side: Literal["left", "right"] = "right" if last_time_repeated else "left"
     last_cmd = float(sequencer.position(schedule.index_at(np.array([end]), side=side))[0])
     increment = sequencer.increment
     behind = (last_cmd - float(last[1])) / increment
@@ -136,8 +165,16 @@ def _period(sequencer: Sequencer) -> float:
     return FULL_STEPS_PER_PERIOD * sequencer.step_angle
 
 
-def step_outcome(t_step: float, commanded: float, previous: float, t: np.ndarray, x: np.ndarray, lag: float,
-                 sequencer: Sequencer, settling_band: float = SETTLING_BAND) -> StepOutcome:
+def step_outcome(
+    t_step: float,
+    commanded: float,
+    previous: float,
+    t: np.ndarray,
+    x: np.ndarray,
+    lag: float,
+    sequencer: Sequencer,
+    settling_band: float = SETTLING_BAND,
+) -> StepOutcome:
     """One step's outcome from the rows ``t, x`` of the rotor from the row at the step to the row
     at the next step (or the end), both included; ``previous`` is the command before the step
     and ``lag`` the elastic lag held at the start [rad]."""
@@ -148,6 +185,7 @@ def step_outcome(t_step: float, commanded: float, previous: float, t: np.ndarray
     rest = commanded - lag
     rest -= period * np.round((rest - x[-1]) / period)  # the detent the rotor ends in
     outside = np.nonzero(np.abs(x - rest) > settling_band * increment)[0]
+    settling: float | None
     if len(outside) == 0:
         settling = 0.0
     elif outside[-1] == len(x) - 1:
@@ -204,20 +242,32 @@ class StepJudge:
                 self._step_t.append(time[pos:])
                 self._step_x.append(rotor[pos:])
                 return
-            self._step_t.append(time[pos:last + 1])
-            self._step_x.append(rotor[pos:last + 1])
+            self._step_t.append(time[pos : last + 1])
+            self._step_x.append(rotor[pos : last + 1])
             self.max_held = max(self.max_held, sum(len(t) for t in self._step_t))
-            self.outcomes.append(self._outcome(np.concatenate(self._step_t), np.concatenate(self._step_x)))
-            self._previous = self.outcomes[-1].commanded
+            outcome = self._outcome(np.concatenate(self._step_t), np.concatenate(self._step_x))
+            if outcome.commanded is None:  # an outcome judged here has its command; only a stored record has not
+                raise RuntimeError(f"the step at {outcome.time_s} s was judged without its command")
+            self.outcomes.append(outcome)
+            self._previous = outcome.commanded
             self._k += 1
             self._open = False
             self._step_t, self._step_x = [], []
             pos = last
 
     def _outcome(self, t: np.ndarray, x: np.ndarray) -> StepOutcome:
+        if self.lag is None:  # set by the first rows taken, before any step is judged
+            raise RuntimeError("a step judged before the judge took its first rows")
         index = self.schedule.indices[self._k]
-        return step_outcome(self.schedule.times[self._k], float(self.sequencer.position(index)), self._previous,
-                            t, x, self.lag, self.sequencer)
+        return step_outcome(
+            self.schedule.times[self._k],
+            float(self.sequencer.position(index)),
+            self._previous,
+            t,
+            x,
+            self.lag,
+            self.sequencer,
+        )
 
     def outcomes_at_end(self, end: float) -> list[StepOutcome]:
         """The steps judged and the step open at the end (the last row taken, at ``end`` [s]),
@@ -227,7 +277,7 @@ class StepJudge:
             t, x = np.concatenate(self._step_t), np.concatenate(self._step_x)
             if self._k + 1 == len(self.schedule):  # judged up to the first row at the end
                 cut = int(np.searchsorted(t, end, side="left"))
-                t, x = t[:cut + 1], x[:cut + 1]
+                t, x = t[: cut + 1], x[: cut + 1]
             outcomes.append(self._outcome(t, x))
         return outcomes
 

@@ -65,9 +65,23 @@ from heliostep.results.steps import (
 from heliostep.results.trace import drive_from_metadata
 from heliostep.results.trace_io import read_trace
 
-__all__ = ["FULL_STEPS_PER_PERIOD", "MISS_TOLERANCE", "SETTLING_BAND", "STEP_FIELDS", "CutHead", "OutputRows",
-           "SolutionRecorder", "TraceRow", "build_summary", "held_lag", "lost_steps", "summarize", "summarize_files",
-           "summary_at_cut", "trace_summary"]
+__all__ = [
+    "FULL_STEPS_PER_PERIOD",
+    "MISS_TOLERANCE",
+    "SETTLING_BAND",
+    "STEP_FIELDS",
+    "CutHead",
+    "OutputRows",
+    "SolutionRecorder",
+    "TraceRow",
+    "build_summary",
+    "held_lag",
+    "lost_steps",
+    "summarize",
+    "summarize_files",
+    "summary_at_cut",
+    "trace_summary",
+]
 
 
 @dataclass(frozen=True)
@@ -99,8 +113,9 @@ class OutputRows:
     the last step reached (:class:`CutHead`) for :func:`summary_at_cut`. It holds the rotor's
     rows of one step interval, whatever the trace's length."""
 
-    def __init__(self, columns: Sequence[str], roles: Mapping[str, str], sequencer: Sequencer,
-                 schedule: StepSchedule) -> None:
+    def __init__(
+        self, columns: Sequence[str], roles: Mapping[str, str], sequencer: Sequencer, schedule: StepSchedule
+    ) -> None:
         self.columns = list(columns)
         self.sequencer, self.schedule = sequencer, schedule
         self._panel = roles.get("panel_angle") if roles.get("panel_angle") in self.columns else None
@@ -129,11 +144,14 @@ class OutputRows:
         previous = self.last
         self._note_head(time, rotor, previous)
         if self.steps is not None:
+            if rotor is None:  # the judge exists only with the rotor's column
+                raise RuntimeError("steps judged without the rotor angle's column")
             self.steps(time, rotor)
         if self.first is None:
             self.first = TraceRow(float(time[0]), None if rotor is None else float(rotor[0]), False)
-        self.last = TraceRow(float(time[-1]), None if rotor is None else float(rotor[-1]),
-                             _repeated(time, len(time) - 1, previous))
+        self.last = TraceRow(
+            float(time[-1]), None if rotor is None else float(rotor[-1]), _repeated(time, len(time) - 1, previous)
+        )
         if self._panel is not None:
             self.last_panel = float(block[self._panel].iloc[-1])
         self.rows += len(block)
@@ -155,10 +173,24 @@ class OutputRows:
             last = TraceRow(float(time[j]), None if rotor is None else float(rotor[j]), _repeated(time, j, previous))
         self.head = CutHead(step, self.rows + j + 1, last, exact)
 
+    def ends(self) -> tuple[TraceRow, TraceRow]:
+        """The first and the last row taken; RuntimeError before any row."""
+        if self.first is None or self.last is None:
+            raise RuntimeError("no output row taken")
+        return self.first, self.last
+
+    def judge(self) -> StepJudge:
+        """The steps judged on the rows; RuntimeError without the rotor angle's column."""
+        if self.steps is None:
+            raise RuntimeError("no steps judged: the trace has no rotor angle")
+        return self.steps
+
     def lost(self, last: TraceRow, schedule: StepSchedule) -> tuple[int, float]:
         """(steps lost, elastic lag left) [increments] of the rows from the first to ``last``."""
-        return lost_between((self.first.time, self.first.rotor), (last.time, last.rotor), last.repeated,
-                            self.sequencer, schedule)
+        first, _ = self.ends()
+        if first.rotor is None or last.rotor is None:
+            raise RuntimeError("steps lost asked of rows without the rotor angle")
+        return lost_between((first.time, first.rotor), (last.time, last.rotor), last.repeated, self.sequencer, schedule)
 
 
 def _repeated(time: np.ndarray, j: int, previous: TraceRow | None) -> bool:
@@ -173,9 +205,13 @@ def _part(kind: type, figures: Mapping):
     return kind(**{f.name: figures[f.name] for f in dataclasses.fields(kind)})
 
 
-def _step_figures(solution: Mapping | None, end: float, commanded: int,
-                  output_outcomes: Callable[[], list[StepOutcome]],
-                  output_lost: Callable[[], tuple[int, float]]) -> StepFigures:
+def _step_figures(
+    solution: Mapping | None,
+    end: float,
+    commanded: int,
+    output_outcomes: Callable[[], list[StepOutcome]],
+    output_lost: Callable[[], tuple[int, float]],
+) -> StepFigures:
     """The step figures up to ``end`` [s] (``commanded`` steps): the solution's outcomes of the
     steps up to ``end`` when there is one for each, with its steps lost when it ends at ``end``
     too; else (no solution, or it misses steps) those judged on the output rows."""
@@ -202,18 +238,32 @@ def build_summary(solution: Mapping | None, rows: OutputRows, figures_from: str 
     """
     if not rows.rows:
         return RunSummary(0.0, 0, None, None, None, 0, None, figures_from, None)
-    end = rows.last.time
+    if solution is None:
+        raise RuntimeError("a summary of output rows needs their solution's figures")
+    first, last = rows.ends()
+    end = last.time
     commanded = int(np.sum(rows.schedule.times <= end))
     steps = None
     if rows.steps is not None:
-        steps = _step_figures(solution, end, commanded, lambda: rows.steps.outcomes_at_end(end),
-                              lambda: rows.lost(rows.last, rows.schedule))
+        judge = rows.steps
+        steps = _step_figures(
+            solution,
+            end,
+            commanded,
+            lambda: judge.outcomes_at_end(end),
+            lambda: rows.lost(last, rows.schedule),
+        )
     return RunSummary(
-        duration_s=end - rows.first.time, rows=rows.rows,
-        tracking=_part(Tracking, solution) if rows.tracked else None, peaks=_part(Peaks, solution),
+        duration_s=end - first.time,
+        rows=rows.rows,
+        tracking=_part(Tracking, solution) if rows.tracked else None,
+        peaks=_part(Peaks, solution),
         electrical_energy_J=solution.get("electrical_energy_J") if rows.powered and rows.rows > 1 else None,
-        steps_commanded=commanded, steps=steps, figures_from=figures_from,
-        final_panel_angle_deg=None if rows.last_panel is None else float(np.degrees(rows.last_panel)))
+        steps_commanded=commanded,
+        steps=steps,
+        figures_from=figures_from,
+        final_panel_angle_deg=None if rows.last_panel is None else float(np.degrees(rows.last_panel)),
+    )
 
 
 def summary_at_cut(summary: RunSummary, rows: OutputRows, solution: Mapping | None) -> RunSummary:
@@ -227,7 +277,7 @@ def summary_at_cut(summary: RunSummary, rows: OutputRows, solution: Mapping | No
     """
     if not rows.rows:
         return summary
-    times, end = rows.schedule.times, rows.last.time
+    times, end = rows.schedule.times, rows.ends()[1].time
     before = times[times <= end]
     steps = summary.steps
     if not len(before) or steps is None:
@@ -241,22 +291,33 @@ def summary_at_cut(summary: RunSummary, rows: OutputRows, solution: Mapping | No
     head = rows.head
     if head is None or head.step_s != last_step:
         raise RuntimeError(f"the rows up to the step at {last_step} s were not kept")
+    head_last = head.last
     if not head.rows:
         return dataclasses.replace(summary, steps_commanded=None, steps=None, step_in_progress_at_cut_s=last_step)
+    if head_last is None:  # the head has rows, so a last one
+        raise RuntimeError(f"the last row before the step at {last_step} s was not kept")
     keep = times < last_step
-    schedule = StepSchedule(times=times[keep], indices=np.asarray(rows.schedule.indices)[keep],
-                            initial_index=rows.schedule.initial_index)
-    commanded = int(np.sum(schedule.times <= head.last.time))
+    schedule = StepSchedule(
+        times=times[keep], indices=np.asarray(rows.schedule.indices)[keep], initial_index=rows.schedule.initial_index
+    )
+    commanded = int(np.sum(schedule.times <= head_last.time))
     # on the output rows, the steps before the cut's were judged at the row at the next step, as
     # the rows up to the cut's step judge them (the row at the step is there: ``head.exact``)
-    step_figures = _step_figures(solution, head.last.time, commanded, lambda: rows.steps.outcomes[:len(schedule)],
-                                 lambda: rows.lost(head.last, schedule))
-    return dataclasses.replace(summary, steps_commanded=commanded, steps=step_figures,
-                               step_in_progress_at_cut_s=last_step)
+    step_figures = _step_figures(
+        solution,
+        head_last.time,
+        commanded,
+        lambda: rows.judge().outcomes[: len(schedule)],
+        lambda: rows.lost(head_last, schedule),
+    )
+    return dataclasses.replace(
+        summary, steps_commanded=commanded, steps=step_figures, step_in_progress_at_cut_s=last_step
+    )
 
 
-def trace_summary(trace: pd.DataFrame, metadata: Mapping,
-                  solution: Mapping | None = None) -> tuple[RunSummary, OutputRows, Mapping | None]:
+def trace_summary(
+    trace: pd.DataFrame, metadata: Mapping, solution: Mapping | None = None
+) -> tuple[RunSummary, OutputRows, Mapping | None]:
     """(summary, output rows, solution figures used or None) of a stored trace and its metadata
     (see :func:`summarize`); the rows and the solution figures are those :func:`summary_at_cut` takes."""
     roles = metadata.get("roles", {})

@@ -9,6 +9,9 @@ angle). At a step two rows share the time: just before and just after it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 import pandas as pd
 
@@ -17,14 +20,27 @@ from heliostep.drive.sequencer import Sequencer, StepSchedule
 
 #: Units of the columns heliostep itself adds to a trace.
 UNITS = {
-    "time": "s", "i_a_ref": "A", "i_b_ref": "A", "m_ext": "N.m", "panel_angle_ref": "rad",
-    "rotor_angle_ref": "rad", "step_index": "1", "rotor_angle_cmd": "rad", "panel_angle_error": "rad",
+    "time": "s",
+    "i_a_ref": "A",
+    "i_b_ref": "A",
+    "m_ext": "N.m",
+    "panel_angle_ref": "rad",
+    "rotor_angle_ref": "rad",
+    "step_index": "1",
+    "rotor_angle_cmd": "rad",
+    "panel_angle_error": "rad",
 }
 
 
-
-def trace_metadata(scenario: str, metadata: dict, columns: list[str], complete: bool, reason: str | None,
-                   time_reached: float | None, error: str | None) -> dict[str, str]:
+def trace_metadata(
+    scenario: str,
+    metadata: Mapping[str, Any],
+    columns: list[str],
+    complete: bool,
+    reason: str | None,
+    time_reached: float | None,
+    error: str | None,
+) -> dict[str, str]:
     """A run's trace file metadata: ``complete`` (and, when not, ``reason`` and ``time_reached``),
     the scenario's name, the window (from the run's ``metadata``), the error, and the unit and
     role of each of ``columns``."""
@@ -36,38 +52,64 @@ def trace_metadata(scenario: str, metadata: dict, columns: list[str], complete: 
         extra["reason"] = reason or "failed"
         if time_reached is not None:
             extra["time_reached"] = repr(float(time_reached))
-    return {"complete": str(complete).lower(), **extra, "scenario": scenario,
-            "window_start": metadata["window_start"], "timezone": metadata["timezone"],
-            **({"error": error} if error else {}), **units, **roles}
+    return {
+        "complete": str(complete).lower(),
+        **extra,
+        "scenario": scenario,
+        "window_start": metadata["window_start"],
+        "timezone": metadata["timezone"],
+        **({"error": error} if error else {}),
+        **units,
+        **roles,
+    }
 
 
 def figure_columns(roles: dict[str, str]) -> list[str]:
     """The trace columns the run's figures are computed from (summary, light): the derived
     columns and every role's column. A streamed trace is read back with only these."""
-    return ["time", "panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error",
-            *roles.values()]
+    return [
+        "time",
+        "panel_angle_ref",
+        "rotor_angle_ref",
+        "step_index",
+        "rotor_angle_cmd",
+        "panel_angle_error",
+        *roles.values(),
+    ]
 
 
 def drive_metadata(inputs: DriveInputs) -> dict:
     """What the results need of the drive, as plain JSON data for a run's metadata."""
     sequencer, schedule = inputs.sequencer, inputs.schedule
-    return {"mode": sequencer.mode, "current": sequencer.current, "step_angle": sequencer.step_angle,
-            "microsteps": sequencer.microsteps, "idle_current_fraction": sequencer.idle_current_fraction,
-            "idle_delay": sequencer.idle_delay,
-            "initial_index": int(schedule.initial_index), "step_times": [float(t) for t in schedule.times],
-            "step_indices": [int(k) for k in schedule.indices]}
+    return {
+        "mode": sequencer.mode,
+        "current": sequencer.current,
+        "step_angle": sequencer.step_angle,
+        "microsteps": sequencer.microsteps,
+        "idle_current_fraction": sequencer.idle_current_fraction,
+        "idle_delay": sequencer.idle_delay,
+        "initial_index": int(schedule.initial_index),
+        "step_times": [float(t) for t in schedule.times],
+        "step_indices": [int(k) for k in schedule.indices],
+    }
 
 
 def drive_from_metadata(drive: dict) -> tuple[Sequencer, StepSchedule]:
     """The sequencer and the step schedule back from :func:`drive_metadata`'s data."""
     defaults = Sequencer()  # a record written before microstepping and idle reduction existed
-    sequencer = Sequencer(mode=drive["mode"], current=float(drive["current"]), step_angle=float(drive["step_angle"]),
-                          microsteps=int(drive.get("microsteps", defaults.microsteps)),
-                          idle_current_fraction=float(drive.get("idle_current_fraction", defaults.idle_current_fraction)),
-                          idle_delay=float(drive.get("idle_delay", defaults.idle_delay)))
-    schedule = StepSchedule(times=np.asarray(drive["step_times"], dtype=float),
-                            indices=np.asarray(drive["step_indices"], dtype=int),
-                            initial_index=int(drive["initial_index"]))
+    sequencer = Sequencer(
+        mode=drive["mode"],
+        current=float(drive["current"]),
+        step_angle=float(drive["step_angle"]),
+        microsteps=int(drive.get("microsteps", defaults.microsteps)),
+        idle_current_fraction=float(drive.get("idle_current_fraction", defaults.idle_current_fraction)),
+        idle_delay=float(drive.get("idle_delay", defaults.idle_delay)),
+    )
+    schedule = StepSchedule(
+        times=np.asarray(drive["step_times"], dtype=float),
+        indices=np.asarray(drive["step_indices"], dtype=int),
+        initial_index=int(drive["initial_index"]),
+    )
     return sequencer, schedule
 
 
@@ -79,7 +121,7 @@ def step_indices(times: np.ndarray, schedule: StepSchedule, previous_time: float
     """
     times = np.asarray(times, dtype=float)
     first = [True] if previous_time is None or not len(times) else [bool(times[0] != previous_time)]
-    first_of_time = np.concatenate([first, times[1:] != times[:-1]])[:len(times)]
+    first_of_time = np.concatenate([first, times[1:] != times[:-1]])[: len(times)]
     before = schedule.index_at(times, side="left")
     after = schedule.index_at(times, side="right")
     return np.where(first_of_time, before, after)
@@ -90,8 +132,10 @@ def master_block(block, master_columns: list[str], where: str = "") -> np.ndarra
     ValueError naming ``where`` (the sink) and the shape expected."""
     block = np.asarray(block, dtype=float)
     if block.ndim != 2 or block.shape[1] != len(master_columns):
-        raise ValueError(f"{where + ': ' if where else ''}a block of trace rows must have {len(master_columns)} "
-                         f"columns, got shape {block.shape}")
+        raise ValueError(
+            f"{where + ': ' if where else ''}a block of trace rows must have {len(master_columns)} "
+            f"columns, got shape {block.shape}"
+        )
     return block
 
 

@@ -43,8 +43,14 @@ class TraceStream:
     trace_kept = True
     held_trace = None
 
-    def __init__(self, path: str | Path, master_columns: list[str], assembler: TraceAssembler,
-                 row_group_rows: int = ROW_GROUP_ROWS, figures: Callable[[pd.DataFrame], None] | None = None):
+    def __init__(
+        self,
+        path: str | Path,
+        master_columns: list[str],
+        assembler: TraceAssembler,
+        row_group_rows: int = ROW_GROUP_ROWS,
+        figures: Callable[[pd.DataFrame], None] | None = None,
+    ):
         if row_group_rows < 1:
             raise ValueError(f"row_group_rows must be at least 1, not {row_group_rows}")
         self.path = Path(path)
@@ -130,9 +136,14 @@ class TraceStream:
         if self.failed is None:
             return status
         reached = self.written_time or 0.0
-        return RunStatus(False, f"the trace could not be written: {self.failed}; it keeps the {self.written_rows} "
-                                f"rows up to t = {reached:.9g} s, not the rows computed after them (at least "
-                                f"{self.rows_not_written})", "failed", reached)
+        return RunStatus(
+            False,
+            f"the trace could not be written: {self.failed}; it keeps the {self.written_rows} "
+            f"rows up to t = {reached:.9g} s, not the rows computed after them (at least "
+            f"{self.rows_not_written})",
+            "failed",
+            reached,
+        )
 
     def close(self, metadata: Mapping[str, object]) -> Path:
         """Write the rows still held, then ``metadata`` and the footer: the file is complete

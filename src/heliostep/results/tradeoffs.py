@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -102,8 +103,9 @@ def smallest_drive_ratio(panel_angle, scenario) -> float:
     """The smallest :func:`drive_ratio` over panel angles [rad] with the scenario's transmission
     (the smallest over a trace is the smallest of its blocks' smallest)."""
     transmission = scenario.transmission
-    return float(np.min(drive_ratio(np.asarray(panel_angle, dtype=float), transmission.pinion_radius,
-                                    transmission.lever_arm)))
+    return float(
+        np.min(drive_ratio(np.asarray(panel_angle, dtype=float), transmission.pinion_radius, transmission.lever_arm))
+    )
 
 
 def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
@@ -140,19 +142,30 @@ def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
     idle = float(holding_torque(current, constants["k_e"], drive["mode"], fraction))
     moment = ratio * idle
     wind = float(scenario.wind.moment)
-    figures = {"holding_torque_full_Nm": full, "holding_torque_idle_Nm": idle, "idle_holding_moment_Nm": moment,
-               "wind_moment_Nm": wind, "idle_holding_margin": None, "idle_holds_wind": None}
+    figures: dict[str, Any] = {
+        "holding_torque_full_Nm": full,
+        "holding_torque_idle_Nm": idle,
+        "idle_holding_moment_Nm": moment,
+        "wind_moment_Nm": wind,
+        "idle_holding_margin": None,
+        "idle_holds_wind": None,
+    }
     if wind == 0.0:
         return figures
     margin = moment / abs(wind)
     figures["idle_holding_margin"] = margin
     figures["idle_holds_wind"] = bool(margin >= REQUIRED_HOLDING_MARGIN)
     if margin < REQUIRED_HOLDING_MARGIN:
-        consequence = ("the rotor slips when the current drops" if margin < 1.0 else
-                       f"less than the {REQUIRED_HOLDING_MARGIN:g}x margin the paper asks for wind")
-        text = (f"holding moment at idle current ({fraction:g} x {current:.3g} A) is {moment:.4g} N.m on the panel "
-                f"axis against a wind moment of {abs(wind):.4g} N.m (margin {margin:.3g}): {consequence}; "
-                f"raise sequencer.idle_current_fraction or the current")
+        consequence = (
+            "the rotor slips when the current drops"
+            if margin < 1.0
+            else f"less than the {REQUIRED_HOLDING_MARGIN:g}x margin the paper asks for wind"
+        )
+        text = (
+            f"holding moment at idle current ({fraction:g} x {current:.3g} A) is {moment:.4g} N.m on the panel "
+            f"axis against a wind moment of {abs(wind):.4g} N.m (margin {margin:.3g}): {consequence}; "
+            f"raise sequencer.idle_current_fraction or the current"
+        )
         figures["warnings"] = [text]
         logger.warning("%s: %s", scenario.name, text)
     return figures
@@ -192,8 +205,7 @@ def energy_per_day(summary: Mapping, scenario) -> dict:
 def tradeoff_figures(trace: pd.DataFrame, metadata: Mapping, scenario, summary: Mapping) -> dict:
     """:func:`holding_figures` and :func:`energy_per_day` of a run (its ``warnings`` appended to
     the summary's own)."""
-    return tradeoff_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario,
-                               summary)
+    return tradeoff_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario, summary)
 
 
 def tradeoff_figures_at(ratio: float, metadata: Mapping, scenario, summary: Mapping) -> dict:

@@ -11,5 +11,12 @@ from heliostep.run.fmus import resolve_fmus
 from heliostep.run.result import RunFailed, RunResult
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION, SINK_ROWS, VERSIONED_PACKAGES, run_scenario
 
-__all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "RunFailed", "RunResult", "resolve_fmus",
-           "run_scenario"]
+__all__ = [
+    "HELD_TRACE_MAX_DURATION",
+    "SINK_ROWS",
+    "VERSIONED_PACKAGES",
+    "RunFailed",
+    "RunResult",
+    "resolve_fmus",
+    "run_scenario",
+]

@@ -21,28 +21,37 @@ __all__ = ["check_roles", "parameters", "present_roles", "signals"]
 
 def check_roles(roles: dict[str, str], infos: dict[str, FMUInfo], scenario: Scenario) -> None:
     """Every role names a variable its FMU has, with the right causality."""
-    expected = {**{r: "input" for r in INPUT_ROLES}, **{r: "output" for r in OUTPUT_ROLES},
-                **{r: "parameter" for r in PARAMETER_ROLES}}
+    expected = {
+        **{r: "input" for r in INPUT_ROLES},
+        **{r: "output" for r in OUTPUT_ROLES},
+        **{r: "parameter" for r in PARAMETER_ROLES},
+    }
     for role, target in roles.items():
         instance, _, variable = target.partition(".")
         info = infos[instance]
         if variable not in info.variables:
             if role not in scenario.roles.model_fields_set:
                 continue  # a default role this FMU does not have: absent
-            raise InputError(f"{scenario.source}: roles.{role}: {info.path.name} (instance {instance!r}) has no "
-                             f"variable {variable!r}; its {expected[role]}s: {', '.join(info.names(expected[role]))}")
+            raise InputError(
+                f"{scenario.source}: roles.{role}: {info.path.name} (instance {instance!r}) has no "
+                f"variable {variable!r}; its {expected[role]}s: {', '.join(info.names(expected[role]))}"
+            )
         causality = info.variables[variable].causality
         if causality != expected[role]:
-            raise InputError(f"{scenario.source}: roles.{role}: {target} has causality {causality!r}, "
-                             f"expected {expected[role]!r}")
+            raise InputError(
+                f"{scenario.source}: roles.{role}: {target} has causality {causality!r}, expected {expected[role]!r}"
+            )
 
 
 def present_roles(scenario: Scenario, infos: dict[str, FMUInfo]) -> dict[str, str]:
     """The scenario's roles that exist in its FMUs (checked), resolved once for the whole run."""
     roles = scenario.resolved_roles()
     check_roles(roles, infos, scenario)
-    return {role: target for role, target in roles.items()
-            if target.partition(".")[2] in infos[target.partition(".")[0]].variables}
+    return {
+        role: target
+        for role, target in roles.items()
+        if target.partition(".")[2] in infos[target.partition(".")[0]].variables
+    }
 
 
 def parameters(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str], infos: dict[str, FMUInfo]) -> dict:
@@ -55,9 +64,11 @@ def parameters(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str], i
         instance, _, name = roles[role].partition(".")
         user = scenario.parameters.get(instance, {})
         if role in transmission_keys and name in user and user[name] != value:
-            raise InputError(f"{scenario.source}: parameters.{instance}.{name} = {user[name]} contradicts "
-                             f"{transmission_keys[role]} = {value}; set the transmission in "
-                             f"{transmission_keys[role]} only")
+            raise InputError(
+                f"{scenario.source}: parameters.{instance}.{name} = {user[name]} contradicts "
+                f"{transmission_keys[role]} = {value}; set the transmission in "
+                f"{transmission_keys[role]} only"
+            )
         values[instance].setdefault(name, value)
     return values
 
@@ -72,11 +83,14 @@ def signals(inputs: DriveInputs, roles: dict[str, str]) -> list[PiecewiseConstan
     if inputs.sequencer.idle_current_fraction != 1.0:
         times, current_a, current_b = idle_currents(inputs.schedule, inputs.sequencer, inputs.duration)
         steps = np.asarray(times[1:], dtype=float)
-    result = [PiecewiseConstant("i_a_ref", roles["current_a_ref"], steps, np.asarray(current_a, dtype=float)),
-              PiecewiseConstant("i_b_ref", roles["current_b_ref"], steps, np.asarray(current_b, dtype=float))]
+    result = [
+        PiecewiseConstant("i_a_ref", roles["current_a_ref"], steps, np.asarray(current_a, dtype=float)),
+        PiecewiseConstant("i_b_ref", roles["current_b_ref"], steps, np.asarray(current_b, dtype=float)),
+    ]
     if "wind_moment" in roles:
         result.append(PiecewiseConstant("m_ext", roles["wind_moment"], np.zeros(0), np.array([inputs.wind_moment])))
     elif inputs.wind_moment != 0.0:
-        raise InputError(f"wind.moment = {inputs.wind_moment} N.m, but no FMU input has the role wind_moment "
-                         f"(roles.wind_moment)")
+        raise InputError(
+            f"wind.moment = {inputs.wind_moment} N.m, but no FMU input has the role wind_moment (roles.wind_moment)"
+        )
     return result

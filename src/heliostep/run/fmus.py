@@ -46,5 +46,11 @@ def read_fmus(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, FM
 
 def fmu_records(fmu_paths: Mapping[str, Path], infos: Mapping[str, FMUInfo]) -> dict[str, dict[str, str]]:
     """What a run's metadata says of each FMU: its path, SHA-256 and GUID."""
-    return {name: {"path": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
-                   "guid": infos[name].guid} for name, path in fmu_paths.items()}
+    return {
+        name: {
+            "path": str(path),
+            "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
+            "guid": infos[name].guid,
+        }
+        for name, path in fmu_paths.items()
+    }

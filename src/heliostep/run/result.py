@@ -84,8 +84,16 @@ class RunResult:
 
     def _require_trace(self) -> None:
         if not self.trace_kept:
-            raise InputError(f"{self.scenario.name}: this run kept no trace (run_scenario(..., keep_trace=False)): "
-                                 "only its summary and metadata")
+            raise InputError(
+                f"{self.scenario.name}: this run kept no trace (run_scenario(..., keep_trace=False)): "
+                "only its summary and metadata"
+            )
+
+    def _streamed_file(self) -> Path:
+        """The trace file of a run that holds no trace in memory (:meth:`__post_init__` checks it has one)."""
+        if self.trace_file is None:
+            raise RuntimeError(f"{self.scenario.name}: the run holds no trace in memory and has no trace file")
+        return self.trace_file
 
     @property
     def trace(self) -> pd.DataFrame:
@@ -93,7 +101,7 @@ class RunResult:
         self._require_trace()
         if self.held_trace is not None:
             return self.held_trace
-        return read_trace(self.trace_file)[0]
+        return read_trace(self._streamed_file())[0]
 
     @property
     def trace_column_names(self) -> list[str]:
@@ -102,7 +110,7 @@ class RunResult:
             return list(self.held_trace.columns)
         import pyarrow.parquet as pq
 
-        return list(pq.read_schema(self.trace_file).names)
+        return list(pq.read_schema(self._streamed_file()).names)
 
     @property
     def trace_rows(self) -> int:
@@ -112,16 +120,16 @@ class RunResult:
             return len(self.held_trace)
         import pyarrow.parquet as pq
 
-        return pq.ParquetFile(self.trace_file).metadata.num_rows
+        return pq.ParquetFile(self._streamed_file()).metadata.num_rows
 
     def trace_columns(self, columns: list[str]) -> pd.DataFrame:
         """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
         streamed: the other columns are never loaded)."""
         self._require_trace()
-        wanted = present_columns(self.held_trace if self.held_trace is not None else self.trace_file, columns)
         if self.held_trace is not None:
-            return self.held_trace[wanted]
-        return read_trace(self.trace_file, wanted)[0]
+            return self.held_trace[present_columns(self.held_trace, columns)]
+        trace_file = self._streamed_file()
+        return read_trace(trace_file, present_columns(trace_file, columns))[0]
 
     def to_pandas(self) -> pd.DataFrame:
         """The trace as a DataFrame (a copy)."""
@@ -138,7 +146,7 @@ class RunResult:
         out_dir.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
-            source = self.held_trace if self.held_trace is not None else self.trace_file  # a file: read by column
+            source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
             drawn = plot_run(source, staging, self.trace_metadata())
             light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
             drawn += plot_light_run(light, self.metadata, self.scenario, staging, self.weather)  # power on the tube
@@ -152,15 +160,23 @@ class RunResult:
             shutil.rmtree(staging, ignore_errors=True)
 
     def trace_metadata(self) -> dict[str, str]:
-        return trace_metadata(self.scenario.name, self.metadata, self.trace_column_names, self.complete,
-                              self.reason, self.time_reached, self.error)
+        return trace_metadata(
+            self.scenario.name,
+            self.metadata,
+            self.trace_column_names,
+            self.complete,
+            self.reason,
+            self.time_reached,
+            self.error,
+        )
 
     def summary_record(self) -> dict:
         """What ``summary.json`` holds: completeness (and why not), then the figures."""
         return summary_record(self.figures, self.status)
 
-    def write(self, out_dir: str | Path, plots: bool = True, csv: bool = True,
-              should_stop: Callable[[], bool] | None = None) -> dict[str, Path]:
+    def write(
+        self, out_dir: str | Path, plots: bool = True, csv: bool = True, should_stop: Callable[[], bool] | None = None
+    ) -> dict[str, Path]:
         """Write trace (Parquet, and CSV unless ``csv=False``), summary.json, metadata.json and
         plots into ``out_dir`` (a run that kept no trace: summary.json and metadata.json). The
         trace's metadata, summary.json and metadata.json all say ``complete`` (and, when not,
@@ -179,7 +195,7 @@ class RunResult:
         elif self.held_trace is not None:
             written.update(write_held_trace(out_dir, self.held_trace, self.trace_metadata(), csv))
         else:  # streamed: the finished file is renamed (or copied) into place, the CSV made from it
-            source, metadata = Path(self.trace_file), self.trace_metadata()
+            source, metadata = self._streamed_file(), self.trace_metadata()
             written["trace.parquet"] = place_trace_file(source, out_dir / "trace.parquet")
             if self.temporary_folder is None or source.parent == out_dir:
                 self.trace_file = written["trace.parquet"]

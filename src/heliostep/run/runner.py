@@ -72,15 +72,22 @@ class _PreparedRun:
     def columns(self) -> list[str]:
         """The master's trace columns."""
         columns = ["time"] + [item.name for item in self.system.inputs]
-        return columns + [f"{name}.{output}" for name, info in self.system.fmus.items()
-                          for output in info.traced_outputs]
+        return columns + [
+            f"{name}.{output}" for name, info in self.system.fmus.items() for output in info.traced_outputs
+        ]
 
 
-def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (),
-                 progress: bool = False, should_stop: Callable[[], bool] | None = None,
-                 trace_dir: str | Path | None = None, stream: bool | None = None,
-                 row_group_rows: int = ROW_GROUP_ROWS, keep_trace: bool = True,
-                 fmu_paths: Mapping[str, Path] | None = None) -> RunResult:
+def run_scenario(
+    scenario: Scenario | str | Path,
+    overrides: tuple[str, ...] = (),
+    progress: bool = False,
+    should_stop: Callable[[], bool] | None = None,
+    trace_dir: str | Path | None = None,
+    stream: bool | None = None,
+    row_group_rows: int = ROW_GROUP_ROWS,
+    keep_trace: bool = True,
+    fmu_paths: Mapping[str, Path] | None = None,
+) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
 
     Raises :class:`~heliostep.run.result.RunFailed` (carrying the incomplete
@@ -109,8 +116,16 @@ def run_scenario(scenario: Scenario | str | Path, overrides: tuple[str, ...] = (
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
     prepared = _prepare(scenario, fmu_paths, clock.perf_counter())
-    figures = RunFigures.of_run(prepared.columns, prepared.inputs, prepared.roles, figure_columns(prepared.roles),
-                                prepared.meta, scenario, prepared.weather, row_group_rows)
+    figures = RunFigures.of_run(
+        prepared.columns,
+        prepared.inputs,
+        prepared.roles,
+        figure_columns(prepared.roles),
+        prepared.meta,
+        scenario,
+        prepared.weather,
+        row_group_rows,
+    )
     sink, temporary = _row_sink(prepared, figures, keep_trace, stream, trace_dir, row_group_rows)
     try:
         run = _simulate_and_summarize(prepared, figures, sink, temporary, progress, should_stop)
@@ -136,33 +151,56 @@ def _prepare(scenario: Scenario, fmu_paths: Mapping[str, Path] | None, started: 
     inputs = prepare_inputs(scenario)
     values = parameters(scenario, inputs, roles, infos)
     try:  # connections (types, units, loops), parameter names and values, checked before simulating
-        system = CoSimulation(infos, [Connection(s, t) for s, t in scenario.connection_pairs()],
-                              signals(inputs, roles), values)
+        system = CoSimulation(
+            infos, [Connection(s, t) for s, t in scenario.connection_pairs()], signals(inputs, roles), values
+        )
     except InputError as exc:
         raise InputError(f"{scenario.source}: {exc}") from None
-    solver = SolverOptions(rtol=scenario.solver.rtol, atol=scenario.solver.atol,
-                           max_step=scenario.solver.max_step or float("inf"),
-                           max_num_steps=scenario.solver.max_num_steps)
+    solver = SolverOptions(
+        rtol=scenario.solver.rtol,
+        atol=scenario.solver.atol,
+        max_step=scenario.solver.max_step or float("inf"),
+        max_num_steps=scenario.solver.max_num_steps,
+    )
     meta = _metadata(scenario, fmu_paths, infos, values, roles, inputs)
     return _PreparedRun(scenario, system, inputs, solver, roles, meta, started, weather)
 
 
-def _metadata(scenario: Scenario, fmu_paths: Mapping[str, Path], infos: Mapping[str, FMUInfo], values: dict,
-              roles: dict[str, str], inputs: DriveInputs) -> RunMetadata:
+def _metadata(
+    scenario: Scenario,
+    fmu_paths: Mapping[str, Path],
+    infos: Mapping[str, FMUInfo],
+    values: dict,
+    roles: dict[str, str],
+    inputs: DriveInputs,
+) -> RunMetadata:
     """The run's metadata before simulating (the simulation adds its statistics and figures)."""
     units = dict(UNITS)
     for name, info in infos.items():
         units.update({f"{name}.{v}": info.variables[v].unit for v in info.outputs if info.variables[v].unit})
     return RunMetadata(
-        heliostep=__version__, python=platform.python_version(),
+        heliostep=__version__,
+        python=platform.python_version(),
         packages={p: package_metadata.version(p) for p in VERSIONED_PACKAGES},
-        scenario=scenario.resolved_dict(), fmus=fmu_records(fmu_paths, infos),
-        parameters=values, roles=roles, drive=drive_metadata(inputs),
-        window_start=inputs.window_start.isoformat(), timezone=scenario.site.timezone, units=units)
+        scenario=scenario.resolved_dict(),
+        fmus=fmu_records(fmu_paths, infos),
+        parameters=values,
+        roles=roles,
+        drive=drive_metadata(inputs),
+        window_start=inputs.window_start.isoformat(),
+        timezone=scenario.site.timezone,
+        units=units,
+    )
 
 
-def _row_sink(prepared: _PreparedRun, figures: RunFigures, keep_trace: bool, stream: bool | None,
-              trace_dir: str | Path | None, row_group_rows: int) -> tuple[RowSink, Path | None]:
+def _row_sink(
+    prepared: _PreparedRun,
+    figures: RunFigures,
+    keep_trace: bool,
+    stream: bool | None,
+    trace_dir: str | Path | None,
+    row_group_rows: int,
+) -> tuple[RowSink, Path | None]:
     """Where the master's rows go (all feed ``figures``): not kept, held, or streamed to a file
     (with the temporary folder made for it, without ``trace_dir``)."""
     columns, assembler = prepared.columns, TraceAssembler(prepared.inputs, prepared.roles)
@@ -170,24 +208,33 @@ def _row_sink(prepared: _PreparedRun, figures: RunFigures, keep_trace: bool, str
         return FigureStream(columns, assembler, figures), None
     if not (prepared.inputs.duration > HELD_TRACE_MAX_DURATION if stream is None else stream):
         return HeldTrace(columns, assembler, figures), None
-    temporary = None if trace_dir is not None else Path(tempfile.mkdtemp(
-        prefix=f"heliostep-trace-{prepared.scenario.name}-"))
+    temporary = (
+        None if trace_dir is not None else Path(tempfile.mkdtemp(prefix=f"heliostep-trace-{prepared.scenario.name}-"))
+    )
     folder = Path(trace_dir) if trace_dir is not None else Path(temporary or ".")
     path = folder / f"{TMP_PREFIX}{os.getpid()}-{clock.time_ns():x}-trace.parquet"
     return TraceStream(path, columns, assembler, row_group_rows, figures), temporary
 
 
-def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, progress: bool,
-                 should_stop: Callable[[], bool] | None):
+def _co_simulate(
+    prepared: _PreparedRun, figures: RunFigures, sink: RowSink, progress: bool, should_stop: Callable[[], bool] | None
+):
     """The co-simulation, its rows to ``figures`` and ``sink``: (status, the master's empty
     trace frame, its statistics)."""
     inputs = prepared.inputs
     bar = _progress_bar(inputs.duration) if progress else None
     try:
-        result = prepared.system.simulate(0.0, inputs.duration, inputs.output_times, prepared.solver,
-                                          progress=bar.update_to if bar else None, should_stop=should_stop,
-                                          monitor=figures.solution,  # every solver step, for the figures
-                                          sink=sink, sink_rows=SINK_ROWS)  # the trace rows, in blocks
+        result = prepared.system.simulate(
+            0.0,
+            inputs.duration,
+            inputs.output_times,
+            prepared.solver,
+            progress=bar.update_to if bar else None,
+            should_stop=should_stop,
+            monitor=figures.solution,  # every solver step, for the figures
+            sink=sink,
+            sink_rows=SINK_ROWS,
+        )  # the trace rows, in blocks
         return RunStatus(True), result.trace, result.statistics
     except InputError as exc:  # found while setting up the FMUs, before any row (e.g. an unknown parameter)
         raise InputError(f"{prepared.scenario.source}: {exc}") from None
@@ -201,30 +248,55 @@ def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, pro
             bar.close()
 
 
-def _simulate_and_summarize(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, temporary: Path | None,
-                            progress: bool, should_stop: Callable[[], bool] | None) -> RunResult:
+def _simulate_and_summarize(
+    prepared: _PreparedRun,
+    figures: RunFigures,
+    sink: RowSink,
+    temporary: Path | None,
+    progress: bool,
+    should_stop: Callable[[], bool] | None,
+) -> RunResult:
     """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
     scenario, meta = prepared.scenario, prepared.meta
     status, raw, statistics = _co_simulate(prepared, figures, sink, progress, should_stop)
     status = sink.finish(status)  # the last rows kept (a streamed trace that cannot be written fails the run)
-    meta["statistics"] = {**statistics, "run_wall_time": clock.perf_counter() - prepared.started,
-                          "peak_rss_mb_simulating": _peak_rss_mb()}
+    meta["statistics"] = {
+        **statistics,
+        "run_wall_time": clock.perf_counter() - prepared.started,
+        "peak_rss_mb_simulating": _peak_rss_mb(),
+    }
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
     solution = figures.solution_figures()
     if solution and figures.solution is not None:  # every solver step's, so summarize(trace, meta) recomputes them
         if list(raw.columns) != figures.solution.columns:
-            raise RuntimeError(f"solution recorder columns {figures.solution.columns} differ from the trace's "
-                               f"{list(raw.columns)}")
+            raise RuntimeError(
+                f"solution recorder columns {figures.solution.columns} differ from the trace's {list(raw.columns)}"
+            )
         meta["solution_figures"] = solution
-    sink.close(trace_metadata(scenario.name, meta, sink.columns, status.complete, status.reason,
-                              status.time_reached, status.error))  # a file's metadata says how the run ended
+    sink.close(
+        trace_metadata(
+            scenario.name, meta, sink.columns, status.complete, status.reason, status.time_reached, status.error
+        )
+    )  # a file's metadata says how the run ended
     summary = figures.summary(interrupted=status.reason == "interrupted" and sink.trace_kept)
     meta["statistics"]["figure_rows_held_max"] = figures.max_rows_held  # trace rows held at once for them
     meta["statistics"]["figure_step_rows_held_max"] = figures.output.max_step_rows
-    return RunResult(scenario, sink.held_trace, summary, meta, status.complete, status.error, prepared.inputs,
-                     status.reason, status.time_reached, trace_file=sink.trace_file, temporary_folder=temporary,
-                     weather=prepared.weather, trace_kept=sink.trace_kept)
+    return RunResult(
+        scenario,
+        sink.held_trace,
+        summary,
+        meta,
+        status.complete,
+        status.error,
+        prepared.inputs,
+        status.reason,
+        status.time_reached,
+        trace_file=sink.trace_file,
+        temporary_folder=temporary,
+        weather=prepared.weather,
+        trace_kept=sink.trace_kept,
+    )
 
 
 def _peak_rss_mb() -> float | None:
@@ -248,5 +320,11 @@ def _progress_bar(duration: float):
             if t - self.n >= 0.01 * self.total or t >= self.total:
                 self.update(t - self.n)
 
-    return Bar(total=duration, unit="s", desc="simulating", mininterval=0.5, delay=2.0,
-               bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated [{elapsed}<{remaining}]")
+    return Bar(
+        total=duration,
+        unit="s",
+        desc="simulating",
+        mininterval=0.5,
+        delay=2.0,
+        bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s simulated [{elapsed}<{remaining}]",
+    )

@@ -104,10 +104,20 @@ def summary_figures(summary: Mapping) -> dict:
         ``settling_time_s`` as ``settling_time_max_s``, ``settling_time_mean_s`` and
         ``settling_not_settled``, and ``required_torque_Nm`` = :data:`WIND_MARGIN` x peak torque [N.m].
     """
-    figures = {name: summary.get(name) for name in FIGURE_COLUMNS
-               if name not in ("settling_time_max_s", "settling_time_mean_s", "settling_not_settled",
-                               "required_torque_Nm", "holding_torque_Nm", "primary_sharing_error_max_deg",
-                               "primary_sharing_error_signed_deg")}
+    figures = {
+        name: summary.get(name)
+        for name in FIGURE_COLUMNS
+        if name
+        not in (
+            "settling_time_max_s",
+            "settling_time_mean_s",
+            "settling_not_settled",
+            "required_torque_Nm",
+            "holding_torque_Nm",
+            "primary_sharing_error_max_deg",
+            "primary_sharing_error_signed_deg",
+        )
+    }
     settling = summary.get("settling_time_s") or {}
     figures["settling_time_max_s"] = settling.get("max")
     figures["settling_time_mean_s"] = settling.get("mean")
@@ -175,13 +185,18 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
             row.update(primary_sharing_error(scenario))
         except Exception as exc:  # noqa: BLE001
             logger.warning("primary sharing error of case %s: %s", case.case_id, exc)
-    row.update(wall_time_s=clock.perf_counter() - started, finished_at=_now(), run_id=run_id,
-               worker=f"{socket.gethostname()}:{os.getpid()}", fmu_sha256=_fmu_key(case.fmu_sha256))
+    row.update(
+        wall_time_s=clock.perf_counter() - started,
+        finished_at=_now(),
+        run_id=run_id,
+        worker=f"{socket.gethostname()}:{os.getpid()}",
+        fmu_sha256=_fmu_key(case.fmu_sha256),
+    )
     return row
 
 
 def _now() -> str:
-    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="microseconds")
+    return dt.datetime.now(dt.UTC).isoformat(timespec="microseconds")
 
 
 def _fmu_key(fmu_sha256: Mapping[str, str]) -> str:
@@ -190,9 +205,18 @@ def _fmu_key(fmu_sha256: Mapping[str, str]) -> str:
 
 def _lost_case_row(case: SweepCase, exc: BaseException, run_id: str) -> dict:
     """The row of a case whose task itself failed (e.g. its workers kept dying)."""
-    return {**case.columns, **dict.fromkeys(FIGURE_COLUMNS), "status": "failed",
-            "error_type": type(exc).__name__, "error": _error_text(exc), "wall_time_s": None,
-            "finished_at": _now(), "run_id": run_id, "worker": None, "fmu_sha256": _fmu_key(case.fmu_sha256)}
+    return {
+        **case.columns,
+        **dict.fromkeys(FIGURE_COLUMNS),
+        "status": "failed",
+        "error_type": type(exc).__name__,
+        "error": _error_text(exc),
+        "wall_time_s": None,
+        "finished_at": _now(),
+        "run_id": run_id,
+        "worker": None,
+        "fmu_sha256": _fmu_key(case.fmu_sha256),
+    }
 
 
 def primary_sharing_error(scenario: Scenario) -> dict:
@@ -210,8 +234,13 @@ def primary_sharing_error(scenario: Scenario) -> dict:
         ``primary_sharing_error_signed_deg``: that error with its sign (positive tilts the
         normal toward +x) [deg]. None when the sun stays down.
     """
-    errors = sharing_errors(window_sun_times(scenario), scenario.site.to_site(), scenario.plant.to_plant(),
-                            scenario.window.date, [scenario.mirror.mirror_distance])
+    errors = sharing_errors(
+        window_sun_times(scenario),
+        scenario.site.to_site(),
+        scenario.plant.to_plant(),
+        scenario.window.date,
+        [scenario.mirror.mirror_distance],
+    )
     return sharing_figures(errors[:, 0])
 
 

@@ -1,0 +1,77 @@
+"""FMI 2.0 event mode of the coupled system: the discrete fixed point and ``terminateSimulation``.
+
+The master (:mod:`heliostep.cosim.master`) decides *when* an event happens (an input change, an
+FMU time event, a state event found by CVODE's root finding, a step event); this module does what
+FMI 2.0 asks at that instant: every FMU enters event mode, the master's new inputs are set, the
+``fmi2NewDiscreteStates`` iteration runs to a fixed point with the outputs re-propagated between
+rounds, and every FMU returns to continuous-time mode. An FMU asking for ``terminateSimulation``
+raises :class:`Terminated`, which ends the run normally at that instant.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from heliostep.cosim.system import CoupledSystem
+from heliostep.errors import RunFailure
+
+__all__ = ["Terminated", "discrete_fixed_point", "event_iteration"]
+
+
+class Terminated(Exception):
+    """An FMU asked to terminate the simulation (fmi2NewDiscreteStates/CompletedIntegratorStep)."""
+
+    def __init__(self, reason: str, time: float):
+        super().__init__(reason)
+        self.reason = reason
+        self.time = time
+
+
+def discrete_fixed_point(system: CoupledSystem, time: float, max_rounds: int = 100) -> bool:
+    """NewDiscreteStates on every FMU, re-propagating outputs, until nothing changes; whether a
+    discrete state changed. ``time`` [s] is the run's time, for the messages.
+
+    The outputs are compared with those the round propagated from (read before the first
+    round): when NewDiscreteStates changed none, the inputs set from them are consistent
+    and one round is the fixed point (a step instant of the shipped drive needs one)."""
+    changed = False
+    previous = system.outputs()
+    for _ in range(max_rounds):
+        system.propagate_at_event()
+        stop = []
+        for unit in system.unit_list:
+            result = unit.fmu.update_discrete_states()
+            changed |= result.states_changed
+            system.nominals_changed |= result.nominals_changed
+            unit.next_event_time = result.next_event_time
+            if result.terminate:
+                stop.append(unit.name)
+        if stop:  # the round is complete: pass the final outputs on, then end the run
+            system.propagate_at_event()
+            raise Terminated(
+                f"{', '.join(stop)} asked to terminate the simulation (fmi2NewDiscreteStates: terminateSimulation)",
+                time,
+            )
+        outputs = system.outputs()
+        if np.array_equal(outputs, previous):
+            return changed
+        previous = outputs
+    raise RunFailure(f"event iteration at t = {time} found no fixed point in {max_rounds} rounds")
+
+
+def event_iteration(
+    system: CoupledSystem, input_values: np.ndarray, new_values: Sequence[float] | None, time: float
+) -> None:
+    """Event mode: every FMU enters it; with ``new_values`` the master's inputs change to them
+    (written into ``input_values`` in place: the compiled kernel reads that array) and are set;
+    then the discrete fixed point, and every FMU back to continuous-time mode."""
+    for unit in system.unit_list:
+        unit.fmu.enter_event_mode()
+    if new_values is not None:
+        input_values[:] = new_values
+        system.apply_inputs()
+    discrete_fixed_point(system, time)
+    for unit in system.unit_list:
+        unit.fmu.enter_continuous_time_mode()
