@@ -5,6 +5,8 @@ clock time (``metadata["window_start"]`` plus the trace's ``time``), angles are 
 in degrees. A figure whose columns are missing from the trace is skipped, and so is
 the torque zoom of a run without steps.
 
+Given the run's solution data (``RunResult.solution_plot``), Fig. 14 draws every solver step
+around the largest |torque| (its peak is ``summary.json``'s) and Figs. 10-11 per-bin envelopes.
 Long traces are thinned before drawing: per time bucket the first, last, smallest
 and largest sample of each line are kept, so steps and peaks stay visible while a
 line never has more than about ``4 * MAX_BUCKETS`` points. Figures are built with
@@ -16,7 +18,7 @@ from __future__ import annotations
 
 import logging
 import zoneinfo
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import matplotlib.dates as mdates
@@ -26,9 +28,19 @@ from matplotlib.figure import Figure
 
 from heliostep.errors import InputError
 from heliostep.plots.thinning import thin
+from heliostep.results.solution import SolutionPlotData
 from heliostep.scenario import RolesConfig
 
-__all__ = ["FIGURE_FILES", "MAX_BUCKETS", "ZOOM_HALF_WIDTH", "plot_run", "step_times"]
+__all__ = [
+    "FIGURE_FILES",
+    "LINE_WITH_ENVELOPE_MAX_SPAN",
+    "MAX_BUCKETS",
+    "TORQUE_ZOOM_LABEL",
+    "ZOOM_HALF_WIDTH",
+    "plot_run",
+    "run_figures",
+    "step_times",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +48,10 @@ logger = logging.getLogger(__name__)
 MAX_BUCKETS = 2000
 #: Half width of the torque zoom around a step (Fig. 14) [s].
 ZOOM_HALF_WIDTH = 0.1
+#: Longest window [s] whose Figs. 10-11 draw the output rows' line over the solution's envelope.
+LINE_WITH_ENVELOPE_MAX_SPAN = 3600.0
+#: Label of Fig. 14's line drawn from the solution rows (every solver step).
+TORQUE_ZOOM_LABEL = "motor torque (every solver step)"
 #: PNG written for each figure, in the order :func:`plot_run` draws them.
 FIGURE_FILES = (
     "fig08_panel_angle_ref.png",
@@ -212,10 +228,9 @@ def _figure(rows: int = 1, size=_WIDE):
     return fig, axes
 
 
-def _finish(fig: Figure, axes, clock: _Clock, path: Path) -> Path:
+def _finish(fig: Figure, axes, clock: _Clock) -> Figure:
     clock.format_axis(axes[-1])
-    fig.savefig(path, dpi=_DPI)
-    return path
+    return fig
 
 
 def _title(what: str, figure_number: int, context: str) -> str:
@@ -223,139 +238,134 @@ def _title(what: str, figure_number: int, context: str) -> str:
 
 
 # --------------------------------------------------------------------------- figures
-def _fig08(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+def _envelope(ax, clock: _Clock, solution: SolutionPlotData | None, column: str, color, what: str, unit: str) -> bool:
+    """Draw ``column``'s per-bin min and max over every solver step, its largest magnitude marked
+    (False, nothing drawn: no envelope of that column)."""
+    if solution is None or solution.edges is None or column not in solution.maximum:
+        return False
+    x = clock.x(solution.edges)
+    low, high = solution.minimum[column], solution.maximum[column]
+    low, high = np.r_[low, low[-1]], np.r_[high, high[-1]]  # the last bin drawn to its end
+    width = float(solution.edges[1] - solution.edges[0])
+    ax.fill_between(x, low, high, step="post", color=color, alpha=0.35, linewidth=0.0)
+    ax.plot(x, high, drawstyle="steps-post", color=color, linewidth=0.7, label=f"{what}: max per {width:.3g} s bin")
+    ax.plot(x, low, drawstyle="steps-post", color=color, linewidth=0.7, label=f"{what}: min per {width:.3g} s bin")
+    time, value = solution.worst[column]
+    label = f"largest |{what}| = {abs(value):.4g} {unit} at {clock.label(time)}"
+    ax.plot(clock.x(np.array([time])), [value], "o", color="C3", markersize=5, zorder=4, label=label)
+    return True
+
+
+def _with_rows(solution: SolutionPlotData | None, clock: _Clock) -> bool:
+    """Whether the output rows are drawn too: without an envelope, or over a short window."""
+    return solution is None or solution.edges is None or clock.span <= LINE_WITH_ENVELOPE_MAX_SPAN
+
+
+def _fig08(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has("panel_angle_ref"):
         return None
     fig, axes = _figure()
     _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), color="C0")
     axes[0].set_ylabel("panel angle reference [deg]")
     axes[0].set_title(_title("panel angle reference", 8, context))
-    return _finish(fig, axes, clock, path)
+    return _finish(fig, axes, clock)
 
 
-def _fig09(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+def _fig09(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has("rotor_angle_ref"):
         return None
     fig, axes = _figure()
     _line(axes[0], clock, trace.time, trace.degrees("rotor_angle_ref"), color="C1")
     axes[0].set_ylabel("rotor angle reference [deg]")
     axes[0].set_title(_title("rotor angle reference (0 at the window start)", 9, context))
-    return _finish(fig, axes, clock, path)
+    return _finish(fig, axes, clock)
 
 
-def _fig10(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+def _fig10(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has(trace.col("current_a"), trace.col("current_b")):
         return None
     fig, axes = _figure(2, _TALL)
     for ax, phase, color in zip(axes, ("a", "b"), ("C0", "C3")):
-        _line(
-            ax,
-            clock,
-            trace.time,
-            trace[trace.col(f"current_{phase}")],
-            "-",
-            color=color,
-            linewidth=1.0,
-            label=f"actual i_{phase}",
-        )
+        column = trace.col(f"current_{phase}")
+        enveloped = _envelope(ax, clock, solution, column, "C0" if phase == "a" else "C9", f"i_{phase}", "A")
+        if not enveloped or _with_rows(solution, clock):
+            _line(ax, clock, trace.time, trace[column], "-", color=color, linewidth=1.0, label=f"actual i_{phase}")
         if trace.has(f"i_{phase}_ref"):
             _line(
-                ax,
-                clock,
-                trace.time,
-                trace[f"i_{phase}_ref"],
-                "--",
-                color="k",
-                linewidth=1.0,
-                label=f"reference i_{phase},ref",
+                ax, clock, trace.time, trace[f"i_{phase}_ref"], "--", color="k", linewidth=0.8, label=f"i_{phase},ref"
             )
         ax.set_ylabel(f"phase {phase.upper()} current [A]")
-        ax.legend(loc="upper right")
-    axes[0].set_title(_title("phase currents", 10, context))
-    return _finish(fig, axes, clock, path)
+        ax.legend(loc="best", fontsize="small")
+    what = "per-bin envelopes of every solver step" if solution is not None and solution.edges is not None else ""
+    axes[0].set_title(_title(f"phase currents{', ' + what if what else ''}", 10, context))
+    return _finish(fig, axes, clock)
 
 
-def _fig11(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
-    if not trace.has(trace.col("torque")):
+def _fig11(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+    column = trace.col("torque")
+    if not trace.has(column):
         return None
     fig, axes = _figure()
-    _line(axes[0], clock, trace.time, trace[trace.col("torque")], color="C2", linewidth=1.0)
+    enveloped = _envelope(axes[0], clock, solution, column, "C2", "torque", "N.m")
+    if not enveloped or _with_rows(solution, clock):
+        _line(axes[0], clock, trace.time, trace[column], color="C2", linewidth=1.0, label="output rows")
     axes[0].axhline(0.0, color="0.5", linewidth=0.8)
     axes[0].set_ylabel("motor torque [N.m]")
-    axes[0].set_title(_title("motor torque", 11, context))
-    return _finish(fig, axes, clock, path)
+    what = ", per-bin envelope of every solver step" if enveloped else ""
+    axes[0].set_title(_title(f"motor torque{what}", 11, context))
+    if enveloped:
+        axes[0].legend(loc="best", fontsize="small")
+    return _finish(fig, axes, clock)
 
 
-def _fig12(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
-    if not trace.has(trace.col("rotor_angle")):
+def _fig12(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+    rotor = trace.col("rotor_angle")
+    if not trace.has(rotor):
         return None
-    fig, axes = _figure()
+    commanded = trace.has("rotor_angle_cmd")
+    fig, axes = _figure(2 if commanded else 1, _TALL if commanded else _WIDE)
     ax = axes[0]
+    actual = trace.degrees(rotor)
     if trace.has("rotor_angle_ref"):
-        _line(ax, clock, trace.time, trace.degrees("rotor_angle_ref"), ":", color="k", linewidth=1.2, label="reference")
-    if trace.has("rotor_angle_cmd"):
         _line(
-            ax,
-            clock,
-            trace.time,
-            trace.degrees("rotor_angle_cmd"),
-            "--",
-            color="C1",
-            linewidth=1.0,
-            label="commanded (sequencer)",
+            ax, clock, trace.time, trace.degrees("rotor_angle_ref"), ":", color="0.4", linewidth=1.0, label="reference"
         )
-    _line(
-        ax, clock, trace.time, trace.degrees(trace.col("rotor_angle")), "-", color="C0", linewidth=1.0, label="actual"
-    )
+    _line(ax, clock, trace.time, actual, "-", color="C0", linewidth=2.2, alpha=0.6, label="actual", zorder=2)
+    if commanded:  # a step line, thin and dashed on top of the actual one
+        cmd = trace.degrees("rotor_angle_cmd")
+        _line(ax, clock, trace.time, cmd, "--", color="C3", linewidth=1.0, label="commanded (sequencer)", zorder=3)
+        _line(axes[1], clock, trace.time, actual - cmd, "-", color="C3", linewidth=0.9)
+        axes[1].axhline(0.0, color="0.5", linewidth=0.8)
+        axes[1].set_ylabel("actual - commanded [deg]")
     ax.set_ylabel("rotor angle [deg]")
-    ax.set_title(_title("rotor angle", 12, context))
+    ax.set_title(_title("rotor angle, commanded and actual", 12, context))
     ax.legend(loc="best")
-    return _finish(fig, axes, clock, path)
+    return _finish(fig, axes, clock)
 
 
-def _fig13(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+def _fig13(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has(trace.col("panel_angle"), "panel_angle_ref"):
         return None
     fig, axes = _figure(2, _TALL)
-    _line(
-        axes[0],
-        clock,
-        trace.time,
-        trace.degrees("panel_angle_ref"),
-        "--",
-        color="k",
-        linewidth=1.2,
-        label="desired (reference)",
-    )
-    _line(
-        axes[0],
-        clock,
-        trace.time,
-        trace.degrees(trace.col("panel_angle")),
-        "-",
-        color="C0",
-        linewidth=1.0,
-        label="actual",
-    )
+    desired, actual = trace.degrees("panel_angle_ref"), trace.degrees(trace.col("panel_angle"))
+    _line(axes[0], clock, trace.time, desired, "--", color="k", linewidth=1.2, label="desired (reference)")
+    _line(axes[0], clock, trace.time, actual, "-", color="C0", linewidth=1.0, label="actual")
     axes[0].set_ylabel("panel angle [deg]")
     axes[0].set_title(_title("panel tracking", 13, context))
     axes[0].legend(loc="best")
-    if trace.has("panel_angle_error"):
-        error = trace.degrees("panel_angle_error")
-    else:
-        error = trace.degrees(trace.col("panel_angle")) - trace.degrees("panel_angle_ref")
+    error = trace.degrees("panel_angle_error") if trace.has("panel_angle_error") else actual - desired
     _line(axes[1], clock, trace.time, error, color="C3", linewidth=1.0)
     axes[1].axhline(0.0, color="0.5", linewidth=0.8)
     axes[1].set_ylabel("tracking error, actual - desired [deg]")
-    return _finish(fig, axes, clock, path)
+    return _finish(fig, axes, clock)
 
 
-def _fig14(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | None:
+def _fig14(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+    if solution is not None and solution.peak_rows is not None and solution.peak_torque is not None:
+        return _solution_zoom(solution, clock, context) if solution.step_count else None
     if not trace.has(trace.col("torque")):
         return None
     steps = trace.step_times()
-    if steps.size == 0:
-        return None
     time, torque = trace.time, trace[trace.col("torque")]
     found = _largest_torque_step(time, torque, steps)
     if found is None:
@@ -366,32 +376,44 @@ def _fig14(trace: _Trace, clock: _Clock, context: str, path: Path) -> Path | Non
     hi = np.searchsorted(time, centre + ZOOM_HALF_WIDTH, side="right")
     window_time, window_torque = time[lo:hi], torque[lo:hi]
     keep = thin(window_time, window_torque, max_buckets=MAX_BUCKETS)
-    relative_ms = (window_time[keep] - centre) * 1e3
+    shown = window_time[keep], window_torque[keep]
+    nearby = steps[(steps >= window_time[0]) & (steps <= window_time[-1])]
+    title = f"torque around step {step + 1} of {steps.size}, the largest |torque| of the output rows"
+    return _zoom(clock, context, title, centre, shown, nearby, (time[peak], torque[peak]), "motor torque (output rows)")
 
+
+def _solution_zoom(solution: SolutionPlotData, clock: _Clock, context: str) -> Figure:
+    """Fig. 14 from the solution rows around the peak |torque| (its peak is ``summary.json``'s)."""
+    time, torque = solution.column("time"), solution.column(solution.columns[1])
+    peak = (float(solution.peak_time or 0.0), float(solution.peak_torque or 0.0))
+    owning = solution.steps[solution.steps <= peak[0]]
+    centre = float(owning[-1]) if owning.size else peak[0]
+    what = f"step {solution.peak_step} of {solution.step_count}" if owning.size else "the peak"
+    title = f"torque around {what}, the largest |torque| of the solution"
+    return _zoom(clock, context, title, centre, (time, torque), solution.steps, peak, TORQUE_ZOOM_LABEL)
+
+
+def _zoom(clock: _Clock, context: str, title: str, centre: float, shown, steps: np.ndarray, peak, label: str) -> Figure:
+    """Fig. 14: torque against the time from ``centre`` [ms], the step instants and the peak marked."""
     fig = Figure(figsize=_WIDE, layout="constrained")
     ax = fig.add_subplot()
     ax.grid(True, alpha=0.3)
-    style = ".-" if keep.size <= 400 else "-"
-    ax.plot(relative_ms, window_torque[keep], style, color="C2", linewidth=1.0, markersize=3, label="motor torque")
-    nearby = steps[(steps >= window_time[0]) & (steps <= window_time[-1])]
-    for other in nearby[nearby != centre]:
+    time, torque = shown
+    style = ".-" if time.size <= 400 else "-"
+    ax.plot((time - centre) * 1e3, torque, style, color="C2", linewidth=1.0, markersize=3, label=label)
+    for other in steps[steps != centre]:
         ax.axvline((other - centre) * 1e3, color="0.6", linestyle=":", linewidth=0.9)
-    ax.axvline(0.0, color="C1", linestyle="--", linewidth=0.9, label="step instant")
-    ax.plot(
-        (time[peak] - centre) * 1e3,
-        torque[peak],
-        "o",
-        color="C3",
-        markersize=5,
-        label=f"peak |torque| = {abs(torque[peak]):.3g} N.m",
-    )
+    if np.any(steps == centre):
+        ax.axvline(0.0, color="C1", linestyle="--", linewidth=0.9, label="step instant")
+    peak_label = f"peak |torque| = {abs(peak[1]):.4g} N.m"
+    ax.plot((peak[0] - centre) * 1e3, peak[1], "o", color="C3", markersize=5, label=peak_label)
     ax.axhline(0.0, color="0.5", linewidth=0.8)
-    ax.set_xlabel(f"time from the step at {clock.label(centre)} [ms]")
+    origin = "step" if np.any(steps == centre) else "peak"
+    ax.set_xlabel(f"time from the {origin} at {clock.label(centre)} [ms]")
     ax.set_ylabel("motor torque [N.m]")
-    ax.set_title(_title(f"torque around step {step + 1} of {steps.size}, the largest |torque|", 14, context))
+    ax.set_title(_title(title, 14, context), fontsize="medium")
     ax.legend(loc="best")
-    fig.savefig(path, dpi=_DPI)
-    return path
+    return fig
 
 
 _FIGURES: tuple[tuple[str, Callable], ...] = tuple(
@@ -400,7 +422,36 @@ _FIGURES: tuple[tuple[str, Callable], ...] = tuple(
 
 
 # --------------------------------------------------------------------------- public
-def plot_run(trace: pd.DataFrame | str | Path, out_dir, metadata: Mapping) -> list[Path]:
+def run_figures(
+    trace: pd.DataFrame | str | Path, metadata: Mapping | None, solution: SolutionPlotData | None = None
+) -> Iterator[tuple[str, Figure | None]]:
+    """The figures of :func:`plot_run`, one at a time: (file name, :class:`~matplotlib.figure.Figure`
+    or None when skipped), for reading back what is drawn (same arguments as :func:`plot_run`)."""
+    if isinstance(trace, (str, Path)):
+        trace = Path(trace)
+    elif not isinstance(trace, pd.DataFrame) or "time" not in trace.columns:
+        raise InputError("trace must be a pandas DataFrame with a 'time' column [s] or a Parquet trace file")
+    metadata = {} if metadata is None else metadata
+    roles = {**RolesConfig().present(), **{k[5:]: v for k, v in metadata.items() if str(k).startswith("role.")}}
+    columns = _Trace(trace, roles)
+    if not columns.time.size:
+        raise InputError("trace is empty: nothing to plot")
+    if np.any(np.diff(columns.time) < 0.0) or not np.all(np.isfinite(columns.time)):
+        raise InputError("trace time must be finite and non-decreasing")
+    clock = _Clock(metadata, columns.time)
+    parts = [str(metadata["scenario"])] if metadata.get("scenario") else []
+    if clock.start is not None:
+        parts.append(f"{clock.start:%Y-%m-%d}")
+    context = f" ({', '.join(parts)})" if parts else ""
+    for file_name, draw in _FIGURES:
+        figure = draw(columns, clock, context, solution)
+        columns.release()
+        yield file_name, figure
+
+
+def plot_run(
+    trace: pd.DataFrame | str | Path, out_dir, metadata: Mapping, solution: SolutionPlotData | None = None
+) -> list[Path]:
     """Write the paper's Figs. 8-14 for one run as PNGs.
 
     Parameters
@@ -420,6 +471,13 @@ def plot_run(trace: pd.DataFrame | str | Path, out_dir, metadata: Mapping) -> li
         ``timezone`` (IANA name), ``scenario`` (name, shown in the titles) and ``role.NAME``
         (the column of each role; default: the shipped FMUs' names). Without
         ``window_start`` the x axis is in seconds from the window start.
+    solution : SolutionPlotData, optional
+        What the run's solution recorder kept of every solver step (``RunResult.solution_plot``):
+        Fig. 14 then draws the solution rows around the largest |torque| (its peak is
+        ``summary.json``'s ``peak_torque_Nm``) and Figs. 10-11 the per-bin envelopes (min and
+        max over the solver steps in each bin, the largest magnitude marked), with the output
+        rows' line over windows up to :data:`LINE_WITH_ENVELOPE_MAX_SPAN`. Without it (a stored
+        trace) they draw the trace's rows.
 
     Returns
     -------
@@ -427,31 +485,14 @@ def plot_run(trace: pd.DataFrame | str | Path, out_dir, metadata: Mapping) -> li
         The PNGs written, in figure order (names in :data:`FIGURE_FILES`): a figure
         whose columns are missing is skipped, and so is Fig. 14 without steps.
     """
-    if isinstance(trace, (str, Path)):
-        trace = Path(trace)
-    elif not isinstance(trace, pd.DataFrame) or "time" not in trace.columns:
-        raise InputError("trace must be a pandas DataFrame with a 'time' column [s] or a Parquet trace file")
-    metadata = {} if metadata is None else metadata
-    roles = {**RolesConfig().present(), **{k[5:]: v for k, v in metadata.items() if str(k).startswith("role.")}}
-    columns = _Trace(trace, roles)
-    if not columns.time.size:
-        raise InputError("trace is empty: nothing to plot")
-    if np.any(np.diff(columns.time) < 0.0) or not np.all(np.isfinite(columns.time)):
-        raise InputError("trace time must be finite and non-decreasing")
-    clock = _Clock(metadata, columns.time)
-    parts = [str(metadata["scenario"])] if metadata.get("scenario") else []
-    if clock.start is not None:
-        parts.append(f"{clock.start:%Y-%m-%d}")
-    context = f" ({', '.join(parts)})" if parts else ""
-
+    figures = run_figures(trace, metadata, solution)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    for file_name, draw in _FIGURES:
-        path = draw(columns, clock, context, out_dir / file_name)
-        columns.release()
-        if path is None:
+    for file_name, figure in figures:
+        if figure is None:
             logger.info("%s skipped: its columns (or steps) are not in the trace", file_name)
-        else:
-            written.append(path)
+            continue
+        figure.savefig(out_dir / file_name, dpi=_DPI)
+        written.append(out_dir / file_name)
     return written

@@ -12,7 +12,8 @@
   2x margin for wind on the simulated peak torque (largest over the mirrors), against
   the motor's holding torque k_e x I (one line per phase current swept).
 
-Only cases with status "ok" are drawn; a missing cell (failed case) stays blank. Figures
+Only cases with status "ok" are drawn; a missing cell (failed case) stays grey. Each cell
+prints its value; a peak-torque cell whose cases commanded no step says "no steps" (white). Figures
 are built with :class:`matplotlib.figure.Figure` (no pyplot state).
 """
 
@@ -24,11 +25,22 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from matplotlib import colormaps
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
 from heliostep.solar import N_FIELD_MIRRORS
 
-__all__ = ["HEATMAPS", "HEATMAP_SCALES", "TORQUE_FILE", "plot_heatmap", "plot_sweep", "plot_torque_requirement"]
+__all__ = [
+    "HEATMAPS",
+    "HEATMAP_SCALES",
+    "MAX_ANNOTATED_CELLS",
+    "STEP_COLUMNS",
+    "TORQUE_FILE",
+    "plot_heatmap",
+    "plot_sweep",
+    "plot_torque_requirement",
+]
 
 #: (column, PNG, colour-bar label) of each heatmap.
 HEATMAPS = (
@@ -44,11 +56,16 @@ HEATMAPS = (
 )
 #: Factor from a heatmap column's unit to its colour bar's (J -> kJ, fraction -> %).
 HEATMAP_SCALES = {"light_lost_J": 1e-3, "light_lost_fraction": 100.0}
+#: Heatmap columns that a case without steps has no value of: its cell says "no steps".
+STEP_COLUMNS = frozenset({"peak_torque_Nm"})
+#: Most cells of a heatmap whose values are printed in them.
+MAX_ANNOTATED_CELLS = 600
 #: PNG of the torque requirement plot.
 TORQUE_FILE = "torque_requirement.png"
 #: Most tick labels on a heatmap axis: one per mirror of the field.
 _MAX_TICKS = N_FIELD_MIRRORS
 _DPI = 120
+_WHITE = ListedColormap(["white"])
 
 
 def _ok_drive_rows(table: pd.DataFrame) -> pd.DataFrame:
@@ -62,13 +79,57 @@ def _ticks(count: int) -> np.ndarray:
     return np.unique(np.linspace(0, count - 1, min(count, _MAX_TICKS)).round().astype(int))
 
 
+def _no_steps(rows: pd.DataFrame) -> pd.Series:
+    """Rows of cases that commanded no step (``steps_commanded`` 0, or no peak torque)."""
+    none = pd.Series(False, index=rows.index)
+    if "steps_commanded" in rows:
+        none |= rows["steps_commanded"].fillna(-1).to_numpy() == 0
+    if "peak_torque_Nm" in rows:
+        none |= rows["peak_torque_Nm"].isna()
+    return none
+
+
+def _cells(rows: pd.DataFrame, column: str) -> tuple[pd.DataFrame, np.ndarray]:
+    """The grid of ``column`` (mirror x day, the largest value per cell; NaN: no value) and which
+    cells are of cases without steps only (for :data:`STEP_COLUMNS`)."""
+    stepless = _no_steps(rows) if column in STEP_COLUMNS else pd.Series(False, index=rows.index)
+    shown = rows[~stepless].dropna(subset=[column])
+    mirrors = sorted(rows["mirror_index"].unique())
+    days = sorted(rows["day_of_year"].unique())
+    if shown.empty:
+        grid = pd.DataFrame(np.nan, index=mirrors, columns=days)
+    else:
+        grid = shown.pivot_table(index="mirror_index", columns="day_of_year", values=column, aggfunc="max")
+        grid = grid.reindex(index=mirrors, columns=days)
+    none = rows[stepless].pivot_table(index="mirror_index", columns="day_of_year", values="status", aggfunc="size")
+    none = none.reindex(index=mirrors, columns=days).notna().to_numpy() & grid.isna().to_numpy()
+    return grid, none
+
+
+def _annotate(ax, values: np.ma.MaskedArray, none: np.ndarray, image) -> None:
+    """Each cell's value (and "no steps"), when the cells are few enough to be read."""
+    if values.size > MAX_ANNOTATED_CELLS:
+        return
+    size = 8 if values.size <= 100 else 6 if values.size <= 300 else 4.5
+    norm = image.norm
+    for (row, col), value in np.ndenumerate(values.filled(np.nan)):
+        if none[row, col]:
+            ax.text(col, row, "no steps", ha="center", va="center", fontsize=size, color="0.2")
+        elif np.isfinite(value):
+            dark = norm(value) < 0.6  # viridis is dark below ~0.6
+            ax.text(col, row, f"{value:.3g}", ha="center", va="center", fontsize=size, color="w" if dark else "k")
+
+
 def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str, scale: float = 1.0) -> Path | None:
-    """One figure of the table over day of year (x) x mirror index (y).
+    """One figure of the table over day of year (x) x mirror index (y), each cell's value printed
+    (up to :data:`MAX_ANNOTATED_CELLS` cells); for :data:`STEP_COLUMNS` a cell whose cases
+    commanded no step is white and says "no steps" (not 0).
 
     Parameters
     ----------
     table : pandas.DataFrame
-        The sweep table: ``day_of_year``, ``mirror_index``, ``status``, ``column``.
+        The sweep table: ``day_of_year``, ``mirror_index``, ``status``, ``column`` (and
+        ``steps_commanded``).
     column : str
         The figure to show; the largest value over the table's other axes per cell.
     path : str or Path
@@ -83,10 +144,12 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str,
     Path or None
         None when the table has no value of ``column`` to show.
     """
-    rows = _ok_drive_rows(table).dropna(subset=["day_of_year", "mirror_index", column])
-    if rows.empty:
+    rows = _ok_drive_rows(table).dropna(subset=["day_of_year", "mirror_index"])
+    if rows.empty or column not in rows:
         return None
-    grid = rows.pivot_table(index="mirror_index", columns="day_of_year", values=column, aggfunc="max")
+    grid, none = _cells(rows, column)
+    if grid.isna().all().all() and not none.any():
+        return None
     days = [int(d) for d in grid.columns]
     mirrors = [int(m) for m in grid.index]
     values = np.ma.masked_invalid(grid.to_numpy(dtype=float) * scale)
@@ -94,6 +157,12 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str,
     ax = fig.add_subplot()
     colormap = colormaps["viridis"].with_extremes(bad="0.85")  # failed cases: grey
     image = ax.imshow(values, origin="lower", aspect="auto", interpolation="nearest", cmap=colormap)
+    if none.any():
+        ax.imshow(np.ma.masked_where(~none, none), origin="lower", aspect="auto", interpolation="nearest", cmap=_WHITE)
+        ax.legend(
+            handles=[Patch(facecolor="w", edgecolor="0.5", label="no steps")], loc="upper right", fontsize="small"
+        )
+    _annotate(ax, values, none, image)
     x_ticks, y_ticks = _ticks(len(days)), _ticks(len(mirrors))
     ax.set_xticks(x_ticks, [str(days[k]) for k in x_ticks])
     ax.set_yticks(y_ticks, [str(mirrors[k]) for k in y_ticks])

@@ -120,7 +120,14 @@ class RunFigures:
     ) -> RunFigures:
         """The figures of a run about to simulate: the master's ``master_columns``, the output rows'
         ``columns`` (those of the figures, :func:`~heliostep.results.trace.figure_columns`)."""
-        solution = SolutionRecorder(master_columns, roles, inputs.sequencer, inputs.schedule, inputs.panel_reference())
+        solution = SolutionRecorder(
+            master_columns,
+            roles,
+            inputs.sequencer,
+            inputs.schedule,
+            inputs.panel_reference(),
+            span=(0.0, inputs.duration),  # the envelopes' bins span the window
+        )
         present = _present(TraceAssembler(inputs, dict(roles)).columns(master_columns), columns)
         return cls(present, metadata, scenario, weather, block_rows, solution, (inputs.window_start, inputs.duration))
 

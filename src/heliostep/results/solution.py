@@ -19,7 +19,132 @@ from heliostep.drive.sequencer import Sequencer, StepSchedule
 from heliostep.results.run_summary import Peaks, StepFigures, Tracking
 from heliostep.results.steps import StepJudge, judged_steps, lost_between, outcome_records
 
-__all__ = ["SolutionRecorder"]
+__all__ = [
+    "ENVELOPE_BINS",
+    "PEAK_WINDOW_HALF_WIDTH",
+    "Envelope",
+    "PeakWindow",
+    "SolutionPlotData",
+    "SolutionRecorder",
+]
+
+
+#: Half width of the solution rows held around the peak |torque| (Fig. 14's zoom) [s].
+PEAK_WINDOW_HALF_WIDTH = 0.1
+#: Most solution rows held around the peak (beyond it the window is thinned, the peak row kept).
+PEAK_WINDOW_MAX_ROWS = 20_000
+#: Time bins of the solution's envelopes over the window (Figs. 10-11).
+ENVELOPE_BINS = 2000
+
+
+@dataclasses.dataclass(frozen=True)
+class SolutionPlotData:
+    """What the plots draw from the solution (every row the master showed), not in ``summary.json``.
+
+    ``columns`` name the columns of ``peak_rows`` (``time`` first, then the torque, rotor angle and
+    phase currents present, by the master's names); ``peak_rows`` are the solution rows within
+    ``half_width`` [s] of the row with the largest |torque| (``peak_time`` [s], ``peak_torque``
+    [N.m], signed: its magnitude is ``summary.json``'s ``peak_torque_Nm``); ``steps`` the step
+    instants [s] within those rows' span, ``peak_step`` the 1-based number of the step owning the
+    peak (0: before the first step) and ``step_count`` the steps up to the last row.
+    ``edges`` [s] bound the envelope's bins; ``minimum`` and ``maximum`` map each enveloped column
+    (torque, currents) to its least and largest value per bin (NaN: no row in the bin), ``worst``
+    to the (time [s], value) of its largest magnitude.
+    """
+
+    columns: list[str]
+    peak_rows: np.ndarray | None
+    peak_time: float | None
+    peak_torque: float | None
+    half_width: float
+    steps: np.ndarray
+    peak_step: int
+    step_count: int
+    edges: np.ndarray | None
+    minimum: dict[str, np.ndarray]
+    maximum: dict[str, np.ndarray]
+    worst: dict[str, tuple[float, float]]
+
+    def column(self, name: str) -> np.ndarray:
+        """A column of ``peak_rows`` by its name (empty without a window)."""
+        if self.peak_rows is None:
+            return np.empty(0)
+        return self.peak_rows[:, self.columns.index(name)]
+
+
+class PeakWindow:
+    """The solution rows around the running peak |torque|, in bounded memory.
+
+    Fed the rows' ``time`` and kept columns (``rows[:, 0]`` time, ``rows[:, torque]`` the torque),
+    in time order: it holds the rows of the last ``half_width`` [s] (the lead-in of a new peak) and
+    the rows within ``half_width`` of the largest |torque| so far, replaced when a larger one
+    comes. Each part is at most ``max_rows`` rows (a part over it is thinned evenly, the peak row
+    kept), so at most ``2 * max_rows`` rows are held whatever the run's length.
+    """
+
+    def __init__(self, torque: int, half_width: float = PEAK_WINDOW_HALF_WIDTH, max_rows: int = PEAK_WINDOW_MAX_ROWS):
+        self.torque, self.half_width, self.max_rows = torque, half_width, max_rows
+        self.rows: np.ndarray | None = None
+        self.peak = -np.inf
+        self.peak_time = self.peak_value = np.nan
+        self._until = -np.inf
+        self._trail: np.ndarray | None = None
+        self.max_held = 0
+
+    def __call__(self, rows: np.ndarray) -> None:
+        magnitude = np.abs(rows[:, self.torque])
+        finite = np.isfinite(magnitude)
+        k = int(np.argmax(np.where(finite, magnitude, -np.inf))) if finite.any() else -1
+        recent = rows if self._trail is None else np.vstack([self._trail, rows])
+        if k >= 0 and magnitude[k] > self.peak:
+            self.peak, self.peak_time, self.peak_value = float(magnitude[k]), rows[k, 0], rows[k, self.torque]
+            near = np.abs(recent[:, 0] - self.peak_time) <= self.half_width
+            self.rows, self._until = self._bounded(recent[near]), self.peak_time + self.half_width
+        elif self.rows is not None and rows[0, 0] <= self._until:
+            self.rows = self._bounded(np.vstack([self.rows, rows[rows[:, 0] <= self._until]]))
+        self._trail = recent[recent[:, 0] >= rows[-1, 0] - self.half_width][-self.max_rows :]
+        self.max_held = max(self.max_held, len(self._trail) + (0 if self.rows is None else len(self.rows)))
+
+    def _bounded(self, rows: np.ndarray) -> np.ndarray:
+        """``rows``, thinned evenly to ``max_rows`` (the peak row kept) when longer."""
+        if len(rows) <= self.max_rows:
+            return rows
+        peak = int(np.flatnonzero((rows[:, 0] == self.peak_time) & (np.abs(rows[:, self.torque]) == self.peak))[0])
+        keep = np.unique(np.r_[np.linspace(0, len(rows) - 1, self.max_rows - 1).round().astype(int), peak])
+        return rows[keep]
+
+
+class Envelope:
+    """The least and largest value of some columns per time bin (``bins`` bins over ``span`` [s]),
+    and each column's largest magnitude and its time, over every row fed (rows outside the span
+    count in the first or last bin). Memory: ``2 * bins`` values per column."""
+
+    def __init__(self, columns: Sequence[int], span: tuple[float, float], bins: int = ENVELOPE_BINS):
+        start, end = span
+        if not end > start or bins < 1:
+            raise ValueError(f"an envelope needs a span with end > start and bins >= 1, not {span}, {bins}")
+        self.columns, self.start, self.end, self.bins = list(columns), float(start), float(end), bins
+        self.edges = np.linspace(self.start, self.end, bins + 1)
+        self.low = np.full((len(self.columns), bins), np.nan)
+        self.high = np.full((len(self.columns), bins), np.nan)
+        self.worst = np.full(len(self.columns), -np.inf)
+        self.worst_at = np.full((len(self.columns), 2), np.nan)  # (time, value)
+
+    def __call__(self, rows: np.ndarray) -> None:
+        time = rows[:, 0]
+        where = np.clip(np.floor((time - self.start) / (self.end - self.start) * self.bins), 0, self.bins - 1)
+        where = where.astype(int)
+        starts = np.flatnonzero(np.r_[True, where[1:] != where[:-1]])  # rows in time order: one run per bin
+        bins = where[starts]
+        for j, column in enumerate(self.columns):
+            values = rows[:, column]
+            self.low[j, bins] = np.fmin(self.low[j, bins], np.fmin.reduceat(values, starts))
+            self.high[j, bins] = np.fmax(self.high[j, bins], np.fmax.reduceat(values, starts))
+            magnitude = np.abs(values)
+            if np.isfinite(magnitude).any():
+                k = int(np.nanargmax(magnitude))
+                if magnitude[k] > self.worst[j]:
+                    self.worst[j], self.worst_at[j] = magnitude[k], (time[k], values[k])
 
 
 class SolutionRecorder:
@@ -44,6 +169,7 @@ class SolutionRecorder:
         schedule: StepSchedule,
         panel_reference: Callable[[np.ndarray], np.ndarray] | None,
         block: int = 4096,
+        span: tuple[float, float] | None = None,
     ) -> None:
         self.columns = list(columns)
         index = {c: i for i, c in enumerate(self.columns)}
@@ -69,6 +195,12 @@ class SolutionRecorder:
         self._peak_torque = self._peak_current = 0.0
         self._last_error: float | None = None
         self.steps = StepJudge(sequencer, schedule)
+        self._plotted = list(
+            dict.fromkeys([0, *self._torque, *([self._rotor] if self._rotor is not None else []), *self._currents])
+        )
+        self.peak_window = PeakWindow(1) if self._torque else None  # the torque is the second kept column
+        enveloped = self._torque + self._currents
+        self.envelope = Envelope(enveloped, span) if span is not None and span[1] > span[0] and enveloped else None
 
     @property
     def max_held(self) -> int:
@@ -112,6 +244,10 @@ class SolutionRecorder:
             self._take_error(data, time, times)
         if self._rotor is not None:
             self.steps(time, data[:, self._rotor])
+        if self.peak_window is not None:
+            self.peak_window(data[:, self._plotted])
+        if self.envelope is not None:
+            self.envelope(data)
         self._last = data[-1].copy()
         self.count += len(data)
 
@@ -177,6 +313,42 @@ class SolutionRecorder:
         result["solution_rows"] = int(self.count)
         result["end_time_s"] = end
         return result
+
+    def plot_data(self) -> SolutionPlotData:
+        """The solution rows around the peak |torque| and the envelopes, for the plots."""
+        self._take()
+        names = [self.columns[c] for c in self._plotted]
+        times = np.asarray(self.schedule.times, dtype=float)
+        end = -np.inf if self._last is None else float(self._last[0])
+        window = self.peak_window
+        rows, peak_time, peak_torque = None, None, None
+        steps, peak_step = np.empty(0), 0
+        if window is not None and window.rows is not None and len(window.rows):
+            rows, peak_time, peak_torque = window.rows.copy(), float(window.peak_time), float(window.peak_value)
+            steps = times[(times >= rows[0, 0]) & (times <= rows[-1, 0])]
+            peak_step = int(np.searchsorted(times, peak_time, side="right"))
+        envelope, low, high, worst = self.envelope, {}, {}, {}
+        edges = None
+        if envelope is not None and self.count:
+            edges = envelope.edges.copy()
+            for j, column in enumerate(envelope.columns):
+                name = self.columns[column]
+                low[name], high[name] = envelope.low[j].copy(), envelope.high[j].copy()
+                worst[name] = (float(envelope.worst_at[j, 0]), float(envelope.worst_at[j, 1]))
+        return SolutionPlotData(
+            names,
+            rows,
+            peak_time,
+            peak_torque,
+            PEAK_WINDOW_HALF_WIDTH if window is None else window.half_width,
+            steps,
+            peak_step,
+            int(np.searchsorted(times, end, side="right")),
+            edges,
+            low,
+            high,
+            worst,
+        )
 
 
 def _role_column(index: Mapping[str, int], roles: Mapping[str, str], role: str) -> int | None:

@@ -19,6 +19,7 @@ from heliostep.results.outputs import TMP_PREFIX, remove_stale
 from heliostep.results.run_figures import present_columns
 from heliostep.results.run_files import place_trace_file, write_held_trace, write_records, write_trace_csv
 from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, summary_record
+from heliostep.results.solution import SolutionPlotData
 from heliostep.results.trace import trace_metadata
 from heliostep.results.trace_io import read_trace
 from heliostep.scenario import Scenario
@@ -47,6 +48,10 @@ class RunResult:
     last step before the cut looks missed or unsettled there, the step figures (steps commanded,
     executed, missed, lost, settling) are those up to that step, and ``step_in_progress_at_cut_s``
     gives its time.
+
+    ``solution_plot`` is what the plots draw from every solver step (the rows around the peak
+    |torque|, the per-bin envelopes; :class:`~heliostep.results.solution.SolutionPlotData`), not in
+    ``summary.json``; None for a result made without the master's monitor.
     """
 
     scenario: Scenario
@@ -62,6 +67,7 @@ class RunResult:
     temporary_folder: Path | None = field(default=None, repr=False)
     weather: object = field(default=None, repr=False)  # the weather file read once (None: clear sky)
     trace_kept: bool = True  # False: run_scenario(..., keep_trace=False), figures only
+    solution_plot: SolutionPlotData | None = field(default=None, repr=False)  # drawn from every solver step
 
     def __post_init__(self) -> None:
         if not self.trace_kept:
@@ -147,7 +153,7 @@ class RunResult:
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
             source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
-            drawn = plot_run(source, staging, self.trace_metadata())
+            drawn = plot_run(source, staging, self.trace_metadata(), self.solution_plot)
             light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
             drawn += plot_light_run(light, self.metadata, self.scenario, staging, self.weather)  # power on the tube
             written = []

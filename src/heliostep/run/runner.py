@@ -296,6 +296,7 @@ def _simulate_and_summarize(
         temporary_folder=temporary,
         weather=prepared.weather,
         trace_kept=sink.trace_kept,
+        solution_plot=figures.solution.plot_data() if figures.solution is not None else None,
     )
 
 
