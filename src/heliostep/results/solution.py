@@ -170,6 +170,7 @@ class SolutionRecorder:
         panel_reference: Callable[[np.ndarray], np.ndarray] | None,
         block: int = 4096,
         span: tuple[float, float] | None = None,
+        bins: int = ENVELOPE_BINS,
     ) -> None:
         self.columns = list(columns)
         index = {c: i for i, c in enumerate(self.columns)}
@@ -200,7 +201,9 @@ class SolutionRecorder:
         )
         self.peak_window = PeakWindow(1) if self._torque else None  # the torque is the second kept column
         enveloped = self._torque + self._currents
-        self.envelope = Envelope(enveloped, span) if span is not None and span[1] > span[0] and enveloped else None
+        self.envelope = (
+            Envelope(enveloped, span, bins) if span is not None and span[1] > span[0] and enveloped else None
+        )
 
     @property
     def max_held(self) -> int:
