@@ -37,6 +37,7 @@ __all__ = [
     "MAX_ANNOTATED_CELLS",
     "STEP_COLUMNS",
     "TORQUE_FILE",
+    "heatmap_figure",
     "plot_heatmap",
     "plot_sweep",
     "plot_torque_requirement",
@@ -144,6 +145,16 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str,
     Path or None
         None when the table has no value of ``column`` to show.
     """
+    fig = heatmap_figure(table, column, label, scale)
+    if fig is None:
+        return None
+    path = Path(path)
+    fig.savefig(path, dpi=_DPI)
+    return path
+
+
+def heatmap_figure(table: pd.DataFrame, column: str, label: str, scale: float = 1.0) -> Figure | None:
+    """The figure :func:`plot_heatmap` writes (None: no value to show), for reading back what it draws."""
     rows = _ok_drive_rows(table).dropna(subset=["day_of_year", "mirror_index"])
     if rows.empty or column not in rows:
         return None
@@ -172,9 +183,7 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str,
     note = f" (max over {', '.join(varied)})" if varied else ""
     ax.set_title(f"{label}{note}")
     fig.colorbar(image, ax=ax, label=label)
-    path = Path(path)
-    fig.savefig(path, dpi=_DPI)
-    return path
+    return fig
 
 
 def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | None:
