@@ -215,3 +215,67 @@ def test_matplotlib_is_imported_only_by_the_plots():
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
+
+
+# --------------------------------------------------------------------------- drawn from the solution
+@pytest.fixture(
+    scope="module", params=[("jan21-central", ["window.duration=40"]), ("jan21-weak-motor", []), ("jan21-day", [])]
+)
+def solved(request, fmu_paths):
+    """A shipped scenario's run and its figures as drawn (the issue's cases: the weak motor and the
+    day, whose Fig. 14 drew output rows, 1.76 and 1.17 N.m against 2.075 and 2.011)."""
+    from heliostep.paths import scenarios_dir
+    from heliostep.run import run_scenario
+
+    name, overrides = request.param
+    run = run_scenario(scenarios_dir() / f"{name}.yaml", overrides)
+    source = run.held_trace if run.held_trace is not None else run.trace_file
+    return run, dict(run_plots.run_figures(source, run.trace_metadata(), run.solution_plot))
+
+
+def _lines(fig, start: str, axis: int = 0):
+    return [line for line in fig.axes[axis].lines if str(line.get_label()).startswith(start)]
+
+
+def test_torque_zoom_draws_the_solution_and_its_peak_is_the_summarys(solved):
+    run, figures = solved
+    peak = run.summary["peak_torque_Nm"]
+    zoom = figures["fig14_torque_zoom.png"]
+    (line,) = _lines(zoom, run_plots.TORQUE_ZOOM_LABEL)
+    assert float(np.max(np.abs(line.get_ydata()))) == peak  # exactly: the same solver row
+    (dot,) = _lines(zoom, "peak |torque|")
+    assert abs(float(dot.get_ydata()[0])) == peak and dot.get_ydata()[0] in line.get_ydata()
+    assert len(line.get_ydata()) > 50  # the solver's rows, not a few output rows
+    assert "of the solution" in zoom.axes[0].get_title()
+
+
+def test_long_figures_draw_the_solution_envelopes_with_the_worst_marked(solved):
+    run, figures = solved
+    torque = figures["fig11_torque.png"]
+    bands = _lines(torque, "torque: max per") + _lines(torque, "torque: min per")
+    assert len(bands) == 2
+    assert max(float(np.nanmax(np.abs(b.get_ydata()))) for b in bands) == run.summary["peak_torque_Nm"]
+    (worst,) = _lines(torque, "largest |torque|")
+    assert abs(float(worst.get_ydata()[0])) == run.summary["peak_torque_Nm"]
+    currents = figures["fig10_phase_currents.png"]
+    drawn = [b for axis in (0, 1) for b in _lines(currents, "i_", axis) if " per " in str(b.get_label())]
+    assert len(drawn) == 4
+    assert max(float(np.nanmax(np.abs(b.get_ydata()))) for b in drawn) == run.summary["peak_phase_current_A"]
+
+
+def test_rotor_angle_commanded_is_drawn_on_top_and_the_difference_below(solved):
+    _, figures = solved
+    fig = figures["fig12_rotor_angle.png"]
+    (actual,) = _lines(fig, "actual")
+    (commanded,) = _lines(fig, "commanded")
+    assert commanded.get_zorder() > actual.get_zorder() and commanded.get_color() != actual.get_color()
+    assert commanded.get_linewidth() < actual.get_linewidth()  # the actual shows around it
+    assert len(fig.axes) == 2 and "actual - commanded" in fig.axes[1].get_ylabel()
+
+
+def test_the_run_writes_its_figures_from_the_solution(solved, tmp_path):
+    run, _ = solved
+    if run.scenario.name != "jan21-central":
+        pytest.skip("one run is enough")
+    written = [path.name for path in run.plot(tmp_path)]
+    assert "fig14_torque_zoom.png" in written and "fig11_torque.png" in written
