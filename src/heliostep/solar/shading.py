@@ -19,25 +19,18 @@ r = 2 (S.n) n - S (toward the tube; flat mirror, every point reflects parallel) 
 The part of the mirror a neighbour hides is the neighbour's projection along D onto the mirror's
 plane ("footprint"), lambda = (P - C).n / (D.n).
 
-**Across the rows** (neighbours at the same y, the other rows): the footprint's extent along e_u
-is the projection of the neighbour's width axis (its two long edges' midpoints). For single-axis
-rows (n, e_u in the cross-section, rows long along y) this is the **exact** 2-D transverse
-result: nothing in the cross-section depends on y or on D_y. The hidden fraction of the width is
-the union of the neighbours' intervals (sorted, cumulative maximum), exact for any number of
-neighbours. For two-axis mirrors the footprint's edges are slanted by the neighbours' different
-secondary tilts (approximation: a band of the full length, error O(l (q_i - q_j)) over w).
+**Single-axis rows** (long and continuous along y): the footprint's extent along e_u is the
+projection of the neighbour's width (its two long edges' midpoints). In the cross-section nothing
+depends on y or on D_y: this is the **exact** 2-D transverse result. The hidden fraction of the width
+is the union of every other row's interval (sorted, cumulative maximum), exact for any number of rows.
 
-**Along the row** (two-axis end sections: neighbours at the same d, pitch p along y): the
-neighbours are identical mirrors (same d, same sun: same normal), so a neighbour's footprint is
-the mirror's own rectangle translated by (a, b) = ((delta . e_u), (delta . e_v)),
-delta = (0, +-p, 0) - lambda D, lambda = +-p n_y / (D . n), the sign the one with lambda > 0:
-hidden area (w - |a|)+ (l - |b|)+, **exact**; farther neighbours along the row hide nothing more
-(a translate by m (a, b) meets the rectangle inside the translate by (a, b), by convexity).
-
-**Both** (the stated approximation of a two-axis mirror in a section): lost = 1 - (1 - f_across)
-(1 - f_along), the across band and the along band taken as independent (exact when each band
-is a full strip of the rectangle; it ignores the diagonal neighbours and the bands' slant).
-``tests/solar/test_shading.py`` measures what this costs against a ray tracer written there.
+**Two-axis end mirrors** (length l along the row, pitch p along it): each neighbour's footprint is a
+parallelogram (the affine image of its rectangle; the part of it with lambda <= 0 clipped off),
+**exact**. Taken: every other row and, along each row, the mirror whose footprint comes closest and
+``reach`` either side (the footprints of one row's mirrors are translates of one another by one
+pitch's projection). The union's area: slabs between the corners (and where edges meet the mirror's
+ends), each cut in :data:`SUB_SLABS`, the midpoint rule; exact unless two footprints' edges cross
+inside a slab (``tests/solar/test_shading.py``: within 0.006 of a ray tracer written there).
 
 The sun's disc (+-4.65 mrad) and the slope error widen the shadows by ~ lambda * 5 mrad, a few mm
 here: neglected. The tube's own shadow on the mirrors and the section's two end mirrors (one
