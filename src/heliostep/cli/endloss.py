@@ -11,6 +11,9 @@ mirrors ``--spacing`` apart (``--mirror-width`` wide), clear sky (pvlib Ineichen
   at the day's highest sun ([paper], eq. 2);
 * ``end_loss_year.png``: the same over the year;
 
+with shading and blocking between neighbouring rows (and, for the two-axis end mirrors of
+``--mirror-length``, along the row) unless ``--no-shading``;
+
 and prints the year's totals and the 21 December figures (:mod:`heliostep.solar.endloss`).
 """
 
@@ -23,6 +26,7 @@ from pathlib import Path
 from heliostep.errors import InputError
 from heliostep.solar import field_distances
 from heliostep.solar.endloss import end_loss_days, largest_shift
+from heliostep.solar.field import PANEL_LENGTH
 from heliostep.solar.optics import optical_chain
 from heliostep.solar.sun import Site
 
@@ -50,6 +54,21 @@ def register(subparsers) -> argparse.ArgumentParser:
         type=float,
         help="[m] of each two-axis end section (default: the year's largest k above 5 deg sun elevation)",
     )
+    parser.add_argument(
+        "--mirror-length",
+        type=float,
+        default=PANEL_LENGTH,
+        help=f"[m] of each two-axis end mirror along the row, contiguous (default {PANEL_LENGTH:g}, Table 2's panel)",
+    )
+    parser.add_argument(
+        "--no-shading", action="store_true", help="ignore shading and blocking between neighbours (the old model)"
+    )
+    parser.add_argument(
+        "--shading-step-minutes",
+        type=float,
+        default=30.0,
+        help="[min] step of the shading and blocking losses, interpolated between (default 30)",
+    )
     parser.add_argument("--reflectivity", type=float, default=0.80, help="rho (default 0.80, seed 004)")
     parser.add_argument("--transmittance", type=float, default=0.85, help="tau (default 0.85)")
     parser.add_argument("--absorptance", type=float, default=0.95, help="alpha (default 0.95)")
@@ -64,6 +83,8 @@ def _end_loss_command(args: argparse.Namespace) -> int:
     site = Site(latitude=args.latitude, longitude=args.longitude, altitude=args.altitude, timezone=args.timezone)
     distances = field_distances(args.rows, args.spacing)
     width = args.spacing if args.mirror_width is None else args.mirror_width
+    if not (args.mirror_length > 0 and args.shading_step_minutes > 0):
+        raise InputError("--mirror-length and --shading-step-minutes: expected > 0 [m], [min]")
     efficiency = optical_chain(args.reflectivity, args.transmittance, args.absorptance)
     end = args.end_length
     if end is None:
@@ -81,6 +102,9 @@ def _end_loss_command(args: argparse.Namespace) -> int:
         efficiency,
         days=args.days,
         step_minutes=args.step_minutes,
+        mirror_length=args.mirror_length,
+        shading=not args.no_shading,
+        shading_step_minutes=args.shading_step_minutes,
     )
     args.out.mkdir(parents=True, exist_ok=True)
     days.to_csv(args.out / "end_loss_days.csv", float_format="%.6g")
@@ -93,6 +117,8 @@ def _end_loss_command(args: argparse.Namespace) -> int:
         written += [path] if path else []
     single, two = days["energy_single_J"].sum(), days["energy_two_axis_J"].sum()
     print(f"end sections of two-axis mirrors: {end:.2f} m at each end; {len(days)} days of {args.year}")
+    shading = "none (--no-shading)" if args.no_shading else f"rows {width:g} m wide at {args.spacing:g} m"
+    print(f"  shading and blocking between neighbours: {shading}")
     print(f"  energy on the tube, single-axis plant   {single / 3.6e9:10.2f} MWh")
     print(
         f"  energy on the tube, two-axis end mirrors {two / 3.6e9:10.2f} MWh  (gain {100 * (two / single - 1):.2f} %)"

@@ -1,0 +1,403 @@
+"""Shading and blocking between neighbouring mirrors of a linear Fresnel field.
+
+**Shading**: a neighbour stands between the sun and a mirror; **blocking**: a neighbour stands
+between a mirror and the tube, on the path of its reflected light ([shading], the two "cosine,
+shading, blocking" terms of every concentrator's field efficiency, e.g. Sharma et al., Solar
+Energy 2015, "Geometrical and optical losses of a linear Fresnel reflector" (its eqs. for the
+shaded and blocked widths); Collado & Guallar, Renew. Sust. Energy Rev. 2013, for heliostat fields).
+
+Geometry (frames as in :mod:`heliostep.solar`): mirror i is a flat rectangle of width w
+(across the tube) and length l (along it), its centre (its pivot) at (d_i, y, 0): every pivot at
+the same height, the tube at h above them. Its attitude is its unit normal n; its width axis
+e_u = (n_z, 0, -n_x)/|.| (horizontal, across the tube) and its length axis e_v = n x e_u, i.e.
+exactly the axes of n = R_y(p) R_x(q) z_hat ([paper], eqs. 3-6; the width axis turns with the
+primary only, the length axis with both). A single-axis row is the case q = 0.
+
+A neighbour's point P lies on the ray through a mirror's point F along a direction D when
+P = F + lambda D, lambda > 0: D = S (toward the sun) for shading, D = the reflected direction
+r = 2 (S.n) n - S (toward the tube; flat mirror, every point reflects parallel) for blocking.
+The part of the mirror a neighbour hides is the neighbour's projection along D onto the mirror's
+plane ("footprint"), lambda = (P - C).n / (D.n).
+
+**Single-axis rows** (long and continuous along y): the footprint's extent along e_u is the
+projection of the neighbour's width (its two long edges' midpoints). In the cross-section nothing
+depends on y or on D_y: this is the **exact** 2-D transverse result. The hidden fraction of the width
+is the union of every other row's interval (sorted, cumulative maximum), exact for any number of rows.
+
+**Two-axis end mirrors** (length l along the row, pitch p along it): each neighbour's footprint is a
+parallelogram (the affine image of its rectangle; the part of it with lambda <= 0 clipped off),
+**exact**. Taken: every other row and, along each row, the mirror whose footprint comes closest and
+``reach`` either side (the footprints of one row's mirrors are translates of one another by one
+pitch's projection). The union's area: slabs between the corners (and where edges meet the mirror's
+ends), each cut in :data:`SUB_SLABS`, the midpoint rule; exact unless two footprints' edges cross
+inside a slab (``tests/solar/test_shading.py``: within 0.006 of a ray tracer written there).
+
+The sun's disc (+-4.65 mrad) and the slope error widen the shadows by ~ lambda * 5 mrad, a few mm
+here: neglected. The tube's own shadow on the mirrors and the section's two end mirrors (one
+neighbour along the row only) are not modelled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from heliostep.errors import InputError
+from heliostep.solar.checks import as_float_array, check_positive
+
+
+def mirror_axes(normal_x, normal_y, normal_z):
+    """Width and length axes of flat mirrors from their unit normals.
+
+    Parameters
+    ----------
+    normal_x, normal_y, normal_z : array-like  [-]
+        Unit normal, n = R_y(p) R_x(q) z_hat = (cos q sin p, -sin q, cos q cos p).
+
+    Returns
+    -------
+    n, e_u, e_v : numpy.ndarray, shape (..., 3)  [-]
+        e_u = R_y(p) x_hat = (cos p, 0, -sin p) (across the tube), e_v = n x e_u = R_y(p) R_x(q) y_hat.
+    """
+    n = np.stack(np.broadcast_arrays(*(as_float_array(c) for c in (normal_x, normal_y, normal_z))), axis=-1)
+    horizontal = np.hypot(n[..., 0], n[..., 2])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e_u = np.stack([n[..., 2], np.zeros_like(horizontal), -n[..., 0]], axis=-1) / horizontal[..., None]
+    e_v = np.cross(n, e_u)  # [paper], eqs. 3-6: R_y(p) R_x(q) y_hat
+    return n, e_u, e_v
+
+
+def reflected_direction(sun, normal):
+    """Direction of the light a flat mirror reflects, r = 2 (S . n) n - S (law of reflection).
+
+    Parameters
+    ----------
+    sun, normal : array-like, shape (..., 3)  [-]
+        Unit vectors toward the sun and of the mirror's normal.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3)  [-]
+    """
+    sun, normal = as_float_array(sun), as_float_array(normal)
+    return 2.0 * np.sum(sun * normal, axis=-1, keepdims=True) * normal - sun  # law of reflection
+
+
+def interval_union_length(low, high, axis: int = -1):
+    """Total length of the union of intervals [low, high] (empty where high <= low).
+
+    Parameters
+    ----------
+    low, high : array-like  [m]
+        Interval ends; ``axis`` runs over the intervals.
+
+    Returns
+    -------
+    numpy.ndarray  [m]
+        Sorted by their start, each interval adds what reaches past the farthest end before it.
+    """
+    low, high = np.broadcast_arrays(as_float_array(low), as_float_array(high))
+    low, high = np.moveaxis(low, axis, -1), np.moveaxis(high, axis, -1)
+    high = np.where(high > low, high, -np.inf)  # empty intervals add nothing
+    order = np.argsort(low, axis=-1)
+    low, high = np.take_along_axis(low, order, -1), np.take_along_axis(high, order, -1)
+    reach = np.maximum.accumulate(high, axis=-1)
+    before = np.concatenate([np.full(reach.shape[:-1] + (1,), -np.inf), reach[..., :-1]], axis=-1)
+    added = high - np.maximum(low, before)
+    return np.sum(np.where(np.isfinite(added) & (added > 0), added, 0.0), axis=-1)
+
+
+def across_hidden_fraction(direction, normals, mirror_distances, mirror_width):
+    """Fraction of each mirror's width hidden by the other rows along ``direction``.
+
+    Parameters
+    ----------
+    direction : array-like, shape (T, 3) or (T, N, 3)  [-]
+        Unit direction from the mirrors toward what must be seen: the sun (shading, one per
+        instant) or the reflected ray (blocking, per instant and mirror).
+    normals : array-like, shape (T, N, 3)  [-]
+        Unit normals of the N mirrors at the T instants.
+    mirror_distances : array-like, shape (N,)  [m]
+        Transverse positions d_i of the pivots (all at the same height).
+    mirror_width : float  [m]
+
+    Returns
+    -------
+    numpy.ndarray, shape (T, N)  [-]
+        Union over the neighbours j != i of their footprints' extent along e_u, over w
+        (exact for single-axis rows; module docstring).
+    """
+    width = check_positive(mirror_width, "mirror_width", "m")
+    low, high = _across_intervals(direction, normals, mirror_distances, width)
+    return interval_union_length(low, high) / width
+
+
+def _across_intervals(direction, normals, mirror_distances, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """The neighbours' footprints on each mirror along e_u [m], (T, N_i, N_j), empty (0, 0) where none."""
+    normal, e_u, _ = mirror_axes(*np.moveaxis(as_float_array(normals), -1, 0))
+    d = np.atleast_1d(as_float_array(mirror_distances)).ravel()
+    if normal.ndim != 3 or normal.shape[1] != d.size:
+        raise InputError(f"normals: expected shape (instants, {d.size}, 3), got {normal.shape}")
+    D = np.broadcast_to(_per_mirror(direction, normal.shape), normal.shape)[:, :, None, :]  # (T, N_i, 1, 3)
+    n_i, u_i = normal[:, :, None, :], e_u[:, :, None, :]
+    offset = np.zeros(normal.shape[:1] + (d.size, d.size, 3))
+    offset[..., 0] = d[None, None, :] - d[None, :, None]  # neighbour j's pivot from mirror i's
+    ends = [offset + sign * 0.5 * width * e_u[:, None, :, :] for sign in (-1.0, 1.0)]  # its long edges
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dn = np.sum(D * n_i, axis=-1)
+        lam = [np.sum(p * n_i, axis=-1) / dn for p in ends]  # lambda = (P - C).n / (D.n)
+        u = [np.sum((p - lm[..., None] * D) * u_i, axis=-1) for p, lm in zip(ends, lam)]  # footprint along e_u
+        low = np.clip(np.minimum(u[0], u[1]), -width / 2, width / 2)
+        high = np.clip(np.maximum(u[0], u[1]), -width / 2, width / 2)
+        t_mid = ((low + high) / 2 - u[0]) / (u[1] - u[0])  # where on the neighbour the overlap's middle lies
+        lam_mid = lam[0] + t_mid * (lam[1] - lam[0])
+    ahead = (lam_mid > 0) & np.isfinite(lam_mid) & ~np.eye(d.size, dtype=bool)[None]
+    return np.where(ahead, low, 0.0), np.where(ahead, high, 0.0)
+
+
+def _per_mirror(direction, shape) -> np.ndarray:
+    """``direction`` (T, 3) or (T, N, 3) as (T, N, 3), unit."""
+    direction = as_float_array(direction)
+    if direction.ndim == 2:
+        direction = direction[:, None, :]
+    if direction.shape[-1] != 3 or direction.ndim != 3:
+        raise InputError(f"direction: expected shape (instants, 3) or {shape}, got {direction.shape}")
+    return direction / np.linalg.norm(direction, axis=-1, keepdims=True)
+
+
+def footprints(direction, normals, mirror_distances, mirror_width, mirror_length, pitch, reach: int = 1):
+    """Footprints on each two-axis mirror of its neighbours in the section, in its (e_u, e_v) frame.
+
+    Parameters
+    ----------
+    direction : array-like, shape (T, 3) or (T, N, 3)  [-]
+        Toward the sun (shading) or along the reflected ray (blocking).
+    normals : array-like, shape (T, N, 3)  [-]
+        One normal per row (every mirror of a row has the same: same d, same sun).
+    mirror_distances : array-like, shape (N,)  [m]
+    mirror_width, mirror_length, pitch : float  [m]
+        w, l and the centre-to-centre spacing p along the row.
+    reach : int, default 1
+        Every other row is taken; along each row, the mirror whose footprint's centre comes closest
+        to the mirror's and ``reach`` on each side of it (a row's mirrors' footprints are translates
+        of one another by one pitch's projection, delta, so the ones meeting the mirror are these).
+
+    Returns
+    -------
+    u, v : numpy.ndarray, shape (T, N, K, 8)  [m]
+        The corners, in order, of each neighbour's footprint: its rectangle projected along
+        ``direction`` onto the mirror's plane, a parallelogram (an affine image of a rectangle),
+        exact, of the part of it ahead of the mirror (lambda > 0; up to 8 corners, some repeated);
+        NaN for no neighbour (outside the field) or none of it ahead.
+    """
+    width = check_positive(mirror_width, "mirror_width", "m")
+    length = check_positive(mirror_length, "mirror_length", "m")
+    pitch = check_positive(pitch, "pitch", "m")
+    normal, e_u, e_v = mirror_axes(*np.moveaxis(as_float_array(normals), -1, 0))
+    d = np.atleast_1d(as_float_array(mirror_distances)).ravel()
+    D = np.broadcast_to(_per_mirror(direction, normal.shape), normal.shape)
+    offset, j_k, exists = _neighbours(D, normal, e_u, e_v, d, pitch, reach)
+    e_u_j = np.take_along_axis(e_u[:, None, :, :], j_k[..., None], axis=2)  # (T, N, K, 3)
+    e_v_j = np.take_along_axis(e_v[:, None, :, :], j_k[..., None], axis=2)
+    n_i, u_i, v_i, D_i = (x[:, :, None, None, :] for x in (normal, e_u, e_v, D))
+    signs = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)], dtype=float) * 0.5
+    corners = (
+        offset[:, :, :, None, :]
+        + signs[:, 0, None] * width * e_u_j[:, :, :, None, :]
+        + signs[:, 1, None] * length * e_v_j[:, :, :, None, :]
+    )  # (T, N, K, 4, 3)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dn = np.sum(D_i * n_i, axis=-1)
+        lam = np.sum(corners * n_i, axis=-1) / dn  # lambda = (P - C).n / (D.n)
+        at = corners - lam[..., None] * D_i
+        u, v = np.sum(at * u_i, axis=-1), np.sum(at * v_i, axis=-1)
+    u, v = _ahead_part(u, v, lam)
+    keep = exists[..., None]
+    return np.where(keep, u, np.nan), np.where(keep, v, np.nan)
+
+
+def _neighbours(D, normal, e_u, e_v, d, pitch: float, reach: int):
+    """The neighbours :func:`footprints` projects: offsets of their centres from each mirror's [m]
+    (T, N, K, 3), their rows (T, N, K) and whether they exist (in the field, not the mirror itself)."""
+    rows = np.arange(-(d.size - 1), d.size)  # every other row
+    wanted = np.arange(d.size)[:, None] + rows[None, :]
+    j = np.clip(wanted, 0, d.size - 1)  # (N, R)
+    n_t, u_t, v_t, D_t = (x[:, :, None, :] for x in (normal, e_u, e_v, D))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dn_t = np.sum(D_t * n_t, axis=-1)  # (T, N, 1)
+        # row j's mirror beside mirror i (same y): its centre's footprint; the next one along the row moves
+        # it by delta = (0, p, 0) - lambda D, lambda = p n_y / (D.n), the same for every row (one pitch)
+        across = np.zeros(j.shape + (3,))
+        across[..., 0] = d[j] - d[:, None]
+        centre = across[None] - (np.sum(across[None] * n_t, axis=-1) / dn_t)[..., None] * D_t
+        step = np.array([0.0, pitch, 0.0]) - (pitch * normal[..., 1:2] / dn_t)[..., None] * D_t  # (T, N, 1, 3)
+        c_uv = np.stack([np.sum(centre * u_t, -1), np.sum(centre * v_t, -1)], -1)
+        s_uv = np.stack([np.sum(step * u_t, -1), np.sum(step * v_t, -1)], -1)
+        nearest = np.rint(-np.sum(c_uv * s_uv, -1) / np.sum(s_uv * s_uv, -1))  # the m that brings it closest
+    nearest = np.where(np.isfinite(nearest), nearest, 0.0)
+    m = nearest[..., None] + np.arange(-reach, reach + 1)  # (T, N, R, M)
+    shape = m.shape[:2] + (m.shape[2] * m.shape[3],)
+    m = m.reshape(shape)
+    j_k = np.broadcast_to(np.repeat(j, 2 * reach + 1, axis=1)[None], shape)
+    exists = np.repeat(wanted == j, 2 * reach + 1, axis=1)[None] & ~(
+        (np.repeat(rows, 2 * reach + 1)[None, None, :] == 0) & (m == 0)
+    )  # in the field, and not the mirror itself
+    offset = np.zeros(shape + (3,))
+    offset[..., 0] = d[j_k] - d[None, :, None]
+    offset[..., 1] = m * pitch
+    return offset, j_k, exists
+
+
+def _ahead_part(u, v, lam) -> tuple[np.ndarray, np.ndarray]:
+    """The footprint of the part of each neighbour ahead of the mirror (lambda > 0), up to 8 corners.
+
+    The neighbour's corners' footprints (u, v) [m] and their lambda, (..., 4); one clip of the polygon
+    by the half-plane lambda > 0 (Sutherland-Hodgman; lambda is affine over the neighbour's plane). Slots
+    of no corner repeat the previous corner (a zero-length edge), NaN if no part is ahead."""
+    nxt = [np.roll(x, -1, axis=-1) for x in (u, v, lam)]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = lam / (lam - nxt[2])  # where an edge crosses lambda = 0
+        crossing = (lam > 0) != (nxt[2] > 0)
+        slots_u = np.stack([np.where(lam > 0, u, np.nan), np.where(crossing, u + t * (nxt[0] - u), np.nan)], -1)
+        slots_v = np.stack([np.where(lam > 0, v, np.nan), np.where(crossing, v + t * (nxt[1] - v), np.nan)], -1)
+    slots_u, slots_v = slots_u.reshape(u.shape[:-1] + (8,)), slots_v.reshape(v.shape[:-1] + (8,))
+    for _ in range(8):  # fill the empty slots with the previous corner, round the polygon
+        empty = np.isnan(slots_u)
+        slots_u = np.where(empty, np.roll(slots_u, 1, axis=-1), slots_u)
+        slots_v = np.where(empty, np.roll(slots_v, 1, axis=-1), slots_v)
+    return slots_u, slots_v
+
+
+#: Each slab between corners is cut in this many for the midpoint rule (exact where no two footprints'
+#: edges cross inside a slab; where they do, the error falls as 1 / SUB_SLABS^2): 2 keeps it within
+#: 0.01 of the ray tracer in ``tests/solar/test_shading.py``.
+SUB_SLABS = 2
+
+
+def covered_fraction(u, v, mirror_width, mirror_length):
+    """Fraction of a w x l mirror covered by the union of convex footprints (corners in order).
+
+    In slabs between all corners' u (and the u where an edge meets the mirror's ends v = +-l/2), each
+    footprint spans one v-interval (where a line of constant u crosses its edges), taken at the slab's
+    middle; their union (:func:`interval_union_length`) times the slab's width, summed. Exact when no
+    two footprints' edges cross inside a slab (the union is then linear in u across it); else the
+    midpoint rule on a piecewise-linear length.
+
+    Parameters
+    ----------
+    u, v : array-like, shape (..., K, C)  [m]
+        Corners of K convex footprints (NaN: none) in the mirror's frame, centred on it.
+    mirror_width, mirror_length : float  [m]
+    """
+    u, v = as_float_array(u), as_float_array(v)
+    half_w, half_l = mirror_width / 2, mirror_length / 2
+    lead, (k, c) = u.shape[:-2], u.shape[-2:]
+    u, v = u.reshape((-1, k, c)), v.reshape((-1, k, c))
+    finite = np.isfinite(u) & np.isfinite(v)
+    low_u, high_u = np.where(finite, u, np.inf).min(-1), np.where(finite, u, -np.inf).max(-1)
+    low_v, high_v = np.where(finite, v, np.inf).min(-1), np.where(finite, v, -np.inf).max(-1)
+    meets = (low_u < half_w) & (high_u > -half_w) & (low_v < half_l) & (high_v > -half_l)  # bounding boxes meet
+    count = meets.sum(-1)
+    by_count = np.argsort(count, kind="stable")  # mirrors with as many footprints together: each batch its own K
+    area = np.zeros(u.shape[0])
+    start = 0
+    while start < u.shape[0]:
+        many = max(int(count[by_count[min(start + 255, u.shape[0] - 1)]]), 1)
+        chunk = max(1, min(256, int(2e6 // (many**2 * c * c * SUB_SLABS))))
+        rows = by_count[start : start + chunk]
+        first = np.argsort(~meets[rows], axis=-1, kind="stable")[:, :many]
+        keep = np.take_along_axis(meets[rows], first, -1)[..., None]
+        u_k = np.where(keep, np.take_along_axis(u[rows], first[..., None], 1), np.nan)
+        v_k = np.take_along_axis(v[rows], first[..., None], 1)  # only the footprints that meet the mirror
+        area[rows] = _covered(u_k, v_k, half_w, half_l)
+        start += chunk
+    fraction = [area]
+    return np.concatenate(fraction).reshape(lead) / (mirror_width * mirror_length) if fraction else np.zeros(lead)
+
+
+def _covered(u, v, half_w: float, half_l: float) -> np.ndarray:
+    """Area [m^2] of (-half_w, half_w) x (-half_l, half_l) covered by footprints (P, K, C): :func:`covered_fraction`."""
+    nu, nv = np.roll(u, -1, axis=-1), np.roll(v, -1, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        at_ends = [u + (side - v) / (nv - v) * (nu - u) for side in (-half_l, half_l)]  # edges meet v = -+l/2
+    at_ends = [np.where((x - np.minimum(u, nu)) * (np.maximum(u, nu) - x) >= 0, x, np.nan) for x in at_ends]
+    corners_and_cuts = np.concatenate([u, *at_ends], axis=-1)
+    edges = np.concatenate(
+        [
+            np.clip(corners_and_cuts, -half_w, half_w).reshape(u.shape[0], -1),
+            np.tile([-half_w, half_w], (u.shape[0], 1)),
+        ],
+        -1,
+    )
+    edges = np.sort(np.where(np.isfinite(edges), edges, half_w), axis=-1)
+    steps = np.arange(SUB_SLABS) / SUB_SLABS  # each slab cut in SUB_SLABS: the midpoint rule where edges cross
+    edges = np.concatenate(
+        [(edges[:, :-1, None] + np.diff(edges)[:, :, None] * steps).reshape(len(edges), -1), edges[:, -1:]], -1
+    )
+    middle, slab = (edges[..., 1:] + edges[..., :-1]) / 2, np.diff(edges, axis=-1)  # (P, S)
+    x = middle[..., :, None, None]
+    ua, va = u[..., None, :, :], v[..., None, :, :]
+    ub, vb = np.roll(ua, -1, axis=-1), np.roll(va, -1, axis=-1)  # each edge: corner to the next
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (x - ua) / (ub - ua)
+        cross = va + t * (vb - va)
+    cut = (t >= 0) & (t <= 1) & np.isfinite(cross)
+    low = np.clip(np.min(np.where(cut, cross, np.inf), axis=-1), -half_l, half_l)  # (P, S, K)
+    high = np.clip(np.max(np.where(cut, cross, -np.inf), axis=-1), -half_l, half_l)
+    covered = interval_union_length(np.where(high > low, low, 0.0), np.where(high > low, high, 0.0))
+    return np.sum(slab * covered, axis=-1)
+
+
+def row_losses(
+    sun, normals, mirror_distances, mirror_width, mirror_length=None, pitch=None, only_lost: bool = False
+) -> dict:
+    """Shading, blocking and the light lost to both, for every mirror of a row of mirrors at each instant.
+
+    Parameters
+    ----------
+    sun : array-like, shape (T, 3)  [-]
+        Unit vector toward the sun, plant frame.
+    normals : array-like, shape (T, N, 3)  [-]
+        The N rows' unit normals (flat mirrors).
+    mirror_distances : array-like, shape (N,)  [m]
+    mirror_width : float  [m]
+    mirror_length, pitch : float, optional  [m]
+        Length l of each mirror and pitch p along the row (default p = l: contiguous), for two-axis
+        mirrors in a section; without them the rows are long and continuous (single-axis: the exact
+        2-D transverse geometry, nothing along the row).
+    only_lost : bool, default False
+        Compute ``lost`` only (two-axis: a third of the cost).
+
+    Returns
+    -------
+    dict of numpy.ndarray, shape (T, N)  [-]
+        ``shading``, ``blocking`` (each alone) and ``lost`` (their union), fractions of the mirror's
+        area. The collected beam is DNI (S . n) (1 - lost) w l.
+    """
+    sun = as_float_array(sun)
+    normal = as_float_array(normals)
+    reflected = reflected_direction(sun[:, None, :], normal)
+    width = check_positive(mirror_width, "mirror_width", "m")
+    sun_rows = np.broadcast_to(sun[:, None, :], normal.shape)
+    if mirror_length is None:
+        spans = [_across_intervals(direction, normal, mirror_distances, width) for direction in (sun_rows, reflected)]
+        (shade_low, shade_high), (block_low, block_high) = spans
+        both = interval_union_length(
+            np.concatenate([shade_low, block_low], -1), np.concatenate([shade_high, block_high], -1)
+        )
+        return {
+            "shading": interval_union_length(shade_low, shade_high) / width,
+            "blocking": interval_union_length(block_low, block_high) / width,
+            "lost": both / width,
+        }
+    length = check_positive(mirror_length, "mirror_length", "m")
+    pitch = length if pitch is None else pitch
+    shade = footprints(sun_rows, normal, mirror_distances, width, length, pitch)
+    block = footprints(reflected, normal, mirror_distances, width, length, pitch)
+    both = (np.concatenate([a, b], axis=-2) for a, b in zip(shade, block))
+    if only_lost:
+        return {"lost": covered_fraction(*both, width, length)}
+    return {
+        "shading": covered_fraction(*shade, width, length),
+        "blocking": covered_fraction(*block, width, length),
+        "lost": covered_fraction(*both, width, length),
+    }
