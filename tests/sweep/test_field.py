@@ -141,7 +141,10 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
     to_sun = sun_direction(scenario, 10.0)  # mid-window: the error moves < 0.01 deg in 20 s
     for index in range(13):
         row, distance = mirrors.loc[index], DISTANCES[index]
-        assert row["light_energy_ideal_J"] > 0 and row["light_energy_J"] <= row["light_energy_ideal_J"]
+        # no "actual <= ideal": a finite mirror's image is wider than the tube, and aiming the central
+        # ray at the own cross-section is not the energy optimum (issue #20), so the shared primary's
+        # small offset can gain a little; the intercept itself is checked against the ray tracer below
+        assert row["light_energy_ideal_J"] > 0 and row["light_energy_J"] > 0
         # the mirror's own normal bisects sun and tube; the shared motor turns it by -delta about y
         to_tube = np.array([-distance, 0.0, height]) / np.hypot(distance, height)
         own = (to_sun + to_tube) / np.linalg.norm(to_sun + to_tube)
