@@ -66,5 +66,7 @@ def test_weather_file_for_the_site_and_window_runs(tmp_path, capsys, fmu_paths):
     assert status == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["dni_source"] == str(path)
-    # 700 W/m^2 all hour, 1.5 m^2, rho tau alpha = 0.646: at most 678 W absorbed, 13.6 kJ in 20 s
-    assert 0.3 * 13.6e3 < summary["light_energy_ideal_J"] < 13.6e3
+    # 700 W/m^2 all hour, 0.3 m x 1.5 m, rho tau alpha = 0.646: at most 203 W absorbed, 4.07 kJ in 20 s;
+    # the flat mirror's image over the 70 mm tube takes about a quarter of it (ray traced in
+    # tests/solar/test_raytrace.py: 0.24 at 10:00), times a cosine near 0.9
+    assert 0.15 * 4.07e3 < summary["light_energy_ideal_J"] < 0.35 * 4.07e3

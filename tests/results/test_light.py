@@ -16,6 +16,10 @@ from heliostep.solar.tracking import panel_angle_reference
 #: Sun's pillbox half-angle 4.65 mrad -> 1-D sigma 4.65/2 mrad (Rabl, Active Solar Collectors, 1985).
 SUN_SIGMA = 4.65e-3 / 2
 PANEL_COLUMN = "mechanics.theta_p"
+#: A point mirror of 1.5 m^2 with no slope error: the intercept is then the sun's Gaussian on the tube
+#: (erf, written below); the finite mirror's image is checked against a ray tracer
+#: (tests/solar/test_raytrace.py and test_finite_mirror_intercept_is_the_ray_traced_one here).
+POINT = {"mirror_width": 1e-6, "mirror_length": 1e-6, "mirror_area": 1.5, "slope_error": 0.0}
 
 
 def _scenario(distance=0.0, axis="secondary", **optics):
@@ -45,7 +49,7 @@ def _trace(scenario, offset=0.0, step=1.0):
 @pytest.mark.filterwarnings("ignore::Warning")
 @pytest.mark.parametrize("distance", [0.0, 2.4])
 def test_ideal_energy_equals_dni_area_cosine_chain_integrated(distance):
-    scenario = _scenario(distance)
+    scenario = _scenario(distance, **POINT)
     trace, metadata, times = _trace(scenario)
     figures = light_figures(trace, metadata, scenario)
     # independent: pvlib clear sky and sun position, the cosine of half the angle between S and T
@@ -60,7 +64,7 @@ def test_ideal_energy_equals_dni_area_cosine_chain_integrated(distance):
     o = scenario.optics
     sigma = np.sqrt(SUN_SIGMA**2 + (2 * o.slope_error) ** 2 + o.specularity**2)
     gamma = erf(o.tube_diameter / 2 / (np.sqrt(2) * slant * sigma))
-    expected = np.trapezoid(dni * o.mirror_area * cosine * 0.80 * 0.85 * 0.95 * gamma, trace["time"].to_numpy())
+    expected = np.trapezoid(dni * o.aperture_area * cosine * 0.80 * 0.85 * 0.95 * gamma, trace["time"].to_numpy())
     assert figures["light_energy_ideal_J"] == pytest.approx(expected, rel=1e-5)
     assert figures["light_lost_stepping_J"] == pytest.approx(0.0, abs=1e-6 * expected)  # the trace tracks exactly
     if distance == 0.0:  # the central mirror's primary is its own: no sharing loss
@@ -76,7 +80,7 @@ def test_shared_primary_costs_light_off_centre():
 
 
 def test_primary_offset_loses_light_as_the_intercept_says():
-    scenario = _scenario(0.0, axis="primary", slope_error=0.0)
+    scenario = _scenario(0.0, axis="primary", **POINT)
     delta = 4e-3  # [rad]: the ray turns by 2 delta in the cross-section, the miss is h sin(2 delta)
     trace, metadata, _ = _trace(scenario, offset=delta)
     series = light_timeseries(trace, metadata, scenario)
@@ -108,6 +112,48 @@ def test_secondary_stepping_error_moves_light_along_the_tube():
 def test_bad_optics_are_errors_naming_the_key(key, value):
     with pytest.raises(InputError, match=key):
         _scenario(**{key: value})
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("mirror_width", -0.3),
+        ("focal_length", 0.0),
+        ("focal_length", -3.0),
+        ("secondary", {"aperture_width": 0.3, "acceptance_half_angle": 0.0, "reflectivity": 0.9}),
+        ("secondary", {"aperture_width": 0.3, "acceptance_half_angle": 90.0, "reflectivity": 0.9}),
+        ("secondary", {"aperture_width": 0.3, "acceptance_half_angle": 45.0, "reflectivity": 0.0}),
+        ("secondary", {"aperture_width": 0.3, "acceptance_half_angle": 45.0, "reflectivity": 1.1}),
+        ("secondary", {"aperture_width": -0.3, "acceptance_half_angle": 45.0, "reflectivity": 0.9}),
+    ],
+)
+def test_bad_mirror_and_secondary_are_errors_naming_the_key(key, value):
+    with pytest.raises(InputError, match=key):
+        _scenario(**{key: value})
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_finite_mirror_intercept_is_the_ray_traced_one():
+    """The default mirror (flat, 0.3 m x 1.5 m, bare 70 mm tube) at the paper's instant: the light
+    series' intercept against the ray tracer (tests/receiver_tracer.py), and the area w x l."""
+    from receiver_tracer import trace
+
+    scenario = _scenario(0.0)
+    assert scenario.optics.aperture_area == pytest.approx(0.3 * 1.5)
+    trace_frame, metadata, times = _trace(scenario, step=300.0)
+    series = light_timeseries(trace_frame, metadata, scenario)
+    location = Location(40.0, 14.25, "Europe/Rome", 0.0)
+    sun = location.get_solarposition(times)
+    alt, az = np.radians(sun["apparent_elevation"].to_numpy()), np.radians(sun["azimuth"].to_numpy())
+    for k in range(len(times)):
+        s = np.array([np.cos(alt[k]) * np.sin(az[k]), np.cos(alt[k]) * np.cos(az[k]), np.sin(alt[k])])
+        normal = (s + np.array([0.0, 0.0, 1.0])) / np.linalg.norm(s + np.array([0.0, 0.0, 1.0]))
+        o = scenario.optics
+        gamma, error = trace(
+            s, np.arctan2(normal[0], normal[2]), -np.arcsin(normal[1]), 0.0, 3.0, 0.3, 1.5, 0.07, None,
+            o.slope_error, 0.0, rays=200_000,
+        )  # fmt: skip
+        assert series["intercept_ideal"].iloc[k] == pytest.approx(gamma, abs=0.02 + 3 * error)
 
 
 def test_unknown_optics_key_is_an_error():

@@ -12,13 +12,13 @@ import pandas as pd
 import pvlib
 import pytest
 from distributed import Client, LocalCluster
-from scipy.special import erf
 
 from heliostep.drive.inputs import reference_times
 from heliostep.paths import scenarios_dir
 from heliostep.scenario import load_scenario, validate_scenario
 from heliostep.solar import two_axis_angles
 from heliostep.sweep import expand_cases, field_sharing_errors, primary_sharing_error, run_field, sweep_from_scenario
+from receiver_tracer import trace
 
 BASE = scenarios_dir() / "jan21-central.yaml"
 
@@ -137,12 +137,14 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
     assert mirrors.loc[6, "light_lost_shared_primary_J"] == pytest.approx(
         0.0, abs=1e-6 * mirrors.loc[6, "light_energy_ideal_J"]
     )  # the central law is the central mirror's own
-    sigma = np.hypot(4.65e-3 / 2, 2 * optics.slope_error)  # sun (pillbox 4.65 mrad -> sigma R/2) and slope error
-    height, half = scenario.plant.tube_height, optics.tube_diameter / 2
+    height = scenario.plant.tube_height
     to_sun = sun_direction(scenario, 10.0)  # mid-window: the error moves < 0.01 deg in 20 s
     for index in range(13):
         row, distance = mirrors.loc[index], DISTANCES[index]
-        assert row["light_energy_ideal_J"] > 0 and row["light_energy_J"] <= row["light_energy_ideal_J"]
+        # no "actual <= ideal": a finite mirror's image is wider than the tube, and aiming the central
+        # ray at the own cross-section is not the energy optimum (issue #20), so the shared primary's
+        # small offset can gain a little; the intercept itself is checked against the ray tracer below
+        assert row["light_energy_ideal_J"] > 0 and row["light_energy_J"] > 0
         # the mirror's own normal bisects sun and tube; the shared motor turns it by -delta about y
         to_tube = np.array([-distance, 0.0, height]) / np.hypot(distance, height)
         own = (to_sun + to_tube) / np.linalg.norm(to_sun + to_tube)
@@ -150,13 +152,22 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
         normal = np.array(
             [own[0] * np.cos(delta) + own[2] * np.sin(delta), own[1], -own[0] * np.sin(delta) + own[2] * np.cos(delta)]
         )
-        ray = 2 * (to_sun @ normal) * normal - to_sun  # law of reflection
-        across = np.hypot(ray[0], ray[2])
-        miss = (-distance * ray[2] - height * ray[0]) / across  # distance of the axis from the ray, cross-section
-        slant = (-distance * ray[0] + height * ray[2]) / across**2 * np.linalg.norm(ray)
-        spread = np.sqrt(2) * slant * sigma
-        gamma = 0.5 * (erf((half - miss) / spread) + erf((half + miss) / spread))  # Gaussian share on the tube
-        assert row["mean_intercept"] == pytest.approx(gamma, abs=0.02), index
+        # the finite 0.3 m x 1.5 m flat mirror over the bare 70 mm tube, traced (tests/receiver_tracer.py)
+        gamma, error = trace(
+            to_sun,
+            np.arctan2(normal[0], normal[2]),
+            -np.arcsin(normal[1]),
+            distance,
+            height,
+            optics.mirror_width,
+            optics.mirror_length,
+            optics.tube_diameter,
+            optics.focal_length,
+            optics.slope_error,
+            optics.specularity,
+            rays=100_000,
+        )
+        assert row["mean_intercept"] == pytest.approx(gamma, abs=0.02 + 3 * error), index
     assert mirrors.loc[0, "mean_intercept"] < 0.01  # the outer West mirror's light misses the tube
 
 

@@ -12,8 +12,8 @@ Three attitudes of the mirror are compared over the run's window:
   ``panel_angle``).
 
 Power on the tube (absorbed) at each row:
-P = DNI * A * cos(theta_i) * rho * tau * alpha * gamma * f_end, with gamma the intercept factor of
-:func:`heliostep.solar.optics.intercept_factor` (Gaussian error budget, erf closed form) and f_end
+P = DNI * A * cos(theta_i) * rho * tau * alpha * gamma * f_end, with gamma the intercept of the
+finite mirror's image by the receiver (:func:`heliostep.solar.intercept.intercept`, closed form) and f_end
 the share of the light that lands on the tube's length (the end effect, with ``optics.tube_ends``).
 Energies are trapezoidal integrals over the trace's rows. The loss due to stepping is
 E_reference - E_actual, the loss due to the shared primary E_ideal - E_reference.
@@ -38,6 +38,7 @@ import pandas as pd
 
 from heliostep.solar import irradiance, optics
 from heliostep.solar.field import sharing_errors
+from heliostep.solar.intercept import intercept
 from heliostep.solar.sun import solar_position, sun_vector
 from heliostep.solar.tracking import two_axis_angles
 
@@ -230,20 +231,20 @@ def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_heigh
         :func:`heliostep.solar.optics.end_fraction`; 1 without ``tube_ends``) [-],
         ``transverse_miss_m``, ``longitudinal_miss_m`` [m].
     """
-    sigma = optics.beam_spread(conf.slope_error, conf.specularity)
     chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
     normal = optics.mirror_normal(primary, secondary)
     cosine = optics.cosine_factor(*sun, *normal)
-    ray_x, ray_y, ray_z = optics.reflect(*sun, *normal)
-    transverse, longitudinal, slant = optics.receiver_miss(ray_x, ray_y, ray_z, distance, tube_height)
-    gamma = optics.intercept_factor(transverse, slant, conf.tube_diameter, sigma)
+    ray = optics.reflect(*sun, *normal)
+    # the finite mirror's image on the receiver (tube or secondary)
+    caught = intercept(sun, primary, secondary, ray, distance, tube_height, conf.receiver(), conf.mirror())
+    gamma, transverse, longitudinal = (caught[k] for k in ("intercept", "transverse_miss_m", "longitudinal_miss_m"))
     on_tube = (
         np.ones_like(gamma)
         if conf.tube_ends is None
         # the end effect: light past the tube's end
         else optics.end_fraction(longitudinal, conf.mirror_length, 0.0, *conf.tube_ends)
     )
-    power = np.where(up, dni * conf.mirror_area * cosine * chain * gamma * on_tube, 0.0)
+    power = np.where(up, dni * conf.aperture_area * cosine * chain * gamma * on_tube, 0.0)
     return {
         "power_W": power,
         "intercept": gamma,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import math
 import re
 from typing import Annotated, Any, Literal
 
@@ -30,6 +31,8 @@ from heliostep.solar import (
     check_timezone,
     field_distances,
 )
+from heliostep.solar.field import PANEL_LENGTH, PANEL_WIDTH
+from heliostep.solar.intercept import SURFACE_SLOPE_ERROR
 
 #: Energising sequences of the stepper sequencer (the drive implements one phase pattern for each).
 SEQUENCER_MODES = ("one-phase-on", "two-phase-on", "half-step")
@@ -205,22 +208,57 @@ class SequencerConfig(Section):
     idle_delay: Real = Field(0.0, ge=0.0, description="[s] after each step before the idle current reduction")
 
 
-class OpticsConfig(Section):
-    """``optics``: the mirror's light path to the tube (see :mod:`heliostep.solar.optics`).
+class SecondaryConfig(Section):
+    """``optics.secondary``: a secondary concentrator above the tube (see :mod:`heliostep.solar.intercept`).
 
-    Defaults: a 1.5 m x 1 m panel (the paper's Table 2 length), the optical chain of seed 004
-    (rho = 0.80, tau = 0.85, alpha = 0.95), a 70 mm tube, the faceted-mirror slope error
-    b / (8 f) = 2.22 mrad of seed 002, no specularity error, clear-sky DNI, a tube longer than
-    the mirror both ways (no end effect; ``tube_ends`` places its ends).
+    Its aperture, ``aperture_width`` [m] wide, lies in the horizontal plane tangent to the absorber from
+    below; it accepts rays within ``acceptance_half_angle`` [deg] of the vertical in the cross-section
+    and reflects those that miss the absorber once, with ``reflectivity`` [-].
     """
 
-    mirror_area: Real = Field(1.5, gt=0.0, description="[m^2], aperture of the mirror")
-    mirror_length: Real = Field(1.5, gt=0.0, description="[m], along the tube")
+    aperture_width: Real = Field(gt=0.0, description="[m], width of the aperture across the tube")
+    acceptance_half_angle: Real = Field(
+        gt=0.0, lt=90.0, description="[deg], acceptance half-angle from the vertical, in the cross-section"
+    )
+    reflectivity: Real = Field(gt=0.0, le=1.0, description="[-], of the secondary's mirror")
+
+    def receiver(self) -> dict:
+        """The mapping :func:`heliostep.solar.intercept.intercept` takes (the angle in radians)."""
+        return {
+            "aperture_width": self.aperture_width,
+            "acceptance_half_angle": math.radians(self.acceptance_half_angle),
+            "reflectivity": self.reflectivity,
+        }
+
+
+class OpticsConfig(Section):
+    """``optics``: the mirror's light path to the tube (see :mod:`heliostep.solar.intercept`).
+
+    Defaults: the paper's Table 2 panel, 1.5 m long and M / (rho l sp) = 0.3 m wide (the width the
+    mechanics' panel uses, :data:`heliostep.solar.field.PANEL_WIDTH`), flat, its aperture width x
+    length; the optical chain of seed 004 (rho = 0.80, tau = 0.85, alpha = 0.95); a bare 70 mm
+    absorber (no secondary); a surface slope error of 1.53 mrad per axis (SolarPILOT's default for
+    silvered glass, :data:`heliostep.solar.intercept.SURFACE_SLOPE_ERROR`), no specularity error;
+    clear-sky DNI; a tube longer than the mirror both ways (no end effect; ``tube_ends`` places its
+    ends).
+    """
+
+    mirror_width: Real = Field(PANEL_WIDTH, gt=0.0, description="[m], across the mirror's secondary axis")
+    mirror_length: Real = Field(PANEL_LENGTH, gt=0.0, description="[m], along the tube (the panel's long axis)")
+    mirror_area: Real | None = Field(
+        None, gt=0.0, description="[m^2], reflecting aperture; null: mirror_width x mirror_length"
+    )
+    focal_length: Real | None = Field(
+        None, gt=0.0, description="[m], curvature about the long axis (near the slant distance); null: flat"
+    )
     reflectivity: Real = Field(0.80, ge=0.0, le=1.0, description="[-], rho of the mirror")
     transmittance: Real = Field(0.85, ge=0.0, le=1.0, description="[-], tau of the tube's glass")
     absorptance: Real = Field(0.95, ge=0.0, le=1.0, description="[-], alpha of the tube")
-    tube_diameter: Real = Field(0.07, gt=0.0, description="[m], or a secondary reflector's aperture")
-    slope_error: Real = Field(2.22e-3, ge=0.0, description="[rad], RMS slope error of the mirror")
+    tube_diameter: Real = Field(0.07, gt=0.0, description="[m], the absorber (inside its glass envelope)")
+    secondary: SecondaryConfig | None = Field(None, description="a secondary concentrator; null: a bare tube")
+    slope_error: Real = Field(
+        SURFACE_SLOPE_ERROR, ge=0.0, description="[rad], RMS surface slope error per axis of the mirror"
+    )
     specularity: Real = Field(0.0, ge=0.0, description="[rad], specularity error")
     weather_file: str | None = Field(None, description="TMY3 (.csv) or EPW (.epw) file; null: clear sky")
     tube_ends: tuple[Real, Real] | None = Field(
@@ -236,6 +274,28 @@ class OpticsConfig(Section):
                 [(("tube_ends",), f"expected [start, end] with start < end [m], got {list(self.tube_ends)}")]
             )
         return self
+
+    @property
+    def aperture_area(self) -> float:
+        """The mirror's reflecting area [m^2]: ``mirror_area``, or width x length."""
+        return self.mirror_width * self.mirror_length if self.mirror_area is None else self.mirror_area
+
+    def receiver(self) -> dict:
+        """The receiver as :func:`heliostep.solar.intercept.intercept` takes it."""
+        return {
+            "tube_diameter": self.tube_diameter,
+            "secondary": None if self.secondary is None else self.secondary.receiver(),
+        }
+
+    def mirror(self) -> dict:
+        """The mirror's surface as :func:`heliostep.solar.intercept.intercept` takes it."""
+        return {
+            "width": self.mirror_width,
+            "length": self.mirror_length,
+            "focal_length": self.focal_length,
+            "slope_error": self.slope_error,
+            "specularity": self.specularity,
+        }
 
 
 class WindConfig(Section):

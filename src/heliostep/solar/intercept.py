@@ -1,0 +1,322 @@
+"""Intercept of a finite mirror's light by the receiver: a bare absorber tube or a secondary concentrator.
+
+Conventions: see :mod:`heliostep.solar` (plant frame x across, y along the tube, z up; the tube's
+axis at x = 0, z = h; a mirror centred at (d, 0, 0), normal n = R_y(p) R_x(q) z_hat). The mirror
+is a rectangle of width w along its secondary axis u = R_y(p) x_hat = (cos p, 0, -sin p) and
+length l along v = R_y(p) R_x(q) y_hat = (sin q sin p, cos q, sin q cos p) (the panel's long
+axis, along the tube when q = 0), flat or curved about its long axis (a parabolic cylinder of
+focal length f: its normal at s across the width is n - (s / 2f) u to first order).
+
+The image at the receiver
+-------------------------
+The tube is infinite along y, so a ray hits it when its projection on the x-z cross-section
+passes within D/2 of the axis. Let r be the central reflected ray, rho = |r_xz|, and
+e = (-r_z, 0, r_x) / rho the unit vector perpendicular to r in the cross-section. A ray leaving the
+mirror at s u + t v with direction r + dr passes the axis at the signed distance (first order in
+dr; exact in s and t for a flat mirror)::
+
+    m = m0 + s (u.e - (L / f) k) + t (v.e) + L (e.dr),    k = (S.u)(n.e) + (S.n)(u.e)
+
+with m0 the central ray's miss, L its slant distance (:func:`heliostep.solar.optics.receiver_miss`)
+and S the sun. The width term is the flat mirror's projected width (u.e) less the focusing of a
+curved one (it vanishes at L = f (u.e) / k: in the cross-section, the tangential focus f cos(theta_i));
+the length term is the two-axis mirror's shear across the tube, v.e = sin q (r_x cos p - r_z sin p)
+/ rho (the issue's sin q sin p at d = 0). Over the mirror's area s and t are uniform (a uniform
+image of half-widths A = |u.e - L k / f| w / 2 and B = |v.e| l / 2). The angular term gathers
+
+- the sun's disc, a pillbox of half-angle 4.65 mrad: reflection maps it to a disc about r, whose
+  projection on e has variance R^2 / 4 (replaced by a Gaussian of that variance: the one
+  approximation of the sun's shape);
+- the slope error, a Gaussian tilt of the normal of sigma_s per axis of the mirror's tangent
+  plane: dr = 2 (S.dn) n + 2 (S.n) dn, so e.dr has variance 4 sigma_s^2 |g|^2,
+  g = (n.e) S_t + (S.n) e_t (the subscript t: the part in the tangent plane), |g| = 1 with the
+  sun in the cross-section;
+- the specularity error, a Gaussian of sigma_spec on the reflected ray.
+
+The intercept is then P(|m| <= D/2) for m = m0 + U(-A, A) + U(-B, B) + N(0, (L sigma)^2): a box
+convolved with a box and a Gaussian, integrated over the receiver, in closed form with the first
+and second antiderivatives of the normal CDF (:func:`box_gauss_fraction`: differences of erf's
+and Gaussians). A two-axis mirror's tilted long axis brings one end nearer the receiver by
+t (v_x r_x + v_z r_z) / rho^2: the slant, and so a curved mirror's focus term L k / f and the
+spread L sigma, change along the length. The length is therefore cut into
+:data:`LENGTH_SLABS` slabs, each the closed form above with its own A and L and its share of the
+shear (:func:`_slab_fraction`). What it neglects: terms of second order in the angles (the sun's
+4.65 mrad, the slope error, and the curved mirror's s / f < 0.05 for w = 0.3 m, f >= 3 m), the
+change of slant across the width and of the cosine over the mirror, A's change within a slab, the
+shadow that the receiver itself casts on the mirror, and shading and blocking by the neighbours
+(:mod:`heliostep.solar.shading`). Checked against a Monte Carlo ray tracer within 0.01
+(``tests/solar/test_raytrace.py``).
+
+The receiver
+------------
+A bare tube: the absorber of diameter D (its glass envelope is a thin shell of transmittance tau,
+which the rays cross without deviation: it changes no ray's path, so the absorber's D decides the
+intercept). A secondary concentrator: an aperture of width a in the horizontal plane tangent to
+the absorber from below (z = h - D/2), accepting rays whose cross-section angle from the vertical
+is within the acceptance half-angle theta_a. A ray that passes the aperture and meets the
+absorber directly is absorbed; one that passes the aperture within theta_a and misses the
+absorber reaches it after one reflection on the secondary (reflectivity rho_2; an ideal
+secondary delivers every ray within its acceptance, and one reflection is this model's choice);
+any other is lost::
+
+    gamma = gamma_direct + rho_2 gamma_accept (gamma_aperture - gamma_direct)
+
+gamma_direct the bare tube's intercept, gamma_aperture the share through the aperture's
+half-width (a/2) cos(psi_0) across the central ray (psi_0 its angle from the vertical),
+gamma_accept the share of the beam's angles within theta_a (the same box-Gaussian closed form in
+angle: a curved mirror's rays fan by k / (f rho) per metre of width). The product treats the
+angle and the position of a ray as independent: exact when the acceptance edge lies outside the
+beam's angular spread (ten milliradians against tens of degrees), approximate near it; the direct
+part assumes the tube's shadow along the beam lies within the aperture.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import ndtr
+
+from heliostep.solar.checks import as_float_array, check_positive, check_range
+from heliostep.solar.optics import SUN_SIGMA, receiver_miss
+
+#: RMS surface slope error per axis of a silvered-glass reflector [rad]: SolarPILOT's default
+#: heliostat surface slope error (NREL SolarPILOT / HALOS, ``err_surface_x`` = ``err_surface_y``
+#: = 1.53 mrad). No seed gives one for this mirror: seed 002's b / (8 f) = 2.22 mrad is the shape
+#: error of its flat 0.533 m stripes on a 30 m heliostat, not a surface error.
+SURFACE_SLOPE_ERROR = 1.53e-3
+
+_INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
+
+
+def shape_slope_error(mirror_width, focal_length, slant):
+    """Mean slope deviation of a mirror from the cylinder that would focus at its slant distance.
+
+    Seed 002's b / (8 f) (its eq. 13: a flat stripe of width b standing in for a parabola of focal
+    length f) with this mirror's width and, for a curved mirror of focal length f at slant L, the
+    parabola of curvature 1/f - 1/L missing: (b / 8) |1/f - 1/L|; flat (f = None): b / (8 L).
+    It is not added to the random slope error: the image's width term carries it exactly
+    (the box of :func:`mirror_image` is 8 L times it, before projection).
+
+    Parameters
+    ----------
+    mirror_width : float  [m]
+    focal_length : float or None  [m]
+        None: a flat mirror.
+    slant : array-like  [m]
+
+    Returns
+    -------
+    array  [rad]
+    """
+    width = check_positive(mirror_width, "mirror_width", "m")
+    curvature = 0.0 if focal_length is None else 1.0 / check_positive(focal_length, "focal_length", "m")
+    return width / 8.0 * np.abs(curvature - 1.0 / as_float_array(slant))  # seed 002, eq. 13 (b / 8f)
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def mirror_image(sun, primary, secondary, ray, slant, width, length, focal_length=None):
+    """Half-widths of a finite mirror's image across the tube and the slope error's gain.
+
+    Parameters
+    ----------
+    sun : sequence of 3 arrays  [-]
+        Unit vector toward the sun.
+    primary, secondary : array-like  [rad]
+        The mirror's angles (:func:`heliostep.solar.optics.mirror_normal`).
+    ray : sequence of 3 arrays  [-]
+        The central reflected ray.
+    slant : array-like  [m]
+        Central ray's path to the receiver.
+    width, length : float  [m]
+        The mirror's width (across its secondary axis) and length (its long axis).
+    focal_length : float or None  [m]
+        Curvature about the long axis; None: flat.
+
+    Returns
+    -------
+    dict of arrays
+        ``across`` A [m] (the width's half image), ``shear`` B [m] (the length's, two-axis),
+        their signed values ``across_signed``, ``shear_signed``; ``nearer`` [m], how much nearer
+        the receiver the length's end t = l/2 is (a tilted long axis); ``across_rate`` [m], the
+        change of the signed A there (a curved mirror's focus moves with the distance);
+        ``slope_gain`` |g| [-], ``fan`` the curved mirror's angle spread per metre of width in
+        the cross-section [rad/m], ``rho`` |r_xz| [-].
+    """
+    p, q = as_float_array(primary), as_float_array(secondary)
+    u = (np.cos(p), np.zeros_like(p), -np.sin(p))
+    v = (np.sin(q) * np.sin(p), np.cos(q) * np.ones_like(p), np.sin(q) * np.cos(p))
+    n = (np.cos(q) * np.sin(p), -np.sin(q) * np.ones_like(p), np.cos(q) * np.cos(p))  # [paper], eqs. 3-4
+    s = [as_float_array(c) for c in sun]
+    r = [as_float_array(c) for c in ray]
+    rho = np.hypot(r[0], r[2])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e = (-r[2] / rho, np.zeros_like(rho), r[0] / rho)
+    sn, ne, ue = _dot(s, n), _dot(n, e), _dot(u, e)
+    k = _dot(s, u) * ne + sn * ue  # the curved mirror's focusing, first order in s / f
+    curvature = 0.0 if focal_length is None else 1.0 / focal_length
+    across = (ue - as_float_array(slant) * curvature * k) * width / 2.0
+    shear = _dot(v, e) * length / 2.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        nearer = (v[0] * r[0] + v[2] * r[2]) / rho**2 * length / 2.0  # the slant's change at the length's end
+    g = [ne * (sc - _dot(s, n) * nc) + sn * (ec - ne * nc) for sc, ec, nc in zip(s, e, n)]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fan = np.abs(k) * curvature / rho
+    return {
+        "across": np.abs(across),
+        "shear": np.abs(shear),
+        "across_signed": across,
+        "shear_signed": shear,
+        "across_rate": nearer * curvature * k * width / 2.0,
+        "nearer": nearer,
+        "slope_gain": np.sqrt(_dot(g, g)),
+        "fan": fan,
+        "rho": rho,
+    }
+
+
+def _g1(x, sigma):
+    """Antiderivative of Phi(x / sigma) in x [m]."""
+    z = x / sigma
+    return x * ndtr(z) + sigma * _INV_SQRT_2PI * np.exp(-0.5 * z**2)
+
+
+def _g2(x, sigma):
+    """Antiderivative of :func:`_g1` in x [m^2]."""
+    z = x / sigma
+    return 0.5 * (x**2 + sigma**2) * ndtr(z) + 0.5 * x * sigma * _INV_SQRT_2PI * np.exp(-0.5 * z**2)
+
+
+def _below(z, a, b, sigma):
+    """P(U(-a, a) + U(-b, b) + N(0, sigma^2) <= z), a >= b >= 0, sigma > 0."""
+    scale = np.maximum(a, sigma)
+    point = a <= 1e-4 * sigma
+    single = ~point & (b <= 1e-4 * scale)
+    a_safe = np.where(point, 1.0, a)
+    b_safe = np.where(single | point, 1.0, b)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        double = (_g2(z + a + b, sigma) - _g2(z + a - b, sigma) - _g2(z - a + b, sigma) + _g2(z - a - b, sigma)) / (
+            4.0 * a_safe * b_safe
+        )  # the trapezoid's CDF convolved with the Gaussian
+        box = (_g1(z + a, sigma) - _g1(z - a, sigma)) / (2.0 * a_safe)  # erf's of the box
+    return np.where(point, ndtr(z / sigma), np.where(single, box, double))
+
+
+def box_gauss_fraction(centre, half_a, half_b, sigma, half_window):
+    """Share of a box * box * Gaussian image within a window: P(|c + U_a + U_b + N| <= W).
+
+    Parameters
+    ----------
+    centre : array-like  [m]
+        Offset c of the image's centre from the window's.
+    half_a, half_b : array-like  [m]
+        Half-widths of the two uniform parts, >= 0.
+    sigma : array-like  [m]
+        Standard deviation of the Gaussian part, >= 0 (floored at 1e-12 m).
+    half_window : array-like  [m]
+        Half-width W of the window.
+
+    Returns
+    -------
+    array  [-]
+        F(W - c) - F(-W - c) with F the image's CDF: with G1, G2 the first and second
+        antiderivatives of the normal CDF, F = [G2(z+a+b) - G2(z+a-b) - G2(z-a+b) + G2(z-a-b)] / (4ab)
+        (one box: [G1(z+a) - G1(z-a)] / 2a; no box: Phi(z / sigma)); 0 where c is NaN.
+    """
+    c = as_float_array(centre)
+    a, b = np.abs(as_float_array(half_a)), np.abs(as_float_array(half_b))
+    big, small = np.maximum(a, b), np.minimum(a, b)
+    sigma = np.maximum(as_float_array(sigma), 1e-12)
+    w = as_float_array(half_window)
+    fraction = _below(w - c, big, small, sigma) - _below(-w - c, big, small, sigma)
+    return np.clip(np.nan_to_num(fraction, nan=0.0), 0.0, 1.0)
+
+
+def angular_sigma(slope_gain, slope_error, specularity, sun_sigma: float = SUN_SIGMA):
+    """Standard deviation of the reflected rays' angle across the tube [rad]:
+    sqrt(sigma_sun^2 + 4 sigma_s^2 |g|^2 + sigma_spec^2) (see the module's docstring)."""
+    return np.sqrt(sun_sigma**2 + (2.0 * slope_error * slope_gain) ** 2 + specularity**2)  # law of reflection
+
+
+def intercept(sun, primary, secondary, ray, distance, tube_height, receiver, mirror):
+    """Intercept of a finite mirror's reflected light by the receiver, at each instant.
+
+    Parameters
+    ----------
+    sun, ray : sequences of 3 arrays  [-]
+        Unit vectors toward the sun and of the central reflected ray.
+    primary, secondary : array-like  [rad]
+        The mirror's angles.
+    distance, tube_height : float  [m]
+        The mirror's d and the tube's axis height h.
+    receiver : Mapping
+        ``tube_diameter`` D [m] and ``secondary``: None (a bare tube) or a mapping with
+        ``aperture_width`` [m], ``acceptance_half_angle`` [rad] and ``reflectivity`` [-].
+    mirror : Mapping
+        ``width``, ``length`` [m], ``focal_length`` [m] or None (flat), ``slope_error`` and
+        ``specularity`` [rad].
+
+    Returns
+    -------
+    dict of arrays
+        ``intercept`` gamma [-], ``transverse_miss_m``, ``longitudinal_miss_m``, ``slant_m`` [m]
+        (the central ray at the tube's axis, :func:`heliostep.solar.optics.receiver_miss`),
+        ``image_half_width_m`` (A + B) [m].
+    """
+    diameter = check_positive(receiver["tube_diameter"], "tube_diameter", "m")
+    width = check_positive(mirror["width"], "mirror_width", "m")
+    length = check_positive(mirror["length"], "mirror_length", "m")
+    focal = mirror.get("focal_length")
+    focal = None if focal is None else check_positive(focal, "focal_length", "m")
+    transverse, longitudinal, slant = receiver_miss(ray[0], ray[1], ray[2], distance, tube_height)
+    image = mirror_image(sun, primary, secondary, ray, slant, width, length, focal)
+    sigma = angular_sigma(image["slope_gain"], mirror.get("slope_error", 0.0), mirror.get("specularity", 0.0))
+    gamma = _slab_fraction(transverse, image, sigma, slant, diameter / 2.0)
+    second = receiver.get("secondary")
+    if second is not None:
+        gamma = _secondary(gamma, ray, distance, tube_height - diameter / 2.0, image, sigma, second, width, focal)
+    return {
+        "intercept": gamma,
+        "transverse_miss_m": transverse,
+        "longitudinal_miss_m": longitudinal,
+        "slant_m": slant,
+        "image_half_width_m": image["across"] + image["shear"],
+    }
+
+
+#: Slabs across the mirror's length in :func:`_slab_fraction`.
+LENGTH_SLABS = 8
+
+
+def _slab_fraction(miss, image, sigma, slant, half_window):
+    """The image's share within the window, the length cut into :data:`LENGTH_SLABS` slabs: each a
+    box (its width's A at the slab's distance to the receiver) * box (the slab's shear) * Gaussian
+    (the angular spread over the slab's slant), exact but for A's change within a slab (1/8 of the
+    curved, tilted mirror's change of focus along its length)."""
+    total = 0.0
+    for j in range(LENGTH_SLABS):
+        tau = -1.0 + (2.0 * j + 1.0) / LENGTH_SLABS  # the slab's centre in half-lengths
+        distance = slant - tau * image["nearer"]
+        total = total + box_gauss_fraction(
+            miss - tau * image["shear_signed"],
+            image["across_signed"] + tau * image["across_rate"],
+            image["shear"] / LENGTH_SLABS,
+            distance * sigma,
+            half_window,
+        )
+    return total / LENGTH_SLABS
+
+
+def _secondary(direct, ray, distance, aperture_height, image, sigma, second, width, focal):
+    """A secondary concentrator's intercept from the bare tube's (see the module's docstring)."""
+    aperture = check_positive(second["aperture_width"], "secondary.aperture_width", "m")
+    theta = check_range(second["acceptance_half_angle"], "secondary.acceptance_half_angle", 0.0, np.pi / 2, "rad")
+    reflectivity = check_range(second["reflectivity"], "secondary.reflectivity", 0.0, 1.0, "-")
+    miss, _, slant = receiver_miss(ray[0], ray[1], ray[2], distance, aperture_height)
+    psi = np.arctan2(as_float_array(ray[0]), as_float_array(ray[2]))  # the central ray from the vertical
+    through = _slab_fraction(miss, image, sigma, slant, aperture / 2.0 * np.cos(psi))
+    fan = 0.0 if focal is None else image["fan"] * width / 2.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        accept = box_gauss_fraction(psi, fan, 0.0, sigma / image["rho"], theta)
+    return direct + reflectivity * accept * np.clip(through - direct, 0.0, None)
