@@ -414,6 +414,13 @@ class LightIntegrals:
         return figures
 
 
+def _sign(cosine_term: float, mean_error: float | None) -> str:
+    """The sign of the cosine's mean slope, from its first-order term and the mean error."""
+    if not mean_error or not cosine_term:
+        return "0"
+    return "+" if cosine_term / mean_error > 0 else "-"
+
+
 def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
     """What the light figures mean, and which are not meaningful (``light_notes`` in summary.json)."""
     notes = []
@@ -427,8 +434,9 @@ def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
             " tube runs on past it) and changes the light to first order,"
             f" light_stepping_first_order_J = {first:.3g} J,"
             f" of which the cosine's {cosine:.3g} J (the rest the intercept's, where the image is off the tube's"
-            f" axis); its sign follows the power-weighted mean error ({mean:.3g} rad), the reference (the"
-            " secondary's own two-axis law, each image aimed at its own cross-section) being no optimum"
+            f" axis); its sign is that of the power-weighted mean error ({mean:.3g} rad) times that of the"
+            f" cosine's slope d cos / d theta ({_sign(cosine, mean)}), the reference (the secondary's own two-axis"
+            " law, each image aimed at its own cross-section) being no optimum"
         )
     if distance == 0.0 and axis == "secondary":
         notes.append("light_lost_shared_primary_J is exactly 0: the central mirror's primary is the shared one")
