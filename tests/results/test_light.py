@@ -183,3 +183,25 @@ def test_end_effect_cuts_the_light_that_lands_past_the_tubes_end():
 def test_tube_ends_out_of_order_is_an_error_naming_the_key():
     with pytest.raises(InputError, match="tube_ends"):
         _scenario(tube_ends=[1.0, -1.0])
+
+
+def test_the_mean_stepping_error_is_a_time_average_not_a_row_average():
+    # rows cluster where the drive steps: +delta over the first 900 s in 0.25 s rows, -delta over
+    # the last 900 s in 5 s rows; weighted by the (near constant) power over time the mean is ~0
+    scenario = _scenario(0.0)
+    trace, metadata, _ = _trace(scenario, step=0.25)
+    keep = (trace["time"] < 900.0) | (trace["time"] % 5.0 == 0.0)
+    trace = trace[keep].reset_index(drop=True)
+    delta = 1e-4  # [rad]
+    trace[PANEL_COLUMN] = trace["panel_angle_ref"] + np.where(trace["time"] < 900.0, delta, -delta)
+    figures = light_figures(trace, metadata, scenario)
+    rows = np.where(trace["time"] < 900.0, delta, -delta).mean()  # +0.9 delta: the rows' mean
+    assert rows > 0.8 * delta
+    # weighted by the power in time: +delta and -delta each over 900 s, the power rising near
+    # linearly from P0 to P1 (7 % over the window), so the mean is delta (P1bar - P2bar) / (P1bar + P2bar)
+    # with the halves' means P0 + (P1 - P0)/4 and P0 + 3 (P1 - P0)/4; the step at 900 s is spread
+    # over one 5 s row (5 / 1800 of the window): tolerance 0.005 delta
+    power = light_timeseries(trace, metadata, scenario)["power_reference_W"].to_numpy()
+    first, second = power[0] + (power[-1] - power[0]) / 4, power[0] + 3 * (power[-1] - power[0]) / 4
+    expected = delta * (first - second) / (first + second)
+    assert figures["light_stepping_mean_error_rad"] == pytest.approx(expected, abs=0.005 * delta)

@@ -330,7 +330,6 @@ class LightIntegrals:
         self._previous: dict | None = None  # the last row so far: time and power of each attitude
         self._energy: dict[str, float] = {}
         self._weighted = self._weight = 0.0  # sums of P_ideal * intercept_actual and of P_ideal
-        self._error_weighted = self._error_weight = 0.0  # sums of P_reference * driven error and of P_reference
         self._max_miss = {"transverse": np.nan, "longitudinal": np.nan}
         self._lit = 0
         self.rows = 0
@@ -361,6 +360,8 @@ class LightIntegrals:
         if "stepping_first_order_W" in series:
             powers["first_order"] = series["stepping_first_order_W"]
             powers["first_order_cosine"] = series["stepping_first_order_cosine_W"]
+            # the error weighted by the power in time (rows cluster at the steps: a sum over rows is biased)
+            powers["error_weighted"] = series["power_reference_W"] * series["driven_error_rad"]
         for name, power in powers.items():
             time = seconds
             if self._previous is not None:
@@ -374,8 +375,6 @@ class LightIntegrals:
             self._weight += float(np.sum(weight))
             lit = weight > 0
             self._lit += int(np.count_nonzero(lit))
-            self._error_weighted += float(np.sum(series["power_reference_W"] * series["driven_error_rad"]))
-            self._error_weight += float(np.sum(series["power_reference_W"]))
             for key in self._max_miss:
                 miss = np.abs(series[f"{key}_miss_actual_m"][lit])
                 if miss.size:
@@ -402,8 +401,8 @@ class LightIntegrals:
             figures["light_stepping_change_J"] = actual - reference
             figures["light_stepping_first_order_J"] = energy.get("first_order", 0.0)
             figures["light_stepping_first_order_cosine_J"] = energy.get("first_order_cosine", 0.0)
-            weight = self._error_weight
-            figures["light_stepping_mean_error_rad"] = self._error_weighted / weight if weight > 0 else None
+            weighted = energy.get("error_weighted", 0.0)
+            figures["light_stepping_mean_error_rad"] = weighted / reference if reference > 0 else None
             figures["light_lost_J"] = ideal - actual
             figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
             figures["mean_intercept"] = self._weighted / self._weight if self._weight > 0 else None
@@ -472,13 +471,15 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario, weather=None
         driven primary), ``light_lost_reference_law_J`` (shared - reference) and
         ``light_lost_stepping_J`` (reference - actual, kept for the sweep's table and the CLI),
         ``light_lost_stepping_fraction`` (of the reference); the stepping signed,
-        ``light_stepping_change_J`` (actual - reference), its first-order cosine term
-        ``light_stepping_first_order_J`` [J] and the power-weighted mean driven-axis error
-        ``light_stepping_mean_error_rad`` [rad]; ``light_lost_J`` and ``light_lost_fraction``
-        (ideal - actual, and of the ideal), ``mean_intercept`` (actual, power-weighted by the
-        ideal power), ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the
-        sun is up), ``dni_source`` and ``light_notes`` (:func:`light_notes`: the figures'
-        meaning, and which are noise). (:class:`LightIntegrals` fed the whole trace as one block.)
+        ``light_stepping_change_J`` (actual - reference), its first-order term
+        ``light_stepping_first_order_J`` and the cosine's part of it
+        ``light_stepping_first_order_cosine_J`` [J], the driven axis' error averaged over the
+        window weighted by the reference power, ``light_stepping_mean_error_rad`` [rad];
+        ``light_lost_J`` and ``light_lost_fraction`` (ideal - actual, and of the ideal);
+        ``mean_intercept`` (actual, weighted by the ideal power over the rows);
+        ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the sun is up);
+        ``dni_source`` and ``light_notes`` (:func:`light_notes`: the figures' meaning, and which
+        are noise). (:class:`LightIntegrals` fed the whole trace as one block.)
     """
     integrals = LightIntegrals(metadata, scenario, weather)
     integrals(trace)
