@@ -205,3 +205,13 @@ def test_the_mean_stepping_error_is_a_time_average_not_a_row_average():
     first, second = power[0] + (power[-1] - power[0]) / 4, power[0] + 3 * (power[-1] - power[0]) / 4
     expected = delta * (first - second) / (first + second)
     assert figures["light_stepping_mean_error_rad"] == pytest.approx(expected, abs=0.005 * delta)
+
+
+def test_a_mirror_that_gets_no_light_has_figures_and_notes():
+    # the outer West mirror with the shared primary misses the tube at 10:00 (docs/light.md): no
+    # reference light, so no mean error to weight; the figures and their notes still come out
+    scenario = _scenario(-3.6)
+    figures = light_figures(*_trace(scenario, offset=1e-4)[:2], scenario)
+    assert figures["light_energy_reference_J"] < 1e-6 * figures["light_energy_ideal_J"]
+    assert figures["light_stepping_mean_error_rad"] is None
+    assert any("no light" in note for note in figures["light_notes"])

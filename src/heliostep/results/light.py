@@ -84,9 +84,10 @@ def _weather_path(scenario):
     return path if path.is_absolute() or folder is None else Path(folder) / path
 
 
-def load_weather(scenario) -> irradiance.WeatherDNI | None:
+def load_weather(scenario) -> irradiance.WeatherFile | None:
     """A scenario's weather file, read once and checked for its window, before simulating
-    (None for clear sky); the run passes it on to the light figures.
+    (None for clear sky); the run passes it on to the light figures. It carries the file's wind
+    too (:meth:`heliostep.solar.irradiance.WeatherFile.series`: DNI and wind on a UTC index).
 
     Raises
     ------
@@ -98,7 +99,7 @@ def load_weather(scenario) -> irradiance.WeatherDNI | None:
     path = _weather_path(scenario)
     if path is None:
         return None
-    weather = irradiance.WeatherDNI.read(path, scenario.site.to_site())
+    weather = irradiance.WeatherFile.read(path, scenario.site.to_site())
     start, end = scenario.window_bounds()
     seconds = np.append(np.arange(0.0, (end - start).total_seconds(), 1800.0), (end - start).total_seconds())
     weather.at(start + pd.to_timedelta(seconds, unit="s"))  # covers the window, or InputError
@@ -123,7 +124,7 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario, weather=N
         With ``window_start`` (ISO 8601) and ``roles``.
     scenario : heliostep.scenario.Scenario
         Its ``site``, ``plant``, ``mirror`` and ``optics`` sections.
-    weather : heliostep.solar.irradiance.WeatherDNI, optional
+    weather : heliostep.solar.irradiance.WeatherFile, optional
         The scenario's weather file already read (:func:`load_weather`); read from the scenario
         when not given.
 
@@ -427,13 +428,14 @@ def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
     if "light_stepping_change_J" in figures and axis == "secondary":
         change, first = figures["light_stepping_change_J"], figures["light_stepping_first_order_J"]
         cosine, mean = figures["light_stepping_first_order_cosine_J"], figures["light_stepping_mean_error_rad"]
+        mean_text = "none: no light" if mean is None else f"{mean:.3g} rad"
         notes.append(
             f"light_stepping_change_J = {change:.3g} J (actual - reference; light_lost_stepping_J is its negative)"
             " is not a loss: the secondary's stepping error moves the image along the tube (no cost where the"
             " tube runs on past it) and changes the light to first order,"
             f" light_stepping_first_order_J = {first:.3g} J,"
             f" of which the cosine's {cosine:.3g} J (the rest the intercept's, where the image is off the tube's"
-            f" axis); its sign is that of the power-weighted mean error ({mean:.3g} rad) times that of the"
+            f" axis); its sign is that of the power-weighted mean error ({mean_text}) times that of the"
             f" cosine's slope d cos / d theta ({_sign(cosine, mean)}), the reference (the secondary's own two-axis"
             " law, each image aimed at its own cross-section) being no optimum"
         )
