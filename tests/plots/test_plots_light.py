@@ -6,7 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from heliostep.plots.light import POWER_FILE, plot_light, plot_light_run
+from heliostep.plots.light import POWER_FILE, light_figure, plot_light, plot_light_run
+from heliostep.results.light import light_timeseries
 from heliostep.scenario import validate_scenario
 from heliostep.solar.tracking import panel_angle_reference
 
@@ -42,3 +43,27 @@ def test_power_on_the_tube_is_drawn_from_a_run(tmp_path):
 def test_short_series_draws_nothing(tmp_path):
     series = pd.DataFrame({"time": [0.0], "power_ideal_W": [1.0], "power_reference_W": [1.0]})
     assert plot_light(series, tmp_path / "x.png", METADATA) is None
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_the_powers_axis_is_zoomed_and_the_differences_have_panels_of_their_own():
+    # the central mirror: ideal, reference and actual differ by parts in 10^7; from 0 they were one line
+    scenario = _scenario(0.0)
+    seconds = np.arange(0.0, 601.0, 5.0)
+    times = pd.Timestamp("2025-01-21 10:00", tz="Europe/Rome") + pd.to_timedelta(seconds, unit="s")
+    ref = panel_angle_reference(times, scenario.site.to_site(), scenario.plant.to_plant(), 0.0).to_numpy()
+    trace = pd.DataFrame({"time": seconds, "panel_angle_ref": ref, "p": ref + 1e-4})
+    series = light_timeseries(trace, METADATA, scenario)
+    fig = light_figure(series, METADATA)
+    top, sharing, stepping = fig.axes[:3]
+    assert len([ax for ax in fig.axes if ax.get_ylabel()]) == 3  # powers, sharing's loss, stepping's change
+    powers_kw = series[["power_ideal_W", "power_reference_W", "power_actual_W"]].to_numpy() / 1e3
+    low, high = top.get_ylim()
+    assert low > 0.9 * powers_kw.min() and high < 1.1 * powers_kw.max()  # zoomed on them, not from 0
+    drawn = stepping.get_lines()[0].get_ydata()  # the stepping's change in W, every point (thinning keeps them)
+    change = (series["power_actual_W"] - series["power_reference_W"]).to_numpy()
+    np.testing.assert_allclose(drawn, change)
+    lo, hi = stepping.get_ylim()
+    assert 0 < hi - lo < 10 * np.abs(change).max()  # scaled to the change itself (mW), not to the powers (kW)
+    without_actual = light_figure(series.drop(columns=["power_actual_W"]), METADATA)
+    assert len([ax for ax in without_actual.axes if ax.get_ylabel()]) == 2

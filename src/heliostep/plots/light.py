@@ -1,9 +1,12 @@
 """Plot of one run's light on the tube: power over the window, ideal tracking against the drive.
 
 :func:`plot_light` draws :func:`heliostep.results.light.light_timeseries`'s power on the tube
-(absorbed, [kW]) for ideal two-axis tracking, for the stepped reference with the shared primary
-and for the actual panel, and below it what the drive loses against ideal tracking [W], split
-into the shared primary's part and the stepping part. The legend gives each energy [kJ, or J below 1 kJ].
+(absorbed, [kW]) for ideal two-axis tracking, for the reference (the driven axis on the drive's
+law, the primary shared) and for the actual panel, on an axis zoomed to the powers (not from 0,
+where curves that differ by parts in 10^7, as the central mirror's do, draw as one line). The
+differences get panels of their own [W]: what sharing the primary loses (ideal - shared) with the reference law's part (shared -
+reference), and the stepping's change (actual - reference, signed: a first-order term, not a
+loss) with its first-order estimate. The legends give each energy [kJ, or J below 1 kJ].
 :func:`plot_light_run` computes the series from a run and writes ``POWER_FILE``.
 """
 
@@ -20,7 +23,7 @@ from heliostep.plots.run import _Clock
 from heliostep.plots.thinning import thin
 from heliostep.results.light import light_timeseries
 
-__all__ = ["POWER_FILE", "plot_light", "plot_light_run"]
+__all__ = ["POWER_FILE", "light_figure", "plot_light", "plot_light_run"]
 
 #: PNG of the power on the tube.
 POWER_FILE = "power_on_tube.png"
@@ -35,13 +38,14 @@ def _energy_text(power: np.ndarray, time: np.ndarray) -> str:
 
 
 def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title: str = "") -> Path | None:
-    """Power on the tube over the window: ideal, stepped reference and actual; the losses below.
+    """Power on the tube over the window (:func:`light_figure`), written to ``path``.
 
     Parameters
     ----------
     series : pandas.DataFrame
         :func:`heliostep.results.light.light_timeseries`: ``time`` [s], ``power_ideal_W``,
-        ``power_reference_W`` and (optionally) ``power_actual_W`` [W].
+        ``power_reference_W`` and (optionally) ``power_shared_W``, ``power_actual_W`` and
+        ``stepping_first_order_W`` [W].
     path : str or Path
         PNG to write.
     metadata : Mapping
@@ -54,22 +58,44 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     Path or None
         None when the series has fewer than two rows.
     """
+    fig = light_figure(series, metadata, title)
+    if fig is None:
+        return None
+    path = Path(path)
+    fig.savefig(path, dpi=_DPI)
+    return path
+
+
+def light_figure(series: pd.DataFrame, metadata: Mapping, title: str = "") -> Figure | None:
+    """The figure of :func:`plot_light`: the powers [kW] on an axis zoomed to them; below, the
+    shared primary's loss and the reference law's part [W]; with the actual panel, a third panel
+    of the stepping's change and its first-order term [W]. None for fewer than two rows."""
     if len(series) < 2:
         return None
     time = series["time"].to_numpy(dtype=float)
     clock = _Clock(metadata, time)
     ideal, reference = series["power_ideal_W"].to_numpy(), series["power_reference_W"].to_numpy()
+    shared = series["power_shared_W"].to_numpy() if "power_shared_W" in series else ideal
     actual = series["power_actual_W"].to_numpy() if "power_actual_W" in series else None
-    fig = Figure(figsize=(9.0, 6.5), layout="constrained")
-    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(2, 1))
-    _draw_power(top, clock, time, ideal, reference, actual, title)
-    _draw_losses(bottom, clock, time, ideal, reference, actual)
-    for ax in (top, bottom):
+    rows = 2 if actual is None else 3
+    fig = Figure(figsize=(9.0, 3.0 + 2.0 * rows), layout="constrained")
+    axes = fig.subplots(rows, 1, sharex=True, height_ratios=(2,) + (1,) * (rows - 1))
+    _draw_power(axes[0], clock, time, ideal, reference, actual, title)
+    sharing = [
+        (ideal - shared, "shared primary (ideal - shared)", "C1", "-"),
+        (shared - reference, "reference law (shared - reference)", "C2", ":"),
+    ]
+    _draw_differences(axes[1], clock, time, sharing, "power lost [W]")
+    if actual is not None:
+        stepping = [(actual - reference, "stepping change (actual - reference): not a loss", "C0", "-")]
+        if "stepping_first_order_W" in series:
+            first = series["stepping_first_order_W"].to_numpy()
+            stepping.append((first, "its first-order term", "k", "--"))
+        _draw_differences(axes[2], clock, time, stepping, "power change [W]")
+    for ax in axes:
         ax.grid(True, alpha=0.3)
-    clock.format_axis(bottom)
-    path = Path(path)
-    fig.savefig(path, dpi=_DPI)
-    return path
+    clock.format_axis(axes[-1])
+    return fig
 
 
 def _draw_power(
@@ -81,10 +107,10 @@ def _draw_power(
     actual: np.ndarray | None,
     title: str,
 ) -> None:
-    """The upper panel of :func:`plot_light`: the powers [kW] with their energies."""
+    """The upper panel: the powers [kW] with their energies, the axis zoomed to them (autoscaled)."""
     lines = [
         (ideal, "ideal two-axis tracking", "k", "--", 1.6),
-        (reference, "stepped reference, shared primary", "C1", ":", 1.4),
+        (reference, "reference (the drive's law), shared primary", "C1", ":", 1.4),
     ]
     if actual is not None:
         lines.append((actual, "actual panel (co-simulated)", "C0", "-", 1.0))
@@ -99,30 +125,25 @@ def _draw_power(
             label=f"{label}: {_energy_text(values, time)}",
         )
     top.set_ylabel("power on the tube [kW]")
-    top.set_ylim(bottom=0.0)
     top.legend(loc="best", fontsize="small")
     top.set_title(f"Light absorbed by the tube{title}")
 
 
-def _draw_losses(
-    bottom, clock: _Clock, time: np.ndarray, ideal: np.ndarray, reference: np.ndarray, actual: np.ndarray | None
-) -> None:
-    """The lower panel of :func:`plot_light`: the power lost [W] to sharing the primary and to stepping."""
-    losses = [(ideal - reference, "shared primary (ideal - reference)", "C1")]
-    if actual is not None:
-        losses.append((reference - actual, "stepping (reference - actual)", "C0"))
-    for values, label, color in losses:
+def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, ylabel: str) -> None:
+    """A panel of power differences [W] (values, label, colour, style), each with its energy."""
+    for values, label, color, style in curves:
         keep = thin(time, values, max_buckets=_MAX_BUCKETS)
-        bottom.plot(
+        ax.plot(
             clock.x(time[keep]),
             values[keep],
+            style,
             color=color,
             linewidth=1.0,
             label=f"{label}: {_energy_text(values, time)}",
         )
-    bottom.axhline(0.0, color="0.5", linewidth=0.8)
-    bottom.set_ylabel("power lost [W]")
-    bottom.legend(loc="best", fontsize="small")
+    ax.axhline(0.0, color="0.5", linewidth=0.8)
+    ax.set_ylabel(ylabel)
+    ax.legend(loc="best", fontsize="small")
 
 
 def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path, weather=None) -> list[Path]:

@@ -1,9 +1,10 @@
 """Light on the tube of every end mirror of the field, per day over a year, with the shared primary.
 
 What the co-simulated field sweep (:func:`heliostep.sweep.run_field`) gives per case, without
-co-simulating: the secondary's stepping loses 2e-7 of the light (README, "Light on the tube"),
-so over a year the loss per mirror is the shared primary's. For each day and mirror i of the
-field (:func:`heliostep.solar.field_distances`):
+co-simulating: the secondary's stepping changes the light by +-2e-7 of it, a first-order cosine
+term of either sign and not a loss (:mod:`heliostep.results.light`), so over a year the loss per
+mirror is the shared primary's (exactly 0 for the central mirror, whose primary is the shared
+one). For each day and mirror i of the field (:func:`heliostep.solar.field_distances`):
 
 - **ideal**: both axes follow the mirror's own two-axis law ([paper], eqs. 3-6);
 - **shared primary**: the primary follows the central mirror's law plus the mounting offset
@@ -12,7 +13,8 @@ field (:func:`heliostep.solar.field_distances`):
 
 and the power on the tube of each attitude by :func:`heliostep.results.light.attitude_light`
 (cosine, Gaussian beam spread, intercept on the tube), integrated over the day (trapezoid on
-a ``step_minutes`` grid from local midnight). DNI: the scenario's (clear sky, or its weather file).
+a ``step_minutes`` grid from local midnight). DNI: the scenario's (clear sky, or its weather file,
+read once: :class:`heliostep.solar.irradiance.WeatherFile`, its hourly means at mid-hour).
 """
 
 from __future__ import annotations
@@ -61,15 +63,20 @@ def field_light_days(scenario, days=None, step_minutes: float = 10.0, mirror_ind
     if not step_minutes > 0:
         raise InputError(f"step_minutes {step_minutes!r}: expected > 0 [min]")
     distances = field_distances(N_FIELD_MIRRORS, scenario.mirror.spacing or DEFAULT_MIRROR_SPACING)[indices]
+    path = _weather_path(scenario)
+    weather = None if path is None else irradiance.WeatherFile.read(path, scenario.site.to_site())
     rows = []
     for day in chosen:
         date = dt.date(year, 1, 1) + dt.timedelta(days=day - 1)
-        rows += _day_rows(scenario, date, day, step_minutes, indices, distances)
+        rows += _day_rows(scenario, date, day, step_minutes, indices, distances, weather)
     return pd.DataFrame(rows)
 
 
-def _day_rows(scenario, date: dt.date, day: int, step_minutes: float, indices: list[int], distances) -> list[dict]:
-    """The table's rows of one day (see :func:`field_light_days`), one per mirror."""
+def _day_rows(
+    scenario, date: dt.date, day: int, step_minutes: float, indices: list[int], distances, weather=None
+) -> list[dict]:
+    """The table's rows of one day (see :func:`field_light_days`), one per mirror; ``weather``:
+    the scenario's weather file already read (None: clear sky)."""
     site, plant, conf = scenario.site.to_site(), scenario.plant.to_plant(), scenario.optics
     start = pd.Timestamp(date).tz_localize(site.timezone)
     stop = pd.Timestamp(date + dt.timedelta(days=1)).tz_localize(site.timezone)
@@ -78,9 +85,10 @@ def _day_rows(scenario, date: dt.date, day: int, step_minutes: float, indices: l
     elevation, azimuth = position["apparent_elevation"].to_numpy(), position["azimuth"].to_numpy()
     up = elevation > 0.0
     sun = np.stack(sun_vector(elevation, azimuth, plant.azimuth))
-    dni = irradiance.dni(times, site, _weather_path(scenario)).to_numpy()
+    dni = irradiance.dni(times, site, weather).to_numpy()
     seconds = (times - start).total_seconds().to_numpy()
     sharing = np.nan_to_num(sharing_errors(times, site, plant, date, distances))
+    sharing[:, np.asarray(distances) == 0.0] = 0.0  # the central mirror's primary is the shared one
     rows = []
     for k, (index, distance) in enumerate(zip(indices, distances)):
         primary, secondary = two_axis_angles(elevation, azimuth, distance, plant.tube_height, plant.azimuth)

@@ -15,8 +15,23 @@ Power on the tube (absorbed) at each row:
 P = DNI * A * cos(theta_i) * rho * tau * alpha * gamma * f_end, with gamma the intercept of the
 finite mirror's image by the receiver (:func:`heliostep.solar.intercept.intercept`, closed form) and f_end
 the share of the light that lands on the tube's length (the end effect, with ``optics.tube_ends``).
-Energies are trapezoidal integrals over the trace's rows. The loss due to stepping is
-E_reference - E_actual, the loss due to the shared primary E_ideal - E_reference.
+Energies are trapezoidal integrals over the trace's rows. What separates the ideal from the actual
+light, in three parts that add up to E_ideal - E_actual:
+
+- the shared primary: E_ideal - E_shared, *shared* the ideal attitude with the primary shared
+  (only for a driven secondary; 0 for a driven primary). For the central mirror (d = 0) it is
+  exactly 0: its primary *is* the shared one, so its sharing error is 0 by definition, not by a
+  computation that leaves rounding (:func:`sun_grid`);
+- the reference law: E_shared - E_reference, the trace's ``panel_angle_ref`` (the law the drive
+  follows, exact at the rows) against the ideal law interpolated from the sun grid: the
+  interpolation's noise unless the scenario's reference law is another (small-angle, ...);
+- the stepping: E_reference - E_actual (``light_lost_stepping_J``), reported signed as
+  ``light_stepping_change_J`` = E_actual - E_reference with its first-order term. For a driven
+  secondary it is not a loss: the axis' error moves the image along the tube, which costs nothing
+  on a tube that runs on past it, and changes the cosine to first order, dE = integral of
+  P_ref (d cos / d theta) / cos * (theta_actual - theta_ref) dt; its sign is the window's mean
+  error's (times the cosine's slope), so it is negative in about half the runs. The reference
+  (each mirror's image aimed at its own cross-section) is not the cosine optimum either.
 The sun's vector and the DNI are evaluated on a :data:`SUN_GRID_S` grid from the trace's first
 row and interpolated linearly onto the rows (the sun moves 0.25 deg/min: the interpolation error
 is < 1e-5 rad).
@@ -44,6 +59,14 @@ from heliostep.solar.tracking import two_axis_angles
 
 #: Sampling step of the sun's position and the DNI before interpolation onto the rows [s].
 SUN_GRID_S = 10.0
+#: Step of the central difference of the cosine in the driven angle [rad]: its error is
+#: eps^2/6 of the third derivative (< 1e-12), its rounding 1e-16 / eps (1e-10), both far below the figure.
+COSINE_STEP = 1e-6
+#: Relative size of the rows' interpolation error in an energy: linear interpolation of the sun and
+#: the ideal angles on the SUN_GRID_S grid errs by at most (omega dt)^2 / 8 = 7e-8 rad (omega =
+#: 7.27e-5 rad/s, the Earth's rotation), the cosine by that relative to it times tan(theta_i) <~ 1;
+#: a figure comparing interpolated with exact angles below 1e-6 of the energy (a factor 10) is noise.
+INTERPOLATION_NOISE = 1e-6
 
 
 def _row_times(trace: pd.DataFrame, metadata: Mapping) -> pd.DatetimeIndex:
@@ -62,9 +85,10 @@ def _weather_path(scenario):
     return path if path.is_absolute() or folder is None else Path(folder) / path
 
 
-def load_weather(scenario) -> irradiance.WeatherDNI | None:
+def load_weather(scenario) -> irradiance.WeatherFile | None:
     """A scenario's weather file, read once and checked for its window, before simulating
-    (None for clear sky); the run passes it on to the light figures.
+    (None for clear sky); the run passes it on to the light figures. It carries the file's wind
+    too (:meth:`heliostep.solar.irradiance.WeatherFile.series`: DNI and wind on a UTC index).
 
     Raises
     ------
@@ -76,7 +100,7 @@ def load_weather(scenario) -> irradiance.WeatherDNI | None:
     path = _weather_path(scenario)
     if path is None:
         return None
-    weather = irradiance.WeatherDNI.read(path, scenario.site.to_site())
+    weather = irradiance.WeatherFile.read(path, scenario.site.to_site())
     start, end = scenario.window_bounds()
     seconds = np.append(np.arange(0.0, (end - start).total_seconds(), 1800.0), (end - start).total_seconds())
     weather.at(start + pd.to_timedelta(seconds, unit="s"))  # covers the window, or InputError
@@ -101,16 +125,20 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario, weather=N
         With ``window_start`` (ISO 8601) and ``roles``.
     scenario : heliostep.scenario.Scenario
         Its ``site``, ``plant``, ``mirror`` and ``optics`` sections.
-    weather : heliostep.solar.irradiance.WeatherDNI, optional
+    weather : heliostep.solar.irradiance.WeatherFile, optional
         The scenario's weather file already read (:func:`load_weather`); read from the scenario
         when not given.
 
     Returns
     -------
     pandas.DataFrame
-        ``time`` [s], ``dni`` [W/m^2], and for each attitude ``power_<a>_W`` [W], ``intercept_<a>``,
-        ``cosine_<a>``, ``end_fraction_<a>`` [-], ``transverse_miss_<a>_m`` and
-        ``longitudinal_miss_<a>_m`` [m] (:func:`attitude_light`).
+        ``time`` [s], ``dni`` [W/m^2], and for each attitude (``ideal``, ``shared`` for a driven
+        secondary, ``reference``, ``actual``: the module's docstring) ``power_<a>_W`` [W],
+        ``intercept_<a>``, ``cosine_<a>``, ``end_fraction_<a>`` [-], ``transverse_miss_<a>_m`` and
+        ``longitudinal_miss_<a>_m`` [m] (:func:`attitude_light`); with the actual panel, the
+        stepping's first-order terms ``driven_error_rad`` [rad], ``cosine_slope_reference``
+        [1/rad], ``stepping_first_order_W`` and ``stepping_first_order_cosine_W`` [W]
+        (:func:`_first_order_stepping`).
     """
     seconds = trace["time"].to_numpy(dtype=float)
     return pd.DataFrame(
@@ -131,16 +159,20 @@ def sun_grid(grid_s: np.ndarray, metadata: Mapping, scenario, weather) -> dict:
     """What the light at the rows interpolates, at the grid times ``grid_s`` [s from the window's
     start]: ``time`` [s], ``elevation`` [deg], ``sun`` (3, n) [-] (plant frame), ``dni``
     [W/m^2], the ideal two-axis angles ``ideal_primary`` and ``ideal_secondary`` and the shared
-    primary's ``sharing`` error (0 while the sun is down) [rad]. Every value is a function of
-    its grid time alone."""
+    primary's ``sharing`` error (0 while the sun is down, and everywhere for the central mirror,
+    d = 0) [rad]. Every value is a function of its grid time alone."""
     site, plant = scenario.site.to_site(), scenario.plant.to_plant()
     distance, h = scenario.mirror.mirror_distance, plant.tube_height
     grid = _row_times(pd.DataFrame({"time": grid_s}), metadata)
     position = solar_position(grid, site.latitude, site.longitude, site.altitude)
     elevation, azimuth = position["apparent_elevation"].to_numpy(), position["azimuth"].to_numpy()
     ideal_primary, ideal_secondary = two_axis_angles(elevation, azimuth, distance, h, plant.azimuth)
-    # the shared primary: the central mirror's law plus a mounting offset exact at solar noon
-    sharing = sharing_errors(grid, site, plant, scenario.window.date, [distance], sun=position)[:, 0]
+    # the shared primary: the central mirror's law plus a mounting offset exact at solar noon; the
+    # central mirror's (d = 0) own primary is the shared one: its error is 0 by definition
+    if distance == 0.0:
+        sharing = np.zeros(len(grid_s))
+    else:
+        sharing = sharing_errors(grid, site, plant, scenario.window.date, [distance], sun=position)[:, 0]
     return {
         "time": grid_s,
         "elevation": elevation,
@@ -188,6 +220,8 @@ def _light_rows(
         "actual": trace[panel_column].to_numpy(dtype=float) if panel_column in trace else None,
     }
     attitudes = {"ideal": (ideal_p, ideal_q)}
+    if axis == "secondary":  # the ideal with the primary shared: what sharing it costs
+        attitudes["shared"] = (shared_p, ideal_q)
     for name, angle in driven.items():
         if angle is not None:
             attitudes[name] = (shared_p, angle) if axis == "secondary" else (angle, ideal_q)
@@ -205,7 +239,36 @@ def _light_rows(
                 f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"],
             }
         )
+    if driven["actual"] is not None:
+        light_of = lambda p, q: attitude_light(sun, dni, up, p, q, distance, h, conf)  # noqa: E731
+        out.update(_first_order_stepping(light_of, attitudes["reference"], axis, out, driven))
     return out
+
+
+def _first_order_stepping(light_of, reference, axis: str, out: dict, driven: dict) -> dict:
+    """The stepping's first-order terms at each row, central differences of :data:`COSINE_STEP`
+    in the driven angle at the reference attitude: ``driven_error_rad`` (actual - reference)
+    [rad], ``cosine_slope_reference`` (d cos / d theta) [1/rad], ``stepping_first_order_W`` =
+    (dP_ref / d theta) * error (the cosine, the intercept and the end fraction together) and its
+    cosine part ``stepping_first_order_cosine_W`` = P_ref (d cos / d theta) / cos * error [W].
+    ``light_of(primary, secondary)``: :func:`attitude_light` of the row's sun and DNI."""
+    primary, secondary = reference
+    step = np.array(COSINE_STEP)
+    turned = []
+    for sign in (1.0, -1.0):
+        angles = (primary, secondary + sign * step) if axis == "secondary" else (primary + sign * step, secondary)
+        turned.append(light_of(*angles))
+    slope = (turned[0]["cosine"] - turned[1]["cosine"]) / (2.0 * step)
+    power_slope = (turned[0]["power_W"] - turned[1]["power_W"]) / (2.0 * step)
+    error = driven["actual"] - driven["reference"]
+    cosine = out["cosine_reference"]
+    ratio = np.divide(slope, cosine, out=np.zeros_like(slope), where=cosine > 0)
+    return {
+        "driven_error_rad": error,
+        "cosine_slope_reference": slope,
+        "stepping_first_order_W": power_slope * error,
+        "stepping_first_order_cosine_W": out["power_reference_W"] * ratio * error,
+    }
 
 
 def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_height: float, conf) -> dict:
@@ -296,6 +359,11 @@ class LightIntegrals:
             self._window_grid = self._whole_window_grid(self._origin)
         series = _light_rows(block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid)
         powers = {key[len("power_") : -len("_W")]: value for key, value in series.items() if key.startswith("power_")}
+        if "stepping_first_order_W" in series:
+            powers["first_order"] = series["stepping_first_order_W"]
+            powers["first_order_cosine"] = series["stepping_first_order_cosine_W"]
+            # the error weighted by the power in time (rows cluster at the steps: a sum over rows is biased)
+            powers["error_weighted"] = series["power_reference_W"] * series["driven_error_rad"]
         for name, power in powers.items():
             time = seconds
             if self._previous is not None:
@@ -318,25 +386,71 @@ class LightIntegrals:
 
     def figures(self) -> dict:
         """The figures of the rows taken (see :func:`light_figures`)."""
+        energy = self._energy
+        ideal, reference = energy.get("ideal", 0.0), energy.get("reference", 0.0)
+        shared = energy.get("shared", ideal)  # a driven primary shares nothing
         figures: dict[str, Any] = {
-            "light_energy_ideal_J": self._energy.get("ideal", 0.0),
-            "light_energy_reference_J": self._energy.get("reference", 0.0),
+            "light_energy_ideal_J": ideal,
+            "light_energy_reference_J": reference,
+            "light_lost_shared_primary_J": ideal - shared,
+            "light_lost_reference_law_J": shared - reference,
         }
-        figures["light_lost_shared_primary_J"] = figures["light_energy_ideal_J"] - figures["light_energy_reference_J"]
-        if "actual" in self._energy:
-            actual = self._energy["actual"]
-            reference = figures["light_energy_reference_J"]
+        if "actual" in energy:
+            actual = energy["actual"]
             figures["light_energy_J"] = actual
             figures["light_lost_stepping_J"] = reference - actual
             figures["light_lost_stepping_fraction"] = (reference - actual) / reference if reference > 0 else 0.0
-            ideal = figures["light_energy_ideal_J"]
+            figures["light_stepping_change_J"] = actual - reference
+            figures["light_stepping_first_order_J"] = energy.get("first_order", 0.0)
+            figures["light_stepping_first_order_cosine_J"] = energy.get("first_order_cosine", 0.0)
+            weighted = energy.get("error_weighted", 0.0)
+            figures["light_stepping_mean_error_rad"] = weighted / reference if reference > 0 else None
             figures["light_lost_J"] = ideal - actual
             figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
             figures["mean_intercept"] = self._weighted / self._weight if self._weight > 0 else None
             for key, value in self._max_miss.items():
                 figures[f"max_{key}_miss_m"] = value if self._lit else None
         figures["dni_source"] = str(self.scenario.optics.weather_file or "clear sky (Ineichen-Perez, pvlib)")
+        figures["light_notes"] = light_notes(figures, self.scenario.mirror.axis, self.scenario.mirror.mirror_distance)
         return figures
+
+
+def _sign(cosine_term: float, mean_error: float | None) -> str:
+    """The sign of the cosine's mean slope, from its first-order term and the mean error."""
+    if not mean_error or not cosine_term:
+        return "0"
+    return "+" if cosine_term / mean_error > 0 else "-"
+
+
+def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
+    """What the light figures mean, and which are not meaningful (``light_notes`` in summary.json)."""
+    notes = []
+    reference = figures["light_energy_reference_J"]
+    if "light_stepping_change_J" in figures and axis == "secondary":
+        change, first = figures["light_stepping_change_J"], figures["light_stepping_first_order_J"]
+        cosine, mean = figures["light_stepping_first_order_cosine_J"], figures["light_stepping_mean_error_rad"]
+        mean_text = "none: no light" if mean is None else f"{mean:.3g} rad"
+        notes.append(
+            f"light_stepping_change_J = {change:.3g} J (actual - reference; light_lost_stepping_J is its negative)"
+            " is not a loss: the secondary's stepping error moves the image along the tube (no cost where the"
+            " tube runs on past it) and changes the light to first order,"
+            f" light_stepping_first_order_J = {first:.3g} J,"
+            f" of which the cosine's {cosine:.3g} J (the rest the intercept's, where the image is off the tube's"
+            f" axis); its sign is that of the power-weighted mean error ({mean_text}) times that of the"
+            f" cosine's slope d cos / d theta ({_sign(cosine, mean)}), the reference (the secondary's own two-axis"
+            " law, each image aimed at its own cross-section) being no optimum"
+        )
+    if distance == 0.0 and axis == "secondary":
+        notes.append("light_lost_shared_primary_J is exactly 0: the central mirror's primary is the shared one")
+    if axis == "primary":
+        notes.append("light_lost_shared_primary_J is 0: a driven primary shares nothing")
+    law = figures["light_lost_reference_law_J"]
+    if reference > 0 and abs(law) < INTERPOLATION_NOISE * reference:
+        notes.append(
+            f"light_lost_reference_law_J = {law:.3g} J is below the sun grid's interpolation noise"
+            f" ({INTERPOLATION_NOISE:g} of the energy): not meaningful"
+        )
+    return notes
 
 
 def _energy(power: np.ndarray, time: np.ndarray) -> float:
@@ -355,12 +469,20 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario, weather=None
     -------
     dict
         ``light_energy_ideal_J``, ``light_energy_reference_J``, ``light_energy_J`` (actual;
-        absent without the panel-angle column), ``light_lost_stepping_J`` (reference - actual),
-        ``light_lost_stepping_fraction`` (of the reference), ``light_lost_shared_primary_J``
-        (ideal - reference), ``light_lost_J`` and ``light_lost_fraction`` (ideal - actual, and
-        of the ideal: stepping and sharing together), ``mean_intercept`` (actual, power-weighted by the ideal power),
-        ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the sun is up),
-        ``dni_source``. (:class:`LightIntegrals` fed the whole trace as one block.)
+        absent without the panel-angle column) [J]; the parts of ideal - actual (module
+        docstring): ``light_lost_shared_primary_J`` (ideal - shared; exactly 0 at d = 0 and for a
+        driven primary), ``light_lost_reference_law_J`` (shared - reference) and
+        ``light_lost_stepping_J`` (reference - actual, kept for the sweep's table and the CLI),
+        ``light_lost_stepping_fraction`` (of the reference); the stepping signed,
+        ``light_stepping_change_J`` (actual - reference), its first-order term
+        ``light_stepping_first_order_J`` and the cosine's part of it
+        ``light_stepping_first_order_cosine_J`` [J], the driven axis' error averaged over the
+        window weighted by the reference power, ``light_stepping_mean_error_rad`` [rad];
+        ``light_lost_J`` and ``light_lost_fraction`` (ideal - actual, and of the ideal);
+        ``mean_intercept`` (actual, weighted by the ideal power over the rows);
+        ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the sun is up);
+        ``dni_source`` and ``light_notes`` (:func:`light_notes`: the figures' meaning, and which
+        are noise). (:class:`LightIntegrals` fed the whole trace as one block.)
     """
     integrals = LightIntegrals(metadata, scenario, weather)
     integrals(trace)

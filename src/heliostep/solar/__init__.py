@@ -57,7 +57,16 @@ from heliostep.solar.field import (
     sharing_figures,
     solar_noon_sun,
 )
-from heliostep.solar.irradiance import WeatherDNI, clear_sky_dni, dni, read_weather, weather_dni
+from heliostep.solar.irradiance import (
+    WeatherDNI,
+    WeatherFile,
+    WeatherSeries,
+    clear_sky_dni,
+    dni,
+    read_weather,
+    weather_dni,
+    weather_series,
+)
 from heliostep.solar.optics import (
     SUN_HALF_ANGLE,
     beam_spread,
@@ -150,5 +159,8 @@ __all__ = [
     "receiver_miss",
     "reflect",
     "weather_dni",
+    "weather_series",
     "WeatherDNI",
+    "WeatherFile",
+    "WeatherSeries",
 ]

@@ -1,9 +1,35 @@
-"""Direct normal irradiance (DNI) over a window: pvlib's clear sky, or a TMY3/EPW weather file.
+"""Direct normal irradiance (DNI) and wind over a window: pvlib's clear sky, or a TMY3/EPW weather file.
 
 Clear sky: pvlib's Ineichen-Perez model (``Location.get_clearsky(model="ineichen")``) with the
 Linke turbidity climatology shipped inside pvlib (no download). Weather files: pvlib.iotools
-``read_epw`` / ``read_tmy3``; a typical-year file mixes years, so its hourly DNI is matched to
-the window by month, day and hour of the site's standard time and interpolated linearly.
+``read_epw`` / ``read_tmy3``; a typical-year file mixes years, so its hourly values are matched to
+the window by month, day and hour of the file's standard time.
+
+The time convention of the files: a record's irradiance is the energy received during the hour
+*ending* at its stamp (TMY3: Wilcox & Marion, NREL/TP-581-43156 (2008), and pvlib's read_tmy3
+docs, "TMY3 irradiance data corresponds to the *previous* hour"; EPW: pvlib's read_epw docs after
+the EnergyPlus Auxiliary Programs manual, "recv'd during 60 minutes prior to timestamp"), while
+its wind is measured *at* the stamp (both: "at the time indicated"). pvlib keeps the TMY3 stamp
+(24:00 as 00:00 of the next day) but indexes an EPW record of hour h (1 .. 24) at h - 1, the
+hour's *start*; :func:`read_weather` undoes both and indexes every record by the end of its hour.
+
+How heliostep uses the hourly energy: each hour's mean DNI is placed at the middle of its hour
+(stamp - 30 min) and interpolated linearly between the middles. Interpolating it at the stamp, as
+heliostep did before, moves the whole day's light by 30 minutes (later for TMY3, earlier for EPW
+as pvlib indexes it). Mid-interval linear interpolation, rather than a step held over each hour:
+
+- it keeps the day's energy and its centroid in time exactly: the interpolant is a sum of hat
+  functions of area ``mean x 1 h`` centred on the hours' middles, so its integral is the sum of
+  the hours' energies and its first moment the sum of ``middle x energy`` (the hours at the day's
+  ends being 0); for light that varies linearly within each hour that is the true centroid;
+- it is continuous, so a run's window that crosses the change of hour sees no jump of DNI that
+  the file does not contain (a step would put one of up to the hour-to-hour change there);
+- what it does not keep is each single hour's energy: the interpolant's integral over hour i is
+  (E[i-1] + 6 E[i] + E[i+1]) / 8, a smoothing of the hourly series the file cannot resolve anyway.
+
+The wind (instantaneous at the stamps) is interpolated linearly at the stamps: the speed as a
+scalar, the direction through the wind's vector (so 350 deg and 10 deg average to 0 deg, not
+180 deg). :class:`WeatherSeries` carries DNI and wind at the same UTC instants.
 """
 
 from __future__ import annotations
@@ -21,6 +47,12 @@ from heliostep.solar.sun import Site
 
 #: Largest latitude/longitude difference between a weather file's header and the site [deg].
 MAX_SITE_OFFSET = 1.0
+#: Length of a TMY3/EPW record: hourly (TMY3 manual, EPW "number of records per hour" 1).
+RECORD = pd.Timedelta(hours=1)
+#: Where in its record a mean irradiance is placed: the middle of the hour ending at the stamp.
+MID_RECORD = RECORD / 2
+#: Wind speeds outside [0, this) are the files' missing-value codes (EPW 999, TMY3 -9900) [m/s].
+MAX_WIND_SPEED = 999.0
 
 
 def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Series:
@@ -50,36 +82,7 @@ def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Seri
     return sky["dni"].fillna(0.0).clip(lower=0.0).rename("dni")
 
 
-def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Series:
-    """Hourly DNI of a TMY3 (``.csv``) or EPW (``.epw``) file for the site.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-    site : Site
-        The file's header latitude and longitude must be within ``max_offset`` of it.
-    max_offset : float, default MAX_SITE_OFFSET  [deg]
-
-    Returns
-    -------
-    pandas.Series  [W/m^2]
-        Named ``dni``, indexed by the file's timestamps.
-
-    Raises
-    ------
-    InputError
-        Naming the file and the key (``weather_file``, ``latitude``, ``longitude``, ``dni``).
-    """
-    import pvlib
-
-    max_offset = check_positive(max_offset, "max_offset", "deg")
-    path = Path(path)
-    reader = pvlib.iotools.read_epw if path.suffix.lower() == ".epw" else pvlib.iotools.read_tmy3
-    try:
-        kwargs = {} if reader is pvlib.iotools.read_epw else {"map_variables": True}
-        data, meta = reader(str(path), **kwargs)
-    except Exception as exc:
-        raise InputError(f"weather_file {path}: cannot read it as {path.suffix or 'TMY3'} ({exc})") from exc
+def _check_site(path: Path, meta, site: Site, max_offset: float) -> None:
     for key, expected in (("latitude", site.latitude), ("longitude", site.longitude)):
         value = meta.get(key)
         try:
@@ -91,51 +94,166 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Se
                 f"weather_file {path}: {key} {value:g} deg is more than {max_offset:g} deg "
                 f"from the site's {expected:g} deg"
             )
+
+
+def _wind(data: pd.DataFrame, epw: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The file's wind speed [m/s] and direction [deg from north, clockwise], NaN where missing
+    (or, for the direction, undefined: EPW's 0 means calm/undefined, its north is 360)."""
+    n = len(data)
+    speed = (
+        pd.to_numeric(data["wind_speed"], errors="coerce").to_numpy(float)
+        if "wind_speed" in data
+        else np.full(n, np.nan)
+    )
+    speed = np.where((speed >= 0.0) & (speed < MAX_WIND_SPEED), speed, np.nan)
+    if "wind_direction" not in data:
+        return speed, np.full(n, np.nan)
+    direction = pd.to_numeric(data["wind_direction"], errors="coerce").to_numpy(float)
+    low = 0.0 if epw else -1e-9  # EPW: 0 is "undefined, calm" (pvlib's read_epw docs); TMY3: 0 is north
+    return speed, np.where((direction > low) & (direction <= 360.0), direction, np.nan)
+
+
+def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.DataFrame:
+    """Hourly DNI and wind of a TMY3 (``.csv``) or EPW (``.epw``) file for the site, indexed by
+    the end of each record's hour (the module's docstring: the files' time convention).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    site : Site
+        The file's header latitude and longitude must be within ``max_offset`` of it.
+    max_offset : float, default MAX_SITE_OFFSET  [deg]
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by the record's end (the file's stamp, in its standard time): ``dni`` [W/m^2], the
+        mean over the hour ending then; ``wind_speed`` [m/s] and ``wind_direction`` [deg from north,
+        clockwise], measured then (NaN where the file has none or marks them missing).
+
+    Raises
+    ------
+    InputError
+        Naming the file and the key (``weather_file``, ``latitude``, ``longitude``, ``dni``).
+    """
+    import pvlib
+
+    max_offset = check_positive(max_offset, "max_offset", "deg")
+    path = Path(path)
+    epw = path.suffix.lower() == ".epw"
+    try:
+        data, meta = (
+            pvlib.iotools.read_epw(str(path)) if epw else pvlib.iotools.read_tmy3(str(path), map_variables=True)
+        )
+    except Exception as exc:
+        raise InputError(f"weather_file {path}: cannot read it as {path.suffix or 'TMY3'} ({exc})") from exc
+    _check_site(path, meta, site, max_offset)
     column = "dni" if "dni" in data else "DNI" if "DNI" in data else None
     if column is None:
         raise InputError(f"weather_file {path}: no dni column")
     dni = pd.to_numeric(data[column], errors="coerce")
     if dni.isna().any() or (dni < 0).any():
         raise InputError(f"weather_file {path}: dni has missing or negative values")
-    return dni.rename("dni")
+    # pvlib indexes an EPW record of hour h at h - 1 (its start), a TMY3 record at its stamp (its end)
+    end = data.index + RECORD if epw else data.index
+    speed, direction = _wind(data, epw)
+    return pd.DataFrame({"dni": dni.to_numpy(float), "wind_speed": speed, "wind_direction": direction}, index=end)
+
+
+def _hour_key(stamps: pd.DatetimeIndex) -> np.ndarray:
+    """A typical year's key of whole-hour stamps: (month * 100 + day) * 100 + hour (the year ignored)."""
+    return np.asarray((stamps.month * 100 + stamps.day) * 100 + stamps.hour)
 
 
 @dataclass(frozen=True)
-class WeatherDNI:
-    """A typical-year weather file's hourly DNI, read once (:meth:`read`), evaluated at any
-    times of the year (:meth:`at`): matched by month, day and hour of the file's standard time
-    and interpolated linearly."""
+class WeatherSeries:
+    """DNI and wind at the same instants, on a UTC index.
+
+    ``dni`` [W/m^2]; ``wind_speed`` [m/s] and ``wind_direction`` [deg, the direction the wind
+    blows from, clockwise from north], None when the source has no wind (clear sky), NaN where the
+    file marks them missing.
+    """
+
+    dni: pd.Series
+    wind_speed: pd.Series | None = None
+    wind_direction: pd.Series | None = None
+
+    @property
+    def index(self) -> pd.DatetimeIndex:
+        """The instants (UTC)."""
+        return pd.DatetimeIndex(self.dni.index)
+
+
+@dataclass(frozen=True)
+class WeatherFile:
+    """A typical-year weather file read once (:meth:`read`) and evaluated at any times of the
+    year: DNI (:meth:`at`) and DNI with the wind (:meth:`series`), matched by month, day and hour
+    of the file's standard time. The hours' mean DNI is placed at the middle of each hour and the
+    instantaneous wind at the stamps, each interpolated linearly (the module's docstring: why)."""
 
     path: Path
-    table: pd.Series  # DNI [W/m^2] by (month * 100 + day) * 100 + hour
+    table: pd.Series  # mean DNI [W/m^2] of the hour starting at the key, placed at key + 30 min
     timezone: object  # the file's timezone (None: naive local time)
+    wind: pd.DataFrame | None = None  # wind_speed [m/s], its components wind_u, wind_v [m/s] at the key
 
     @classmethod
-    def read(cls, path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> WeatherDNI:
-        """The file's DNI (:func:`read_weather`: raises InputError naming file and key)."""
+    def read(cls, path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> WeatherFile:
+        """The file's DNI and wind (:func:`read_weather`: raises InputError naming file and key)."""
         hourly = read_weather(path, site, max_offset)
-        stamps = hourly.index
-        hour_key = (stamps.month * 100 + stamps.day) * 100 + stamps.hour  # typical year: ignore the year
-        table = pd.Series(hourly.to_numpy(), index=hour_key).groupby(level=0).mean()
-        return cls(Path(path), table, stamps.tz)
+        end = pd.DatetimeIndex(hourly.index)
+        # the hour's mean at its middle, end - 30 min: keyed by the hour it starts, end - 1 h
+        table = pd.Series(hourly["dni"].to_numpy(), index=_hour_key(end - RECORD)).groupby(level=0).mean()
+        rad = np.radians(hourly["wind_direction"].to_numpy())
+        speed = hourly["wind_speed"].to_numpy()
+        wind = pd.DataFrame(
+            {"wind_speed": speed, "wind_u": speed * np.sin(rad), "wind_v": speed * np.cos(rad)}, index=_hour_key(end)
+        )
+        return cls(Path(path), table.rename("dni"), end.tz, wind.groupby(level=0).mean())
 
-    def at(self, times) -> pd.Series:
-        """DNI [W/m^2] at ``times`` (timezone-aware), named ``dni``; InputError (key ``window``)
-        when the file does not cover them."""
+    def _interpolate(self, times, table: pd.DataFrame, shift: pd.Timedelta, name: str) -> dict[str, np.ndarray]:
+        """``table``'s columns at ``times``, linear between its points, at key + ``shift``."""
         times = check_times(times)
         local = times.tz_convert(self.timezone) if self.timezone is not None else times.tz_localize(None)
+        local = local - shift
         floor = local.floor("h")
-        fraction = ((local - floor) / pd.Timedelta(hours=1)).to_numpy()
-        values = []
-        for stamp in (floor, floor + pd.Timedelta(hours=1)):
-            key = (stamp.month * 100 + stamp.day) * 100 + stamp.hour
-            values.append(self.table.reindex(key).to_numpy())
-        if np.isnan(values[0]).any() or np.isnan(values[1][fraction > 0]).any():
+        fraction = ((local - floor) / RECORD).to_numpy()
+        keys = [_hour_key(floor), _hour_key(floor + RECORD)]
+        if not np.isin(keys[0], table.index).all() or not np.isin(keys[1][fraction > 0], table.index).all():
             raise InputError(
-                f"weather_file {self.path}: does not cover the window {times[0]} - {times[-1]} (key: window)"
+                f"weather_file {self.path}: does not cover the window {times[0]} - {times[-1]} (key: window; {name})"
             )
-        low, high = values[0], np.where(fraction > 0, values[1], values[0])
-        return pd.Series(low + fraction * (high - low), index=times, name="dni")
+        out = {}
+        for column in table.columns:
+            low, high = (table[column].reindex(key).to_numpy() for key in keys)
+            out[column] = low + fraction * (np.where(fraction > 0, high, low) - low)
+        return out
+
+    def at(self, times) -> pd.Series:
+        """DNI [W/m^2] at ``times`` (timezone-aware), named ``dni``: each hour's mean at the
+        middle of its hour, interpolated linearly; InputError (key ``window``) when the file does
+        not cover them."""
+        values = self._interpolate(times, self.table.to_frame(), MID_RECORD, "dni")["dni"]
+        return pd.Series(values, index=check_times(times), name="dni")
+
+    def series(self, times) -> WeatherSeries:
+        """DNI (:meth:`at`) and the wind at ``times``, on their UTC index; InputError (key
+        ``window``) when the file does not cover them."""
+        times = check_times(times)
+        utc = times.tz_convert("UTC")
+        if self.wind is None:
+            return WeatherSeries(dni=pd.Series(self.at(times).to_numpy(), index=utc, name="dni"))
+        wind = self._interpolate(times, self.wind, pd.Timedelta(0), "wind")
+        direction = np.degrees(np.arctan2(wind["wind_u"], wind["wind_v"])) % 360.0
+        direction = np.where(np.hypot(wind["wind_u"], wind["wind_v"]) > 0.0, direction, np.nan)
+        return WeatherSeries(
+            dni=pd.Series(self.at(times).to_numpy(), index=utc, name="dni"),
+            wind_speed=pd.Series(wind["wind_speed"], index=utc, name="wind_speed"),
+            wind_direction=pd.Series(direction, index=utc, name="wind_direction"),
+        )
+
+
+#: The earlier name of :class:`WeatherFile` (it read only the DNI).
+WeatherDNI = WeatherFile
 
 
 def weather_dni(times, site: Site, path, max_offset: float = MAX_SITE_OFFSET) -> pd.Series:
@@ -152,13 +270,13 @@ def weather_dni(times, site: Site, path, max_offset: float = MAX_SITE_OFFSET) ->
     Returns
     -------
     pandas.Series  [W/m^2]
-        Named ``dni``, indexed by ``times`` (:meth:`WeatherDNI.at` of the file read once).
+        Named ``dni``, indexed by ``times`` (:meth:`WeatherFile.at` of the file read once).
     """
-    return WeatherDNI.read(path, site, max_offset).at(times)
+    return WeatherFile.read(path, site, max_offset).at(times)
 
 
 def dni(times, site: Site, weather_file=None, sun: pd.DataFrame | None = None) -> pd.Series:
-    """DNI over a window: clear sky unless a weather file (a path, or a :class:`WeatherDNI`
+    """DNI over a window: clear sky unless a weather file (a path, or a :class:`WeatherFile`
     already read) is given; ``sun``: see :func:`clear_sky_dni`.
 
     Returns
@@ -167,6 +285,16 @@ def dni(times, site: Site, weather_file=None, sun: pd.DataFrame | None = None) -
     """
     if weather_file is None:
         return clear_sky_dni(times, site, sun)
-    if isinstance(weather_file, WeatherDNI):
+    if isinstance(weather_file, WeatherFile):
         return weather_file.at(times)
     return weather_dni(times, site, weather_file)
+
+
+def weather_series(times, site: Site, weather_file=None, sun: pd.DataFrame | None = None) -> WeatherSeries:
+    """DNI and wind over a window (UTC index): a weather file's (a path or a :class:`WeatherFile`),
+    or the clear sky's DNI with no wind (``wind_speed`` and ``wind_direction`` None)."""
+    if weather_file is None:
+        times = check_times(times)
+        return WeatherSeries(dni=clear_sky_dni(times, site, sun).set_axis(times.tz_convert("UTC")))
+    weather = weather_file if isinstance(weather_file, WeatherFile) else WeatherFile.read(weather_file, site)
+    return weather.series(times)
