@@ -6,7 +6,8 @@ law, the primary shared) and for the actual panel, on an axis zoomed to the powe
 where curves that differ by parts in 10^7, as the central mirror's do, draw as one line). The
 differences get panels of their own [W]: what sharing the primary loses (ideal - shared) with the
 reference law's part (shared - reference), and the stepping's change (actual - reference,
-signed: a first-order term, not a loss) with its first-order estimate. The legends give each energy [kJ, or J below 1 kJ].
+signed: a first-order term, not a loss) with its first-order estimate. The legends give each
+energy [kJ, or J below 1 kJ].
 :func:`plot_light_run` computes the series from a run and writes ``POWER_FILE``.
 """
 
