@@ -9,7 +9,7 @@ from pvlib.location import Location
 from scipy.special import erf
 
 from heliostep.errors import InputError
-from heliostep.results.light import light_figures, light_timeseries
+from heliostep.results.light import light_figures, light_notes, light_timeseries
 from heliostep.scenario import validate_scenario
 from heliostep.solar.tracking import panel_angle_reference
 
@@ -122,8 +122,9 @@ def test_secondary_stepping_changes_the_light_by_its_first_order_term(distance):
 
     The change dE(delta) = a delta + b delta^2 + O(delta^3): its odd part (dE(+delta) - dE(-delta)) / 2
     is the first-order term (to O(delta^3)), and doubling delta doubles the odd part and
-    quadruples the even part. At d = 0 (the image centred on the tube) it is all the cosine's."""
-    scenario = _scenario(distance)
+    quadruples the even part. At d = 0 it is all the cosine's for a point mirror (its image centred
+    on the tube, where the intercept is flat); a finite two-axis mirror's sheared image is not."""
+    scenario = _scenario(distance, **POINT)
     delta = np.radians(0.006)  # the measured stepping error of the secondary
     change = {}
     for k in (1, -1, 2, -2):
@@ -254,10 +255,12 @@ def test_the_mean_stepping_error_is_a_time_average_not_a_row_average():
 
 
 def test_a_mirror_that_gets_no_light_has_figures_and_notes():
-    # the outer West mirror with the shared primary misses the tube at 10:00 (docs/light.md): no
-    # reference light, so no mean error to weight; the figures and their notes still come out
-    scenario = _scenario(-3.6)
+    # a point mirror at the outer West place with the shared primary misses the tube at 10:00: its
+    # reference light is the sun's Gaussian tail only; the figures and their notes still come out
+    scenario = _scenario(-3.6, **POINT)
     figures = light_figures(*_trace(scenario, offset=1e-4)[:2], scenario)
     assert figures["light_energy_reference_J"] < 1e-6 * figures["light_energy_ideal_J"]
-    assert figures["light_stepping_mean_error_rad"] is None
-    assert any("no light" in note for note in figures["light_notes"])
+    assert any("not a loss" in note for note in figures["light_notes"])
+    # with no reference light at all there is no mean error to weight: the note says so
+    dark = {**figures, "light_energy_reference_J": 0.0, "light_stepping_mean_error_rad": None}
+    assert any("none: no light" in note for note in light_notes(dark, "secondary", -3.6))

@@ -162,7 +162,7 @@ def _report(result: RunResult, out_dir: Path) -> str:
         ("idle_holding_margin", "idle holding / wind moment", "{:.2f}"),
         ("light_energy_J", "light on the tube [J]", "{:.4g}"),
         ("light_energy_ideal_J", "  with ideal tracking [J]", "{:.4g}"),
-        ("light_lost_stepping_J", "  lost to stepping [J]", "{:.3g}"),
+        ("light_stepping_change_J", "  change from stepping [J]", "{:+.3g}"),
         ("light_lost_shared_primary_J", "  lost to the shared primary [J]", "{:.3g}"),
         ("mean_intercept", "mean intercept factor", "{:.3f}"),
     ):

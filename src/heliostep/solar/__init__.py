@@ -39,10 +39,12 @@ Frames and conventions
 Modules: :mod:`~heliostep.solar.sun` (site, plant, SPA), :mod:`~heliostep.solar.tracking`
 (tracking laws, reference panel angle), :mod:`~heliostep.solar.transmission` (rotor <-> panel),
 :mod:`~heliostep.solar.field` (the end mirrors' field, shared primary),
-:mod:`~heliostep.solar.optics` (reflected ray, miss, cosine and intercept factors),
-:mod:`~heliostep.solar.irradiance` (DNI: pvlib clear sky or a TMY3/EPW file),
-:mod:`~heliostep.solar.endloss` (lit length and energy on the tube of a plant, single-axis vs
-two-axis end mirrors, per instant, day and year), and
+:mod:`~heliostep.solar.optics` (reflected ray, miss, cosine factor, the point mirror's intercept),
+:mod:`~heliostep.solar.intercept` (a finite flat or curved mirror's image on the absorber or a
+secondary concentrator), :mod:`~heliostep.solar.shading` (shading and blocking between
+neighbouring mirrors), :mod:`~heliostep.solar.irradiance` (DNI and wind: pvlib clear sky or a
+TMY3/EPW file, hour-ending records), :mod:`~heliostep.solar.endloss` (lit length and energy on the
+tube of a plant, single-axis vs two-axis end mirrors, per instant, day and year), and
 :mod:`~heliostep.solar.checks`. This package imports nothing of heliostep but
 :mod:`heliostep.errors`.
 """
