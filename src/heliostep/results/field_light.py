@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.errors import InputError
-from heliostep.results.light import _weather_path, attitude_light
+from heliostep.results.light import attitude_light, read_weather_file
 from heliostep.solar import DEFAULT_MIRROR_SPACING, N_FIELD_MIRRORS, field_distances, irradiance, sharing_errors
 from heliostep.solar.sun import solar_position, sun_vector
 from heliostep.solar.tracking import two_axis_angles
@@ -63,8 +63,7 @@ def field_light_days(scenario, days=None, step_minutes: float = 10.0, mirror_ind
     if not step_minutes > 0:
         raise InputError(f"step_minutes {step_minutes!r}: expected > 0 [min]")
     distances = field_distances(N_FIELD_MIRRORS, scenario.mirror.spacing or DEFAULT_MIRROR_SPACING)[indices]
-    path = _weather_path(scenario)
-    weather = None if path is None else irradiance.WeatherFile.read(path, scenario.site.to_site())
+    weather = read_weather_file(scenario)  # the whole year: no window to check
     rows = []
     for day in chosen:
         date = dt.date(year, 1, 1) + dt.timedelta(days=day - 1)

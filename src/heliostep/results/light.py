@@ -85,6 +85,14 @@ def _weather_path(scenario):
     return path if path.is_absolute() or folder is None else Path(folder) / path
 
 
+def read_weather_file(scenario) -> irradiance.WeatherFile | None:
+    """A scenario's weather file (its path relative to the scenario's folder) read and checked for its
+    site, or None for clear sky; an InputError names the file and key (:func:`load_weather` also
+    checks it covers the window)."""
+    path = _weather_path(scenario)
+    return None if path is None else irradiance.WeatherFile.read(path, scenario.site.to_site())
+
+
 def load_weather(scenario) -> irradiance.WeatherFile | None:
     """A scenario's weather file, read once and checked for its window, before simulating
     (None for clear sky); the run passes it on to the light figures. It carries the file's wind
@@ -97,10 +105,9 @@ def load_weather(scenario) -> irradiance.WeatherFile | None:
         ``window``) when the file cannot be read, is for another site, or does not cover the
         window (:mod:`heliostep.solar.irradiance`).
     """
-    path = _weather_path(scenario)
-    if path is None:
+    weather = read_weather_file(scenario)
+    if weather is None:
         return None
-    weather = irradiance.WeatherFile.read(path, scenario.site.to_site())
     start, end = scenario.window_bounds()
     seconds = np.append(np.arange(0.0, (end - start).total_seconds(), 1800.0), (end - start).total_seconds())
     weather.at(start + pd.to_timedelta(seconds, unit="s"))  # covers the window, or InputError
