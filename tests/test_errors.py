@@ -69,3 +69,18 @@ def _parser_with(func):
         return parser
 
     return make_parser
+
+
+def test_nothing_raises_the_bare_base_class():
+    # a bare HeliostepError would be in neither family (the CLI then falls back to exit 2)
+    import ast
+    from pathlib import Path
+
+    offenders = []
+    for path in Path(heliostep.__file__).parent.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Raise) and node.exc is not None:
+                call = node.exc.func if isinstance(node.exc, ast.Call) else node.exc
+                if isinstance(call, ast.Name) and call.id == "HeliostepError":
+                    offenders.append(f"{path.name}:{node.lineno}")
+    assert not offenders, offenders

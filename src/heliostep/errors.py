@@ -7,7 +7,7 @@
   an FMU, the solver). The command line reports it as one line on stderr and exits with status 1.
 
 Both derive from :class:`HeliostepError`, which nothing raises itself (``tests/test_errors.py``
-checks that every error class in the package belongs to one family).
+checks that every error class belongs to exactly one family and that no module raises the base).
 """
 
 
