@@ -45,14 +45,19 @@ def rectangle(normal):
     return r_y @ r_x  # columns: width axis, length axis, normal
 
 
-def trace(sun, normals, centres, target, width, length, h, rng):
+def trace(sun, normals, centres, target, width, length, h, rng, focal_length=None):
     """Fractions of mirror ``target``'s area whose sun ray is stopped by another mirror (shaded), whose
-    reflected ray is (blocked), and either (lost)."""
+    reflected ray is (blocked), and either (lost). ``focal_length``: the target curved about its long axis
+    (a parabolic cylinder z = u^2 / (4 f): the local normal tilts by atan(u / (2 f)) across its width;
+    its sag, w^2 / (16 f), a few mm, neglected); None: flat."""
     frames = np.array([rectangle(n) for n in normals])  # (K, 3, 3)
     uv = rng.uniform(-0.5, 0.5, size=(M_POINTS, 2)) * np.array([width, min(length, 2.0)])
     points = centres[target] + uv[:, :1] * frames[target][:, 0] + uv[:, 1:] * frames[target][:, 1]
-    n_t = frames[target][:, 2]
-    reflected = 2 * (sun @ n_t) * n_t - sun  # law of reflection, the ray going up toward the tube
+    n_t = np.broadcast_to(frames[target][:, 2], points.shape)
+    if focal_length is not None:
+        n_t = n_t - (uv[:, :1] / (2 * focal_length)) * frames[target][:, 0]  # the surface's slope du / (2 f)
+        n_t = n_t / np.linalg.norm(n_t, axis=1, keepdims=True)
+    reflected = 2 * (n_t @ sun)[:, None] * n_t - sun  # law of reflection, the ray going up toward the tube
     stopped = []
     for direction in (sun, reflected):
         hit = np.zeros(M_POINTS, dtype=bool)
@@ -64,7 +69,7 @@ def trace(sun, normals, centres, target, width, length, h, rng):
                 t = ((centres[k] - points) @ n_k) / (direction @ n_k)
             at = points + t[:, None] * direction - centres[k]
             inside = (np.abs(at @ u_k) <= width / 2) & (np.abs(at @ v_k) <= length / 2)
-            below_tube = (points[:, 2] + t * direction[2]) < h
+            below_tube = (points[:, 2] + t * direction[..., 2]) < h
             hit |= (t > 0) & inside & below_tube
         stopped.append(hit)
     return stopped[0].mean(), stopped[1].mean(), (stopped[0] | stopped[1]).mean()

@@ -35,6 +35,12 @@ def register(subparsers) -> argparse.ArgumentParser:
     )
     parser.add_argument("--days", type=int, nargs="+", help="days of the year (default all)")
     parser.add_argument("--step-minutes", type=float, default=10.0, help="[min] time step (default 10)")
+    parser.add_argument(
+        "--no-shading", action="store_true", help="no shading or blocking between the field's mirrors (the old model)"
+    )
+    parser.add_argument(
+        "--shading-step-minutes", type=float, default=30.0, help="[min] time step of shading and blocking (default 30)"
+    )
     parser.add_argument("--out", type=Path, help="output folder (default out/<scenario name>-field-light)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNGs")
     parser.set_defaults(func=_field_light_command)
@@ -43,7 +49,13 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def _field_light_command(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, args.overrides)
-    table = field_light_days(scenario, days=args.days, step_minutes=args.step_minutes)
+    table = field_light_days(
+        scenario,
+        days=args.days,
+        step_minutes=args.step_minutes,
+        shading=not args.no_shading,
+        shading_step_minutes=args.shading_step_minutes,
+    )
     out = args.out or Path("out") / f"{scenario.name}-field-light"
     out.mkdir(parents=True, exist_ok=True)
     table.to_csv(out / "field_light_days.csv", index=False, float_format="%.6g")
@@ -62,19 +74,30 @@ def _field_light_command(args: argparse.Namespace) -> int:
         ):
             path = plot_heatmap(table, column, out / name, label, scale)
             written += [path] if path else []
-    year = table.groupby("mirror_index")[["mirror_distance_m", "light_energy_ideal_J", "light_energy_J"]].agg(
-        {"mirror_distance_m": "first", "light_energy_ideal_J": "sum", "light_energy_J": "sum"}
-    )
-    print(
-        f"{scenario.name}: {table['day_of_year'].nunique()} days of {scenario.window.date.year}, "
-        f"energy on the tube [MJ], ideal two-axis tracking vs the shared primary"
-    )
-    for index, row in year.iterrows():
-        lost = 1 - row["light_energy_J"] / row["light_energy_ideal_J"] if row["light_energy_ideal_J"] > 0 else 0.0
-        print(
-            f"  mirror {index:2d} (d = {row['mirror_distance_m']:+.2f} m): {row['light_energy_ideal_J'] / 1e6:9.1f} "
-            f"ideal, {row['light_energy_J'] / 1e6:9.1f} shared primary ({100 * lost:5.1f} % lost)"
-        )
+    _print_year(scenario, table, shading=not args.no_shading)
     for path in written:
         print(f"  wrote {path}")
     return 0
+
+
+def _print_year(scenario, table, shading: bool) -> None:
+    """Each mirror's total over the days, and the field's."""
+    columns = ["light_energy_ideal_J", "light_energy_J", "shading_lost_ideal_J"]
+    year = table.groupby("mirror_index")[["mirror_distance_m", *columns]].agg(
+        {"mirror_distance_m": "first", **{column: "sum" for column in columns}}
+    )
+    print(
+        f"{scenario.name}: {table['day_of_year'].nunique()} days of {scenario.window.date.year}, "
+        f"energy on the tube [MJ], ideal two-axis tracking vs the shared primary, "
+        + ("with shading and blocking between the mirrors" if shading else "no shading or blocking (--no-shading)")
+    )
+    rows = list(year.iterrows()) + [("all", year[columns].sum())]
+    for index, row in rows:
+        ideal, shared, shaded = (row[column] for column in columns)
+        lost = 1 - shared / ideal if ideal > 0 else 0.0
+        label = f"mirror {index:2d} (d = {row['mirror_distance_m']:+.2f} m)" if index != "all" else "the field      "
+        hidden = (
+            f", shading and blocking {100 * shaded / (ideal + shaded):4.1f} %" if shading and ideal + shaded > 0 else ""
+        )
+        energies = f"{ideal / 1e6:9.1f} ideal, {shared / 1e6:9.1f} shared primary"
+        print(f"  {label}: {energies} ({100 * lost:5.1f} % lost{hidden})")

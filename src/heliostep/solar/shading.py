@@ -329,6 +329,12 @@ def _covered(u, v, half_w: float, half_l: float) -> np.ndarray:
         -1,
     )
     edges = np.sort(np.where(np.isfinite(edges), edges, half_w), axis=-1)
+    # corners off the mirror clip to its sides: drop the repeated edges (zero-width slabs), the distinct first
+    distinct = np.concatenate([np.ones((len(edges), 1), bool), np.diff(edges, axis=-1) > 0], -1)
+    order = np.argsort(~distinct, axis=-1, kind="stable")[:, : max(int(distinct.sum(-1).max()), 2)]
+    edges = np.where(
+        np.take_along_axis(distinct, order, -1), np.take_along_axis(edges, order, -1), half_w
+    )  # sorted, then half_w: the padding's slabs have zero width
     steps = np.arange(SUB_SLABS) / SUB_SLABS  # each slab cut in SUB_SLABS: the midpoint rule where edges cross
     edges = np.concatenate(
         [(edges[:, :-1, None] + np.diff(edges)[:, :, None] * steps).reshape(len(edges), -1), edges[:, -1:]], -1
