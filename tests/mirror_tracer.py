@@ -45,11 +45,26 @@ def rectangle(normal):
     return r_y @ r_x  # columns: width axis, length axis, normal
 
 
-def trace(sun, normals, centres, target, width, length, h, rng, focal_length=None):
+def receiver_hit(points, direction, h, radius):
+    """Whether each ray points + lambda direction (lambda > 0) passes within ``radius`` of the receiver's axis,
+    the line (0, y, h) along y: the closest approach of two lines in 3-D (the parameters that make the
+    connecting segment perpendicular to both)."""
+    w0 = points - np.array([0.0, 0.0, h])
+    axis = np.array([0.0, 1.0, 0.0])
+    b, d, e = direction @ axis, np.sum(w0 * direction, axis=1), w0 @ axis
+    denominator = 1.0 - b * b  # |direction| = |axis| = 1
+    lam = (b * e - d) / denominator
+    mu = (e - b * d) / denominator
+    gap = w0 + lam[:, None] * direction - mu[:, None] * axis
+    return (lam > 0) & (np.linalg.norm(gap, axis=1) <= radius)
+
+
+def trace(sun, normals, centres, target, width, length, h, rng, focal_length=None, receiver_radius=None):
     """Fractions of mirror ``target``'s area whose sun ray is stopped by another mirror (shaded), whose
     reflected ray is (blocked), and either (lost). ``focal_length``: the target curved about its long axis
     (a parabolic cylinder z = u^2 / (4 f): the local normal tilts by atan(u / (2 f)) across its width;
-    its sag, w^2 / (16 f), a few mm, neglected); None: flat."""
+    its sag, w^2 / (16 f), a few mm, neglected); None: flat. ``receiver_radius``: the receiver, a cylinder
+    of that radius about (0, y, h), stops sun rays too (its own shadow); None: it casts none."""
     frames = np.array([rectangle(n) for n in normals])  # (K, 3, 3)
     uv = rng.uniform(-0.5, 0.5, size=(M_POINTS, 2)) * np.array([width, min(length, 2.0)])
     points = centres[target] + uv[:, :1] * frames[target][:, 0] + uv[:, 1:] * frames[target][:, 1]
@@ -71,6 +86,8 @@ def trace(sun, normals, centres, target, width, length, h, rng, focal_length=Non
             inside = (np.abs(at @ u_k) <= width / 2) & (np.abs(at @ v_k) <= length / 2)
             below_tube = (points[:, 2] + t * direction[..., 2]) < h
             hit |= (t > 0) & inside & below_tube
+        if receiver_radius is not None and direction is sun:
+            hit |= receiver_hit(points, np.broadcast_to(sun, points.shape), h, receiver_radius)
         stopped.append(hit)
     return stopped[0].mean(), stopped[1].mean(), (stopped[0] | stopped[1]).mean()
 

@@ -55,8 +55,12 @@ def _expected_day(scenario, day: int, distance: float, step_minutes: float = 10.
     chain = o.reflectivity * o.transmittance * o.absorptance
     seconds = (times - start).total_seconds().to_numpy()
     energies = []
+    from mirror_tracer import receiver_hit
+
+    # the point mirror is wholly in the tube's shadow when its sun ray passes within D/2 of the tube's axis
+    lit = ~receiver_hit(np.tile([distance, 0.0, 0.0], (len(s), 1)), s, h, o.tube_diameter / 2)
     for n in (own, shared):
-        cosine = np.sum(s * n, axis=1)
+        cosine = np.sum(s * n, axis=1) * lit
         ray = 2 * cosine[:, None] * n - s  # law of reflection
         across = np.hypot(ray[:, 0], ray[:, 2])
         miss = (-distance * ray[:, 2] - h * ray[:, 0]) / across
@@ -78,8 +82,9 @@ def test_field_light_per_day_and_mirror_against_ray_geometry():
     rows = table.set_index(["day_of_year", "mirror_index"])
     for day in (21, 172):
         assert rows.loc[(day, 6), "light_lost_J"] == 0.0  # the central mirror's primary is the shared one
-        # East and West outer mirrors lose alike over a day calibrated at its noon
-        assert rows.loc[(day, 12), "light_lost_J"] == pytest.approx(rows.loc[(day, 0), "light_lost_J"], rel=0.01)
+        # East and West outer mirrors lose alike over a day calibrated at its noon (to 5 %: the point mirror is
+        # wholly in the tube's shadow or not, for a few minutes that the 10-min grid samples unevenly)
+        assert rows.loc[(day, 12), "light_lost_J"] == pytest.approx(rows.loc[(day, 0), "light_lost_J"], rel=0.05)
         for index, distance in ((9, 1.8), (12, 3.6)):
             ideal, shared = _expected_day(scenario, day, distance)
             assert rows.loc[(day, index), "mirror_distance_m"] == pytest.approx(distance)
@@ -115,7 +120,7 @@ def test_field_light_command_writes_the_table_and_heat_maps(tmp_path, capsys):
 
 # --------------------------------------------------------------------------- shading and blocking in the field
 FIELD_H, FIELD_W, FIELD_L, FIELD_SPACING = 3.0, 0.3, 1.5, 0.6  # jan21-central: Table 2's panel, h = 3 m
-FIELD_INSTANTS = ["2025-01-21 09:00", "2025-01-21 12:30", "2025-06-21 07:30", "2025-06-21 16:00"]
+FIELD_INSTANTS = ["2025-01-21 09:00", "2025-01-21 12:14", "2025-06-21 07:30", "2025-06-21 16:00"]
 
 
 def _field_normals(times):
@@ -161,10 +166,13 @@ def test_field_shading_and_blocking_match_the_ray_tracer():
         when = pd.DatetimeIndex([pd.Timestamp(stamp, tz="Europe/Rome")])
         sun, ideal, shared = _field_normals(when)
         light = field_light_instants(scenario, when, when[0].date())
+        if stamp.endswith("12:14"):  # solar noon: the tube's shadow lies on the central mirror
+            assert light["unhidden_ideal"][0, 6] < 1 - 0.07 / 0.3 + 0.05
         for key, normals, rows in (("shared", shared, (0, 3, 6, 9, 12)), ("ideal", ideal, (0, 6))):
             for i in rows:
                 target = (len(ys) // 2) * 13 + i
-                lost = trace(sun[0], np.tile(normals[0], (len(ys), 1)), grid, target, FIELD_W, FIELD_L, FIELD_H, rng)[2]
+                tiled = np.tile(normals[0], (len(ys), 1))
+                lost = trace(sun[0], tiled, grid, target, FIELD_W, FIELD_L, FIELD_H, rng, receiver_radius=0.035)[2]
                 assert light[f"unhidden_{key}"][0, i] == pytest.approx(1.0 - lost, abs=0.02), (stamp, key, i)
                 power = light[f"power_{key}_unshaded_W"][0, i] * (1.0 - lost)
                 assert light[f"power_{key}_W"][0, i] == pytest.approx(power, rel=0.03, abs=1.0)

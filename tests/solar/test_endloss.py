@@ -247,6 +247,22 @@ def test_noon_gain_on_21_december_from_the_ray_tracer_losses():
 def test_the_shading_step_moves_the_gain_by_less_than_0_05_points():
     # the losses every 30 min, interpolated, against every 5-min instant: the two solstices
     args = (SITE, 2025, 100.0, H, ROWS, 0.6, 12.31, 0.646)
-    exact = end_loss_days(*args, days=[172, 355], step_minutes=5, shading_step_minutes=5)
-    coarse = end_loss_days(*args, days=[172, 355], step_minutes=5, shading_step_minutes=30)
+    tube = {"receiver_width": 0.07}  # the command's default: the tube's shadow at every instant in both
+    exact = end_loss_days(*args, days=[172, 355], step_minutes=5, shading_step_minutes=5, **tube)
+    coarse = end_loss_days(*args, days=[172, 355], step_minutes=5, shading_step_minutes=30, **tube)
     assert np.abs(coarse["gain"] - exact["gain"]).max() < 5e-4
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_the_tubes_shadow_takes_d_over_w_of_the_central_row_at_noon():
+    # 21 December at solar noon the central single-axis row lies flat under the tube (the sun in the
+    # cross-section at the zenith, S_x = 0 at the transit): the tube's shadow hides D / w of it, on top of
+    # what the neighbours hide (their shadows fall on its edges, the tube's at its middle)
+    elevation, azimuth = _noon()
+    plant = (100.0, H, ROWS, 0.6, 12.31, 0.646)
+    bare = end_loss_power(elevation, azimuth, [900.0], *plant)
+    tube = end_loss_power(elevation, azimuth, [900.0], *plant, receiver_width=0.07)
+    central = len(ROWS) // 2
+    assert tube["lost_single"][0, central] - bare["lost_single"][0, central] == pytest.approx(0.07 / 0.6, abs=2e-3)
+    assert tube["power_single_W"][0] < bare["power_single_W"][0]
+    assert cli.main(["end-loss", "--days", "355", "--receiver-width", "-1", "--out", "unused"]) == 2

@@ -12,7 +12,8 @@ mirrors ``--spacing`` apart (``--mirror-width`` wide), clear sky (pvlib Ineichen
 * ``end_loss_year.png``: the same over the year;
 
 with shading and blocking between neighbouring rows (and, for the two-axis end mirrors of
-``--mirror-length``, along the row) unless ``--no-shading``;
+``--mirror-length``, along the row) and the receiver's own shadow (``--receiver-width``) unless
+``--no-shading``;
 
 and prints the year's totals and the 21 December figures (:mod:`heliostep.solar.endloss`).
 """
@@ -69,6 +70,13 @@ def register(subparsers) -> argparse.ArgumentParser:
         default=30.0,
         help="[min] step of the shading and blocking losses, interpolated between (default 30)",
     )
+    parser.add_argument(
+        "--receiver-width",
+        type=float,
+        default=0.07,
+        help="[m] of the receiver across, its own shadow on the rows (default 0.07, the scenarios' bare 70 mm "
+        "absorber; a secondary's aperture width with one; 0: no receiver shadow)",
+    )
     parser.add_argument("--reflectivity", type=float, default=0.80, help="rho (default 0.80, seed 004)")
     parser.add_argument("--transmittance", type=float, default=0.85, help="tau (default 0.85)")
     parser.add_argument("--absorptance", type=float, default=0.95, help="alpha (default 0.95)")
@@ -85,6 +93,8 @@ def _end_loss_command(args: argparse.Namespace) -> int:
     width = args.spacing if args.mirror_width is None else args.mirror_width
     if not (args.mirror_length > 0 and args.shading_step_minutes > 0):
         raise InputError("--mirror-length and --shading-step-minutes: expected > 0 [m], [min]")
+    if not args.receiver_width >= 0:
+        raise InputError(f"--receiver-width {args.receiver_width!r}: expected >= 0 [m] (0: no receiver shadow)")
     efficiency = optical_chain(args.reflectivity, args.transmittance, args.absorptance)
     end = args.end_length
     if end is None:
@@ -105,6 +115,7 @@ def _end_loss_command(args: argparse.Namespace) -> int:
         mirror_length=args.mirror_length,
         shading=not args.no_shading,
         shading_step_minutes=args.shading_step_minutes,
+        receiver_width=args.receiver_width or None,
     )
     args.out.mkdir(parents=True, exist_ok=True)
     days.to_csv(args.out / "end_loss_days.csv", float_format="%.6g")

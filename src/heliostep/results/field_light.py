@@ -18,10 +18,15 @@ weather file, read once: :class:`heliostep.solar.irradiance.WeatherFile`, its ho
 
 **Shading and blocking** (``shading=True``, the default): each mirror's power times the share of it
 that no neighbour hides from the sun or stands in front of on the way to the tube
-(:func:`heliostep.solar.shading.row_losses`, its ``lost``). The neighbours: the field's 13 rows at
-``mirror.spacing``, each an end section of two-axis mirrors ``optics.mirror_length`` long and contiguous
-along the row (pitch = length, as :mod:`heliostep.solar.endloss`), every mirror at the attitude of its
-row (ideal, or with the shared primary: the neighbours share it too). Computed every
+(:func:`heliostep.solar.shading.row_losses`, its ``lost``) and the share outside the receiver's own
+shadow (:mod:`heliostep.solar.receiver_shadow`, at every instant: a narrow band that crosses the
+field in minutes), the two combined as independent, (1 - lost) (1 - s_r) (their exact union,
+``row_losses(..., receiver=...)``, differs by the overlap's error: ``tests/results/test_field_light.py``
+bounds it); without shading, the receiver's shadow only (the one mirror's, as a run's light).
+The neighbours: the field's 13 rows at ``mirror.spacing``, each an end section of two-axis mirrors
+``optics.mirror_length`` long and contiguous along the row (pitch = length, as
+:mod:`heliostep.solar.endloss`), every mirror at the attitude of its row (ideal, or with the shared
+primary: the neighbours share it too). Their shading and blocking computed every
 ``shading_step_minutes`` with the sun up (and at each day's first and last such instant) and
 interpolated linearly between (``tests/results/test_field_light.py``: moves a day's energy by less
 than 0.3 % against every instant). Approximations, stated: the intercept of a partly hidden mirror is
@@ -38,9 +43,11 @@ import numpy as np
 import pandas as pd
 
 from heliostep.errors import InputError
-from heliostep.results.light import attitude_light, read_weather_file
+from heliostep.results.light import read_weather_file
+from heliostep.results.mirror_power import attitude_light
 from heliostep.solar import DEFAULT_MIRROR_SPACING, N_FIELD_MIRRORS, field_distances, irradiance, sharing_errors
 from heliostep.solar.optics import mirror_normal
+from heliostep.solar.receiver_shadow import receiver_shadow_fraction, receiver_width
 from heliostep.solar.shading import row_losses
 from heliostep.solar.sun import solar_position, sun_vector
 from heliostep.solar.tracking import two_axis_angles
@@ -76,7 +83,8 @@ def field_light_days(
         One row per (day, mirror): ``day_of_year``, ``date``, ``mirror_index``,
         ``mirror_distance_m``, ``light_energy_ideal_J``, ``light_energy_J`` (shared primary),
         ``light_lost_shared_primary_J`` = ``light_lost_J`` [J], ``light_lost_fraction`` [-],
-        ``shading_lost_ideal_J`` (the light shading and blocking take from ideal tracking) [J] and
+        ``shading_lost_ideal_J`` (the light shading and blocking, the receiver's shadow included, take
+        from ideal tracking) [J] and
         ``status`` "ok" (the columns of the sweep table, for :func:`heliostep.plots.sweep.plot_heatmap`).
     """
     year = scenario.window.date.year
@@ -115,7 +123,7 @@ def field_light_instants(
         The scenario's weather file, already read (None: clear sky).
     shading_every : int or None, default 1
         Shading and blocking at every this-many instants with the sun up, interpolated between; None:
-        none (see the module's docstring).
+        the receiver's shadow only, no neighbours (see the module's docstring).
 
     Returns
     -------
@@ -140,9 +148,9 @@ def field_light_instants(
     secondary = np.stack([q for _, q in angles], axis=1)
     out = {"dni_W_m2": dni, "mirror_distance_m": distances}
     for key, p in (("ideal", primary), ("shared", primary - sharing)):
-        unhidden = _unhidden_share(sun, up, p, secondary, distances, conf, shading_every)
-        lights = [
-            attitude_light(sun, dni, up, p[:, k], secondary[:, k], float(d), plant.tube_height, conf)
+        unhidden = _unhidden_share(sun, up, p, secondary, distances, plant.tube_height, conf, shading_every)
+        lights = [  # the receiver's shadow is in the unhidden share, with the neighbours' (their union)
+            attitude_light(sun, dni, up, p[:, k], secondary[:, k], float(d), plant.tube_height, conf, False)
             for k, d in enumerate(distances)
         ]
         out[f"power_{key}_unshaded_W"] = np.stack([light["power_W"] for light in lights], axis=1)
@@ -186,20 +194,35 @@ def _day_rows(
     return rows
 
 
-def _unhidden_share(sun, up, primary, secondary, distances, conf, every: int | None) -> np.ndarray:
-    """Share [-] of each field mirror (instants by mirrors) that neither shading nor blocking hides, at the
-    attitudes ``primary``, ``secondary`` [rad] (T, N): computed every ``every``-th instant with the sun
-    ``up`` (and the day's first and last such), linear in the instant's index between; 1 with ``every``
-    None or the sun down (no light to hide)."""
+def _unhidden_share(sun, up, primary, secondary, distances, tube_height, conf, every: int | None) -> np.ndarray:
+    """Share [-] of each field mirror (instants by mirrors) that neither shading (by the neighbours and the
+    receiver) nor blocking hides, at the attitudes ``primary``, ``secondary`` [rad] (T, N): computed every
+    ``every``-th instant with the sun ``up`` (and the day's first and last such), linear in the instant's
+    index between; with ``every`` None the receiver's shadow only, at every instant; 1 with the sun down."""
     share = np.ones(primary.shape)
     lit = np.flatnonzero(up)
-    if every is None or lit.size == 0:
+    if lit.size == 0:
+        return share
+    receiver = conf.receiver()
+    width = receiver_width(receiver["tube_diameter"], receiver["secondary"])
+    own = receiver_shadow_fraction(
+        sun[:, lit].T[:, None, :],
+        np.stack(mirror_normal(primary[lit], secondary[lit]), axis=-1),
+        distances,
+        tube_height,
+        width,
+        conf.mirror_width,
+        conf.mirror_length,
+    )  # (L, N), at every instant: a short band crossing the field, which a coarse step would miss
+    share[lit] = 1.0 - own
+    if every is None:
         return share
     coarse = np.unique(np.concatenate([lit[::every], lit[-1:]]))
     normals = np.stack(mirror_normal(primary[coarse], secondary[coarse]), axis=-1)  # (K, N, 3)
-    lost = row_losses(sun[:, coarse].T, normals, distances, conf.mirror_width, conf.mirror_length, only_lost=True)[
-        "lost"
-    ]
+    neighbours = row_losses(
+        sun[:, coarse].T, normals, distances, conf.mirror_width, conf.mirror_length, only_lost=True
+    )["lost"]
     for mirror in range(share.shape[1]):
-        share[lit, mirror] = 1.0 - np.interp(lit, coarse, lost[:, mirror])
+        hidden = np.interp(lit, coarse, neighbours[:, mirror])
+        share[lit, mirror] *= 1.0 - hidden  # the two combined as independent
     return share

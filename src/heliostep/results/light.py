@@ -11,10 +11,12 @@ Three attitudes of the mirror are compared over the run's window:
 - **actual**: as *reference*, with the driven axis at the trace's panel angle (role
   ``panel_angle``).
 
-Power on the tube (absorbed) at each row:
-P = DNI * A * cos(theta_i) * rho * tau * alpha * gamma * f_end, with gamma the intercept of the
-finite mirror's image by the receiver (:func:`heliostep.solar.intercept.intercept`, closed form) and f_end
-the share of the light that lands on the tube's length (the end effect, with ``optics.tube_ends``).
+Power on the tube (absorbed) at each row (:func:`heliostep.results.mirror_power.attitude_light`):
+P = DNI * A * cos(theta_i) * (1 - s_r) * rho * tau * alpha * gamma * f_end, with s_r the share of the
+mirror in the receiver's own shadow, gamma the intercept of the finite mirror's image by the receiver
+(:func:`heliostep.solar.intercept.intercept`, closed form) and f_end the share of the light that lands
+on the tube's length (the end effect, with ``optics.tube_ends``). One mirror: no neighbours to shade
+or block it (those are the field's: :mod:`heliostep.results.field_light`).
 Energies are trapezoidal integrals over the trace's rows. What separates the ideal from the actual
 light, in three parts that add up to E_ideal - E_actual:
 
@@ -51,9 +53,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from heliostep.solar import irradiance, optics
+from heliostep.results.mirror_power import attitude_light
+from heliostep.solar import irradiance
 from heliostep.solar.field import sharing_errors
-from heliostep.solar.intercept import intercept
 from heliostep.solar.sun import solar_position, sun_vector
 from heliostep.solar.tracking import two_axis_angles
 
@@ -275,53 +277,6 @@ def _first_order_stepping(light_of, reference, axis: str, out: dict, driven: dic
         "cosine_slope_reference": slope,
         "stepping_first_order_W": power_slope * error,
         "stepping_first_order_cosine_W": out["power_reference_W"] * ratio * error,
-    }
-
-
-def attitude_light(sun, dni, up, primary, secondary, distance: float, tube_height: float, conf) -> dict:
-    """Power on the tube of a mirror at one attitude, at each instant.
-
-    Parameters
-    ----------
-    sun : array (3, n)  [-]
-        Unit vector to the sun in the plant frame.
-    dni : array (n,)  [W/m^2]
-    up : array of bool (n,)
-        The sun above the horizon.
-    primary, secondary : arrays (n,)  [rad]
-        The mirror's two angles (:func:`heliostep.solar.optics.mirror_normal`).
-    distance, tube_height : float  [m]
-    conf : heliostep.scenario.OpticsConfig
-
-    Returns
-    -------
-    dict of arrays
-        ``power_W`` = DNI A cos rho tau alpha gamma f_end [W], ``intercept`` (gamma), ``cosine``,
-        ``end_fraction`` (f_end, the share of the mirror's light that lands on the tube's length,
-        :func:`heliostep.solar.optics.end_fraction`; 1 without ``tube_ends``) [-],
-        ``transverse_miss_m``, ``longitudinal_miss_m`` [m].
-    """
-    chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
-    normal = optics.mirror_normal(primary, secondary)
-    cosine = optics.cosine_factor(*sun, *normal)
-    ray = optics.reflect(*sun, *normal)
-    # the finite mirror's image on the receiver (tube or secondary)
-    caught = intercept(sun, primary, secondary, ray, distance, tube_height, conf.receiver(), conf.mirror())
-    gamma, transverse, longitudinal = (caught[k] for k in ("intercept", "transverse_miss_m", "longitudinal_miss_m"))
-    on_tube = (
-        np.ones_like(gamma)
-        if conf.tube_ends is None
-        # the end effect: light past the tube's end
-        else optics.end_fraction(longitudinal, conf.mirror_length, 0.0, *conf.tube_ends)
-    )
-    power = np.where(up, dni * conf.aperture_area * cosine * chain * gamma * on_tube, 0.0)
-    return {
-        "power_W": power,
-        "intercept": gamma,
-        "cosine": cosine,
-        "end_fraction": on_tube,
-        "transverse_miss_m": transverse,
-        "longitudinal_miss_m": longitudinal,
     }
 
 

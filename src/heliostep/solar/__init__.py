@@ -42,7 +42,9 @@ Modules: :mod:`~heliostep.solar.sun` (site, plant, SPA), :mod:`~heliostep.solar.
 :mod:`~heliostep.solar.optics` (reflected ray, miss, cosine factor, the point mirror's intercept),
 :mod:`~heliostep.solar.intercept` (a finite flat or curved mirror's image on the absorber or a
 secondary concentrator), :mod:`~heliostep.solar.shading` (shading and blocking between
-neighbouring mirrors), :mod:`~heliostep.solar.irradiance` (DNI and wind: pvlib clear sky or a
+neighbouring mirrors), :mod:`~heliostep.solar.receiver_shadow` (the receiver's own shadow),
+:mod:`~heliostep.solar.row_shading` (a plant's rows at their tracking attitudes),
+:mod:`~heliostep.solar.irradiance` (DNI and wind: pvlib clear sky or a
 TMY3/EPW file, hour-ending records), :mod:`~heliostep.solar.endloss` (lit length and energy on the
 tube of a plant, single-axis vs two-axis end mirrors, per instant, day and year), and
 :mod:`~heliostep.solar.checks`. This package imports nothing of heliostep but

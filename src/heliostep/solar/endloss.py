@@ -51,9 +51,9 @@ from heliostep.errors import InputError
 from heliostep.solar.checks import as_float_array, check_positive, check_range
 from heliostep.solar.field import PANEL_LENGTH
 from heliostep.solar.irradiance import clear_sky_dni
-from heliostep.solar.shading import row_losses
+from heliostep.solar.row_shading import interpolated_losses, shading_losses
 from heliostep.solar.sun import Site, solar_position, sun_vector
-from heliostep.solar.tracking import end_loss_length, single_axis_tilt, two_axis_normal
+from heliostep.solar.tracking import end_loss_length, single_axis_tilt
 
 
 def single_axis_cosine(elevation, azimuth, mirror_distance, tube_height, plant_azimuth: float = 0.0):
@@ -129,6 +129,7 @@ def end_loss_power(
     mirror_length: float = PANEL_LENGTH,
     shading: bool = True,
     losses: dict | None = None,
+    receiver_width: float | None = None,
 ) -> dict:
     """Lit length and absorbed power of a plant with single-axis rows vs two-axis end mirrors.
 
@@ -138,13 +139,10 @@ def end_loss_power(
         Apparent sun elevation and azimuth, one value per instant.
     dni : array-like  [W/m^2]
         Direct normal irradiance at the same instants.
-    plant_length : float  [m]
-        L, > 2 ``end_length``.
-    tube_height : float  [m]
+    plant_length, tube_height : float  [m]
+        L (> 2 ``end_length``) and h.
     mirror_distances : array-like  [m]
-        Transverse positions d_i of the rows.
-    mirror_width : float  [m]
-        Width w of each row across the tube, > 0.
+        Transverse positions d_i of the rows, each w = ``mirror_width`` [m] wide across the tube, > 0.
     end_length : float  [m]
         L_e, the length of each end section of two-axis mirrors, >= 0.
     optical_efficiency : float, default 1  [-]
@@ -152,7 +150,8 @@ def end_loss_power(
     plant_azimuth : float, default 0  [deg]
     mirror_length : float, default 1.5 (Table 2's panel)  [m] of each two-axis mirror, contiguous.
     shading : bool, default True
-        Shading and blocking between neighbours (:func:`shading_losses`, or ``losses`` if given).
+        Shading and blocking (:func:`heliostep.solar.row_shading.shading_losses`, or ``losses``).
+    receiver_width : float, optional  [m] across, for the receiver's own shadow; None: none.
 
     Returns
     -------
@@ -162,16 +161,15 @@ def end_loss_power(
         ``power_single_W``, ``power_two_axis_W``, ``end_spill_single_W`` (light a single-axis
         plant sends past the tube's end) [W]; ``gain`` = power_two_axis / power_single - 1;
         ``beam_rows_W`` / ``beam_end_sections_W``: the beam [W] the rows over L and the end sections
-        collect; ``lost_single`` / ``lost_two_axis`` [-] per row: :func:`shading_losses`.
+        collect; ``lost_single`` / ``lost_two_axis`` [-] per row (``row_shading.shading_losses``).
     """
     length, width, end, efficiency = _checked_plant(plant_length, mirror_width, end_length, optical_efficiency)
     elevation, azimuth, distances, irradiance = _instants_by_rows(elevation, azimuth, mirror_distances, dni)
     up = elevation[:, 0] > 0.0
     shift = np.abs(end_loss_length(elevation, azimuth, distances, tube_height, plant_azimuth))  # [paper], eq. 2
     shift = np.where(up[:, None], shift, np.nan)
-    cos_single, cos_two, losses = _unhidden_cosines(
-        elevation, azimuth, distances, tube_height, plant_azimuth, width, mirror_length, shading, losses
-    )
+    geometry = (distances, tube_height, plant_azimuth, width, mirror_length, receiver_width)
+    cos_single, cos_two, losses = _unhidden_cosines(elevation, azimuth, geometry, shading, losses)
     figures = _plant_powers(irradiance, efficiency, width, length, end, shift, up, cos_single, cos_two)
     figures["lost_single"], figures["lost_two_axis"] = losses["single"], losses["two_axis"]
     return figures
@@ -194,57 +192,23 @@ def _plant_powers(irradiance, efficiency, width, length, end, shift, up, cos_sin
     return figures
 
 
-def _unhidden_cosines(elevation, azimuth, distances, tube_height, plant_azimuth, width, length, shading, losses):
+def _unhidden_cosines(elevation, azimuth, geometry, shading: bool, losses):
     """Cosines [-] of the single-axis rows and the two-axis end mirrors (instants by rows), times the share
-    of each that neither shading nor blocking hides (with ``shading``), and the losses used."""
+    of each that neither shading nor blocking hides (with ``shading``: ``losses``, or
+    :func:`heliostep.solar.row_shading.shading_losses` computed here), and the losses used; ``geometry``:
+    the rows' distances, h, the plant's azimuth, w, l and the receiver's width."""
+    distances, tube_height, plant_azimuth, width, length, receiver_width = geometry
     cos_single = single_axis_cosine(elevation, azimuth, distances, tube_height, plant_azimuth)
     cos_two = two_axis_cosine(elevation, azimuth, distances, tube_height, plant_azimuth)
     if losses is None and not shading:
         losses = {"single": np.zeros_like(cos_single), "two_axis": np.zeros_like(cos_two)}
     elif losses is None:
-        losses = shading_losses(elevation[:, 0], azimuth[:, 0], distances[0], tube_height, width, length, plant_azimuth)
+        row = (distances[0], tube_height, width, length, plant_azimuth, receiver_width)
+        losses = shading_losses(elevation[:, 0], azimuth[:, 0], *row)
     if shading:
         cos_single = cos_single * (1.0 - losses["single"])  # the unhidden share of each row
         cos_two = cos_two * (1.0 - losses["two_axis"])
     return cos_single, cos_two, losses
-
-
-def shading_losses(
-    elevation, azimuth, mirror_distances, tube_height, mirror_width, mirror_length=PANEL_LENGTH, plant_azimuth=0.0
-) -> dict:
-    """Share of each row's light lost to shading and blocking, single-axis rows and two-axis end mirrors.
-
-    Parameters
-    ----------
-    elevation, azimuth : array-like, shape (T,)  [deg]
-    mirror_distances : array-like, shape (N,)  [m]
-    tube_height, mirror_width : float  [m]
-    mirror_length : float, default :data:`heliostep.solar.field.PANEL_LENGTH`  [m]
-        Of each two-axis mirror, contiguous along the row.
-    plant_azimuth : float, default 0  [deg]
-
-    Returns
-    -------
-    dict of numpy.ndarray, shape (T, N)  [-]
-        ``single``, ``two_axis``: :func:`heliostep.solar.shading.row_losses`'s ``lost`` with the rows'
-        tracking normals ([paper], eq. 1; eqs. 3-6); 1 while the sun is down.
-    """
-    elevation, azimuth = np.atleast_1d(as_float_array(elevation)), np.atleast_1d(as_float_array(azimuth))
-    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()
-    up = elevation > 0.0
-    single, two = np.ones((elevation.size, distances.size)), np.ones((elevation.size, distances.size))
-    if up.any():
-        e, a = elevation[up, None], azimuth[up, None]
-        sun = np.stack(sun_vector(elevation[up], azimuth[up], plant_azimuth), axis=-1)
-        beta = as_float_array(single_axis_tilt(e, a, distances[None, :], tube_height, plant_azimuth))
-        normal_single = np.stack([np.cos(beta), np.zeros_like(beta), np.sin(beta)], axis=-1)  # [paper], eq. 1
-        normal_two = np.stack(
-            np.broadcast_arrays(*two_axis_normal(*(c[:, None] for c in sun.T), distances[None, :], tube_height)),
-            axis=-1,
-        )  # [paper], eqs. 3-6
-        single[up] = row_losses(sun, normal_single, distances, mirror_width, only_lost=True)["lost"]
-        two[up] = row_losses(sun, normal_two, distances, mirror_width, mirror_length, only_lost=True)["lost"]
-    return {"single": single, "two_axis": two}
 
 
 def _end_loss_figures(
@@ -354,6 +318,7 @@ def end_loss_days(
     mirror_length: float = PANEL_LENGTH,
     shading: bool = True,
     shading_step_minutes: float = 30.0,
+    receiver_width: float | None = None,
 ) -> pd.DataFrame:
     """Energy on the tube per day, single-axis plant vs two-axis end mirrors, clear sky (pvlib Ineichen).
 
@@ -361,19 +326,16 @@ def end_loss_days(
     ----------
     site : Site
     year : int
-    plant_length, tube_height, mirror_distances, mirror_width, end_length, optical_efficiency
-        As :func:`end_loss_power`.
-    days : iterable of int, optional
-        Days of the year (default every day).
-    step_minutes : float, default 5  [min]
-        Time step of the sun's positions (trapezoidal integration over the day).
+    plant_length, tube_height, mirror_distances, mirror_width, end_length, optical_efficiency : as
+        :func:`end_loss_power`.
+    days : iterable of int, optional: days of the year (default every day).
+    step_minutes : float, default 5  [min]: of the sun's positions (trapezoidal integration over the day).
     plant_azimuth : float, default 0  [deg]
-    mirror_length, shading : as :func:`end_loss_power`.
+    mirror_length, shading, receiver_width : as :func:`end_loss_power`.
     shading_step_minutes : float, default 30  [min]
-        The shading and blocking losses (the costly part: polygons of every neighbour) are computed
-        every this many minutes of each day's daylight (and at its first and last instant with the
-        sun up) and interpolated linearly in time between; ``tests/solar/test_endloss.py`` bounds
-        what this moves against every instant.
+        The two-axis mirrors' shading and blocking (their polygons: the cost) every this many minutes
+        of daylight, interpolated between (:func:`heliostep.solar.row_shading.interpolated_losses`;
+        ``tests/solar/test_endloss.py`` bounds what this moves against every instant).
 
     Returns
     -------
@@ -388,36 +350,19 @@ def end_loss_days(
     dni = clear_sky_dni(times, site).to_numpy()
     losses = None
     if shading:
-        step = check_positive(shading_step_minutes, "shading_step_minutes", "min")
-        every = max(1, int(round(step / step_minutes)))
-        geometry = (mirror_distances, tube_height, mirror_width, mirror_length, plant_azimuth)
-        losses = _interpolated_losses(elevation, azimuth, labels, every, *geometry)
+        every = max(1, int(round(check_positive(shading_step_minutes, "shading_step_minutes", "min") / step_minutes)))
+        geometry = (mirror_distances, tube_height, mirror_width, mirror_length, plant_azimuth, receiver_width)
+        losses = interpolated_losses(elevation, azimuth, labels, every, *geometry)
     plant = (plant_length, tube_height, mirror_distances, mirror_width, end_length, optical_efficiency)
-    power = end_loss_power(elevation, azimuth, dni, *plant, plant_azimuth, mirror_length, shading, losses)
+    power = end_loss_power(
+        elevation, azimuth, dni, *plant, plant_azimuth, mirror_length, shading, losses, receiver_width
+    )
     frame = _power_frame(times, elevation, power)
-    rows = [_day_row(day, group) for day, group in frame.groupby(labels, sort=True)]
-    table = pd.DataFrame(rows).set_index("day_of_year")
+    table = pd.DataFrame([_day_row(day, group) for day, group in frame.groupby(labels, sort=True)]).set_index(
+        "day_of_year"
+    )
     table.attrs["end_length_m"] = float(end_length)
     return table
-
-
-def _interpolated_losses(elevation, azimuth, labels, every, distances, tube_height, width, length, plant_azimuth):
-    """:func:`shading_losses` at every ``every``-th instant with the sun up (and each day's first and last
-    such instant), interpolated linearly in the instants' index between; 1 while the sun is down."""
-    up = np.flatnonzero(elevation > 0.0)
-    if up.size == 0:
-        return shading_losses(elevation, azimuth, distances, tube_height, width, length, plant_azimuth)
-    day = labels[up]
-    turns = np.r_[True, day[1:] != day[:-1]]
-    coarse = np.unique(np.concatenate([up[::every], up[turns], up[np.r_[turns[1:], True]]]))
-    sampled = shading_losses(elevation[coarse], azimuth[coarse], distances, tube_height, width, length, plant_azimuth)
-    out = {}
-    for key, value in sampled.items():
-        grid = np.ones((elevation.size, value.shape[1]))
-        for row in range(value.shape[1]):
-            grid[up, row] = np.interp(up, coarse, value[:, row])
-        out[key] = grid
-    return out
 
 
 def _power_frame(times: pd.DatetimeIndex, elevation: np.ndarray, power: dict) -> pd.DataFrame:

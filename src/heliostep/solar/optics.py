@@ -53,6 +53,27 @@ def mirror_normal(primary, secondary):
     return np.cos(q) * np.sin(p), -np.sin(q) * np.ones_like(p), np.cos(q) * np.cos(p)  # [paper], eqs. 3-4
 
 
+def mirror_axes(normal_x, normal_y, normal_z):
+    """Width and length axes of flat mirrors from their unit normals.
+
+    Parameters
+    ----------
+    normal_x, normal_y, normal_z : array-like  [-]
+        Unit normal, n = R_y(p) R_x(q) z_hat = (cos q sin p, -sin q, cos q cos p).
+
+    Returns
+    -------
+    n, e_u, e_v : numpy.ndarray, shape (..., 3)  [-]
+        e_u = R_y(p) x_hat = (cos p, 0, -sin p) (across the tube), e_v = n x e_u = R_y(p) R_x(q) y_hat.
+    """
+    n = np.stack(np.broadcast_arrays(*(as_float_array(c) for c in (normal_x, normal_y, normal_z))), axis=-1)
+    horizontal = np.hypot(n[..., 0], n[..., 2])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e_u = np.stack([n[..., 2], np.zeros_like(horizontal), -n[..., 0]], axis=-1) / horizontal[..., None]
+    e_v = np.cross(n, e_u)  # [paper], eqs. 3-6: R_y(p) R_x(q) y_hat
+    return n, e_u, e_v
+
+
 def reflect(sun_x, sun_y, sun_z, normal_x, normal_y, normal_z):
     """Direction of the reflected central ray.
 

@@ -33,7 +33,8 @@ ends), each cut in :data:`SUB_SLABS`, the midpoint rule; exact unless two footpr
 inside a slab (``tests/solar/test_shading.py``: within 0.006 of a ray tracer written there).
 
 The sun's disc (+-4.65 mrad) and the slope error widen the shadows by ~ lambda * 5 mrad, a few mm
-here: neglected. The tube's own shadow on the mirrors and the section's two end mirrors (one
+here: neglected. The receiver's own shadow (:mod:`heliostep.solar.receiver_shadow`, a straight band
+on each mirror) joins the neighbours' shadows with ``receiver``. The section's two end mirrors (one
 neighbour along the row only) are not modelled.
 """
 
@@ -43,27 +44,8 @@ import numpy as np
 
 from heliostep.errors import InputError
 from heliostep.solar.checks import as_float_array, check_positive
-
-
-def mirror_axes(normal_x, normal_y, normal_z):
-    """Width and length axes of flat mirrors from their unit normals.
-
-    Parameters
-    ----------
-    normal_x, normal_y, normal_z : array-like  [-]
-        Unit normal, n = R_y(p) R_x(q) z_hat = (cos q sin p, -sin q, cos q cos p).
-
-    Returns
-    -------
-    n, e_u, e_v : numpy.ndarray, shape (..., 3)  [-]
-        e_u = R_y(p) x_hat = (cos p, 0, -sin p) (across the tube), e_v = n x e_u = R_y(p) R_x(q) y_hat.
-    """
-    n = np.stack(np.broadcast_arrays(*(as_float_array(c) for c in (normal_x, normal_y, normal_z))), axis=-1)
-    horizontal = np.hypot(n[..., 0], n[..., 2])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        e_u = np.stack([n[..., 2], np.zeros_like(horizontal), -n[..., 0]], axis=-1) / horizontal[..., None]
-    e_v = np.cross(n, e_u)  # [paper], eqs. 3-6: R_y(p) R_x(q) y_hat
-    return n, e_u, e_v
+from heliostep.solar.optics import mirror_axes
+from heliostep.solar.receiver_shadow import receiver_shadow_band
 
 
 def reflected_direction(sun, normal):
@@ -354,7 +336,14 @@ def _covered(u, v, half_w: float, half_l: float) -> np.ndarray:
 
 
 def row_losses(
-    sun, normals, mirror_distances, mirror_width, mirror_length=None, pitch=None, only_lost: bool = False
+    sun,
+    normals,
+    mirror_distances,
+    mirror_width,
+    mirror_length=None,
+    pitch=None,
+    only_lost: bool = False,
+    receiver: tuple[float, float] | None = None,
 ) -> dict:
     """Shading, blocking and the light lost to both, for every mirror of a row of mirrors at each instant.
 
@@ -367,43 +356,98 @@ def row_losses(
     mirror_distances : array-like, shape (N,)  [m]
     mirror_width : float  [m]
     mirror_length, pitch : float, optional  [m]
-        Length l of each mirror and pitch p along the row (default p = l: contiguous), for two-axis
-        mirrors in a section; without them the rows are long and continuous (single-axis: the exact
-        2-D transverse geometry, nothing along the row).
+        Length l and pitch p along the row (default p = l: contiguous) of two-axis mirrors in a section;
+        without, long continuous rows (single-axis: the exact 2-D transverse geometry).
     only_lost : bool, default False
         Compute ``lost`` only (two-axis: a third of the cost).
+    receiver : (float, float), optional  [m]
+        The receiver's height above the pivots and width across: its own shadow
+        (:mod:`heliostep.solar.receiver_shadow`) joins the neighbours' (their union); None: none.
 
     Returns
     -------
     dict of numpy.ndarray, shape (T, N)  [-]
-        ``shading``, ``blocking`` (each alone) and ``lost`` (their union), fractions of the mirror's
-        area. The collected beam is DNI (S . n) (1 - lost) w l.
+        ``shading``, ``blocking`` and ``lost`` (their union), fractions of the mirror's area; with
+        ``receiver``, ``receiver_shadow`` too. The collected beam is DNI (S . n) (1 - lost) w l.
     """
     sun = as_float_array(sun)
     normal = as_float_array(normals)
     reflected = reflected_direction(sun[:, None, :], normal)
     width = check_positive(mirror_width, "mirror_width", "m")
     sun_rows = np.broadcast_to(sun[:, None, :], normal.shape)
+    band = None if receiver is None else _receiver_band(sun_rows, normal, mirror_distances, receiver)
     if mirror_length is None:
-        spans = [_across_intervals(direction, normal, mirror_distances, width) for direction in (sun_rows, reflected)]
-        (shade_low, shade_high), (block_low, block_high) = spans
-        both = interval_union_length(
-            np.concatenate([shade_low, block_low], -1), np.concatenate([shade_high, block_high], -1)
-        )
-        return {
-            "shading": interval_union_length(shade_low, shade_high) / width,
-            "blocking": interval_union_length(block_low, block_high) / width,
-            "lost": both / width,
-        }
+        return _single_axis_losses(sun_rows, reflected, normal, mirror_distances, width, band)
     length = check_positive(mirror_length, "mirror_length", "m")
     pitch = length if pitch is None else pitch
-    shade = footprints(sun_rows, normal, mirror_distances, width, length, pitch)
-    block = footprints(reflected, normal, mirror_distances, width, length, pitch)
-    both = (np.concatenate([a, b], axis=-2) for a, b in zip(shade, block))
-    if only_lost:
-        return {"lost": covered_fraction(*both, width, length)}
-    return {
-        "shading": covered_fraction(*shade, width, length),
-        "blocking": covered_fraction(*block, width, length),
-        "lost": covered_fraction(*both, width, length),
-    }
+    shade_u, shade_v = footprints(sun_rows, normal, mirror_distances, width, length, pitch)
+    block_u, block_v = footprints(reflected, normal, mirror_distances, width, length, pitch)
+    out = {}
+    if band is not None:
+        own_u, own_v = _band_footprint(band, width + length)
+        shade_u, shade_v = np.concatenate([shade_u, own_u], axis=-2), np.concatenate([shade_v, own_v], axis=-2)
+        if not only_lost:
+            out["receiver_shadow"] = covered_fraction(own_u, own_v, width, length)
+    both_u, both_v = np.concatenate([shade_u, block_u], axis=-2), np.concatenate([shade_v, block_v], axis=-2)
+    out["lost"] = covered_fraction(both_u, both_v, width, length)
+    if not only_lost:
+        out["shading"] = covered_fraction(shade_u, shade_v, width, length)
+        out["blocking"] = covered_fraction(block_u, block_v, width, length)
+    return out
+
+
+def _receiver_band(sun_rows, normal, mirror_distances, receiver: tuple[float, float]) -> tuple:
+    """(g0, a, b, ahead, half): the receiver's shadow band on each mirror and its half-width [m]."""
+    distances = np.atleast_1d(as_float_array(mirror_distances)).ravel()
+    half = check_positive(receiver[1], "receiver width", "m") / 2.0
+    return (*receiver_shadow_band(sun_rows, normal, distances, receiver[0]), half)
+
+
+def _single_axis_losses(sun_rows, reflected, normal, mirror_distances, width: float, band) -> dict:
+    """:func:`row_losses` of long single-axis rows: the union of intervals across each mirror's width."""
+    spans = [_across_intervals(direction, normal, mirror_distances, width) for direction in (sun_rows, reflected)]
+    (shade_low, shade_high), (block_low, block_high) = spans
+    out = {}
+    if band is not None:
+        own_low, own_high = _band_interval(band, width)
+        out["receiver_shadow"] = interval_union_length(own_low, own_high) / width
+        shade_low, shade_high = np.concatenate([shade_low, own_low], -1), np.concatenate([shade_high, own_high], -1)
+    both = interval_union_length(
+        np.concatenate([shade_low, block_low], -1), np.concatenate([shade_high, block_high], -1)
+    )
+    out["shading"] = interval_union_length(shade_low, shade_high) / width
+    out["blocking"] = interval_union_length(block_low, block_high) / width
+    out["lost"] = both / width
+    return out
+
+
+def _band_interval(band, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """The receiver's shadow band |g0 + a s| <= half on single-axis rows (b = 0: e_v is y) as an interval
+    of s [m], (T, N, 1), clipped to the width; empty (0, 0) where it casts none. ``band``: (g0, a, b,
+    ahead, half), :func:`heliostep.solar.receiver_shadow.receiver_shadow_band` and the half-width [m]."""
+    g0, a, _, ahead, half = band
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ends = [(side - g0) / a for side in (-half, half)]
+    flat = np.abs(a) < 1e-12  # the sun's ray along the mirror's width: all of it or none
+    low = np.where(flat, np.where(np.abs(g0) <= half, -width / 2, 0.0), np.minimum(*ends))
+    high = np.where(flat, np.where(np.abs(g0) <= half, width / 2, 0.0), np.maximum(*ends))
+    low, high = (np.where(ahead, np.clip(x, -width / 2, width / 2), 0.0)[..., None] for x in (low, high))
+    return low, high
+
+
+def _band_footprint(band, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """The receiver's shadow band |g0 + a s + b t| <= half as a footprint (T, N, 1, 8) in the mirror's
+    (e_u, e_v) frame: the parallelogram between its two edges, ``reach`` [m] both ways along them (past
+    the mirror: :func:`covered_fraction` clips it), corners in order, the last repeated; NaN where none.
+    ``band``: as :func:`_band_interval`'s."""
+    g0, a, b, ahead, half = band
+    norm2 = a**2 + b**2
+    ok = ahead & (norm2 > 1e-24)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        edge = [((side - g0) / norm2)[..., None] * np.stack([a, b], -1) for side in (-half, half)]  # on each edge
+        along = np.stack([b, -a], -1) / np.sqrt(norm2)[..., None]  # the band's direction in (s, t)
+    corners = [edge[0] - reach * along, edge[1] - reach * along, edge[1] + reach * along, edge[0] + reach * along]
+    corners += [corners[-1]] * 4  # the format of footprints(): 8 slots, repeated corners are zero-length edges
+    uv = np.stack(corners, axis=-2)  # (T, N, 8, 2)
+    uv = np.where(ok[..., None, None], uv, np.nan)
+    return uv[..., None, :, 0], uv[..., None, :, 1]
