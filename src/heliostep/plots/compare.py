@@ -163,6 +163,7 @@ def signal_figure(
         _draw_values(axes[0, column], evaluation, ref, act, a, b)
         _draw_difference(axes[1, column], evaluation, a, b)
         axes[1, column].set_xlabel(f"{TIME} [{time_unit}]")
+        axes[1, column].ticklabel_format(axis="x", useOffset=False)  # a zoom at 150 s reads 150.02, not +1.5e2
     axes[0, 0].set_ylabel(ylabel)
     axes[1, 0].set_ylabel(f"actual - reference [{unit}]" if unit else "actual - reference")
     tol = r.tolerance
