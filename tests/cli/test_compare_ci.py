@@ -195,3 +195,15 @@ def test_report_or_junit_pointing_at_the_wrong_kind_of_path_is_bad_input_before_
     assert status == 2 and "is a folder" in err and out == ""
     status, out, err = run(capsys, REFERENCE, REFERENCE, "--junit", tmp_path / "missing" / "v.xml")
     assert status == 2 and "no folder" in err and out == ""
+
+
+def test_an_incomplete_actual_is_a_failing_test_case_complete(tmp_path, capsys):
+    frame, meta = read_trace(REFERENCE)
+    incomplete = tmp_path / "incomplete.parquet"
+    write_trace(frame, incomplete, {**meta, "complete": "false", "reason": "failed"})
+    junit = tmp_path / "verdicts.xml"
+    assert run(capsys, incomplete, REFERENCE, "--junit", junit)[0] == 1
+    (suite,) = list(junitparser.JUnitXml.fromfile(str(junit)))
+    assert (suite.tests, suite.failures) == (8, 1)
+    (case,) = [case for case in suite if case.result]
+    assert case.name == "complete" and "complete: false" in case.result[0].message
