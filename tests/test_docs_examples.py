@@ -39,3 +39,29 @@ def test_every_import_in_a_documented_python_example_resolves(doc):
     for block in _blocks(path):
         imports = [line for line in block.splitlines() if re.match(r"\s*(from \S+ )?import ", line)]
         exec("\n".join(line.strip() for line in imports), {})
+
+
+def test_compare_python_api_example_runs_on_the_shipped_reference_and_a_vendor_named_copy(tmp_path, monkeypatch):
+    import xml.etree.ElementTree as ET
+
+    from heliostep.results.trace_io import read_trace, write_trace
+
+    (example,) = [b for b in _blocks(PROJECT / "docs" / "compare.md") if "compare_matched" in b]
+    reference = PROJECT / "scenarios" / "jan21-central.reference.parquet"
+    tolerances = PROJECT / "scenarios" / "regress-tolerances.yaml"
+    assert '"scenarios/regress-tolerances.yaml"' in example
+    frame, meta = read_trace(reference)
+    write_trace(frame, tmp_path / "run.parquet", meta)
+    write_trace(frame, tmp_path / "reference.parquet", meta)
+    vendor = {"motor.tau": "Drive.tauElectrical", "mechanics.theta": "Drive.phiRotor"}
+    renamed = {k: vendor.get(v, v) if k.startswith("role.") else v for k, v in meta.items()}
+    write_trace(frame.rename(columns=vendor), tmp_path / "vendor.parquet", renamed)
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    code = example.replace('"scenarios/regress-tolerances.yaml"', repr(str(tolerances)))
+    exec(compile(code, "docs/compare.md", "exec"), namespace)
+    result = namespace["result"]
+    assert result.passed and len(result.signals) == 7
+    assert result.match_of("motor.tau").describe() == "Drive.tauElectrical -> motor.tau (by role torque)"
+    root = ET.fromstring(namespace["xml"].split("\n", 1)[1])
+    assert (root.get("tests"), root.get("failures")) == ("7", "0")

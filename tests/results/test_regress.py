@@ -2,6 +2,7 @@
 
 import shutil
 
+import junitparser
 import pytest
 
 from heliostep.cli import main
@@ -61,3 +62,27 @@ def test_a_model_change_fails_and_names_the_signal(short_scenario, fmu_paths, tm
 def test_missing_reference_is_bad_input(short_scenario, capsys):
     assert main(["regress", str(short_scenario)]) == 2
     assert "no reference trace short.reference.parquet" in capsys.readouterr().err
+
+
+def test_junit_has_a_suite_per_scenario_and_a_case_per_signal(short_scenario, fmu_paths, tmp_path, capsys):
+    assert main(["regress", "--update", str(short_scenario)]) == 0
+    changed = tmp_path / "changed.yaml"
+    changed.write_text(short_scenario.read_text() + "parameters: {mechanics: {b: 2000.0}}\n")
+    shutil.copy(reference_path(short_scenario), reference_path(changed))
+    junit = tmp_path / "regress.xml"
+    assert main(["regress", str(short_scenario), str(changed), "--junit", str(junit)]) == 1
+    out = capsys.readouterr().out
+    suites = {suite.name: suite for suite in junitparser.JUnitXml.fromfile(str(junit))}
+    assert set(suites) == {"short", "changed"}
+    # the reference keeps 7 signals (rotor, panel, error, command, torque, two currents)
+    assert (suites["short"].tests, suites["short"].failures) == (7, 0)
+    failed = {case.name for case in suites["changed"] if case.result}
+    assert suites["changed"].tests == 7 and suites["changed"].failures == len(failed) >= 1
+    assert "motor.tau" in failed and all(f"{name}" in out for name in failed)
+    (failure,) = next(case for case in suites["changed"] if case.name == "motor.tau").result
+    assert "outside the tube by" in failure.message and "tube half-width there" in failure.message
+
+
+def test_an_unusable_junit_path_is_refused_before_any_run(short_scenario, tmp_path, capsys):
+    assert main(["regress", str(short_scenario), "--junit", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err

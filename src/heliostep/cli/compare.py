@@ -10,22 +10,35 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+import time
+from pathlib import Path
 
 from heliostep.errors import InputError
 from heliostep.results.compare import (
     ToleranceSet,
-    compare_traces,
+    compare_matched,
+    format_matches,
     format_table,
     load_tolerances,
 )
+from heliostep.results.signal_map import (
+    SignalMatch,
+    load_signal_map,
+    match_signals,
+    parse_map_options,
+    signal_units,
+)
 from heliostep.results.trace_io import is_complete, read_trace
+from heliostep.results.verdicts import SuiteVerdict, github_annotations, junit_xml
 
 __all__ = ["register", "run", "format_table"]
 
 _DESCRIPTION = """\
-Compare the signals of trace ACTUAL with those of trace REFERENCE (Parquet or CSV)
-using a tolerance tube around the reference: half-width max(abs, rel*|ref|),
+Compare the signals of trace ACTUAL with those of trace REFERENCE (Parquet, CSV,
+OpenModelica CSV, or a Dymola/OpenModelica .mat result file) using a tolerance
+tube around the reference: half-width max(abs, rel*|ref|),
 widened by the time tolerance (the bounds at t are the max/min over
 [t - time, t + time]). Exit status 0: all signals inside their tube;
 1: some signal outside (or ACTUAL is marked complete: false); 2: bad input
@@ -34,7 +47,9 @@ the signals to compare). CSV: ',' or ';' separated (';' with ',' or '.'
 decimals), UTF-8 with or without a byte order mark.
 Tolerances: built-in defaults (abs 1e-6, rel 1e-4, time 1e-3 s) < the 'default'
 section of --tolerances FILE < --abs-tol/--rel-tol/--time-tol; the per-signal
-entries of FILE override the fields they name.
+entries of FILE override the fields they name; an entry naming a signal in neither trace is
+bad input. Signals are matched by --map/--map-file, else by role (both traces' role.<role>
+metadata), else by name; the output says which was matched to which and how.
 """
 
 
@@ -65,10 +80,31 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     parser.add_argument(
         "--report",
         metavar="DIR",
-        help="write index.md, index.html and a PNG per failing signal into DIR",
+        help="write index.html (self-contained: images embedded), index.md and a PNG per failing signal into DIR",
     )
+    parser.add_argument(
+        "--map",
+        action="append",
+        metavar="ACTUAL=REFERENCE",
+        help="compare signal ACTUAL of the actual trace with REFERENCE of the reference (repeatable)",
+    )
+    parser.add_argument(
+        "--map-file", metavar="FILE", help="signal mapping: YAML 'ACTUAL: REFERENCE' or CSV 'actual,reference'"
+    )
+    parser.add_argument("--junit", metavar="FILE", help="write the verdicts as JUnit XML (one test case per signal)")
+    add_annotations_option(parser)
     parser.set_defaults(func=run)
     return parser
+
+
+def add_annotations_option(parser: argparse.ArgumentParser) -> None:
+    """``--annotations {auto,github,none}`` (for ``compare`` and ``regress``)."""
+    parser.add_argument(
+        "--annotations",
+        choices=("auto", "github", "none"),
+        default="auto",
+        help="print GitHub Actions '::error' annotations for failing signals (auto: when GITHUB_ACTIONS=true)",
+    )
 
 
 def _tolerance_option(value: str | None, option: str) -> float | None:
@@ -106,38 +142,119 @@ def _signals(value: str | None) -> list[str] | None:
     return names
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the command; returns the exit status (0 pass, 1 deviation)."""
-    tolerances = _tolerances(args)
-    signals = _signals(args.signals)
-    actual, actual_meta = read_trace(args.actual)
-    reference, reference_meta = read_trace(args.reference)
-    if signals is None:
-        missing = [c for c in reference.columns if c != "time" and c not in actual.columns]
-        if missing:
+def check_output_dir(value: str | Path, option: str) -> Path:
+    """*value* as a folder heliostep can write into (made later if missing), checked before any
+    work: InputError if it is a file, or it (or, when missing, its nearest existing parent) is not
+    a writable folder."""
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{option} {path}: is a file, expected a folder")
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"{option} {path}: folder {existing} is not writable")
+    return path
+
+
+def check_output_file(value: str | Path, option: str) -> Path:
+    """*value* as a file heliostep can write, checked before any work: its folder must exist and be
+    writable, and it must not be a folder."""
+    path = Path(value)
+    if path.is_dir():
+        raise InputError(f"{option} {path}: is a folder, expected a file name")
+    folder = path.parent
+    if not folder.is_dir():
+        raise InputError(f"{option} {path}: no folder {folder}")
+    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise InputError(f"{option} {path}: not writable")
+    return path
+
+
+def annotations_wanted(choice: str) -> bool:
+    """``--annotations``: ``github`` always, ``none`` never, ``auto`` when ``GITHUB_ACTIONS=true``."""
+    return choice == "github" or (choice == "auto" and os.environ.get("GITHUB_ACTIONS") == "true")
+
+
+def _matches(
+    args: argparse.Namespace, actual, actual_meta, reference, reference_meta
+) -> tuple[dict[str, SignalMatch], dict[str, SignalMatch]]:
+    """Every match, and those to compare (all, or those --signals names)."""
+    explicit = load_signal_map(args.map_file) if args.map_file else {}
+    for actual_name, reference_name in parse_map_options(args.map).items():
+        if actual_name in explicit and explicit[actual_name] != reference_name:
             raise InputError(
-                f"{args.actual}: no column(s) {', '.join(map(repr, missing))} of the reference {args.reference}; "
-                f"to compare only some signals, name them with --signals"
+                f"--map {actual_name}={reference_name}: {args.map_file} maps it to {explicit[actual_name]!r}"
             )
-    result = compare_traces(
-        actual,
-        reference,
-        tolerances,
-        signals,
+        explicit[actual_name] = reference_name
+    matches = match_signals(
+        list(actual.columns),
+        list(reference.columns),
+        actual_meta,
+        reference_meta,
+        explicit,
         actual_name=str(args.actual),
         reference_name=str(args.reference),
     )
+    signals = _signals(args.signals)
+    if signals is None:
+        missing = [c for c in reference.columns if c != "time" and c not in matches]
+        if missing:
+            raise InputError(
+                f"{args.actual}: no column matches the signal(s) {', '.join(map(repr, missing))} of the reference "
+                f"{args.reference} (by name, by role or by --map/--map-file); to compare only some signals, "
+                f"name them with --signals"
+            )
+        return matches, matches
+    by_actual = {m.actual: m for m in matches.values()}
+    chosen = {}
+    for name in signals:
+        match = matches.get(name) or by_actual.get(name)
+        if match is None:
+            where = args.reference if name not in reference.columns else args.actual
+            raise InputError(f"{where}: no column {name!r} (requested signal), nor a match for it")
+        chosen[match.reference] = match
+    return matches, chosen
 
-    present = set(actual.columns) | set(reference.columns)
-    unknown = [name for name in tolerances.signals if name not in present]
+
+def _check_tolerance_signals(tolerances: ToleranceSet, matches, actual, reference, path) -> ToleranceSet:
+    """The tolerance file's per-signal entries by reference name (an entry may name the actual's
+    column of a matched signal); InputError for an entry naming a signal in neither trace, so a
+    typo in a tightening entry cannot turn a FAIL into a PASS."""
+    to_reference = {m.actual: m.reference for m in matches.values()}
+    unknown = [n for n in tolerances.signals if n not in reference.columns and n not in actual.columns]
     if unknown:
-        print(
-            f"heliostep compare: warning: {args.tolerances}: tolerance given for signal(s) in neither trace: "
-            + ", ".join(unknown),
-            file=sys.stderr,
+        raise InputError(
+            f"{path}: tolerance given for signal(s) in neither trace: {', '.join(map(repr, unknown))} "
+            f"(signals of the reference: {', '.join(c for c in reference.columns if c != 'time')})"
         )
+    renamed = {to_reference.get(n, n) if n not in reference.columns else n: v for n, v in tolerances.signals.items()}
+    return ToleranceSet(tolerances.default, renamed)
 
-    print(format_table(result))
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; returns the exit status (0 pass, 1 deviation)."""
+    started = time.monotonic()
+    report = check_output_dir(args.report, "--report") if args.report else None
+    junit = check_output_file(args.junit, "--junit") if args.junit else None
+    tolerances = _tolerances(args)
+    actual, actual_meta = read_trace(args.actual)
+    reference, reference_meta = read_trace(args.reference)
+    every_match, matches = _matches(args, actual, actual_meta, reference, reference_meta)
+    tolerances = _check_tolerance_signals(tolerances, every_match, actual, reference, args.tolerances)
+    result = compare_matched(
+        actual,
+        reference,
+        matches,
+        tolerances,
+        actual_name=str(args.actual),
+        reference_name=str(args.reference),
+        every_match=every_match,
+    )
+    units = signal_units(matches, actual_meta, reference_meta)
+
+    print(format_table(result, units))
+    print(format_matches(result))
     if result.only_in_actual:
         print(f"not compared, only in {args.actual}: {', '.join(result.only_in_actual)}")
     if result.only_in_reference:
@@ -156,9 +273,17 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"PASS: all {len(result.signals)} signal(s) inside tolerance")
 
-    if args.report:
+    verdict = SuiteVerdict(
+        "compare", result, units, complete=not incomplete, seconds=time.monotonic() - started, file=str(args.reference)
+    )
+    if annotations_wanted(args.annotations):
+        print("\n".join(github_annotations([verdict])))
+    if junit is not None:
+        junit.write_text(junit_xml([verdict]), encoding="utf-8")
+        print(f"junit: {junit}")
+    if report is not None:
         from heliostep.plots.compare import write_report
 
-        index = write_report(result, actual, reference, args.report, actual_meta, reference_meta)
+        index = write_report(result, actual, reference, report, actual_meta, reference_meta)
         print(f"report: {index}")
     return 1 if failed or incomplete else 0

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 
+from heliostep.cli.compare import add_annotations_option, annotations_wanted, check_output_dir, check_output_file
 from heliostep.errors import InputError
 from heliostep.results.compare import format_table, load_tolerances
 from heliostep.results.regress import (
@@ -14,11 +16,15 @@ from heliostep.results.regress import (
     shipped_scenarios,
     tolerances_path,
 )
+from heliostep.results.verdicts import SuiteVerdict, github_annotations, junit_xml
 from heliostep.run import RunFailed, run_scenario
 
 
-def regress_one(scenario: Path, tolerances, update: bool = False, report_dir: Path | None = None) -> Outcome:
-    """Run ``scenario`` and compare it with its reference (or rewrite the reference)."""
+def regress_one(
+    scenario: Path, tolerances, update: bool = False, report_dir: Path | None = None
+) -> tuple[Outcome, dict[str, str]]:
+    """Run ``scenario`` and compare it with its reference (or rewrite the reference); also the run's
+    trace metadata (units, roles)."""
     if not update and not reference_path(scenario).exists():
         raise InputError(
             f"{scenario}: no reference trace {reference_path(scenario).name}; "
@@ -27,7 +33,7 @@ def regress_one(scenario: Path, tolerances, update: bool = False, report_dir: Pa
     try:
         run = run_scenario(scenario)
     except RunFailed as failed:
-        return Outcome(scenario, None, f"the run failed: {failed}")
+        return Outcome(scenario, None, f"the run failed: {failed}"), {}
     metadata = run.trace_metadata()
     outcome = check_against_reference(
         scenario, run.trace, metadata, run.metadata["roles"], tolerances.for_scenario(run.scenario.name), update
@@ -36,7 +42,7 @@ def regress_one(scenario: Path, tolerances, update: bool = False, report_dir: Pa
         from heliostep.plots.compare import write_report
 
         write_report(outcome.comparison, outcome.actual, outcome.reference, report_dir / scenario.stem, metadata, {})
-    return outcome
+    return outcome, metadata
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -63,6 +69,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="tolerance YAML (default: scenarios/regress-tolerances.yaml)",
     )
     parser.add_argument("--report", type=Path, metavar="DIR", help="write a report per failing scenario here")
+    parser.add_argument(
+        "--junit",
+        type=Path,
+        metavar="FILE",
+        help="write the verdicts as JUnit XML (a test case per scenario and signal)",
+    )
+    add_annotations_option(parser)
     parser.set_defaults(func=_run_regress)
 
 
@@ -72,10 +85,17 @@ def _run_regress(args: argparse.Namespace) -> int:
         raise InputError(
             "no shipped scenario has a reference trace; create them with heliostep regress --update SCENARIO"
         )
+    if args.report:
+        check_output_dir(args.report, "--report")
+    junit = check_output_file(args.junit, "--junit") if args.junit else None
     tolerances = load_tolerances(args.tolerances or tolerances_path())
     status = 0
+    verdicts = []
     for scenario in scenarios:
-        outcome = regress_one(scenario, tolerances, args.update, args.report)
+        started = time.monotonic()
+        outcome, metadata = regress_one(scenario, tolerances, args.update, args.report)
+        if outcome.comparison is not None or outcome.problem:
+            verdicts.append(_verdict(scenario, outcome, metadata, time.monotonic() - started))
         if outcome.problem:
             print(f"{scenario}: FAIL: {outcome.problem}")
             status = 1
@@ -91,4 +111,15 @@ def _run_regress(args: argparse.Namespace) -> int:
             print(f"  reference rewritten: {reference_path(scenario).name}")
         elif not outcome.passed:
             status = 1
+    if annotations_wanted(args.annotations) and not args.update:
+        print("\n".join(github_annotations(verdicts)))
+    if junit is not None:
+        junit.write_text(junit_xml(verdicts, "heliostep regress"), encoding="utf-8")
+        print(f"junit: {junit}")
     return status
+
+
+def _verdict(scenario: Path, outcome: Outcome, metadata: dict[str, str], seconds: float) -> SuiteVerdict:
+    """A scenario's regression as a JUnit test suite (named by the scenario's file stem)."""
+    units = {key[len("unit.") :]: value for key, value in metadata.items() if key.startswith("unit.")}
+    return SuiteVerdict(scenario.stem, outcome.comparison, units, outcome.problem, seconds=seconds, file=str(scenario))

@@ -1,14 +1,27 @@
-"""Plots and the report folder of ``heliostep compare``.
+"""Plots and the report of ``heliostep compare``.
 
-:func:`write_report` writes, into one folder, a PNG per failing signal (reference,
-tolerance tube as a shaded band, actual, the parts outside the tube in red, and a
-zoom around the worst point) and an index (``index.md`` and ``index.html``) that
-lists every compared signal with its verdict and links the PNGs.
+:func:`write_report` writes into one folder:
+
+* ``index.html``: one self-contained file (every figure embedded as a base64 ``data:image/png``
+  URI, the style inline; no link to any other file), readable offline and in a CI artifact
+  viewer: the verdict, which actual signal was compared with which reference signal and how,
+  a summary table with units, and per failing signal its figure;
+* ``index.md``: the Markdown twin (same tables) for text viewers, linking the PNGs;
+* one PNG per failing signal (named by :func:`png_name`), the same figures.
+
+A failing signal's figure (:func:`signal_figure`) has four panels: the whole span and a zoom
+around the worst point, each as values (reference, the tube as a band, actual, the parts outside
+the tube in red) over the difference ``actual - reference`` against the tube's edges relative to
+the reference (``L - y``, ``U - y``: the half-width, widened by the time tolerance). The zoom is
+scaled to the failure's own duration (:func:`failure_window`): a 40 ms excursion is shown over
+about three times its length, not over seconds.
 """
 
 from __future__ import annotations
 
+import base64
 import html
+import io
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -17,17 +30,15 @@ from urllib.parse import quote
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
 from heliostep.plots.thinning import thin
-from heliostep.results.compare import (
-    ComparisonResult,
-    SignalEvaluation,
-    SignalResult,
-    evaluate_signal,
-)
+from heliostep.results.compare import ComparisonResult, SignalEvaluation, SignalResult, evaluate_signal
+from heliostep.results.signal_map import signal_units
 from heliostep.results.trace_io import TIME
+from heliostep.results.verdicts import failure_message
 
-__all__ = ["plot_signal", "write_report", "png_name"]
+__all__ = ["failure_window", "plot_signal", "png_name", "signal_figure", "write_report"]
 
 #: Drawn points per series and panel at most (extremes per time bin are kept).
 MAX_POINTS = 4000
@@ -51,32 +62,123 @@ def _range(t: np.ndarray, lo: float, hi: float) -> slice:
     return slice(i, j)
 
 
-def _draw(ax, ev: SignalEvaluation, ref_t, ref_y, act_t, act_y, lo: float, hi: float) -> None:
-    rs, as_ = _range(ref_t, lo, hi), _range(act_t, lo, hi)
-    rt, ry = ref_t[rs], ref_y[rs]
-    at, ay = act_t[as_], act_y[as_]
+def _outside(ax, t: np.ndarray, y: np.ndarray, excess: np.ndarray, label: str | None) -> None:
+    """Red line along runs of consecutive grid points outside the tube, a marker on each."""
+    idx = np.flatnonzero(excess > 0)
+    if not idx.size:
+        return
+    idx = idx[_thin(t[idx], y[idx])]
+    gap = np.flatnonzero(np.diff(idx) > 1) + 1
+    ax.plot(np.insert(t[idx], gap, np.nan), np.insert(y[idx], gap, np.nan), color="red", linewidth=2.0)
+    ax.plot(t[idx], y[idx], "o", color="red", markersize=2.5, label=label)
+
+
+def _draw_values(ax, ev: SignalEvaluation, ref, act, lo: float, hi: float) -> None:
+    (ref_t, ref_y), (act_t, act_y) = ref, act
     if ev.time.size:
         es = _range(ev.time, lo, hi)
-        et, low, up, ea, ex = ev.time[es], ev.lower[es], ev.upper[es], ev.actual[es], ev.excess[es]
+        et, low, up = ev.time[es], ev.lower[es], ev.upper[es]
         k = _thin(et, low, up)
         ax.fill_between(et[k], low[k], up[k], color="tab:blue", alpha=0.2, linewidth=0, label="tolerance tube")
-    k = _thin(rt, ry)
-    ax.plot(rt[k], ry[k], color="tab:blue", linewidth=1.0, label="reference")
-    k = _thin(at, ay)
-    ax.plot(at[k], ay[k], color="black", linewidth=0.8, linestyle="--", label="actual")
+    rs, as_ = _range(ref_t, lo, hi), _range(act_t, lo, hi)
+    k = _thin(ref_t[rs], ref_y[rs])
+    ax.plot(ref_t[rs][k], ref_y[rs][k], color="tab:blue", linewidth=1.0, label="reference")
+    k = _thin(act_t[as_], act_y[as_])
+    ax.plot(act_t[as_][k], act_y[as_][k], color="black", linewidth=0.8, linestyle="--", label="actual")
     if ev.time.size:
-        idx = np.flatnonzero(ex > 0)
-        if idx.size:
-            idx = idx[_thin(et[idx], ea[idx])]
-            # Red line along runs of consecutive violating grid points, a marker on each.
-            gap = np.flatnonzero(np.diff(idx) > 1) + 1
-            line_t = np.insert(et[idx], gap, np.nan)
-            line_y = np.insert(ea[idx], gap, np.nan)
-            ax.plot(line_t, line_y, color="red", linewidth=2.0)
-            ax.plot(et[idx], ea[idx], "o", color="red", markersize=2.5, label="outside tube")
+        _outside(ax, et, ev.actual[es], ev.excess[es], "outside tube")
     if hi > lo:
         ax.set_xlim(lo, hi)
     ax.grid(True, alpha=0.3)
+
+
+def _draw_difference(ax, ev: SignalEvaluation, lo: float, hi: float) -> None:
+    """``actual - reference`` against the tube's edges relative to the reference."""
+    if ev.time.size:
+        es = _range(ev.time, lo, hi)
+        et, ref = ev.time[es], ev.reference[es]
+        below, above, diff = ev.lower[es] - ref, ev.upper[es] - ref, ev.actual[es] - ref
+        k = _thin(et, below, above, diff)
+        ax.fill_between(et[k], below[k], above[k], color="tab:blue", alpha=0.2, linewidth=0, label="tube - reference")
+        ax.plot(et[k], diff[k], color="black", linewidth=0.8, label="actual - reference")
+        _outside(ax, et, diff, ev.excess[es], None)
+    ax.axhline(0.0, color="tab:blue", linewidth=0.6)
+    if hi > lo:
+        ax.set_xlim(lo, hi)
+    ax.grid(True, alpha=0.3)
+
+
+def failure_window(ev: SignalEvaluation, reference_time: np.ndarray, actual_time: np.ndarray) -> tuple[float, float]:
+    """The zoom's time span [s]: the contiguous stretch outside the tube around the worst point,
+    widened on each side by its own duration (at least two time tolerances and three reference
+    samples), so the failure fills about a third of the zoom; a truncated actual: around its end."""
+    r = ev.result
+    tau = r.tolerance.time
+    t0, t1 = min(reference_time[0], actual_time[0]), max(reference_time[-1], actual_time[-1])
+    if ev.time.size and np.isfinite(r.max_excess) and r.max_excess > 0:
+        bad = ev.excess > 0
+        k = min(int(np.searchsorted(ev.time, r.time_max_excess)), ev.time.size - 1)
+        while k + 1 < bad.size and not bad[k] and ev.time[k + 1] == ev.time[k]:
+            k += 1  # the worst may be the right limit of a jump
+        i = j = k
+        while i > 0 and bad[i - 1]:
+            i -= 1
+        while j < bad.size - 1 and bad[j + 1]:
+            j += 1
+        start, end = float(ev.time[i]), float(ev.time[j])
+    else:
+        centre = actual_time[-1] if actual_time[-1] < reference_time[-1] - tau else actual_time[0]
+        start = end = float(centre if not r.passed else 0.5 * (t0 + t1))
+    near = reference_time[max(int(np.searchsorted(reference_time, start)) - 3, 0) :][:7]
+    spacing = float(np.diff(near).max()) if near.size > 1 else 0.0
+    margin = max(end - start, 2 * tau, 3 * spacing)
+    if margin <= 0:
+        margin = 0.01 * (t1 - t0) or 1.0
+    return max(start - margin, t0), min(end + margin, t1)
+
+
+def signal_figure(
+    evaluation: SignalEvaluation,
+    reference: tuple[np.ndarray, np.ndarray],
+    actual: tuple[np.ndarray, np.ndarray],
+    unit: str | None = None,
+    time_unit: str = "s",
+    actual_label: str | None = None,
+) -> Figure:
+    """The figure of one signal (four panels, see the module); *reference* and *actual* are
+    ``(time, values)`` as sampled. The caller closes it."""
+    r: SignalResult = evaluation.result
+    ref = tuple(np.asarray(a, dtype=float) for a in reference)
+    act = tuple(np.asarray(a, dtype=float) for a in actual)
+    t0, t1 = min(ref[0][0], act[0][0]), max(ref[0][-1], act[0][-1])
+    ylabel = f"{r.name} [{unit}]" if unit else r.name
+    fig, axes = plt.subplots(
+        2, 2, figsize=(13, 7.5), layout="constrained", sharex="col", gridspec_kw={"height_ratios": [3, 2]}
+    )
+    verdict = "passed" if r.passed else "FAILED"
+    compared = f" (actual: {actual_label})" if actual_label and actual_label != r.name else ""
+    fig.suptitle(f"{r.name}{compared}: {verdict} — {failure_message(r, unit, time_unit)}", fontsize=10)
+    lo, hi = failure_window(evaluation, ref[0], act[0])
+    for column, (a, b) in enumerate(((t0, t1), (lo, hi))):
+        _draw_values(axes[0, column], evaluation, ref, act, a, b)
+        _draw_difference(axes[1, column], evaluation, a, b)
+        axes[1, column].set_xlabel(f"{TIME} [{time_unit}]")
+        axes[1, column].ticklabel_format(axis="x", useOffset=False)  # a zoom at 150 s reads 150.02, not +1.5e2
+    axes[0, 0].set_ylabel(ylabel)
+    axes[1, 0].set_ylabel(f"actual - reference [{unit}]" if unit else "actual - reference")
+    tol = r.tolerance
+    axes[0, 0].set_title(
+        f"whole span; tolerance abs {tol.abs:g}, rel {tol.rel:g}, time {tol.time:g} {time_unit}; "
+        f"outside the tube {100 * r.outside_fraction:.3g} % of the time",
+        fontsize=9,
+    )
+    axes[0, 1].set_title(f"zoom: {lo:.6g} to {hi:.6g} {time_unit} ({hi - lo:.3g} {time_unit})", fontsize=9)
+    if np.isfinite(r.time_max_excess) and r.max_excess > 0:
+        for ax in axes[:, 1]:
+            ax.axvline(r.time_max_excess, color="red", linewidth=0.8, alpha=0.6)
+    axes[0, 0].legend(loc="best", fontsize=8)
+    axes[1, 0].legend(loc="best", fontsize=8)
+    return fig
 
 
 def plot_signal(
@@ -87,82 +189,14 @@ def plot_signal(
     unit: str | None = None,
     time_unit: str = "s",
 ) -> Path:
-    """Write the PNG of one signal: a full view and a zoom around the worst point.
-
-    *reference* and *actual* are ``(time, values)`` of the traces as sampled.
-    """
+    """Write the PNG of one signal (:func:`signal_figure`)."""
     path = Path(path)
-    r: SignalResult = evaluation.result
-    ref_t, ref_y = (np.asarray(a, dtype=float) for a in reference)
-    act_t, act_y = (np.asarray(a, dtype=float) for a in actual)
-    t0 = min(ref_t[0], act_t[0])
-    t1 = max(ref_t[-1], act_t[-1])
-    ylabel = f"{r.name} [{unit}]" if unit else r.name
-    xlabel = f"{TIME} [{time_unit}]"
-
-    fig, (full, zoom) = plt.subplots(2, 1, figsize=(10, 7.5), layout="constrained")
-    verdict = "passed" if r.passed else "FAILED"
-    worst = (
-        f"max {r.max_excess:.3g}{' ' + unit if unit else ''} outside the tube "
-        f"at t = {r.time_max_excess:.6g} {time_unit}"
-        if np.isfinite(r.max_excess) and r.max_excess > 0
-        else (r.note or "inside the tube")
-    )
-    fig.suptitle(f"{r.name}: {verdict} — {worst}", fontsize=11)
-    _draw(full, evaluation, ref_t, ref_y, act_t, act_y, t0, t1)
-    full.set_title(
-        f"tolerance abs {r.tolerance.abs:g}, rel {r.tolerance.rel:g}, time {r.tolerance.time:g} {time_unit}; "
-        f"outside the tube {100 * r.outside_fraction:.3g} % of the time",
-        fontsize=9,
-    )
-    full.set_xlabel(xlabel)
-    full.set_ylabel(ylabel)
-    full.legend(loc="best", fontsize=8)
-
-    tau = r.tolerance.time
-    if np.isfinite(r.max_excess) and r.max_excess > 0:
-        centre = r.time_max_excess
-    elif act_t[-1] < ref_t[-1] - tau:  # the actual stops early
-        centre = act_t[-1]
-    elif act_t[0] > ref_t[0] + tau:  # the actual starts late
-        centre = act_t[0]
-    else:
-        centre = 0.5 * (t0 + t1)
-    half = _zoom_half_width(evaluation, centre, t1 - t0)
-    _draw(zoom, evaluation, ref_t, ref_y, act_t, act_y, max(centre - half, t0), min(centre + half, t1))
-    zoom.axvline(centre, color="red", linewidth=0.8, alpha=0.6)
-    zoom.set_title(f"zoom around t = {centre:.6g} {time_unit}", fontsize=9)
-    zoom.set_xlabel(xlabel)
-    zoom.set_ylabel(ylabel)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    fig = signal_figure(evaluation, reference, actual, unit, time_unit)
+    try:
+        fig.savefig(path, dpi=90)
+    finally:
+        plt.close(fig)
     return path
-
-
-def _zoom_half_width(ev: SignalEvaluation, centre: float, duration: float) -> float:
-    """Half-width of the zoom: covers the violation around *centre*, a few time tolerances."""
-    half = max(5 * ev.result.tolerance.time, 0.01 * duration)
-    if ev.time.size:
-        bad = ev.excess > 0
-        k = int(np.searchsorted(ev.time, centre))
-        k = min(k, ev.time.size - 1)
-        if bad[k]:
-            i = k
-            while i > 0 and bad[i - 1]:
-                i -= 1
-            j = k
-            while j < bad.size - 1 and bad[j + 1]:
-                j += 1
-            half = max(half, 1.5 * max(centre - ev.time[i], ev.time[j] - centre))
-        else:
-            spacing = np.diff(ev.time[max(k - 3, 0) : k + 4])
-            if spacing.size:
-                half = max(half, 4 * float(spacing.max()))
-    return half if half > 0 else 1.0
-
-
-def _fmt(x: float | None, spec: str = ".3g") -> str:
-    return "–" if x is None or not np.isfinite(x) else format(x, spec)
 
 
 def write_report(
@@ -175,60 +209,75 @@ def write_report(
 ) -> Path:
     """Write the report folder (created if needed); returns the path of ``index.html``.
 
-    One PNG per *failing* signal, named by :func:`png_name`; units come from the
-    ``unit.<column>`` metadata (reference first, then actual).
+    Units come from the ``unit.<column>`` metadata (the reference's, else the actual's matched
+    column). Existing files of the same names are overwritten, others left alone.
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    actual_metadata = dict(actual_metadata or {})
-    reference_metadata = dict(reference_metadata or {})
-    units = {**actual_metadata, **reference_metadata}
-    time_unit = units.get(f"unit.{TIME}", "s")
-    ta = actual[TIME].to_numpy(dtype=float)
-    tr = reference[TIME].to_numpy(dtype=float)
-
-    pngs: dict[str, str] = {}
+    actual_metadata, reference_metadata = dict(actual_metadata or {}), dict(reference_metadata or {})
+    units = signal_units({n: result.match_of(n) for n in result.signals}, actual_metadata, reference_metadata)
+    time_unit = units.get(TIME, "s")
+    ta, tr = actual[TIME].to_numpy(dtype=float), reference[TIME].to_numpy(dtype=float)
+    pngs: dict[str, tuple[str, bytes]] = {}
     used: set[str] = set()
     for name, r in result.signals.items():
         if r.passed:
             continue
-        file = png_name(name)
-        n = 2
+        file, n = png_name(name), 2
         while file.lower() in used:
-            file = png_name(name)[:-4] + f"-{n}.png"
-            n += 1
+            file, n = png_name(name)[:-4] + f"-{n}.png", n + 1
         used.add(file.lower())
-        ya = actual[name].to_numpy(dtype=float)
-        yr = reference[name].to_numpy(dtype=float)
+        column = result.match_of(name).actual
+        ya, yr = actual[column].to_numpy(dtype=float), reference[name].to_numpy(dtype=float)
         ev = evaluate_signal(ta, ya, tr, yr, r.tolerance, name=name)
-        plot_signal(ev, directory / file, (tr, yr), (ta, ya), unit=units.get(f"unit.{name}"), time_unit=time_unit)
-        pngs[name] = file
-
-    (directory / "index.md").write_text(_markdown(result, pngs, actual_metadata, reference_metadata), "utf-8")
+        fig = signal_figure(ev, (tr, yr), (ta, ya), units.get(name), time_unit, column)
+        buffer = io.BytesIO()
+        try:
+            fig.savefig(buffer, format="png", dpi=90)
+        finally:
+            plt.close(fig)
+        pngs[name] = (file, buffer.getvalue())
+        (directory / file).write_bytes(pngs[name][1])
+    meta = (actual_metadata, reference_metadata)
+    (directory / "index.md").write_text(_markdown(result, {n: f for n, (f, _) in pngs.items()}, units, *meta), "utf-8")
     index = directory / "index.html"
-    index.write_text(_html(result, pngs, actual_metadata, reference_metadata), "utf-8")
+    index.write_text(_html(result, {n: png for n, (_, png) in pngs.items()}, units, *meta), "utf-8")
     return index
+
+
+def _fmt(x: float | None, spec: str = ".3g") -> str:
+    return "–" if x is None or not np.isfinite(x) else format(x, spec)
 
 
 _HEAD = (
     "signal",
+    "compared with (how)",
+    "unit",
     "verdict",
     "max outside tube",
-    "at t",
+    "at t [s]",
+    "actual − reference there",
+    "tube half-width there",
     "max |diff|",
-    "at t",
+    "at t [s]",
     "time outside",
-    "tolerance abs / rel / time",
+    "tolerance abs / rel / time [s]",
 )
 
 
-def _row(r: SignalResult) -> list[str]:
-    tol = r.tolerance
+def _row(result: ComparisonResult, r: SignalResult, units: Mapping[str, str]) -> list[str]:
+    tol, match = r.tolerance, result.match_of(r.name)
+    failing = r.max_excess > 0
+    how = f"role {match.role}" if match.how == "role" else match.how
     return [
         r.name,
+        f"{match.actual} ({how})",
+        units.get(r.name, "–"),
         "pass" if r.passed else "FAIL",
         _fmt(r.max_excess),
-        _fmt(r.time_max_excess if r.max_excess > 0 else None, ".6g"),
+        _fmt(r.time_max_excess if failing else None, ".6g"),
+        _fmt(r.deviation_at_max_excess if failing else None),
+        _fmt(r.half_width_at_max_excess if failing else None),
         _fmt(r.max_abs_diff),
         _fmt(r.time_max_abs_diff if r.max_abs_diff > 0 else None, ".6g"),
         f"{100 * r.outside_fraction:.3g} %",
@@ -248,79 +297,75 @@ def _summary(result: ComparisonResult) -> str:
     return f"FAIL: {len(failed)} of {len(result.signals)} signal(s) outside their tolerance tube"
 
 
+def _facts(result: ComparisonResult, actual_meta, reference_meta) -> list[str]:
+    facts = [
+        f"actual: {result.actual_name}{_complete(actual_meta)}",
+        f"reference: {result.reference_name}{_complete(reference_meta)}",
+    ]
+    if result.only_in_actual:
+        facts.append(f"not compared, only in actual: {', '.join(result.only_in_actual)}")
+    if result.only_in_reference:
+        facts.append(f"not compared, only in reference: {', '.join(result.only_in_reference)}")
+    return facts
+
+
 def _md_cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def _markdown(result, pngs, actual_meta, reference_meta) -> str:
-    lines = [
-        "# heliostep compare",
-        "",
-        f"- actual: `{result.actual_name}`{_complete(actual_meta)}",
-        f"- reference: `{result.reference_name}`{_complete(reference_meta)}",
-        f"- **{_summary(result)}**",
-    ]
-    if result.only_in_actual:
-        lines.append(f"- not compared, only in actual: {', '.join(f'`{s}`' for s in result.only_in_actual)}")
-    if result.only_in_reference:
-        lines.append(f"- not compared, only in reference: {', '.join(f'`{s}`' for s in result.only_in_reference)}")
-    lines += ["", "| " + " | ".join(_md_cell(h) for h in _HEAD) + " | plot |", "|" + "---|" * (len(_HEAD) + 1)]
+def _markdown(result, pngs, units, actual_meta, reference_meta) -> str:
+    lines = ["# heliostep compare", ""] + [f"- {_md_cell(f)}" for f in _facts(result, actual_meta, reference_meta)]
+    lines += [f"- **{_summary(result)}**", ""]
+    lines += ["| " + " | ".join(_HEAD) + " | plot |", "|" + "---|" * (len(_HEAD) + 1)]
     for name, r in result.signals.items():
-        cells = _row(r)
+        cells = _row(result, r, units)
         cells[0] = f"`{cells[0]}`"
-        cells[1] = f"**{cells[1]}**" if not r.passed else cells[1]
+        cells[3] = f"**{cells[3]}**" if not r.passed else cells[3]
         plot = f"[plot]({quote(pngs[name])})" if name in pngs else ""
         lines.append("| " + " | ".join(_md_cell(c) for c in [*cells, plot]) + " |")
     notes = [(name, r.note) for name, r in result.signals.items() if r.note]
     if notes:
         lines += ["", "Notes:", ""] + [f"- `{name}`: {note}" for name, note in notes]
     for name, file in pngs.items():
-        lines += ["", f"## `{name}`", "", f"![{name}]({quote(file)})"]
+        message = failure_message(result.signals[name], units.get(name))
+        lines += ["", f"## `{name}`", "", _md_cell(message), "", f"![{name}]({quote(file)})"]
     return "\n".join(lines) + "\n"
 
 
-def _html(result, pngs, actual_meta, reference_meta) -> str:
+_STYLE = (
+    "body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
+    "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}td:first-child,td:nth-child(2){text-align:left}"
+    ".fail{background:#fdd}.pass{background:#dfd}img{max-width:100%}"
+)
+
+
+def _html(result, pngs: Mapping[str, bytes], units, actual_meta, reference_meta) -> str:
     e = html.escape
-    ok = result.passed
     parts = [
         "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8"><title>heliostep compare</title>',
-        "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-        "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}td:first-child{text-align:left}"
-        ".fail{background:#fdd}.pass{background:#dfd}img{max-width:100%}</style></head><body>",
+        f'<html lang="en"><head><meta charset="utf-8"><title>heliostep compare</title><style>{_STYLE}</style>',
+        "</head><body>",
         "<h1>heliostep compare</h1>",
-        "<ul>",
-        f"<li>actual: <code>{e(result.actual_name)}</code>{e(_complete(actual_meta))}</li>",
-        f"<li>reference: <code>{e(result.reference_name)}</code>{e(_complete(reference_meta))}</li>",
-    ]
-    if result.only_in_actual:
-        parts.append(f"<li>not compared, only in actual: {e(', '.join(result.only_in_actual))}</li>")
-    if result.only_in_reference:
-        parts.append(f"<li>not compared, only in reference: {e(', '.join(result.only_in_reference))}</li>")
-    parts += [
-        "</ul>",
-        f'<p class="{"pass" if ok else "fail"}"><strong>{e(_summary(result))}</strong></p>',
+        "<ul>" + "".join(f"<li>{e(f)}</li>" for f in _facts(result, actual_meta, reference_meta)) + "</ul>",
+        f'<p class="{"pass" if result.passed else "fail"}"><strong>{e(_summary(result))}</strong></p>',
         "<table><tr>" + "".join(f"<th>{e(h)}</th>" for h in (*_HEAD, "plot")) + "</tr>",
     ]
     for name, r in result.signals.items():
-        cells = [e(c) for c in _row(r)]
+        cells = [e(c) for c in _row(result, r, units)]
         cells[0] = f"<code>{cells[0]}</code>"
         link = f'<a href="#{e(quote(name))}">plot</a>' if name in pngs else ""
         if r.note:
-            cells[1] += f' <span title="{e(r.note)}">(note)</span>'
-        parts.append(
-            f'<tr class="{"pass" if r.passed else "fail"}">'
-            + "".join(f"<td>{c}</td>" for c in [*cells, link])
-            + "</tr>"
-        )
+            cells[3] += f' <span title="{e(r.note)}">(note)</span>'
+        row_class = "pass" if r.passed else "fail"
+        parts.append(f'<tr class="{row_class}">' + "".join(f"<td>{c}</td>" for c in [*cells, link]) + "</tr>")
     parts.append("</table>")
-    for name, r in result.signals.items():
-        if r.note:
-            parts.append(f"<p><code>{e(name)}</code>: {e(r.note)}</p>")
-    for name, file in pngs.items():
+    parts += [f"<p><code>{e(name)}</code>: {e(r.note)}</p>" for name, r in result.signals.items() if r.note]
+    for name, png in pngs.items():
+        data = base64.b64encode(png).decode("ascii")
         parts += [
             f'<h2 id="{e(quote(name))}"><code>{e(name)}</code></h2>',
-            f'<p><a href="{e(quote(file))}"><img src="{e(quote(file))}" alt="{e(name)}"></a></p>',
+            f"<p>{e(failure_message(result.signals[name], units.get(name)))}</p>",
+            f'<p><img src="data:image/png;base64,{data}" alt="{e(name)}"></p>',
         ]
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"

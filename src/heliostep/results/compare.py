@@ -41,13 +41,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 import numpy as np
 import pandas as pd
 
 from heliostep.errors import InputError
+from heliostep.results.signal_map import SignalMatch
 from heliostep.results.tolerance import Tolerance, ToleranceSet, as_tolerance_set, load_tolerances
 from heliostep.results.trace_io import TIME, check_time
 from heliostep.results.tube import Tube, Window, group_middle, interp, interp_at, positive_fraction
@@ -58,6 +59,7 @@ __all__ = [
     "SignalResult",
     "ComparisonResult",
     "SignalEvaluation",
+    "compare_matched",
     "compare_traces",
     "evaluate_signal",
     "load_tolerances",
@@ -87,6 +89,10 @@ class SignalResult:
     outside_fraction: float
     outside_duration: float
     note: str = ""
+    #: at ``time_max_excess``: actual minus reference [signal units] and the tube's half-width
+    #: ``(U - L) / 2`` there [signal units] (what a CI failure message quotes)
+    deviation_at_max_excess: float = math.nan
+    half_width_at_max_excess: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -116,6 +122,13 @@ class ComparisonResult:
     reference_name: str = "reference"
     only_in_actual: tuple[str, ...] = ()
     only_in_reference: tuple[str, ...] = ()
+    #: per compared (reference) signal, the actual column it was compared with and how it was
+    #: matched (:func:`compare_matched`); a signal absent here was matched by its name
+    matches: Mapping[str, SignalMatch] = field(default_factory=dict)
+
+    def match_of(self, name: str) -> SignalMatch:
+        """How reference signal *name* found its actual column."""
+        return self.matches.get(name) or SignalMatch(name, name, "name")
 
     @property
     def passed(self) -> bool:
@@ -181,22 +194,22 @@ def evaluate_signal(
     exR = np.maximum(aR - upR, loR - aR)
     ex_all = np.stack([exL, exR], axis=1).ravel()
     t_all = np.repeat(grid, 2)
-    worst_excess, time_excess = _worst_excess(ta, ya, tube, ex_all, t_all, d0, d1)
+    a_all, r_all = np.stack([aL, aR], axis=1).ravel(), np.stack([rL, rR], axis=1).ravel()
+    lo_all, up_all = np.stack([loL, loR], axis=1).ravel(), np.stack([upL, upR], axis=1).ravel()
+    worst_excess, time_excess, at_worst = _worst_excess(ta, ya, tube, ex_all, t_all, d0, d1)
+    if at_worst is None:  # a grid point: its values are on the grid
+        k = int(np.argmax(ex_all))
+        at_worst = (float(a_all[k] - r_all[k]), float(0.5 * (up_all[k] - lo_all[k])))
 
-    diff = np.abs(np.stack([aL - rL, aR - rR], axis=1).ravel())
+    diff = np.abs(a_all - r_all)
     kd = int(np.argmax(diff))
     outside = _time_outside(grid, aL, aR, loL, upL, loR, upR)
     result = _signal_result(
         name, tolerance, ta, tr, worst_excess, time_excess, float(diff[kd]), float(t_all[kd]), outside
     )
+    result = replace(result, deviation_at_max_excess=at_worst[0], half_width_at_max_excess=at_worst[1])
     return SignalEvaluation(
-        time=t_all,
-        actual=np.stack([aL, aR], axis=1).ravel(),
-        reference=np.stack([rL, rR], axis=1).ravel(),
-        lower=np.stack([loL, loR], axis=1).ravel(),
-        upper=np.stack([upL, upR], axis=1).ravel(),
-        excess=ex_all,
-        result=result,
+        time=t_all, actual=a_all, reference=r_all, lower=lo_all, upper=up_all, excess=ex_all, result=result
     )
 
 
@@ -224,20 +237,25 @@ def _check_window(ta: np.ndarray, tube: Tube, d0: float, d1: float) -> Window:
 
 def _worst_excess(
     ta: np.ndarray, ya: np.ndarray, tube: Tube, ex_all: np.ndarray, t_all: np.ndarray, d0: float, d1: float
-) -> tuple[float, float]:
+) -> tuple[float, float, tuple[float, float] | None]:
     """The largest excess beyond the tube and its time [s]: over the left and right limits on the grid
-    (*ex_all* at *t_all*), plus the actual's rows between the two limits of a jump in ``[d0, d1]``."""
+    (*ex_all* at *t_all*), plus the actual's rows between the two limits of a jump in ``[d0, d1]``.
+    When the worst is such a row, also its deviation from the reference and the tube's half-width
+    there (else None: the grid has them)."""
     middle = group_middle(ta)
     middle = middle[(ta[middle] >= d0) & (ta[middle] <= d1)]
-    if middle.size:
-        lo_m, up_m = tube.bounds(tube.window(ta[middle]), "closed")
-        ex_m = np.maximum(ya[middle] - up_m, lo_m - ya[middle])
-        ex_check = np.concatenate([ex_all, ex_m])
-        t_check = np.concatenate([t_all, ta[middle]])
-    else:
-        ex_check, t_check = ex_all, t_all
-    k = int(np.argmax(ex_check))
-    return float(ex_check[k]), float(t_check[k])
+    if not middle.size:
+        k = int(np.argmax(ex_all))
+        return float(ex_all[k]), float(t_all[k]), None
+    lo_m, up_m = tube.bounds(tube.window(ta[middle]), "closed")
+    ex_m = np.maximum(ya[middle] - up_m, lo_m - ya[middle])
+    k_grid, k_mid = int(np.argmax(ex_all)), int(np.argmax(ex_m))
+    if ex_all[k_grid] >= ex_m[k_mid]:
+        return float(ex_all[k_grid]), float(t_all[k_grid]), None
+    t_m = ta[middle[k_mid : k_mid + 1]]
+    reference = float(interp(tube.t, tube.y, t_m, "left")[0])
+    at_worst = (float(ya[middle[k_mid]] - reference), float(0.5 * (up_m[k_mid] - lo_m[k_mid])))
+    return float(ex_m[k_mid]), float(t_m[0]), at_worst
 
 
 def _time_outside(
@@ -402,13 +420,54 @@ def compare_traces(
     )
 
 
+def compare_matched(
+    actual: pd.DataFrame,
+    reference: pd.DataFrame,
+    matches: Mapping[str, SignalMatch],
+    tolerances: Tolerance | ToleranceSet | Mapping[str, Tolerance] | None = None,
+    *,
+    actual_name: str = "actual",
+    reference_name: str = "reference",
+    every_match: Mapping[str, SignalMatch] | None = None,
+) -> ComparisonResult:
+    """Compare each reference signal of *matches* (from
+    :func:`~heliostep.results.signal_map.match_signals`) with its actual column; results and
+    tolerances are by the reference's names. ``only_in_actual`` / ``only_in_reference`` list the
+    columns that *every_match* (default: *matches*; all the matches when *matches* is a selection)
+    leaves unmatched."""
+    if not matches:
+        raise InputError(f"no signal of {reference_name} is matched in {actual_name}")
+    _check_table(actual, actual_name)
+    renamed = pd.DataFrame({TIME: actual[TIME], **{ref: actual[m.actual] for ref, m in matches.items()}})
+    result = compare_traces(
+        renamed, reference, tolerances, list(matches), actual_name=actual_name, reference_name=reference_name
+    )
+    every_match = matches if every_match is None else every_match
+    used = {m.actual for m in every_match.values()}
+    return replace(
+        result,
+        matches=MappingProxyType(dict(matches)),
+        only_in_actual=tuple(s for s in _signal_names(actual) if s not in used),
+        only_in_reference=tuple(s for s in _signal_names(reference) if s not in every_match),
+    )
+
+
+def format_matches(result: ComparisonResult) -> str:
+    """One line per compared signal saying which actual column it was compared with and how."""
+    matches = [result.match_of(name) for name in result.signals]
+    if all(m.how == "name" for m in matches):
+        return f"matched by name: all {len(matches)} signal(s)"
+    return "\n".join(f"matched: {m.describe()}" for m in matches)
+
+
 def _num(x: float, spec: str) -> str:
     return "-" if not math.isfinite(x) else format(x, spec)
 
 
-def format_table(result: ComparisonResult) -> str:
-    """The per-signal summary printed by the command."""
-    head = ("signal", "verdict", "outside tube", "at t [s]", "max |diff|", "at t [s]", "time outside")
+def format_table(result: ComparisonResult, units: Mapping[str, str] | None = None) -> str:
+    """The per-signal summary printed by the command; *units* (signal -> unit) fill its last column."""
+    units = units or {}
+    head = ("signal", "verdict", "outside tube", "at t [s]", "max |diff|", "at t [s]", "time outside", "unit")
     rows = [
         (
             r.name,
@@ -418,6 +477,7 @@ def format_table(result: ComparisonResult) -> str:
             _num(r.max_abs_diff, ".3g"),
             _num(r.time_max_abs_diff if r.max_abs_diff > 0 else math.nan, ".6g"),
             f"{100 * r.outside_fraction:.3g}%",
+            units.get(r.name, "-"),
         )
         for r in result.signals.values()
     ]

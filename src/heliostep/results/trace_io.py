@@ -49,6 +49,10 @@ Two encodings, chosen by the file suffix:
         1.0,0.5
         1.0,2.0
 
+Read only: Modelica tools' ``.mat`` result files (Dymola / OpenModelica layout,
+:mod:`~heliostep.results.trace_modelica`) and OpenModelica's CSV (a quoted header
+``"time","a.b",`` and a separator ending every line).
+
 Both encodings round-trip values (bit for bit), column order, duplicate time stamps
 and metadata.
 
@@ -78,6 +82,7 @@ from heliostep.results.trace_format import (
     is_reserved_parquet_key,
     trace_format,
 )
+from heliostep.results.trace_modelica import MAT_SUFFIX, read_modelica_mat
 from heliostep.results.trace_writer import TRACE_ENCODING, TraceWriteError, TraceWriter
 
 # pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
@@ -212,6 +217,9 @@ def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.D
     non-numeric column, or a time that is not finite and non-decreasing.
     """
     path = Path(path)
+    if path.suffix.lower() == MAT_SUFFIX and columns is None:  # a Modelica tool's result file (read only)
+        table, meta = read_modelica_mat(path)
+        return _to_float_frame(table, str(path)), meta
     fmt = trace_format(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -337,6 +345,9 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
         names = [n.strip() for n in next(csv.reader(io.StringIO(lines[start]), delimiter=sep))]
     except csv.Error as exc:
         raise InputError(f"{path}: line {start + 1}: bad header: {exc}") from None
+    trailing = len(names) > 1 and names[-1] == ""  # OpenModelica ends every line with the separator
+    if trailing:
+        names[-1] = "\x00trailing"
     dupes = sorted({c for c in names if names.count(c) > 1})
     if dupes:
         raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
@@ -344,6 +355,10 @@ def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
         frame = pd.read_csv(io.StringIO(body), header=0, names=names, sep=sep, decimal=decimal, **_EXACT_FLOATS)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise InputError(f"{path}: cannot read as CSV: {exc}") from None
+    if trailing:
+        if frame[names[-1]].notna().any():
+            raise InputError(f"{path}: the header ends with an empty column name but its rows have values there")
+        frame = frame.drop(columns=[names[-1]])
     return meta, frame
 
 
