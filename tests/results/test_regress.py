@@ -18,6 +18,7 @@ def test_every_shipped_scenario_matches_its_reference(fmu_paths, capsys):
         "jan21-ideal-current",
         "jan21-small-angle",
         "jan21-weak-motor",
+        "jan21-48v",
     }
     status = main(["regress"])
     out = capsys.readouterr().out
