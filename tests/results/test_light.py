@@ -77,6 +77,7 @@ def test_shared_primary_costs_light_off_centre():
     # the loss is exactly 0 (it was -1e-3 J of interpolation noise when taken as ideal - reference)
     assert central["light_lost_shared_primary_J"] == 0.0
     assert any("exactly 0" in note for note in central["light_notes"])
+    assert any("neighbouring mirrors are not" in note for note in central["light_notes"])
     outer = _scenario(6.0)
     figures = light_figures(*_trace(outer)[:2], outer)
     assert figures["light_lost_shared_primary_J"] > 0.01 * figures["light_energy_ideal_J"]

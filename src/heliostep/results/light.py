@@ -406,6 +406,10 @@ def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
         notes.append("light_lost_shared_primary_J is exactly 0: the central mirror's primary is the shared one")
     if axis == "primary":
         notes.append("light_lost_shared_primary_J is 0: a driven primary shares nothing")
+    notes.append(
+        "one mirror: the receiver's own shadow on it is counted; shading and blocking by neighbouring mirrors"
+        " are not (heliostep field-light and heliostep end-loss have them)"
+    )
     law = figures["light_lost_reference_law_J"]
     if reference > 0 and abs(law) < INTERPOLATION_NOISE * reference:
         notes.append(
