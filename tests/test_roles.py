@@ -50,3 +50,30 @@ def test_a_role_naming_a_missing_variable_is_an_input_error():
         run_scenario(SCENARIO, SHORT + ("roles.torque=motor.torque",))
     with pytest.raises(InputError, match=r"roles\.torque: motor\.i_a_ref has causality 'input', expected 'output'"):
         run_scenario(SCENARIO, SHORT + ("roles.torque=motor.i_a_ref",))
+
+
+def test_a_vendor_motor_with_other_names_and_only_fmus_set_names_the_roles_to_spell_out(tmp_path):
+    # issue #24: a vendor motor FMU (here the shipped motor with its inputs and torque renamed, built by
+    # heliostep's own chain into an fmus/ folder beside the scenario) and only fmus.motor set: an input error
+    # naming each required role, the default variable it looked for and the FMU's inputs, not a KeyError
+    import re
+    import shutil
+
+    from heliostep.fmu.build import build_fmu
+    from heliostep.paths import models_dir
+
+    models = tmp_path / "models"
+    models.mkdir()
+    source = (models_dir() / "StepperMotor.mo").read_text()
+    renamed = re.sub(r"\bStepperMotor\b", "VendorMotor", source)
+    renamed = re.sub(r"\bi_a_ref\b", "iaRef", re.sub(r"\bi_b_ref\b", "ibRef", re.sub(r"\btau\b", "tauEl", renamed)))
+    (models / "VendorMotor.mo").write_text(renamed)
+    (tmp_path / "fmus").mkdir()
+    build_fmu("VendorMotor", tmp_path / "fmus", models)
+    scenario = tmp_path / "vendor.yaml"
+    shutil.copy(SCENARIO, scenario)
+    with pytest.raises(InputError) as error:
+        run_scenario(scenario, SHORT + ("fmus.motor=VendorMotor",))
+    message = str(error.value)
+    assert "roles.current_a_ref: the default 'motor.i_a_ref' names no variable of VendorMotor.fmu" in message
+    assert "roles.current_b_ref" in message and "its inputs: iaRef, ibRef" in message and "connections" in message
