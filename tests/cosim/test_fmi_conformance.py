@@ -313,6 +313,17 @@ def test_algebraic_loop_without_solution_fails_clearly(gain):
         gain_loop(gain, 1.0, 1.0, 1.0, 1.0).simulate(0.0, 1.0)  # u = u + 2: no solution
 
 
+def test_a_singular_loop_solved_from_the_start_is_refused_not_accepted(gain):
+    # issue #24: y = u fed back to u (k = 1, b = 0): r(v) = y(v) - v is 0 for every v, so Newton's first
+    # residual is already 0 and the loop was accepted with 0 iterations; it has no unique solution
+    system = CoSimulation({"a": gain}, [Connection("a.y", "a.u")], parameters={"a": {"k": 1.0, "b": 0.0}})
+    with pytest.raises(SimulationError, match=r"algebraic loop through a.u at t = 0 s: singular Jacobian"):
+        system.simulate(0.0, 1.0)
+    # the same FMU with k = 0.5 loops on itself to the unique u = b / (1 - k)
+    fine = CoSimulation({"a": gain}, [Connection("a.y", "a.u")], parameters={"a": {"k": 0.5, "b": 1.0}})
+    np.testing.assert_allclose(fine.simulate(0.0, 1.0, np.linspace(0.0, 1.0, 3)).trace["a.y"], 2.0, rtol=1e-9)
+
+
 def test_algebraic_loop_through_a_discrete_connection_is_refused(infos):
     pt = infos["PassThrough"]
     with pytest.raises(InputError, match="runs through the discrete-time connection"):

@@ -56,9 +56,11 @@ class LoopSolver:
     def solve(self, propagate: Callable[[], None], time: float) -> None:
         """Find v with y(v) = v, leaving every FMU evaluated at that v."""
         v = self.v.copy()
-        n = len(v)
         self.solves += 1
         r = self._residual(v, propagate)
+        if self.solves == 1:  # the first solve checks the loop has a unique solution, even one met at once
+            self._check_unique(v, r, propagate, time)
+            r = self._residual(v, propagate)  # every FMU left evaluated at v
         for iteration in range(self.max_iterations + 1):
             if np.all(np.abs(r) <= self.atol + self.rtol * np.abs(v)) and np.all(np.isfinite(r)):
                 self.v = v
@@ -67,25 +69,39 @@ class LoopSolver:
                 return
             if iteration == self.max_iterations or not np.all(np.isfinite(r)):
                 break
-            jacobian = np.empty((n, n))
-            for j in range(n):
-                h = 1e-7 * max(1.0, abs(v[j]))
-                perturbed = v.copy()
-                perturbed[j] += h
-                jacobian[:, j] = (self._residual(perturbed, propagate) - r) / h
             try:
-                step = np.linalg.solve(jacobian, -r)
+                step = np.linalg.solve(self._jacobian(v, r, propagate), -r)
             except np.linalg.LinAlgError:
-                raise LoopError(
-                    f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: "
-                    "singular Jacobian (the loop has no unique solution)"
-                ) from None
+                raise self._singular(time) from None
             v = v + step
             r = self._residual(v, propagate)
         raise LoopError(
             f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: no "
             f"convergence in {self.max_iterations} Newton iterations (residual "
             f"{np.max(np.abs(r)):.3g})"
+        )
+
+    def _jacobian(self, v: np.ndarray, r: np.ndarray, propagate: Callable[[], None]) -> np.ndarray:
+        """Forward differences of r at v (one evaluation per torn input)."""
+        jacobian = np.empty((len(v), len(v)))
+        for j in range(len(v)):
+            h = 1e-7 * max(1.0, abs(v[j]))
+            perturbed = v.copy()
+            perturbed[j] += h
+            jacobian[:, j] = (self._residual(perturbed, propagate) - r) / h
+        return jacobian
+
+    def _check_unique(self, v: np.ndarray, r: np.ndarray, propagate: Callable[[], None], time: float) -> None:
+        """A loop whose Jacobian is singular (e.g. y = u fed back to u: every v solves it) has no unique
+        solution: refused, naming the loop, rather than accepted at whatever v it starts from."""
+        jacobian = self._jacobian(v, r, propagate)
+        if not np.all(np.isfinite(jacobian)) or np.linalg.cond(jacobian) > 1e12:
+            raise self._singular(time)
+
+    def _singular(self, time: float) -> LoopError:
+        return LoopError(
+            f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: "
+            "singular Jacobian (the loop has no unique solution)"
         )
 
     def statistics(self) -> dict:
