@@ -388,3 +388,20 @@ def test_interrupted_summary_does_not_count_the_step_in_progress(fmu_paths):
     fixed = summary_at_cut(summary, rows, solution).figures()
     assert fixed["missed_steps"] == 0 and fixed["steps_lost"] == 0 and fixed["steps_commanded"] == 0
     assert fixed["step_in_progress_at_cut_s"] == pytest.approx(steps[0])
+
+
+def test_an_extra_fmu_that_terminates_early_makes_the_run_incomplete_and_says_so(tmp_path):
+    # issue #24: an unconnected extra FMU (the mini Counter, which asks to terminate at t_stop = 9 s) used to
+    # cut a 20 s window to 9 s while the run said "complete"; now the run is incomplete, reason terminated,
+    # naming the FMU and the time, and the trace so far is kept
+    from third_party_fmu import build_mini_fmu
+
+    counter = build_mini_fmu("Counter", tmp_path)
+    with pytest.raises(RunFailed) as failed:
+        run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=20", f"fmus.counter={counter}"])
+    result = failed.value.result
+    assert not result.complete and result.reason == "terminated"
+    assert result.time_reached == pytest.approx(9.0)
+    assert "counter" in result.error and "t = 9 s" in result.error and "window's end at 20 s" in result.error
+    assert result.trace["time"].max() == pytest.approx(9.0)
+    assert result.metadata["terminated"]["time_s"] == pytest.approx(9.0)

@@ -216,6 +216,19 @@ def _row_sink(
     return TraceStream(path, columns, assembler, row_group_rows, figures), temporary
 
 
+def _ended_status(result, duration: float) -> RunStatus:
+    """Complete, unless an FMU asked to terminate before the window's end: the figures then cover only
+    [0, t] of the window, so the run is incomplete (reason ``terminated``, the FMU and the time named)."""
+    stop = result.termination_time
+    if result.terminated and stop is not None and stop < duration * (1.0 - 1e-12):
+        error = (
+            f"{result.termination_reason} at t = {stop:.6g} s, before the window's end at {duration:.6g} s: "
+            "the trace and the figures cover the window up to there only"
+        )
+        return RunStatus(False, error, "terminated", stop)
+    return RunStatus(True)
+
+
 def _co_simulate(
     prepared: _PreparedRun, figures: RunFigures, sink: RowSink, progress: bool, should_stop: Callable[[], bool] | None
 ):
@@ -235,7 +248,7 @@ def _co_simulate(
             sink=sink,
             sink_rows=SINK_ROWS,
         )  # the trace rows, in blocks
-        return RunStatus(True), result.trace, result.statistics
+        return _ended_status(result, inputs.duration), result.trace, result.statistics
     except InputError as exc:  # found while setting up the FMUs, before any row (e.g. an unknown parameter)
         raise InputError(f"{prepared.scenario.source}: {exc}") from None
     except SimulationError as exc:
@@ -265,7 +278,7 @@ def _simulate_and_summarize(
         "run_wall_time": clock.perf_counter() - prepared.started,
         "peak_rss_mb_simulating": _peak_rss_mb(),
     }
-    if statistics.get("terminated"):  # an FMU asked to stop: the run ends there, normally
+    if statistics.get("terminated"):  # an FMU asked to stop: the run ends there (incomplete if before the end)
         meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
     solution = figures.solution_figures()
     if solution and figures.solution is not None:  # every solver step's, so summarize(trace, meta) recomputes them
