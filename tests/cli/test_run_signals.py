@@ -77,6 +77,7 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
     out = tmp_path / "run"
     (out).mkdir()
     (out / "fig08_panel_angle_ref.png").write_bytes(b"stale figure of an earlier run")
+    (out / ".heliostep-manifest.json").write_text(json.dumps({"files": ["fig08_panel_angle_ref.png"]}))  # its record
     (out / "notes.txt").write_text("not heliostep's")
     process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)  # unpacked right before the simulation starts
@@ -147,7 +148,7 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
         tmp_path / "tmp",
     )
     deadline = time.monotonic() + 60.0
-    while not list(out.glob(".heliostep-tmp-figures-*")):  # drawing has begun
+    while not list(out.glob(".heliostep-tmp-*/.heliostep-tmp-figures-*")):  # drawing has begun (staged)
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, "no figures were drawn"
         time.sleep(0.005)

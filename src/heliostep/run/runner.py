@@ -297,6 +297,7 @@ def _simulate_and_summarize(
         weather=prepared.weather,
         trace_kept=sink.trace_kept,
         solution_plot=figures.solution.plot_data() if figures.solution is not None else None,
+        unwritten_trace=getattr(sink, "unwritten_trace", None),  # rows a full disk kept out of the stream
     )
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import os
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -137,9 +138,15 @@ class Scenario(Section):
     @field_validator("name")
     @classmethod
     def _not_blank(cls, value: str) -> str:
-        if not value.strip():
+        value = value.strip()
+        if not value:
             raise ValueError("must not be blank")
-        return value.strip()
+        if value in (".", "..") or any(c in value for c in "/\\\0") or os.path.isabs(value):
+            raise ValueError(
+                f"{value!r}: a name is one folder name (the default output folder is out/NAME): "
+                "no path separator, not absolute, not '.' or '..'"
+            )
+        return value
 
     @field_validator("fmus")
     @classmethod
