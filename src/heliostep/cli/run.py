@@ -7,13 +7,16 @@ import sys
 from pathlib import Path
 
 from heliostep.cli.signals import stop_requests
+from heliostep.drive.sequencer import PreparationStopped
 from heliostep.errors import HeliostepError
 from heliostep.results.outputs import TMP_PREFIX, check_out_dir, check_out_name
 from heliostep.results.rescue import rescue_folder
 from heliostep.results.run_folder import check_foreign, hold_folder
 from heliostep.results.trace_io import TraceWriteError
 from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
+from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.result import run_file_names
+from heliostep.run.runner import HELD_TRACE_MAX_DURATION
 from heliostep.scenario import load_scenario
 
 #: Windows longer than this [s] get no CSV copy of the trace unless --csv is given.
@@ -34,6 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "far, summary.json and metadata.json are written, marked complete: false with reason "
         "interrupted and the time reached; no figures are drawn. A second one exits at once: "
         "files not finished are removed, none is left claiming to be complete.\n\n"
+        "Before anything is computed, the run's steps, trace rows, memory and disk are estimated "
+        "from the scenario; a run over its budget (budget.memory_gb, budget.disk_gb, or "
+        "--max-memory / --max-disk) is refused with exit 2, naming the key that makes it large.\n\n"
         "Windows over 1 h stream the trace to trace.parquet (row groups, written as the rows "
         "come) instead of holding it in memory.\n\n"
         "A window with the sun below the horizon throughout runs, with a warning on stderr "
@@ -54,6 +60,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument(
+        "--max-memory",
+        type=float,
+        metavar="GB",
+        help="memory budget: a run estimated to need more is refused before it starts (budget.memory_gb, default 4)",
+    )
+    parser.add_argument(
+        "--max-disk",
+        type=float,
+        metavar="GB",
+        help="disk budget for the trace and records (budget.disk_gb, default 10)",
+    )
+    parser.add_argument(
         "--csv",
         action=argparse.BooleanOptionalAction,
         default=None,
@@ -66,7 +84,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _run_command(args: argparse.Namespace) -> int:
     with stop_requests() as stop:
         out_name = check_out_name(args.out) if args.out is not None else None  # "" refused before anything
-        scenario = load_scenario(args.scenario, args.overrides)
+        scenario = load_scenario(args.scenario, [*args.overrides, *_budget_overrides(args)])
+        # the estimate first: a run too large for the budget is exit 2 before any work
+        check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, csv=args.csv))
         out_dir = out_name or Path("out") / scenario.name
         fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
         existed = out_dir.exists()
@@ -81,6 +101,12 @@ def _run_command(args: argparse.Namespace) -> int:
             raise
 
 
+def _budget_overrides(args: argparse.Namespace) -> list[str]:
+    """--max-memory / --max-disk as the scenario keys they set."""
+    given = (("budget.memory_gb", args.max_memory), ("budget.disk_gb", args.max_disk))
+    return [f"{key}={value!r}" for key, value in given if value is not None]
+
+
 def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop) -> int:
     """The run simulated and written into ``out_dir`` (whose lock is held): the exit status."""
     if stop.is_set():
@@ -89,6 +115,9 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
     try:  # a long window streams its trace into out_dir while simulating (bounded memory)
         result = run_scenario(scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir, fmu_paths=fmu_paths)
         status = 0
+    except PreparationStopped:
+        print(f"heliostep run: stopped by {stop.name} while preparing the inputs (nothing computed)", file=sys.stderr)
+        return stop.exit_status
     except RunFailed as failed:
         result = failed.result
         if failed.interrupted:

@@ -26,6 +26,7 @@ from heliostep.fmu.reference import is_variant_name
 from heliostep.scenario.keys import KeyProblems, dotted
 from heliostep.scenario.roles import REQUIRED_ROLES, RolesConfig
 from heliostep.scenario.sections import (
+    BudgetConfig,
     SUNRISE,
     SUNSET,
     MirrorConfig,
@@ -60,7 +61,18 @@ ParameterValue = Annotated[
 
 _INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 #: Top-level keys whose null value means "the defaults".
-_DEFAULTED_KEYS = ("transmission", "fmus", "parameters", "roles", "sequencer", "wind", "solver", "output", "optics")
+_DEFAULTED_KEYS = (
+    "transmission",
+    "fmus",
+    "parameters",
+    "roles",
+    "sequencer",
+    "wind",
+    "solver",
+    "output",
+    "optics",
+    "budget",
+)
 
 
 def _merge_default_fmus(value):
@@ -118,6 +130,7 @@ class Scenario(Section):
     optics: OpticsConfig = Field(default_factory=OpticsConfig)
     solver: SolverConfig = Field(default_factory=SolverConfig)
     output: OutputConfig = Field(default_factory=OutputConfig)
+    budget: BudgetConfig = Field(default_factory=BudgetConfig)
 
     _folder: Path = PrivateAttr(default_factory=Path.cwd)
     _source: str = PrivateAttr(default="<scenario>")

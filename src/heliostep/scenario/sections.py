@@ -319,3 +319,12 @@ class OutputConfig(Section):
     interval: Real = Field(0.01, gt=0.0, description="[s], spacing of the regular grid")
     step_detail: Real = Field(0.05, gt=0.0, description="[s] after each step kept on the fine grid")
     step_interval: Real = Field(0.0005, gt=0.0, description="[s], spacing of the fine grid")
+
+
+class BudgetConfig(Section):
+    """``budget``: the most a run may take, checked against an estimate made from the scenario
+    before anything is computed (:mod:`heliostep.run.estimate`); above it the run is refused
+    (exit 2) naming the key that makes it large. The defaults fit a laptop."""
+
+    memory_gb: Real = Field(4.0, gt=0.0, description="[GB] of memory the run's inputs and trace may take")
+    disk_gb: Real = Field(10.0, gt=0.0, description="[GB] of disk its files (trace, CSV, records) may take")
