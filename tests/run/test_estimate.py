@@ -22,7 +22,13 @@ from heliostep.run.estimate import estimate_run
 from heliostep.scenario import load_scenario
 
 HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
-SHORT_SCENARIOS = ["jan21-central", "jan21-paper-literal", "jan21-ideal-current", "jan21-small-angle", "jan21-weak-motor"]
+SHORT_SCENARIOS = [
+    "jan21-central",
+    "jan21-paper-literal",
+    "jan21-ideal-current",
+    "jan21-small-angle",
+    "jan21-weak-motor",
+]
 
 
 @pytest.mark.parametrize("name", [*SHORT_SCENARIOS, "jan21-day"])

@@ -9,7 +9,6 @@ subprocess, with real signals.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys

@@ -170,9 +170,8 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
     """Within the block, SIGINT, SIGTERM and SIGHUP set the returned :class:`StopRequest`; a
     second one raises :class:`ForcedStop`, a third ends the process.
 
-    With ``raise_exception``, the handler also raises it (for code that waits in Python, not in
-    native callbacks, e.g. a Dask client). Outside the main thread nothing is installed, and a
-    signal that is ignored (``SIG_IGN``, as SIGINT in a shell's background job) stays ignored.
+    With ``raise_exception``, the handler also raises it (for code that waits in Python, e.g. a
+    Dask client). Outside the main thread nothing is installed; an ignored signal stays ignored.
     """
     request = StopRequest()
     if threading.current_thread() is not threading.main_thread():
@@ -186,7 +185,7 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
             raise swallowed.pop()
 
     def handler(signum, frame):
-        _after_hangup(signum)
+        _after_hangup(signum)  # (SIGHUP: the terminal may be gone)
         request.count += 1
         request.set(signum)
         if request.count == 1:
@@ -224,6 +223,6 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         sys.unraisablehook = previous_hook
         if previous_alarm:
             signal.setitimer(signal.ITIMER_REAL, 0.0)
-            signal.signal(signal.SIGALRM, previous_alarm["handler"])
-        for sig, old in previous.items():
+            previous[signal.SIGALRM] = previous_alarm["handler"]
+        for sig, old in previous.items():  # (SIGALRM's too)
             signal.signal(sig, old)

@@ -176,6 +176,12 @@ class TraceStream:
             self.flush()
         except TraceWriteError:
             pass  # the file keeps the row groups written before; ``failed`` says why
+        if self.failed is not None:  # the file says what it holds: the time of its own last row
+            metadata = {
+                **metadata,
+                "time_reached": repr(float(self.written_time or 0.0)),
+                "rows_computed_after_this_file": str(self.rows_not_written),
+            }
         self._writer.close(metadata)
         self.closed = True
         return self.path

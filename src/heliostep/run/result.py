@@ -29,7 +29,7 @@ from heliostep.results.run_files import (
     write_records,
     write_trace_csv,
 )
-from heliostep.results.run_folder import check_foreign, hold_folder, staging_folder, swap_in
+from heliostep.results.run_folder import check_foreign, hold_folder, manifest_files, staging_folder, swap_in
 from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, summary_record
 from heliostep.results.solution import SolutionPlotData
 from heliostep.results.trace import trace_metadata
@@ -166,13 +166,24 @@ class RunResult:
 
     def plot(self, out_dir: str | Path) -> list[Path]:
         """Write the paper's Figs. 8–14 and the power on the tube for this run into ``out_dir``
-        (each file renamed into place)."""
+        (drawn into a staging folder, swapped in and added to the folder's manifest, the
+        folder's lock held meanwhile)."""
         self._require_trace()
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with hold_folder(out_dir):
+            staging = staging_folder(out_dir)
+            try:
+                drawn = [path.name for path in self._draw(staging)]
+                return list(swap_in(out_dir, staging, drawn, keep=manifest_files(out_dir)).values())
+            finally:
+                shutil.rmtree(staging, ignore_errors=True)
+
+    def _draw(self, out_dir: Path) -> list[Path]:
+        """The figures drawn into ``out_dir`` (each renamed into place there)."""
         from heliostep.plots.light import plot_light_run
         from heliostep.plots.run import plot_run
 
-        out_dir = Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
             source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
@@ -241,7 +252,7 @@ class RunResult:
             if plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop()):
                 staging = staging_folder(out_dir)  # then the figures, added to them
                 try:
-                    drawn = [path.name for path in self.plot(staging)]
+                    drawn = [path.name for path in self._draw(staging)]
                     written.update(swap_in(out_dir, staging, drawn, keep=written))
                 finally:
                     shutil.rmtree(staging, ignore_errors=True)

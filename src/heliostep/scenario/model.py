@@ -26,9 +26,9 @@ from heliostep.fmu.reference import is_variant_name
 from heliostep.scenario.keys import KeyProblems, dotted
 from heliostep.scenario.roles import REQUIRED_ROLES, RolesConfig
 from heliostep.scenario.sections import (
-    BudgetConfig,
     SUNRISE,
     SUNSET,
+    BudgetConfig,
     MirrorConfig,
     OpticsConfig,
     OutputConfig,
