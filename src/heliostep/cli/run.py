@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from heliostep.cli.signals import stop_requests
 from heliostep.drive.sequencer import PreparationStopped
 from heliostep.errors import HeliostepError
@@ -135,6 +137,15 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         return 1
     if result.figures is not None and result.figures.night_warning:  # the summary says so too
         print(f"heliostep run: warning: {result.figures.night_warning}", file=sys.stderr)
+    elif result.complete and result.inputs is not None and not len(result.inputs.schedule):
+        increment = np.degrees(result.inputs.sequencer.increment)
+        travel = np.degrees(np.ptp(result.inputs.rotor_angle_ref))
+        print(
+            f"heliostep run: warning: no step was commanded: the reference rotor angle moves {travel:.3g} deg "
+            f"over the window, the sequencer steps {increment:.3g} deg (see transmission.pinion_radius, "
+            "sequencer.step_angle, window)",
+            file=sys.stderr,
+        )
     csv = args.csv
     if csv is None:
         duration = result.inputs.duration if result.inputs is not None else 0.0
