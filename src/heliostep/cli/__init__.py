@@ -50,13 +50,14 @@ def main(argv: list[str] | None = None) -> int:
     # more) is one line and 128 + its number, never a traceback
     command = "heliostep"
     try:
-        with signals_end_the_command():
+        with signals_end_the_command() as starting:
             parser = make_parser()
             args = parser.parse_args(argv)
             if not getattr(args, "func", None):
                 parser.print_help()
                 return 2
-            command = f"heliostep {args.command}"
+            command = starting.command = f"heliostep {args.command}"
+            starting.at_once = False  # from here a signal raises StopSignal: the finally blocks run
             return _run(command, args)
     except StopSignal as stopped:
         print(f"{command}: stopped by {stopped} before it could finish", file=sys.stderr)

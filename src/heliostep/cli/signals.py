@@ -39,6 +39,7 @@ __all__ = [
     "STOP_SIGNALS",
     "ForcedStop",
     "StopRequest",
+    "StartingUp",
     "StopSignal",
     "exit_status",
     "signals_end_the_command",
@@ -95,17 +96,35 @@ def _after_hangup(signum: int) -> None:
                 setattr(sys, name, _LenientStream(stream))
 
 
+class StartingUp:
+    """What a stop signal does within :func:`signals_end_the_command`: while ``at_once`` (the
+    modules being imported: nothing written yet, and an exception raised there may be swallowed
+    by an import's own ``except``), one line and ``os._exit``; then :class:`StopSignal`."""
+
+    def __init__(self) -> None:
+        self.at_once = True
+        self.command = "heliostep"
+
+
 @contextmanager
-def signals_end_the_command() -> Iterator[None]:
-    """Within the block, a stop signal raises :class:`StopSignal` (a ``BaseException``); the
-    previous handlers are restored on leaving. Signals that are ignored stay ignored; outside the
-    main thread nothing is installed."""
+def signals_end_the_command() -> Iterator[StartingUp]:
+    """Within the block, a stop signal ends the command: at once with one line while
+    ``StartingUp.at_once``, else by raising :class:`StopSignal` (a ``BaseException``). The
+    previous handlers are restored on leaving; ignored signals stay ignored; outside the main
+    thread nothing is installed."""
+    state = StartingUp()
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield state
         return
 
     def handler(signum, frame):
         _after_hangup(signum)
+        if state.at_once:
+            try:
+                sys.stderr.write(f"{state.command}: stopped by {signal.Signals(signum).name} while starting\n")
+                sys.stderr.flush()
+            finally:
+                os._exit(exit_status(signum))
         raise StopSignal(signum)
 
     previous = {}
@@ -114,10 +133,43 @@ def signals_end_the_command() -> Iterator[None]:
             if signal.getsignal(sig) is signal.SIG_IGN:
                 continue
             previous[sig] = signal.signal(sig, handler)
-        yield
+        with _raised_again_after_callbacks(StopSignal):
+            yield state
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
+
+
+@contextmanager
+def _raised_again_after_callbacks(kind: type[BaseException]) -> Iterator[None]:
+    """Within the block, an exception of ``kind`` that a signal handler raised inside a weakref
+    callback or ``__del__`` (where Python only prints "Exception ignored") is raised again 1 ms
+    later by SIGALRM, outside the callback (Unix only)."""
+    swallowed: list[BaseException] = []
+    previous_alarm: dict = {}
+    previous_hook = sys.unraisablehook
+
+    def again(signum, frame):
+        if swallowed:
+            raise swallowed.pop()
+
+    def unraisable(hook_args):
+        if isinstance(hook_args.exc_value, kind) and hasattr(signal, "setitimer"):
+            swallowed[:] = [hook_args.exc_value]
+            if "handler" not in previous_alarm:
+                previous_alarm["handler"] = signal.signal(signal.SIGALRM, again)
+            signal.setitimer(signal.ITIMER_REAL, 1e-3)
+            return
+        previous_hook(hook_args)
+
+    sys.unraisablehook = unraisable
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous_hook
+        if previous_alarm:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, previous_alarm["handler"])
 
 
 class ForcedStop(BaseException):
