@@ -5,6 +5,8 @@ a warning."""
 from __future__ import annotations
 
 import shutil
+import subprocess
+import sys
 
 import pytest
 
@@ -12,6 +14,7 @@ from heliostep.cli import main
 from heliostep.paths import scenarios_dir
 
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
+HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
 
 
 def _one_line_error(capsys) -> str:
@@ -55,9 +58,14 @@ def test_a_sweep_finds_a_vendor_fmu_beside_its_base_scenario_as_run_does(tmp_pat
         "overrides:\n  window.duration: 20\n"
     )
     assert main(["run", str(tmp_path / "base.yaml"), "--out", str(tmp_path / "run"), "--no-plots"]) == 0
-    status = main(["sweep", str(tmp_path / "sweep.yaml"), "--out", str(tmp_path / "sweep"), "--workers", "1"])
-    err = capsys.readouterr().err
-    assert status == 0 and "unknown FMU variant" not in err, err
+    sweep = subprocess.run(  # a process of its own: the sweep's local Dask cluster
+        [*HELIOSTEP, "sweep", str(tmp_path / "sweep.yaml"), "--out", str(tmp_path / "sweep"), "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path.parent,  # not beside fmus/: found from the base scenario's folder
+    )
+    assert sweep.returncode == 0 and "unknown FMU variant" not in sweep.stderr, sweep.stderr
     import pandas as pd
 
     table = pd.read_parquet(next((tmp_path / "sweep").glob("*.parquet")))
@@ -74,3 +82,27 @@ def test_a_run_that_commands_no_step_warns(tmp_path, capsys, fmu_paths):
     assert main(["run", str(CENTRAL), "--out", str(out), "--no-plots", "--set", "transmission.pinion_radius=10"]) == 0
     err = capsys.readouterr().err
     assert "warning: no step was commanded" in err and "transmission.pinion_radius" in err
+
+
+@pytest.mark.parametrize(
+    "axes, expected",
+    [
+        (
+            "  sequencer.current: {start: 1, stop: 1000}\n  wind.moment: {start: 0, stop: 999}\n",
+            "sequencer.current (1000 values) x wind.moment (1000 values) make 1,000,000 cases, over max_cases = 10,000",
+        ),
+        ("  sequencer.current: {start: 1, stop: 2, step: 1e-12}\n", "a range of 1e+12 values; expected at most"),
+    ],
+)
+def test_a_sweep_too_large_is_refused_before_its_cases_are_built(axes, expected, tmp_path, capsys):
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(f"name: big\nbase: {CENTRAL}\naxes:\n{axes}")
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "out")]) == 2
+    assert expected in _one_line_error(capsys)
+    assert not (tmp_path / "out").exists()
+    # max_cases in the sweep file raises the bound (here: above the count, so the cases are built)
+    from heliostep.sweep.spec import case_count, load_sweep
+
+    if "max_cases" in expected:
+        sweep.write_text(f"name: big\nbase: {CENTRAL}\nmax_cases: 2000000\naxes:\n{axes}")
+        assert case_count(load_sweep(sweep)) == 1000 * 1000

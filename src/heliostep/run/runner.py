@@ -116,7 +116,7 @@ def run_scenario(
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
-    prepared = _prepare(scenario, fmu_paths, clock.perf_counter(), should_stop)
+    prepared = _prepare(scenario, fmu_paths, clock.perf_counter(), should_stop, keep_trace)
     figures = RunFigures.of_run(
         prepared.columns,
         prepared.inputs,
@@ -145,10 +145,11 @@ def _prepare(
     fmu_paths: Mapping[str, Path] | None,
     started: float,
     should_stop: Callable[[], bool] | None = None,
+    keep_trace: bool = True,
 ) -> _PreparedRun:
     """The run checked and set up: its estimate against the budget, FMUs, roles, weather, drive
     inputs (:class:`~heliostep.drive.sequencer.PreparationStopped` on a stop request), the coupled system."""
-    check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION))  # before any work: exit 2 if too large
+    check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, keep_trace))  # before any work
     fmu_paths = dict(fmu_paths) if fmu_paths is not None else resolve_fmus(scenario)
     infos = read_fmus(scenario, fmu_paths)
     roles = present_roles(scenario, infos)

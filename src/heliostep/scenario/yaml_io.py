@@ -57,7 +57,7 @@ class HeliostepLoader(yaml.SafeLoader):
         node = super().get_single_node()
         if node is not None and _expanded_size(node, {}) > MAX_EXPANDED_NODES:
             raise yaml.composer.ComposerError(
-                None, None, f"its aliases expand to more than {MAX_EXPANDED_NODES} nodes", node.start_mark
+                None, None, f"more than {MAX_EXPANDED_NODES} values with its aliases expanded", node.start_mark
             )
         return node
 

@@ -162,6 +162,11 @@ def axis_values(name: str, raw, year: int, where: str) -> tuple:
     return values
 
 
+#: The most values a range axis may expand to (counted before any is made; the sweep's cases are
+#: bounded by its ``max_cases`` besides).
+MAX_AXIS_VALUES = 1_000_000
+
+
 def _range_values(raw: Mapping, where: str) -> tuple:
     if set(raw) - {"start", "stop", "step"} or not {"start", "stop"} <= set(raw):
         raise InputError(f"{where}: a range is {{start, stop, step}} (step optional, default 1), got {dict(raw)!r}")
@@ -173,7 +178,9 @@ def _range_values(raw: Mapping, where: str) -> tuple:
         raise InputError(f"{where}.step: expected a number > 0, got {step!r}")
     if stop < start:
         raise InputError(f"{where}: stop ({stop}) is before start ({start})")
-    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    count = math.floor((stop - start) / step + 1e-9) + 1
+    if count > MAX_AXIS_VALUES:
+        raise InputError(f"{where}: a range of {count:.3g} values; expected at most {MAX_AXIS_VALUES:,}")
     if all(isinstance(v, int) for v in (start, stop, step)):
         return tuple(start + k * step for k in range(count))
     return tuple(float(np.round(start + k * step, 12)) for k in range(count))

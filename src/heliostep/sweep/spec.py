@@ -8,6 +8,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,9 @@ __all__ = [
     "SweepAxis",
     "SweepCase",
     "SweepSpec",
+    "MAX_CASES",
+    "case_count",
+    "check_case_count",
     "expand_cases",
     "load_sweep",
     "sweep_from_scenario",
@@ -75,7 +79,11 @@ def _primary_load(base: Mapping) -> list[tuple[str, Any]]:
 ROLES = ("drive", "shared-primary")
 
 
-_SWEEP_KEYS = ("name", "description", "base", "combine", "axes", "overrides", "shared_primary")
+_SWEEP_KEYS = ("name", "description", "base", "combine", "axes", "overrides", "shared_primary", "max_cases")
+
+#: The most cases a sweep may have unless its file says ``max_cases`` (each case is a run; the
+#: cases are counted from the axes before any is built).
+MAX_CASES = 10_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,6 +121,7 @@ class SweepSpec:
     overrides: tuple[tuple[str, Any], ...] = ()
     shared_primary: bool = False
     description: str | None = None
+    max_cases: int = MAX_CASES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -204,6 +213,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
         overrides=data.get("overrides"),
         shared_primary=data.get("shared_primary", False),
         description=data.get("description"),
+        max_cases=data.get("max_cases", MAX_CASES),
     )
 
 
@@ -254,7 +264,17 @@ def sweep_from_scenario(
 
 
 def _make_spec(
-    *, name, source, base: Scenario, base_source, axes, combine, overrides, shared_primary, description
+    *,
+    name,
+    source,
+    base: Scenario,
+    base_source,
+    axes,
+    combine,
+    overrides,
+    shared_primary,
+    description,
+    max_cases=MAX_CASES,
 ) -> SweepSpec:
     if combine not in COMBINE_MODES:
         raise InputError(f"{source}: combine: expected one of {', '.join(COMBINE_MODES)}, got {combine!r}")
@@ -262,6 +282,8 @@ def _make_spec(
         raise InputError(f"{source}: shared_primary: expected true or false, got {shared_primary!r}")
     if description is not None and not isinstance(description, str):
         raise InputError(f"{source}: description: expected a string, got {description!r}")
+    if isinstance(max_cases, bool) or not isinstance(max_cases, int) or max_cases < 1:
+        raise InputError(f"{source}: max_cases: expected a whole number of cases >= 1, got {max_cases!r}")
     if overrides is None:
         overrides = {}
     if not isinstance(overrides, Mapping):
@@ -286,6 +308,7 @@ def _make_spec(
         overrides=common,
         shared_primary=shared_primary,
         description=description,
+        max_cases=max_cases,
     )
     year = _validated(spec, (), f"{source}: overrides").window.date.year
 
@@ -346,6 +369,29 @@ def _validated(spec: SweepSpec, settings: Sequence[tuple[str, Any]], where: str,
         raise InputError(f"{where}: gives an invalid scenario{hint}:\n{exc}") from None
 
 
+def case_count(spec: SweepSpec) -> int:
+    """The cases :func:`expand_cases` builds, counted from the axes (the shared primary's at most)."""
+    lengths = [len(axis.values) for axis in spec.axes]
+    drives = min(lengths) if spec.combine == "zip" else math.prod(lengths)
+    if spec.shared_primary:
+        others = [len(axis.values) for axis in spec.axes if axis.name != "mirror"]
+        drives += min(others, default=1) if spec.combine == "zip" else math.prod(others)
+    return drives
+
+
+def check_case_count(spec: SweepSpec) -> None:
+    """Refuse (InputError) a sweep of more than ``spec.max_cases`` cases, naming its axes."""
+    count = case_count(spec)
+    if count > spec.max_cases:
+        axes = f" {'x' if spec.combine == 'product' else 'zip'} ".join(
+            f"{axis.name} ({len(axis.values)} values)" for axis in spec.axes
+        )
+        raise InputError(
+            f"{spec.source}: axes: {axes} make {count:,} cases, over max_cases = {spec.max_cases:,}; "
+            "each case is a run: fewer values, or max_cases in the sweep file if meant"
+        )
+
+
 def expand_cases(spec: SweepSpec) -> list[SweepCase]:
     """All cases of a sweep, each with its scenario validated.
 
@@ -365,6 +411,7 @@ def expand_cases(spec: SweepSpec) -> list[SweepCase]:
         When a case's scenario is invalid (naming the sweep file and the case's
         settings), or when two cases are the same scenario.
     """
+    check_case_count(spec)  # counted from the axes, before any case is built
     year = _validated(spec, (), f"{spec.source}: overrides").window.date.year
     if spec.combine == "zip":
         combinations = list(zip(*(axis.values for axis in spec.axes)))
