@@ -46,7 +46,9 @@ def test_the_estimate_gives_the_rows_and_steps_a_run_takes(name, fmu_paths):
 
 @pytest.mark.parametrize("name", ["jan21-central", "jan21-day"])
 def test_the_estimate_bounds_memory_and_disk_within_a_factor_two(name, tmp_path, fmu_paths):
-    """Measured in a process of its own: its peak resident memory and the bytes of its files."""
+    """Measured in a process of its own: its peak resident memory (Linux's VmHWM, its own: not
+    the pytest parent's, which ``ru_maxrss`` would carry across fork and exec) and the bytes of
+    its files."""
     out = tmp_path / "out"
     done = subprocess.run([*HELIOSTEP, "run", name, "--out", str(out)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

@@ -32,10 +32,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Co-simulate a scenario and write trace.parquet, trace.csv (see --csv), summary.json, "
         "metadata.json and the figures into --out.\n\n"
-        "Every file is written under a temporary name and renamed into place; files of these "
-        "kinds left in --out by an earlier run and not written now are removed. --out is "
-        "checked before simulating.\n\n"
-        "Ctrl+C (SIGINT) or SIGTERM stops the simulation at the next safe point: the trace so "
+        "The run holds --out's lock (.heliostep-lock) for its life: a second run into it is "
+        "refused. Its files are written into a staging folder and swapped in; "
+        ".heliostep-manifest.json lists them, and a rerun removes or replaces only the files an "
+        "earlier run listed there (a file of the same name heliostep did not write is refused, "
+        "never overwritten). --out is checked before simulating.\n\n"
+        "Ctrl+C (SIGINT), SIGTERM or SIGHUP stops the simulation at the next safe point: the trace so "
         "far, summary.json and metadata.json are written, marked complete: false with reason "
         "interrupted and the time reached; no figures are drawn. A second one exits at once: "
         "files not finished are removed, none is left claiming to be complete.\n\n"
@@ -48,7 +50,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'and "night": true and a warning in summary.json.\n\n'
         "Exit status: 0 complete; 1 the simulation failed part-way (the trace so far is "
         "written, complete: false) or the results could not be written; 2 bad input "
-        "(scenario, override, FMU, unusable --out); 130 / 143 stopped by SIGINT / SIGTERM.",
+        "(scenario, override, FMU, unusable --out, over the budget); 130 / 143 / 129 stopped by "
+        "SIGINT / SIGTERM / SIGHUP.",
     )
     parser.add_argument("scenario", type=Path, help="scenario YAML file")
     parser.add_argument("--out", help="output folder (default: out/<scenario name>)")
@@ -135,17 +138,7 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
     except OSError as exc:  # the streamed trace could not be written
         print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
         return 1
-    if result.figures is not None and result.figures.night_warning:  # the summary says so too
-        print(f"heliostep run: warning: {result.figures.night_warning}", file=sys.stderr)
-    elif result.complete and result.inputs is not None and not len(result.inputs.schedule):
-        increment = np.degrees(result.inputs.sequencer.increment)
-        travel = np.degrees(np.ptp(result.inputs.rotor_angle_ref))
-        print(
-            f"heliostep run: warning: no step was commanded: the reference rotor angle moves {travel:.3g} deg "
-            f"over the window, the sequencer steps {increment:.3g} deg (see transmission.pinion_radius, "
-            "sequencer.step_angle, window)",
-            file=sys.stderr,
-        )
+    _warn(result)
     csv = args.csv
     if csv is None:
         duration = result.inputs.duration if result.inputs is not None else 0.0
@@ -172,6 +165,21 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         )
         status = stop.exit_status
     return status
+
+
+def _warn(result: RunResult) -> None:
+    """A window at night (the summary says so too), or a run that commanded no step."""
+    if result.figures is not None and result.figures.night_warning:
+        print(f"heliostep run: warning: {result.figures.night_warning}", file=sys.stderr)
+    elif result.complete and result.inputs is not None and not len(result.inputs.schedule):
+        increment = np.degrees(result.inputs.sequencer.increment)
+        travel = np.degrees(np.ptp(result.inputs.rotor_angle_ref))
+        print(
+            f"heliostep run: warning: no step was commanded: the reference rotor angle moves {travel:.3g} deg "
+            f"over the window, the sequencer steps {increment:.3g} deg (see transmission.pinion_radius, "
+            "sequencer.step_angle, window)",
+            file=sys.stderr,
+        )
 
 
 def _remove_if_empty(folder: Path) -> None:

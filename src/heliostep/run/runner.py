@@ -311,7 +311,16 @@ def _simulate_and_summarize(
 
 
 def _peak_rss_mb() -> float | None:
-    """The process's peak resident memory so far [MB] (None where the OS does not say)."""
+    """The process's peak resident memory so far [MB] (None where the OS does not say): Linux's
+    VmHWM, which is this program's own (``ru_maxrss`` keeps the parent's peak across fork and
+    exec, so a process started by a big one would report that one's), else ``ru_maxrss``."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return round(int(line.split()[1]) / 1024, 1)  # kB
+    except OSError:
+        pass
     try:
         import resource
     except ImportError:  # not on Windows

@@ -19,6 +19,8 @@ __all__ = [
     "CENTRAL_MIRROR",
     "SHORTHAND_AXES",
     "SweepAxis",
+    "check_case_count",
+    "count_cases",
     "axis_hint",
     "axis_values",
     "check_axis_key",
@@ -160,6 +162,28 @@ def axis_values(name: str, raw, year: int, where: str) -> tuple:
                     f"{N_FIELD_MIRRORS - 1} ({CENTRAL_MIRROR} is the central mirror), or 'all'"
                 )
     return values
+
+
+def count_cases(axes, combine: str, shared_primary: bool) -> int:
+    """Cases of a sweep of ``axes`` combined by ``combine`` ("product" or "zip"), the shared
+    primary's (one per combination of the axes but ``mirror``) included, counted, not built."""
+    lengths = [len(axis.values) for axis in axes]
+    drives = min(lengths) if combine == "zip" else math.prod(lengths)
+    if shared_primary:
+        others = [len(axis.values) for axis in axes if axis.name != "mirror"]
+        drives += min(others, default=1) if combine == "zip" else math.prod(others)
+    return drives
+
+
+def check_case_count(source: str, axes, combine: str, shared_primary: bool, max_cases: int) -> None:
+    """Refuse (InputError) a sweep of more than ``max_cases`` cases, naming its axes and the count."""
+    count = count_cases(axes, combine, shared_primary)
+    if count > max_cases:
+        joined = f" {'x' if combine == 'product' else 'zip'} ".join(f"{a.name} ({len(a.values)} values)" for a in axes)
+        raise InputError(
+            f"{source}: axes: {joined} make {count:,} cases, over max_cases = {max_cases:,}; "
+            "each case is a run: fewer values, or max_cases in the sweep file if meant"
+        )
 
 
 #: The most values a range axis may expand to (counted before any is made; the sweep's cases are

@@ -8,7 +8,6 @@ import dataclasses
 import hashlib
 import itertools
 import json
-import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ from heliostep.sweep.axes import (
     axis_hint,
     axis_values,
     check_axis_key,
+    check_case_count,
     setting_by_role,
     show_value,
     table_value,
@@ -45,8 +45,6 @@ __all__ = [
     "SweepCase",
     "SweepSpec",
     "MAX_CASES",
-    "case_count",
-    "check_case_count",
     "expand_cases",
     "load_sweep",
     "sweep_from_scenario",
@@ -369,29 +367,6 @@ def _validated(spec: SweepSpec, settings: Sequence[tuple[str, Any]], where: str,
         raise InputError(f"{where}: gives an invalid scenario{hint}:\n{exc}") from None
 
 
-def case_count(spec: SweepSpec) -> int:
-    """The cases :func:`expand_cases` builds, counted from the axes (the shared primary's at most)."""
-    lengths = [len(axis.values) for axis in spec.axes]
-    drives = min(lengths) if spec.combine == "zip" else math.prod(lengths)
-    if spec.shared_primary:
-        others = [len(axis.values) for axis in spec.axes if axis.name != "mirror"]
-        drives += min(others, default=1) if spec.combine == "zip" else math.prod(others)
-    return drives
-
-
-def check_case_count(spec: SweepSpec) -> None:
-    """Refuse (InputError) a sweep of more than ``spec.max_cases`` cases, naming its axes."""
-    count = case_count(spec)
-    if count > spec.max_cases:
-        axes = f" {'x' if spec.combine == 'product' else 'zip'} ".join(
-            f"{axis.name} ({len(axis.values)} values)" for axis in spec.axes
-        )
-        raise InputError(
-            f"{spec.source}: axes: {axes} make {count:,} cases, over max_cases = {spec.max_cases:,}; "
-            "each case is a run: fewer values, or max_cases in the sweep file if meant"
-        )
-
-
 def expand_cases(spec: SweepSpec) -> list[SweepCase]:
     """All cases of a sweep, each with its scenario validated.
 
@@ -411,7 +386,7 @@ def expand_cases(spec: SweepSpec) -> list[SweepCase]:
         When a case's scenario is invalid (naming the sweep file and the case's
         settings), or when two cases are the same scenario.
     """
-    check_case_count(spec)  # counted from the axes, before any case is built
+    check_case_count(spec.source, spec.axes, spec.combine, spec.shared_primary, spec.max_cases)  # before any is built
     year = _validated(spec, (), f"{spec.source}: overrides").window.date.year
     if spec.combine == "zip":
         combinations = list(zip(*(axis.values for axis in spec.axes)))
