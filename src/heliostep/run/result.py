@@ -235,19 +235,10 @@ class RunResult:
         with hold_folder(out_dir):
             check_foreign(out_dir, run_file_names(plots, csv))
             staging, source = staging_folder(out_dir), self.trace_file
-            swapped = False
             try:  # trace and records swapped in, the earlier run's files (figures too) out
                 written = swap_in(out_dir, staging, self._write_staged(staging, csv))
-                swapped = True
-            finally:
-                if self.trace_file is not None and self.trace_file.parent == staging:  # the stream, moved in
-                    if swapped:
-                        self.trace_file = out_dir / self.trace_file.name
-                        if source is not None and source.parent == out_dir and source.name.startswith(TMP_PREFIX):
-                            source.unlink(missing_ok=True)  # a stream cut short, now joined with its rest
-                    elif source is not None:  # not swapped in: the stream goes back where it was (kept)
-                        os.replace(self.trace_file, source)
-                        self.trace_file = source
+            finally:  # (also when a signal held back during the swap is raised as it ends)
+                self._trace_file_after_swap(out_dir, staging, source)
                 shutil.rmtree(staging, ignore_errors=True)
             if plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop()):
                 staging = staging_folder(out_dir)  # then the figures, added to them
@@ -257,6 +248,20 @@ class RunResult:
                 finally:
                     shutil.rmtree(staging, ignore_errors=True)
         return written
+
+    def _trace_file_after_swap(self, out_dir: Path, staging: Path, source: Path | None) -> None:
+        """Where the trace file is once the swap has ended: in ``out_dir`` when the one moved
+        into ``staging`` was swapped in; moved back to ``source`` (kept) when it was not."""
+        if self.trace_file is None or self.trace_file.parent != staging:
+            return
+        if self.trace_file.exists():  # not swapped in: the stream goes back where it was
+            if source is not None:
+                os.replace(self.trace_file, source)
+                self.trace_file = source
+            return
+        self.trace_file = out_dir / self.trace_file.name
+        if source is not None and source.parent == out_dir and source.name.startswith(TMP_PREFIX):
+            source.unlink(missing_ok=True)  # a stream cut short, now joined with its rest
 
     def _write_staged(self, staging: Path, csv: bool) -> list[str]:
         """The run's trace and records written into ``staging``: their names, in the order written."""
