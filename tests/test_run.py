@@ -306,7 +306,7 @@ def test_write_failure_says_where_the_result_could_not_go(tmp_path, fmu_paths, c
     real = run_module.write_trace
 
     def full_disk(df, path, metadata=None):
-        if Path(path).parent == out:
+        if out in Path(path).parents:  # into --out (its staging folder), not elsewhere
             raise OSError(28, "No space left on device")
         return real(df, path, metadata)
 
@@ -358,9 +358,17 @@ def test_rerun_removes_stale_files_of_its_own_kinds_only(tmp_path, fmu_paths, ca
     out.mkdir()
     for name in ("fig11_torque.png", "trace.csv", ".heliostep-tmp-abc-trace.parquet"):
         (out / name).write_text("stale")
+    # an earlier run's files are those its manifest lists (a leftover temporary file is heliostep's by its name)
+    (out / ".heliostep-manifest.json").write_text(json.dumps({"files": ["fig11_torque.png", "trace.csv"]}))
     (out / "mine.png").write_text("the user's")
     assert main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--no-csv", *SHORT]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["metadata.json", "mine.png", "summary.json", "trace.parquet"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".heliostep-manifest.json",
+        "metadata.json",
+        "mine.png",
+        "summary.json",
+        "trace.parquet",
+    ]
 
 
 def test_night_window_warns_and_says_so_in_the_summary(tmp_path, fmu_paths, capsys):

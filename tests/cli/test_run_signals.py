@@ -1,8 +1,9 @@
 """``heliostep run`` / ``heliostep sweep`` stopped by real SIGINT and SIGTERM in a subprocess.
 
-The run is a real co-simulation with the real FMUs (the whole day of 21 January, about 50 s
-undisturbed); the signal comes 2.5 s after the FMUs are unpacked (right before the simulation
-starts; seen in the subprocess's own TMPDIR), so it lands mid-simulation.
+The run is a real co-simulation with the real FMUs (five days from sunrise on 21 January, tens of
+seconds undisturbed); the signal comes 1 s after the trace stream's file appears in --out (made
+once the inputs are prepared, as the simulation starts), so it lands mid-simulation (a signal
+while the inputs are prepared ends the command there: tests/run/test_estimate.py).
 """
 
 from __future__ import annotations
@@ -77,10 +78,15 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
     out = tmp_path / "run"
     (out).mkdir()
     (out / "fig08_panel_angle_ref.png").write_bytes(b"stale figure of an earlier run")
+    (out / ".heliostep-manifest.json").write_text(json.dumps({"files": ["fig08_panel_angle_ref.png"]}))  # its record
     (out / "notes.txt").write_text("not heliostep's")
     process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
-    _wait_for_fmus(tmp_path / "tmp", process)  # unpacked right before the simulation starts
-    time.sleep(2.5)
+    _wait_for_fmus(tmp_path / "tmp", process)  # unpacked right before the inputs are prepared
+    deadline = time.monotonic() + 60.0  # the stream's file is made once they are: simulating
+    while not list(out.glob(".heliostep-tmp-*-trace.parquet")):
+        assert process.poll() is None and time.monotonic() < deadline, "the trace is not being streamed"
+        time.sleep(0.01)
+    time.sleep(1.0)
     assert process.poll() is None, "the run ended before the signal"
     process.send_signal(sig)
     stdout, stderr = process.communicate(timeout=60)
@@ -147,7 +153,7 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
         tmp_path / "tmp",
     )
     deadline = time.monotonic() + 60.0
-    while not list(out.glob(".heliostep-tmp-figures-*")):  # drawing has begun
+    while not list(out.glob(".heliostep-tmp-*/.heliostep-tmp-figures-*")):  # drawing has begun (staged)
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, "no figures were drawn"
         time.sleep(0.005)

@@ -5,7 +5,9 @@ function adds the command's parser and sets ``func`` (taking the parsed argument
 returning an exit status). This module only assembles them and turns a
 :class:`~heliostep.errors.HeliostepError` into one line on stderr: exit status 1 for a
 :class:`~heliostep.errors.RunFailure` (a build, an FMU or the solver failed), 2 for any other (bad
-input); a KeyboardInterrupt that reaches it becomes one line and exit status 130.
+input); a KeyboardInterrupt that reaches it becomes one line and exit status 130, and a stop
+signal (SIGINT, SIGTERM, SIGHUP) from the very start, while the commands' modules are imported,
+one line and 128 + its number (:func:`~heliostep.cli.signals.signals_end_the_command`).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import importlib
 import sys
 
 from heliostep._version import __version__
-from heliostep.cli.signals import ForcedStop
+from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command
 from heliostep.errors import HeliostepError, RunFailure
 
 #: Modules that provide a command, in the order ``--help`` lists them.
@@ -44,22 +46,37 @@ def make_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = make_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
+    # first thing: a stop signal while the commands' modules are imported (half a second and
+    # more) is one line and 128 + its number, never a traceback
+    command = "heliostep"
+    try:
+        with signals_end_the_command() as starting:
+            parser = make_parser()
+            args = parser.parse_args(argv)
+            if not getattr(args, "func", None):
+                parser.print_help()
+                return 2
+            command = starting.command = f"heliostep {args.command}"
+            starting.at_once = False  # from here a signal raises StopSignal: the finally blocks run
+            return _run(command, args)
+    except StopSignal as stopped:
+        print(f"{command}: stopped by {stopped} before it could finish", file=sys.stderr)
+        return stopped.exit_status
+
+
+def _run(command: str, args: argparse.Namespace) -> int:
+    """The command's function, its errors as one line and an exit status."""
     try:
         return int(args.func(args) or 0)
     except HeliostepError as exc:
-        print(f"heliostep {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{command}: error: {exc}", file=sys.stderr)
         return 1 if isinstance(exc, RunFailure) else 2
     except KeyboardInterrupt:
-        print(f"heliostep {args.command}: interrupted", file=sys.stderr)
+        print(f"{command}: interrupted", file=sys.stderr)
         return 130
-    except ForcedStop as forced:  # a second SIGINT/SIGTERM: left at once, temporary files removed
+    except ForcedStop as forced:  # a second stop signal: left at once, temporary files removed
         print(
-            f"heliostep {args.command}: stopped by {forced}: exited without finishing the clean-up "
+            f"{command}: stopped by {forced}: exited without finishing the clean-up "
             f"(no file was left claiming to be complete)",
             file=sys.stderr,
         )

@@ -25,6 +25,7 @@ import datetime as dt
 from pathlib import Path
 
 from heliostep.errors import InputError
+from heliostep.scenario.model import FIRST_YEAR, LAST_YEAR, window_date_problem
 from heliostep.solar import field_distances
 from heliostep.solar.endloss import end_loss_days, largest_shift
 from heliostep.solar.field import PANEL_LENGTH
@@ -88,6 +89,11 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def _end_loss_command(args: argparse.Namespace) -> int:
+    if not FIRST_YEAR <= args.year <= LAST_YEAR:
+        raise InputError(f"--year {args.year}: expected a year from {FIRST_YEAR} to {LAST_YEAR} (pandas' timestamps)")
+    problem = window_date_problem(dt.date(args.year, 1, 1), args.timezone)
+    if problem:
+        raise InputError(f"--year {args.year}: {problem}")
     site = Site(latitude=args.latitude, longitude=args.longitude, altitude=args.altitude, timezone=args.timezone)
     distances = field_distances(args.rows, args.spacing)
     width = args.spacing if args.mirror_width is None else args.mirror_width

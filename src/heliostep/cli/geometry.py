@@ -30,6 +30,7 @@ import pandas as pd
 
 from heliostep import solar as geometry
 from heliostep.errors import InputError
+from heliostep.scenario.model import window_date_problem
 
 DEFAULT_DATES = ("2025-12-21", "2025-01-21", "2025-03-21", "2025-06-21")
 PAPER_DATE = "2025-01-21"
@@ -112,11 +113,28 @@ def _add_paper_case_options(parser: argparse.ArgumentParser) -> None:
 
 
 # --------------------------------------------------------------------------- parsing
-def _parse_date(text: str, option: str) -> dt.date:
+def _parse_date(text: str, option: str, timezone: str) -> dt.date:
     try:
-        return dt.date.fromisoformat(text)
+        date = dt.date.fromisoformat(text)
     except (TypeError, ValueError) as exc:
         raise InputError(f"{option} must be an ISO date YYYY-MM-DD, got {text!r}") from exc
+    problem = window_date_problem(date, timezone)
+    if problem:
+        raise InputError(f"{option} {problem}")
+    return date
+
+
+#: The most rows the day tables or the paper window may have (about a gigabyte).
+MAX_TABLE_ROWS = 5_000_000
+
+
+def _check_rows(rows: float, option: str, step: float, what: str) -> None:
+    """Refuse a time step that would make more than :data:`MAX_TABLE_ROWS` rows, before any is made."""
+    if rows > MAX_TABLE_ROWS:
+        raise InputError(
+            f"{option} {step:g} s: {what} would have an estimated {rows:.3g} rows, over {MAX_TABLE_ROWS:.0e}; "
+            f"expected a step of at least {step * rows / MAX_TABLE_ROWS:.3g} s"
+        )
 
 
 def _parse_clock(text: str, option: str) -> dt.time:
@@ -280,9 +298,10 @@ def run(args) -> int:
     plant = geometry.Plant(
         tube_height=args.tube_height, orientation=args.orientation, azimuth_offset=args.azimuth_offset
     )
-    dates = [_parse_date(text, "--date") for text in (args.date or DEFAULT_DATES)]
+    dates = [_parse_date(text, "--date", args.timezone) for text in (args.date or DEFAULT_DATES)]
     step = _positive(args.step, "--step", "s")
     distances = _mirror_distances(args)
+    _check_rows(len(dates) * 86400.0 / step * len(distances), "--step", step, "the day tables")
     paper_inputs = _paper_case_inputs(args) if args.paper_case else None
 
     # matplotlib only once the inputs are known to be good
@@ -307,11 +326,14 @@ def run(args) -> int:
 
 def _paper_case_inputs(args) -> dict:
     """The keyword arguments of :func:`paper_case_table` from the ``--paper-*``/``--window-*`` options."""
+    minutes = _positive(args.window_minutes, "--window-minutes", "min (empty window)")
+    step = _positive(args.window_step, "--window-step", "s")
+    _check_rows(minutes * 60.0 / step, "--window-step", step, "the paper's window")
     return dict(
-        date=_parse_date(args.paper_date, "--paper-date"),
+        date=_parse_date(args.paper_date, "--paper-date", args.timezone),
         window_start=_parse_clock(args.window_start, "--window-start"),
-        window_minutes=_positive(args.window_minutes, "--window-minutes", "min (empty window)"),
-        window_step=_positive(args.window_step, "--window-step", "s"),
+        window_minutes=minutes,
+        window_step=step,
         pinion_radius=_positive(args.pinion_radius, "--pinion-radius", "m"),
         lever_arm=_positive(args.lever_arm, "--lever-arm", "m"),
         stow=_choice(args.stow, "--stow", geometry.STOW_POLICIES),

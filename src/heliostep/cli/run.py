@@ -4,13 +4,21 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from heliostep.cli.signals import stop_requests
+from heliostep.drive.sequencer import PreparationStopped
 from heliostep.errors import HeliostepError
-from heliostep.results.outputs import check_out_dir
+from heliostep.results.outputs import TMP_PREFIX, check_out_dir, check_out_name
+from heliostep.results.rescue import rescue_folder
+from heliostep.results.run_folder import check_foreign, hold_folder
+from heliostep.results.trace_io import TraceWriteError
 from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
+from heliostep.run.estimate import check_budget, estimate_run
+from heliostep.run.result import run_file_names
+from heliostep.run.runner import HELD_TRACE_MAX_DURATION
 from heliostep.scenario import load_scenario
 
 #: Windows longer than this [s] get no CSV copy of the trace unless --csv is given.
@@ -24,23 +32,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Co-simulate a scenario and write trace.parquet, trace.csv (see --csv), summary.json, "
         "metadata.json and the figures into --out.\n\n"
-        "Every file is written under a temporary name and renamed into place; files of these "
-        "kinds left in --out by an earlier run and not written now are removed. --out is "
-        "checked before simulating.\n\n"
-        "Ctrl+C (SIGINT) or SIGTERM stops the simulation at the next safe point: the trace so "
+        "The run holds --out's lock (.heliostep-lock) for its life: a second run into it is "
+        "refused. Its files are written into a staging folder and swapped in; "
+        ".heliostep-manifest.json lists them, and a rerun removes or replaces only the files an "
+        "earlier run listed there (a file of the same name heliostep did not write is refused, "
+        "never overwritten). --out is checked before simulating.\n\n"
+        "Ctrl+C (SIGINT), SIGTERM or SIGHUP stops the simulation at the next safe point: the trace so "
         "far, summary.json and metadata.json are written, marked complete: false with reason "
         "interrupted and the time reached; no figures are drawn. A second one exits at once: "
         "files not finished are removed, none is left claiming to be complete.\n\n"
+        "Before anything is computed, the run's steps, trace rows, memory and disk are estimated "
+        "from the scenario; a run over its budget (budget.memory_gb, budget.disk_gb, or "
+        "--max-memory / --max-disk) is refused with exit 2, naming the key that makes it large.\n\n"
         "Windows over 1 h stream the trace to trace.parquet (row groups, written as the rows "
         "come) instead of holding it in memory.\n\n"
         "A window with the sun below the horizon throughout runs, with a warning on stderr "
         'and "night": true and a warning in summary.json.\n\n'
         "Exit status: 0 complete; 1 the simulation failed part-way (the trace so far is "
         "written, complete: false) or the results could not be written; 2 bad input "
-        "(scenario, override, FMU, unusable --out); 130 / 143 stopped by SIGINT / SIGTERM.",
+        "(scenario, override, FMU, unusable --out, over the budget); 130 / 143 / 129 stopped by "
+        "SIGINT / SIGTERM / SIGHUP.",
     )
     parser.add_argument("scenario", type=Path, help="scenario YAML file")
-    parser.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
+    parser.add_argument("--out", help="output folder (default: out/<scenario name>)")
     parser.add_argument(
         "--set",
         dest="overrides",
@@ -50,6 +64,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="override a scenario key, e.g. --set fmus.motor=StepperMotorIdealCurrent",
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument(
+        "--max-memory",
+        type=float,
+        metavar="GB",
+        help="memory budget: a run estimated to need more is refused before it starts (budget.memory_gb, default 4)",
+    )
+    parser.add_argument(
+        "--max-disk",
+        type=float,
+        metavar="GB",
+        help="disk budget for the trace and records (budget.disk_gb, default 10)",
+    )
     parser.add_argument(
         "--csv",
         action=argparse.BooleanOptionalAction,
@@ -62,61 +88,98 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _run_command(args: argparse.Namespace) -> int:
     with stop_requests() as stop:
-        scenario = load_scenario(args.scenario, args.overrides)
-        out_dir = args.out or Path("out") / scenario.name
+        out_name = check_out_name(args.out) if args.out is not None else None  # "" refused before anything
+        scenario = load_scenario(args.scenario, [*args.overrides, *_budget_overrides(args)])
+        # the estimate first: a run too large for the budget is exit 2 before any work
+        check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, csv=args.csv))
+        out_dir = out_name or Path("out") / scenario.name
         fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
         existed = out_dir.exists()
         check_out_dir(out_dir)
-        if stop.is_set():
-            print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
-            return stop.exit_status
-        try:  # a long window streams its trace into out_dir while simulating (bounded memory)
-            result = run_scenario(
-                scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir, fmu_paths=fmu_paths
-            )
-            status = 0
-        except RunFailed as failed:
-            result = failed.result
-            if failed.interrupted:
-                status = stop.exit_status
-                print(
-                    f"heliostep run: stopped by {stop.name or 'a stop request'} at t = "
-                    f"{result.time_reached:.6g} s; writing the trace so far (complete: false)",
-                    file=sys.stderr,
-                )
-            else:
-                status = 1
-                print(f"heliostep run: error: {failed}", file=sys.stderr)
+        try:
+            with hold_folder(out_dir):  # the folder's lock, for the run's life
+                check_foreign(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False))
+                return _run_in_folder(args, scenario, out_dir, fmu_paths, stop)
         except HeliostepError:
-            if not existed:  # bad input found while setting up the FMUs: leave no empty folder
+            if not existed:  # bad input found while setting up: leave no empty folder
                 _remove_if_empty(out_dir)
             raise
-        except OSError as exc:  # the streamed trace could not be written
-            print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
-            return 1
-        if result.figures is not None and result.figures.night_warning:  # the summary says so too
-            print(f"heliostep run: warning: {result.figures.night_warning}", file=sys.stderr)
-        csv = args.csv
-        if csv is None:
-            duration = result.inputs.duration if result.inputs is not None else 0.0
-            csv = duration <= CSV_DEFAULT_MAX_DURATION
-        try:
-            result.write(out_dir, plots=not args.no_plots, csv=csv, should_stop=stop.is_set)
-        except OSError as exc:
-            print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
-            rescue = _rescue(result, csv)
-            if rescue:
-                print(f"heliostep run: the results were written to {rescue} instead", file=sys.stderr)
-            return status or 1
-        print(_report(result, out_dir))
-        if stop.is_set() and status == 0:
+
+
+def _budget_overrides(args: argparse.Namespace) -> list[str]:
+    """--max-memory / --max-disk as the scenario keys they set."""
+    given = (("budget.memory_gb", args.max_memory), ("budget.disk_gb", args.max_disk))
+    return [f"{key}={value!r}" for key, value in given if value is not None]
+
+
+def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop) -> int:
+    """The run simulated and written into ``out_dir`` (whose lock is held): the exit status."""
+    if stop.is_set():
+        print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
+        return stop.exit_status
+    try:  # a long window streams its trace into out_dir while simulating (bounded memory)
+        result = run_scenario(scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir, fmu_paths=fmu_paths)
+        status = 0
+    except PreparationStopped:
+        print(f"heliostep run: stopped by {stop.name} while preparing the inputs (nothing computed)", file=sys.stderr)
+        return stop.exit_status
+    except RunFailed as failed:
+        result = failed.result
+        if failed.interrupted:
+            status = stop.exit_status
             print(
-                f"heliostep run: stopped by {stop.name} while writing; the results are complete, "
-                f"the figures may be missing",
+                f"heliostep run: stopped by {stop.name or 'a stop request'} at t = "
+                f"{result.time_reached:.6g} s; writing the trace so far (complete: false)",
                 file=sys.stderr,
             )
-            status = stop.exit_status
+        else:
+            status = 1
+            print(f"heliostep run: error: {failed}", file=sys.stderr)
+    except OSError as exc:  # the streamed trace could not be written
+        print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
+        return 1
+    _warn(result)
+    csv = args.csv
+    if csv is None:
+        duration = result.inputs.duration if result.inputs is not None else 0.0
+        csv = duration <= CSV_DEFAULT_MAX_DURATION
+    try:
+        result.write(out_dir, plots=not args.no_plots, csv=csv, should_stop=stop.is_set)
+    except (OSError, TraceWriteError) as exc:  # a full disk, a file-size limit: a run failure, rescued
+        print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
+        rescue = _rescue(result)
+        if rescue:
+            print(f"heliostep run: the results were written to {rescue} instead", file=sys.stderr)
+            stream = result.trace_file
+            if stream is not None and stream.parent == out_dir and stream.name.startswith(TMP_PREFIX):
+                stream.unlink(missing_ok=True)  # the stream cut short: its rows are in the rescue
+        else:
+            print("heliostep run: error: no folder could take the results either", file=sys.stderr)
+        return status or 1
+    print(_report(result, out_dir))
+    if stop.is_set() and status == 0:
+        print(
+            f"heliostep run: stopped by {stop.name} while writing; the results are complete, "
+            f"the figures may be missing",
+            file=sys.stderr,
+        )
+        status = stop.exit_status
     return status
+
+
+def _warn(result: RunResult) -> None:
+    """A window at night (the summary says so too), or a run that commanded no step."""
+    if result.figures is not None and result.figures.night_warning:
+        print(f"heliostep run: warning: {result.figures.night_warning}", file=sys.stderr)
+    elif result.complete and result.inputs is not None and not len(result.inputs.schedule):
+        increment = np.degrees(result.inputs.sequencer.increment)
+        travel = np.degrees(np.ptp(result.inputs.rotor_angle_ref))
+        print(
+            f"heliostep run: warning: no step was commanded: the reference rotor angle moves {travel:.3g} deg "
+            f"over the window, the sequencer steps {increment:.3g} deg (see transmission.pinion_radius, "
+            "sequencer.step_angle, window)",
+            file=sys.stderr,
+        )
 
 
 def _remove_if_empty(folder: Path) -> None:
@@ -126,13 +189,17 @@ def _remove_if_empty(folder: Path) -> None:
         pass
 
 
-def _rescue(result: RunResult, csv: bool) -> Path | None:
-    """Write the results into a fresh temporary folder (no figures); None if that fails too."""
+def _rescue(result: RunResult) -> Path | None:
+    """Every computed row and the records in a fresh folder that takes them (no figures; the trace
+    in parts under a file-size limit, :meth:`RunResult.write_rescue`); None if nowhere does."""
+    folder = rescue_folder(result.scenario.name)
+    if folder is None:
+        return None
     try:
-        rescue = Path(tempfile.mkdtemp(prefix=f"heliostep-{result.scenario.name}-"))
-        result.write(rescue, plots=False, csv=csv)
-        return rescue
-    except OSError:
+        result.write_rescue(folder)
+        return folder
+    except (OSError, TraceWriteError) as exc:
+        print(f"heliostep run: error: the rescue into {folder} failed too: {exc}", file=sys.stderr)
         return None
 
 

@@ -1,4 +1,11 @@
-"""Stopping a command cleanly on SIGINT (Ctrl+C) and SIGTERM, and at once on a second one.
+"""Stopping a command cleanly on SIGINT (Ctrl+C), SIGTERM and SIGHUP, and at once on a second one.
+
+SIGHUP (a closed terminal, a dropped SSH connection) is handled as SIGTERM; since the terminal
+may be gone, the messages after it go to stderr as far as it takes them (:class:`_LenientStream`:
+a write that fails is dropped, never an exception that would keep the results from being
+written). Before any command runs, :func:`signals_end_the_command` (installed first thing in
+:func:`heliostep.cli.main`, while the heavy modules are imported) turns these signals into
+:class:`StopSignal`, one line and 128 + the signal number, never a traceback.
 
 :func:`stop_requests` installs handlers that only record the first signal (no exception is raised
 inside the solver's ctypes callbacks), so a long computation can ask ``stop.is_set()`` at its next
@@ -28,9 +35,141 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-__all__ = ["STOP_SIGNALS", "ForcedStop", "StopRequest", "exit_status", "stop_requests"]
+__all__ = [
+    "STOP_SIGNALS",
+    "ForcedStop",
+    "StopRequest",
+    "StartingUp",
+    "StopSignal",
+    "exit_status",
+    "signals_end_the_command",
+    "stop_requests",
+]
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: The signals that stop a command (SIGHUP where the platform has it, handled as SIGTERM).
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+class StopSignal(BaseException):
+    """A stop signal outside a command's own handling (e.g. while the modules are imported)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def exit_status(self) -> int:
+        return exit_status(self.signum)
+
+    def __str__(self) -> str:
+        return signal.Signals(self.signum).name
+
+
+class _LenientStream:
+    """A text stream that passes writes to ``stream`` and drops those that fail (a hung-up terminal)."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except (OSError, ValueError):
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except (OSError, ValueError):
+            pass
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+def _after_hangup(signum: int) -> None:
+    """After SIGHUP the terminal may be gone: stdout and stderr drop what they cannot write."""
+    if getattr(signal, "SIGHUP", None) == signum:
+        for name in ("stdout", "stderr"):
+            stream = getattr(sys, name)
+            if stream is not None and not isinstance(stream, _LenientStream):
+                setattr(sys, name, _LenientStream(stream))
+
+
+class StartingUp:
+    """What a stop signal does within :func:`signals_end_the_command`: while ``at_once`` (the
+    modules being imported: nothing written yet, and an exception raised there may be swallowed
+    by an import's own ``except``), one line and ``os._exit``; then :class:`StopSignal`."""
+
+    def __init__(self) -> None:
+        self.at_once = True
+        self.command = "heliostep"
+
+
+@contextmanager
+def signals_end_the_command() -> Iterator[StartingUp]:
+    """Within the block, a stop signal ends the command: at once with one line while
+    ``StartingUp.at_once``, else by raising :class:`StopSignal` (a ``BaseException``). The
+    previous handlers are restored on leaving; ignored signals stay ignored; outside the main
+    thread nothing is installed."""
+    state = StartingUp()
+    if threading.current_thread() is not threading.main_thread():
+        yield state
+        return
+
+    def handler(signum, frame):
+        _after_hangup(signum)
+        if state.at_once:
+            try:
+                sys.stderr.write(f"{state.command}: stopped by {signal.Signals(signum).name} while starting\n")
+                sys.stderr.flush()
+            finally:
+                os._exit(exit_status(signum))
+        raise StopSignal(signum)
+
+    previous = {}
+    try:
+        for sig in STOP_SIGNALS:
+            if signal.getsignal(sig) is signal.SIG_IGN:
+                continue
+            previous[sig] = signal.signal(sig, handler)
+        with _raised_again_after_callbacks(StopSignal):
+            yield state
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+@contextmanager
+def _raised_again_after_callbacks(kind: type[BaseException]) -> Iterator[None]:
+    """Within the block, an exception of ``kind`` that a signal handler raised inside a weakref
+    callback or ``__del__`` (where Python only prints "Exception ignored") is raised again 1 ms
+    later by SIGALRM, outside the callback (Unix only)."""
+    swallowed: list[BaseException] = []
+    previous_alarm: dict = {}
+    previous_hook = sys.unraisablehook
+
+    def again(signum, frame):
+        if swallowed:
+            raise swallowed.pop()
+
+    def unraisable(hook_args):
+        if isinstance(hook_args.exc_value, kind) and hasattr(signal, "setitimer"):
+            swallowed[:] = [hook_args.exc_value]
+            if "handler" not in previous_alarm:
+                previous_alarm["handler"] = signal.signal(signal.SIGALRM, again)
+            signal.setitimer(signal.ITIMER_REAL, 1e-3)
+            return
+        previous_hook(hook_args)
+
+    sys.unraisablehook = unraisable
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous_hook
+        if previous_alarm:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, previous_alarm["handler"])
 
 
 class ForcedStop(BaseException):
@@ -80,12 +219,11 @@ def exit_status(signum: int) -> int:
 
 @contextmanager
 def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterator[StopRequest]:
-    """Within the block, SIGINT and SIGTERM set the returned :class:`StopRequest`; a second one
-    raises :class:`ForcedStop`, a third ends the process.
+    """Within the block, SIGINT, SIGTERM and SIGHUP set the returned :class:`StopRequest`; a
+    second one raises :class:`ForcedStop`, a third ends the process.
 
-    With ``raise_exception``, the handler also raises it (for code that waits in Python, not in
-    native callbacks, e.g. a Dask client). Outside the main thread nothing is installed, and a
-    signal that is ignored (``SIG_IGN``, as SIGINT in a shell's background job) stays ignored.
+    With ``raise_exception``, the handler also raises it (for code that waits in Python, e.g. a
+    Dask client). Outside the main thread nothing is installed; an ignored signal stays ignored.
     """
     request = StopRequest()
     if threading.current_thread() is not threading.main_thread():
@@ -99,6 +237,7 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
             raise swallowed.pop()
 
     def handler(signum, frame):
+        _after_hangup(signum)  # (SIGHUP: the terminal may be gone)
         request.count += 1
         request.set(signum)
         if request.count == 1:
@@ -136,6 +275,6 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         sys.unraisablehook = previous_hook
         if previous_alarm:
             signal.setitimer(signal.ITIMER_REAL, 0.0)
-            signal.signal(signal.SIGALRM, previous_alarm["handler"])
-        for sig, old in previous.items():
+            previous[signal.SIGALRM] = previous_alarm["handler"]
+        for sig, old in previous.items():  # (SIGALRM's too)
             signal.signal(sig, old)

@@ -16,6 +16,7 @@ This is the second stage of heliostep's one-way data flow
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -117,20 +118,28 @@ def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> floa
     return float(np.arcsin(np.clip(ratio, -1.0, 1.0)) / values["N_c"])
 
 
-def prepare_inputs(scenario: Scenario) -> DriveInputs:
-    """Compute the reference, the step schedule, the reference currents and the output grid."""
+def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = None) -> DriveInputs:
+    """Compute the reference, the step schedule, the reference currents and the output grid.
+
+    ``should_stop`` is asked while the steps are scheduled (the one loop that grows with the
+    run); when it says so, :class:`~heliostep.drive.sequencer.PreparationStopped` is raised. The
+    arrays built at once (reference, grid) are bounded by the run's estimate
+    (:mod:`heliostep.run.estimate`) before this is called."""
     start, end = scenario.window_bounds()
     duration = (end - start).total_seconds()
     times = reference_times(duration)
     index = start + pd.to_timedelta(times, unit="s")
-    panel = _panel_angle_reference(scenario, index)
+    panel = scenario_panel_angle(scenario, index)
     transmission = scenario.transmission
     rotor = rotor_angle_from_panel(
         panel, panel[0], transmission.pinion_radius, transmission.lever_arm, rotor_angle0=0.0
     )  # [paper], eq. 14, rotor at 0 at the start
-    sequencer = _sequencer(scenario)
+    sequencer = scenario_sequencer(scenario)
     schedule = schedule_steps(
-        reference_interpolant(times, np.asarray(rotor)), sequencer, trigger=scenario.sequencer.trigger
+        reference_interpolant(times, np.asarray(rotor)),
+        sequencer,
+        trigger=scenario.sequencer.trigger,
+        should_stop=should_stop,
     )
 
     indices = np.concatenate([[schedule.initial_index], schedule.indices])
@@ -168,7 +177,7 @@ def prepare_inputs(scenario: Scenario) -> DriveInputs:
     )
 
 
-def _panel_angle_reference(scenario: Scenario, index: pd.DatetimeIndex) -> np.ndarray:
+def scenario_panel_angle(scenario: Scenario, index: pd.DatetimeIndex) -> np.ndarray:
     """The scenario's mirror's reference panel angle [rad] at the instants *index*."""
     mirror = scenario.mirror
     return panel_angle_reference(
@@ -182,7 +191,7 @@ def _panel_angle_reference(scenario: Scenario, index: pd.DatetimeIndex) -> np.nd
     ).to_numpy()
 
 
-def _sequencer(scenario: Scenario) -> Sequencer:
+def scenario_sequencer(scenario: Scenario) -> Sequencer:
     """The scenario's sequencer (its step angle in [rad])."""
     return Sequencer(
         mode=scenario.sequencer.mode,

@@ -19,6 +19,7 @@ Stable positions follow from the torque law C = −k_e i_a sin(N_c θ) − k_e i
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -153,8 +154,20 @@ def reference_interpolant(times: np.ndarray, rotor_angle_ref: np.ndarray) -> Pch
     return PchipInterpolator(times, rotor_angle_ref, extrapolate=False)
 
 
+class PreparationStopped(Exception):
+    """A stop request (SIGINT, SIGTERM, SIGHUP) came while the inputs were prepared: nothing was computed."""
+
+
+#: Steps scheduled between two looks at the stop request (about 50 ms).
+STOP_CHECK_STEPS = 1024
+
+
 def schedule_steps(
-    reference: PchipInterpolator, sequencer: Sequencer, initial_index: int | None = None, trigger: str = "midpoint"
+    reference: PchipInterpolator,
+    sequencer: Sequencer,
+    initial_index: int | None = None,
+    trigger: str = "midpoint",
+    should_stop: Callable[[], bool] | None = None,
 ) -> StepSchedule:
     """Step instants where the reference moves a trigger fraction past the commanded position.
 
@@ -167,6 +180,8 @@ def schedule_steps(
         Index commanded at the start; default the one nearest the reference's first value.
     trigger : {'midpoint', 'reach'}
         Step when the reference crosses the midpoint to the next position, or reaches it.
+    should_stop : callable, optional
+        Asked every :data:`STOP_CHECK_STEPS` steps; when True, :class:`PreparationStopped` is raised.
 
     Returns
     -------
@@ -189,6 +204,8 @@ def schedule_steps(
         t, index = (up, index + 1) if up <= down else (down, index - 1)
         times.append(t)
         indices.append(index)
+        if should_stop is not None and len(times) % STOP_CHECK_STEPS == 0 and should_stop():
+            raise PreparationStopped(f"stopped while scheduling the steps ({len(times)} so far, t = {t:.6g} s)")
     return StepSchedule(np.array(times, dtype=float), np.array(indices, dtype=int), initial_index)
 
 

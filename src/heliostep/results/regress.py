@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
 from heliostep.results.compare import ComparisonResult, ToleranceSet, compare_traces
 from heliostep.results.trace_io import read_trace, write_trace
@@ -47,7 +48,10 @@ def reference_signals(roles: Mapping[str, str]) -> list[str]:
 
 
 def reference_path(scenario: Path) -> Path:
-    """Where a scenario's reference trace lives: beside it, ``NAME.reference.parquet``."""
+    """Where a scenario's reference trace lives: beside it, ``NAME.reference.parquet``
+    (:class:`~heliostep.errors.InputError` when the scenario file itself is not there)."""
+    if not scenario.is_file():
+        raise InputError(f"{scenario}: scenario file not found")
     return scenario.with_name(scenario.stem + ".reference.parquet")
 
 

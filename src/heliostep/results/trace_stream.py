@@ -11,9 +11,13 @@ is written only by :meth:`TraceStream.close`, once the run's outcome is known; u
 has no footer and claims nothing. Write it under a temporary name and rename it into place.
 
 When a row group cannot be written (disk full, a file-size limit) the stream raises
-:class:`~heliostep.results.trace_io.TraceWriteError` (the master then ends the run as failed),
-takes no more rows, and :meth:`TraceStream.close` keeps the row groups written before it: the
-file is then a readable trace of the rows up to :attr:`TraceStream.written_time`.
+:class:`~heliostep.results.trace_io.TraceWriteError` (the master then ends the run as failed) and
+:meth:`TraceStream.close` keeps the row groups written before it: the file is then a readable
+trace of the rows up to :attr:`TraceStream.written_time`. The rows computed and not written (the
+failed row group's, and any block that comes after) are kept in memory
+(:attr:`TraceStream.unwritten_trace`; the run stops at the failure, so they are at most a row
+group and a few blocks) and go to the figures too: nothing computed is lost, the command line's
+rescue writes them after the file's rows.
 """
 
 from __future__ import annotations
@@ -70,18 +74,19 @@ class TraceStream:
         self.closed = False
         self.failed: TraceWriteError | None = None  # a row group could not be written
         self.rows_not_written = 0  # rows received that the file does not hold (after a failed write)
+        self._unwritten: list[pd.DataFrame] = []  # those rows, kept in memory
 
     def __call__(self, block: np.ndarray) -> None:
         block = master_block(block, self.master_columns, str(self.path))
         if not len(block):
             return
-        if self.failed is not None:  # nothing more is written; the rows are counted
-            self.rows += len(block)
-            self.rows_not_written += len(block)
+        frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))
+        if self.failed is not None:  # nothing more is written; the rows are kept in memory
+            self._keep_unwritten([frame])
+            self.rows += len(frame)
             self.last_time = float(block[-1, 0])
             return
         self.max_block_rows = max(self.max_block_rows, len(block))
-        frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))
         self._held.append(frame)
         self._held_rows += len(frame)
         self.rows += len(frame)
@@ -98,7 +103,7 @@ class TraceStream:
             self._writer.write({c: group[c].to_numpy() for c in self.columns})
         except TraceWriteError as exc:
             self.failed = exc
-            self.rows_not_written += len(held)
+            self._keep_unwritten([held])
             self._held, self._held_rows = [], 0
             raise
         self.row_groups += 1
@@ -106,6 +111,24 @@ class TraceStream:
             self.figures(group)
         self._held = [rest.reset_index(drop=True)] if len(rest) else []
         self._held_rows = len(rest)
+
+    def _keep_unwritten(self, frames: list[pd.DataFrame]) -> None:
+        """Rows the file will not hold: kept in memory, and on to the figures."""
+        for frame in frames:
+            if len(frame):
+                self._unwritten.append(frame.reset_index(drop=True))
+                self.rows_not_written += len(frame)
+                if self.figures is not None:
+                    self.figures(frame)
+
+    @property
+    def unwritten_trace(self) -> pd.DataFrame | None:
+        """The rows computed after the file's last row (None: the file holds every row)."""
+        if not self._unwritten:
+            return None
+        if len(self._unwritten) > 1:
+            self._unwritten = [pd.concat(self._unwritten, ignore_index=True)]
+        return self._unwritten[0]
 
     @property
     def written_rows(self) -> int:
@@ -135,12 +158,12 @@ class TraceStream:
             pass
         if self.failed is None:
             return status
-        reached = self.written_time or 0.0
+        reached = self.last_time if self.last_time is not None else 0.0
         return RunStatus(
             False,
-            f"the trace could not be written: {self.failed}; it keeps the {self.written_rows} "
-            f"rows up to t = {reached:.9g} s, not the rows computed after them (at least "
-            f"{self.rows_not_written})",
+            f"the trace could not be written: {self.failed}; the file keeps the {self.written_rows} rows "
+            f"up to t = {self.written_time or 0.0:.9g} s, the {self.rows_not_written} rows computed after "
+            f"them (to t = {reached:.9g} s) are held in memory for the rescue",
             "failed",
             reached,
         )
@@ -153,13 +176,19 @@ class TraceStream:
             self.flush()
         except TraceWriteError:
             pass  # the file keeps the row groups written before; ``failed`` says why
+        if self.failed is not None:  # the file says what it holds: the time of its own last row
+            metadata = {
+                **metadata,
+                "time_reached": repr(float(self.written_time or 0.0)),
+                "rows_computed_after_this_file": str(self.rows_not_written),
+            }
         self._writer.close(metadata)
         self.closed = True
         return self.path
 
     def abort(self) -> None:
         """Remove the file, finished or not (the run it belongs to ended without a result)."""
-        self._held, self._held_rows = [], 0
+        self._held, self._held_rows, self._unwritten = [], 0, []
         if not self.closed:
             self._writer.abort()
             self.closed = True

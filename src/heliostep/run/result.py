@@ -3,11 +3,12 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import shutil
 import tempfile
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,16 +16,27 @@ import pandas as pd
 
 from heliostep.drive.inputs import DriveInputs
 from heliostep.errors import InputError, RunFailure
-from heliostep.results.outputs import TMP_PREFIX, remove_stale
+from heliostep.results.outputs import TMP_PREFIX
+from heliostep.results.rescue import write_text_parts, write_trace_parts
 from heliostep.results.run_figures import present_columns
-from heliostep.results.run_files import place_trace_file, write_held_trace, write_records, write_trace_csv
+from heliostep.results.run_files import (
+    RECORD_FILES,
+    TRACE_FILES,
+    place_trace_file,
+    record_texts,
+    write_held_trace,
+    write_joined_trace,
+    write_records,
+    write_trace_csv,
+)
+from heliostep.results.run_folder import check_foreign, hold_folder, manifest_files, staging_folder, swap_in
 from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, summary_record
 from heliostep.results.solution import SolutionPlotData
 from heliostep.results.trace import trace_metadata
-from heliostep.results.trace_io import read_trace
+from heliostep.results.trace_io import iter_trace_blocks, read_trace
 from heliostep.scenario import Scenario
 
-__all__ = ["RunFailed", "RunResult"]
+__all__ = ["RunFailed", "RunResult", "run_file_names"]
 
 
 @dataclass
@@ -49,6 +61,10 @@ class RunResult:
     executed, missed, lost, settling) are those up to that step, and ``step_in_progress_at_cut_s``
     gives its time.
 
+    ``unwritten_trace`` holds the rows computed after the last row of ``trace_file`` that could
+    not be written to it (a full disk, a file-size limit; the run then failed there): :attr:`trace`
+    and :meth:`write` give them after the file's rows, :meth:`write_rescue` saves them all.
+
     ``solution_plot`` is what the plots draw from every solver step (the rows around the peak
     |torque|, the per-bin envelopes; :class:`~heliostep.results.solution.SolutionPlotData`), not in
     ``summary.json``; None for a result made without the master's monitor.
@@ -68,6 +84,7 @@ class RunResult:
     weather: object = field(default=None, repr=False)  # the weather file read once (None: clear sky)
     trace_kept: bool = True  # False: run_scenario(..., keep_trace=False), figures only
     solution_plot: SolutionPlotData | None = field(default=None, repr=False)  # drawn from every solver step
+    unwritten_trace: pd.DataFrame | None = field(default=None, repr=False)  # rows after trace_file's end
 
     def __post_init__(self) -> None:
         if not self.trace_kept:
@@ -107,7 +124,12 @@ class RunResult:
         self._require_trace()
         if self.held_trace is not None:
             return self.held_trace
-        return read_trace(self._streamed_file())[0]
+        return self._with_unwritten(read_trace(self._streamed_file())[0])
+
+    def _with_unwritten(self, frame: pd.DataFrame) -> pd.DataFrame:
+        if self.unwritten_trace is None:
+            return frame
+        return pd.concat([frame, self.unwritten_trace[list(frame.columns)]], ignore_index=True)
 
     @property
     def trace_column_names(self) -> list[str]:
@@ -126,7 +148,8 @@ class RunResult:
             return len(self.held_trace)
         import pyarrow.parquet as pq
 
-        return pq.ParquetFile(self._streamed_file()).metadata.num_rows
+        unwritten = len(self.unwritten_trace) if self.unwritten_trace is not None else 0
+        return pq.ParquetFile(self._streamed_file()).metadata.num_rows + unwritten
 
     def trace_columns(self, columns: list[str]) -> pd.DataFrame:
         """``time`` and those of ``columns`` the trace has, as a frame (read from the file when
@@ -135,7 +158,7 @@ class RunResult:
         if self.held_trace is not None:
             return self.held_trace[present_columns(self.held_trace, columns)]
         trace_file = self._streamed_file()
-        return read_trace(trace_file, present_columns(trace_file, columns))[0]
+        return self._with_unwritten(read_trace(trace_file, present_columns(trace_file, columns))[0])
 
     def to_pandas(self) -> pd.DataFrame:
         """The trace as a DataFrame (a copy)."""
@@ -143,13 +166,24 @@ class RunResult:
 
     def plot(self, out_dir: str | Path) -> list[Path]:
         """Write the paper's Figs. 8–14 and the power on the tube for this run into ``out_dir``
-        (each file renamed into place)."""
+        (drawn into a staging folder, swapped in and added to the folder's manifest, the
+        folder's lock held meanwhile)."""
         self._require_trace()
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with hold_folder(out_dir):
+            staging = staging_folder(out_dir)
+            try:
+                drawn = [path.name for path in self._draw(staging)]
+                return list(swap_in(out_dir, staging, drawn, keep=manifest_files(out_dir)).values())
+            finally:
+                shutil.rmtree(staging, ignore_errors=True)
+
+    def _draw(self, out_dir: Path) -> list[Path]:
+        """The figures drawn into ``out_dir`` (each renamed into place there)."""
         from heliostep.plots.light import plot_light_run
         from heliostep.plots.run import plot_run
 
-        out_dir = Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
             source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
@@ -188,31 +222,96 @@ class RunResult:
         trace's metadata, summary.json and metadata.json all say ``complete`` (and, when not,
         ``reason`` and the time reached).
 
-        Every file is written under a temporary name in ``out_dir`` and renamed into place, so no
-        file is ever cut short under its final name. Files of heliostep's own kinds left by an
-        earlier run and not written now are removed. When ``should_stop()`` turns true the
-        figures (drawn last) are skipped.
+        The folder's lock is held meanwhile (:func:`~heliostep.results.run_folder.hold_folder`:
+        another run writing there is an InputError). Every file is written first into a staging
+        folder inside ``out_dir``, then swapped in (:func:`~heliostep.results.run_folder.swap_in`):
+        the earlier run's files (those its manifest lists) are removed and the new ones renamed
+        into place, signals held back, so no interrupt leaves old and new files side by side; a
+        file heliostep did not write is never removed or replaced. When ``should_stop()`` turns
+        true the figures (drawn last) are skipped.
         """
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
+        with hold_folder(out_dir):
+            check_foreign(out_dir, run_file_names(plots, csv))
+            staging, source = staging_folder(out_dir), self.trace_file
+            try:  # trace and records swapped in, the earlier run's files (figures too) out
+                written = swap_in(out_dir, staging, self._write_staged(staging, csv))
+            finally:  # (also when a signal held back during the swap is raised as it ends)
+                self._trace_file_after_swap(out_dir, staging, source)
+                shutil.rmtree(staging, ignore_errors=True)
+            if plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop()):
+                staging = staging_folder(out_dir)  # then the figures, added to them
+                try:
+                    drawn = [path.name for path in self._draw(staging)]
+                    written.update(swap_in(out_dir, staging, drawn, keep=written))
+                finally:
+                    shutil.rmtree(staging, ignore_errors=True)
+        return written
+
+    def _trace_file_after_swap(self, out_dir: Path, staging: Path, source: Path | None) -> None:
+        """Where the trace file is once the swap has ended: in ``out_dir`` when the one moved
+        into ``staging`` was swapped in; moved back to ``source`` (kept) when it was not."""
+        if self.trace_file is None or self.trace_file.parent != staging:
+            return
+        if self.trace_file.exists():  # not swapped in: the stream goes back where it was
+            if source is not None:
+                os.replace(self.trace_file, source)
+                self.trace_file = source
+            return
+        self.trace_file = out_dir / self.trace_file.name
+        if source is not None and source.parent == out_dir and source.name.startswith(TMP_PREFIX):
+            source.unlink(missing_ok=True)  # a stream cut short, now joined with its rest
+
+    def _write_staged(self, staging: Path, csv: bool) -> list[str]:
+        """The run's trace and records written into ``staging``: their names, in the order written."""
         written: dict[str, Path] = {}
         if not self.trace_kept:  # figures only: summary.json and metadata.json
-            plots = False
+            pass
         elif self.held_trace is not None:
-            written.update(write_held_trace(out_dir, self.held_trace, self.trace_metadata(), csv))
+            written.update(write_held_trace(staging, self.held_trace, self.trace_metadata(), csv))
+        elif self.unwritten_trace is not None:  # streamed, cut short by storage: the file's rows and the rest
+            written.update(
+                write_joined_trace(staging, self._streamed_file(), self.unwritten_trace, self.trace_metadata(), csv)
+            )
+            self.trace_file, self.unwritten_trace = written["trace.parquet"], None
         else:  # streamed: the finished file is renamed (or copied) into place, the CSV made from it
             source, metadata = self._streamed_file(), self.trace_metadata()
-            written["trace.parquet"] = place_trace_file(source, out_dir / "trace.parquet")
-            if self.temporary_folder is None or source.parent == out_dir:
+            written["trace.parquet"] = place_trace_file(source, staging / "trace.parquet")
+            if not source.exists():  # moved, not copied: the result's trace is the placed one
                 self.trace_file = written["trace.parquet"]
             if csv:
-                written.update(write_trace_csv(out_dir, written["trace.parquet"], metadata))
-        written.update(write_records(out_dir, self.figures, self.status, self.metadata))
-        if plots and self.trace_rows and not (should_stop and should_stop()):
-            for path in self.plot(out_dir):
-                written[path.name] = path
-        remove_stale(out_dir, written.values())
+                written.update(write_trace_csv(staging, written["trace.parquet"], metadata))
+        written.update(write_records(staging, self.figures, self.status, self.metadata))
+        return list(written)
+
+    def write_rescue(self, folder: Path) -> list[Path]:
+        """Every computed row and the records into ``folder`` (no figures), each file under the
+        process's file-size limit (:mod:`heliostep.results.rescue`: the trace in parts if need be)."""
+        written = []
+        if self.trace_kept:
+            blocks: Iterable[pd.DataFrame]
+            if self.held_trace is not None:
+                held, step = self.held_trace, 65536
+                blocks = (held.iloc[i : i + step] for i in range(0, max(len(held), 1), step))
+            else:
+                blocks = iter_trace_blocks(self._streamed_file())
+                if self.unwritten_trace is not None:
+                    blocks = itertools.chain(blocks, [self.unwritten_trace])
+            written += write_trace_parts(folder, blocks, self.trace_metadata())
+        for name, text in record_texts(self.figures, self.status, self.metadata).items():
+            written += write_text_parts(folder, name, text)
         return written
+
+
+def run_file_names(plots: bool = True, csv: bool = True) -> list[str]:
+    """The names a run's :meth:`RunResult.write` may give its files (a folder holding one of them
+    that heliostep did not write is refused): those of the writers of traces, records and figures."""
+    from heliostep.plots.light import POWER_FILE
+    from heliostep.plots.run import FIGURE_FILES
+
+    names = [*TRACE_FILES[: 2 if csv else 1], *RECORD_FILES]
+    return names + ([*FIGURE_FILES, POWER_FILE] if plots else [])
 
 
 class RunFailed(RunFailure):

@@ -36,6 +36,7 @@ from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figur
 from heliostep.results.trace_io import ROW_GROUP_ROWS
 from heliostep.results.trace_stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
+from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
 from heliostep.run.result import RunFailed, RunResult
 from heliostep.scenario import Scenario, load_scenario
@@ -115,7 +116,7 @@ def run_scenario(
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
-    prepared = _prepare(scenario, fmu_paths, clock.perf_counter())
+    prepared = _prepare(scenario, fmu_paths, clock.perf_counter(), should_stop, keep_trace)
     figures = RunFigures.of_run(
         prepared.columns,
         prepared.inputs,
@@ -139,8 +140,16 @@ def run_scenario(
     return run
 
 
-def _prepare(scenario: Scenario, fmu_paths: Mapping[str, Path] | None, started: float) -> _PreparedRun:
-    """The run checked and set up: FMUs, roles, weather, drive inputs, the coupled system."""
+def _prepare(
+    scenario: Scenario,
+    fmu_paths: Mapping[str, Path] | None,
+    started: float,
+    should_stop: Callable[[], bool] | None = None,
+    keep_trace: bool = True,
+) -> _PreparedRun:
+    """The run checked and set up: its estimate against the budget, FMUs, roles, weather, drive
+    inputs (:class:`~heliostep.drive.sequencer.PreparationStopped` on a stop request), the coupled system."""
+    check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, keep_trace))  # before any work
     fmu_paths = dict(fmu_paths) if fmu_paths is not None else resolve_fmus(scenario)
     infos = read_fmus(scenario, fmu_paths)
     roles = present_roles(scenario, infos)
@@ -148,7 +157,7 @@ def _prepare(scenario: Scenario, fmu_paths: Mapping[str, Path] | None, started: 
         weather = load_weather(scenario)  # read once: the light figures take it from here
     except InputError as exc:
         raise InputError(f"{scenario.source}: optics.{exc}") from None
-    inputs = prepare_inputs(scenario)
+    inputs = prepare_inputs(scenario, should_stop)
     values = parameters(scenario, inputs, roles, infos)
     try:  # connections (types, units, loops), parameter names and values, checked before simulating
         system = CoSimulation(
@@ -310,11 +319,21 @@ def _simulate_and_summarize(
         weather=prepared.weather,
         trace_kept=sink.trace_kept,
         solution_plot=figures.solution.plot_data() if figures.solution is not None else None,
+        unwritten_trace=getattr(sink, "unwritten_trace", None),  # rows a full disk kept out of the stream
     )
 
 
 def _peak_rss_mb() -> float | None:
-    """The process's peak resident memory so far [MB] (None where the OS does not say)."""
+    """The process's peak resident memory so far [MB] (None where the OS does not say): Linux's
+    VmHWM, which is this program's own (``ru_maxrss`` keeps the parent's peak across fork and
+    exec, so a process started by a big one would report that one's), else ``ru_maxrss``."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return round(int(line.split()[1]) / 1024, 1)  # kB
+    except OSError:
+        pass
     try:
         import resource
     except ImportError:  # not on Windows

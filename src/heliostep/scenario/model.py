@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import datetime as dt
+import os
 import re
+import zoneinfo
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, cast
@@ -27,6 +29,7 @@ from heliostep.scenario.roles import REQUIRED_ROLES, RolesConfig
 from heliostep.scenario.sections import (
     SUNRISE,
     SUNSET,
+    BudgetConfig,
     MirrorConfig,
     OpticsConfig,
     OutputConfig,
@@ -59,7 +62,18 @@ ParameterValue = Annotated[
 
 _INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 #: Top-level keys whose null value means "the defaults".
-_DEFAULTED_KEYS = ("transmission", "fmus", "parameters", "roles", "sequencer", "wind", "solver", "output", "optics")
+_DEFAULTED_KEYS = (
+    "transmission",
+    "fmus",
+    "parameters",
+    "roles",
+    "sequencer",
+    "wind",
+    "solver",
+    "output",
+    "optics",
+    "budget",
+)
 
 
 def _merge_default_fmus(value):
@@ -84,6 +98,36 @@ def _endpoint_problem(endpoint: str) -> str | None:
 
 
 # --------------------------------------------------------------------------- scenario
+#: The years a window may be in: pandas' nanosecond timestamps reach 1677-09-21 to 2262-04-11
+#: (pvlib's SPA itself is valid from -2000 to 6000).
+FIRST_YEAR, LAST_YEAR = 1678, 2261
+
+
+def _whole_minutes(date: dt.date, zone: zoneinfo.ZoneInfo) -> bool:
+    offset = zone.utcoffset(dt.datetime.combine(date, dt.time(12)))
+    return offset is None or offset.total_seconds() % 60 == 0
+
+
+def window_date_problem(date: dt.date, timezone: str) -> str | None:
+    """Why the window cannot be on ``date`` at a site in ``timezone`` (None: it can): a year
+    outside pandas' timestamps, or a day when the zone kept local mean time (an offset of
+    seconds, e.g. Europe/Rome before 1 November 1893), which pandas cannot parse."""
+    if not FIRST_YEAR <= date.year <= LAST_YEAR:
+        return f"{date}: expected a date in the years {FIRST_YEAR} to {LAST_YEAR} (pandas' timestamps)"
+    zone = zoneinfo.ZoneInfo(timezone)
+    if _whole_minutes(date, zone):
+        return None
+    low, high = date.toordinal(), dt.date(LAST_YEAR, 12, 31).toordinal()  # the first whole-minute day after
+    while low < high:
+        middle = (low + high) // 2
+        low, high = (low, middle) if _whole_minutes(dt.date.fromordinal(middle), zone) else (middle + 1, high)
+    offset = zone.utcoffset(dt.datetime.combine(date, dt.time(12)))
+    return (
+        f"{date}: {timezone} then kept local mean time (UTC offset {offset}), which pandas' timestamps "
+        f"cannot take; expected a date from {dt.date.fromordinal(low)} on"
+    )
+
+
 class Scenario(Section):
     """A validated scenario: one run of the co-simulation.
 
@@ -117,6 +161,7 @@ class Scenario(Section):
     optics: OpticsConfig = Field(default_factory=OpticsConfig)
     solver: SolverConfig = Field(default_factory=SolverConfig)
     output: OutputConfig = Field(default_factory=OutputConfig)
+    budget: BudgetConfig = Field(default_factory=BudgetConfig)
 
     _folder: Path = PrivateAttr(default_factory=Path.cwd)
     _source: str = PrivateAttr(default="<scenario>")
@@ -137,9 +182,15 @@ class Scenario(Section):
     @field_validator("name")
     @classmethod
     def _not_blank(cls, value: str) -> str:
-        if not value.strip():
+        value = value.strip()
+        if not value:
             raise ValueError("must not be blank")
-        return value.strip()
+        if value in (".", "..") or any(c in value for c in "/\\\0") or os.path.isabs(value):
+            raise ValueError(
+                f"{value!r}: a name is one folder name (the default output folder is out/NAME): "
+                "no path separator, not absolute, not '.' or '..'"
+            )
+        return value
 
     @field_validator("fmus")
     @classmethod
@@ -217,10 +268,22 @@ class Scenario(Section):
                     )
                 targets.setdefault(target, position)
         problems += self._role_problems()
-        try:
-            self._resolve_window()
-        except KeyProblems as exc:
-            problems += exc.problems
+        date_problem = window_date_problem(self.window.date, self.site.timezone)
+        if date_problem:
+            problems.append((("window", "date"), date_problem))
+        room = (dt.date(LAST_YEAR, 12, 31) - self.window.date).total_seconds()
+        if self.window.duration is not None and self.window.duration > room:
+            problems.append(
+                (
+                    ("window", "duration"),
+                    f"{self.window.duration:g} s ends after {LAST_YEAR}-12-31; expected <= {room:g}",
+                )
+            )
+        if not problems:  # (a date or duration pandas cannot take is not resolved)
+            try:
+                self._resolve_window()
+            except KeyProblems as exc:
+                problems += exc.problems
         if problems:
             raise KeyProblems(problems)
         return self

@@ -33,6 +33,7 @@ from heliostep.solar import (
 )
 from heliostep.solar.field import PANEL_LENGTH, PANEL_WIDTH
 from heliostep.solar.intercept import SURFACE_SLOPE_ERROR
+from heliostep.solar.sun import ALTITUDE_RANGE
 
 #: Energising sequences of the stepper sequencer (the drive implements one phase pattern for each).
 SEQUENCER_MODES = ("one-phase-on", "two-phase-on", "half-step")
@@ -88,7 +89,9 @@ class SiteConfig(Section):
 
     latitude: Real = Field(ge=-90.0, le=90.0, description="[deg], positive North")
     longitude: Real = Field(ge=-180.0, le=180.0, description="[deg], positive East")
-    altitude: Real = Field(0.0, description="[m] above sea level")
+    altitude: Real = Field(
+        0.0, ge=ALTITUDE_RANGE[0], le=ALTITUDE_RANGE[1], description="[m] above sea level (land on Earth)"
+    )
     timezone: str = Field(description="IANA name such as 'Europe/Rome'")
 
     @field_validator("timezone")
@@ -319,3 +322,12 @@ class OutputConfig(Section):
     interval: Real = Field(0.01, gt=0.0, description="[s], spacing of the regular grid")
     step_detail: Real = Field(0.05, gt=0.0, description="[s] after each step kept on the fine grid")
     step_interval: Real = Field(0.0005, gt=0.0, description="[s], spacing of the fine grid")
+
+
+class BudgetConfig(Section):
+    """``budget``: the most a run may take, checked against an estimate made from the scenario
+    before anything is computed (:mod:`heliostep.run.estimate`); above it the run is refused
+    (exit 2) naming the key that makes it large. The defaults fit a laptop."""
+
+    memory_gb: Real = Field(4.0, gt=0.0, description="[GB] of memory the run's inputs and trace may take")
+    disk_gb: Real = Field(10.0, gt=0.0, description="[GB] of disk its files (trace, CSV, records) may take")

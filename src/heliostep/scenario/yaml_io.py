@@ -1,6 +1,10 @@
 """Reading YAML the way heliostep means it: YAML 1.2 numbers, clock times as strings, no repeated keys.
 
-Used for scenarios, sweeps, tolerance files and ``--set`` values: one reader for all.
+Used for scenarios, sweeps, tolerance files and ``--set`` values: one reader for all. Bounded:
+nesting deeper than :data:`MAX_DEPTH` levels (which would exhaust Python's recursion) and
+documents whose aliases expand to more than :data:`MAX_EXPANDED_NODES` nodes (an alias bomb, that
+would take minutes and gigabytes to walk) are refused as bad YAML, naming the line. A date that
+does not exist (an unquoted ``2025-02-29``) is kept as its text, so the key's own check names it.
 """
 
 from __future__ import annotations
@@ -12,9 +16,56 @@ import yaml
 
 from heliostep.errors import InputError
 
+#: Deepest nesting of mappings and lists a file may have (a scenario has 4).
+MAX_DEPTH = 64
+#: Most nodes a document may have with its aliases expanded (a scenario has a few hundred).
+MAX_EXPANDED_NODES = 200_000
+
+
+def _expanded_size(node, sizes: dict[int, int]) -> int:
+    """Nodes of ``node`` with every alias expanded (each shared node counted once per use)."""
+    known = sizes.get(id(node))
+    if known is not None:
+        return known
+    size = 1
+    if isinstance(node, yaml.SequenceNode):
+        size += sum(_expanded_size(item, sizes) for item in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        size += sum(_expanded_size(key, sizes) + _expanded_size(value, sizes) for key, value in node.value)
+    sizes[id(node)] = size = min(size, MAX_EXPANDED_NODES + 1)
+    return size
+
 
 class HeliostepLoader(yaml.SafeLoader):
-    """PyYAML's safe loader with YAML 1.2 numbers and an error on repeated keys."""
+    """PyYAML's safe loader with YAML 1.2 numbers, an error on repeated keys, and limits on
+    nesting and alias expansion."""
+
+    _depth = 0
+
+    def compose_node(self, parent, index):
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise yaml.composer.ComposerError(
+                    None, None, f"nested deeper than {MAX_DEPTH} levels", self.peek_event().start_mark
+                )
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def get_single_node(self):
+        node = super().get_single_node()
+        if node is not None and _expanded_size(node, {}) > MAX_EXPANDED_NODES:
+            raise yaml.composer.ComposerError(
+                None, None, f"more than {MAX_EXPANDED_NODES} values with its aliases expanded", node.start_mark
+            )
+        return node
+
+    def construct_yaml_timestamp(self, node):
+        try:
+            return super().construct_yaml_timestamp(node)
+        except ValueError:  # e.g. 2025-02-29: the text, for the key's own check to name
+            return self.construct_scalar(node)
 
     def construct_mapping(self, node, deep=False):
         if isinstance(node, yaml.MappingNode):
@@ -70,6 +121,7 @@ def _octal_aware_int(loader, node):
 
 
 HeliostepLoader.add_constructor("tag:yaml.org,2002:int", _octal_aware_int)
+HeliostepLoader.add_constructor("tag:yaml.org,2002:timestamp", HeliostepLoader.construct_yaml_timestamp)
 
 
 def yaml_problem(exc: yaml.YAMLError) -> str:

@@ -30,6 +30,11 @@ ORIENTATIONS = {"NS": 0.0, "EW": 90.0}
 
 
 # --------------------------------------------------------------------------- site, plant
+#: Site altitudes taken [m]: land on Earth (the Dead Sea's shore at -430 m, Everest at 8849 m), with
+#: room; pvlib's pressure from altitude turns negative (complex angles) above 44.3 km.
+ALTITUDE_RANGE = (-500.0, 9000.0)
+
+
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Site:
     """Where the plant is.
@@ -54,7 +59,8 @@ class Site:
     def __post_init__(self):
         object.__setattr__(self, "latitude", check_range(self.latitude, "latitude", -90.0, 90.0, "deg"))
         object.__setattr__(self, "longitude", check_range(self.longitude, "longitude", -180.0, 180.0, "deg"))
-        object.__setattr__(self, "altitude", check_finite_scalar(self.altitude, "altitude", " [m]"))
+        low, high = ALTITUDE_RANGE
+        object.__setattr__(self, "altitude", check_range(self.altitude, "altitude", low, high, "m"))
         check_timezone(self.timezone)
 
 

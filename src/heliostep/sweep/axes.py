@@ -19,6 +19,8 @@ __all__ = [
     "CENTRAL_MIRROR",
     "SHORTHAND_AXES",
     "SweepAxis",
+    "check_case_count",
+    "count_cases",
     "axis_hint",
     "axis_values",
     "check_axis_key",
@@ -162,6 +164,33 @@ def axis_values(name: str, raw, year: int, where: str) -> tuple:
     return values
 
 
+def count_cases(axes, combine: str, shared_primary: bool) -> int:
+    """Cases of a sweep of ``axes`` combined by ``combine`` ("product" or "zip"), the shared
+    primary's (one per combination of the axes but ``mirror``) included, counted, not built."""
+    lengths = [len(axis.values) for axis in axes]
+    drives = min(lengths) if combine == "zip" else math.prod(lengths)
+    if shared_primary:
+        others = [len(axis.values) for axis in axes if axis.name != "mirror"]
+        drives += min(others, default=1) if combine == "zip" else math.prod(others)
+    return drives
+
+
+def check_case_count(source: str, axes, combine: str, shared_primary: bool, max_cases: int) -> None:
+    """Refuse (InputError) a sweep of more than ``max_cases`` cases, naming its axes and the count."""
+    count = count_cases(axes, combine, shared_primary)
+    if count > max_cases:
+        joined = f" {'x' if combine == 'product' else 'zip'} ".join(f"{a.name} ({len(a.values)} values)" for a in axes)
+        raise InputError(
+            f"{source}: axes: {joined} make {count:,} cases, over max_cases = {max_cases:,}; "
+            "each case is a run: fewer values, or max_cases in the sweep file if meant"
+        )
+
+
+#: The most values a range axis may expand to (counted before any is made; the sweep's cases are
+#: bounded by its ``max_cases`` besides).
+MAX_AXIS_VALUES = 1_000_000
+
+
 def _range_values(raw: Mapping, where: str) -> tuple:
     if set(raw) - {"start", "stop", "step"} or not {"start", "stop"} <= set(raw):
         raise InputError(f"{where}: a range is {{start, stop, step}} (step optional, default 1), got {dict(raw)!r}")
@@ -173,7 +202,9 @@ def _range_values(raw: Mapping, where: str) -> tuple:
         raise InputError(f"{where}.step: expected a number > 0, got {step!r}")
     if stop < start:
         raise InputError(f"{where}: stop ({stop}) is before start ({start})")
-    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    count = math.floor((stop - start) / step + 1e-9) + 1
+    if count > MAX_AXIS_VALUES:
+        raise InputError(f"{where}: a range of {count:.3g} values; expected at most {MAX_AXIS_VALUES:,}")
     if all(isinstance(v, int) for v in (start, stop, step)):
         return tuple(start + k * step for k in range(count))
     return tuple(float(np.round(start + k * step, 12)) for k in range(count))

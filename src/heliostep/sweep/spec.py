@@ -29,6 +29,7 @@ from heliostep.sweep.axes import (
     axis_hint,
     axis_values,
     check_axis_key,
+    check_case_count,
     setting_by_role,
     show_value,
     table_value,
@@ -43,6 +44,7 @@ __all__ = [
     "SweepAxis",
     "SweepCase",
     "SweepSpec",
+    "MAX_CASES",
     "expand_cases",
     "load_sweep",
     "sweep_from_scenario",
@@ -75,7 +77,11 @@ def _primary_load(base: Mapping) -> list[tuple[str, Any]]:
 ROLES = ("drive", "shared-primary")
 
 
-_SWEEP_KEYS = ("name", "description", "base", "combine", "axes", "overrides", "shared_primary")
+_SWEEP_KEYS = ("name", "description", "base", "combine", "axes", "overrides", "shared_primary", "max_cases")
+
+#: The most cases a sweep may have unless its file says ``max_cases`` (each case is a run; the
+#: cases are counted from the axes before any is built).
+MAX_CASES = 10_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,6 +119,7 @@ class SweepSpec:
     overrides: tuple[tuple[str, Any], ...] = ()
     shared_primary: bool = False
     description: str | None = None
+    max_cases: int = MAX_CASES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -204,6 +211,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
         overrides=data.get("overrides"),
         shared_primary=data.get("shared_primary", False),
         description=data.get("description"),
+        max_cases=data.get("max_cases", MAX_CASES),
     )
 
 
@@ -254,7 +262,17 @@ def sweep_from_scenario(
 
 
 def _make_spec(
-    *, name, source, base: Scenario, base_source, axes, combine, overrides, shared_primary, description
+    *,
+    name,
+    source,
+    base: Scenario,
+    base_source,
+    axes,
+    combine,
+    overrides,
+    shared_primary,
+    description,
+    max_cases=MAX_CASES,
 ) -> SweepSpec:
     if combine not in COMBINE_MODES:
         raise InputError(f"{source}: combine: expected one of {', '.join(COMBINE_MODES)}, got {combine!r}")
@@ -262,6 +280,8 @@ def _make_spec(
         raise InputError(f"{source}: shared_primary: expected true or false, got {shared_primary!r}")
     if description is not None and not isinstance(description, str):
         raise InputError(f"{source}: description: expected a string, got {description!r}")
+    if isinstance(max_cases, bool) or not isinstance(max_cases, int) or max_cases < 1:
+        raise InputError(f"{source}: max_cases: expected a whole number of cases >= 1, got {max_cases!r}")
     if overrides is None:
         overrides = {}
     if not isinstance(overrides, Mapping):
@@ -286,6 +306,7 @@ def _make_spec(
         overrides=common,
         shared_primary=shared_primary,
         description=description,
+        max_cases=max_cases,
     )
     year = _validated(spec, (), f"{source}: overrides").window.date.year
 
@@ -365,6 +386,7 @@ def expand_cases(spec: SweepSpec) -> list[SweepCase]:
         When a case's scenario is invalid (naming the sweep file and the case's
         settings), or when two cases are the same scenario.
     """
+    check_case_count(spec.source, spec.axes, spec.combine, spec.shared_primary, spec.max_cases)  # before any is built
     year = _validated(spec, (), f"{spec.source}: overrides").window.date.year
     if spec.combine == "zip":
         combinations = list(zip(*(axis.values for axis in spec.axes)))
