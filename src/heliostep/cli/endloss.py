@@ -88,19 +88,24 @@ def register(subparsers) -> argparse.ArgumentParser:
     return parser
 
 
-def _end_loss_command(args: argparse.Namespace) -> int:
+def _checked_options(args: argparse.Namespace) -> None:
+    """The options end_loss_days does not check itself: the year, the section's and the receiver's sizes."""
     if not FIRST_YEAR <= args.year <= LAST_YEAR:
         raise InputError(f"--year {args.year}: expected a year from {FIRST_YEAR} to {LAST_YEAR} (pandas' timestamps)")
     problem = window_date_problem(dt.date(args.year, 1, 1), args.timezone)
     if problem:
         raise InputError(f"--year {args.year}: {problem}")
-    site = Site(latitude=args.latitude, longitude=args.longitude, altitude=args.altitude, timezone=args.timezone)
-    distances = field_distances(args.rows, args.spacing)
-    width = args.spacing if args.mirror_width is None else args.mirror_width
     if not (args.mirror_length > 0 and args.shading_step_minutes > 0):
         raise InputError("--mirror-length and --shading-step-minutes: expected > 0 [m], [min]")
     if not args.receiver_width >= 0:
         raise InputError(f"--receiver-width {args.receiver_width!r}: expected >= 0 [m] (0: no receiver shadow)")
+
+
+def _end_loss_command(args: argparse.Namespace) -> int:
+    _checked_options(args)
+    site = Site(latitude=args.latitude, longitude=args.longitude, altitude=args.altitude, timezone=args.timezone)
+    distances = field_distances(args.rows, args.spacing)
+    width = args.spacing if args.mirror_width is None else args.mirror_width
     efficiency = optical_chain(args.reflectivity, args.transmittance, args.absorptance)
     end = args.end_length
     if end is None:
