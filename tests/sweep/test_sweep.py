@@ -170,7 +170,7 @@ def test_sweep_on_two_workers_equals_runs_one_by_one(client, tmp_path):
         assert row.required_torque_Nm == pytest.approx(2.0 * summary["peak_torque_Nm"], rel=1e-12)
         assert row.holding_torque_Nm == pytest.approx(0.5 * 5.5)
     # the workers ran the FMUs shipped to them, written once into their local folders
-    expected = {hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in fmus_dir().glob("*.fmu")}
+    expected = {hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in fmus_dir().glob("*/*.fmu")}
 
     def local_fmus(dask_worker):
         folder = Path(dask_worker.local_directory) / "heliostep-fmus"

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
+from heliostep.cli.signals import stop_requests
 from heliostep.errors import InputError
 from heliostep.results.compare import format_table, load_tolerances
 from heliostep.results.regress import (
@@ -17,15 +20,22 @@ from heliostep.results.regress import (
 from heliostep.run import RunFailed, run_scenario
 
 
-def regress_one(scenario: Path, tolerances, update: bool = False, report_dir: Path | None = None) -> Outcome:
-    """Run ``scenario`` and compare it with its reference (or rewrite the reference)."""
+def regress_one(
+    scenario: Path,
+    tolerances,
+    update: bool = False,
+    report_dir: Path | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> Outcome:
+    """Run ``scenario`` and compare it with its reference (or rewrite the reference); ``should_stop``
+    as for :func:`~heliostep.run.run_scenario` (a stopped run is an outcome with a problem)."""
     if not update and not reference_path(scenario).exists():
         raise InputError(
             f"{scenario}: no reference trace {reference_path(scenario).name}; "
             f"create it with: heliostep regress --update {scenario}"
         )
     try:
-        run = run_scenario(scenario)
+        run = run_scenario(scenario, should_stop=should_stop)
     except RunFailed as failed:
         return Outcome(scenario, None, f"the run failed: {failed}")
     metadata = run.trace_metadata()
@@ -73,9 +83,17 @@ def _run_regress(args: argparse.Namespace) -> int:
             "no shipped scenario has a reference trace; create them with heliostep regress --update SCENARIO"
         )
     tolerances = load_tolerances(args.tolerances or tolerances_path())
+    with stop_requests() as stop:  # SIGINT/SIGTERM: the run stops, its temporary files go, exit 130/143
+        return _regress_all(args, scenarios, tolerances, stop)
+
+
+def _regress_all(args: argparse.Namespace, scenarios, tolerances, stop) -> int:
     status = 0
     for scenario in scenarios:
-        outcome = regress_one(scenario, tolerances, args.update, args.report)
+        outcome = regress_one(scenario, tolerances, args.update, args.report, stop.is_set)
+        if stop.is_set():
+            print(f"{scenario}: stopped by {stop.name}; nothing compared or written", file=sys.stderr)
+            return stop.exit_status
         if outcome.problem:
             print(f"{scenario}: FAIL: {outcome.problem}")
             status = 1
