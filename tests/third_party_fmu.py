@@ -153,6 +153,7 @@ MINI_FMUS = {
             ("der(x)", "Real", "local", "continuous", None, "x"),
             ("fault", "Integer", "parameter", "fixed", 0, None),
             ("t_fault", "Real", "parameter", "fixed", 1.0, None),
+            ("period", "Real", "parameter", "fixed", 0.5, None),
         ],
     ),
 }
