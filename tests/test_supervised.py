@@ -54,9 +54,10 @@ def _scenario(folder: Path, fmu: Path, fault: int, t_fault: float = T_FAULT) -> 
     return path
 
 
-def _start(scenario: Path, out: Path, private_tmp: Path, *extra: str) -> subprocess.Popen:
+def _start(scenario: Path, out: Path, private_tmp: Path, *extra: str, start: str = "fork") -> subprocess.Popen:
+    """``heliostep run`` in a subprocess with a TMPDIR of its own; its supervised child forked or executed."""
     private_tmp.mkdir(exist_ok=True)
-    env = {**os.environ, "TMPDIR": str(private_tmp)}
+    env = {**os.environ, "TMPDIR": str(private_tmp), "HELIOSTEP_SUPERVISED_START": start}
     command = [sys.executable, "-c", CLI, "run", str(scenario), "--out", str(out), "--no-plots", *extra]
     return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -78,14 +79,17 @@ FAULTS = {  # fault code: (how the message says the process ended, reason)
 }
 
 
-@pytest.mark.parametrize("fault", sorted(FAULTS))
+@pytest.mark.parametrize(
+    "fault, start",
+    [*((fault, "fork") for fault in sorted(FAULTS)), (1, "exec")],  # exec: the path without fork
+)
 def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so_far(
-    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths
+    fault, start, faulty_fmu, complete_trace, tmp_path, fmu_paths
 ):
     out, private = tmp_path / "out", tmp_path / "tmp"
     out.mkdir()
     (out / NOT_OURS).write_text("the user's")
-    process = _start(_scenario(tmp_path, faulty_fmu, fault), out, private, "--watchdog", "3")
+    process = _start(_scenario(tmp_path, faulty_fmu, fault), out, private, "--watchdog", "3", start=start)
     _, stderr = process.communicate(timeout=120)
     ended, reason = FAULTS[fault]
     assert process.returncode == 1, stderr[-3000:]  # never 0, 3, 134 or 139
@@ -140,9 +144,14 @@ def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(faulty_fmu, tmp_
     assert sorted(p.name for p in private.iterdir()) == []
 
 
-def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_bit(fmu_paths, tmp_path):
+@pytest.mark.parametrize("start", ["fork", "exec"])
+def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_bit(
+    start, fmu_paths, tmp_path, monkeypatch
+):
+    import heliostep.run.supervised as supervised
     from heliostep.paths import scenarios_dir
 
+    monkeypatch.setattr(supervised, "START", start)
     scenario = scenarios_dir() / "jan21-central.yaml"
     overrides = ("window.duration=60",)
     inside = run_scenario(scenario, overrides, supervise=False)

@@ -41,9 +41,11 @@ def _popen(args: list[str], tmp: Path) -> subprocess.Popen:
     )
 
 
-def _wait_for_fmus(tmp: Path, process: subprocess.Popen, timeout: float = 60.0, inside: str = "") -> None:
+def _wait_for_fmus(
+    tmp: Path, process: subprocess.Popen, timeout: float = 60.0, pattern: str = "heliostep-fmus-*"
+) -> None:
     deadline = time.monotonic() + timeout
-    while not glob.glob(str(tmp / inside / "heliostep-fmus-*")):
+    while not glob.glob(str(tmp / pattern)):
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, "the FMUs were not unpacked"
         time.sleep(0.05)
@@ -80,7 +82,7 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
     (out / "notes.txt").write_text("not heliostep's")
     process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)  # unpacked to be checked
-    _wait_for_fmus(tmp_path / "tmp", process, inside="heliostep-child-*/tmp")  # by the child, right before it simulates
+    _wait_for_fmus(tmp_path / "tmp", process, pattern="heliostep-child-*")  # the supervised child's: it simulates
     time.sleep(2.5)
     assert process.poll() is None, "the run ended before the signal"
     process.send_signal(sig)

@@ -1,8 +1,9 @@
 """Supervised simulation: the master runs in a child process, so an FMU cannot take the run down.
 
 :func:`simulate_supervised` is :meth:`CoSimulation.simulate <heliostep.cosim.master.CoSimulation.simulate>`
-with the same arguments and results, but the simulation runs in a child process
-(``python -m heliostep.cosim.child``) that streams its rows back over a socket: the supervisor
+with the same arguments and results, but the simulation runs in a child process (forked, or a
+new interpreter: :data:`START`; :mod:`heliostep.cosim.child`) that streams its rows back over a
+socket: the supervisor
 (this process) feeds them to the run's row sink and monitor as they come, exactly as the master
 would in-process, so the figures and the trace are the same bit for bit.
 
@@ -42,7 +43,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions
-from heliostep.cosim.child import Request
+from heliostep.cosim.child import Request, serve
 from heliostep.cosim.kernel import library_path
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.watch import FUNCTIONS, LAYOUT, RECORD_BYTES, STOP_OFFSET
@@ -53,6 +54,11 @@ __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_
 #: Seconds without a new FMI call (and without a message from the child) before the supervisor
 #: declares the FMU hung (a model evaluation takes microseconds to milliseconds).
 DEFAULT_WATCHDOG = 60.0
+
+#: How the child is started: ``"fork"`` (where the OS has it: nothing to import again, about a
+#: millisecond) or ``"exec"`` (a new interpreter, ``python -m heliostep.cosim.child``: about a
+#: second of imports). ``$HELIOSTEP_SUPERVISED_START`` chooses.
+START = os.environ.get("HELIOSTEP_SUPERVISED_START") or ("fork" if hasattr(os, "fork") else "exec")
 
 #: Seconds a child has to stop by itself once asked, before it is killed.
 STOP_GRACE = 1.0
@@ -92,6 +98,52 @@ class _Record:
         self._map.close()
 
 
+class _Forked:
+    """A forked child process, seen as :class:`subprocess.Popen` sees one (``poll``, ``wait``, ``kill``)."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self) -> int:
+        if self.returncode is None:
+            self.returncode = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+        return self.returncode
+
+    def kill(self) -> None:
+        if self.returncode is None:
+            os.kill(self.pid, signal.SIGKILL)
+
+
+def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: Path) -> _Forked:
+    """The child forked from this process (everything already imported, the request at hand)."""
+    sys.stdout.flush()  # nothing buffered here may be written twice
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # the child: it never returns into the supervisor's code, nor runs its exit handlers
+        status = 1
+        try:
+            ours.close()
+            status = serve(Connection(theirs.detach()), str(folder / "calls"), request, str(folder / "tmp"))
+        finally:
+            os._exit(status)
+    return _Forked(pid)
+
+
+def _execute(theirs: socket.socket, folder: Path) -> subprocess.Popen:
+    """The child as a new interpreter (``python -m heliostep.cosim.child``), its TMPDIR the supervisor's folder."""
+    environment = {**os.environ, "TMPDIR": str(folder / "tmp")}
+    command = [sys.executable, "-m", "heliostep.cosim.child", str(theirs.fileno()), str(folder / "calls")]
+    return subprocess.Popen(command, pass_fds=[theirs.fileno()], env=environment, stdin=subprocess.DEVNULL)
+
+
 class _Supervisor:
     """One child process running ``request``, its messages dispatched to the run's callbacks."""
 
@@ -101,12 +153,9 @@ class _Supervisor:
         self.record = _Record(folder / "calls")
         (folder / "tmp").mkdir()
         ours, theirs = socket.socketpair()
-        environment = {**os.environ, "TMPDIR": str(folder / "tmp")}
-        command = [sys.executable, "-m", "heliostep.cosim.child", str(theirs.fileno()), str(folder / "calls")]
+        self.forked = START == "fork"
         try:
-            self.process = subprocess.Popen(
-                command, pass_fds=[theirs.fileno()], env=environment, stdin=subprocess.DEVNULL
-            )
+            self.process = _fork(request, ours, theirs, folder) if self.forked else _execute(theirs, folder)
         finally:
             theirs.close()
         self.connection = Connection(ours.detach())
@@ -117,7 +166,8 @@ class _Supervisor:
 
     def run(self, should_stop: Callable[[], bool] | None) -> tuple[str, object]:
         """Serve the child until it reports its outcome or fails; returns (kind, payload)."""
-        self.connection.send_bytes(pickle.dumps(self.request, protocol=pickle.HIGHEST_PROTOCOL))
+        if not self.forked:  # a forked child has it already
+            self.connection.send_bytes(pickle.dumps(self.request, protocol=pickle.HIGHEST_PROTOCOL))
         calls, progressed, stop_asked = -1, clock.monotonic(), None
         while self.outcome is None:
             received = self._receive()  # for at most about _POLL
@@ -151,23 +201,35 @@ class _Supervisor:
             except (EOFError, OSError):  # the child is gone without an outcome
                 self.ended = True
                 return False
-            callback = self.callbacks.get(kind)
-            if kind in ("rows", "solution") and callback is not None:
-                try:
-                    callback(payload)
-                except (HeliostepError, RuntimeError) as exc:  # the sink cannot take them (disk full ...)
-                    self.outcome = ("sink", f"{exc}")
-                    break
-                if kind == "rows" and len(payload):
-                    self.time = max(self.time, float(payload[-1, 0]))
-            elif kind == "progress" and callback is not None:
-                callback(payload)
+            if kind == "blocks":
+                for item, block in payload:
+                    if not self._dispatch(item, block):
+                        break
+            elif kind == "progress" and self.callbacks.get("progress") is not None:
+                self.callbacks["progress"](payload)  # type: ignore[misc]
             elif kind == "started":
                 self.started = True
-            elif kind not in ("rows", "solution", "progress"):
+            elif kind != "progress":
                 self.outcome = (kind, payload)
+            if self.outcome is not None:
+                break
             if not self.connection.poll(0):
                 break
+        return True
+
+    def _dispatch(self, kind: str, block: np.ndarray) -> bool:
+        """A block of rows to the sink (``"rows"``) or the monitor (``"solution"``); False (and the
+        outcome set) when the sink cannot take it."""
+        callback = self.callbacks.get(kind)
+        if callback is None:
+            return True
+        try:
+            callback(block)
+        except (HeliostepError, RuntimeError) as exc:  # the sink cannot take them (disk full ...)
+            self.outcome = ("sink", f"{exc}")
+            return False
+        if kind == "rows" and len(block):
+            self.time = max(self.time, float(block[-1, 0]))
         return True
 
     def _where(self) -> str:
