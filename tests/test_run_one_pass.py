@@ -34,10 +34,8 @@ def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, mo
     import heliostep.run.runner as runner
 
     monkeypatch.setattr(runner, "SINK_ROWS", 5)
-    asked = []  # in-process (supervise=False): should_stop is asked at each of the master's solver calls
-    run_scenario(
-        SCENARIOS / scenario, WINDOWS[scenario], should_stop=lambda: asked.append(1) and False, supervise=False
-    )
+    asked = []
+    run_scenario(SCENARIOS / scenario, WINDOWS[scenario], should_stop=lambda: asked.append(1) and False)
     stops_after = int(fraction * len(asked))  # stopped part-way: at a step, while settling, idle
     calls = []
 
@@ -53,7 +51,6 @@ def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, mo
             trace_dir=tmp_path if stream else None,
             row_group_rows=23,
             should_stop=should_stop,
-            supervise=False,
         )
     run = failed.value.result
     assert run.reason == "interrupted" and run.trace_rows > 0

@@ -147,7 +147,6 @@ def test_interrupted_stream_is_written_marked_and_claims_nothing_while_written(f
             trace_dir=tmp_path,
             row_group_rows=10,
             should_stop=should_stop,
-            supervise=False,  # in-process: asked at the master's solver calls (a supervisor asks every 50 ms)
         )
     run = failed.value.result
     assert run.reason == "interrupted" and len(seen) == 3

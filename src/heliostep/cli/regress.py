@@ -35,7 +35,7 @@ def regress_one(
             f"create it with: heliostep regress --update {scenario}"
         )
     try:
-        run = run_scenario(scenario, should_stop=should_stop)
+        run = run_scenario(scenario, should_stop=should_stop, supervise=True)  # a crashing FMU fails this one only
     except RunFailed as failed:
         return Outcome(scenario, None, f"the run failed: {failed}")
     metadata = run.trace_metadata()

@@ -89,7 +89,7 @@ def run_scenario(
     row_group_rows: int = ROW_GROUP_ROWS,
     keep_trace: bool = True,
     fmu_paths: Mapping[str, Path] | None = None,
-    supervise: bool = True,
+    supervise: bool = False,
     watchdog: float = DEFAULT_WATCHDOG,
 ) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
@@ -117,7 +117,7 @@ def run_scenario(
     no trace and draws no plots; an interrupted run's summary is not corrected for the step in
     progress at the cut (the sweep tables keep the figures as simulated).
 
-    ``supervise`` (the default): simulate in a child process (:mod:`heliostep.run.supervised`,
+    ``supervise`` (``heliostep run``'s default): simulate in a child process (:mod:`heliostep.run.supervised`,
     which asks ``should_stop`` every 50 ms and passes it on); an FMU that crashes, exits or hangs
     (no FMI call begun for ``watchdog`` s) fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
     """

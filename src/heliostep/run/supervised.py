@@ -67,6 +67,9 @@ STOP_GRACE = 1.0
 #: runs, if longer than the watchdog itself.
 STARTUP_LIMIT = 120.0
 
+#: Bytes of socket buffer asked for each way (the system may give less: ``net.core.wmem_max``).
+SOCKET_BUFFER = 4 << 20
+
 _POLL = 0.05  # [s] the supervisor's longest wait for a message before it looks at the child
 
 
@@ -153,6 +156,9 @@ class _Supervisor:
         self.record = _Record(folder / "calls")
         (folder / "tmp").mkdir()
         ours, theirs = socket.socketpair()
+        for end in (ours, theirs):  # room for a few blocks of solver steps: neither side waits on the other
+            for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):
+                end.setsockopt(socket.SOL_SOCKET, option, SOCKET_BUFFER)
         self.forked = START == "fork"
         try:
             self.process = _fork(request, ours, theirs, folder) if self.forked else _execute(theirs, folder)
