@@ -34,6 +34,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import time as clock
 from collections.abc import Callable
 from multiprocessing.connection import Connection
@@ -55,10 +56,19 @@ __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_
 #: declares the FMU hung (a model evaluation takes microseconds to milliseconds).
 DEFAULT_WATCHDOG = 60.0
 
-#: How the child is started: ``"fork"`` (where the OS has it: nothing to import again, about a
-#: millisecond) or ``"exec"`` (a new interpreter, ``python -m heliostep.cosim.child``: about a
-#: second of imports). ``$HELIOSTEP_SUPERVISED_START`` chooses.
-START = os.environ.get("HELIOSTEP_SUPERVISED_START") or ("fork" if hasattr(os, "fork") else "exec")
+#: How the child is started: ``"fork"`` (nothing to import again, about a millisecond), ``"exec"``
+#: (a new interpreter, ``python -m heliostep.cosim.child``: about a second of imports) or
+#: ``"auto"``: fork where the OS can and this process runs one thread only (a fork copies one
+#: thread, and any lock another one held: a Dask worker's threads), else exec.
+#: ``$HELIOSTEP_SUPERVISED_START`` chooses.
+START = os.environ.get("HELIOSTEP_SUPERVISED_START") or "auto"
+
+
+def _start_method() -> str:
+    if START != "auto":
+        return START
+    return "fork" if hasattr(os, "fork") and threading.active_count() == 1 else "exec"
+
 
 #: Seconds a child has to stop by itself once asked, before it is killed.
 STOP_GRACE = 1.0
@@ -159,7 +169,7 @@ class _Supervisor:
         for end in (ours, theirs):  # room for a few blocks of solver steps: neither side waits on the other
             for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):
                 end.setsockopt(socket.SOL_SOCKET, option, SOCKET_BUFFER)
-        self.forked = START == "fork"
+        self.forked = _start_method() == "fork"
         try:
             self.process = _fork(request, ours, theirs, folder) if self.forked else _execute(theirs, folder)
         finally:
