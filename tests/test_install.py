@@ -92,7 +92,7 @@ def test_shipped_scenario_runs_from_another_directory(installed, tmp_path, fmu_p
     assert result.returncode == 0, result.stderr[-3000:]
     summary = json.loads((tmp_path / "result" / "summary.json").read_text())
     assert summary["complete"] is True and summary["duration_s"] == pytest.approx(3.0)
-    assert {p.name for p in fmus.glob("*.fmu")} == {"StepperMotor.fmu", "PanelMechanics.fmu"}
+    assert {p.name for p in fmus.glob("*/*.fmu")} == {"StepperMotor.fmu", "PanelMechanics.fmu"}  # CACHE/KEY16/NAME.fmu
 
 
 def test_users_own_fmus_folder_beside_the_scenario(installed, tmp_path, fmu_paths):

@@ -144,6 +144,18 @@ MINI_FMUS = {
             ("switched", "Boolean", "output", "discrete", None, None),
         ],
     ),
+    "Faulty": (  # crashes, exits or hangs on request (tests of supervised runs)
+        "faulty.c",
+        "{c0a7e1f2-0006-4000-8000-000000000006}",
+        0,
+        [
+            ("x", "Real", "output", "continuous", 0.0, None),
+            ("der(x)", "Real", "local", "continuous", None, "x"),
+            ("fault", "Integer", "parameter", "fixed", 0, None),
+            ("t_fault", "Real", "parameter", "fixed", 1.0, None),
+            ("period", "Real", "parameter", "fixed", 0.5, None),
+        ],
+    ),
 }
 #: direct feedthrough: model -> output -> the input it depends on
 _FEEDTHROUGH = {"PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"}, "Gain": {"y": "u"}}
@@ -188,7 +200,7 @@ def _model_description(name: str) -> str:
 
 
 def build_mini_fmu(name: str, out_dir: Path, platform: str = "linux64") -> Path:
-    """Compile the mini FMU ``name`` (Counter, PassThrough, Switch, Gain, Rescale) into ``out_dir/<name>.fmu``."""
+    """Compile the mini FMU ``name`` (one of :data:`MINI_FMUS`) into ``out_dir/<name>.fmu``."""
     return _compile_and_pack(
         name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], _model_description(name), out_dir, platform
     )

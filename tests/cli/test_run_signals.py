@@ -42,9 +42,11 @@ def _popen(args: list[str], tmp: Path) -> subprocess.Popen:
     )
 
 
-def _wait_for_fmus(tmp: Path, process: subprocess.Popen, timeout: float = 60.0) -> None:
+def _wait_for_fmus(
+    tmp: Path, process: subprocess.Popen, timeout: float = 60.0, pattern: str = "heliostep-fmus-*"
+) -> None:
     deadline = time.monotonic() + timeout
-    while not _fmu_dirs(tmp):
+    while not glob.glob(str(tmp / pattern)):
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, "the FMUs were not unpacked"
         time.sleep(0.05)
@@ -81,8 +83,9 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
     (out / ".heliostep-manifest.json").write_text(json.dumps({"files": ["fig08_panel_angle_ref.png"]}))  # its record
     (out / "notes.txt").write_text("not heliostep's")
     process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
-    _wait_for_fmus(tmp_path / "tmp", process)  # unpacked right before the inputs are prepared
-    deadline = time.monotonic() + 60.0  # the stream's file is made once they are: simulating
+    _wait_for_fmus(tmp_path / "tmp", process)  # unpacked to be checked
+    _wait_for_fmus(tmp_path / "tmp", process, pattern="heliostep-child-*")  # the supervised child's: it simulates
+    deadline = time.monotonic() + 60.0  # the stream's file is made once the inputs are prepared: simulating
     while not list(out.glob(".heliostep-tmp-*-trace.parquet")):
         assert process.poll() is None and time.monotonic() < deadline, "the trace is not being streamed"
         time.sleep(0.01)

@@ -170,7 +170,7 @@ def test_sweep_on_two_workers_equals_runs_one_by_one(client, tmp_path):
         assert row.required_torque_Nm == pytest.approx(2.0 * summary["peak_torque_Nm"], rel=1e-12)
         assert row.holding_torque_Nm == pytest.approx(0.5 * 5.5)
     # the workers ran the FMUs shipped to them, written once into their local folders
-    expected = {hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in fmus_dir().glob("*.fmu")}
+    expected = {hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in fmus_dir().glob("*/*.fmu")}
 
     def local_fmus(dask_worker):
         folder = Path(dask_worker.local_directory) / "heliostep-fmus"
@@ -385,3 +385,30 @@ def test_plots_heatmaps_only_with_days_and_mirrors(client, tmp_path):
         assert path.read_bytes().startswith(PNG_SIGNATURE)
     one_day = table[table["day_of_year"] == 21]
     assert [p.name for p in plot_sweep(one_day, tmp_path / "one-day")] == [TORQUE_FILE]
+
+
+def test_a_crashing_fmu_fails_its_case_only_named(client, tmp_path):
+    """Sweep cases are supervised (issue 22): the Faulty test FMU's SIGSEGV ends its case as
+    failed, naming the FMU and the call; the worker and the other case go on."""
+    from third_party_fmu import build_mini_fmu
+
+    fmu = build_mini_fmu("Faulty", tmp_path / "fmus")
+    base = tmp_path / "faulty.yaml"
+    text = BASE.read_text().replace("name: jan21-central", "name: faulty")
+    text = text.replace(
+        "fmus: {motor: StepperMotor, mechanics: PanelMechanics}",
+        f"fmus: {{motor: StepperMotor, mechanics: PanelMechanics, faulty: {fmu}}}\n"
+        "parameters: {faulty: {t_fault: 10.0}}",
+    )
+    assert str(fmu) in text
+    base.write_text(text)
+    sweep = tmp_path / "faulty-sweep.yaml"
+    sweep.write_text(
+        "name: faulty-sweep\nbase: faulty.yaml\ncombine: product\n"
+        "axes:\n  parameters.faulty.fault: [0, 1]\noverrides:\n  window.duration: 20\n  output.interval: 0.5\n"
+    )
+    outcome = run_sweep(sweep, tmp_path / "results.parquet", client=client)
+    assert (outcome.executed, outcome.failed) == (2, 1)
+    table = outcome.table.set_index("parameters.faulty.fault")
+    assert table.loc[0, "status"] == "ok" and table.loc[1, "status"] == "failed"
+    assert "killed by SIGSEGV in fmi2GetDerivatives of FMU instance 'faulty' (model Faulty)" in table.loc[1, "error"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from heliostep.fmu.build import build_all
+from heliostep.fmu.build import build_all, copy_fmu
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -19,7 +19,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--model", action="append", metavar="NAME", help="build only this model (repeatable); default: all models"
     )
     parser.add_argument(
-        "--out", type=Path, metavar="DIR", help="output folder (default: the FMU cache, or $HELIOSTEP_FMUS)"
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="also copy each FMU to DIR/NAME.fmu (they are built in the FMU cache, $HELIOSTEP_FMUS)",
     )
     parser.add_argument("--models", type=Path, metavar="DIR", help="Modelica folder (default: models/)")
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
@@ -27,6 +30,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run_build(args: argparse.Namespace) -> int:
-    for path in build_all(args.model, args.out, args.models, args.force):
-        print(path)
+    for path in build_all(args.model, None, args.models, args.force):
+        print(copy_fmu(path, args.out) if args.out else path)
     return 0

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from heliostep.cli.compare import add_annotations_option, annotations_wanted, check_output_dir, check_output_file
+from heliostep.cli.signals import stop_requests
 from heliostep.errors import InputError
 from heliostep.results.compare import format_table, load_tolerances
 from heliostep.results.regress import (
@@ -21,17 +24,22 @@ from heliostep.run import RunFailed, run_scenario
 
 
 def regress_one(
-    scenario: Path, tolerances, update: bool = False, report_dir: Path | None = None
+    scenario: Path,
+    tolerances,
+    update: bool = False,
+    report_dir: Path | None = None,
+    should_stop: Callable[[], bool] | None = None,
 ) -> tuple[Outcome, dict[str, str]]:
     """Run ``scenario`` and compare it with its reference (or rewrite the reference); also the run's
-    trace metadata (units, roles)."""
+    trace metadata (units, roles). ``should_stop`` as for :func:`~heliostep.run.run_scenario` (a stopped
+    run is an outcome with a problem)."""
     if not update and not reference_path(scenario).exists():
         raise InputError(
             f"{scenario}: no reference trace {reference_path(scenario).name}; "
             f"create it with: heliostep regress --update {scenario}"
         )
     try:
-        run = run_scenario(scenario)
+        run = run_scenario(scenario, should_stop=should_stop, supervise=True)  # a crashing FMU fails this one only
     except RunFailed as failed:
         return Outcome(scenario, None, f"the run failed: {failed}"), {}
     metadata = run.trace_metadata()
@@ -89,11 +97,19 @@ def _run_regress(args: argparse.Namespace) -> int:
         check_output_dir(args.report, "--report")
     junit = check_output_file(args.junit, "--junit") if args.junit else None
     tolerances = load_tolerances(args.tolerances or tolerances_path())
+    with stop_requests() as stop:  # SIGINT/SIGTERM: the run stops, its temporary files go, exit 130/143
+        return _regress_all(args, scenarios, tolerances, stop, junit)
+
+
+def _regress_all(args: argparse.Namespace, scenarios, tolerances, stop, junit: Path | None) -> int:
     status = 0
     verdicts = []
     for scenario in scenarios:
         started = time.monotonic()
-        outcome, metadata = regress_one(scenario, tolerances, args.update, args.report)
+        outcome, metadata = regress_one(scenario, tolerances, args.update, args.report, stop.is_set)
+        if stop.is_set():
+            print(f"{scenario}: stopped by {stop.name}; nothing compared or written", file=sys.stderr)
+            return stop.exit_status
         if outcome.comparison is not None or outcome.problem:
             verdicts.append(_verdict(scenario, outcome, metadata, time.monotonic() - started))
         if outcome.problem:

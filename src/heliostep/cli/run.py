@@ -19,6 +19,7 @@ from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.result import run_file_names
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION
+from heliostep.run.supervised import DEFAULT_WATCHDOG
 from heliostep.scenario import load_scenario
 
 #: Windows longer than this [s] get no CSV copy of the trace unless --csv is given.
@@ -83,7 +84,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="also write the trace as trace.csv (default: only for windows up to "
         f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)",
     )
+    parser.add_argument(
+        "--supervise",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="simulate in a supervised child process, so that an FMU that crashes, exits or hangs ends the run "
+        "with exit status 1, named, and the trace so far (default: on)",
+    )
+    parser.add_argument(
+        "--watchdog",
+        type=_positive_seconds,
+        default=DEFAULT_WATCHDOG,
+        metavar="SECONDS",
+        help=f"with --supervise: an FMU with no FMI call begun for this long hangs (default: {DEFAULT_WATCHDOG:g})",
+    )
     parser.set_defaults(func=_run_command)
+
+
+def _positive_seconds(text: str) -> float:
+    """A positive number of seconds (argparse type: exit 2 naming the option otherwise)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:  # (nan too)
+        raise argparse.ArgumentTypeError(f"{text} s; expected a positive number of seconds")
+    return value
 
 
 def _run_command(args: argparse.Namespace) -> int:
@@ -118,7 +144,10 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
         return stop.exit_status
     try:  # a long window streams its trace into out_dir while simulating (bounded memory)
-        result = run_scenario(scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir, fmu_paths=fmu_paths)
+        supervision = {"supervise": args.supervise, "watchdog": args.watchdog}
+        result = run_scenario(
+            scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir, fmu_paths=fmu_paths, **supervision
+        )
         status = 0
     except PreparationStopped:
         print(f"heliostep run: stopped by {stop.name} while preparing the inputs (nothing computed)", file=sys.stderr)

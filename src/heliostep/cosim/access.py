@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from heliostep.cosim import watch
 from heliostep.cosim.description import FMUInfo, convert_value
 from heliostep.errors import InputError
 
@@ -37,6 +38,8 @@ class VariableAccess:
     """
 
     info: FMUInfo
+    index: int  # the instance's position in the master's order (for a supervisor's record)
+    time: float  # the instance's current time [s]
     _component: Any
     _hot: dict[str, Callable[..., int]]
 
@@ -72,9 +75,12 @@ class VariableAccess:
             n = len(outputs)
             source_address, target_address = source_vrs.ctypes.data, target_vrs.ctypes.data
             buffer_address = buffer.ctypes.data
+            source_index, target_index = self.index, target.index
 
             def copy() -> None:
+                watch.note(source_index, "fmi2GetReal", self.time)
                 self._check("fmi2GetReal", self._hot["fmi2GetReal"](self._component, source_address, n, buffer_address))
+                watch.note(target_index, "fmi2SetReal", target.time)
                 target._check(
                     "fmi2SetReal", target._hot["fmi2SetReal"](target._component, target_address, n, buffer_address)
                 )

@@ -15,6 +15,7 @@ import ctypes
 import shutil
 import tempfile
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -247,7 +248,12 @@ def _extract(path: Path) -> str:
         if _extract_root is None:
             _extract_root = tempfile.mkdtemp(prefix="heliostep-fmus-")
             atexit.register(shutil.rmtree, _extract_root, True)
-        _extracted[key] = extract(str(path), unzipdir=tempfile.mkdtemp(dir=_extract_root))
+        folder = tempfile.mkdtemp(dir=_extract_root)
+        try:
+            _extracted[key] = extract(str(path), unzipdir=folder)
+        except (zipfile.BadZipFile, zlib.error, EOFError) as exc:  # a damaged archive (a flipped bit, cut short)
+            shutil.rmtree(folder, ignore_errors=True)
+            raise InputError(f"{path}: a damaged FMU archive ({type(exc).__name__}: {exc})") from None
     return _extracted[key]
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from heliostep.cosim import watch
 from heliostep.cosim.access import VariableAccess
 from heliostep.cosim.description import (  # noqa: F401 - re-exported: the FMI API lives here
     REQUIRED_FUNCTIONS,
@@ -212,6 +213,9 @@ class ModelExchangeInstance(VariableAccess):
     parameters : mapping of str to value, optional
         Parameter values set right after instantiation (each with the set function of its
         type); an unknown name raises :class:`InputError` listing the valid names.
+    index : int, optional
+        The instance's position in the master's order, noted before each FMI call for a
+        supervisor (:mod:`heliostep.cosim.watch`; nothing is noted when no record is attached).
 
     The typed access to variables (``set_real``, ``reader``, ``writer``, ``link``,
     ``set_parameters`` ...) is inherited from :class:`~heliostep.cosim.access.VariableAccess`.
@@ -221,12 +225,18 @@ class ModelExchangeInstance(VariableAccess):
     """
 
     def __init__(
-        self, info: FMUInfo, instance_name: str, parameters: Mapping[str, object] | None = None, logging: bool = False
+        self,
+        info: FMUInfo,
+        instance_name: str,
+        parameters: Mapping[str, object] | None = None,
+        logging: bool = False,
+        index: int = -1,
     ):
         from fmpy.fmi2 import FMU2Model
 
         self.info = info
         self.name = instance_name
+        self.index = index
         self.messages: deque[str] = deque(maxlen=50)
         self.n_states = len(info.states)
         self.n_event_indicators = info.n_event_indicators
@@ -237,12 +247,15 @@ class ModelExchangeInstance(VariableAccess):
         _by_environment[self._environment] = self
         self._callbacks = _callbacks(self._environment)
         try:
+            unpacked = _extract(info.path)
+            watch.note(index, "loading the binary", self.time)
             self._model = FMU2Model(
                 guid=info.guid,
-                unzipDirectory=_extract(info.path),
+                unzipDirectory=unpacked,
                 modelIdentifier=info.model_identifier,
                 instanceName=instance_name,
             )
+            watch.note(index, "fmi2Instantiate", self.time)
             self._model.instantiate(callbacks=self._callbacks, loggingOn=logging)
         except Exception as exc:
             if self._model is not None:
@@ -304,6 +317,7 @@ class ModelExchangeInstance(VariableAccess):
             raise FMIError(function, self.name, "no instance (freed, library unloaded)", (), self.time)
         if self.messages:
             self.messages.clear()
+        watch.note(self.index, function, self.time)
         status = self._functions[function](self._component, *args)
         if status > 1:  # worse than fmi2Warning
             raise self.status_error(function, status)
@@ -323,22 +337,26 @@ class ModelExchangeInstance(VariableAccess):
     # ------------------------------------------------------------------ hot path (addresses)
     def set_states_at(self, address: int) -> None:
         """fmi2SetContinuousStates from ``n_states`` doubles at ``address``."""
+        watch.note(self.index, "fmi2SetContinuousStates", self.time)
         self._check(
             "fmi2SetContinuousStates", self._hot["fmi2SetContinuousStates"](self._component, address, self.n_states)
         )
 
     def get_states_at(self, address: int) -> None:
         """fmi2GetContinuousStates into ``n_states`` doubles at ``address``."""
+        watch.note(self.index, "fmi2GetContinuousStates", self.time)
         self._check(
             "fmi2GetContinuousStates", self._hot["fmi2GetContinuousStates"](self._component, address, self.n_states)
         )
 
     def get_derivatives_at(self, address: int) -> None:
         """fmi2GetDerivatives into ``n_states`` doubles at ``address``."""
+        watch.note(self.index, "fmi2GetDerivatives", self.time)
         self._check("fmi2GetDerivatives", self._hot["fmi2GetDerivatives"](self._component, address, self.n_states))
 
     def get_event_indicators_at(self, address: int) -> None:
         """fmi2GetEventIndicators into ``n_event_indicators`` doubles at ``address``."""
+        watch.note(self.index, "fmi2GetEventIndicators", self.time)
         self._check(
             "fmi2GetEventIndicators",
             self._hot["fmi2GetEventIndicators"](self._component, address, self.n_event_indicators),
@@ -402,6 +420,7 @@ class ModelExchangeInstance(VariableAccess):
 
     def set_time(self, time: float) -> None:
         self.time = time
+        watch.note(self.index, "fmi2SetTime", self.time)
         self._check("fmi2SetTime", self._hot["fmi2SetTime"](self._component, time))
 
     def get_states(self, out: np.ndarray | None = None) -> np.ndarray:
@@ -465,6 +484,7 @@ class ModelExchangeInstance(VariableAccess):
             self._hot = {name: self._freed(name) for name in _HOT_CALLS}
             try:
                 if self.mode != "fatal":
+                    watch.note(self.index, "fmi2FreeInstance", self.time)
                     model.fmi2FreeInstance(self._component)
             finally:
                 self.mode = "freed"

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from heliostep.cosim import sundials
+from heliostep.cosim import sundials, watch
 from heliostep.errors import RunFailure
 from heliostep.paths import fmus_dir
 from heliostep.toolchain import compiler_version, exclusive_lock
@@ -56,16 +56,7 @@ SOURCE_PATH = Path(__file__).resolve().parent / "c" / "kernel.c"
 HEADER_PATH = SOURCE_PATH.with_name("kernel.h")
 
 #: The FMI function of each ``failed_function`` code of the C kernel (kernel.h: F_SET_TIME ...).
-FUNCTIONS = [
-    "fmi2SetTime",
-    "fmi2SetContinuousStates",
-    "fmi2GetReal",
-    "fmi2SetReal",
-    "fmi2GetDerivatives",
-    "fmi2GetEventIndicators",
-    "fmi2GetInteger",
-    "fmi2GetBoolean",
-]
+FUNCTIONS = list(watch.KERNEL_FUNCTIONS)
 
 #: What :c:func:`hs_advance` returns (kernel.h).
 ADVANCE_REACHED, ADVANCE_ROOT, ADVANCE_FULL, ADVANCE_MAX_STEPS = 0, 1, 2, 3
@@ -144,6 +135,7 @@ class KernelState(ctypes.Structure):
         ("step_flag", ctypes.c_int),
         ("prepare", ctypes.c_void_p),
         ("prepare_user", ctypes.c_void_p),
+        ("where", ctypes.c_void_p),
     ]
 
 
@@ -172,6 +164,7 @@ class AdvanceArgs(ctypes.Structure):
 
 #: The ctypes mirror of each structure of kernel.h, by its C name.
 STRUCTURES: dict[str, type[ctypes.Structure]] = {
+    "hs_where": watch.Record,
     "hs_outputs": Outputs,
     "hs_unit": Unit,
     "hs_link": Link,
@@ -308,6 +301,7 @@ class Kernel:
         self.state.row_width = row_width
         self._scratch = np.zeros(max([1] + [len(outputs) for _, _, _, outputs in units]))
         self.state.scratch = self._scratch.ctypes.data
+        self.state.where = watch.record_address()  # a supervisor's record of the FMI calls (or NULL)
         self._prepare = None
         if prepare is not None:  # kept: the C code holds its address
             self._prepare = PREPARE_CALLBACK(lambda t, x, user: prepare(t, x))

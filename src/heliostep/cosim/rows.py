@@ -3,11 +3,14 @@
 :class:`RowBuffer` is where every trace row the master records goes (2-D blocks in time
 order). Without a sink it keeps them all for the trace the master returns; with one it holds at
 most ``sink_rows`` rows (or one larger block stored at once) and hands them over in blocks of at
-most ``sink_rows``.
+most ``sink_rows``, and also whatever it holds once :attr:`RowBuffer.flush_interval` seconds of
+wall time have passed since the last hand-over (a supervised child process: a crash then loses
+only the rows of the last moments).
 """
 
 from __future__ import annotations
 
+import time as clock
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -23,6 +26,9 @@ class RowBuffer:
     handed over).
     """
 
+    #: [s] of wall time after which rows held are handed over at the next store (None: only by count).
+    flush_interval: float | None = None
+
     def __init__(self, columns: Sequence[str], sink: Callable[[np.ndarray], None] | None = None, sink_rows: int = 4096):
         if sink is not None and sink_rows < 1:
             raise InputError(f"sink_rows must be at least 1, not {sink_rows}")
@@ -32,6 +38,7 @@ class RowBuffer:
         self.buffered = 0  # rows in self.blocks
         self.max_buffered = 0
         self.total = 0
+        self._flushed = clock.monotonic()
 
     def store(self, rows: np.ndarray) -> None:
         """Every trace row goes through here: ``rows`` is a 2-D block (rows × ``columns``) in time
@@ -48,6 +55,8 @@ class RowBuffer:
         self.max_buffered = max(self.max_buffered, self.buffered)
         if self.sink is not None and self.buffered >= self.sink_rows:
             self.flush()
+        elif self.flush_interval is not None and clock.monotonic() - self._flushed >= self.flush_interval:
+            self.flush()
 
     def flush(self) -> None:
         """Hand the held rows to the sink, in blocks of at most ``sink_rows``."""
@@ -55,6 +64,7 @@ class RowBuffer:
             return
         data = np.vstack(self.blocks)
         self.blocks, self.buffered = [], 0
+        self._flushed = clock.monotonic()
         for start in range(0, len(data), self.sink_rows):
             self.sink(data[start : start + self.sink_rows])
 

@@ -31,10 +31,10 @@ if TYPE_CHECKING:
 class Unit:
     """One FMU instance of the system and what the master reads of it."""
 
-    def __init__(self, name: str, info: FMUInfo, parameters: Mapping[str, Any]):
+    def __init__(self, name: str, info: FMUInfo, parameters: Mapping[str, Any], index: int = -1):
         self.name = name
         self.info = info
-        self.fmu = ModelExchangeInstance(info, name, parameters)
+        self.fmu = ModelExchangeInstance(info, name, parameters, index=index)
         self.n_states = self.fmu.n_states
         self.n_indicators = self.fmu.n_event_indicators
         self.outputs = info.traced_outputs  # every type but String, traced as floats
@@ -67,8 +67,8 @@ class CoupledSystem:
         self.nominals: np.ndarray | None = None  # the states' nominals as last read (get_nominals)
         self.nominals_changed = False  # an event said they changed: read them again
         try:
-            for name, info in graph.fmus.items():
-                self.units[name] = unit = Unit(name, info, parameters.get(name, {}))
+            for index, (name, info) in enumerate(graph.fmus.items()):  # index: the kernel's unit order
+                self.units[name] = unit = Unit(name, info, parameters.get(name, {}), index)
                 unit.fmu.setup_experiment(start_time)
                 unit.fmu.enter_initialization_mode()
             self.unit_list = list(self.units.values())

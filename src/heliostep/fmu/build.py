@@ -4,9 +4,19 @@ Every ``models/NAME.mo`` becomes ``NAME.fmu`` in the FMU cache through one loop 
 code). An FMU is rebuilt only when its *build key* changes: a SHA-256 of every Modelica
 file of the folder, the FMI C layer, the build code and the versions of heliostep, pymoca,
 CasADi, fmpy and the C compiler. The key also makes the FMU's GUID, so a built FMU says
-which sources it came from. An ``.fmu`` a user drops into an ``fmus/`` folder (beside the
-scenario, or in the current directory) without a model of the same name (for example one
-exported by another Modelica tool) is used as it is, never rebuilt.
+which sources it came from.
+
+The cache keeps each build under its key, ``CACHE/KEY16/NAME.fmu`` (``KEY16``: the key's first
+16 hex digits), so two heliostep versions (or two source trees) sharing a cache never replace
+each other's FMUs. Beside each FMU, ``NAME.fmu.sha256`` holds the SHA-256 of the file written at
+build time: a cached FMU is used only when its digest matches (no lock taken, so a read-only
+cache of up-to-date FMUs works); a damaged or unfinished one is rebuilt. Only a build takes the
+model's lock (``CACHE/.build/NAME.lock``) and works in ``CACHE/.build/NAME-PID-*``; a build killed
+midway leaves that folder, which the next build of the model removes once its process is gone.
+
+An ``.fmu`` a user drops into an ``fmus/`` folder (beside the scenario, or in the current
+directory) without a model of the same name (for example one exported by another Modelica tool)
+is used as it is, never rebuilt.
 
 Folders: :mod:`heliostep.paths` (shipped models; the per-user FMU cache, or
 ``$HELIOSTEP_MODELS`` / ``$HELIOSTEP_FMUS``).
@@ -15,11 +25,14 @@ Folders: :mod:`heliostep.paths` (shipped models; the per-user FMU cache, or
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import shutil
 import tempfile
 import uuid
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from importlib import metadata, resources
 from pathlib import Path
 
@@ -70,26 +83,105 @@ def fmu_guid(path: Path) -> str | None:
     return match.group(1).decode() if match else None
 
 
+def cached_fmu_path(model_name: str, key: str, cache: Path) -> Path:
+    """Where the FMU of ``model_name`` with build ``key`` lives in ``cache``."""
+    return cache / key[:16] / f"{model_name}.fmu"
+
+
+def digest_path(fmu_path: Path) -> Path:
+    """The file holding the SHA-256 of ``fmu_path`` recorded when it was built."""
+    return fmu_path.with_name(fmu_path.name + ".sha256")
+
+
+def file_sha256(path: Path) -> str:
+    """The SHA-256 of a file's bytes (hex)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for chunk in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def verified(fmu_path: Path) -> bool:
+    """True when ``fmu_path`` and its recorded digest exist and the file's SHA-256 matches it."""
+    try:
+        recorded = digest_path(fmu_path).read_text().strip()
+        return bool(recorded) and file_sha256(fmu_path) == recorded
+    except OSError:
+        return False
+
+
 def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None = None, force: bool = False) -> Path:
-    """Build ``out_dir/model_name.fmu`` from ``models/model_name.mo`` unless it is up to date."""
+    """The FMU of ``models/model_name.mo`` in the cache ``out_dir`` (:func:`cached_fmu_path`),
+    built unless a verified one with the same build key is there (see the module docstring)."""
     models = Path(models or models_dir())
     out_dir = Path(out_dir or fmus_dir())
     if model_name not in available_models(models):
         raise InputError(f"{models}: no model {model_name!r}; available: {', '.join(available_models(models))}")
     key = build_key(model_name, models)
-    guid = guid_of_key(key)
-    fmu_path = out_dir / f"{model_name}.fmu"
+    fmu_path = cached_fmu_path(model_name, key, out_dir)
+    if not force and verified(fmu_path):  # up to date: no lock, nothing written
+        return fmu_path
     scratch = out_dir / ".build"
-    with exclusive_lock(scratch / f"{model_name}.lock"):
-        if not force and fmu_path.exists() and fmu_guid(fmu_path) == guid:
+    with _build_lock(scratch, model_name):
+        if not force and verified(fmu_path):  # built by another process meanwhile
             return fmu_path
-        model = load_model(models, model_name)
-        work_dir = Path(tempfile.mkdtemp(prefix=f"{model_name}-", dir=scratch))
-        try:
-            tool = f"heliostep {__version__} (pymoca + CasADi); build key {key}"
-            return export_fmu(model, fmu_path, guid, work_dir, tool)
-        finally:
-            shutil.rmtree(work_dir, ignore_errors=True)
+        _clear_dead_builds(scratch, model_name)
+        return _build(model_name, models, key, fmu_path, scratch)
+
+
+@contextmanager
+def _build_lock(scratch: Path, model_name: str) -> Iterator[None]:
+    """The model's build lock in the cache; InputError naming the cache when it cannot be taken."""
+    try:
+        lock = exclusive_lock(scratch / f"{model_name}.lock")
+        lock.__enter__()
+    except OSError as exc:
+        raise InputError(
+            f"FMU cache {scratch.parent} ($HELIOSTEP_FMUS): cannot build {model_name}.fmu there "
+            f"({exc.strerror or exc}); point HELIOSTEP_FMUS at a writable folder"
+        ) from None
+    try:
+        yield
+    finally:
+        lock.__exit__(None, None, None)
+
+
+def _build(model_name: str, models: Path, key: str, fmu_path: Path, scratch: Path) -> Path:
+    """Export the model to ``fmu_path`` (its digest recorded beside it), working in ``scratch``."""
+    model = load_model(models, model_name)
+    work_dir = Path(tempfile.mkdtemp(prefix=f"{model_name}-{os.getpid()}-", dir=scratch))
+    try:
+        fmu_path.parent.mkdir(parents=True, exist_ok=True)
+        tool = f"heliostep {__version__} (pymoca + CasADi); build key {key}"
+        export_fmu(model, fmu_path, guid_of_key(key), work_dir, tool)
+        record = work_dir / "digest"
+        record.write_text(file_sha256(fmu_path) + "\n")
+        record.replace(digest_path(fmu_path))  # the FMU counts as built once this is in place
+        return fmu_path
+    finally:
+        shutil.rmtree(work_dir, ignore_errors=True)
+
+
+def _clear_dead_builds(scratch: Path, model_name: str) -> None:
+    """Remove the work folders ``scratch/model_name-PID-*`` of builds whose process is gone (a
+    build killed midway); called with the model's lock held."""
+    for folder in scratch.glob(f"{model_name}-*"):
+        owner = folder.name[len(model_name) + 1 :].split("-")[0]
+        if folder.is_dir() and not (owner.isdigit() and _alive(int(owner))):
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
 
 
 def build_all(
@@ -98,6 +190,20 @@ def build_all(
     """Build every model of the folder (or the ones named)."""
     models = Path(models or models_dir())
     return [build_fmu(name, out_dir, models, force) for name in names or available_models(models)]
+
+
+def copy_fmu(fmu_path: Path, out_dir: Path) -> Path:
+    """A copy of a built FMU as ``out_dir/NAME.fmu`` (written whole or not at all), e.g. to drop
+    into a scenario's ``fmus/`` folder or to give to another tool."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / fmu_path.name
+    partial = out_dir / f".{fmu_path.name}.{os.getpid()}.tmp"
+    try:
+        shutil.copyfile(fmu_path, partial)
+        partial.replace(target)
+    finally:
+        partial.unlink(missing_ok=True)
+    return target
 
 
 def ensure_fmu(

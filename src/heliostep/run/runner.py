@@ -10,6 +10,7 @@ returns (and writes) the trace so far, marked incomplete. The command line is :m
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
 import shutil
@@ -39,6 +40,7 @@ from heliostep.run.bindings import parameters, present_roles, signals
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
 from heliostep.run.result import RunFailed, RunResult
+from heliostep.run.supervised import DEFAULT_WATCHDOG, simulate_supervised
 from heliostep.scenario import Scenario, load_scenario
 
 __all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario"]
@@ -88,6 +90,8 @@ def run_scenario(
     row_group_rows: int = ROW_GROUP_ROWS,
     keep_trace: bool = True,
     fmu_paths: Mapping[str, Path] | None = None,
+    supervise: bool = False,
+    watchdog: float = DEFAULT_WATCHDOG,
 ) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
 
@@ -113,23 +117,19 @@ def run_scenario(
     figures are those the run would give with its trace kept, bit for bit. The result then has
     no trace and draws no plots; an interrupted run's summary is not corrected for the step in
     progress at the cut (the sweep tables keep the figures as simulated).
+
+    ``supervise`` (``heliostep run``'s default): simulate in a child process (:mod:`heliostep.run.supervised`,
+    which asks ``should_stop`` every 50 ms and passes it on); an FMU that crashes, exits or hangs
+    (no FMI call begun for ``watchdog`` s) fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
     prepared = _prepare(scenario, fmu_paths, clock.perf_counter(), should_stop, keep_trace)
-    figures = RunFigures.of_run(
-        prepared.columns,
-        prepared.inputs,
-        prepared.roles,
-        figure_columns(prepared.roles),
-        prepared.meta,
-        scenario,
-        prepared.weather,
-        row_group_rows,
-    )
+    figures = _run_figures(prepared, row_group_rows)
     sink, temporary = _row_sink(prepared, figures, keep_trace, stream, trace_dir, row_group_rows)
     try:
-        run = _simulate_and_summarize(prepared, figures, sink, temporary, progress, should_stop)
+        supervision = (watchdog,) if supervise else None
+        run = _simulate_and_summarize(prepared, figures, sink, temporary, progress, should_stop, supervision)
     except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
         sink.abort()
         if temporary is not None:
@@ -138,6 +138,20 @@ def run_scenario(
     if not run.complete:
         raise RunFailed(run.error or run.reason or "failed", run)
     return run
+
+
+def _run_figures(prepared: _PreparedRun, row_group_rows: int) -> RunFigures:
+    """The run's one figure accumulator, fed while simulating."""
+    return RunFigures.of_run(
+        prepared.columns,
+        prepared.inputs,
+        prepared.roles,
+        figure_columns(prepared.roles),
+        prepared.meta,
+        prepared.scenario,
+        prepared.weather,
+        row_group_rows,
+    )
 
 
 def _prepare(
@@ -239,14 +253,22 @@ def _ended_status(result, duration: float) -> RunStatus:
 
 
 def _co_simulate(
-    prepared: _PreparedRun, figures: RunFigures, sink: RowSink, progress: bool, should_stop: Callable[[], bool] | None
+    prepared: _PreparedRun,
+    figures: RunFigures,
+    sink: RowSink,
+    progress: bool,
+    should_stop: Callable[[], bool] | None,
+    supervision: tuple[float] | None = None,
 ):
     """The co-simulation, its rows to ``figures`` and ``sink``: (status, the master's empty
-    trace frame, its statistics)."""
+    trace frame, its statistics); in a supervised child process with ``supervision`` (the watchdog [s])."""
     inputs = prepared.inputs
     bar = _progress_bar(inputs.duration) if progress else None
+    simulate = prepared.system.simulate
+    if supervision is not None:
+        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=supervision[0])
     try:
-        result = prepared.system.simulate(
+        result = simulate(
             0.0,
             inputs.duration,
             inputs.output_times,
@@ -277,10 +299,11 @@ def _simulate_and_summarize(
     temporary: Path | None,
     progress: bool,
     should_stop: Callable[[], bool] | None,
+    supervision: tuple[float] | None = None,
 ) -> RunResult:
     """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
     scenario, meta = prepared.scenario, prepared.meta
-    status, raw, statistics = _co_simulate(prepared, figures, sink, progress, should_stop)
+    status, raw, statistics = _co_simulate(prepared, figures, sink, progress, should_stop, supervision)
     status = sink.finish(status)  # the last rows kept (a streamed trace that cannot be written fails the run)
     meta["statistics"] = {
         **statistics,

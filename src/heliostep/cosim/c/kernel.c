@@ -31,8 +31,16 @@ static int fail(hs_kernel *k, int status, long unit, long function, double t) {
     return -1;
 }
 
-#define CHECK(call, unit, function) \
-    do { int s_ = (call); if (s_ > 1) return fail(k, s_, (unit), (function), t); } while (0)
+/* the call, after noting it in the supervisor's record (if any); an error stops the evaluation */
+#define CHECK(call, unit_, function_) \
+    do { \
+        int s_; \
+        if (k->where) { \
+            k->where->unit = (unit_); k->where->function = (function_); k->where->time = t; k->where->calls++; \
+        } \
+        s_ = (call); \
+        if (s_ > 1) return fail(k, s_, (unit_), (function_), t); \
+    } while (0)
 
 /* set time (and states), propagate the continuous connections */
 static int evaluate(hs_kernel *k, double t, const double *x) {
@@ -206,6 +214,8 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_unit, set_real), FIELD(hs_unit, get_integer), FIELD(hs_unit, get_boolean), FIELD(hs_unit, nx),
     FIELD(hs_unit, x_offset), FIELD(hs_unit, nz), FIELD(hs_unit, z_offset), FIELD(hs_unit, real_outputs),
     FIELD(hs_unit, integer_outputs), FIELD(hs_unit, boolean_outputs),
+    SIZE(hs_where), FIELD(hs_where, unit), FIELD(hs_where, function), FIELD(hs_where, calls),
+    FIELD(hs_where, stop), FIELD(hs_where, time),
     SIZE(hs_link), FIELD(hs_link, source), FIELD(hs_link, target), FIELD(hs_link, n), FIELD(hs_link, source_vrs),
     FIELD(hs_link, target_vrs), FIELD(hs_link, buffer),
     SIZE(hs_kernel), FIELD(hs_kernel, n_units), FIELD(hs_kernel, units), FIELD(hs_kernel, n_links),
@@ -214,7 +224,7 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_kernel, failed_function), FIELD(hs_kernel, failed_time), FIELD(hs_kernel, cvode),
     FIELD(hs_kernel, get_dky), FIELD(hs_kernel, n_inputs), FIELD(hs_kernel, row_width), FIELD(hs_kernel, inputs),
     FIELD(hs_kernel, scratch), FIELD(hs_kernel, pending), FIELD(hs_kernel, step_time), FIELD(hs_kernel, step_flag),
-    FIELD(hs_kernel, prepare), FIELD(hs_kernel, prepare_user),
+    FIELD(hs_kernel, prepare), FIELD(hs_kernel, prepare_user), FIELD(hs_kernel, where),
     SIZE(hs_advance_args), FIELD(hs_advance_args, cvode_mem), FIELD(hs_advance_args, y),
     FIELD(hs_advance_args, dky), FIELD(hs_advance_args, t_stop), FIELD(hs_advance_args, grid),
     FIELD(hs_advance_args, n_grid), FIELD(hs_advance_args, interpolate), FIELD(hs_advance_args, rows),

@@ -56,6 +56,12 @@ typedef struct {
     double *buffer;
 } hs_link;
 
+/* a supervisor's record of the FMI call in progress (heliostep/cosim/watch.py, Record) */
+typedef struct {
+    long long unit, function, calls, stop; /* unit index, F_* code, calls begun, stop asked */
+    double time;                           /* the time of the call [s] */
+} hs_where;
+
 typedef struct {
     long n_units;
     hs_unit *units;
@@ -77,6 +83,9 @@ typedef struct {
     int step_flag;
     prepare_t prepare;        /* NULL: the kernel prepares the FMUs itself */
     void *prepare_user;
+    /* NULL, or a supervisor's record: before every FMI call the unit's index, the F_* code, the
+     * time and a count of the calls begun are stored there */
+    hs_where *where;
 } hs_kernel;
 
 /* One call of hs_advance: what the caller sets, then what hs_advance updates. */

@@ -1,0 +1,166 @@
+"""One co-simulation in a process of its own, for a supervisor: forked (:func:`serve`) or executed
+(``python -m heliostep.cosim.child``, :func:`main`).
+
+The supervisor (:mod:`heliostep.run.supervised`) forks and calls :func:`serve` with the request,
+or starts this module with the number of a connected socket and the path of its call record
+(:mod:`heliostep.cosim.watch`) and sends it one request: a pickled :class:`Request` (the
+:class:`~heliostep.cosim.master.CoSimulation`, its time span, output grid and solver options).
+The child says ``("started", None)``, simulates it
+and streams, as it goes, ``("blocks", [(kind, block), ...])`` with ``kind`` ``"rows"`` (trace
+rows, for the supervisor's row sink) or ``"solution"`` (for its monitor), and ``("progress",
+t)``; it ends with exactly one of ``("done", MasterResult)``, ``("failed", SimulationError's
+fields)``, ``("input", message)`` or ``("error", traceback)``. Only the supervisor decides that
+a run succeeded: a child that ends without saying ``done`` (a crash, an FMU calling ``exit``)
+has failed, whatever its exit status.
+
+The child ignores SIGINT, SIGTERM and SIGHUP (a terminal sends them to the whole process group):
+the supervisor asks it to stop through the call record, or kills it. It stops on its own when
+the supervisor's process is gone.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+import tempfile
+import time as clock
+import traceback
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+
+import numpy as np
+
+from heliostep.cosim import watch
+from heliostep.cosim.master import CoSimulation, SimulationError
+from heliostep.cosim.rows import RowBuffer
+from heliostep.cosim.signals import SolverOptions
+from heliostep.errors import InputError
+
+__all__ = ["PROGRESS_INTERVAL", "SEND_INTERVAL", "Request", "main", "serve"]
+
+#: Progress reports at most this often [s of wall time].
+PROGRESS_INTERVAL = 0.25
+
+#: The rows of the trace and of the solution go to the supervisor together, at most this often
+#: [s of wall time] (one message, their blocks and order kept): a crash loses at most the rows of
+#: that long. (One message per block would cost more than the simulation on a busy machine.)
+SEND_INTERVAL = 0.05
+
+
+class _Outbox:
+    """The master's row blocks, ``(kind, block)`` in order, sent together as ``("blocks", [...])``."""
+
+    def __init__(self, connection: Connection):
+        self.connection = connection
+        self.items: list[tuple[str, np.ndarray]] = []
+        self.sent = clock.monotonic()
+
+    def add(self, kind: str, block: np.ndarray) -> None:
+        self.items.append((kind, np.array(block, dtype=float)))  # a copy: the master reuses its buffers
+        if clock.monotonic() - self.sent >= SEND_INTERVAL:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.items:
+            self.connection.send(("blocks", self.items))
+            self.items = []
+        self.sent = clock.monotonic()
+
+
+@dataclass
+class Request:
+    """What the child simulates: ``system.simulate(start, stop, output_times, solver, ...)``,
+    with a sink of ``sink_rows`` rows per block, a monitor and a progress report where asked."""
+
+    system: CoSimulation
+    start: float
+    stop: float
+    output_times: np.ndarray
+    solver: SolverOptions
+    sink_rows: int = 4096
+    sink: bool = True
+    monitor: bool = True
+    progress: bool = False
+
+
+def main(argv: list[str]) -> int:
+    """Serve one request read from the socket ``argv[1]`` (a file descriptor), noting FMU calls in ``argv[2]``."""
+    return serve(Connection(int(argv[1])), argv[2])
+
+
+def serve(connection: Connection, record: str, request: Request | None = None, tmpdir: str | None = None) -> int:
+    """Simulate ``request`` (or the one read from ``connection``) and stream it on ``connection``,
+    noting FMU calls in the file ``record``; ``tmpdir``: the temporary folder to use (a forked
+    child's; an executed one has it in ``TMPDIR``). Returns the exit status."""
+    for number in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if number is not None:
+            signal.signal(number, signal.SIG_IGN)
+    if tmpdir is not None:
+        os.environ["TMPDIR"] = tempfile.tempdir = tmpdir
+    supervisor = os.getppid()
+    watch.attach(record)
+    RowBuffer.flush_interval = 0.0  # every block the master stores goes out (in the outbox)
+    if request is None:
+        request = pickle.loads(connection.recv_bytes())
+    connection.send(("started", None))
+    outbox = _Outbox(connection)
+    try:
+        result = _simulate(request, outbox, supervisor)
+        result.statistics["peak_rss_mb_child"] = _peak_rss_mb()
+        outcome: tuple[str, object] = ("done", result)
+    except SimulationError as exc:
+        fields = {"message": str(exc), "reason": exc.reason, "time": exc.time, "statistics": exc.statistics}
+        outcome = ("failed", {**fields, "trace": exc.trace})
+    except InputError as exc:
+        outcome = ("input", str(exc))
+    except Exception:  # noqa: BLE001 - a bug: the supervisor reports it whole
+        outcome = ("error", traceback.format_exc())
+    try:
+        outbox.flush()
+        connection.send(outcome)
+        connection.close()
+    except OSError:  # the supervisor is gone: nobody to tell
+        return 1
+    return 0
+
+
+def _peak_rss_mb() -> float | None:
+    """This process's peak resident memory [MB] (None where the OS does not say)."""
+    try:
+        import resource
+    except ImportError:  # not on Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return round(peak / (1024 * 1024 if sys.platform == "darwin" else 1024), 1)  # bytes on macOS, KiB on Linux
+
+
+def _simulate(request: Request, outbox: _Outbox, supervisor: int):
+    last_report = [0.0]
+
+    def progress(t: float) -> None:
+        now = clock.monotonic()
+        if now - last_report[0] >= PROGRESS_INTERVAL:
+            last_report[0] = now
+            outbox.flush()
+            outbox.connection.send(("progress", t))
+
+    def should_stop() -> bool:
+        return watch.stop_requested() or os.getppid() != supervisor
+
+    return request.system.simulate(
+        request.start,
+        request.stop,
+        request.output_times,
+        request.solver,
+        progress=progress if request.progress else None,
+        monitor=(lambda block: outbox.add("solution", block)) if request.monitor else None,
+        should_stop=should_stop,
+        sink=(lambda block: outbox.add("rows", block)) if request.sink else None,
+        sink_rows=request.sink_rows,
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

@@ -1,0 +1,126 @@
+"""Where this process's FMU calls are, for a supervisor in another process (issue 22).
+
+A supervised run (:mod:`heliostep.run.supervised`) simulates in a child process; when an FMU
+crashes or hangs there, the supervisor must still name the instance and the FMI function it was
+in. Before every FMI call the child stores, in a small record that both processes map (a file
+of :data:`RECORD_BYTES` bytes, mapped shared), the instance's index in the master's order, the
+function's index in :data:`FUNCTIONS` and a running count of the calls begun; the compiled
+kernel (``kernel.c``, through ``hs_kernel.where``) and the Python calls
+(:class:`~heliostep.cosim.fmi.ModelExchangeInstance`) alike. A store is a few nanoseconds in C.
+The supervisor reads the count to tell a hang (no call begun for a while) from a long run, and
+writes the record's ``stop`` to ask the child to stop at its next safe point.
+
+Without :func:`attach` (every unsupervised run) nothing is recorded.
+
+The record (:class:`Record`, kernel.h ``hs_where``): the unit's index, the function's, the
+calls begun, the stop request (int64 each) and the time of the call [s] (a double): :data:`LAYOUT`
+for :mod:`struct`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import mmap
+import os
+from pathlib import Path
+
+__all__ = [
+    "FUNCTIONS",
+    "KERNEL_FUNCTIONS",
+    "LAYOUT",
+    "RECORD_BYTES",
+    "STOP_OFFSET",
+    "Record",
+    "attach",
+    "note",
+    "record_address",
+    "stop_requested",
+]
+
+#: The FMI functions the compiled kernel calls, in the order of kernel.h's ``F_*`` codes.
+KERNEL_FUNCTIONS = (
+    "fmi2SetTime",
+    "fmi2SetContinuousStates",
+    "fmi2GetReal",
+    "fmi2SetReal",
+    "fmi2GetDerivatives",
+    "fmi2GetEventIndicators",
+    "fmi2GetInteger",
+    "fmi2GetBoolean",
+)
+#: Every FMI function a run calls (the kernel's first): the record's function index is a position here.
+FUNCTIONS = KERNEL_FUNCTIONS + (
+    "loading the binary",
+    "fmi2Instantiate",
+    "fmi2SetupExperiment",
+    "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode",
+    "fmi2EnterEventMode",
+    "fmi2NewDiscreteStates",
+    "fmi2EnterContinuousTimeMode",
+    "fmi2CompletedIntegratorStep",
+    "fmi2GetContinuousStates",
+    "fmi2GetNominalsOfContinuousStates",
+    "fmi2SetInteger",
+    "fmi2SetBoolean",
+    "fmi2GetString",
+    "fmi2SetString",
+    "fmi2Terminate",
+    "fmi2Reset",
+    "fmi2FreeInstance",
+)
+_INDEX = {name: k for k, name in enumerate(FUNCTIONS)}
+
+
+class Record(ctypes.Structure):
+    """kernel.h ``hs_where``."""
+
+    _fields_ = [
+        ("unit", ctypes.c_int64),
+        ("function", ctypes.c_int64),
+        ("calls", ctypes.c_int64),
+        ("stop", ctypes.c_int64),
+        ("time", ctypes.c_double),
+    ]
+
+
+#: The record's layout for :mod:`struct` (native byte order, no padding: four int64 and a double).
+LAYOUT = "=4qd"
+RECORD_BYTES = ctypes.sizeof(Record)
+#: The byte offset of the stop request.
+STOP_OFFSET = Record.stop.offset
+
+_map: mmap.mmap | None = None
+_record: Record | None = None
+
+
+def attach(path: str | Path) -> None:
+    """Record this process's FMU calls into the file ``path`` (:data:`RECORD_BYTES` bytes, made by the supervisor)."""
+    global _map, _record
+    descriptor = os.open(path, os.O_RDWR)
+    try:
+        _map = mmap.mmap(descriptor, RECORD_BYTES)
+    finally:
+        os.close(descriptor)
+    _record = Record.from_buffer(_map)
+    _record.unit, _record.function = -1, -1
+
+
+def record_address() -> int | None:
+    """The address of the record (for ``hs_kernel.where``), None when not attached."""
+    return ctypes.addressof(_record) if _record is not None else None
+
+
+def note(unit: int, function: str, time: float = float("nan")) -> None:
+    """Record that instance ``unit`` (its index in the master's order) begins ``function`` at ``time`` [s]."""
+    record = _record
+    if record is not None:
+        record.unit = unit
+        record.function = _INDEX.get(function, -1)
+        record.time = time
+        record.calls += 1
+
+
+def stop_requested() -> bool:
+    """True when the supervisor asked this process to stop (False when not attached)."""
+    return _record is not None and _record.stop != 0

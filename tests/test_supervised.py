@@ -1,0 +1,171 @@
+"""Supervised runs (issue 22, items 6 and 7): an FMU that crashes, exits or hangs ends the run with
+exit 1, named with its FMI call, the trace so far kept and marked, and nothing left in TMPDIR.
+
+The misbehaving FMU is ``Faulty`` (``tests/data/mini/faulty.c``, built with gcc), an extra FMU of
+the paper's scenario: der(x) = 1 until ``t_fault``, then in fmi2GetDerivatives a write through a
+null pointer, ``abort()``, ``exit(0)``, ``exit(3)`` or an endless loop. Real processes, signals
+and CVODE; no mocks.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from heliostep.results.trace_io import read_trace
+from heliostep.run import run_scenario
+from third_party_fmu import build_mini_fmu
+
+CLI = "import sys; from heliostep.cli import main; sys.exit(main(sys.argv[1:]))"
+T_FAULT = 200.0  # [s] of the 300 s window: well after the first rows are handed over
+NOT_OURS = "notes.txt"
+
+
+@pytest.fixture(scope="module")
+def faulty_fmu(tmp_path_factory) -> Path:
+    return build_mini_fmu("Faulty", tmp_path_factory.mktemp("faulty"))
+
+
+def _scenario(folder: Path, fmu: Path, fault: int, t_fault: float = T_FAULT) -> Path:
+    """The paper's 5-minute case (jan21-central) with the Faulty FMU beside its motor and mechanics."""
+    path = folder / f"faulty-{fault}.yaml"
+    path.write_text(
+        f"name: faulty-{fault}\n"
+        "site: {latitude: 40.0, longitude: 14.25, altitude: 0.0, timezone: Europe/Rome}\n"
+        'window: {date: 2025-01-21, start: "10:00", duration: 300}\n'
+        "plant: {orientation: NS, tube_height: 3.0}\n"
+        "mirror: {distance: 0.0, axis: secondary}\n"
+        f"fmus: {{motor: StepperMotor, mechanics: PanelMechanics, faulty: {fmu}}}\n"
+        f"parameters: {{faulty: {{fault: {fault}, t_fault: {t_fault}}}}}\n"
+        "sequencer: {mode: one-phase-on, current: 5.5, step_angle: 1.8}\n"
+        "solver: {rtol: 1.0e-6}\n"
+        "output: {interval: 0.1, step_detail: 0.05, step_interval: 0.0005}\n"
+    )
+    return path
+
+
+def _start(scenario: Path, out: Path, private_tmp: Path, *extra: str, start: str = "fork") -> subprocess.Popen:
+    """``heliostep run`` in a subprocess with a TMPDIR of its own; its supervised child forked or executed."""
+    private_tmp.mkdir(exist_ok=True)
+    env = {**os.environ, "TMPDIR": str(private_tmp), "HELIOSTEP_SUPERVISED_START": start}
+    command = [sys.executable, "-c", CLI, "run", str(scenario), "--out", str(out), "--no-plots", *extra]
+    return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.fixture(scope="module")
+def complete_trace(faulty_fmu, tmp_path_factory) -> pd.DataFrame:
+    """The same scenario without a fault, simulated in-process (unsupervised): the rows a faulty
+    run's trace must hold, up to where it stopped."""
+    folder = tmp_path_factory.mktemp("complete")
+    return run_scenario(_scenario(folder, faulty_fmu, 0), supervise=False).trace
+
+
+FAULTS = {  # fault code: (how the message says the process ended, reason)
+    1: ("was killed by SIGSEGV", "fmu-crashed"),
+    2: ("was killed by SIGABRT", "fmu-crashed"),
+    3: ("exited with status 0 without finishing", "fmu-crashed"),
+    4: ("exited with status 3 without finishing", "fmu-crashed"),
+    5: ("the FMU hangs: no FMI call begun for 3 s (the watchdog)", "fmu-hung"),
+}
+
+
+@pytest.mark.parametrize(
+    "fault, start",
+    [*((fault, "fork") for fault in sorted(FAULTS)), (1, "exec")],  # exec: the path without fork
+)
+def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so_far(
+    fault, start, faulty_fmu, complete_trace, tmp_path, fmu_paths
+):
+    out, private = tmp_path / "out", tmp_path / "tmp"
+    out.mkdir()
+    (out / NOT_OURS).write_text("the user's")
+    process = _start(_scenario(tmp_path, faulty_fmu, fault), out, private, "--watchdog", "3", start=start)
+    _, stderr = process.communicate(timeout=120)
+    ended, reason = FAULTS[fault]
+    assert process.returncode == 1, stderr[-3000:]  # never 0, 3, 134 or 139
+    assert "Traceback" not in stderr
+    message = re.search(r"heliostep run: error: (.*)", stderr)
+    assert message, stderr[-3000:]
+    assert ended in message.group(1)
+    assert "in fmi2GetDerivatives of FMU instance 'faulty' (model Faulty) at t = " in message.group(1)
+    called_at = float(re.search(r"\(model Faulty\) at t = ([0-9.e+-]+) s", message.group(1)).group(1))
+    assert T_FAULT <= called_at < T_FAULT + 5.0  # the first evaluation past t_fault (a step of CVODE's)
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False and summary["reason"] == reason
+    assert ended in summary["error"]
+    trace, meta = read_trace(out / "trace.parquet")
+    assert meta["complete"] == "false" and meta["reason"] == reason
+    reached = float(trace["time"].iloc[-1])
+    assert summary["time_reached_s"] == pytest.approx(reached)
+    assert T_FAULT / 2 < reached < T_FAULT  # the rows up to shortly before the fault are kept
+    # first principles: der(x) = 1 from x(0) = 0, so x is the time
+    np.testing.assert_allclose(trace["faulty.x"], trace["time"], rtol=0, atol=1e-6)
+    # and the rows are those of the run without a fault, up to where it stopped
+    expected = complete_trace.iloc[: len(trace)]
+    for column in ("time", "motor.i_a", "motor.tau", "mechanics.theta_p", "faulty.x"):
+        np.testing.assert_array_equal(trace[column].to_numpy(), expected[column].to_numpy())
+    assert (out / NOT_OURS).read_text() == "the user's"
+    assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
+    assert sorted(p.name for p in private.iterdir()) == []  # no unpacked FMU, no partial trace
+
+
+def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(faulty_fmu, tmp_path, fmu_paths):
+    out, private = tmp_path / "out", tmp_path / "tmp"
+    process = _start(_scenario(tmp_path, faulty_fmu, 5, t_fault=150.0), out, private)  # the default watchdog: 60 s
+    deadline = time.monotonic() + 60
+    while not list(private.glob("heliostep-child-*")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(6.0)  # the 300 s window takes a few seconds: by now the FMU loops inside fmi2GetDerivatives
+    assert process.poll() is None
+    signalled = time.monotonic()
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert time.monotonic() - signalled < 10.0
+    assert process.returncode == 130, stderr[-3000:]
+    assert "Traceback" not in stderr
+    assert "stopped by SIGINT" in stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False and summary["reason"] == "interrupted"
+    stuck = "did not stop within 1 s in fmi2GetDerivatives of FMU instance 'faulty' (model Faulty) at t = 15"
+    assert stuck in summary["error"]
+    trace, _ = read_trace(out / "trace.parquet")
+    assert 75.0 < trace["time"].iloc[-1] < 150.0
+    assert sorted(p.name for p in private.iterdir()) == []
+
+
+@pytest.mark.parametrize("start", ["fork", "exec"])
+def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_bit(
+    start, fmu_paths, tmp_path, monkeypatch
+):
+    import heliostep.run.supervised as supervised
+    from heliostep.paths import scenarios_dir
+
+    monkeypatch.setattr(supervised, "START", start)
+    scenario = scenarios_dir() / "jan21-central.yaml"
+    overrides = ("window.duration=60",)
+    inside = run_scenario(scenario, overrides, supervise=False)
+    supervised = run_scenario(scenario, overrides, supervise=True)
+    assert list(inside.trace.columns) == list(supervised.trace.columns) and len(inside.trace) > 500
+    for column in inside.trace.columns:
+        np.testing.assert_array_equal(inside.trace[column].to_numpy(), supervised.trace[column].to_numpy())
+    assert json.dumps(inside.summary, sort_keys=True, default=str) == json.dumps(
+        supervised.summary, sort_keys=True, default=str
+    )
+
+
+def test_a_watchdog_that_is_not_positive_is_bad_input(tmp_path, fmu_paths):
+    command = [sys.executable, "-c", CLI, "run", "jan21-central", "--watchdog", "0", "--no-plots"]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert result.returncode == 2, result.stderr[-3000:]
+    assert "argument --watchdog: 0 s; expected a positive number of seconds" in result.stderr
