@@ -328,6 +328,39 @@ def test_unreachable_scheduler_fails_fast(tmp_path):
     assert not results.exists()
 
 
+@pytest.mark.parametrize("greeting", [b"", b"SSH-2.0-OpenSSH_9.2\r\n"])
+def test_a_tcp_service_that_is_not_dask_fails_within_the_connect_timeout(tmp_path, greeting):
+    # issue #22 item 10: a TCP service that accepts but is not a Dask scheduler (silent, or another protocol's
+    # banner) made the sweep hang for minutes despite --connect-timeout; now it is exit 2 within the timeout
+    import socket
+    import threading
+
+    server = socket.create_server(("127.0.0.1", 0))
+    accepted = []
+
+    def serve():
+        try:
+            connection, _ = server.accept()
+        except OSError:
+            return
+        accepted.append(connection)
+        if greeting:
+            connection.sendall(greeting)
+
+    threading.Thread(target=serve, daemon=True).start()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    started = time.perf_counter()
+    try:
+        with pytest.raises(InputError, match=r"answers but is not a Dask scheduler"):
+            run_sweep(SMOKE, tmp_path / "results.parquet", scheduler=address, connect_timeout=1.5)
+    finally:
+        server.close()
+        for connection in accepted:
+            connection.close()
+    assert time.perf_counter() - started < 6.0
+    assert not (tmp_path / "results.parquet").exists()
+
+
 # --------------------------------------------------------------------------- command line, plots
 @pytest.fixture
 def heliostep_main(monkeypatch):
@@ -412,3 +445,13 @@ def test_a_crashing_fmu_fails_its_case_only_named(client, tmp_path):
     table = outcome.table.set_index("parameters.faulty.fault")
     assert table.loc[0, "status"] == "ok" and table.loc[1, "status"] == "failed"
     assert "killed by SIGSEGV in fmi2GetDerivatives of FMU instance 'faulty' (model Faulty)" in table.loc[1, "error"]
+
+
+def test_results_that_cannot_be_written_are_one_message_and_exit_1(tmp_path, capsys, heliostep_main):
+    # issue #22 item 10: a storage failure during a sweep was two chained tracebacks; now one line, exit 1
+    # (/proc/sys refuses new entries, even to root: the results' folder cannot be made)
+    out = Path("/proc/sys/heliostep-sweep-out")
+    assert heliostep_main(["sweep", str(SMOKE), "--out", str(out), "--workers", "1", "--no-plots"]) == 1
+    err = capsys.readouterr().err
+    assert "heliostep sweep: error: could not write the results in /proc/sys/heliostep-sweep-out" in err
+    assert "Traceback" not in err

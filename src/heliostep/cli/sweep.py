@@ -116,6 +116,14 @@ def _run_command(args: argparse.Namespace) -> int:
         signum = stopped.signum if isinstance(stopped, _Stopped) else signal.SIGINT
         print(f"heliostep sweep: stopped by {signal.Signals(signum).name}; {_recorded(results_path)}", file=sys.stderr)
         return exit_status(signum)
+    except OSError as exc:  # a full disk, a file-size limit, a folder that cannot be made: a run failure
+        where = results_path.parent if results_path is not None else "the output folder"
+        print(
+            f"heliostep sweep: error: could not write the results in {where}: {exc.strerror or exc}; "
+            f"{_recorded(results_path)}",
+            file=sys.stderr,
+        )
+        return 1
     print(_report(spec.name, outcome, plots))
     if outcome.failed:
         print(

@@ -90,14 +90,45 @@ def _probe_scheduler(address: str, timeout: float) -> None:
         raise InputError(f"scheduler {address!r}: expected an address such as tcp://HOST:8786 ({exc})") from None
     if scheme != "tcp":
         return
+    deadline = clock.monotonic() + timeout
     try:
-        with socket.create_connection((host, port), timeout=timeout):
-            pass
+        with socket.create_connection((host, port), timeout=timeout) as connection:
+            greeting = _first_message(connection, deadline)
     except OSError as exc:
         raise InputError(
             f"cannot reach the Dask scheduler at {address} ({exc.strerror or exc}); start one "
             f"with 'dask scheduler' or leave out --scheduler to run on a local cluster"
         ) from None
+    if DASK_HANDSHAKE_KEY not in greeting:
+        heard = "nothing" if not greeting else f"{greeting[:24]!r}"
+        raise InputError(
+            f"{address} answers but is not a Dask scheduler: no Dask handshake within {timeout:g} s "
+            f"(--connect-timeout; it sent {heard}); give the scheduler's address, or leave out --scheduler"
+        )
+
+
+#: A Dask scheduler greets every new TCP connection with its handshake, a msgpack map whose keys
+#: include this (distributed's TCP comm: ``Comm.handshake_info``, sent by both ends on connect).
+DASK_HANDSHAKE_KEY = b"compression"
+
+
+def _first_message(connection: socket.socket, deadline: float) -> bytes:
+    """The first bytes a server sends on a new connection (up to 4 KiB), read until ``deadline``
+    (:func:`time.monotonic`) or until the handshake key is in them; b"" if it sends nothing."""
+    received = b""
+    while len(received) < 4096 and DASK_HANDSHAKE_KEY not in received:
+        left = deadline - clock.monotonic()
+        if left <= 0:
+            break
+        connection.settimeout(left)
+        try:
+            chunk = connection.recv(4096 - len(received))
+        except TimeoutError:
+            break
+        if not chunk:  # closed
+            break
+        received += chunk
+    return received
 
 
 @contextlib.contextmanager
