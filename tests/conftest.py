@@ -1,10 +1,21 @@
 """Shared fixtures: the project's FMUs, built from models/ on first use (cached by content)."""
 
+import signal
+
 import pytest
 
 from heliostep.fmu.build import build_fmu
 
 MODELS = ("StepperMotor", "StepperMotorIdealCurrent", "PanelMechanics", "PanelMechanicsSmallAngle", "DriveSystem")
+
+
+def pytest_configure(config):
+    """A suite started in the background (a shell's ``&``, ``nohup``) inherits SIGINT and SIGHUP ignored, and
+    so would every process the tests start (an ignored signal stays ignored across exec): the signal tests
+    need the defaults, which a terminal's run has."""
+    for sig, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGHUP, signal.SIG_DFL)):
+        if signal.getsignal(sig) is signal.SIG_IGN:
+            signal.signal(sig, default)
 
 
 @pytest.fixture(scope="session")
