@@ -69,7 +69,8 @@ def test_a_vendor_motor_with_other_names_and_only_fmus_set_names_the_roles_to_sp
     renamed = re.sub(r"\bi_a_ref\b", "iaRef", re.sub(r"\bi_b_ref\b", "ibRef", re.sub(r"\btau\b", "tauEl", renamed)))
     (models / "VendorMotor.mo").write_text(renamed)
     (tmp_path / "fmus").mkdir()
-    build_fmu("VendorMotor", tmp_path / "fmus", models)
+    built = build_fmu("VendorMotor", tmp_path / "cache", models)  # into a cache of its own, keyed by build
+    shutil.copy(built, tmp_path / "fmus" / "VendorMotor.fmu")  # dropped beside the scenario, as a user does
     scenario = tmp_path / "vendor.yaml"
     shutil.copy(SCENARIO, scenario)
     with pytest.raises(InputError) as error:

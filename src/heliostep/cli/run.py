@@ -26,33 +26,39 @@ from heliostep.scenario import load_scenario
 CSV_DEFAULT_MAX_DURATION = 3600.0
 
 
+RUN_DESCRIPTION = (
+    "Co-simulate a scenario and write trace.parquet, trace.csv (see --csv), summary.json, "
+    "metadata.json and the figures into --out.\n\n"
+    "The run holds --out's lock (.heliostep-lock) for its life: a second run into it is "
+    "refused. Its files are written into a staging folder and swapped in; "
+    ".heliostep-manifest.json lists them, and a rerun removes or replaces only the files an "
+    "earlier run listed there (a file of the same name heliostep did not write is refused, "
+    "never overwritten). --out is checked before simulating.\n\n"
+    "Ctrl+C (SIGINT), SIGTERM or SIGHUP stops the simulation at the next safe point: the trace so "
+    "far, summary.json and metadata.json are written, marked complete: false with reason "
+    "interrupted and the time reached; no figures are drawn. A second one exits at once: "
+    "files not finished are removed, none is left claiming to be complete.\n\n"
+    "Before anything is computed, the run's steps, trace rows, memory and disk are estimated "
+    "from the scenario; a run over its budget (budget.memory_gb, budget.disk_gb, or "
+    "--max-memory / --max-disk) is refused with exit 2, naming the key that makes it large.\n\n"
+    "Windows over 1 h stream the trace to trace.parquet (row groups, written as the rows "
+    "come) instead of holding it in memory.\n\n"
+    "A window with the sun below the horizon throughout runs, with a warning on stderr "
+    'and "night": true and a warning in summary.json.\n\n'
+    "Exit status: 0 complete; 1 the simulation failed part-way (an FMU crashed, hung or asked to terminate "
+    "before the window's end included; the trace so far is "
+    "written, complete: false) or the results could not be written; 2 bad input "
+    "(scenario, override, FMU, unusable --out, over the budget); 130 / 143 / 129 stopped by "
+    "SIGINT / SIGTERM / SIGHUP."
+)
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "run",
         help="run a scenario YAML: trace, summary.json, plots and metadata",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Co-simulate a scenario and write trace.parquet, trace.csv (see --csv), summary.json, "
-        "metadata.json and the figures into --out.\n\n"
-        "The run holds --out's lock (.heliostep-lock) for its life: a second run into it is "
-        "refused. Its files are written into a staging folder and swapped in; "
-        ".heliostep-manifest.json lists them, and a rerun removes or replaces only the files an "
-        "earlier run listed there (a file of the same name heliostep did not write is refused, "
-        "never overwritten). --out is checked before simulating.\n\n"
-        "Ctrl+C (SIGINT), SIGTERM or SIGHUP stops the simulation at the next safe point: the trace so "
-        "far, summary.json and metadata.json are written, marked complete: false with reason "
-        "interrupted and the time reached; no figures are drawn. A second one exits at once: "
-        "files not finished are removed, none is left claiming to be complete.\n\n"
-        "Before anything is computed, the run's steps, trace rows, memory and disk are estimated "
-        "from the scenario; a run over its budget (budget.memory_gb, budget.disk_gb, or "
-        "--max-memory / --max-disk) is refused with exit 2, naming the key that makes it large.\n\n"
-        "Windows over 1 h stream the trace to trace.parquet (row groups, written as the rows "
-        "come) instead of holding it in memory.\n\n"
-        "A window with the sun below the horizon throughout runs, with a warning on stderr "
-        'and "night": true and a warning in summary.json.\n\n'
-        "Exit status: 0 complete; 1 the simulation failed part-way (the trace so far is "
-        "written, complete: false) or the results could not be written; 2 bad input "
-        "(scenario, override, FMU, unusable --out, over the budget); 130 / 143 / 129 stopped by "
-        "SIGINT / SIGTERM / SIGHUP.",
+        description=RUN_DESCRIPTION,
     )
     parser.add_argument("scenario", type=Path, help="scenario YAML file")
     parser.add_argument("--out", help="output folder (default: out/<scenario name>)")
@@ -84,6 +90,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="also write the trace as trace.csv (default: only for windows up to "
         f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)",
     )
+    _add_supervision_options(parser)
+    parser.set_defaults(func=_run_command)
+
+
+def _add_supervision_options(parser: argparse.ArgumentParser) -> None:
+    """--supervise / --no-supervise and --watchdog."""
     parser.add_argument(
         "--supervise",
         action=argparse.BooleanOptionalAction,
@@ -98,7 +110,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="SECONDS",
         help=f"with --supervise: an FMU with no FMI call begun for this long hangs (default: {DEFAULT_WATCHDOG:g})",
     )
-    parser.set_defaults(func=_run_command)
 
 
 def _positive_seconds(text: str) -> float:
