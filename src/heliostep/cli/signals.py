@@ -50,8 +50,8 @@ __all__ = [
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
-class StopSignal(BaseException):
-    """A stop signal outside a command's own handling (e.g. while the modules are imported)."""
+class _SignalExit(BaseException):
+    """Leaving because of the stop signal ``signum``: exit status 128 + ``signum``."""
 
     def __init__(self, signum: int):
         super().__init__(signum)
@@ -60,6 +60,10 @@ class StopSignal(BaseException):
     @property
     def exit_status(self) -> int:
         return exit_status(self.signum)
+
+
+class StopSignal(_SignalExit):
+    """A stop signal outside a command's own handling (e.g. while the modules are imported)."""
 
     def __str__(self) -> str:
         return signal.Signals(self.signum).name
@@ -172,16 +176,8 @@ def _raised_again_after_callbacks(kind: type[BaseException]) -> Iterator[None]:
             signal.signal(signal.SIGALRM, previous_alarm["handler"])
 
 
-class ForcedStop(BaseException):
+class ForcedStop(_SignalExit):
     """A second stop signal: leave now (``finally`` blocks run), exit status 128 + ``signum``."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-    @property
-    def exit_status(self) -> int:
-        return exit_status(self.signum)
 
     def __str__(self) -> str:
         return f"{signal.Signals(self.signum).name} a second time"
