@@ -120,7 +120,7 @@ def test_field_light_command_writes_the_table_and_heat_maps(tmp_path, capsys):
 
 # --------------------------------------------------------------------------- shading and blocking in the field
 FIELD_H, FIELD_W, FIELD_L, FIELD_SPACING = 3.0, 0.3, 1.5, 0.6  # jan21-central: Table 2's panel, h = 3 m
-FIELD_INSTANTS = ["2025-01-21 09:00", "2025-01-21 12:14", "2025-06-21 07:30", "2025-06-21 16:00"]
+FIELD_INSTANTS = ["2025-01-21 09:00", "2025-01-21 12:14", "2025-06-21 16:00"]
 
 
 def _field_normals(times):
