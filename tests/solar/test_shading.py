@@ -70,7 +70,7 @@ def test_two_axis_section_shading_and_blocking_match_the_ray_tracer(spacing, wid
     normals = tracking_normals(sun, distances, h, two_axis=True)
     closed = row_losses(sun, normals, distances, width, length, length)
     for t in range(len(INSTANTS)):
-        for i in (0, 3, 6, 9, 12):
+        for i in (0, 6, 12):  # the outer rows and the central one (each trace sees all 91 mirrors: the cost)
             target = (len(ys) // 2) * N_ROWS + i  # a mirror in the middle of the section
             shaded, blocked, lost = trace(
                 sun[t], np.tile(normals[t], (len(ys), 1)), grid, target, width, length, h, rng
