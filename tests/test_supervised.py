@@ -108,7 +108,9 @@ def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so
     assert meta["complete"] == "false" and meta["reason"] == reason
     reached = float(trace["time"].iloc[-1])
     assert summary["time_reached_s"] == pytest.approx(reached)
-    assert T_FAULT / 2 < reached < T_FAULT  # the rows up to shortly before the fault are kept
+    # the rows up to before the fault are kept, but those still in the child's buffers (a block of up to
+    # SINK_ROWS rows, the unsent 50 ms) die with it: 96 s of a fault at 200 s seen once on CI
+    assert T_FAULT / 4 < reached < T_FAULT
     # first principles: der(x) = 1 from x(0) = 0, so x is the time
     np.testing.assert_allclose(trace["faulty.x"], trace["time"], rtol=0, atol=1e-6)
     # and the rows are those of the run without a fault, up to where it stopped
