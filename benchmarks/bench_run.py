@@ -12,7 +12,10 @@ right-hand side, root function and the loop over CVODE's internal steps in C) st
 every output time or interpolating the output rows (the default).
 4. RHS evaluations per motor step of the paper's case with a smooth current loop, a chopper
    that never saturates, a wider friction regularisation and a looser tolerance (what sets them);
-5. with --profile: where the time of the 5-minute case goes (cProfile, top functions).
+5. with --profile: where the time of the 5-minute case goes (cProfile, top functions);
+6. last, unless --skip-day, one line for scripts, ``day: <s> s, floor <s> s, ratio <r>, fmpy <r>``: the
+   day's simulation on the default path, the plain-C floor's (benchmarks/floor_plain_c.py, the same CVODE),
+   heliostep / floor and heliostep / fmpy, all measured in this run.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import argparse
 import cProfile
 import pstats
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -127,7 +131,8 @@ def monolithic(captured, repeat: int) -> tuple[float, dict]:
     return best_of(call, repeat)
 
 
-def bench(name: str, repeat: int, against_fmpy: bool) -> None:
+def bench(name: str, repeat: int, against_fmpy: bool) -> tuple[float, float | None]:
+    """Print each path's line; return the default path's wall time [s] and fmpy's [s] (None without it)."""
     fmpy_wall = None
     for label, compiled, interpolate in PATHS:
         wall, run, captured = run_path(name, compiled, interpolate, repeat)
@@ -151,6 +156,21 @@ def bench(name: str, repeat: int, against_fmpy: bool) -> None:
                 )
             line += f"  = {wall / fmpy_wall:.2f}x fmpy"
         print(line, flush=True)
+    return wall, fmpy_wall
+
+
+def floor_time(name: str, repeat: int) -> float:
+    """The plain-C floor's simulation time [s] of ``name`` (benchmarks/floor_plain_c.py), best of ``repeat``."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import floor_plain_c
+    from heliostep.drive.inputs import prepare_inputs
+    from heliostep.scenario import load_scenario
+
+    scenario = load_scenario(SCENARIOS / f"{name}.yaml")
+    inputs = prepare_inputs(scenario)
+    with tempfile.TemporaryDirectory() as folder:
+        library = floor_plain_c.compile_floor(Path(folder))
+        return min(floor_plain_c.floor_run(library, scenario, inputs)[0] for _ in range(repeat))
 
 
 #: Variants of the paper's case that tell what sets the RHS evaluations per motor step: the
@@ -203,7 +223,13 @@ def main() -> None:
     bench("jan21-central", args.repeat, against_fmpy=True)
     rhs_per_step()
     if not args.skip_day:
-        bench("jan21-day", 1, against_fmpy=True)
+        day_wall, fmpy_wall = bench("jan21-day", 1, against_fmpy=True)
+        floor = floor_time("jan21-day", 3)
+        assert fmpy_wall is not None
+        # the one line a script reads (issue #26): the day, its floor and the ratios, measured in this run
+        print(
+            f"day: {day_wall:.3f} s, floor {floor:.3f} s, ratio {day_wall / floor:.2f}, fmpy {day_wall / fmpy_wall:.2f}"
+        )
     if args.profile:
         profile_paper_case()
 

@@ -10,7 +10,8 @@ With ``--full-day`` it also runs sunrise-to-sunset cases of ``scenarios/sweeps/y
 day (172), on the smallest cluster of ``--workers``
 (one worker per core left free: a case's time is then one core's, not shared), and estimates that
 sweep (365 x 14 cases) from the mean time per case of the spread days
-(the days' lengths and step counts vary over the year; the longest day alone overstates it).
+(the days' lengths and step counts vary over the year; the longest day alone overstates it), and prints
+it also as one line for scripts: ``year-field: <h> core-hours, <h> h on 2 workers`` (ideal scaling).
 
 The clusters are started and their workers warmed up (heliostep imported) before the
 clock starts; the FMUs are built before. Timed: validation, shipping the FMUs, the
@@ -188,6 +189,8 @@ def full_day(folder: Path, n_workers: int) -> None:
     )
     for size in CLUSTER_SIZES:
         print(f"  {size:3d} workers: {duration_text(core_seconds / size)}")
+    # the one line a script reads (issue #26): the year-field estimate, in core-hours and on 2 workers
+    print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
     longest = table.loc[table["day_of_year"] == LONGEST_DAY, "wall_time_s"].max()
     print(
         f"  (were every case as slow as the longest day's slowest, {longest:.2f} s: "

@@ -79,7 +79,7 @@ class Drive(ctypes.Structure):
     _fields_ = [(name, ctypes.c_double) for name in FIELDS] + [("data", ctypes.c_void_p), ("rhs_calls", ctypes.c_long)]
 
 
-def _compile(folder: Path) -> ctypes.CDLL:
+def compile_floor(folder: Path) -> ctypes.CDLL:
     source, library = folder / "drive_rhs.c", folder / "drive_rhs.so"
     source.write_text(C_SOURCE)
     subprocess.run(["gcc", "-O2", "-shared", "-fPIC", "-o", str(library), str(source), "-lm"], check=True)
@@ -150,7 +150,7 @@ def main(argv=None) -> int:
     scenario = load_scenario(args.scenario)
     inputs = prepare_inputs(scenario)
     with tempfile.TemporaryDirectory() as folder:
-        library = _compile(Path(folder))
+        library = compile_floor(Path(folder))
         steps = len(inputs.schedule.times)
         print(f"{scenario.name}: {steps} steps over {inputs.duration:.0f} s, rtol {scenario.solver.rtol:g}")
         panel = run_scenario(scenario).trace["mechanics.theta_p"].iloc[-1]  # the same equations: the same end
