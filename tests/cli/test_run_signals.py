@@ -132,8 +132,10 @@ def test_signal_stops_sweep_cleanly_and_leaves_no_temporary_folder(sig, status, 
     )
     out = tmp_path / "out"
     process = _popen(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-plots"], tmp_path / "tmp")
-    time.sleep(6.0)
-    assert process.poll() is None, process.communicate()
+    deadline = time.monotonic() + 120  # the cluster started and one case finished, however loaded the machine
+    while not list(out.rglob("*.parquet")):
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+        time.sleep(0.05)
     process.send_signal(sig)
     _, stderr = process.communicate(timeout=60)
     assert process.returncode == status, stderr

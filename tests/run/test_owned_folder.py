@@ -134,7 +134,9 @@ def test_a_second_run_into_a_held_folder_is_refused_naming_the_holder(tmp_path, 
             first.communicate()
     summary = json.loads((out / "summary.json").read_text())
     trace, meta = read_trace(out / "trace.parquet")
-    assert summary["reason"] == "interrupted" and summary["rows"] == len(trace) > 10
+    # the trace so far is kept, all of it (how far the first run got depends on the machine's load)
+    assert summary["reason"] == "interrupted" and summary["rows"] == len(trace) > 1
+    assert trace["time"].iloc[-1] == pytest.approx(summary["time_reached_s"])
     assert not (out / LOCK_NAME).exists()
 
 
