@@ -62,7 +62,7 @@ def test_the_command_line_exits_1_for_a_run_failure_and_2_for_an_input_error(mon
 def _parser_with(func):
     import argparse
 
-    def make_parser():
+    def make_parser(argv=None):
         parser = argparse.ArgumentParser(prog="heliostep")
         sub = parser.add_subparsers(dest="command")
         sub.add_parser("x").set_defaults(func=func)

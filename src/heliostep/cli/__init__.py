@@ -20,27 +20,34 @@ from heliostep._version import __version__
 from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command
 from heliostep.errors import HeliostepError, RunFailure
 
-#: Modules that provide a command, in the order ``--help`` lists them.
-COMMAND_MODULES = (
-    "heliostep.cli.build",
-    "heliostep.cli.geometry",
-    "heliostep.cli.endloss",
-    "heliostep.cli.run",
-    "heliostep.cli.compare",
-    "heliostep.cli.regress",
-    "heliostep.cli.sweep",
-    "heliostep.cli.fieldlight",
-)
+#: The commands and the modules that provide them, in the order ``--help`` lists them.
+COMMANDS = {
+    "build-fmus": "heliostep.cli.build",
+    "geometry": "heliostep.cli.geometry",
+    "end-loss": "heliostep.cli.endloss",
+    "run": "heliostep.cli.run",
+    "compare": "heliostep.cli.compare",
+    "regress": "heliostep.cli.regress",
+    "sweep": "heliostep.cli.sweep",
+    "field-light": "heliostep.cli.fieldlight",
+}
+COMMAND_MODULES = tuple(COMMANDS.values())
 
 
-def make_parser() -> argparse.ArgumentParser:
+def make_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of the command ``argv`` names, importing only that command's module (a command's
+    modules take up to a second to import: pvlib, Dask, matplotlib); every command's when ``argv``
+    names none (``--help``, a mistyped command: argparse then lists them all)."""
     parser = argparse.ArgumentParser(
         prog="heliostep",
         description="Co-simulate the stepper drives of solar-tracking mirrors.",
     )
     parser.add_argument("--version", action="version", version=f"heliostep {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
+    words = sys.argv[1:] if argv is None else argv
+    named = next((word for word in words if not word.startswith("-")), None)
+    modules = [COMMANDS[named]] if named in COMMANDS else list(dict.fromkeys(COMMAND_MODULES))
+    for name in modules:
         importlib.import_module(name).register(subparsers)
     return parser
 
@@ -51,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     command = "heliostep"
     try:
         with signals_end_the_command() as starting:
-            parser = make_parser()
+            parser = make_parser(argv)
             args = parser.parse_args(argv)
             if not getattr(args, "func", None):
                 parser.print_help()
