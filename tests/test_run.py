@@ -134,6 +134,20 @@ def test_run_command_writes_trace_summary_metadata_and_plots(tmp_path, fmu_paths
     assert metadata["scenario"]["window"]["duration"] == 30
 
 
+def test_the_figures_are_reported_before_the_plots_are_drawn(tmp_path, fmu_paths):
+    """issue #26: the command line prints a run's figures once trace and records are written, then draws."""
+    run = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=30"])
+    seen = {}
+
+    def before_figures():
+        seen["files"] = sorted(path.name for path in (tmp_path / "run").iterdir())
+
+    written = run.write(tmp_path / "run", before_figures=before_figures)
+    assert {"summary.json", "metadata.json", "trace.parquet"} <= set(seen["files"])
+    assert not [name for name in seen["files"] if name.endswith(".png")]  # no figure drawn yet
+    assert [name for name in written if name.endswith(".png")]  # then every figure
+
+
 def test_variant_swap_is_one_set(fmu_paths):
     run = run_scenario(SCENARIOS / "jan21-central.yaml", ["fmus.motor=StepperMotorIdealCurrent", "window.duration=30"])
     assert run.metadata["fmus"]["motor"]["path"].endswith("StepperMotorIdealCurrent.fmu")

@@ -183,8 +183,12 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
     if csv is None:
         duration = result.inputs.duration if result.inputs is not None else 0.0
         csv = duration <= CSV_DEFAULT_MAX_DURATION
+
+    def report() -> None:  # the figures, as soon as the trace and records are written (the plots after)
+        print(_report(result, out_dir), flush=True)
+
     try:
-        result.write(out_dir, plots=not args.no_plots, csv=csv, should_stop=stop.is_set)
+        result.write(out_dir, plots=not args.no_plots, csv=csv, should_stop=stop.is_set, before_figures=report)
     except (OSError, TraceWriteError) as exc:  # a full disk, a file-size limit: a run failure, rescued
         print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
         rescue = _rescue(result)
@@ -196,7 +200,6 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         else:
             print("heliostep run: error: no folder could take the results either", file=sys.stderr)
         return status or 1
-    print(_report(result, out_dir))
     if stop.is_set() and status == 0:
         print(
             f"heliostep run: stopped by {stop.name} while writing; the results are complete, "

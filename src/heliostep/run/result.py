@@ -215,7 +215,12 @@ class RunResult:
         return summary_record(self.figures, self.status)
 
     def write(
-        self, out_dir: str | Path, plots: bool = True, csv: bool = True, should_stop: Callable[[], bool] | None = None
+        self,
+        out_dir: str | Path,
+        plots: bool = True,
+        csv: bool = True,
+        should_stop: Callable[[], bool] | None = None,
+        before_figures: Callable[[], None] | None = None,
     ) -> dict[str, Path]:
         """Write trace (Parquet, and CSV unless ``csv=False``), summary.json, metadata.json and
         plots into ``out_dir`` (a run that kept no trace: summary.json and metadata.json). The
@@ -228,7 +233,9 @@ class RunResult:
         the earlier run's files (those its manifest lists) are removed and the new ones renamed
         into place, signals held back, so no interrupt leaves old and new files side by side; a
         file heliostep did not write is never removed or replaced. When ``should_stop()`` turns
-        true the figures (drawn last) are skipped.
+        true the figures (drawn last) are skipped. ``before_figures()``, when given, is called once the
+        trace and records are in place, before the figures are drawn (the command line reports the
+        figures there: a reader has them a second before the plots).
         """
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -240,6 +247,8 @@ class RunResult:
             finally:  # (also when a signal held back during the swap is raised as it ends)
                 self._trace_file_after_swap(out_dir, staging, source)
                 shutil.rmtree(staging, ignore_errors=True)
+            if before_figures is not None:
+                before_figures()
             if plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop()):
                 staging = staging_folder(out_dir)  # then the figures, added to them
                 try:
