@@ -31,6 +31,9 @@ re-raised after the solver call, with the time of the failing evaluation. A fail
 :class:`~heliostep.errors.InputError` found while setting up the FMUs, before any row is
 recorded (an unknown parameter, say), is raised as it is.
 
+Why this module is long: the run loop, its events, its termination and its statistics are one state
+machine over one integration (:class:`_Run`); split, each part would reach into the other's state.
+
 The trace has a row at every output time and a row just before and just after every event
 (two rows with the same time), so nothing that happens at a step is lost to interpolation.
 
@@ -260,6 +263,7 @@ class _Run:
         self.wall_start = clock.perf_counter()
         self.terminated, self.termination_reason = False, ""
         self.termination_time: float | None = None
+        self.termination_instances: list[str] = []
         self.system: CoupledSystem | None = None  # from the start of execute
         self.integrator: Integrator | None = None  # once the FMUs are initialized
         self._no_outputs = np.zeros(0)
@@ -286,6 +290,7 @@ class _Run:
             "terminated": self.terminated,
             "termination_reason": self.termination_reason,
             "termination_time": self.termination_time,
+            "termination_instances": self.termination_instances,
             "algebraic_loops": list(self.graph.loops),
             "max_buffered_rows": self.rows.max_buffered,
             **(system.loop.statistics() if system is not None and system.loop is not None else {}),
@@ -373,6 +378,7 @@ class _Run:
             self._execute(start_time, stop_time, grid)
         except Terminated as stop:
             self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
+            self.termination_instances = list(stop.instances)
             self.record(stop.time)
 
     def _advance(
@@ -487,6 +493,7 @@ class _Run:
                 raise Terminated(
                     f"{unit.name} asked to terminate the simulation (fmi2CompletedIntegratorStep: terminateSimulation)",
                     t,
+                    (unit.name,),
                 )
         if state_event or step_event or input_event or time_event:
             self.counts["state_events"] += int(state_event)

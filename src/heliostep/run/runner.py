@@ -311,7 +311,11 @@ def _simulate_and_summarize(
         "peak_rss_mb_simulating": _peak_rss_mb(),
     }
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there (incomplete if before the end)
-        meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
+        meta["terminated"] = {
+            "instances": list(statistics.get("termination_instances") or []),
+            "time_s": statistics.get("termination_time"),
+            "by": statistics.get("termination_reason"),
+        }
     solution = figures.solution_figures()
     if solution and figures.solution is not None:  # every solver step's, so summarize(trace, meta) recomputes them
         if list(raw.columns) != figures.solution.columns:
