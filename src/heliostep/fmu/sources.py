@@ -114,18 +114,11 @@ def _compile(path: Path, names: list[str], identifier: str, sources: list[str], 
                 f"{path}: its modelDescription.xml lists source files not in sources/: {', '.join(missing)}"
             )
         library = work / f"{identifier}.so"
-        command = [
-            compiler(),
-            "-shared",
-            "-fPIC",
-            "-O2",
-            "-I",
-            str(folder),
-            "-I",
-            str(Path(fmpy.__file__).parent / "c-code"),
-        ]
-        command += [str(folder / s) for s in sources] + ["-o", str(library), "-lm"]
-        result = subprocess.run(command, capture_output=True, text=True, cwd=folder)
+        headers = str(Path(fmpy.__file__).parent / "c-code")
+        command = [compiler(), "-shared", "-fPIC", "-O2", "-I", "sources", "-I", headers]
+        command += [f"sources/{s}" for s in sources] + ["-o", str(library), "-lm"]
+        plain = {**os.environ, "LC_ALL": "C"}  # the compiler's messages in plain ASCII, paths inside the FMU
+        result = subprocess.run(command, capture_output=True, text=True, cwd=work / "fmu", env=plain)
         if result.returncode != 0:
             raise InputError(
                 f"{path}: a source FMU that does not compile: {_first_error(result.stderr + result.stdout)}"
