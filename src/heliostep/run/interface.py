@@ -70,14 +70,14 @@ def check_interface(scenario: Scenario, infos: dict[str, FMUInfo]) -> None:
                     f" (instance {instance!r})"
                 )
     for role in REQUIRED_ROLES:
-        target = roles.get(role)
-        if target is None:
+        named = roles.get(role)
+        if named is None:
             lines.append(f"roles.{role} is null, but the drive needs it")
-        elif not _exists(target, infos):
-            instance = target.partition(".")[0]
+        elif not _exists(named, infos):
+            instance = named.partition(".")[0]
             kind = _ROLE_CAUSALITY[role]
             lines.append(
-                f"roles.{role}: the default {target!r} names no variable of {infos[instance].path.name}"
+                f"roles.{role}: the default {named!r} names no variable of {infos[instance].path.name}"
                 f" (instance {instance!r}); its {kind}s: {', '.join(infos[instance].names(kind)) or 'none'}"
             )
     if not lines:
@@ -124,8 +124,8 @@ def propose_interface(scenario: Scenario, infos: dict[str, FMUInfo]) -> str:
             lines.append(f"  - [{ends[0]}, {ends[1]}]")
     lines.append("roles:")
     for role in scenario.roles.model_dump():  # every role, so the block pasted leaves none to its default
-        target = roles.get(role)
-        fitting = None if target is None else target if _exists(target, infos) else found.get(target)
+        given = roles.get(role)
+        fitting = None if given is None else given if _exists(given, infos) else found.get(given)
         lines.append(f"  {role}: {fitting or 'null'}")
     return "\n".join(lines)
 
@@ -149,10 +149,10 @@ def _match(wanted: dict[str, str], infos: dict[str, FMUInfo], used: set[str]) ->
             score = _name_score(variable, candidate.name) - (0.5 if unit and not candidate.unit else 0.0)
             scored.append((score, end, f"{instance}.{candidate.name}"))
     found: dict[str, str] = {}
-    for _score, end, candidate in sorted(scored, key=lambda item: -item[0]):
-        if end not in found and candidate not in taken:
-            found[end] = candidate
-            taken.add(candidate)
+    for _score, end, name in sorted(scored, key=lambda item: -item[0]):
+        if end not in found and name not in taken:
+            found[end] = name
+            taken.add(name)
     return found
 
 
