@@ -96,7 +96,7 @@ def test_a_vendor_motor_is_refused_with_its_variables_and_a_block_that_fits_whic
     with pytest.raises(InputError) as error:
         run_scenario(vendor_scenario, SHORT + ("fmus.motor=VendorMotor",))
     message = str(error.value)
-    assert "connections[0] source 'motor.tau' names no variable of VendorMotor.fmu" in message
+    assert "connections[0] source 'motor.tau': VendorMotor.fmu (instance 'motor') has no variable 'tau'" in message
     assert (
         "motor (VendorMotor.fmu): inputs iaRef [A], ibRef [A], theta [rad], omega [rad/s]; outputs i_a [A]" in message
     )
@@ -122,3 +122,24 @@ def test_a_vendor_motor_is_refused_with_its_variables_and_a_block_that_fits_whic
     for key, value in default.summary.items():
         if key != "rows":
             assert fitted.summary[key] == value, key
+
+
+def test_the_command_line_refuses_a_vendor_motor_with_exit_2_and_the_block(vendor_scenario, tmp_path, capsys):
+    from heliostep.cli import main
+
+    out = tmp_path / "out"
+    args = [
+        "run",
+        str(vendor_scenario),
+        "--out",
+        str(out),
+        "--set",
+        "window.duration=20",
+        "--set",
+        "fmus.motor=VendorMotor",
+    ]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "heliostep run: error:" in err
+    assert "\nconnections:\n  - [motor.tauEl, mechanics.tau]\n" in err and "\n  torque: motor.tauEl\n" in err
+    assert not out.exists()  # refused before anything was written

@@ -64,10 +64,10 @@ def check_interface(scenario: Scenario, infos: dict[str, FMUInfo]) -> None:
     for position, (source, target) in enumerate(scenario.connection_pairs()):
         for side, end in (("source", source), ("target", target)):
             if not _exists(end, infos):
-                instance = end.partition(".")[0]
+                instance, _, variable = end.partition(".")
                 lines.append(
-                    f"connections[{position}] {side} {end!r} names no variable of {infos[instance].path.name}"
-                    f" (instance {instance!r})"
+                    f"connections[{position}] {side} {end!r}: {infos[instance].path.name} (instance {instance!r})"
+                    f" has no variable {variable!r}"
                 )
     for role in REQUIRED_ROLES:
         named = roles.get(role)
