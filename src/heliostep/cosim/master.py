@@ -62,6 +62,7 @@ from heliostep.cosim.events import Terminated, discrete_fixed_point, event_itera
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
 from heliostep.cosim.rows import RowBuffer
+from heliostep.cosim.sampled import split_sampled
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 from heliostep.cosim.system import CoupledSystem
 from heliostep.errors import HeliostepError, InputError, RunFailure
@@ -145,6 +146,7 @@ class CoSimulation(ConnectionGraph):
         connections: Sequence[Connection] = (),
         inputs: Sequence[PiecewiseConstant] = (),
         parameters: Mapping[str, Mapping[str, float]] | None = None,
+        communication_intervals: Mapping[str, float] | None = None,
     ):
         parameters = parameters or {}
         unknown = set(parameters) - set(fmus)
@@ -152,7 +154,12 @@ class CoSimulation(ConnectionGraph):
             raise InputError(
                 f"parameters given for unknown FMU instance(s) {sorted(unknown)}; instances: {', '.join(fmus)}"
             )
-        super().__init__(fmus, connections, inputs)
+        fmus, connections, self.sampled = split_sampled(
+            fmus, connections, inputs, communication_intervals or {}, parameters
+        )  # Co-Simulation FMUs: sampled components, their outputs master inputs of the Model Exchange system
+        parameters = {name: values for name, values in parameters.items() if name in fmus}
+        signals = self.sampled.signals if self.sampled is not None else []
+        super().__init__(fmus, connections, [*inputs, *signals])  # type: ignore[list-item]
         self.parameters = {name: dict(parameters.get(name, {})) for name in fmus}
         for name, values in self.parameters.items():  # every value must fit its type, up front
             info = self.fmus[name]
@@ -292,6 +299,7 @@ class _Run:
             "termination_time": self.termination_time,
             "termination_instances": self.termination_instances,
             "algebraic_loops": list(self.graph.loops),
+            **({"sampled_components": self.graph.sampled.statistics()} if self.graph.sampled is not None else {}),
             "max_buffered_rows": self.rows.max_buffered,
             **(system.loop.statistics() if system is not None and system.loop is not None else {}),
         }
@@ -299,6 +307,8 @@ class _Run:
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
         CVODE's memory freed."""
+        if self.graph.sampled is not None:
+            self.graph.sampled.close()
         if self.system is not None:
             self.system.close()
         if self.integrator is not None:
@@ -330,6 +340,8 @@ class _Run:
     def _event_iteration(self, system: CoupledSystem, t: float, new_inputs: bool) -> None:
         """Event mode at ``t``: set inputs, iterate discrete states to a fixed point."""
         self.counts["events"] += 1
+        if self.graph.sampled is not None:  # at a communication point the sampled components step
+            self.graph.sampled.communicate(t)
         new_values = [item.value_at(t) for item in self.graph.inputs] if new_inputs else None
         event_iteration(system, self.input_values, new_values, self.time)
 
@@ -354,10 +366,14 @@ class _Run:
             raise error
 
     # --------------------------------------------------------------- set-up
-    def _initialize(self, start_time: float) -> CoupledSystem:
+    def _initialize(self, start_time: float, stop_time: float) -> CoupledSystem:
         """Instantiate and initialize the FMUs (inputs set, connections propagated, the first
-        event iteration) and record the row at ``start_time``."""
+        event iteration; the sampled components first, sampled last) and record the row at ``start_time``."""
         self.time = start_time
+        sampled = self.graph.sampled
+        if sampled is not None:  # their initial outputs are master inputs of the Model Exchange system
+            sampled.start(start_time, stop_time)
+            self.input_values[:] = [item.values[0] for item in self.graph.inputs]
         self.system = system = CoupledSystem(
             self.graph, self.graph.parameters, start_time, self.input_values, self.options, lambda: self.time
         )
@@ -368,6 +384,8 @@ class _Run:
         discrete_fixed_point(system, self.time)
         for unit in system.unit_list:
             unit.fmu.enter_continuous_time_mode()
+        if sampled is not None:
+            sampled.bind(system)
         self.record(start_time)
         return system
 
@@ -399,8 +417,9 @@ class _Run:
         )
 
     def _execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
-        system = self._initialize(start_time)
-        change_times = np.unique(np.concatenate([item.times for item in self.graph.inputs] or [np.zeros(0)]))
+        system = self._initialize(start_time, stop_time)
+        sampled = [c.times for c in self.graph.sampled.components.values()] if self.graph.sampled is not None else []
+        change_times = np.unique(np.concatenate([item.times for item in self.graph.inputs] + sampled or [np.zeros(0)]))
         change_times = change_times[(change_times > start_time) & (change_times <= stop_time)]
         self.integrator = integrator = make_integrator(
             system,

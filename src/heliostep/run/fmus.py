@@ -41,7 +41,7 @@ def read_fmus(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, FM
     infos = {}
     for name, path in fmu_paths.items():
         try:
-            infos[name] = read_fmu(path)
+            infos[name] = read_fmu(path, co_simulation=name in scenario.communication_interval)
         except InputError as exc:
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     return infos

@@ -175,7 +175,11 @@ def _prepare(
     values = parameters(scenario, inputs, roles, infos)
     try:  # connections (types, units, loops), parameter names and values, checked before simulating
         system = CoSimulation(
-            infos, [Connection(s, t) for s, t in scenario.connection_pairs()], signals(inputs, roles), values
+            infos,
+            [Connection(s, t) for s, t in scenario.connection_pairs()],
+            signals(inputs, roles),
+            values,
+            communication_intervals=scenario.communication_interval,
         )
     except InputError as exc:
         raise InputError(f"{scenario.source}: {exc}") from None

@@ -155,6 +155,11 @@ class Scenario(Section):
     connections: list[Annotated[tuple[str, str], BeforeValidator(_connection_pair)]] | None = Field(
         None, description="[source, target] pairs 'instance.variable'; null: the default connections"
     )
+    communication_interval: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = Field(
+        default_factory=dict,
+        description="instance name -> communication interval [s]: that FMU runs as Co-Simulation, a sampled "
+        "component stepped at this interval (docs/fmus.md)",
+    )
     roles: RolesConfig = Field(default_factory=RolesConfig)
     sequencer: SequencerConfig = Field(default_factory=SequencerConfig)
     wind: WindConfig = Field(default_factory=WindConfig)
@@ -233,6 +238,11 @@ class Scenario(Section):
         for instance in self.parameters:
             if instance not in self.fmus:
                 problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
+        for instance in self.communication_interval:
+            if instance not in self.fmus:
+                problems.append(
+                    (("communication_interval", instance), f"unknown FMU instance; instances in fmus: {instances}")
+                )
         if self.connections is None:
             missing = sorted(
                 {endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair} - set(self.fmus)
