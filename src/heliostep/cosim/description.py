@@ -120,21 +120,7 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
             "communication_interval (docs/fmus.md)"
         )
     _check_binary(path, interface.modelIdentifier, CS_REQUIRED_FUNCTIONS if co_simulation else REQUIRED_FUNCTIONS)
-    variables = {}
-    for v in description.modelVariables:
-        start = None
-        if v.start is not None:
-            start = _parse_start(v.type, v.start)
-        variables[v.name] = VariableInfo(
-            name=v.name,
-            value_reference=v.valueReference,
-            type=v.type,
-            causality=v.causality,
-            variability=v.variability,
-            unit=_unit(v),
-            start=start,
-            description=v.description or "",
-        )
+    variables = _variables(description)
     states = [d.variable.derivative.name for d in description.derivatives]
     inputs = {v.name for v in description.modelVariables if v.causality == "input"}
     feedthrough = {}
@@ -158,6 +144,23 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
         needs_completed_integrator_step=bool(getattr(interface, "needsCompletedIntegratorStep", False)),
         co_simulation=co_simulation,
     )
+
+
+def _variables(description) -> dict[str, VariableInfo]:
+    """Name -> what the master needs of each variable of fmpy's ``ModelDescription``."""
+    return {
+        v.name: VariableInfo(
+            name=v.name,
+            value_reference=v.valueReference,
+            type=v.type,
+            causality=v.causality,
+            variability=v.variability,
+            unit=_unit(v),
+            start=None if v.start is None else _parse_start(v.type, v.start),
+            description=v.description or "",
+        )
+        for v in description.modelVariables
+    }
 
 
 def _parse_start(type_: str, start) -> float | str | None:

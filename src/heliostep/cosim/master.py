@@ -16,7 +16,9 @@ Discontinuities are handled per FMI 2.0: master-side inputs change only at known
 new inputs are set, the ``fmi2NewDiscreteStates`` iteration runs to a fixed point (outputs
 re-propagated between rounds) and CVODE restarts. FMU time events (``nextEventTime``), state
 events (CVODE root finding on all event indicators) and step events
-(``fmi2CompletedIntegratorStep``) go through the same event handling.
+(``fmi2CompletedIntegratorStep``) go through the same event handling. Co-Simulation FMUs run
+beside the system as sampled components (:mod:`~heliostep.cosim.sampled`): their communication
+points are time events, their held outputs master inputs.
 
 Variables of every FMI 2.0 type are exchanged with their own get/set functions; connections
 join compatible types only (Real with Real of the same unit, Integer/Enumeration with

@@ -232,17 +232,26 @@ class Scenario(Section):
         return connections
 
     @model_validator(mode="after")
+    def _sampled_instances(self) -> Scenario:
+        """``communication_interval`` names instances of ``fmus``."""
+        unknown = [name for name in self.communication_interval if name not in self.fmus]
+        if unknown:
+            instances = ", ".join(self.fmus)
+            raise KeyProblems(
+                [
+                    (("communication_interval", name), f"unknown FMU instance; instances in fmus: {instances}")
+                    for name in unknown
+                ]
+            )
+        return self
+
+    @model_validator(mode="after")
     def _consistent_sections(self) -> Scenario:
         problems: list[tuple[tuple, str]] = []
         instances = ", ".join(self.fmus)
         for instance in self.parameters:
             if instance not in self.fmus:
                 problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
-        for instance in self.communication_interval:
-            if instance not in self.fmus:
-                problems.append(
-                    (("communication_interval", instance), f"unknown FMU instance; instances in fmus: {instances}")
-                )
         if self.connections is None:
             missing = sorted(
                 {endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair} - set(self.fmus)
