@@ -30,6 +30,7 @@ COMMAND_MODULES = (
     "heliostep.cli.regress",
     "heliostep.cli.sweep",
     "heliostep.cli.fieldlight",
+    "heliostep.cli.export_ssp",
 )
 
 

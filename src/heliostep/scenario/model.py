@@ -147,6 +147,7 @@ class Scenario(Section):
         description="instance name -> model variant or path to an .fmu; merged over the defaults "
         "motor: StepperMotor, mechanics: PanelMechanics (null drops one)",
     )
+    system: str | None = Field(None, description="an SSP 1.0 file giving fmus, connections, parameters")
     parameters: dict[str, dict[str, ParameterValue]] = Field(
         default_factory=dict,
         description="instance name -> {parameter name: value (Real, Integer, Boolean or "
@@ -156,9 +157,7 @@ class Scenario(Section):
         None, description="[source, target] pairs 'instance.variable'; null: the default connections"
     )
     communication_interval: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = Field(
-        default_factory=dict,
-        description="instance name -> communication interval [s]: that FMU runs as Co-Simulation, a sampled "
-        "component stepped at this interval (docs/fmus.md)",
+        default_factory=dict, description="instance -> [s]: that FMU runs as Co-Simulation, sampled at this interval"
     )
     roles: RolesConfig = Field(default_factory=RolesConfig)
     sequencer: SequencerConfig = Field(default_factory=SequencerConfig)
