@@ -141,6 +141,7 @@ class SampledComponent:
         self.times = start_time + self.interval * np.arange(1, count + 1)
         if not len(self.times) or self.times[-1] < stop_time * (1.0 - 1e-12):
             self.times = np.append(self.times, stop_time)  # the last point at the stop time
+        self.steps = 0
         self.instance = CoSimulationInstance(self.info, self.name, self.parameters)
         self.instance.initialize(start_time, stop_time, inputs)
         self._read()

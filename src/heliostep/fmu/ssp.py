@@ -75,7 +75,13 @@ def read_ssp(path: str | Path, cache: Path) -> SSPSystem:
             raise InputError(f"{path}: element {element.name!r} is not a component (nested systems are not supported)")
         if element.type not in (None, FMU_TYPE):
             raise InputError(f"{path}: component {element.name!r} is of type {element.type!r}, not an FMU ({FMU_TYPE})")
-        result.fmus[element.name] = _extracted(path, element.name, element.source, folder)
+        try:
+            result.fmus[element.name] = _extracted(path, element.name, element.source, folder)
+        except OSError as exc:
+            raise InputError(
+                f"{path}: component {element.name!r}: cannot extract its FMU into the FMU cache {cache}"
+                f" ($HELIOSTEP_FMUS): {exc.strerror or exc}; point HELIOSTEP_FMUS at a writable folder"
+            ) from None
         _bind(result, element.parameterBindings, element.name, path)
     _bind(result, system.parameterBindings, None, path)
     for c in system.connections:
