@@ -156,9 +156,27 @@ MINI_FMUS = {
             ("period", "Real", "parameter", "fixed", 0.5, None),
         ],
     ),
+    "Lag": (  # exported for Model Exchange and Co-Simulation: the tests' CS FMU and its ME twin
+        "lag.c",
+        "{c0a7e1f2-0007-4000-8000-000000000007}",
+        0,
+        [
+            ("u", "Real", "input", "continuous", 0.0, None),
+            ("y", "Real", "output", "continuous", 0.0, None),
+            ("e", "Real", "output", "continuous", None, None),
+            ("der(y)", "Real", "local", "continuous", None, "y"),
+            ("T", "Real", "parameter", "fixed", 0.5, None),
+        ],
+    ),
 }
 #: direct feedthrough: model -> output -> the input it depends on
-_FEEDTHROUGH = {"PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"}, "Gain": {"y": "u"}}
+_FEEDTHROUGH = {
+    "PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"},
+    "Gain": {"y": "u"},
+    "Lag": {"e": "u"},
+}
+#: the mini FMUs whose modelDescription.xml also declares Co-Simulation (fmi2DoStep in mini_fmu.h)
+CO_SIMULATION = {"Lag"}
 
 
 def _model_description(name: str) -> str:
@@ -169,6 +187,10 @@ def _model_description(name: str) -> str:
         f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" '
         f'numberOfEventIndicators="{n_indicators}" variableNamingConvention="structured">',
         f'  <ModelExchange modelIdentifier="{name}"/>',
+        *(
+            [f'  <CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="true"/>']
+            * (name in CO_SIMULATION)
+        ),
         "  <ModelVariables>",
     ]
     for vr, (var, type_, causality, variability, start, derivative) in enumerate(variables):

@@ -30,6 +30,7 @@ COMMANDS = {
     "regress": "heliostep.cli.regress",
     "sweep": "heliostep.cli.sweep",
     "field-light": "heliostep.cli.fieldlight",
+    "export-ssp": "heliostep.cli.export_ssp",
 }
 COMMAND_MODULES = tuple(COMMANDS.values())
 

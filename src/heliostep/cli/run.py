@@ -258,6 +258,12 @@ def _report(result: RunResult, out_dir: Path) -> str:
         )
     )
     lines = [f"{result.scenario.name}: {state} -> {out_dir}"]
+    terminated = result.metadata.get("terminated")
+    if terminated:  # an FMU ended the run (at the window's end the run is still complete): say which, when
+        lines.append(
+            f"  terminated by {', '.join(terminated.get('instances') or ['an FMU'])} at t = "
+            f"{terminated.get('time_s') or 0.0:.6g} s (terminateSimulation)"
+        )
     for key, label, fmt in (
         ("max_tracking_error_deg", "max tracking error [deg]", "{:.4f}"),
         ("rms_tracking_error_deg", "RMS tracking error [deg]", "{:.4f}"),

@@ -69,6 +69,8 @@ class ConnectionGraph:
     def _check_connections(self, connections: Sequence[Connection]) -> list[Connection]:
         driven: dict[str, str] = {}
         for item in self.inputs:
+            if not item.target:  # a traced value that drives nothing (a sampled component's output)
+                continue
             self._variable(item.target, f"input {item.name} target", "input")
             driven[item.target] = f"master input {item.name}"
         for c in connections:

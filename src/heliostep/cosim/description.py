@@ -57,6 +57,8 @@ class FMUInfo:
     #: whether fmi2CompletedIntegratorStep must be called after each integrator step
     needs_completed_integrator_step: bool = True
     description: object = None  # fmpy's ModelDescription
+    #: read for Co-Simulation (a sampled component) rather than Model Exchange
+    co_simulation: bool = False
 
     def names(self, causality: str) -> list[str]:
         return [v.name for v in self.variables.values() if v.causality == causality]
@@ -94,8 +96,9 @@ def _unit(variable) -> str:
     return getattr(declared, "unit", None) or ""
 
 
-def read_fmu(path: str | Path) -> FMUInfo:
-    """Read and check an FMU: it must be FMI 2.0 with Model Exchange (else :class:`InputError`)."""
+def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
+    """Read and check an FMU: it must be FMI 2.0 with Model Exchange (else :class:`InputError`);
+    with ``co_simulation``, with Co-Simulation (run as a sampled component, :mod:`heliostep.cosim.sampled`)."""
     from fmpy import read_model_description
 
     path = Path(path)
@@ -107,27 +110,17 @@ def read_fmu(path: str | Path) -> FMUInfo:
         raise InputError(f"{path}: not a readable FMU ({exc})") from None
     if description.fmiVersion != "2.0":
         raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0")
-    if description.modelExchange is None:
+    interface = description.coSimulation if co_simulation else description.modelExchange
+    if interface is None and co_simulation:
+        raise InputError(f"{path}: the FMU does not support Co-Simulation, but communication_interval asks for it")
+    if interface is None:
         raise InputError(
-            f"{path}: the FMU does not support Model Exchange (co-simulation only); "
-            "heliostep integrates Model Exchange FMUs itself"
+            f"{path}: the FMU does not support Model Exchange (co-simulation only); heliostep integrates Model "
+            "Exchange FMUs itself, or runs a Co-Simulation FMU as a sampled component: give its instance a "
+            "communication_interval (docs/fmus.md)"
         )
-    _check_binary(path, description.modelExchange.modelIdentifier)
-    variables = {}
-    for v in description.modelVariables:
-        start = None
-        if v.start is not None:
-            start = _parse_start(v.type, v.start)
-        variables[v.name] = VariableInfo(
-            name=v.name,
-            value_reference=v.valueReference,
-            type=v.type,
-            causality=v.causality,
-            variability=v.variability,
-            unit=_unit(v),
-            start=start,
-            description=v.description or "",
-        )
+    _check_binary(path, interface.modelIdentifier, CS_REQUIRED_FUNCTIONS if co_simulation else REQUIRED_FUNCTIONS)
+    variables = _variables(description)
     states = [d.variable.derivative.name for d in description.derivatives]
     inputs = {v.name for v in description.modelVariables if v.causality == "input"}
     feedthrough = {}
@@ -141,15 +134,33 @@ def read_fmu(path: str | Path) -> FMUInfo:
     return FMUInfo(
         path=path,
         model_name=description.modelName,
-        model_identifier=description.modelExchange.modelIdentifier,
+        model_identifier=interface.modelIdentifier,
         guid=description.guid,
         variables=variables,
         states=states,
         n_event_indicators=description.numberOfEventIndicators or 0,
         output_feedthrough=feedthrough,
         description=description,
-        needs_completed_integrator_step=bool(description.modelExchange.needsCompletedIntegratorStep),
+        needs_completed_integrator_step=bool(getattr(interface, "needsCompletedIntegratorStep", False)),
+        co_simulation=co_simulation,
     )
+
+
+def _variables(description) -> dict[str, VariableInfo]:
+    """Name -> what the master needs of each variable of fmpy's ``ModelDescription``."""
+    return {
+        v.name: VariableInfo(
+            name=v.name,
+            value_reference=v.valueReference,
+            type=v.type,
+            causality=v.causality,
+            variability=v.variability,
+            unit=_unit(v),
+            start=None if v.start is None else _parse_start(v.type, v.start),
+            description=v.description or "",
+        )
+        for v in description.modelVariables
+    }
 
 
 def _parse_start(type_: str, start) -> float | str | None:
@@ -196,7 +207,14 @@ REQUIRED_FUNCTIONS = (
 )
 
 
-def _check_binary(path: Path, model_identifier: str) -> None:
+#: The functions an FMI 2.0 Co-Simulation binary must export for a sampled component.
+CS_REQUIRED_FUNCTIONS = (
+    *REQUIRED_FUNCTIONS[:18],  # the common functions, fmi2GetTypesPlatform ... fmi2SetString
+    "fmi2DoStep",
+)
+
+
+def _check_binary(path: Path, model_identifier: str, functions: tuple[str, ...] = REQUIRED_FUNCTIONS) -> None:
     """The FMU must have a binary for this platform that loads and exports the FMI 2.0 ME API.
 
     Refused with :class:`InputError` naming the ``.fmu`` file and the platform (never the
@@ -222,15 +240,15 @@ def _check_binary(path: Path, model_identifier: str) -> None:
         reason = str(exc).replace(str(library), member)
         raise InputError(f"{path}: the binary for {platform} ({member}) does not load: {reason}") from None
     try:
-        missing = [name for name in REQUIRED_FUNCTIONS if not hasattr(dll, name)]
+        missing = [name for name in functions if not hasattr(dll, name)]
     finally:  # unload again: instances must start from a freshly loaded library
         import _ctypes
 
         _ctypes.dlclose(dll._handle)
     if missing:
         raise InputError(
-            f"{path}: the binary for {platform} ({member}) lacks the FMI 2.0 Model "
-            f"Exchange function(s) {', '.join(missing)}"
+            f"{path}: the binary for {platform} ({member}) lacks the FMI 2.0 "
+            f"{'Co-Simulation' if 'fmi2DoStep' in functions else 'Model Exchange'} function(s) {', '.join(missing)}"
         )
 
 

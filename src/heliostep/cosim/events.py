@@ -23,10 +23,11 @@ __all__ = ["Terminated", "discrete_fixed_point", "event_iteration"]
 class Terminated(Exception):
     """An FMU asked to terminate the simulation (fmi2NewDiscreteStates/CompletedIntegratorStep)."""
 
-    def __init__(self, reason: str, time: float):
+    def __init__(self, reason: str, time: float, instances: Sequence[str] = ()):
         super().__init__(reason)
         self.reason = reason
         self.time = time
+        self.instances = tuple(instances)  # the instances that asked
 
 
 def discrete_fixed_point(system: CoupledSystem, time: float, max_rounds: int = 100) -> bool:
@@ -53,6 +54,7 @@ def discrete_fixed_point(system: CoupledSystem, time: float, max_rounds: int = 1
             raise Terminated(
                 f"{', '.join(stop)} asked to terminate the simulation (fmi2NewDiscreteStates: terminateSimulation)",
                 time,
+                stop,
             )
         outputs = system.outputs()
         if np.array_equal(outputs, previous):

@@ -16,7 +16,9 @@ Discontinuities are handled per FMI 2.0: master-side inputs change only at known
 new inputs are set, the ``fmi2NewDiscreteStates`` iteration runs to a fixed point (outputs
 re-propagated between rounds) and CVODE restarts. FMU time events (``nextEventTime``), state
 events (CVODE root finding on all event indicators) and step events
-(``fmi2CompletedIntegratorStep``) go through the same event handling.
+(``fmi2CompletedIntegratorStep``) go through the same event handling. Co-Simulation FMUs run
+beside the system as sampled components (:mod:`~heliostep.cosim.sampled`): their communication
+points are time events, their held outputs master inputs.
 
 Variables of every FMI 2.0 type are exchanged with their own get/set functions; connections
 join compatible types only (Real with Real of the same unit, Integer/Enumeration with
@@ -30,6 +32,9 @@ re-raised after the solver call, with the time of the failing evaluation. A fail
 :class:`SimulationError` (a :class:`~heliostep.errors.RunFailure`); an
 :class:`~heliostep.errors.InputError` found while setting up the FMUs, before any row is
 recorded (an unknown parameter, say), is raised as it is.
+
+Why this module is long: the run loop, its events, its termination and its statistics are one state
+machine over one integration (:class:`_Run`); split, each part would reach into the other's state.
 
 The trace has a row at every output time and a row just before and just after every event
 (two rows with the same time), so nothing that happens at a step is lost to interpolation.
@@ -59,6 +64,7 @@ from heliostep.cosim.events import Terminated, discrete_fixed_point, event_itera
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
 from heliostep.cosim.rows import RowBuffer
+from heliostep.cosim.sampled import split_sampled
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 from heliostep.cosim.system import CoupledSystem
 from heliostep.errors import HeliostepError, InputError, RunFailure
@@ -142,6 +148,7 @@ class CoSimulation(ConnectionGraph):
         connections: Sequence[Connection] = (),
         inputs: Sequence[PiecewiseConstant] = (),
         parameters: Mapping[str, Mapping[str, float]] | None = None,
+        communication_intervals: Mapping[str, float] | None = None,
     ):
         parameters = parameters or {}
         unknown = set(parameters) - set(fmus)
@@ -149,7 +156,12 @@ class CoSimulation(ConnectionGraph):
             raise InputError(
                 f"parameters given for unknown FMU instance(s) {sorted(unknown)}; instances: {', '.join(fmus)}"
             )
-        super().__init__(fmus, connections, inputs)
+        fmus, connections, self.sampled = split_sampled(
+            fmus, connections, inputs, communication_intervals or {}, parameters
+        )  # Co-Simulation FMUs: sampled components, their outputs master inputs of the Model Exchange system
+        parameters = {name: values for name, values in parameters.items() if name in fmus}
+        signals = self.sampled.signals if self.sampled is not None else []
+        super().__init__(fmus, connections, [*inputs, *signals])  # type: ignore[list-item]
         self.parameters = {name: dict(parameters.get(name, {})) for name in fmus}
         for name, values in self.parameters.items():  # every value must fit its type, up front
             info = self.fmus[name]
@@ -260,6 +272,7 @@ class _Run:
         self.wall_start = clock.perf_counter()
         self.terminated, self.termination_reason = False, ""
         self.termination_time: float | None = None
+        self.termination_instances: list[str] = []
         self.system: CoupledSystem | None = None  # from the start of execute
         self.integrator: Integrator | None = None  # once the FMUs are initialized
         self._no_outputs = np.zeros(0)
@@ -286,7 +299,9 @@ class _Run:
             "terminated": self.terminated,
             "termination_reason": self.termination_reason,
             "termination_time": self.termination_time,
+            "termination_instances": self.termination_instances,
             "algebraic_loops": list(self.graph.loops),
+            **({"sampled_components": self.graph.sampled.statistics()} if self.graph.sampled is not None else {}),
             "max_buffered_rows": self.rows.max_buffered,
             **(system.loop.statistics() if system is not None and system.loop is not None else {}),
         }
@@ -294,6 +309,8 @@ class _Run:
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
         CVODE's memory freed."""
+        if self.graph.sampled is not None:
+            self.graph.sampled.close()
         if self.system is not None:
             self.system.close()
         if self.integrator is not None:
@@ -325,6 +342,8 @@ class _Run:
     def _event_iteration(self, system: CoupledSystem, t: float, new_inputs: bool) -> None:
         """Event mode at ``t``: set inputs, iterate discrete states to a fixed point."""
         self.counts["events"] += 1
+        if self.graph.sampled is not None:  # at a communication point the sampled components step
+            self.graph.sampled.communicate(t)
         new_values = [item.value_at(t) for item in self.graph.inputs] if new_inputs else None
         event_iteration(system, self.input_values, new_values, self.time)
 
@@ -349,10 +368,14 @@ class _Run:
             raise error
 
     # --------------------------------------------------------------- set-up
-    def _initialize(self, start_time: float) -> CoupledSystem:
+    def _initialize(self, start_time: float, stop_time: float) -> CoupledSystem:
         """Instantiate and initialize the FMUs (inputs set, connections propagated, the first
-        event iteration) and record the row at ``start_time``."""
+        event iteration; the sampled components first, sampled last) and record the row at ``start_time``."""
         self.time = start_time
+        sampled = self.graph.sampled
+        if sampled is not None:  # their initial outputs are master inputs of the Model Exchange system
+            sampled.start(start_time, stop_time)
+            self.input_values[:] = [item.values[0] for item in self.graph.inputs]
         self.system = system = CoupledSystem(
             self.graph, self.graph.parameters, start_time, self.input_values, self.options, lambda: self.time
         )
@@ -363,6 +386,8 @@ class _Run:
         discrete_fixed_point(system, self.time)
         for unit in system.unit_list:
             unit.fmu.enter_continuous_time_mode()
+        if sampled is not None:
+            sampled.bind(system)
         self.record(start_time)
         return system
 
@@ -373,6 +398,7 @@ class _Run:
             self._execute(start_time, stop_time, grid)
         except Terminated as stop:
             self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
+            self.termination_instances = list(stop.instances)
             self.record(stop.time)
 
     def _advance(
@@ -393,8 +419,9 @@ class _Run:
         )
 
     def _execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
-        system = self._initialize(start_time)
-        change_times = np.unique(np.concatenate([item.times for item in self.graph.inputs] or [np.zeros(0)]))
+        system = self._initialize(start_time, stop_time)
+        sampled = [c.times for c in self.graph.sampled.components.values()] if self.graph.sampled is not None else []
+        change_times = np.unique(np.concatenate([item.times for item in self.graph.inputs] + sampled or [np.zeros(0)]))
         change_times = change_times[(change_times > start_time) & (change_times <= stop_time)]
         self.integrator = integrator = make_integrator(
             system,
@@ -487,6 +514,7 @@ class _Run:
                 raise Terminated(
                     f"{unit.name} asked to terminate the simulation (fmi2CompletedIntegratorStep: terminateSimulation)",
                     t,
+                    (unit.name,),
                 )
         if state_event or step_event or input_event or time_event:
             self.counts["state_events"] += int(state_event)

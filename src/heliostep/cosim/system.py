@@ -78,6 +78,8 @@ class CoupledSystem:
             self.n_indicators = int(self.z_offsets[-1])
             self.input_writers = []
             for k, item in enumerate(graph.inputs):
+                if not item.target:  # traced only
+                    continue
                 instance, variable = split_name(item.target, "input target")
                 self.input_writers.append((k, self.units[instance].fmu.writer([variable])))
             self._connect()

@@ -72,7 +72,7 @@ def write_trace_csv(out_dir: Path, trace_file: Path, metadata: Mapping[str, str]
 
 def record_texts(summary: RunSummary | None, status: RunStatus, metadata: Mapping) -> dict[str, str]:
     """The text of ``metadata.json`` (the status, then ``metadata``) and ``summary.json`` (:func:`summary_record`)."""
-    contents = ({**status_record(status), **metadata}, summary_record(summary, status))
+    contents = ({**status_record(status), **metadata}, summary_record(summary, status, metadata.get("terminated")))
     return {name: json.dumps(content, indent=2, default=str) + "\n" for name, content in zip(RECORD_FILES, contents)}
 
 

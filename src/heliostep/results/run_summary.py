@@ -144,9 +144,16 @@ def status_record(status: RunStatus) -> dict[str, Any]:
     return record
 
 
-def summary_record(summary: RunSummary | None, status: RunStatus) -> dict[str, Any]:
-    """What ``summary.json`` holds: the status, then the figures (none without a trace row)."""
-    return {**status_record(status), **(summary.figures() if summary is not None else {})}
+def summary_record(
+    summary: RunSummary | None, status: RunStatus, terminated: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """What ``summary.json`` holds: the status, the termination an FMU asked for (``terminated``: which
+    instances, when [s], why; also when it came at the window's end and the run is complete), then the
+    figures (none without a trace row)."""
+    record = status_record(status)
+    if terminated:
+        record["terminated"] = dict(terminated)
+    return {**record, **(summary.figures() if summary is not None else {})}
 
 
 def night(site, window_start: pd.Timestamp, duration: float) -> tuple[bool, str | None]:

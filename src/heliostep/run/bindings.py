@@ -14,6 +14,7 @@ from heliostep.cosim import FMUInfo, PiecewiseConstant
 from heliostep.drive.inputs import DriveInputs
 from heliostep.drive.sequencer import idle_currents
 from heliostep.errors import InputError
+from heliostep.run.interface import check_interface
 from heliostep.scenario import INPUT_ROLES, OUTPUT_ROLES, PARAMETER_ROLES, REQUIRED_ROLES, Scenario
 
 __all__ = ["check_roles", "parameters", "present_roles", "signals"]
@@ -47,38 +48,16 @@ def present_roles(scenario: Scenario, infos: dict[str, FMUInfo]) -> dict[str, st
     """The scenario's roles that exist in its FMUs (checked), resolved once for the whole run."""
     roles = scenario.resolved_roles()
     check_roles(roles, infos, scenario)
+    check_interface(scenario, infos)  # a default connection or required role that names no variable
     present = {
         role: target
         for role, target in roles.items()
         if target.partition(".")[2] in infos[target.partition(".")[0]].variables
     }
     missing = [role for role in REQUIRED_ROLES if role not in present]
-    if missing:
-        raise InputError(_missing_roles_message(scenario, roles, infos, missing))
+    if missing:  # check_interface refuses these first; kept so that no later change lets one through
+        raise InputError(f"{scenario.source}: roles {', '.join(missing)} name no variable of the FMUs")
     return present
-
-
-def _missing_roles_message(scenario: Scenario, roles: dict[str, str], infos: dict[str, FMUInfo], missing) -> str:
-    """What a run without a required role is told: each role, the variable its default names, and what the
-    FMU has instead (an FMU with other variable names: spell out ``roles`` and ``connections``)."""
-    kinds = {**{r: "input" for r in INPUT_ROLES}, **{r: "output" for r in OUTPUT_ROLES}}
-    lines = []
-    for role in missing:
-        target = roles.get(role)
-        if target is None:
-            lines.append(f"roles.{role} is null, but the drive needs it")
-            continue
-        instance, _, variable = target.partition(".")
-        info = infos[instance]
-        lines.append(
-            f"roles.{role}: the default {target!r} names no variable of {info.path.name} (instance {instance!r});"
-            f" its {kinds[role]}s: {', '.join(info.names(kinds[role])) or 'none'}"
-        )
-    return (
-        f"{scenario.source}: " + "; ".join(lines) + ". An FMU with other variable names needs its roles (and the"
-        " connections between the FMUs) spelled out: roles.<role>: instance.variable, connections: [[from, to], ...]"
-        " (docs/running.md, roles)"
-    )
 
 
 def parameters(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str], infos: dict[str, FMUInfo]) -> dict:

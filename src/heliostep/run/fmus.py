@@ -9,6 +9,8 @@ from pathlib import Path
 from heliostep.cosim import FMUInfo, read_fmu
 from heliostep.errors import InputError
 from heliostep.fmu.build import ensure_fmu
+from heliostep.fmu.sources import with_platform_binary
+from heliostep.paths import fmus_dir
 from heliostep.scenario import Scenario
 
 __all__ = ["fmu_records", "read_fmus", "resolve_fmus"]
@@ -20,13 +22,14 @@ def resolve_fmus(scenario: Scenario) -> dict[str, Path]:
     A bare name is a model (built into the FMU cache) or an FMU in ``fmus/`` beside the scenario,
     in ``fmus/`` of the current directory, or in the FMU cache. Each call hashes the models and
     asks the compiler its version: resolve once per run and pass the result on
-    (``run_scenario(..., fmu_paths=...)``).
+    (``run_scenario(..., fmu_paths=...)``). An FMU that ships only its sources is compiled into the
+    FMU cache on first use (:func:`~heliostep.fmu.sources.with_platform_binary`).
     """
     search = (scenario.folder / "fmus", Path.cwd() / "fmus")
     paths = {}
     for name in scenario.fmus:
         try:
-            paths[name] = ensure_fmu(scenario.fmu_reference(name), search)
+            paths[name] = with_platform_binary(ensure_fmu(scenario.fmu_reference(name), search), fmus_dir())
         except InputError as exc:
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     return paths
@@ -38,7 +41,7 @@ def read_fmus(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, FM
     infos = {}
     for name, path in fmu_paths.items():
         try:
-            infos[name] = read_fmu(path)
+            infos[name] = read_fmu(path, co_simulation=name in scenario.communication_interval)
         except InputError as exc:
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     return infos

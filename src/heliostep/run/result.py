@@ -212,7 +212,7 @@ class RunResult:
 
     def summary_record(self) -> dict:
         """What ``summary.json`` holds: completeness (and why not), then the figures."""
-        return summary_record(self.figures, self.status)
+        return summary_record(self.figures, self.status, self.metadata.get("terminated"))
 
     def write(
         self,

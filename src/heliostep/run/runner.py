@@ -175,7 +175,11 @@ def _prepare(
     values = parameters(scenario, inputs, roles, infos)
     try:  # connections (types, units, loops), parameter names and values, checked before simulating
         system = CoSimulation(
-            infos, [Connection(s, t) for s, t in scenario.connection_pairs()], signals(inputs, roles), values
+            infos,
+            [Connection(s, t) for s, t in scenario.connection_pairs()],
+            signals(inputs, roles),
+            values,
+            communication_intervals=scenario.communication_interval,
         )
     except InputError as exc:
         raise InputError(f"{scenario.source}: {exc}") from None
@@ -311,7 +315,11 @@ def _simulate_and_summarize(
         "peak_rss_mb_simulating": _peak_rss_mb(),
     }
     if statistics.get("terminated"):  # an FMU asked to stop: the run ends there (incomplete if before the end)
-        meta["terminated"] = {"by": statistics.get("termination_reason"), "time_s": statistics.get("termination_time")}
+        meta["terminated"] = {
+            "instances": list(statistics.get("termination_instances") or []),
+            "time_s": statistics.get("termination_time"),
+            "by": statistics.get("termination_reason"),
+        }
     solution = figures.solution_figures()
     if solution and figures.solution is not None:  # every solver step's, so summarize(trace, meta) recomputes them
         if list(raw.columns) != figures.solution.columns:

@@ -8,9 +8,10 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from heliostep.errors import InputError
-from heliostep.paths import scenarios_dir
+from heliostep.fmu.ssp import read_ssp
+from heliostep.paths import fmus_dir, scenarios_dir
 from heliostep.scenario.keys import apply_overrides
-from heliostep.scenario.model import Scenario
+from heliostep.scenario.model import DEFAULT_FMUS, Scenario
 from heliostep.scenario.problems import format_validation_error
 from heliostep.scenario.yaml_io import read_yaml_file
 
@@ -40,13 +41,40 @@ def validate_scenario(data: Mapping, *, source: str = "<scenario>", folder=None)
         raise InputError(
             f"{source}: the top level must be a mapping of keys (name, site, window, ...), got {type(data).__name__}"
         )
+    folder = Path.cwd() if folder is None else Path(folder).absolute()
+    data = _with_ssp_system(dict(data), source, folder)
     try:
-        scenario = Scenario.model_validate(dict(data))
+        scenario = Scenario.model_validate(data)
     except ValidationError as exc:
         raise InputError(format_validation_error(exc, source, Scenario)) from None
-    scenario._folder = Path.cwd() if folder is None else Path(folder).absolute()
+    scenario._folder = folder
     scenario._source = source
     return scenario
+
+
+def _with_ssp_system(data: dict, source: str, folder: Path) -> dict:
+    """``system: FILE.ssp`` (relative to the scenario's folder): its components become ``fmus`` (the
+    default instances dropped), its connections ``connections`` unless the scenario gives them, its
+    parameter bindings ``parameters`` under the scenario's own (which win)."""
+    reference = data.get("system")
+    if reference is None:
+        return data
+    if not isinstance(reference, str) or not reference.lower().endswith(".ssp"):
+        raise InputError(f"{source}: system: expected the path of an .ssp file, got {reference!r}")
+    path = Path(reference) if Path(reference).is_absolute() else folder / reference
+    try:
+        system = read_ssp(path, fmus_dir())
+    except InputError as exc:
+        raise InputError(f"{source}: system: {exc}") from None
+    given = data.get("fmus") or {}
+    data["fmus"] = {**dict.fromkeys(DEFAULT_FMUS), **{k: str(v) for k, v in system.fmus.items()}, **given}
+    if data.get("connections") is None:
+        data["connections"] = [list(pair) for pair in system.connections]
+    parameters = {instance: dict(values) for instance, values in system.parameters.items()}
+    for instance, values in (data.get("parameters") or {}).items():
+        parameters.setdefault(instance, {}).update(values or {})
+    data["parameters"] = parameters
+    return data
 
 
 def shipped_scenario_dir() -> Path:

@@ -147,6 +147,7 @@ class Scenario(Section):
         description="instance name -> model variant or path to an .fmu; merged over the defaults "
         "motor: StepperMotor, mechanics: PanelMechanics (null drops one)",
     )
+    system: str | None = Field(None, description="an SSP 1.0 file giving fmus, connections, parameters")
     parameters: dict[str, dict[str, ParameterValue]] = Field(
         default_factory=dict,
         description="instance name -> {parameter name: value (Real, Integer, Boolean or "
@@ -154,6 +155,9 @@ class Scenario(Section):
     )
     connections: list[Annotated[tuple[str, str], BeforeValidator(_connection_pair)]] | None = Field(
         None, description="[source, target] pairs 'instance.variable'; null: the default connections"
+    )
+    communication_interval: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = Field(
+        default_factory=dict, description="instance -> [s]: that FMU runs as Co-Simulation, sampled at this interval"
     )
     roles: RolesConfig = Field(default_factory=RolesConfig)
     sequencer: SequencerConfig = Field(default_factory=SequencerConfig)
@@ -225,6 +229,20 @@ class Scenario(Section):
         if problems:
             raise KeyProblems(problems)
         return connections
+
+    @model_validator(mode="after")
+    def _sampled_instances(self) -> Scenario:
+        """``communication_interval`` names instances of ``fmus``."""
+        unknown = [name for name in self.communication_interval if name not in self.fmus]
+        if unknown:
+            instances = ", ".join(self.fmus)
+            raise KeyProblems(
+                [
+                    (("communication_interval", name), f"unknown FMU instance; instances in fmus: {instances}")
+                    for name in unknown
+                ]
+            )
+        return self
 
     @model_validator(mode="after")
     def _consistent_sections(self) -> Scenario:

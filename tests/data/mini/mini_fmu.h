@@ -44,6 +44,7 @@ typedef struct Instance {
     double time;
     double v[N_VARS];
     double next_event; /* the model's next time event (or a negative value: none) */
+    int cs;            /* instantiated for Co-Simulation (fmi2DoStep integrates the states itself) */
 } Instance;
 
 static void logf_(Instance *m, fmi2Status status, const char *format, ...)
@@ -108,7 +109,8 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     Instance *m;
     int k;
     (void)resources; (void)visible; (void)logging;
-    if (functions == NULL || type != fmi2ModelExchange || guid == NULL || strcmp(guid, MODEL_GUID) != 0) {
+    if (functions == NULL || (type != fmi2ModelExchange && type != fmi2CoSimulation) || guid == NULL ||
+        strcmp(guid, MODEL_GUID) != 0) {
         if (functions && functions->logger)
             functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
                               "fmi2Instantiate: wrong type or GUID");
@@ -122,6 +124,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     m->mode = M_INSTANTIATED;
     for (k = 0; k < N_VARS; k++) m->v[k] = VARS[k].start;
     m->next_event = -1.0;
+    m->cs = type == fmi2CoSimulation;
     return m;
 }
 
@@ -151,7 +154,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     if (!allowed(m, "fmi2ExitInitializationMode", M_INIT)) return fmi2Error;
     model_initialize(m);
     model_outputs(m);
-    m->mode = M_EVENT;
+    m->mode = m->cs ? M_CONT : M_EVENT; /* Co-Simulation: stepComplete, inputs settable, fmi2DoStep */
     return fmi2OK;
 }
 
@@ -195,7 +198,7 @@ static fmi2Status check_refs(Instance *m, const char *function, const fmi2ValueR
         switch (var->kind) {
         case K_PARAM: modes = M_INSTANTIATED | M_INIT; break;
         case K_CIN: modes = M_INSTANTIATED | M_INIT | M_EVENT | M_CONT; break;
-        case K_DIN: modes = M_INSTANTIATED | M_INIT | M_EVENT; break;
+        case K_DIN: modes = M_INSTANTIATED | M_INIT | M_EVENT | (m->cs ? M_CONT : 0); break;
         default: return fail(m, "%s: %s is computed by the model and cannot be set", function, var->name);
         }
         if (!(m->mode & modes))
@@ -364,3 +367,64 @@ fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real z[], size_t nz)
     model_indicators(m, z);
     return fmi2OK;
 }
+
+/* ------------------------------------------------------------------ co-simulation
+ * fmi2DoStep integrates the continuous states over the communication step with the classical
+ * fourth-order Runge-Kutta method at a fixed internal step of at most MINI_CS_STEP seconds, the
+ * inputs held; time events and state events are not handled inside a step (the CS twins of the
+ * tests have none). */
+#ifndef MINI_CS_STEP
+#define MINI_CS_STEP 1e-3
+#endif
+
+static int cs_derivatives(Instance *m, const double *x, double *dx)
+{
+    int k;
+    for (k = 0; k < N_STATES; k++) m->v[STATES[k]] = x[k];
+    model_outputs(m);
+    return model_derivatives(m, dx);
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior)
+{
+    Instance *m = (Instance *)c;
+    double x[N_STATES + 1], y[N_STATES + 1], k1[N_STATES + 1], k2[N_STATES + 1], k3[N_STATES + 1],
+        k4[N_STATES + 1];
+    int n, step, k;
+    (void)noSetPrior;
+    if (!allowed(m, "fmi2DoStep", M_CONT) || !m->cs) return fail(m, "fmi2DoStep: not a Co-Simulation instance");
+    if (!(h > 0.0)) return fail(m, "fmi2DoStep: communication step size %g, expected > 0", h);
+    if (fabs(t - m->time) > 1e-9 * (1.0 + fabs(t)))
+        return fail(m, "fmi2DoStep: communication point %.17g, the FMU is at %.17g", t, m->time);
+    n = (int)ceil(h / MINI_CS_STEP - 1e-9);
+    for (k = 0; k < N_STATES; k++) x[k] = m->v[STATES[k]];
+    for (step = 0; step < n && N_STATES > 0; step++) {
+        double dt = h / n;
+        int failed = cs_derivatives(m, x, k1);
+        for (k = 0; k < N_STATES; k++) y[k] = x[k] + 0.5 * dt * k1[k];
+        failed |= cs_derivatives(m, y, k2);
+        for (k = 0; k < N_STATES; k++) y[k] = x[k] + 0.5 * dt * k2[k];
+        failed |= cs_derivatives(m, y, k3);
+        for (k = 0; k < N_STATES; k++) y[k] = x[k] + dt * k3[k];
+        failed |= cs_derivatives(m, y, k4);
+        if (failed) return fail(m, "fmi2DoStep: the derivatives failed at t = %g", m->time + step * dt);
+        for (k = 0; k < N_STATES; k++) x[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
+    }
+    for (k = 0; k < N_STATES; k++) m->v[STATES[k]] = x[k];
+    m->time = t + h;
+    model_outputs(m);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                       const fmi2Integer order[], const fmi2Real value[])
+{ (void)vr; (void)n; (void)order; (void)value; UNSUPPORTED() }
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                        const fmi2Integer order[], fmi2Real value[])
+{ (void)vr; (void)n; (void)order; (void)value; UNSUPPORTED() }
+fmi2Status fmi2CancelStep(fmi2Component c) { UNSUPPORTED() }
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) { (void)s; (void)value; UNSUPPORTED() }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) { (void)s; (void)value; UNSUPPORTED() }
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) { (void)s; (void)value; UNSUPPORTED() }
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) { (void)s; (void)value; UNSUPPORTED() }
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) { (void)s; (void)value; UNSUPPORTED() }

@@ -1,0 +1,315 @@
+"""Co-Simulation FMUs (FMI 2.0) as sampled components of the Model Exchange system.
+
+A Co-Simulation FMU integrates itself; the master only says when to step. Here it runs as a
+*sampled component*: stepped with ``fmi2DoStep`` at a fixed communication interval ``h`` (the
+scenario's ``communication_interval.NAME``), its inputs **sampled** at each communication point
+and held until the next, its outputs **held** between communication points. Each communication
+point is a time event of the Model Exchange system: the master stops CVODE there, the component
+steps from the last point to this one with the inputs it held, its new outputs become the new
+values of the Model Exchange inputs they drive (an event of those FMUs, like a sequencer step),
+and the Model Exchange outputs it reads are sampled at that instant for the next step
+(Jacobi-style: every component steps with the values of the last point).
+
+This is loose coupling: a connected Model Exchange FMU sees a staircase, delayed by up to ``h``,
+the CS FMU sees its inputs as a staircase too. For a ramp through a first-order lag the delay is
+about ``h / 2`` on each side (docs/fmus.md gives the measured figures). An algebraic loop through
+a CS FMU cannot be solved at a communication point with held values, so it is refused up front
+(:func:`split_sampled`). Only Real variables of a CS FMU may be connected.
+
+The component's outputs connected to Model Exchange inputs are master inputs of the Model Exchange
+system (:class:`SampledSignal`, duck-typed like :class:`~heliostep.cosim.signals.PiecewiseConstant`,
+traced under ``INSTANCE.VARIABLE``), so the compiled kernel stays in use.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from heliostep.cosim.connections import ConnectionGraph, split_name
+from heliostep.cosim.description import FMUInfo, _extract, convert_value
+from heliostep.cosim.fmi import FMIError, _by_environment, _callbacks, _environment_ids
+from heliostep.cosim.signals import Connection, PiecewiseConstant
+from heliostep.errors import InputError
+
+if TYPE_CHECKING:
+    from heliostep.cosim.system import CoupledSystem
+
+__all__ = ["CoSimulationInstance", "SampledComponent", "SampledSignal", "SampledSystem", "split_sampled"]
+
+
+class CoSimulationInstance:
+    """One instance of an FMI 2.0 Co-Simulation FMU (fmpy's ``FMU2Slave``), every FMI error an
+    :class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time and the FMU's messages."""
+
+    def __init__(self, info: FMUInfo, name: str, parameters: Mapping[str, object]):
+        from fmpy.fmi2 import FMU2Slave
+
+        self.info, self.name = info, name
+        self.messages: deque[str] = deque(maxlen=50)
+        self.time = float("nan")
+        self._environment = next(_environment_ids)
+        _by_environment[self._environment] = self  # type: ignore[assignment]  # the logger routes by this
+        self._callbacks = _callbacks(self._environment)
+        self._slave: Any = None
+        slave = FMU2Slave(
+            guid=info.guid, unzipDirectory=_extract(info.path), modelIdentifier=info.model_identifier, instanceName=name
+        )
+        self._do("fmi2Instantiate", slave.instantiate, callbacks=self._callbacks)
+        self._slave = slave
+        self._parameters = dict(parameters)
+
+    def _do(self, function: str, call: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        self.messages.clear()
+        try:
+            return call(*args, **kwargs)
+        except Exception as exc:  # fmpy's FMICallException and the like
+            raise FMIError(function, self.name, f"failure ({exc})", self.messages, self.time) from None
+
+    def initialize(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
+        """setupExperiment, parameters and inputs set in initialization mode, exitInitializationMode."""
+        slave, variables = self._slave, self.info.variables
+        self.time = start_time
+        self._do("fmi2SetupExperiment", slave.setupExperiment, startTime=start_time, stopTime=stop_time)
+        self._do("fmi2EnterInitializationMode", slave.enterInitializationMode)
+        for name, value in self._parameters.items():
+            if name not in variables or variables[name].causality != "parameter":
+                known = ", ".join(v for v in variables if variables[v].causality == "parameter")
+                raise InputError(
+                    f"{self.name} ({self.info.path.name}) has no parameter {name!r}; its parameters: {known}"
+                )
+            self._set(name, convert_value(variables[name], value))
+        for name, value in inputs.items():
+            self._set(name, value)
+        self._do("fmi2ExitInitializationMode", slave.exitInitializationMode)
+
+    def _set(self, name: str, value: Any) -> None:
+        variable = self.info.variables[name]
+        setter = {"Real": "setReal", "Integer": "setInteger", "Enumeration": "setInteger", "Boolean": "setBoolean"}
+        method = setter.get(variable.type, "setString")
+        self._do(f"fmi2S{method[1:]}", getattr(self._slave, method), [variable.value_reference], [value])
+
+    def set_real(self, names: Sequence[str], values: Sequence[float]) -> None:
+        refs = [self.info.variables[n].value_reference for n in names]
+        self._do("fmi2SetReal", self._slave.setReal, refs, [float(v) for v in values])
+
+    def get_real(self, names: Sequence[str]) -> list[float]:
+        refs = [self.info.variables[n].value_reference for n in names]
+        return list(self._do("fmi2GetReal", self._slave.getReal, refs))
+
+    def do_step(self, to_time: float) -> None:
+        """fmi2DoStep from the instance's time to ``to_time`` [s]."""
+        self._do("fmi2DoStep", self._slave.doStep, self.time, to_time - self.time)
+        self.time = to_time
+
+    def close(self) -> None:
+        """fmi2Terminate (errors ignored: the run's own error, if any, is what counts) and fmi2FreeInstance."""
+        slave, self._slave = self._slave, None
+        if slave is None:
+            return
+        for call in (slave.terminate, slave.freeInstance):
+            try:
+                call()
+            except Exception:  # noqa: BLE001 - closing after a failure must not hide it
+                pass
+        try:
+            slave.freeLibrary()
+        except Exception:  # noqa: BLE001
+            pass
+
+
+class SampledComponent:
+    """A Co-Simulation FMU stepped every ``interval`` [s]: its held outputs and its communication points."""
+
+    def __init__(self, name: str, info: FMUInfo, interval: float, parameters: Mapping[str, object]):
+        self.name, self.info, self.interval = name, info, float(interval)
+        self.parameters = dict(parameters)
+        self.outputs = [v for v in info.outputs if info.variables[v].type == "Real"]
+        self.held = {v: float(info.variables[v].start or 0.0) for v in self.outputs}  # before the start: starts
+        self.times: np.ndarray = np.zeros(0)  # the communication points after the start, up to the stop time
+        self.steps = 0
+        self.instance: CoSimulationInstance | None = None
+
+    def start(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
+        count = math.floor((stop_time - start_time) / self.interval * (1.0 + 1e-12))
+        self.times = start_time + self.interval * np.arange(1, count + 1)
+        if not len(self.times) or self.times[-1] < stop_time * (1.0 - 1e-12):
+            self.times = np.append(self.times, stop_time)  # the last point at the stop time
+        self.steps = 0
+        self.instance = CoSimulationInstance(self.info, self.name, self.parameters)
+        self.instance.initialize(start_time, stop_time, inputs)
+        self._read()
+
+    def _read(self) -> None:
+        assert self.instance is not None
+        if self.outputs:
+            self.held = dict(zip(self.outputs, self.instance.get_real(self.outputs)))
+
+    def due(self, time: float) -> bool:
+        """Whether ``time`` [s] is a communication point this component has not stepped to yet."""
+        assert self.instance is not None
+        return time > self.instance.time + 1e-12 * max(1.0, abs(time)) and bool(
+            np.any(np.abs(self.times - time) <= 1e-9 * max(1.0, abs(time)))
+        )
+
+    def step_to(self, time: float) -> None:
+        assert self.instance is not None
+        self.instance.do_step(time)
+        self.steps += 1
+        self._read()
+
+
+class SampledSignal:
+    """A sampled component's output as a master input of the Model Exchange system (duck-typed like
+    :class:`~heliostep.cosim.signals.PiecewiseConstant`): it changes at the component's communication
+    points, to the value the component's step gives (asked of ``group`` when the master asks)."""
+
+    def __init__(self, group: SampledSystem, component: SampledComponent, variable: str, target: str):
+        self.group, self.component, self.variable = group, component, variable
+        self.name = f"{component.name}.{variable}"
+        self.target = target
+
+    @property
+    def times(self) -> np.ndarray:
+        return self.component.times
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.array([self.component.held[self.variable]])
+
+    def value_at(self, time: float) -> float:
+        self.group.communicate(time)
+        return self.component.held[self.variable]
+
+
+class SampledSystem:
+    """The sampled components of a run and their connections to the Model Exchange system."""
+
+    def __init__(self, components: dict[str, SampledComponent], connections: Sequence[Connection]):
+        self.components = components
+        self.connections = list(connections)  # every connection with a sampled end
+        self.signals: list[SampledSignal] = []  # every Real output traced; each drives its Model Exchange inputs
+        for name, component in components.items():
+            for output in component.outputs:
+                targets = [
+                    c.target
+                    for c in self.connections
+                    if c.source == f"{name}.{output}" and split_name(c.target, "target")[0] not in components
+                ]
+                for k, target in enumerate(targets or [""]):
+                    signal = SampledSignal(self, component, output, target)
+                    if k:  # the same value driving a second input: a column of its own name
+                        signal.name = f"{signal.name} -> {target}"
+                    self.signals.append(signal)
+        self._readers: list[tuple[SampledComponent, str, Callable[[], float]]] = []
+
+    def start(self, start_time: float, stop_time: float) -> None:
+        """Every component instantiated and initialized (its inputs at their start values)."""
+        for component in self.components.values():
+            starts = {
+                split_name(c.target, "target")[1]: float(
+                    component.info.variables[split_name(c.target, "t")[1]].start or 0.0
+                )
+                for c in self.connections
+                if split_name(c.target, "target")[0] == component.name
+            }
+            component.start(start_time, stop_time, starts)
+
+    def bind(self, system: CoupledSystem) -> None:
+        """The readers of each sampled component's inputs: Model Exchange outputs of ``system``, or
+        another component's held output; then every input sampled (the start)."""
+        self._readers = []
+        for c in self.connections:
+            target, variable = split_name(c.target, "target")
+            if target not in self.components:
+                continue
+            source, output = split_name(c.source, "source")
+            if source in self.components:
+                read: Callable[[], float] = functools.partial(_held_value, self.components[source], output)
+            else:
+                read = functools.partial(_first_value, system.units[source].fmu.reader([output]))
+            self._readers.append((self.components[target], variable, read))
+        self._sample(list(self.components.values()))
+
+    def _sample(self, components: list[SampledComponent]) -> None:
+        for component in components:
+            pairs = [(variable, read()) for owner, variable, read in self._readers if owner is component]
+            if pairs and component.instance is not None:
+                component.instance.set_real([p[0] for p in pairs], [p[1] for p in pairs])
+
+    def communicate(self, time: float) -> None:
+        """At a communication point: the components due step to it with the inputs they held, then
+        their inputs are sampled (the Model Exchange system at ``time``, before its event)."""
+        due = [component for component in self.components.values() if component.due(time)]
+        for component in due:
+            component.step_to(time)
+        self._sample(due)
+
+    def statistics(self) -> dict[str, dict[str, float]]:
+        return {name: {"interval_s": c.interval, "steps": c.steps} for name, c in self.components.items()}
+
+    def close(self) -> None:
+        for component in self.components.values():
+            if component.instance is not None:
+                component.instance.close()
+
+
+def _held_value(component: SampledComponent, output: str) -> float:
+    return component.held[output]
+
+
+def _first_value(reader: Callable[[], np.ndarray]) -> float:
+    return float(reader()[0])
+
+
+def split_sampled(
+    fmus: Mapping[str, FMUInfo],
+    connections: Sequence[Connection],
+    inputs: Sequence[PiecewiseConstant],
+    intervals: Mapping[str, float],
+    parameters: Mapping[str, Mapping[str, object]] | None = None,
+) -> tuple[dict[str, FMUInfo], list[Connection], SampledSystem | None]:
+    """The Model Exchange FMUs and connections, and the sampled system of the Co-Simulation FMUs
+    (None without any); InputError for what a sampled component cannot do: an instance read for
+    Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real
+    connection, an algebraic loop through it (named, with the loop)."""
+    sampled = {name for name, info in fmus.items() if info.co_simulation}
+    for name in sampled ^ set(intervals):
+        raise InputError(
+            f"FMU instance {name!r}: communication_interval.{name} and its FMU read for Co-Simulation go together"
+        )
+    if not sampled:
+        return dict(fmus), list(connections), None
+    for item in inputs:
+        if split_name(item.target, "input target")[0] in sampled:
+            raise InputError(
+                f"input {item.name} drives {item.target}, an input of a Co-Simulation FMU: master inputs drive"
+                " Model Exchange FMUs only"
+            )
+    graph = ConnectionGraph(fmus, connections)  # every end checked (units, types); loops found over all FMUs
+    for loop in graph.loops:
+        inside = sorted(name for name in sampled if re.search(rf"(?<![\w.]){re.escape(name)}\.", loop))
+        if inside:
+            raise InputError(
+                f"the Co-Simulation FMU {inside[0]!r} ({fmus[inside[0]].path.name}) is in an algebraic loop: {loop}; "
+                "a sampled component's outputs are held between communication points, so the loop cannot be solved "
+                "there: break it with a state, remove a connection, or use the FMU as Model Exchange"
+            )
+    ends = [c for c in connections if {split_name(c.source, "s")[0], split_name(c.target, "t")[0]} & sampled]
+    for c in ends:
+        for end in (c.source, c.target):
+            instance, variable = split_name(end, "connection end")
+            if instance in sampled and fmus[instance].variables[variable].type != "Real":
+                raise InputError(
+                    f"connection {c.source} -> {c.target}: only Real variables of a Co-Simulation FMU connect"
+                )
+    values = parameters or {}
+    components = {name: SampledComponent(name, fmus[name], intervals[name], values.get(name, {})) for name in sampled}
+    me_fmus = {name: info for name, info in fmus.items() if name not in sampled}
+    return me_fmus, [c for c in connections if c not in ends], SampledSystem(components, ends)

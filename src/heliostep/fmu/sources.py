@@ -1,0 +1,145 @@
+"""Source FMUs: an FMU that ships only ``sources/`` compiled on first use, cached by content.
+
+FMI 2.0 lets an FMU carry its C sources instead of (or besides) binaries: ``sources/`` holds them
+and ``modelDescription.xml`` lists the files to compile (``<SourceFiles>`` of the
+``ModelExchange`` element). :func:`with_platform_binary` leaves an FMU with a binary for this
+platform as it is; one without a binary but with sources is compiled with the project's toolchain
+(the C compiler of :func:`heliostep.fmu.export.compiler`, against the FMI 2.0 headers fmpy ships)
+into a copy of the FMU that adds ``binaries/<platform>/<modelIdentifier>.so``.
+
+The copy is cached like the project's own FMUs: under ``CACHE/sources/KEY16/NAME.fmu``, ``KEY16``
+the first 16 hex digits of a SHA-256 of the FMU's bytes, this module and the compiler's version
+line, its own SHA-256 recorded beside it (``NAME.fmu.sha256``) and checked before every use; a
+second use finds it there and compiles nothing. A compilation that fails is bad input
+(:class:`~heliostep.errors.InputError`, exit 2) naming the FMU and the compiler's first error.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import zipfile
+from importlib import metadata, resources
+from pathlib import Path
+
+from heliostep.errors import InputError
+from heliostep.fmu.build import digest_path, file_sha256, verified
+from heliostep.fmu.export import compiler
+from heliostep.toolchain import compiler_version, exclusive_lock
+
+__all__ = ["SOURCE_CACHE", "source_build_key", "with_platform_binary"]
+
+#: The folder of the FMU cache that holds compiled source FMUs.
+SOURCE_CACHE = "sources"
+_FIXED_TIME = (1980, 1, 1, 0, 0, 0)  # zip entries' time stamps: the copy is the same bytes every time
+
+
+def _platform() -> str:
+    from fmpy import platform
+
+    return platform
+
+
+def _identifier_and_sources(path: Path, names: list[str]) -> tuple[str, list[str]] | None:
+    """(modelIdentifier, the source files to compile) of a source-only Model Exchange FMU, else None."""
+    from fmpy import read_model_description
+
+    try:
+        description = read_model_description(str(path), validate=False)
+    except Exception:  # an FMU fmpy cannot read: read_fmu refuses it with its own message
+        return None
+    interface = description.modelExchange
+    if description.fmiVersion != "2.0" or interface is None:
+        return None
+    listed = list(getattr(interface, "sourceFiles", None) or [])
+    if not listed:  # no list: every C file at the top of sources/
+        listed = sorted(n[len("sources/") :] for n in names if n.startswith("sources/") and n.endswith(".c"))
+        listed = [n for n in listed if "/" not in n]
+    return interface.modelIdentifier, listed
+
+
+def source_build_key(path: Path) -> str:
+    """SHA-256 of what a compiled source FMU depends on: the FMU, this module, fmpy and the compiler."""
+    digest = hashlib.sha256(Path(path).read_bytes())
+    digest.update((resources.files("heliostep.fmu") / "sources.py").read_bytes())
+    digest.update(f"fmpy {metadata.version('fmpy')}\0{compiler_version(compiler())}".encode())
+    return digest.hexdigest()
+
+
+def with_platform_binary(path: Path, cache: Path) -> Path:
+    """``path`` itself when it has a binary for this platform (or no sources); else its compiled copy
+    in ``cache`` (compiled now unless a verified one is there)."""
+    path = Path(path)
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = archive.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return path  # read_fmu names what is wrong with it
+    if any(n.startswith(f"binaries/{_platform()}/") for n in names) or not any(n.startswith("sources/") for n in names):
+        return path
+    found = _identifier_and_sources(path, names)
+    if found is None:
+        return path
+    key = source_build_key(path)
+    target = Path(cache) / SOURCE_CACHE / key[:16] / path.name
+    if verified(target):
+        return target
+    try:
+        with exclusive_lock(Path(cache) / ".build" / f"source-{key[:16]}.lock"):
+            if not verified(target):
+                _compile(path, names, *found, target)
+    except OSError as exc:
+        raise InputError(
+            f"{path}: a source FMU, to be compiled into the FMU cache {cache} ($HELIOSTEP_FMUS), which cannot be "
+            f"written ({exc.strerror or exc}); point HELIOSTEP_FMUS at a writable folder"
+        ) from None
+    return target
+
+
+def _compile(path: Path, names: list[str], identifier: str, sources: list[str], target: Path) -> None:
+    """Compile the FMU's sources into a copy with the binary added, at ``target`` (digest beside it)."""
+    import fmpy
+
+    work = Path(tempfile.mkdtemp(prefix=f"source-{identifier}-{os.getpid()}-", dir=target.parents[2] / ".build"))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(work / "fmu")
+        folder = work / "fmu" / "sources"
+        missing = [s for s in sources if not (folder / s).is_file()]
+        if missing:
+            raise InputError(
+                f"{path}: its modelDescription.xml lists source files not in sources/: {', '.join(missing)}"
+            )
+        library = work / f"{identifier}.so"
+        headers = str(Path(fmpy.__file__).parent / "c-code")
+        command = [compiler(), "-shared", "-fPIC", "-O2", "-I", "sources", "-I", headers]
+        command += [f"sources/{s}" for s in sources] + ["-o", str(library), "-lm"]
+        plain = {**os.environ, "LC_ALL": "C"}  # the compiler's messages in plain ASCII, paths inside the FMU
+        result = subprocess.run(command, capture_output=True, text=True, cwd=work / "fmu", env=plain)
+        if result.returncode != 0:
+            raise InputError(
+                f"{path}: a source FMU that does not compile: {_first_error(result.stderr + result.stdout)}"
+            )
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial = work / target.name
+        with zipfile.ZipFile(path) as original, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as copy:
+            for name in names:
+                copy.writestr(zipfile.ZipInfo(name, _FIXED_TIME), original.read(name), zipfile.ZIP_DEFLATED)
+            entry = zipfile.ZipInfo(f"binaries/{_platform()}/{identifier}.so", _FIXED_TIME)
+            copy.writestr(entry, library.read_bytes(), zipfile.ZIP_DEFLATED)
+        partial.replace(target)
+        record = work / "digest"
+        record.write_text(file_sha256(target) + "\n")
+        record.replace(digest_path(target))  # the copy counts as compiled once this is in place
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _first_error(output: str) -> str:
+    """The compiler's first error line (else its first line)."""
+    lines = [line.strip() for line in output.splitlines() if line.strip()]
+    errors = [line for line in lines if "error" in line.lower()]
+    return (errors or lines or ["the compiler failed and said nothing"])[0]
