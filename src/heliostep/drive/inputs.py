@@ -10,7 +10,9 @@ This is the second stage of heliostep's one-way data flow
 3. the step instants where that reference crosses half-step boundaries
    (:func:`heliostep.drive.sequencer.schedule_steps`, exact roots of a monotone interpolant);
 4. the sequencer's reference currents (piecewise constant, changing at the steps) and the
-   wind moment, as plain arrays (the run hands them to the master by role);
+   wind moment, as plain arrays (the run hands them to the master by role); with a wind speed
+   (:mod:`heliostep.drive.wind_load`) the reference includes the stow moves
+   (:mod:`heliostep.drive.stow`) and the moment is a signal on the commanded panel angle;
 5. the output grid: regular, plus a finer grid for a while after each step.
 """
 
@@ -30,6 +32,8 @@ from heliostep.drive.sequencer import (
     reference_interpolant,
     schedule_steps,
 )
+from heliostep.drive.stow import StowMove, plan_stow, stowed_spans
+from heliostep.drive.wind_load import WindSignal, commanded_panel_angle, moment_signal, wind_speed_knots
 from heliostep.scenario import Scenario
 from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
 
@@ -57,6 +61,11 @@ class DriveInputs:
     #: parameter values the scenario implies, by role (initial panel and rotor angle,
     #: transmission, initial phase currents: the drive holds its first step at the start)
     implied_parameters: dict = field(default_factory=dict)
+    #: the wind's moment signal and speed (None: the constant ``wind_moment``)
+    wind_signal: WindSignal | None = None
+    #: the stow and return moves, and the spans off tracking (start, end) [s]
+    stow_moves: tuple[StowMove, ...] = ()
+    stowed_spans: tuple[tuple[float, float], ...] = ()
 
     def panel_reference(self) -> PchipInterpolator:
         """Reference panel angle [rad] over time [s] (the same interpolation as the steps)."""
@@ -99,15 +108,16 @@ def held_current(scenario: Scenario, reference: float) -> float:
     return values["K_current"] * reference / (values["K_current"] + values["R"])
 
 
-def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> float:
+def loaded_lag(scenario: Scenario, reference: float, panel_angle: float, moment: float | None = None) -> float:
     """Elastic lag [rad] of the rotor behind its detent under the wind moment, held by ``reference`` A.
 
     Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) ([paper], eqs. 9, 10)
     and g = s / (r cos^2 theta_p) ([paper], eq. 15), so delta = asin(M_ext / (g k_e i)) / N_c.
     0 without wind; raises nothing when the moment exceeds the holding torque (the lag is then
-    capped at a quarter of an electrical period: the drive cannot hold and will slip).
+    capped at a quarter of an electrical period: the drive cannot hold and will slip). ``moment``:
+    the external moment at the start [N.m] (default the constant ``wind.moment``).
     """
-    moment = scenario.wind.moment
+    moment = scenario.wind.moment if moment is None else moment
     if moment == 0.0 or reference == 0.0:
         return 0.0
     motor = scenario.roles.instance_of("torque") or "motor"
@@ -130,6 +140,16 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     times = reference_times(duration)
     index = start + pd.to_timedelta(times, unit="s")
     panel = scenario_panel_angle(scenario, index)
+    knots = wind_speed_knots(scenario, start, duration)
+    moves: tuple[StowMove, ...] = ()
+    spans: tuple[tuple[float, float], ...] = ()
+    wind = scenario.wind
+    if knots is not None and wind.stow_speed is not None:
+        found = stowed_spans(*knots, wind.stow_speed, wind.calm_time, duration)
+        if found:
+            tracking = PchipInterpolator(times, panel, extrapolate=True)
+            plan = plan_stow(times, tracking, found, np.radians(wind.stow_angle), np.radians(wind.slew_rate), duration)
+            times, panel, moves, spans = plan.times, plan.panel_angle, plan.moves, plan.stowed
     transmission = scenario.transmission
     rotor = rotor_angle_from_panel(
         panel, panel[0], transmission.pinion_radius, transmission.lever_arm, rotor_angle0=0.0
@@ -146,11 +166,23 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     i_a_ref, i_b_ref = sequencer.reference_currents(indices)
     out = scenario.output
     grid = output_grid(duration, out.interval, schedule.times, out.step_detail, out.step_interval)
+    signal = None
+    if knots is not None:
+        start_angle = float(panel[0])
+
+        def commanded(t):
+            rotor_cmd = sequencer.position(schedule.index_at(np.asarray(t, dtype=float)))
+            return commanded_panel_angle(rotor_cmd, start_angle, transmission.pinion_radius, transmission.lever_arm)
+
+        signal = moment_signal(scenario, knots, schedule.times, commanded, duration)
     # the run starts at the drive's holding equilibrium: the rotor at its loaded detent (the
     # commanded position minus the elastic lag under the wind moment), the panel where the
     # transmission puts it; the motor model starts its currents at what its loop holds
     rotor0 = float(sequencer.position(schedule.initial_index)) - loaded_lag(
-        scenario, float(np.hypot(i_a_ref[0], i_b_ref[0])), float(panel[0])
+        scenario,
+        float(np.hypot(i_a_ref[0], i_b_ref[0])),
+        float(panel[0]),
+        None if signal is None else float(signal.values[0]),
     )
     panel0 = float(np.arctan(np.tan(panel[0]) + rotor0 * transmission.pinion_radius / transmission.lever_arm))
     implied = {
@@ -174,6 +206,9 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
         wind_moment=scenario.wind.moment,
         output_times=grid,
         implied_parameters=implied,
+        wind_signal=signal,
+        stow_moves=moves,
+        stowed_spans=spans,
     )
 
 
