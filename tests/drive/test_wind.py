@@ -35,7 +35,9 @@ def test_moment_is_the_formula(speed, angle_deg):
 def test_moment_vectorised_equals_the_scalars():
     speeds, angles = np.array([3.0, 10.0, 25.0]), np.radians([-10.0, 20.0, 70.0])
     got = wind.panel_wind_moment(speeds, angles, 1.0, 0.5)
-    expected = [_moment_here(v, math.degrees(a), 1.0, 0.5, wind.ISA_SEA_LEVEL_DENSITY, 1.0) for v, a in zip(speeds, angles)]
+    expected = [
+        _moment_here(v, math.degrees(a), 1.0, 0.5, wind.ISA_SEA_LEVEL_DENSITY, 1.0) for v, a in zip(speeds, angles)
+    ]
     assert got == pytest.approx(expected, rel=1e-12)
 
 

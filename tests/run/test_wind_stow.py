@@ -163,5 +163,6 @@ def test_a_weather_files_wind_speed_is_the_load(tmp_path, capsys, fmu_paths):
     panel = math.radians(summary["final_panel_angle_deg"])
     alpha = abs(panel)
     cm = (1.0 / (0.222 + 0.283 / math.sin(alpha))) * (0.5 - 0.195 - 0.305 * math.sin(alpha))
-    expected = cm * 0.5 * 1.225 * (1.52 * speed) ** 2 * 0.45 * 0.3
+    density = 101325.0 / (287.05287 * (273.15 + 10.0))  # sea level at the file's dry bulb, 10 degC
+    expected = cm * 0.5 * density * (1.52 * speed) ** 2 * 0.45 * 0.3
     assert summary["wind_peak_moment_Nm"] == pytest.approx(expected, rel=0.01)

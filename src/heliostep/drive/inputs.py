@@ -32,8 +32,8 @@ from heliostep.drive.sequencer import (
     reference_interpolant,
     schedule_steps,
 )
-from heliostep.drive.stow import StowMove, plan_stow, stowed_spans
-from heliostep.drive.wind_load import WindSignal, commanded_panel_angle, moment_signal, wind_speed_knots
+from heliostep.drive.stow import StowMove, StowPlan, plan_stow, stowed_spans
+from heliostep.drive.wind_load import WindKnots, WindSignal, commanded_panel_angle, moment_signal, wind_speed_knots
 from heliostep.scenario import Scenario
 from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
 
@@ -141,15 +141,9 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     index = start + pd.to_timedelta(times, unit="s")
     panel = scenario_panel_angle(scenario, index)
     knots = wind_speed_knots(scenario, start, duration)
-    moves: tuple[StowMove, ...] = ()
-    spans: tuple[tuple[float, float], ...] = ()
-    wind = scenario.wind
-    if knots is not None and wind.stow_speed is not None:
-        found = stowed_spans(*knots, wind.stow_speed, wind.calm_time, duration)
-        if found:
-            tracking = PchipInterpolator(times, panel, extrapolate=True)
-            plan = plan_stow(times, tracking, found, np.radians(wind.stow_angle), np.radians(wind.slew_rate), duration)
-            times, panel, moves, spans = plan.times, plan.panel_angle, plan.moves, plan.stowed
+    plan = stow_plan(scenario, knots, times, panel, duration)
+    if plan is not None:
+        times, panel = plan.times, plan.panel_angle
     transmission = scenario.transmission
     rotor = rotor_angle_from_panel(
         panel, panel[0], transmission.pinion_radius, transmission.lever_arm, rotor_angle0=0.0
@@ -166,33 +160,10 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     i_a_ref, i_b_ref = sequencer.reference_currents(indices)
     out = scenario.output
     grid = output_grid(duration, out.interval, schedule.times, out.step_detail, out.step_interval)
-    signal = None
-    if knots is not None:
-        start_angle = float(panel[0])
-
-        def commanded(t):
-            rotor_cmd = sequencer.position(schedule.index_at(np.asarray(t, dtype=float)))
-            return commanded_panel_angle(rotor_cmd, start_angle, transmission.pinion_radius, transmission.lever_arm)
-
-        signal = moment_signal(scenario, knots, schedule.times, commanded, duration)
-    # the run starts at the drive's holding equilibrium: the rotor at its loaded detent (the
-    # commanded position minus the elastic lag under the wind moment), the panel where the
-    # transmission puts it; the motor model starts its currents at what its loop holds
-    rotor0 = float(sequencer.position(schedule.initial_index)) - loaded_lag(
-        scenario,
-        float(np.hypot(i_a_ref[0], i_b_ref[0])),
-        float(panel[0]),
-        None if signal is None else float(signal.values[0]),
+    signal = (
+        None if knots is None else wind_moment_signal(scenario, knots, sequencer, schedule, float(panel[0]), duration)
     )
-    panel0 = float(np.arctan(np.tan(panel[0]) + rotor0 * transmission.pinion_radius / transmission.lever_arm))
-    implied = {
-        "panel_angle_start": panel0,
-        "rotor_angle_start": rotor0,
-        "pinion_radius": transmission.pinion_radius,
-        "lever_arm": transmission.lever_arm,
-        "current_a_start": float(i_a_ref[0]),
-        "current_b_start": float(i_b_ref[0]),
-    }
+    implied = implied_parameters(scenario, sequencer, schedule, (i_a_ref[0], i_b_ref[0]), float(panel[0]), signal)
     return DriveInputs(
         window_start=start,
         duration=duration,
@@ -207,9 +178,71 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
         output_times=grid,
         implied_parameters=implied,
         wind_signal=signal,
-        stow_moves=moves,
-        stowed_spans=spans,
+        stow_moves=() if plan is None else plan.moves,
+        stowed_spans=() if plan is None else plan.stowed,
     )
+
+
+def implied_parameters(
+    scenario: Scenario,
+    sequencer: Sequencer,
+    schedule: StepSchedule,
+    currents: tuple[float, float],
+    panel_start: float,
+    signal: WindSignal | None,
+) -> dict:
+    """The parameters the scenario implies, by role: the run starts at the drive's holding
+    equilibrium, the rotor at its loaded detent (the commanded position minus the elastic lag under
+    the wind moment at the start), the panel where the transmission puts it; the motor model starts
+    its currents at what its loop holds."""
+    transmission = scenario.transmission
+    rotor0 = float(sequencer.position(schedule.initial_index)) - loaded_lag(
+        scenario,
+        float(np.hypot(*currents)),
+        panel_start,
+        None if signal is None else float(signal.values[0]),
+    )
+    panel0 = float(np.arctan(np.tan(panel_start) + rotor0 * transmission.pinion_radius / transmission.lever_arm))
+    return {
+        "panel_angle_start": panel0,
+        "rotor_angle_start": rotor0,
+        "pinion_radius": transmission.pinion_radius,
+        "lever_arm": transmission.lever_arm,
+        "current_a_start": float(currents[0]),
+        "current_b_start": float(currents[1]),
+    }
+
+
+def stow_plan(scenario: Scenario, knots: WindKnots | None, times, panel, duration: float) -> StowPlan | None:
+    """The reference with the stow moves (:func:`heliostep.drive.stow.plan_stow`) when the wind's
+    speed goes above ``wind.stow_speed`` in the window; None otherwise (the tracking reference stands)."""
+    wind = scenario.wind
+    if knots is None or wind.stow_speed is None:
+        return None
+    found = stowed_spans(knots.times, knots.speed, wind.stow_speed, wind.calm_time, duration)
+    if not found:
+        return None
+    tracking = PchipInterpolator(times, panel, extrapolate=True)
+    return plan_stow(times, tracking, found, np.radians(wind.stow_angle), np.radians(wind.slew_rate), duration)
+
+
+def wind_moment_signal(
+    scenario: Scenario,
+    knots: WindKnots,
+    sequencer: Sequencer,
+    schedule: StepSchedule,
+    panel_start: float,
+    duration: float,
+) -> WindSignal:
+    """The wind's ``m_ext`` signal on the commanded panel angle (:func:`heliostep.drive.wind_load.moment_signal`):
+    the commanded rotor position through the transmission, 0 at ``panel_start`` [rad]."""
+    transmission = scenario.transmission
+
+    def commanded(t):
+        rotor_cmd = sequencer.position(schedule.index_at(np.asarray(t, dtype=float)))
+        return commanded_panel_angle(rotor_cmd, panel_start, transmission.pinion_radius, transmission.lever_arm)
+
+    return moment_signal(scenario, knots, schedule.times, commanded, duration)
 
 
 def scenario_panel_angle(scenario: Scenario, index: pd.DatetimeIndex) -> np.ndarray:

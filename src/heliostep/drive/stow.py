@@ -67,7 +67,8 @@ def threshold_crossings(times, speed, threshold: float) -> tuple[np.ndarray, np.
     """
     t, v = np.asarray(times, dtype=float), np.asarray(speed, dtype=float)
     above = v > threshold
-    up, down = ([float(t[0])] if above[0] else []), []
+    up: list[float] = [float(t[0])] if above[0] else []
+    down: list[float] = []
     for k in np.nonzero(above[1:] != above[:-1])[0]:
         fraction = (threshold - v[k]) / (v[k + 1] - v[k])  # linear between the knots
         (up if above[k + 1] else down).append(float(t[k] + fraction * (t[k + 1] - t[k])))

@@ -113,7 +113,7 @@ def panel_wind_moment(
     panel_angle,
     area: float,
     chord: float,
-    density: float = ISA_SEA_LEVEL_DENSITY,
+    density=ISA_SEA_LEVEL_DENSITY,
     gust_factor: float = 1.0,
 ):
     """The wind's moment on the panel axis [N.m], in the sense of positive rotation (vectorised).
@@ -130,7 +130,7 @@ def panel_wind_moment(
         The mirror's area.
     chord : float  [m]
         The mirror's width across its axis.
-    density : float, default ISA sea level  [kg/m^3]
+    density : float or array, default ISA sea level  [kg/m^3]
         :func:`air_density`.
     gust_factor : float, default 1  [-]
         Peak over mean speed (:data:`DURST_GUST_FACTOR` for a mean from a weather file).
@@ -148,6 +148,6 @@ def panel_wind_moment(
     return float(moment) if np.ndim(moment) == 0 else moment
 
 
-def external_moment(speed, panel_angle, area: float, chord: float, density: float, gust_factor: float = 1.0):
+def external_moment(speed, panel_angle, area: float, chord: float, density, gust_factor: float = 1.0):
     """The mechanics FMU's ``m_ext`` [N.m] (opposing positive rotation): ``-panel_wind_moment(...)``."""
     return -panel_wind_moment(speed, panel_angle, area, chord, density, gust_factor)

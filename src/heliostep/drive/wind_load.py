@@ -29,7 +29,7 @@ from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.solar.irradiance import WeatherFile
 
-__all__ = ["WindSignal", "moment_signal", "wind_speed_knots"]
+__all__ = ["WindKnots", "WindSignal", "commanded_panel_angle", "moment_signal", "wind_speed_knots"]
 
 
 @dataclass(frozen=True)
@@ -79,19 +79,38 @@ def _weather_path(scenario: Scenario) -> Path:
     return path if path.is_absolute() else Path(scenario.folder) / path
 
 
-def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """The mean wind speed's knots over the window: times [s from the start] and speeds [m/s], linear
-    between them; None with a constant moment (no speed). InputError names the file and key when a
-    weather file has no wind speed over the window."""
+@dataclass(frozen=True)
+class WindKnots:
+    """The wind over the window, linear between knots: ``times`` [s from the start], mean ``speed``
+    [m/s] and the air's ``temperature`` [degC] (None: the scenario's ``wind.air_temperature`` or
+    the ISA's)."""
+
+    times: np.ndarray
+    speed: np.ndarray
+    temperature: np.ndarray | None = None
+
+    def density(self, scenario: Scenario, times) -> np.ndarray:
+        """Air density [kg/m^3] at ``times`` [s]: the site's altitude at the file's temperature where
+        it has one, else at ``wind.air_temperature``, else the ISA's (:func:`heliostep.drive.wind.air_density`)."""
+        altitude, given = scenario.site.altitude, scenario.wind.air_temperature
+        times = np.asarray(times, dtype=float)
+        if given is None and self.temperature is not None and np.all(np.isfinite(self.temperature)):
+            return air_density(altitude, np.interp(times, self.times, self.temperature))
+        return np.broadcast_to(air_density(altitude, given), times.shape)
+
+
+def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -> WindKnots | None:
+    """The mean wind speed's knots over the window (:class:`WindKnots`); None with a constant moment
+    (no speed). InputError names the file and key when a weather file has no wind speed over the window."""
     wind = scenario.wind
     if wind.speed is not None:
-        return np.array([0.0, duration]), np.array([wind.speed, wind.speed])
+        return WindKnots(np.array([0.0, duration]), np.array([wind.speed, wind.speed]))
     if wind.profile is not None:
         t = np.array([p[0] for p in wind.profile], dtype=float)
         v = np.array([p[1] for p in wind.profile], dtype=float)
         inside = t[(t > 0.0) & (t < duration)]
         times = np.concatenate([[0.0], inside, [duration]])
-        return times, np.interp(times, t, v)
+        return WindKnots(times, np.interp(times, t, v))
     if wind.weather_file is None:
         return None
     path = _weather_path(scenario)
@@ -106,7 +125,8 @@ def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -
             f"{scenario.source}: wind.weather_file: {path} has no wind speed (wind_speed missing or "
             f"marked missing) over the window {start} - {end}; expected a speed [m/s] at every stamp"
         )
-    return (instants - start).total_seconds().to_numpy(dtype=float), speed
+    temperature = None if series.air_temperature is None else series.air_temperature.to_numpy(dtype=float)
+    return WindKnots((instants - start).total_seconds().to_numpy(dtype=float), speed, temperature)
 
 
 def commanded_panel_angle(rotor_angle, panel_start: float, pinion_radius: float, lever_arm: float) -> np.ndarray:
@@ -116,7 +136,7 @@ def commanded_panel_angle(rotor_angle, panel_start: float, pinion_radius: float,
 
 def moment_signal(
     scenario: Scenario,
-    knots: tuple[np.ndarray, np.ndarray],
+    knots: WindKnots,
     step_times: np.ndarray,
     commanded_panel,
     duration: float,
@@ -126,8 +146,8 @@ def moment_signal(
     Parameters
     ----------
     scenario : Scenario
-    knots : (array, array)
-        :func:`wind_speed_knots` [s], [m/s].
+    knots : WindKnots
+        :func:`wind_speed_knots`.
     step_times : array  [s]
         The drive's step instants.
     commanded_panel : callable
@@ -135,17 +155,17 @@ def moment_signal(
     duration : float  [s]
     """
     wind, optics = scenario.wind, scenario.optics
-    t_knots, v_knots = knots
+    t_knots, v_knots = knots.times, knots.speed
     grid = np.arange(0.0, duration, wind.update_interval)
     changes = np.unique(np.concatenate([step_times, t_knots, grid]))
     changes = changes[(changes > 0.0) & (changes < duration)]
     starts = np.concatenate([[0.0], changes])
     ends = np.concatenate([changes, [duration]])
-    density = float(air_density(scenario.site.altitude, wind.air_temperature))
     angle = commanded_panel(starts)  # held over each interval (the command changes only at steps)
 
     def at(times):
         speed = np.interp(times, t_knots, v_knots)
+        density = knots.density(scenario, times)
         return external_moment(speed, angle, optics.aperture_area, optics.mirror_width, density, wind.gust_factor)
 
     first, last = at(starts), at(ends)
