@@ -131,6 +131,24 @@ def test_a_stow_speed_below_zero_is_exit_2_naming_the_key(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize(
+    "overrides, key",
+    [
+        (["wind.profile=null", "wind.speed=-2"], "wind.speed"),
+        (["wind.speed=8"], "wind.profile"),  # a second source beside the profile: "got speed, profile"
+        (["wind.moment=5"], "wind.moment"),  # a constant moment and a speed
+        (["wind.profile=[[0, 5], [0, 6]]"], "wind.profile"),
+        (["wind.profile=[[0, 5], [10, -1]]"], "wind.profile"),
+        (["wind.slew_rate=0"], "wind.slew_rate"),
+        (["wind.calm_time=-1"], "wind.calm_time"),
+    ],
+)
+def test_bad_wind_keys_are_exit_2_naming_the_key(tmp_path, capsys, overrides, key):
+    status, err = _run(tmp_path, capsys, *overrides)
+    assert status == 2 and SCENARIO.name in err and key in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_weather_file_without_wind_speed_is_exit_2_naming_the_file_and_key(tmp_path, capsys):
     path = write_epw(tmp_path / "calm.epw", latitude=40.0, longitude=14.25, wind_of_hour=lambda h: 999.0)  # missing
     status, err = _run(tmp_path, capsys, "wind.profile=null", f"wind.weather_file={path}")
