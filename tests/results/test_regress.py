@@ -19,6 +19,7 @@ def test_every_shipped_scenario_matches_its_reference(fmu_paths, capsys):
         "jan21-small-angle",
         "jan21-weak-motor",
         "jan21-48v",
+        "jan21-windy",
     }
     status = main(["regress"])
     out = capsys.readouterr().out

@@ -281,9 +281,17 @@ def _report(result: RunResult, out_dir: Path) -> str:
         ("light_stepping_change_J", "  change from stepping [J]", "{:+.3g}"),
         ("light_lost_shared_primary_J", "  lost to the shared primary [J]", "{:.3g}"),
         ("mean_intercept", "mean intercept factor", "{:.3f}"),
+        ("wind_peak_moment_Nm", "peak wind moment [N.m]", "{:.3g}"),
+        ("stowed_time_s", "stowed [s]", "{:.1f}"),
+        ("light_lost_stowed_J", "  light lost while stowed [J]", "{:.4g}"),
     ):
         if s.get(key) is not None:
             lines.append(f"  {label:28s} {fmt.format(s[key])}")
+    for move in s.get("stow_moves", []):
+        lines.append(
+            f"  {move['kind'] + ' move [s]':28s} {move['start_s']:.1f} - {move['end_s']:.1f}: "
+            f"{move['steps_commanded']} steps, {move['missed_steps']} missed, {move['steps_lost']} lost"
+        )
     wall = result.metadata.get("statistics", {}).get("run_wall_time")
     if wall is not None:
         lines.append(f"  {'wall time [s]':28s} {wall:.2f}")

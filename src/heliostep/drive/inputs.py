@@ -10,7 +10,9 @@ This is the second stage of heliostep's one-way data flow
 3. the step instants where that reference crosses half-step boundaries
    (:func:`heliostep.drive.sequencer.schedule_steps`, exact roots of a monotone interpolant);
 4. the sequencer's reference currents (piecewise constant, changing at the steps) and the
-   wind moment, as plain arrays (the run hands them to the master by role);
+   wind moment, as plain arrays (the run hands them to the master by role); with a wind speed
+   (:mod:`heliostep.drive.wind_load`) the reference includes the stow moves
+   (:mod:`heliostep.drive.stow`) and the moment is a signal on the commanded panel angle;
 5. the output grid: regular, plus a finer grid for a while after each step.
 """
 
@@ -30,6 +32,8 @@ from heliostep.drive.sequencer import (
     reference_interpolant,
     schedule_steps,
 )
+from heliostep.drive.stow import StowMove, StowPlan, plan_stow, stowed_spans
+from heliostep.drive.wind_load import WindKnots, WindSignal, commanded_panel_angle, moment_signal, wind_speed_knots
 from heliostep.scenario import Scenario
 from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
 
@@ -57,6 +61,11 @@ class DriveInputs:
     #: parameter values the scenario implies, by role (initial panel and rotor angle,
     #: transmission, initial phase currents: the drive holds its first step at the start)
     implied_parameters: dict = field(default_factory=dict)
+    #: the wind's moment signal and speed (None: the constant ``wind_moment``)
+    wind_signal: WindSignal | None = None
+    #: the stow and return moves, and the spans off tracking (start, end) [s]
+    stow_moves: tuple[StowMove, ...] = ()
+    stowed_spans: tuple[tuple[float, float], ...] = ()
 
     def panel_reference(self) -> PchipInterpolator:
         """Reference panel angle [rad] over time [s] (the same interpolation as the steps)."""
@@ -99,15 +108,16 @@ def held_current(scenario: Scenario, reference: float) -> float:
     return values["K_current"] * reference / (values["K_current"] + values["R"])
 
 
-def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> float:
+def loaded_lag(scenario: Scenario, reference: float, panel_angle: float, moment: float | None = None) -> float:
     """Elastic lag [rad] of the rotor behind its detent under the wind moment, held by ``reference`` A.
 
     Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) ([paper], eqs. 9, 10)
     and g = s / (r cos^2 theta_p) ([paper], eq. 15), so delta = asin(M_ext / (g k_e i)) / N_c.
     0 without wind; raises nothing when the moment exceeds the holding torque (the lag is then
-    capped at a quarter of an electrical period: the drive cannot hold and will slip).
+    capped at a quarter of an electrical period: the drive cannot hold and will slip). ``moment``:
+    the external moment at the start [N.m] (default the constant ``wind.moment``).
     """
-    moment = scenario.wind.moment
+    moment = scenario.wind.moment if moment is None else moment
     if moment == 0.0 or reference == 0.0:
         return 0.0
     motor = scenario.roles.instance_of("torque") or "motor"
@@ -130,6 +140,10 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     times = reference_times(duration)
     index = start + pd.to_timedelta(times, unit="s")
     panel = scenario_panel_angle(scenario, index)
+    knots = wind_speed_knots(scenario, start, duration)
+    plan = stow_plan(scenario, knots, times, panel, duration)
+    if plan is not None:
+        times, panel = plan.times, plan.panel_angle
     transmission = scenario.transmission
     rotor = rotor_angle_from_panel(
         panel, panel[0], transmission.pinion_radius, transmission.lever_arm, rotor_angle0=0.0
@@ -146,21 +160,10 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     i_a_ref, i_b_ref = sequencer.reference_currents(indices)
     out = scenario.output
     grid = output_grid(duration, out.interval, schedule.times, out.step_detail, out.step_interval)
-    # the run starts at the drive's holding equilibrium: the rotor at its loaded detent (the
-    # commanded position minus the elastic lag under the wind moment), the panel where the
-    # transmission puts it; the motor model starts its currents at what its loop holds
-    rotor0 = float(sequencer.position(schedule.initial_index)) - loaded_lag(
-        scenario, float(np.hypot(i_a_ref[0], i_b_ref[0])), float(panel[0])
+    signal = (
+        None if knots is None else wind_moment_signal(scenario, knots, sequencer, schedule, float(panel[0]), duration)
     )
-    panel0 = float(np.arctan(np.tan(panel[0]) + rotor0 * transmission.pinion_radius / transmission.lever_arm))
-    implied = {
-        "panel_angle_start": panel0,
-        "rotor_angle_start": rotor0,
-        "pinion_radius": transmission.pinion_radius,
-        "lever_arm": transmission.lever_arm,
-        "current_a_start": float(i_a_ref[0]),
-        "current_b_start": float(i_b_ref[0]),
-    }
+    implied = implied_parameters(scenario, sequencer, schedule, (i_a_ref[0], i_b_ref[0]), float(panel[0]), signal)
     return DriveInputs(
         window_start=start,
         duration=duration,
@@ -174,7 +177,72 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
         wind_moment=scenario.wind.moment,
         output_times=grid,
         implied_parameters=implied,
+        wind_signal=signal,
+        stow_moves=() if plan is None else plan.moves,
+        stowed_spans=() if plan is None else plan.stowed,
     )
+
+
+def implied_parameters(
+    scenario: Scenario,
+    sequencer: Sequencer,
+    schedule: StepSchedule,
+    currents: tuple[float, float],
+    panel_start: float,
+    signal: WindSignal | None,
+) -> dict:
+    """The parameters the scenario implies, by role: the run starts at the drive's holding
+    equilibrium, the rotor at its loaded detent (the commanded position minus the elastic lag under
+    the wind moment at the start), the panel where the transmission puts it; the motor model starts
+    its currents at what its loop holds."""
+    transmission = scenario.transmission
+    rotor0 = float(sequencer.position(schedule.initial_index)) - loaded_lag(
+        scenario,
+        float(np.hypot(*currents)),
+        panel_start,
+        None if signal is None else float(signal.values[0]),
+    )
+    panel0 = float(np.arctan(np.tan(panel_start) + rotor0 * transmission.pinion_radius / transmission.lever_arm))
+    return {
+        "panel_angle_start": panel0,
+        "rotor_angle_start": rotor0,
+        "pinion_radius": transmission.pinion_radius,
+        "lever_arm": transmission.lever_arm,
+        "current_a_start": float(currents[0]),
+        "current_b_start": float(currents[1]),
+    }
+
+
+def stow_plan(scenario: Scenario, knots: WindKnots | None, times, panel, duration: float) -> StowPlan | None:
+    """The reference with the stow moves (:func:`heliostep.drive.stow.plan_stow`) when the wind's
+    speed goes above ``wind.stow_speed`` in the window; None otherwise (the tracking reference stands)."""
+    wind = scenario.wind
+    if knots is None or wind.stow_speed is None:
+        return None
+    found = stowed_spans(knots.times, knots.speed, wind.stow_speed, wind.calm_time, duration)
+    if not found:
+        return None
+    tracking = PchipInterpolator(times, panel, extrapolate=True)
+    return plan_stow(times, tracking, found, np.radians(wind.stow_angle), np.radians(wind.slew_rate), duration)
+
+
+def wind_moment_signal(
+    scenario: Scenario,
+    knots: WindKnots,
+    sequencer: Sequencer,
+    schedule: StepSchedule,
+    panel_start: float,
+    duration: float,
+) -> WindSignal:
+    """The wind's ``m_ext`` signal on the commanded panel angle (:func:`heliostep.drive.wind_load.moment_signal`):
+    the commanded rotor position through the transmission, 0 at ``panel_start`` [rad]."""
+    transmission = scenario.transmission
+
+    def commanded(t):
+        rotor_cmd = sequencer.position(schedule.index_at(np.asarray(t, dtype=float)))
+        return commanded_panel_angle(rotor_cmd, panel_start, transmission.pinion_radius, transmission.lever_arm)
+
+    return moment_signal(scenario, knots, schedule.times, commanded, duration)
 
 
 def scenario_panel_angle(scenario: Scenario, index: pd.DatetimeIndex) -> np.ndarray:

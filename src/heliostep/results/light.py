@@ -326,6 +326,13 @@ class LightIntegrals:
             powers["first_order_cosine"] = series["stepping_first_order_cosine_W"]
             # the error weighted by the power in time (rows cluster at the steps: a sum over rows is biased)
             powers["error_weighted"] = series["power_reference_W"] * series["driven_error_rad"]
+        spans = self.metadata.get("drive", {}).get("stowed_spans_s")
+        if spans and "power_actual_W" in series:  # the light while stowed (off tracking, heliostep.drive.stow)
+            stowed = np.zeros(len(seconds), dtype=bool)
+            for a, b in spans:
+                stowed |= (seconds >= a) & (seconds <= b)
+            powers["stowed_ideal"] = np.where(stowed, series["power_ideal_W"], 0.0)
+            powers["stowed_actual"] = np.where(stowed, series["power_actual_W"], 0.0)
         for name, power in powers.items():
             time = seconds
             if self._previous is not None:
@@ -357,6 +364,10 @@ class LightIntegrals:
             "light_lost_shared_primary_J": ideal - shared,
             "light_lost_reference_law_J": shared - reference,
         }
+        if "stowed_ideal" in energy:  # the light lost while stowed, and its share of the ideal
+            lost = energy["stowed_ideal"] - energy["stowed_actual"]
+            figures["light_lost_stowed_J"] = lost
+            figures["light_lost_stowed_share"] = lost / ideal if ideal > 0 else None
         if "actual" in energy:
             actual = energy["actual"]
             figures["light_energy_J"] = actual

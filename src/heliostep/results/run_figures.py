@@ -27,6 +27,7 @@ from heliostep.drive.inputs import DriveInputs
 from heliostep.results.light import LightIntegrals
 from heliostep.results.run_summary import RunStatus, RunSummary, night
 from heliostep.results.solution import SolutionRecorder
+from heliostep.results.stow import StowMoveFigures
 from heliostep.results.summary import OutputRows, build_summary, summary_at_cut
 from heliostep.results.trace import TraceAssembler, drive_from_metadata, master_block
 from heliostep.results.trace_io import ROW_GROUP_ROWS, iter_trace_blocks
@@ -98,6 +99,7 @@ class RunFigures:
         sequencer, schedule = drive_from_metadata(metadata["drive"])
         self.output = OutputRows(self.columns, metadata.get("roles", {}), sequencer, schedule)
         self.light = LightIntegrals(metadata, scenario, weather)
+        self.stow = StowMoveFigures(metadata, sequencer, schedule)
         self._ratio = np.inf
         self._held: list[pd.DataFrame] = []
         self._held_rows = 0
@@ -155,6 +157,7 @@ class RunFigures:
     def _chunk(self, chunk: pd.DataFrame) -> None:
         self.output(chunk)
         self.light(chunk)
+        self.stow(chunk)
         self._ratio = min(self._ratio, smallest_drive_ratio(chunk["panel_angle_ref"], self.scenario))
         self.chunks += 1
 
@@ -178,13 +181,26 @@ class RunFigures:
         if self.rows > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
             light = self.light.figures()
             tradeoffs = tradeoff_figures_at(self._ratio, self.metadata, self.scenario, {**summary.figures(), **light})
-            summary = _replace(summary, light=light, tradeoffs=tradeoffs)
+            summary = _replace(summary, light=light, tradeoffs=tradeoffs, wind=self._wind_figures(solution))
         if interrupted:
             summary = summary_at_cut(summary, self.output, solution)
         if self.window is not None:
             is_night, warning = night(self.scenario.site, *self.window)
             summary = _replace(summary, night=is_night, night_warning=warning)
         return summary
+
+    def _wind_figures(self, solution: dict | None) -> dict | None:
+        """The wind's figures: its peak moment and, with stow, the moves and the time stowed (None: no wind signal)."""
+        worst = self.metadata.get("drive", {}).get("wind")
+        if worst is None:
+            return None
+        figures = self.stow.figures((solution or {}).get("step_outcomes", []))
+        duration = self.window[1] if self.window is not None else None
+        return {
+            "wind_peak_moment_Nm": worst["peak_moment_Nm"],
+            **figures,
+            "stowed_share": figures["stowed_time_s"] / duration if duration else None,
+        }
 
 
 def _replace(summary: RunSummary, **changes) -> RunSummary:

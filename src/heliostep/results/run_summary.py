@@ -93,6 +93,7 @@ class RunSummary:
     final_panel_angle_deg: float | None
     light: dict[str, Any] | None = None  # light on the tube (results.light.LightIntegrals.figures)
     tradeoffs: dict[str, Any] | None = None  # holding torque, energy per day (results.tradeoffs)
+    wind: dict[str, Any] | None = None  # the wind's peak moment, the stow moves (results.stow)
     step_in_progress_at_cut_s: float | None = None  # an interrupted run: the step not judged [s]
     night: bool | None = None  # the sun below the horizon during the whole window
     night_warning: str | None = None
@@ -112,7 +113,7 @@ class RunSummary:
         record["figures_from"] = self.figures_from
         if self.final_panel_angle_deg is not None:
             record["final_panel_angle_deg"] = self.final_panel_angle_deg
-        for figures in (self.light, self.tradeoffs):
+        for figures in (self.light, self.tradeoffs, self.wind):
             if figures is not None:
                 record.update(figures)
         if self.step_in_progress_at_cut_s is not None:

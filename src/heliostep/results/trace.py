@@ -91,6 +91,20 @@ def drive_metadata(inputs: DriveInputs) -> dict:
         "initial_index": int(schedule.initial_index),
         "step_times": [float(t) for t in schedule.times],
         "step_indices": [int(k) for k in schedule.indices],
+        **_wind_metadata(inputs),
+    }
+
+
+def _wind_metadata(inputs: DriveInputs) -> dict:
+    """The wind's figures known before simulating: the worst holding instant, the stow moves."""
+    if inputs.wind_signal is None:
+        return {}
+    transmission = inputs.implied_parameters
+    worst = inputs.wind_signal.worst_holding_instant(transmission["pinion_radius"], transmission["lever_arm"])
+    return {
+        "wind": worst,
+        "stow_moves": [move.record() for move in inputs.stow_moves],
+        "stowed_spans_s": [[float(a), float(b)] for a, b in inputs.stowed_spans],
     }
 
 

@@ -124,7 +124,9 @@ def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
     dict
         ``holding_torque_full_Nm`` and ``holding_torque_idle_Nm`` (motor shaft) [N.m],
         ``idle_holding_moment_Nm`` (panel axis, the smallest over the window) [N.m],
-        ``wind_moment_Nm`` [N.m], ``idle_holding_margin`` (holding moment / |wind moment|;
+        ``wind_moment_Nm`` [N.m] (with a wind speed: the moment at the worst instant, where the
+        holding moment over the wind's is smallest, ``metadata['drive']['wind']``; the holding
+        moment is then the one at that instant), ``idle_holding_margin`` (holding moment / |wind moment|;
         None without wind), ``idle_holds_wind`` (margin >= :data:`REQUIRED_HOLDING_MARGIN`,
         None without wind), and ``warnings`` (a list, when the margin is short).
     """
@@ -142,6 +144,11 @@ def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
     idle = float(holding_torque(current, constants["k_e"], drive["mode"], fraction))
     moment = ratio * idle
     wind = float(scenario.wind.moment)
+    worst = drive.get("wind")
+    if worst is not None:  # the wind over time: its worst instant (heliostep.drive.wind_load)
+        wind = float(worst["moment_Nm"])
+        if worst["drive_ratio"] is not None:
+            moment = float(worst["drive_ratio"]) * idle
     figures: dict[str, Any] = {
         "holding_torque_full_Nm": full,
         "holding_torque_idle_Nm": idle,

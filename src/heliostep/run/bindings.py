@@ -93,8 +93,13 @@ def signals(inputs: DriveInputs, roles: dict[str, str]) -> list[PiecewiseConstan
         PiecewiseConstant("i_a_ref", roles["current_a_ref"], steps, np.asarray(current_a, dtype=float)),
         PiecewiseConstant("i_b_ref", roles["current_b_ref"], steps, np.asarray(current_b, dtype=float)),
     ]
-    if "wind_moment" in roles:
+    wind = inputs.wind_signal
+    if "wind_moment" in roles and wind is not None:  # the wind's moment over the window (drive.wind_load)
+        result.append(PiecewiseConstant("m_ext", roles["wind_moment"], wind.times, wind.values))
+    elif "wind_moment" in roles:
         result.append(PiecewiseConstant("m_ext", roles["wind_moment"], np.zeros(0), np.array([inputs.wind_moment])))
+    elif wind is not None:
+        raise InputError("wind: a wind speed is given, but no FMU input has the role wind_moment (roles.wind_moment)")
     elif inputs.wind_moment != 0.0:
         raise InputError(
             f"wind.moment = {inputs.wind_moment} N.m, but no FMU input has the role wind_moment (roles.wind_moment)"

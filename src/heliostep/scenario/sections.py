@@ -301,10 +301,68 @@ class OpticsConfig(Section):
         }
 
 
-class WindConfig(Section):
-    """``wind``: external load on the panel."""
+#: Stow above this mean wind speed [m/s]: a heliostat meets its operating requirements up to 12 m/s
+#: (typical requirements, after Stine & Geyer, *Power From The Sun*, 2001, ch. 10; docs/physics.md).
+DEFAULT_STOW_SPEED = 12.0
+#: The panel's slew rate while stowing and returning [deg/s] (stated, not sourced: 90 deg in 3 min).
+DEFAULT_SLEW_RATE = 0.5
+#: Calm time before returning to tracking [s]: WMO's 10-min averaging period of the mean wind
+#: (WMO-No. 8, *Guide to Instruments and Methods of Observation*, ch. 5).
+DEFAULT_CALM_TIME = 600.0
+#: Peak over mean speed applied to the moment (Durst 1960; heliostep.drive.wind.DURST_GUST_FACTOR).
+DEFAULT_GUST_FACTOR = 1.52
 
-    moment: Real = Field(0.0, description="[N.m], constant moment on the panel")
+
+class WindConfig(Section):
+    """``wind``: external load on the panel, and stow in high wind.
+
+    The load is a constant ``moment`` [N.m], or the moment of a wind speed
+    (:func:`heliostep.drive.wind.panel_wind_moment`) from one source: a constant ``speed``, a
+    ``weather_file`` (TMY3/EPW, its wind speed at its stamps) or a ``profile`` (a design gust,
+    [time from the window start [s], speed [m/s]] points, linear between them). With a speed the
+    panel stows above ``stow_speed`` (null: never) at ``slew_rate`` to ``stow_angle`` and returns
+    once the wind has stayed at or below it for ``calm_time``.
+    """
+
+    moment: Real = Field(0.0, description="[N.m], constant moment on the panel (no wind speed)")
+    speed: Real | None = Field(None, ge=0.0, description="[m/s], constant mean wind speed")
+    weather_file: str | None = Field(None, description="TMY3 (.csv) or EPW (.epw) file whose wind speed is used")
+    profile: list[tuple[Real, Real]] | None = Field(
+        None, description="design gust: [[time [s] from the window start, speed [m/s]], ...], linear between"
+    )
+    gust_factor: Real = Field(DEFAULT_GUST_FACTOR, ge=1.0, description="[-], peak over mean speed, on the moment")
+    air_temperature: Real | None = Field(
+        None, gt=-90.0, lt=60.0, description="[degC]; null: the ISA's at the site's altitude"
+    )
+    stow_speed: Real | None = Field(
+        DEFAULT_STOW_SPEED, ge=0.0, description="[m/s], stow above this mean wind speed; null: never stow"
+    )
+    stow_angle: Real = Field(0.0, ge=-90.0, le=90.0, description="[deg], panel angle held while stowed")
+    slew_rate: Real = Field(DEFAULT_SLEW_RATE, gt=0.0, description="[deg/s], panel speed of the stow moves")
+    calm_time: Real = Field(DEFAULT_CALM_TIME, ge=0.0, description="[s] at or below stow_speed before returning")
+    update_interval: Real = Field(
+        10.0, gt=0.0, description="[s], longest hold of the moment signal between the drive's steps"
+    )
+
+    @model_validator(mode="after")
+    def _one_source(self) -> WindConfig:
+        given = [key for key in ("speed", "weather_file", "profile") if getattr(self, key) is not None]
+        if len(given) > 1:
+            raise KeyProblems([((given[1],), f"give one wind speed source, got {', '.join(given)}")])
+        if given and self.moment != 0.0:
+            raise KeyProblems([(("moment",), f"a constant moment or a wind speed ({given[0]}), not both")])
+        if self.profile is not None:
+            times = [point[0] for point in self.profile]
+            if len(times) < 2 or any(b <= a for a, b in zip(times, times[1:])):
+                raise KeyProblems([(("profile",), "expected at least two points with increasing times [s]")])
+            if any(point[1] < 0.0 for point in self.profile):
+                raise KeyProblems([(("profile",), "speeds must be >= 0 [m/s]")])
+        return self
+
+    @property
+    def has_speed(self) -> bool:
+        """Whether the load comes from a wind speed (not a constant moment)."""
+        return self.speed is not None or self.weather_file is not None or self.profile is not None
 
 
 class SolverConfig(Section):

@@ -113,6 +113,15 @@ def _wind(data: pd.DataFrame, epw: bool) -> tuple[np.ndarray, np.ndarray]:
     return speed, np.where((direction > low) & (direction <= 360.0), direction, np.nan)
 
 
+def _air_temperature(data: pd.DataFrame) -> np.ndarray:
+    """The file's dry-bulb temperature [degC], NaN where missing (EPW 99.9, TMY3 -9900: outside
+    [-90, 70) degC)."""
+    if "temp_air" not in data:
+        return np.full(len(data), np.nan)
+    temperature = pd.to_numeric(data["temp_air"], errors="coerce").to_numpy(float)
+    return np.where((temperature >= -90.0) & (temperature < 70.0), temperature, np.nan)
+
+
 def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.DataFrame:
     """Hourly DNI and wind of a TMY3 (``.csv``) or EPW (``.epw``) file for the site, indexed by
     the end of each record's hour (the module's docstring: the files' time convention).
@@ -129,7 +138,8 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Da
     pandas.DataFrame
         Indexed by the record's end (the file's stamp, in its standard time): ``dni`` [W/m^2], the
         mean over the hour ending then; ``wind_speed`` [m/s] and ``wind_direction`` [deg from north,
-        clockwise], measured then (NaN where the file has none or marks them missing).
+        clockwise], measured then (NaN where the file has none or marks them missing);
+        ``temp_air`` [degC], the dry-bulb temperature then (NaN likewise).
 
     Raises
     ------
@@ -157,7 +167,8 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Da
     # pvlib indexes an EPW record of hour h at h - 1 (its start), a TMY3 record at its stamp (its end)
     end = data.index + RECORD if epw else data.index
     speed, direction = _wind(data, epw)
-    return pd.DataFrame({"dni": dni.to_numpy(float), "wind_speed": speed, "wind_direction": direction}, index=end)
+    frame = {"dni": dni.to_numpy(float), "wind_speed": speed, "wind_direction": direction}
+    return pd.DataFrame({**frame, "temp_air": _air_temperature(data)}, index=end)
 
 
 def _hour_key(stamps: pd.DatetimeIndex) -> np.ndarray:
@@ -177,6 +188,7 @@ class WeatherSeries:
     dni: pd.Series
     wind_speed: pd.Series | None = None
     wind_direction: pd.Series | None = None
+    air_temperature: pd.Series | None = None  # [degC], the file's dry bulb at its stamps, linear between
 
     @property
     def index(self) -> pd.DatetimeIndex:
@@ -206,7 +218,13 @@ class WeatherFile:
         rad = np.radians(hourly["wind_direction"].to_numpy())
         speed = hourly["wind_speed"].to_numpy()
         wind = pd.DataFrame(
-            {"wind_speed": speed, "wind_u": speed * np.sin(rad), "wind_v": speed * np.cos(rad)}, index=_hour_key(end)
+            {
+                "wind_speed": speed,
+                "wind_u": speed * np.sin(rad),
+                "wind_v": speed * np.cos(rad),
+                "temp_air": hourly["temp_air"].to_numpy(),
+            },
+            index=_hour_key(end),
         )
         return cls(Path(path), table.rename("dni"), end.tz, wind.groupby(level=0).mean())
 
@@ -249,6 +267,7 @@ class WeatherFile:
             dni=pd.Series(self.at(times).to_numpy(), index=utc, name="dni"),
             wind_speed=pd.Series(wind["wind_speed"], index=utc, name="wind_speed"),
             wind_direction=pd.Series(direction, index=utc, name="wind_direction"),
+            air_temperature=pd.Series(wind["temp_air"], index=utc, name="temp_air"),
         )
 
 

@@ -1,0 +1,153 @@
+"""The wind as a load on the panel axis: moment coefficient, air density, gust factor (pure, vectorised).
+
+The moment of the wind about the panel's axis (through the middle of its chord) is
+
+    M = C_M(alpha) . 1/2 rho (G v)^2 . A . c
+
+with A the mirror's area [m^2], c its chord [m] (the mirror's width, across the axis), v the mean
+wind speed [m/s], G the gust factor (peak over mean speed) and rho the air density [kg/m^3].
+
+The moment coefficient of a flat mirror about its mid-chord is that of a flat plate in separated
+flow: the normal force C_N(alpha) acting at the centre of pressure x_cp(alpha) from the windward
+edge, C_M = C_N (1/2 - x_cp / c):
+
+- C_N(alpha) = 1 / (0.222 + 0.283 / sin alpha): Hoerner's normal force of a flat plate beyond stall
+  (S. F. Hoerner, *Fluid-Dynamic Drag*, 1965, ch. 3; 1.98 broadside, the 2-D plate's drag);
+- x_cp / c = 0.195 + 0.305 sin alpha: Joessel's centre of pressure of a flat plate (rudder
+  experiments, 1873; the naval architects' rudder-torque law), moving from about a fifth of the
+  chord at small angles to the middle broadside.
+
+A panel tilted by theta_p about a horizontal axis with the wind horizontal and across the axis (the
+worst direction; the file's direction is not used) sees alpha = |theta_p|; the moment turns the
+panel away from the wind's edge-on attitude, i.e. it *increases* |theta_p| whichever side the wind
+comes from (a flat plate pivoted at its middle turns broadside): M has the sign of theta_p. It is 0
+flat (theta_p = 0, the stow attitude) and broadside (|theta_p| = 90 deg), largest (0.198) at 25.5 deg.
+
+The mechanics FMU's ``m_ext`` is the moment *opposing* positive rotation (models/PanelMechanics.mo),
+so ``m_ext = -M`` (:func:`external_moment`).
+
+Air density: the ideal gas at the International Standard Atmosphere's pressure at the site's
+altitude, rho = p / (R T), p = p0 (1 - L h / T0)^(g M / (R* L)) (ISO 2533:1975, the troposphere),
+at the ISA temperature T0 - L h unless a temperature is given.
+
+Gust factor: the peak 3-s gust over the hourly mean speed in open terrain at 10 m, 1.52 (Durst's
+curve: C. S. Durst, "Wind speeds over short periods of time", *Meteorological Magazine* 89, 1960;
+ASCE 7-16 commentary, Fig. C26.5-1). A weather file's speed is a mean; the moment takes the gust.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "DURST_GUST_FACTOR",
+    "ISA_SEA_LEVEL_DENSITY",
+    "air_density",
+    "centre_of_pressure",
+    "external_moment",
+    "moment_coefficient",
+    "normal_force_coefficient",
+    "panel_wind_moment",
+]
+
+#: Hoerner's flat plate beyond stall: C_N = 1 / (A + B / sin alpha) (Fluid-Dynamic Drag, 1965).
+HOERNER_A, HOERNER_B = 0.222, 0.283
+#: Joessel's centre of pressure of a flat plate: x_cp / c = 0.195 + 0.305 sin alpha.
+JOESSEL_A, JOESSEL_B = 0.195, 0.305
+#: ISO 2533 (ISA) sea-level pressure [Pa], temperature [K], lapse rate [K/m].
+ISA_PRESSURE, ISA_TEMPERATURE, ISA_LAPSE_RATE = 101325.0, 288.15, 0.0065
+#: Specific gas constant of dry air [J/(kg.K)] and the ISA's exponent g M / (R* L) [-] (ISO 2533).
+AIR_GAS_CONSTANT, ISA_EXPONENT = 287.05287, 5.25588
+#: ISA sea-level density [kg/m^3] (1.225).
+ISA_SEA_LEVEL_DENSITY = ISA_PRESSURE / (AIR_GAS_CONSTANT * ISA_TEMPERATURE)
+#: Peak 3-s gust over the hourly mean speed, open terrain, 10 m (Durst 1960; ASCE 7-16 Fig. C26.5-1).
+DURST_GUST_FACTOR = 1.52
+
+
+def _attack(panel_angle) -> np.ndarray:
+    """The angle of attack [rad] of a horizontal wind on a panel tilted ``panel_angle`` [rad]: in [0, pi/2]."""
+    return np.arcsin(np.clip(np.abs(np.sin(np.asarray(panel_angle, dtype=float))), 0.0, 1.0))
+
+
+def normal_force_coefficient(attack) -> np.ndarray:
+    """Normal force coefficient C_N [-] of a flat plate at angle of attack ``attack`` [rad].
+
+    Hoerner (Fluid-Dynamic Drag, 1965), C_N = 1 / (0.222 + 0.283 / sin alpha); 0 edge-on."""
+    s = np.abs(np.sin(np.asarray(attack, dtype=float)))
+    with np.errstate(divide="ignore"):
+        return np.where(s > 0.0, 1.0 / (HOERNER_A + HOERNER_B / np.where(s > 0.0, s, 1.0)), 0.0)  # [Hoerner], ch. 3
+
+
+def centre_of_pressure(attack) -> np.ndarray:
+    """Centre of pressure from the windward edge, as a fraction of the chord [-], at ``attack`` [rad] in [0, pi/2].
+
+    Joessel's law, x_cp / c = 0.195 + 0.305 sin alpha."""
+    alpha = np.clip(np.abs(np.asarray(attack, dtype=float)), 0.0, np.pi / 2)
+    return JOESSEL_A + JOESSEL_B * np.sin(alpha)  # [Joessel], x_cp(alpha)
+
+
+def moment_coefficient(attack) -> np.ndarray:
+    """Moment coefficient C_M [-] about the mid-chord at ``attack`` [rad]: C_N (1/2 - x_cp / c), >= 0."""
+    alpha = np.clip(np.abs(np.asarray(attack, dtype=float)), 0.0, np.pi / 2)
+    return normal_force_coefficient(alpha) * (0.5 - centre_of_pressure(alpha))  # lever of C_N about mid-chord
+
+
+def air_density(altitude, temperature=None) -> np.ndarray:
+    """Air density [kg/m^3] at ``altitude`` [m]: ISA pressure (ISO 2533), at ``temperature`` [degC] or the ISA's.
+
+    Parameters
+    ----------
+    altitude : float or array  [m]
+        Above sea level (the troposphere, below 11 km).
+    temperature : float or array, optional  [degC]
+        The air's temperature; None: the ISA's, 15 degC - 6.5 K/km x altitude.
+    """
+    h = np.asarray(altitude, dtype=float)
+    pressure = ISA_PRESSURE * (1.0 - ISA_LAPSE_RATE * h / ISA_TEMPERATURE) ** ISA_EXPONENT  # [ISO 2533], troposphere
+    kelvin = ISA_TEMPERATURE - ISA_LAPSE_RATE * h if temperature is None else np.asarray(temperature) + 273.15
+    return pressure / (AIR_GAS_CONSTANT * kelvin)  # ideal gas
+
+
+def panel_wind_moment(
+    speed,
+    panel_angle,
+    area: float,
+    chord: float,
+    density=ISA_SEA_LEVEL_DENSITY,
+    gust_factor: float = 1.0,
+):
+    """The wind's moment on the panel axis [N.m], in the sense of positive rotation (vectorised).
+
+    M = sign(theta_p) C_M(|theta_p|) 1/2 rho (G v)^2 A c (the module's docstring: sources, sign).
+
+    Parameters
+    ----------
+    speed : float or array  [m/s]
+        Mean wind speed, horizontal, taken across the panel's axis.
+    panel_angle : float or array  [rad]
+        The panel's tilt from horizontal about its axis.
+    area : float  [m^2]
+        The mirror's area.
+    chord : float  [m]
+        The mirror's width across its axis.
+    density : float or array, default ISA sea level  [kg/m^3]
+        :func:`air_density`.
+    gust_factor : float, default 1  [-]
+        Peak over mean speed (:data:`DURST_GUST_FACTOR` for a mean from a weather file).
+
+    Returns
+    -------
+    float or numpy.ndarray  [N.m]
+        Positive where it turns the panel towards positive angles (a float for scalar inputs).
+    """
+    theta = np.asarray(panel_angle, dtype=float)
+    dynamic_pressure = 0.5 * density * (gust_factor * np.asarray(speed, dtype=float)) ** 2  # q = rho (G v)^2 / 2
+    moment = (
+        np.sign(np.sin(theta)) * moment_coefficient(_attack(theta)) * dynamic_pressure * area * chord
+    )  # M = C_M q A c
+    return float(moment) if np.ndim(moment) == 0 else moment
+
+
+def external_moment(speed, panel_angle, area: float, chord: float, density, gust_factor: float = 1.0):
+    """The mechanics FMU's ``m_ext`` [N.m] (opposing positive rotation): ``-panel_wind_moment(...)``."""
+    return -panel_wind_moment(speed, panel_angle, area, chord, density, gust_factor)

@@ -1,0 +1,175 @@
+"""From a scenario's ``wind`` section to the wind over the window: its speed, the stow plan, the moment signal.
+
+The speed is piecewise linear between knots: a constant, a design gust's points, or a weather
+file's stamps (its wind is measured at the stamp, :mod:`heliostep.solar.irradiance`) with the
+window's ends interpolated between them. The moment on the mechanics' ``m_ext`` input is a
+piecewise-constant signal (the master's inputs change only at known instants, where CVODE restarts)
+that changes at the drive's step instants, which restart the solver anyway, at the speed's knots,
+and, where neither comes for ``wind.update_interval`` seconds, on a grid of that spacing: it costs
+a restart per update interval without steps, not per row of the file.
+
+The moment is evaluated on the *commanded* panel angle (the commanded rotor position through the
+transmission), a known function of time: the panel's own angle differs from it by the elastic lag
+and the tracking error (< 0.1 deg), which changes C_M by at most max|dC_M/dalpha| x 0.1 deg =
+1.06 x 1.75e-3 = 1.9e-3 (1 % of C_M's largest, 0.198; docs/physics.md). On each hold the value is
+the larger in magnitude of the moments at the hold's two ends, so the held signal never
+understates the continuous one between the knots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from heliostep.drive.wind import air_density, external_moment
+from heliostep.errors import InputError
+from heliostep.scenario import Scenario
+from heliostep.solar.irradiance import WeatherFile
+
+__all__ = ["WindKnots", "WindSignal", "commanded_panel_angle", "moment_signal", "wind_speed_knots"]
+
+
+@dataclass(frozen=True)
+class WindSignal:
+    """The moment on the mechanics' ``m_ext`` [N.m]: ``values[0]`` before ``times[0]``, ``values[k + 1]``
+    from ``times[k]`` on; and the mean wind speed's knots (``speed_times`` [s], ``speed`` [m/s])."""
+
+    times: np.ndarray
+    values: np.ndarray
+    speed_times: np.ndarray
+    speed: np.ndarray
+    #: the commanded panel angle [rad] over each hold (``angles[0]`` before ``times[0]``)
+    angles: np.ndarray
+
+    def peak_moment(self) -> float:
+        """The largest |m_ext| over the window [N.m]."""
+        return float(np.max(np.abs(self.values)))
+
+    def worst_holding_instant(self, pinion_radius: float, lever_arm: float) -> dict:
+        """The hold where the drive's holding moment on the panel axis is smallest against the wind:
+        the smallest g(theta_p) / |m_ext| with g = s / (r cos^2 theta_p) ([paper], eq. 15).
+
+        Returns
+        -------
+        dict
+            ``time_s`` (the hold's start) [s], ``drive_ratio`` [-], ``moment_Nm`` (m_ext) [N.m]
+            and ``peak_moment_Nm`` [N.m]; ``time_s`` None without wind (every moment 0).
+        """
+        ratio = lever_arm / (pinion_radius * np.cos(self.angles) ** 2)  # [paper], eq. 15
+        magnitude = np.abs(self.values)
+        record = {"time_s": None, "drive_ratio": None, "moment_Nm": 0.0, "peak_moment_Nm": self.peak_moment()}
+        if not np.any(magnitude > 0.0):
+            return record
+        with np.errstate(divide="ignore"):
+            k = int(np.argmin(np.where(magnitude > 0.0, ratio / magnitude, np.inf)))
+        starts = np.concatenate([[0.0], self.times])
+        return {
+            **record,
+            "time_s": float(starts[k]),
+            "drive_ratio": float(ratio[k]),
+            "moment_Nm": float(self.values[k]),
+        }
+
+
+def _weather_path(scenario: Scenario) -> Path:
+    path = Path(str(scenario.wind.weather_file)).expanduser()
+    return path if path.is_absolute() else Path(scenario.folder) / path
+
+
+@dataclass(frozen=True)
+class WindKnots:
+    """The wind over the window, linear between knots: ``times`` [s from the start], mean ``speed``
+    [m/s] and the air's ``temperature`` [degC] (None: the scenario's ``wind.air_temperature`` or
+    the ISA's)."""
+
+    times: np.ndarray
+    speed: np.ndarray
+    temperature: np.ndarray | None = None
+
+    def density(self, scenario: Scenario, times) -> np.ndarray:
+        """Air density [kg/m^3] at ``times`` [s]: the site's altitude at the file's temperature where
+        it has one, else at ``wind.air_temperature``, else the ISA's (:func:`heliostep.drive.wind.air_density`)."""
+        altitude, given = scenario.site.altitude, scenario.wind.air_temperature
+        times = np.asarray(times, dtype=float)
+        if given is None and self.temperature is not None and np.all(np.isfinite(self.temperature)):
+            return air_density(altitude, np.interp(times, self.times, self.temperature))
+        return np.broadcast_to(air_density(altitude, given), times.shape)
+
+
+def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -> WindKnots | None:
+    """The mean wind speed's knots over the window (:class:`WindKnots`); None with a constant moment
+    (no speed). InputError names the file and key when a weather file has no wind speed over the window."""
+    wind = scenario.wind
+    if wind.speed is not None:
+        return WindKnots(np.array([0.0, duration]), np.array([wind.speed, wind.speed]))
+    if wind.profile is not None:
+        t = np.array([p[0] for p in wind.profile], dtype=float)
+        v = np.array([p[1] for p in wind.profile], dtype=float)
+        inside = t[(t > 0.0) & (t < duration)]
+        times = np.concatenate([[0.0], inside, [duration]])
+        return WindKnots(times, np.interp(times, t, v))
+    if wind.weather_file is None:
+        return None
+    path = _weather_path(scenario)
+    weather = WeatherFile.read(path, scenario.site.to_site())
+    end = start + pd.Timedelta(seconds=duration)
+    stamps = pd.date_range(start.floor("h"), end.ceil("h"), freq="h")
+    instants = pd.DatetimeIndex([start, *[s for s in stamps if start < s < end], end])
+    series = weather.series(instants)
+    speed = None if series.wind_speed is None else series.wind_speed.to_numpy(dtype=float)
+    if speed is None or not np.all(np.isfinite(speed)):
+        raise InputError(
+            f"{scenario.source}: wind.weather_file: {path} has no wind speed (wind_speed missing or "
+            f"marked missing) over the window {start} - {end}; expected a speed [m/s] at every stamp"
+        )
+    temperature = None if series.air_temperature is None else series.air_temperature.to_numpy(dtype=float)
+    return WindKnots((instants - start).total_seconds().to_numpy(dtype=float), speed, temperature)
+
+
+def commanded_panel_angle(rotor_angle, panel_start: float, pinion_radius: float, lever_arm: float) -> np.ndarray:
+    """The panel angle [rad] of a rotor angle [rad] (0 at ``panel_start``), [paper] eq. 14 inverted."""
+    return np.arctan(np.tan(panel_start) + np.asarray(rotor_angle) * pinion_radius / lever_arm)  # [paper], eq. 14
+
+
+def moment_signal(
+    scenario: Scenario,
+    knots: WindKnots,
+    step_times: np.ndarray,
+    commanded_panel,
+    duration: float,
+) -> WindSignal:
+    """The ``m_ext`` signal of the wind's knots on the commanded panel angle (the module's docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    knots : WindKnots
+        :func:`wind_speed_knots`.
+    step_times : array  [s]
+        The drive's step instants.
+    commanded_panel : callable
+        The commanded panel angle [rad] from each time [s] on (right-continuous at the steps).
+    duration : float  [s]
+    """
+    wind, optics = scenario.wind, scenario.optics
+    t_knots, v_knots = knots.times, knots.speed
+    grid = np.arange(0.0, duration, wind.update_interval)
+    changes = np.unique(np.concatenate([step_times, t_knots, grid]))
+    changes = changes[(changes > 0.0) & (changes < duration)]
+    starts = np.concatenate([[0.0], changes])
+    ends = np.concatenate([changes, [duration]])
+    angle = commanded_panel(starts)  # held over each interval (the command changes only at steps)
+
+    def at(times):
+        speed = np.interp(times, t_knots, v_knots)
+        density = knots.density(scenario, times)
+        return external_moment(speed, angle, optics.aperture_area, optics.mirror_width, density, wind.gust_factor)
+
+    first, last = at(starts), at(ends)
+    values = np.where(np.abs(last) > np.abs(first), last, first)
+    return WindSignal(
+        changes, np.asarray(values, dtype=float), np.asarray(t_knots), np.asarray(v_knots), np.asarray(angle)
+    )
