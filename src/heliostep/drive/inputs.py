@@ -86,7 +86,7 @@ def output_grid(
 
 #: Table 3 motor constants and the averaged chopper's loop gain: the shipped motor models'
 #: defaults, used for the initial equilibrium unless the scenario sets them.
-MOTOR_DEFAULTS = {"k_e": 0.5, "N_c": 50.0, "R": 0.1, "K_current": 100.0}
+MOTOR_DEFAULTS = {"k_e": 0.5, "N_c": 50.0, "R": 0.1, "K_current": 100.0, "T_d": 0.0}
 
 
 def held_current(scenario: Scenario, reference: float) -> float:
@@ -102,10 +102,12 @@ def held_current(scenario: Scenario, reference: float) -> float:
 def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> float:
     """Elastic lag [rad] of the rotor behind its detent under the wind moment, held by ``reference`` A.
 
-    Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) ([paper], eqs. 9, 10)
-    and g = s / (r cos^2 theta_p) ([paper], eq. 15), so delta = asin(M_ext / (g k_e i)) / N_c.
-    0 without wind; raises nothing when the moment exceeds the holding torque (the lag is then
-    capped at a quarter of an electrical period: the drive cannot hold and will slip).
+    Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) - T_d sin(4 N_c delta)
+    ([paper], eqs. 9, 10, and the detent torque T_d of docs/physics.md) and g = s / (r cos^2 theta_p)
+    ([paper], eq. 15). Without detent torque delta = asin(M_ext / (g k_e i)) / N_c; with it, that
+    value is refined by Newton's method on the full equation. 0 without wind; raises nothing when the
+    moment exceeds the holding torque (the lag is then capped at a quarter of an electrical period:
+    the drive cannot hold and will slip).
     """
     moment = scenario.wind.moment
     if moment == 0.0 or reference == 0.0:
@@ -114,8 +116,19 @@ def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> floa
     values = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
     transmission = scenario.transmission
     g = transmission.lever_arm / (transmission.pinion_radius * np.cos(panel_angle) ** 2)
-    ratio = moment / (g * values["k_e"] * held_current(scenario, reference))
-    return float(np.arcsin(np.clip(ratio, -1.0, 1.0)) / values["N_c"])
+    holding, detent, teeth = values["k_e"] * held_current(scenario, reference), values["T_d"], values["N_c"]
+    ratio = moment / (g * holding)
+    electrical = float(np.arcsin(np.clip(ratio, -1.0, 1.0)))  # N_c delta without detent torque
+    if abs(ratio) < 1.0 and detent != 0.0:
+        for _ in range(20):  # Newton on k_e i sin(x) + T_d sin(4 x) = M_ext / g, x = N_c delta
+            slope = holding * np.cos(electrical) + 4 * detent * np.cos(4 * electrical)
+            if slope <= 0.0:
+                break
+            step = (holding * np.sin(electrical) + detent * np.sin(4 * electrical) - moment / g) / slope
+            electrical = float(np.clip(electrical - step, -np.pi / 2, np.pi / 2))
+            if abs(step) < 1e-14:
+                break
+    return electrical / teeth
 
 
 def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = None) -> DriveInputs:
