@@ -67,12 +67,17 @@ def panel_mechanics(
     M_c=3.3e-3,
     w_s=1e-2,
     B_m=8e-4,
+    karnopp=False,
+    T_stick=1e-3,
 ):
     """Returns dtheta_p/dt, domega_p/dt, rotor angle, rotor speed.
 
     Exact form: Lagrange's equation with T = J_p w_p^2/2 + J_m (g w_p)^2/2 gives
     (J_p + J_m g^2) dw_p/dt + J_m g g' w_p^2 = g (C - T_f - B_m w) - b w_p - M_ext, g' = dg/dtheta_p,
-    with Coulomb friction T_f = (T_c + M_c/g) tanh(g w_p / w_s) (smoothed; docs/physics.md).
+    with Coulomb friction T_f = (T_c + M_c/g) tanh(g w_p / w_s) (smoothed; docs/physics.md), or with
+    ``karnopp`` Karnopp's stick-slip friction: T_f = (T_c + M_c/g) sign(w) for |w| >= w_s, and for
+    |w| < w_s the torque that holds the rotor (everything else on the shaft, so that dw/dt = -w / T_stick),
+    clipped to +-(T_c + M_c/g).
     """
     if small_angle:
         ratio = s / r
@@ -84,6 +89,11 @@ def panel_mechanics(
         theta = theta_start + s / r * (np.tan(theta_p) - np.tan(theta_p_start))  # eqs. 12-14
     omega = ratio * omega_p
     friction = (T_c + M_c / ratio) * np.tanh(omega / w_s)
+    if karnopp:
+        cap = T_c + M_c / ratio
+        others = (b * omega_p + m_ext + J_m * ratio * dratio * omega_p**2) / ratio
+        held = torque - B_m * omega - others + (J_p / ratio**2 + J_m) * omega / T_stick
+        friction = np.where(np.abs(omega) < w_s, np.clip(held, -cap, cap), cap * np.sign(omega))
     domega_p = (ratio * (torque - friction - B_m * omega) - b * omega_p - m_ext - J_m * ratio * dratio * omega_p**2) / (
         J_p + J_m * ratio**2
     )  # eq. 10, exact form

@@ -174,6 +174,32 @@ def test_mechanics_equations_match_numpy_at_random_points(fmu_paths, name, small
     assert_relative(outputs, expected)
 
 
+def test_karnopp_mechanics_match_numpy_sticking_and_slipping(fmu_paths):
+    # rotor speeds g omega_p within and beyond Karnopp's band w_s = 0.01 rad/s, torques below and above what
+    # friction holds (T_c = 0.08 N.m): every branch of the stick-slip law
+    rng = np.random.default_rng(5)
+    parameters = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "r": 2.5e-3, "s": 0.3, "B_m": 8e-4}
+    parameters.update(theta_p_start=0.3, theta_start=2.0)
+    points = _random_points(
+        rng, 400, {"theta_p": (-1.0, 1.0), "omega_p": (-2e-4, 2e-4), "tau": (-0.2, 0.2), "m_ext": (-5, 5)}
+    )
+    derivatives, outputs = _evaluate_fmu(
+        fmu_paths["PanelMechanicsKarnopp"],
+        parameters,
+        ["theta_p", "omega_p"],
+        ["tau", "m_ext"],
+        MECHANICS_OUTPUTS,
+        points,
+    )
+    dtheta_p, domega_p, theta, omega = panel_mechanics(
+        points["theta_p"], points["omega_p"], points["tau"], points["m_ext"], karnopp=True, **parameters
+    )
+    sticking = np.abs(omega) < 1e-2
+    assert 50 < sticking.sum() < 350  # both branches are visited
+    assert_relative(derivatives, np.column_stack([dtheta_p, domega_p]))
+    assert_relative(outputs, np.column_stack([points["theta_p"], points["omega_p"], theta, omega]))
+
+
 def test_drive_system_equations_match_numpy_at_random_points(fmu_paths):
     rng = np.random.default_rng(3)
     motor = {**TABLE3_MOTOR, "K_current": 100.0}
