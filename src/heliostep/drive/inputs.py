@@ -104,10 +104,11 @@ def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> floa
 
     Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) - T_d sin(4 N_c delta)
     ([paper], eqs. 9, 10, and the detent torque T_d of docs/physics.md) and g = s / (r cos^2 theta_p)
-    ([paper], eq. 15). Without detent torque delta = asin(M_ext / (g k_e i)) / N_c; with it, that
-    value is refined by Newton's method on the full equation. 0 without wind; raises nothing when the
-    moment exceeds the holding torque (the lag is then capped at a quarter of an electrical period:
-    the drive cannot hold and will slip).
+    ([paper], eq. 15). Without detent torque delta = asin(M_ext / (g k_e i)) / N_c; with it, the first
+    x = N_c delta from the detent where k_e i sin x + T_d sin 4x reaches |M_ext| / g (the first
+    equilibrium the wind pushes the rotor to, a stable one), found on a grid and refined by bisection.
+    0 without wind; raises nothing when the moment exceeds what the drive holds (the lag is then
+    capped at a quarter of an electrical period: the drive cannot hold and will slip).
     """
     moment = scenario.wind.moment
     if moment == 0.0 or reference == 0.0:
@@ -116,19 +117,23 @@ def loaded_lag(scenario: Scenario, reference: float, panel_angle: float) -> floa
     values = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
     transmission = scenario.transmission
     g = transmission.lever_arm / (transmission.pinion_radius * np.cos(panel_angle) ** 2)
-    holding, detent, teeth = values["k_e"] * held_current(scenario, reference), values["T_d"], values["N_c"]
-    ratio = moment / (g * holding)
-    electrical = float(np.arcsin(np.clip(ratio, -1.0, 1.0)))  # N_c delta without detent torque
-    if abs(ratio) < 1.0 and detent != 0.0:
-        for _ in range(20):  # Newton on k_e i sin(x) + T_d sin(4 x) = M_ext / g, x = N_c delta
-            slope = holding * np.cos(electrical) + 4 * detent * np.cos(4 * electrical)
-            if slope <= 0.0:
-                break
-            step = (holding * np.sin(electrical) + detent * np.sin(4 * electrical) - moment / g) / slope
-            electrical = float(np.clip(electrical - step, -np.pi / 2, np.pi / 2))
-            if abs(step) < 1e-14:
-                break
-    return electrical / teeth
+    holding = float(values["k_e"]) * held_current(scenario, reference)
+    detent, teeth = float(values["T_d"]), float(values["N_c"])
+    if detent == 0.0:
+        return float(np.arcsin(np.clip(moment / (g * holding), -1.0, 1.0)) / teeth)
+
+    def excess(x):  # held torque beyond the wind's, on the motor shaft [N.m]
+        return holding * np.sin(x) + detent * np.sin(4 * x) - abs(moment) / g
+
+    grid = np.linspace(0.0, np.pi / 2, 4097)
+    reached = np.flatnonzero(excess(grid) >= 0.0)
+    if len(reached) == 0:
+        return float(np.sign(moment) * np.pi / 2 / teeth)
+    low, high = grid[max(reached[0] - 1, 0)], grid[reached[0]]
+    for _ in range(60):  # bisection: the bracket of 3.8e-4 rad down to rounding
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if excess(middle) < 0.0 else (low, middle)
+    return float(np.sign(moment) * 0.5 * (low + high) / teeth)
 
 
 def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = None) -> DriveInputs:
