@@ -5,7 +5,7 @@ model PanelMechanics
   // g = dtheta/dtheta_p = s/(r cos^2 theta_p) [15]. With kinetic energy
   // T = J_p omega_p^2/2 + J_m (g omega_p)^2/2, Lagrange's equation is the exact form of [10]:
   //   (J_p + J_m g^2) der(omega_p) + J_m g (dg/dtheta_p) omega_p^2
-  //       = g (tau - T_c tanh(omega/w_s)) - M_c tanh(omega/w_s) - b omega_p - M_ext,
+  //       = g (tau - T_c tanh(omega/w_s) - B_m omega) - M_c tanh(omega/w_s) - b omega_p - M_ext,
   // with dg/dtheta_p = 2 g tan(theta_p). Friction is Coulomb friction, smoothed by tanh so the
   // right-hand side stays smooth for CVODE; see docs/physics.md for every parameter's source.
   parameter Real J_p(unit = "kg.m2") = 3.37 "Panel inertia about its hinge, M/12 (l^2 + sp^2) [11] (Table 2)";
@@ -16,6 +16,10 @@ model PanelMechanics
   parameter Real J_m(unit = "kg.m2") = 1.4e-4 "Rotor inertia on the motor shaft (NEMA 34 class catalogue value)";
   // b: no sourced viscous friction for this drive; 0 by default (kept for studies).
   parameter Real b(unit = "N.m.s/rad") = 0 "Viscous damping on the panel axis (none sourced: 0)";
+  // B_m: viscous damping of the rotor in its bearings and air gap, on the motor shaft: the
+  // rotor damping B of MATLAB/Simscape Electrical's Stepper Motor block (J dw/dt + B w = Te),
+  // whose class value is 8e-4 N.m.s/rad; range and sources in docs/physics.md.
+  parameter Real B_m(unit = "N.m.s/rad") = 8e-4 "Viscous damping of the rotor on the motor shaft (Simscape class)";
   // T_c: Coulomb friction of the reducer and the rack-and-pinion, referred to the motor shaft.
   // Source: a single planetary stage loses about 3 % of the torque it transmits (typical
   // catalogue efficiency 97 % per stage); at the motor's rated holding torque k_e*I = 2.75 N.m
@@ -50,7 +54,7 @@ equation
   der(theta_p) = omega_p;
   tau_friction = (T_c + M_c * r * cos(theta_p)^2 / s) * tanh(omega / w_s);  // M_c / g
   (J_p + J_m * g^2) * der(omega_p) + J_m * g * (2 * g * tan(theta_p)) * omega_p^2
-    = g * (tau - tau_friction) - b * omega_p - m_ext;  // [paper], eq. 10 (exact form, full Lagrangian)
+    = g * (tau - tau_friction - B_m * omega) - b * omega_p - m_ext;  // [paper], eq. 10 (exact form, full Lagrangian)
   theta = theta_start + s / r * (tan(theta_p) - tan(theta_p_start));  // [paper], eqs. 12-14
   omega = g * omega_p;  // [paper], eq. 15
 end PanelMechanics;

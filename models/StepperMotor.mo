@@ -1,5 +1,5 @@
 model StepperMotor
-  "Two-phase bipolar hybrid stepper motor with an averaged chopper current control, eqs [7]-[9]"
+  "Two-phase bipolar hybrid stepper motor with an averaged chopper current control, eqs [7]-[9], iron loss and detent"
   // Source: the paper's eqs [7]-[9], restated in docs/physics.md.
   // Back-EMF sign: the one that makes electrical power in = mechanical power out with [9].
   // The chopper of each winding is modelled by its average: the drive applies
@@ -11,6 +11,21 @@ model StepperMotor
   parameter Real N_c(unit = "1") = 50 "Number of rotor teeth N_c (Table 3)";
   parameter Real V_supply(unit = "V") = 3.1 "Chopper voltage limit dV (Table 3, rated voltage)";
   parameter Real K_current(unit = "V/A") = 100 "Current-loop gain K of the averaged chopper";
+  // The motor's losses, in the form of MATLAB/Simscape Electrical's Stepper Motor block
+  // (mathworks.com/help/sps/ref/steppermotor.html: Te = Km (iA - eA/Rm) sin(Nr theta) +
+  // Km (iB - eB/Rm) cos(Nr theta) - Td sin(4 Nr theta), J dw/dt + B w = Te; the rotor damping B
+  // is in the mechanics, beside the rotor inertia). Sources and ranges: docs/physics.md.
+  // G_m: the iron losses as a magnetising resistance Rm across each winding's back-EMF e, written
+  // as its conductance G_m = 1/Rm so that 0 means "no iron loss" (Rm = infinity). The current
+  // that makes torque is i - e/Rm, so the loss brakes the rotor by k_e^2 G_m omega at any
+  // position. No catalogue of this motor class gives Rm: 0 by default (docs/physics.md).
+  parameter Real G_m(unit = "S") = 0 "Iron-loss conductance 1/Rm of the magnetising resistance (none sourced: 0)";
+  // T_d: detent torque, the rotor magnet's pull on the stator teeth with the windings off; it
+  // has 4 N_c periods per turn, its stable points at the full steps (the Simscape block's term).
+  // No catalogue of this motor class giving it could be read for this model: 0 by default; the
+  // range (up to 0.14 N.m, 5 % of our one-phase holding torque k_e I = 2.75 N.m) and its status
+  // are in docs/physics.md.
+  parameter Real T_d(unit = "N.m") = 0 "Detent torque amplitude (no catalogue value read: 0)";
   // The run starts at the loop's holding equilibrium: with the rotor still, L di/dt = 0 gives
   // K (i_ref - i) = R i, i.e. i = K i_ref / (K + R) (while |R i| <= dV, the chopper unsaturated).
   parameter Real i_a_start(unit = "A") = 0 "Reference current of phase A held before the start";
@@ -30,6 +45,8 @@ equation
   v_b = min(max(K_current * (i_b_ref - i_b), -V_supply), V_supply);
   L * der(i_a) = v_a - R * i_a + k_e * omega * sin(N_c * theta);  // [paper], eq. 7
   L * der(i_b) = v_b - R * i_b + k_e * omega * cos(N_c * theta);  // [paper], eq. 8
-  tau = -k_e * i_a * sin(N_c * theta) - k_e * i_b * cos(N_c * theta);  // [paper], eq. 9
+  // [paper], eq. 9 with the Simscape block's iron-loss and detent terms (0 with G_m = T_d = 0)
+  tau = -k_e * (i_a + G_m * k_e * omega * sin(N_c * theta)) * sin(N_c * theta)
+    - k_e * (i_b + G_m * k_e * omega * cos(N_c * theta)) * cos(N_c * theta) - T_d * sin(4 * N_c * theta);
   power = v_a * i_a + v_b * i_b;
 end StepperMotor;

@@ -7,6 +7,9 @@ model StepperMotorIdealCurrent
   parameter Real k_e(unit = "N.m/A") = 0.5 "Torque constant k_e (Table 3)";
   parameter Real N_c(unit = "1") = 50 "Number of rotor teeth N_c (Table 3)";
   parameter Real T_current(unit = "s") = 1e-3 "Time constant of the current lag";
+  // Iron loss and detent torque as in StepperMotor (its comments and docs/physics.md give the sources).
+  parameter Real G_m(unit = "S") = 0 "Iron-loss conductance 1/Rm of the magnetising resistance (none sourced: 0)";
+  parameter Real T_d(unit = "N.m") = 0 "Detent torque amplitude (no catalogue value read: 0)";
   parameter Real i_a_start(unit = "A") = 0 "Initial current of phase A";
   parameter Real i_b_start(unit = "A") = 0 "Initial current of phase B";
   input Real i_a_ref(unit = "A") "Reference current of phase A";
@@ -24,6 +27,8 @@ equation
   T_current * der(i_b) = i_b_ref - i_b;
   v_a = L * der(i_a) + R * i_a - k_e * omega * sin(N_c * theta);  // [paper], eq. 7
   v_b = L * der(i_b) + R * i_b - k_e * omega * cos(N_c * theta);  // [paper], eq. 8
-  tau = -k_e * i_a * sin(N_c * theta) - k_e * i_b * cos(N_c * theta);  // [paper], eq. 9
+  // [paper], eq. 9 with the Simscape block's iron-loss and detent terms (0 with G_m = T_d = 0)
+  tau = -k_e * (i_a + G_m * k_e * omega * sin(N_c * theta)) * sin(N_c * theta)
+    - k_e * (i_b + G_m * k_e * omega * cos(N_c * theta)) * cos(N_c * theta) - T_d * sin(4 * N_c * theta);
   power = v_a * i_a + v_b * i_b;
 end StepperMotorIdealCurrent;

@@ -6,7 +6,14 @@ import pytest
 
 from heliostep.fmu.build import build_fmu
 
-MODELS = ("StepperMotor", "StepperMotorIdealCurrent", "PanelMechanics", "PanelMechanicsSmallAngle", "DriveSystem")
+MODELS = (
+    "StepperMotor",
+    "StepperMotorIdealCurrent",
+    "PanelMechanics",
+    "PanelMechanicsSmallAngle",
+    "PanelMechanicsKarnopp",
+    "DriveSystem",
+)
 
 
 def pytest_configure(config):

@@ -4,10 +4,11 @@ across output grids and solver tolerances (issue 12)."""
 import numpy as np
 import pandas as pd
 import pytest
+from scipy.optimize import brentq
 
 from heliostep.paths import scenarios_dir
 from heliostep.run import run_scenario
-from physics_reference import RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
+from physics_reference import MOTOR_LOSSES, RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
 
 K_CURRENT = 100.0  # [V/A] loop gain of the averaged chopper (StepperMotor's default)
 COARSE = ("output.interval=30", "output.step_detail=0.01", "output.step_interval=0.005")
@@ -99,13 +100,17 @@ def test_paper_literal_peak_torque_is_the_papers(fmu_paths):
 def test_weak_motor_lost_steps_are_what_the_rotor_angle_shows(fmu_paths):
     weak = _run("jan21-weak-motor")
     trace, summary = weak.trace, weak.summary
-    # elastic lag under the wind from first principles: g k_e i sin(N_c delta) = M_ext ([9], [10], [15])
+    # elastic lag under the wind from first principles: g (k_e i sin(N_c delta) + T_d sin(4 N_c delta)) = M_ext
+    # ([9] with the detent torque T_d, [10], [15]); k_e i sin x + T_d sin 4x rises over [0, pi/2] here
     held = K_CURRENT * 2.0 / (K_CURRENT + TABLE3_MOTOR["R"])
     r, s = TABLE2_PANEL["r"], TABLE2_PANEL["s"]
+    detent = MOTOR_LOSSES["T_d"]
 
     def lag(panel):
         g = s / (r * np.cos(panel) ** 2)
-        return np.arcsin(110.0 / (g * TABLE3_MOTOR["k_e"] * held)) / TABLE3_MOTOR["N_c"]
+        holding = TABLE3_MOTOR["k_e"] * held
+        x = brentq(lambda x: holding * np.sin(x) + detent * np.sin(4 * x) - 110.0 / g, 0.0, np.pi / 2, xtol=1e-15)
+        return x / TABLE3_MOTOR["N_c"]
 
     first, last = trace.iloc[0], trace.iloc[-1]
     assert first["rotor_angle_cmd"] - first["mechanics.theta"] == pytest.approx(

@@ -72,3 +72,20 @@ def test_wind_signal_only_where_there_is_an_input_for_it():
     ]
     with pytest.raises(InputError, match="wind_moment"):
         _signals(prepare_inputs(validate_scenario(windy)), without_input)
+
+
+@pytest.mark.parametrize("detent", [0.0, 0.14, 0.3])
+def test_loaded_lag_balances_the_wind_with_the_phase_and_the_detent_torque(detent):
+    # the panel's equilibrium at the start: g (k_e i sin(N_c delta) + T_d sin(4 N_c delta)) = M_ext ([9] with the
+    # detent torque, [10], [15]), i = K I / (K + R) the held current; checked by substituting the lag back
+    from heliostep.drive.inputs import loaded_lag
+
+    wind, current, panel = 110.0, 2.0, 0.45
+    case = {**PAPER_CASE, "wind": {"moment": wind}, "parameters": {"motor": {"T_d": detent}}}
+    lag = loaded_lag(validate_scenario(case), current, panel)
+    g = 0.3 / (2.5e-3 * np.cos(panel) ** 2)
+    held = 100.0 * current / 100.1
+    x = 50.0 * lag
+    assert 0.0 < x < np.pi / 2
+    assert g * (0.5 * held * np.sin(x) + detent * np.sin(4 * x)) == pytest.approx(wind, rel=1e-12)
+    assert 0.5 * held * np.cos(x) + 4 * detent * np.cos(4 * x) > 0.0  # a stable equilibrium: it restores

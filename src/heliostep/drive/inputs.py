@@ -95,7 +95,7 @@ def output_grid(
 
 #: Table 3 motor constants and the averaged chopper's loop gain: the shipped motor models'
 #: defaults, used for the initial equilibrium unless the scenario sets them.
-MOTOR_DEFAULTS = {"k_e": 0.5, "N_c": 50.0, "R": 0.1, "K_current": 100.0}
+MOTOR_DEFAULTS = {"k_e": 0.5, "N_c": 50.0, "R": 0.1, "K_current": 100.0, "T_d": 0.0}
 
 
 def held_current(scenario: Scenario, reference: float) -> float:
@@ -111,9 +111,12 @@ def held_current(scenario: Scenario, reference: float) -> float:
 def loaded_lag(scenario: Scenario, reference: float, panel_angle: float, moment: float | None = None) -> float:
     """Elastic lag [rad] of the rotor behind its detent under the wind moment, held by ``reference`` A.
 
-    Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) ([paper], eqs. 9, 10)
-    and g = s / (r cos^2 theta_p) ([paper], eq. 15), so delta = asin(M_ext / (g k_e i)) / N_c.
-    0 without wind; raises nothing when the moment exceeds the holding torque (the lag is then
+    Equilibrium of the panel: g C = M_ext with C = -k_e i sin(N_c delta) - T_d sin(4 N_c delta)
+    ([paper], eqs. 9, 10, and the detent torque T_d of docs/physics.md) and g = s / (r cos^2 theta_p)
+    ([paper], eq. 15). Without detent torque delta = asin(M_ext / (g k_e i)) / N_c; with it, the first
+    x = N_c delta from the detent where k_e i sin x + T_d sin 4x reaches |M_ext| / g (the first
+    equilibrium the wind pushes the rotor to, a stable one), found on a grid and refined by bisection.
+    0 without wind; raises nothing when the moment exceeds what the drive holds (the lag is then
     capped at a quarter of an electrical period: the drive cannot hold and will slip). ``moment``:
     the external moment at the start [N.m] (default the constant ``wind.moment``).
     """
@@ -124,8 +127,23 @@ def loaded_lag(scenario: Scenario, reference: float, panel_angle: float, moment:
     values = {**MOTOR_DEFAULTS, **scenario.parameters.get(motor, {})}
     transmission = scenario.transmission
     g = transmission.lever_arm / (transmission.pinion_radius * np.cos(panel_angle) ** 2)
-    ratio = moment / (g * values["k_e"] * held_current(scenario, reference))
-    return float(np.arcsin(np.clip(ratio, -1.0, 1.0)) / values["N_c"])
+    holding = float(values["k_e"]) * held_current(scenario, reference)
+    detent, teeth = float(values["T_d"]), float(values["N_c"])
+    if detent == 0.0:
+        return float(np.arcsin(np.clip(moment / (g * holding), -1.0, 1.0)) / teeth)
+
+    def excess(x):  # held torque beyond the wind's, on the motor shaft [N.m]
+        return holding * np.sin(x) + detent * np.sin(4 * x) - abs(moment) / g
+
+    grid = np.linspace(0.0, np.pi / 2, 4097)
+    reached = np.flatnonzero(excess(grid) >= 0.0)
+    if len(reached) == 0:
+        return float(np.sign(moment) * np.pi / 2 / teeth)
+    low, high = grid[max(reached[0] - 1, 0)], grid[reached[0]]
+    for _ in range(60):  # bisection: the bracket of 3.8e-4 rad down to rounding
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if excess(middle) < 0.0 else (low, middle)
+    return float(np.sign(moment) * 0.5 * (low + high) / teeth)
 
 
 def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = None) -> DriveInputs:

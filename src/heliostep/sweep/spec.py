@@ -56,7 +56,7 @@ COMBINE_MODES = ("product", "zip")
 
 
 #: Mechanics models whose panel inertia and lever arm the shared primary's case sets.
-SHIPPED_MECHANICS = ("PanelMechanics", "PanelMechanicsSmallAngle")
+SHIPPED_MECHANICS = ("PanelMechanics", "PanelMechanicsSmallAngle", "PanelMechanicsKarnopp")
 
 
 def _primary_load(base: Mapping) -> list[tuple[str, Any]]:
