@@ -4,8 +4,9 @@
 
 Issue #26: every speed figure as a ratio to the floor, measured side by side in one run. The C right-hand
 side below is written by hand from ``models/StepperMotor.mo`` and ``models/PanelMechanics.mo`` (the paper's
-eqs. 7-9 with the averaged chopper; eqs. 10-15, exact kinematics, tanh-smoothed Coulomb friction), not
-generated: four states (i_a, i_b, theta_p, omega_p), the same parameters, the same initial state (the
+eqs. 7-9 with the averaged chopper and the Simscape block's iron loss and detent terms; eqs. 10-15, exact
+kinematics, rotor damping B_m, tanh-smoothed Coulomb friction), not generated: four states (i_a, i_b,
+theta_p, omega_p), the same parameters, the same initial state (the
 drive's holding equilibrium, from :func:`heliostep.drive.inputs.prepare_inputs`). It runs on the CVODE that
 fmpy ships, as heliostep's master does: BDF, Newton with a dense difference-quotient Jacobian,
 rtol = the scenario's, atol = rtol (the FMUs' nominals are 1), restarted at every step instant
@@ -38,8 +39,8 @@ C_SOURCE = r"""
 #include <math.h>
 typedef double *(*array_of)(void *);
 typedef struct {
-    double L, R, k_e, N_c, V, K;               /* StepperMotor (Table 3, the averaged chopper) */
-    double J_p, J_m, b, T_c, M_c, w_s, r, s;    /* PanelMechanics (Table 2, catalogue, friction) */
+    double L, R, k_e, N_c, V, K, G_m, T_d;     /* StepperMotor (Table 3, the chopper, iron loss, detent) */
+    double J_p, J_m, b, B_m, T_c, M_c, w_s, r, s; /* PanelMechanics (Table 2, catalogue, damping, friction) */
     double theta_p0, theta0;                    /* the rotor angle at theta_p0 */
     double i_a_ref, i_b_ref, m_ext;             /* inputs, held between steps */
     array_of data;                              /* N_VGetArrayPointer */
@@ -59,20 +60,22 @@ int drive_rhs(double t, void *y, void *ydot, void *user) {
     double omega = g * omega_p;
     double sn = sin(p->N_c * theta), cs = cos(p->N_c * theta);
     double v_a = clamp(p->K * (p->i_a_ref - i_a), p->V), v_b = clamp(p->K * (p->i_b_ref - i_b), p->V);
-    double tau = -p->k_e * i_a * sn - p->k_e * i_b * cs;                     /* eq. 9 */
+    double tau = -p->k_e * (i_a + p->G_m * p->k_e * omega * sn) * sn         /* eq. 9, Simscape's losses */
+                 - p->k_e * (i_b + p->G_m * p->k_e * omega * cs) * cs - p->T_d * sin(4.0 * p->N_c * theta);
     double friction = (p->T_c + p->M_c * p->r * c * c / p->s) * tanh(omega / p->w_s);
     (void)t;
     dx[0] = (v_a - p->R * i_a + p->k_e * omega * sn) / p->L;                /* eq. 7 */
     dx[1] = (v_b - p->R * i_b + p->k_e * omega * cs) / p->L;                /* eq. 8 */
     dx[2] = omega_p;
-    dx[3] = (g * (tau - friction) - p->b * omega_p - p->m_ext - p->J_m * g * 2.0 * g * tan_p * omega_p * omega_p)
+    dx[3] = (g * (tau - friction - p->B_m * omega) - p->b * omega_p - p->m_ext
+             - p->J_m * g * 2.0 * g * tan_p * omega_p * omega_p)
             / (p->J_p + p->J_m * g * g);                                    /* eq. 10, exact form */
     p->rhs_calls++;
     return 0;
 }
 """
 
-FIELDS = "L R k_e N_c V K J_p J_m b T_c M_c w_s r s theta_p0 theta0 i_a_ref i_b_ref m_ext".split()
+FIELDS = "L R k_e N_c V K G_m T_d J_p J_m b B_m T_c M_c w_s r s theta_p0 theta0 i_a_ref i_b_ref m_ext".split()
 
 
 class Drive(ctypes.Structure):
@@ -87,13 +90,23 @@ def compile_floor(folder: Path) -> ctypes.CDLL:
 
 
 def _parameters(scenario, inputs) -> Drive:
-    motor = {"L": 1.8e-3, "R": 0.1, "k_e": 0.5, "N_c": 50.0, "V_supply": 3.1, "K_current": 100.0}
-    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "T_c": 0.08, "M_c": 3.3e-3, "w_s": 1e-2}
+    motor = {
+        "L": 1.8e-3,
+        "R": 0.1,
+        "k_e": 0.5,
+        "N_c": 50.0,
+        "V_supply": 3.1,
+        "K_current": 100.0,
+        "G_m": 0.0,
+        "T_d": 0.0,
+    }
+    mechanics = {"J_p": 3.37, "J_m": 1.4e-4, "b": 0.0, "B_m": 8e-4, "T_c": 0.08, "M_c": 3.3e-3, "w_s": 1e-2}
     motor.update(scenario.parameters.get("motor", {}))
     mechanics.update(scenario.parameters.get("mechanics", {}))
     implied = inputs.implied_parameters
     return Drive(
         L=motor["L"], R=motor["R"], k_e=motor["k_e"], N_c=motor["N_c"], V=motor["V_supply"], K=motor["K_current"],
+        G_m=motor["G_m"], T_d=motor["T_d"], B_m=mechanics["B_m"],
         J_p=mechanics["J_p"], J_m=mechanics["J_m"], b=mechanics["b"], T_c=mechanics["T_c"], M_c=mechanics["M_c"],
         w_s=mechanics["w_s"], r=implied["pinion_radius"], s=implied["lever_arm"],
         theta_p0=implied["panel_angle_start"], theta0=implied["rotor_angle_start"],
