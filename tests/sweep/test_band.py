@@ -146,6 +146,31 @@ def test_band_extremes_bracket_the_nominal_run(client, fmu_paths, tmp_path):
     assert figures["peak_torque_Nm"]["median"] == sorted(values)[1]
 
 
+def test_a_failed_sample_is_reported_never_dropped(client, fmu_paths, tmp_path):
+    """The phase inductance over -1.8 to 1.8 mH with N = 2: the Latin hypercube puts one sample in
+    each half, so exactly one has L < 0, whose current loop runs away (the run fails); it is listed
+    in ``failed`` with its error, named in the note, and the statistics are over the other."""
+    ranges = _ranges_file(
+        tmp_path, "ranges:\n  - {key: parameters.motor.L, low: -1.8e-3, high: 1.8e-3, unit: H, source: test}\n"
+    )
+    scenario = _short()
+    paths = resolve_fmus(scenario)
+    design = band_design(scenario, load_ranges(ranges), 2, fmu_paths=paths, ranges_file=ranges)
+    negative = int(np.argmin(design.values[:, 0]))
+    assert design.values[negative, 0] < 0 < design.values[1 - negative, 0]
+    seen = []
+    outcome = run_band(scenario, design, paths, client=client, on_sample=seen.append)
+    assert sorted(result["index"] for result in seen) == [0, 1]
+    record = band_record(run_figures(run_scenario(scenario, keep_trace=False, fmu_paths=paths)), outcome)
+    assert record["failed"] == [negative] and not record["complete"]
+    failed = record["sample_results"][negative]
+    assert failed["status"] == "failed" and failed["error"] and failed["figures"] is None
+    assert f"1 of 2 samples failed (sample(s) {negative}" in record["note"]
+    peak = record["figures"]["peak_torque_Nm"]
+    good = record["sample_results"][1 - negative]["figures"]["peak_torque_Nm"]
+    assert peak["samples"] == 1 and peak["min"] == peak["median"] == peak["max"] == good
+
+
 def test_cli_band_writes_summary_and_a_sample_equals_a_plain_run(client, fmu_paths, tmp_path):
     """``heliostep run --band 3`` (on the module's cluster, --scheduler): summary.json's band has the design and each
     figure's nominal/min/median/max; stdout prints them; and one sample's figures equal those of a

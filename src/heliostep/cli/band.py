@@ -61,9 +61,15 @@ def prepare_band(args: argparse.Namespace, scenario, fmu_paths) -> BandDesign | 
     return design
 
 
-def run_band_after(args: argparse.Namespace, design: BandDesign, result, out_dir: Path, fmu_paths, stop) -> int:
-    """The band of a nominal run written into ``out_dir``: summary.json rewritten with ``band``, the
-    band printed; the exit status (0, 1 when a sample failed, the signal's when stopped)."""
+def run_band_after(
+    args: argparse.Namespace, design: BandDesign, result, out_dir: Path, fmu_paths, stop, status: int
+) -> int:
+    """The band of a nominal run written into ``out_dir`` (its exit ``status`` 0 and no stop asked,
+    else nothing is run and ``status`` returned): summary.json rewritten with ``band``, the band
+    printed; the exit status (0, 1 when a sample failed, the signal's when stopped)."""
+    if status != 0 or stop.is_set():
+        print("heliostep run: the band was not run: the nominal run did not complete or was stopped", file=sys.stderr)
+        return status
     print(
         f"heliostep run: band: {design.samples} samples of {', '.join(p.key for p in design.ranges)} "
         f"(Latin hypercube, seed {design.seed}) on {args.scheduler or 'a local Dask cluster'}",

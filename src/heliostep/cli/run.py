@@ -153,8 +153,7 @@ def _budget_overrides(args: argparse.Namespace) -> list[str]:
 
 
 def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None) -> int:
-    """The run simulated and written into ``out_dir`` (whose lock is held), then its ``band`` (a
-    :class:`~heliostep.sweep.band.BandDesign`, --band) if it completed: the exit status."""
+    """The run simulated and written into ``out_dir`` (whose lock is held), then its --band: the exit status."""
     if stop.is_set():
         print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
         return stop.exit_status
@@ -201,10 +200,8 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
             print("heliostep run: error: no folder could take the results either", file=sys.stderr)
         return status or 1
     print(_report(result, out_dir))
-    if band is not None and status == 0 and not stop.is_set():
-        return run_band_after(args, band, result, out_dir, fmu_paths, stop)
-    if band is not None:
-        print("heliostep run: the band was not run: the nominal run did not complete or was stopped", file=sys.stderr)
+    if band is not None:  # the band runs after a complete nominal run only
+        status = run_band_after(args, band, result, out_dir, fmu_paths, stop, status)
     if stop.is_set() and status == 0:
         print(
             f"heliostep run: stopped by {stop.name} while writing; the results are complete, "

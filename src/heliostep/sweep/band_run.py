@@ -179,57 +179,63 @@ def run_band(
     -------
     BandOutcome
     """
-    from distributed import wait
-
     samples, payloads = _shipped_samples(scenario, design, fmu_paths)
     outcome = BandOutcome(design, [None] * design.samples)
     if should_stop is not None and should_stop():  # stopped before the cluster starts
         outcome.interrupted = True
         return outcome
-    run_id = uuid.uuid4().hex[:12]
     with _dask_client(client, scheduler, n_workers, connect_timeout) as dask:
-        shipped = {
-            sha: dask.submit(_fmu_payload, payload, key=f"heliostep-band-fmu-{sha[:16]}-{run_id}", pure=False)
-            for sha, payload in payloads.items()
-        }
-        futures = {}
-        for index, data, source in samples:
-            needed = {sha: shipped[sha] for sha in set(data["fmus"].values()) if sha is not None}
-            future = dask.submit(
-                run_band_sample,
-                index,
-                data,
-                source,
-                str(scenario.folder),
-                needed,
-                pure=False,
-                key=f"heliostep-band-{index}-{run_id}",
-            )
-            futures[future] = index
-        pending = set(futures)
-        while pending:
-            if should_stop is not None and should_stop():
-                outcome.interrupted = True
-                dask.cancel(list(pending))
-                break
-            try:
-                done, pending = wait(pending, timeout=STOP_POLL, return_when="FIRST_COMPLETED")
-            except TimeoutError:
-                continue
-            for future in done:
-                index = futures[future]
-                try:
-                    result = future.result()
-                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: recorded as the sample's failure
-                    result = {"index": index, "status": "failed", "figures": None, "error": _error_text(exc)}
-                    result["wall_time_s"] = None
+        futures, shipped = _submit_samples(dask, samples, payloads, str(scenario.folder))
+        try:
+            _collect(dask, futures, outcome, should_stop, on_sample)
+        finally:
+            for future in shipped:
                 future.release()
-                outcome.results[index] = result
-                if on_sample is not None:
-                    on_sample(result)
-        for future in shipped.values():
-            future.release()
     return outcome
+
+
+def _submit_samples(dask, samples: list[tuple[int, dict, str]], payloads: Mapping[str, FmuPayload], folder: str):
+    """The FMUs shipped once and one task per sample: (future -> sample index, the FMUs' futures)."""
+    run_id = uuid.uuid4().hex[:12]
+    shipped = {
+        sha: dask.submit(_fmu_payload, payload, key=f"heliostep-band-fmu-{sha[:16]}-{run_id}", pure=False)
+        for sha, payload in payloads.items()
+    }
+    futures = {}
+    for index, data, source in samples:
+        needed = {sha: shipped[sha] for sha in set(data["fmus"].values()) if sha is not None}
+        key = f"heliostep-band-{index}-{run_id}"
+        futures[dask.submit(run_band_sample, index, data, source, folder, needed, pure=False, key=key)] = index
+    return futures, list(shipped.values())
+
+
+def _collect(dask, futures: dict, outcome: BandOutcome, should_stop, on_sample) -> None:
+    """Each sample's result into ``outcome`` as it finishes; once ``should_stop()`` the rest cancelled."""
+    from distributed import wait
+
+    pending = set(futures)
+    while pending:
+        if should_stop is not None and should_stop():
+            outcome.interrupted = True
+            dask.cancel(list(pending))
+            return
+        try:
+            done, pending = wait(pending, timeout=STOP_POLL, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            continue
+        for future in done:
+            index = futures[future]
+            try:
+                result = future.result()
+            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: recorded as the sample's failure
+                result = {"index": index, "status": "failed", "figures": None, "error": _error_text(exc)}
+                result["wall_time_s"] = None
+            future.release()
+            if result["status"] != "ok" and should_stop is not None and should_stop():
+                continue  # ended by the stop (Ctrl+C reaches the local workers too): not run, not failed
+            outcome.results[index] = result
+            if on_sample is not None:
+                on_sample(result)
 
 
 def check_band_budget(scenario: Scenario, samples: int, n_workers: int | None = None) -> None:
