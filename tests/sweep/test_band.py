@@ -240,6 +240,16 @@ def test_cli_band_writes_summary_and_a_sample_equals_a_plain_run(client, fmu_pat
         (["--band", "1"], None, "--band 1: expected a whole number of samples from 2 to 1000"),
         (["--band", "100000"], None, "--band 100000: expected a whole number"),
         (
+            ["--band", "3", "--scheduler", "tcp://127.0.0.1:1"],
+            None,
+            "cannot reach the Dask scheduler at tcp://127.0.0.1:1",
+        ),
+        (
+            ["--band", "3"],
+            "  - {key: sequencer.current, low: -5, high: -1, unit: A, source: s}\n",
+            ": band sample 0 (sequencer.current=",
+        ),
+        (
             ["--band", "3"],
             "  - {key: parameters.motor.R_x, low: 1, high: 2, unit: O, source: s}\n",
             "has no Real parameter 'R_x'",

@@ -8,6 +8,10 @@ from pathlib import Path
 
 from heliostep.sweep.band import DEFAULT_SEED, MAX_BAND_SAMPLES, RANGES_FILE, BandDesign, band_design, load_ranges
 from heliostep.sweep.band_run import band_record, check_band_budget, run_band, run_figures, write_band_summary
+from heliostep.sweep.cluster import _probe_scheduler
+
+#: How long to try reaching --scheduler [s].
+CONNECT_TIMEOUT = 5.0
 
 BAND_HELP = (
     "Uncertainty band (--band N): after the nominal run, the scenario runs at N Latin-hypercube samples "
@@ -56,8 +60,12 @@ def prepare_band(args: argparse.Namespace, scenario, fmu_paths) -> BandDesign | 
     design = band_design(
         scenario, load_ranges(args.band_ranges), args.band, args.band_seed, fmu_paths, ranges_file=args.band_ranges
     )
+    for index in range(design.samples):  # each sample's scenario valid (an error names the sample)
+        design.scenario_of(scenario, index)
     if args.scheduler is None:
         check_band_budget(scenario, design.samples, args.workers)
+    else:  # reachable, before the nominal run
+        _probe_scheduler(args.scheduler, CONNECT_TIMEOUT)
     return design
 
 
@@ -94,6 +102,7 @@ def run_band_after(
         fmu_paths,
         scheduler=args.scheduler,
         n_workers=args.workers,
+        connect_timeout=CONNECT_TIMEOUT,
         should_stop=stop.is_set,
         on_sample=report,
     )
