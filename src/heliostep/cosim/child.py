@@ -92,7 +92,8 @@ def main(argv: list[str]) -> int:
     try:
         return serve(Connection(int(argv[1])), argv[2])
     except (BrokenPipeError, ConnectionResetError, EOFError) as exc:
-        print(f"heliostep: a supervised run ends: its supervisor is gone ({type(exc).__name__})", file=sys.stderr)
+        why = getattr(exc, "strerror", None) or "connection closed"
+        print(f"heliostep: a supervised run ends: its supervisor is gone ({why})", file=sys.stderr)
         return 1
 
 
