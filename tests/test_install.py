@@ -119,3 +119,25 @@ def test_users_own_fmus_folder_beside_the_scenario(installed, tmp_path, fmu_path
     assert result.returncode == 0, result.stderr[-3000:]
     metadata = json.loads((elsewhere / "out" / "metadata.json").read_text())
     assert metadata["fmus"]["motor"]["path"] == str(tmp_path / "fmus" / "VendorMotor.fmu")
+
+
+def test_installed_package_carries_the_parameter_ranges(installed, tmp_path):
+    """``--band``'s ranges file is package data: an installed heliostep finds and reads it."""
+    assert (installed / "heliostep" / "data" / "parameter_ranges.yaml").is_file()
+    environment = {k: v for k, v in os.environ.items() if k not in ("HELIOSTEP_MODELS", "PYTHONPATH")}
+    code = (
+        "from heliostep.sweep.band import RANGES_FILE, load_ranges; "
+        "print(RANGES_FILE); print(sorted(p.key for p in load_ranges()))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env={**environment, "PYTHONPATH": str(installed)},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    path, keys = done.stdout.splitlines()
+    assert Path(path).resolve() == (installed / "heliostep" / "data" / "parameter_ranges.yaml").resolve()
+    assert keys == "['parameters.motor.K_current', 'parameters.motor.V_supply']"

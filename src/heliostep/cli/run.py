@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from heliostep.cli.band import add_band_options, prepare_band, run_band_after
 from heliostep.cli.signals import stop_requests
 from heliostep.drive.sequencer import PreparationStopped
 from heliostep.errors import HeliostepError
@@ -91,6 +92,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)",
     )
     _add_supervision_options(parser)
+    add_band_options(parser)
     parser.set_defaults(func=_run_command)
 
 
@@ -131,12 +133,13 @@ def _run_command(args: argparse.Namespace) -> int:
         check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, csv=args.csv))
         out_dir = out_name or Path("out") / scenario.name
         fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
+        band = prepare_band(args, scenario, fmu_paths)  # --band's design and keys checked before any run
         existed = out_dir.exists()
         check_out_dir(out_dir)
         try:
             with hold_folder(out_dir):  # the folder's lock, for the run's life
                 check_foreign(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False))
-                return _run_in_folder(args, scenario, out_dir, fmu_paths, stop)
+                return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band)
         except HeliostepError:
             if not existed:  # bad input found while setting up: leave no empty folder
                 _remove_if_empty(out_dir)
@@ -149,8 +152,8 @@ def _budget_overrides(args: argparse.Namespace) -> list[str]:
     return [f"{key}={value!r}" for key, value in given if value is not None]
 
 
-def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop) -> int:
-    """The run simulated and written into ``out_dir`` (whose lock is held): the exit status."""
+def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None) -> int:
+    """The run simulated and written into ``out_dir`` (whose lock is held), then its --band: the exit status."""
     if stop.is_set():
         print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
         return stop.exit_status
@@ -200,6 +203,8 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         else:
             print("heliostep run: error: no folder could take the results either", file=sys.stderr)
         return status or 1
+    if band is not None:  # the band runs after a complete nominal run only
+        status = run_band_after(args, band, result, out_dir, fmu_paths, stop, status)
     if stop.is_set() and status == 0:
         print(
             f"heliostep run: stopped by {stop.name} while writing; the results are complete, "

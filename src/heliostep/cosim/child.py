@@ -86,8 +86,15 @@ class Request:
 
 
 def main(argv: list[str]) -> int:
-    """Serve one request read from the socket ``argv[1]`` (a file descriptor), noting FMU calls in ``argv[2]``."""
-    return serve(Connection(int(argv[1])), argv[2])
+    """Serve one request read from the socket ``argv[1]`` (a file descriptor), noting FMU calls in ``argv[2]``.
+    A supervisor gone (its end of the socket closed: e.g. a Dask worker closed with its cluster) ends
+    the run with one line on stderr and exit status 1: there is no one left to stream to."""
+    try:
+        return serve(Connection(int(argv[1])), argv[2])
+    except (BrokenPipeError, ConnectionResetError, EOFError) as exc:
+        why = getattr(exc, "strerror", None) or "connection closed"
+        print(f"heliostep: a supervised run ends: its supervisor is gone ({why})", file=sys.stderr)
+        return 1
 
 
 def serve(connection: Connection, record: str, request: Request | None = None, tmpdir: str | None = None) -> int:

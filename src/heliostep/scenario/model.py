@@ -29,6 +29,7 @@ from heliostep.scenario.roles import REQUIRED_ROLES, RolesConfig
 from heliostep.scenario.sections import (
     SUNRISE,
     SUNSET,
+    BandConfig,
     BudgetConfig,
     MirrorConfig,
     OpticsConfig,
@@ -73,6 +74,7 @@ _DEFAULTED_KEYS = (
     "output",
     "optics",
     "budget",
+    "band",
 )
 
 
@@ -166,6 +168,7 @@ class Scenario(Section):
     solver: SolverConfig = Field(default_factory=SolverConfig)
     output: OutputConfig = Field(default_factory=OutputConfig)
     budget: BudgetConfig = Field(default_factory=BudgetConfig)
+    band: BandConfig = Field(default_factory=BandConfig)
 
     _folder: Path = PrivateAttr(default_factory=Path.cwd)
     _source: str = PrivateAttr(default="<scenario>")
@@ -411,6 +414,8 @@ class Scenario(Section):
         data["fmus"] = {**{name: None for name in DEFAULT_FMUS if name not in self.fmus}, **data["fmus"]}
         data["roles"] = self.resolved_roles()  # only the roles its FMUs can play (defaults of dropped instances go)
         data["connections"] = [list(pair) for pair in self.connection_pairs()]
+        if not self.band.pinned:  # the default: left out, so resolved scenarios (and case ids) stay as they were
+            del data["band"]
         return data
 
     @property

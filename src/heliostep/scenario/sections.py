@@ -389,3 +389,16 @@ class BudgetConfig(Section):
 
     memory_gb: Real = Field(4.0, gt=0.0, description="[GB] of memory the run's inputs and trace may take")
     disk_gb: Real = Field(10.0, gt=0.0, description="[GB] of disk its files (trace, CSV, records) may take")
+
+
+class BandConfig(Section):
+    """``band``: how ``heliostep run --band N`` treats this scenario (:mod:`heliostep.sweep.band`).
+
+    A scenario that states a value as its source's (the paper's ±3.1 V bus in
+    ``jan21-paper-literal``) lists that key in ``pinned``: the band leaves it at the scenario's
+    value and samples only the others of the ranges file."""
+
+    pinned: list[str] = Field(
+        default_factory=list,
+        description="keys of the ranges file (e.g. parameters.motor.V_supply) the band keeps at this scenario's value",
+    )

@@ -1,0 +1,342 @@
+"""An uncertainty band run: the design's samples on Dask, their figures, and ``summary.json``'s ``band``.
+
+:func:`run_band` runs each sample of a :class:`~heliostep.sweep.band.BandDesign` as one task on the
+local Dask cluster (:func:`heliostep.sweep.cluster._dask_client`: one single-threaded worker process
+per core, on 127.0.0.1) or a given scheduler, the FMUs shipped to the workers once, each run
+supervised and keeping no trace (its figures only, as a sweep's case). A sample that fails is
+recorded with its error, never dropped; a stop request (Ctrl+C) ends the band at once, the samples
+finished so far kept. :func:`band_record` makes ``summary.json``'s ``band`` section: for every figure
+of the summary that is a number, the nominal run's value and the min, median and max over the
+samples that finished, beside the design and each sample's values and figures.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import hashlib
+import json
+import math
+import signal
+import time as clock
+import uuid
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from heliostep.errors import InputError
+from heliostep.results.outputs import write_text_atomic
+from heliostep.run import RunFailed, run_scenario
+from heliostep.run.estimate import estimate_run
+from heliostep.run.runner import HELD_TRACE_MAX_DURATION
+from heliostep.scenario import Scenario, validate_scenario
+from heliostep.sweep.band import BandDesign
+from heliostep.sweep.cluster import _dask_client, _worker_count
+from heliostep.sweep.worker import FmuPayload, _error_text, _fmu_payload, _local_fmu
+
+__all__ = [
+    "BandOutcome",
+    "band_figures",
+    "run_figures",
+    "band_record",
+    "check_band_budget",
+    "run_band",
+    "write_band_summary",
+]
+
+#: Seconds between looks at the stop request while the samples run.
+STOP_POLL = 0.25
+
+
+@dataclasses.dataclass
+class BandOutcome:
+    """What :func:`run_band` did: each sample's result (index order), and whether it was stopped.
+
+    ``results[i]`` is None for a sample that did not finish (the band stopped), else a dict with
+    ``status`` ("ok" or "failed"), ``figures`` (:func:`band_figures`; None when failed), ``error``
+    and ``wall_time_s`` [s].
+    """
+
+    design: BandDesign
+    results: list[dict[str, Any] | None]
+    interrupted: bool = False
+
+    @property
+    def finished(self) -> list[int]:
+        return [index for index, result in enumerate(self.results) if result is not None]
+
+    @property
+    def failed(self) -> list[int]:
+        return [index for index, result in enumerate(self.results) if result is not None and result["status"] != "ok"]
+
+
+def band_figures(summary: Mapping[str, Any]) -> dict[str, float]:
+    """The figures of a run summary that are numbers, by name; a mapping's numbers as ``name.key``
+    (``settling_time_s.max``). Booleans, texts, lists and None are left out."""
+    figures: dict[str, float] = {}
+    for name, value in summary.items():
+        if isinstance(value, Mapping):
+            for key, inner in value.items():
+                if _is_number(inner):
+                    figures[f"{name}.{key}"] = float(inner)
+        elif _is_number(value):
+            figures[name] = float(value)
+    return figures
+
+
+def run_figures(result) -> dict[str, float]:
+    """A run's band figures: :func:`band_figures` of its summary, and the solver's work from its
+    statistics: ``solver.rhs`` (right-hand-side evaluations) and ``solver.rhs_per_step`` (per step
+    commanded; left out without steps)."""
+    figures = band_figures(result.summary)
+    rhs = (result.metadata.get("statistics") or {}).get("rhs")
+    if _is_number(rhs):
+        figures["solver.rhs"] = float(rhs)
+        steps = result.summary.get("steps_commanded")
+        if _is_number(steps) and steps > 0:
+            figures["solver.rhs_per_step"] = float(rhs) / float(steps)
+    return figures
+
+
+def _is_number(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+
+
+def run_band_sample(index: int, data: dict, source: str, folder: str, payloads: Mapping[str, FmuPayload]) -> dict:
+    """One sample's run (a Dask task): its FMUs written locally, the run supervised, its figures.
+
+    Never raises for a failing run: its ``status`` is "failed" with the error's text."""
+    started = clock.perf_counter()
+    result: dict[str, Any] = {"index": index, "status": "ok", "figures": None, "error": None}
+    try:
+        data = copy.deepcopy(data)
+        data["fmus"] = {
+            instance: None if sha is None else str(_local_fmu(payloads[sha])) for instance, sha in data["fmus"].items()
+        }
+        scenario = validate_scenario(data, source=source, folder=Path(folder))
+        run = run_scenario(scenario, keep_trace=False, supervise=True)
+        result["figures"] = run_figures(run)
+    except RunFailed as exc:
+        result.update(status="failed", error=_error_text(exc))
+    except Exception as exc:  # noqa: BLE001 - a failing sample is recorded, never fatal
+        result.update(status="failed", error=f"{type(exc).__name__}: {_error_text(exc)}")
+    result["wall_time_s"] = clock.perf_counter() - started
+    return result
+
+
+def _shipped_samples(
+    scenario: Scenario, design: BandDesign, fmu_paths: Mapping[str, Path]
+) -> tuple[list[tuple[int, dict, str]], dict[str, FmuPayload]]:
+    """Each sample's validated scenario as data (its ``fmus`` the SHA-256 of the FMU files), and the FMUs."""
+    payloads: dict[str, FmuPayload] = {}
+    sha_of: dict[str, str] = {}
+    for instance, path in fmu_paths.items():
+        data = Path(path).read_bytes()
+        sha = hashlib.sha256(data).hexdigest()
+        payloads[sha] = FmuPayload(name=Path(path).name, sha256=sha, data=data)
+        sha_of[instance] = sha
+    samples = []
+    for index in range(design.samples):
+        sample = design.scenario_of(scenario, index)  # an InputError names the sample, before any run
+        data = sample.resolved_dict()
+        data["fmus"] = {instance: sha_of.get(instance) for instance in data["fmus"]}
+        samples.append((index, data, sample.source))
+    return samples, payloads
+
+
+def run_band(
+    scenario: Scenario,
+    design: BandDesign,
+    fmu_paths: Mapping[str, Path],
+    *,
+    client=None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    connect_timeout: float = 5.0,
+    should_stop: Callable[[], bool] | None = None,
+    on_sample: Callable[[dict], None] | None = None,
+) -> BandOutcome:
+    """Run the design's samples of ``scenario`` on Dask.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The nominal scenario.
+    design : BandDesign
+        From :func:`heliostep.sweep.band.band_design`.
+    fmu_paths : Mapping
+        Instance -> FMU file (:func:`heliostep.run.resolve_fmus`), shipped to the workers.
+    client, scheduler, n_workers, connect_timeout
+        As :func:`heliostep.sweep.execute_cases`: a client, a scheduler's address, or a new local
+        cluster on 127.0.0.1 with ``n_workers`` workers (default one per core).
+    should_stop : callable, optional
+        Asked every :data:`STOP_POLL` s; once true the samples not finished are cancelled.
+    on_sample : callable, optional
+        Called with each finished sample's result.
+
+    Returns
+    -------
+    BandOutcome
+    """
+    samples, payloads = _shipped_samples(scenario, design, fmu_paths)
+    outcome = BandOutcome(design, [None] * design.samples)
+    if should_stop is not None and should_stop():  # stopped before the cluster starts
+        outcome.interrupted = True
+        return outcome
+    with _dask_client(client, scheduler, n_workers, connect_timeout) as dask:
+        if client is None and not scheduler:  # our own local cluster: its workers leave Ctrl+C to us
+            dask.run(_ignore_terminal_signals)
+        futures, shipped = _submit_samples(dask, samples, payloads, str(scenario.folder))
+        try:
+            _collect(dask, futures, outcome, should_stop, on_sample)
+        finally:
+            for future in shipped:
+                future.release()
+    return outcome
+
+
+def _ignore_terminal_signals() -> bool:
+    """Run on each worker of a local cluster (in its main thread): SIGINT and SIGHUP ignored there,
+    and so in the supervised runs it starts. A Ctrl+C at the terminal reaches the whole process
+    group; this process then stops the band itself (the samples finished kept) instead of its
+    workers dying mid-sample with a traceback each."""
+    for signum in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_IGN)
+    return True
+
+
+def _submit_samples(dask, samples: list[tuple[int, dict, str]], payloads: Mapping[str, FmuPayload], folder: str):
+    """The FMUs shipped once and one task per sample: (future -> sample index, the FMUs' futures)."""
+    run_id = uuid.uuid4().hex[:12]
+    shipped = {
+        sha: dask.submit(_fmu_payload, payload, key=f"heliostep-band-fmu-{sha[:16]}-{run_id}", pure=False)
+        for sha, payload in payloads.items()
+    }
+    futures = {}
+    for index, data, source in samples:
+        needed = {sha: shipped[sha] for sha in set(data["fmus"].values()) if sha is not None}
+        key = f"heliostep-band-{index}-{run_id}"
+        futures[dask.submit(run_band_sample, index, data, source, folder, needed, pure=False, key=key)] = index
+    return futures, list(shipped.values())
+
+
+def _collect(dask, futures: dict, outcome: BandOutcome, should_stop, on_sample) -> None:
+    """Each sample's result into ``outcome`` as it finishes; once ``should_stop()`` the rest cancelled."""
+    from distributed import wait
+
+    pending = set(futures)
+    while pending:
+        if should_stop is not None and should_stop():
+            outcome.interrupted = True
+            dask.cancel(list(pending))
+            return
+        try:
+            done, pending = wait(pending, timeout=STOP_POLL, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            continue
+        for future in done:
+            index = futures[future]
+            try:
+                result = future.result()
+            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: recorded as the sample's failure
+                result = {"index": index, "status": "failed", "figures": None, "error": _error_text(exc)}
+                result["wall_time_s"] = None
+            future.release()
+            if result["status"] != "ok" and should_stop is not None and should_stop():
+                continue  # ended by the stop (Ctrl+C reaches the local workers too): not run, not failed
+            outcome.results[index] = result
+            if on_sample is not None:
+                on_sample(result)
+
+
+def check_band_budget(scenario: Scenario, samples: int, n_workers: int | None = None) -> None:
+    """Refuse (InputError) a band whose samples, run at once on this machine's local cluster, would
+    take more memory than ``budget.memory_gb``: each worker runs one sample at a time (figures
+    only, no trace: :func:`~heliostep.run.estimate.estimate_run` with ``keep_trace=False``) beside
+    the nominal run's process."""
+    nominal = estimate_run(scenario, HELD_TRACE_MAX_DURATION)
+    sample = estimate_run(scenario, HELD_TRACE_MAX_DURATION, keep_trace=False)
+    at_once = min(samples, n_workers or _worker_count())
+    needed = nominal.memory_bytes + at_once * sample.memory_bytes
+    allowed = scenario.budget.memory_gb
+    if needed > allowed * 1e9:
+        raise InputError(
+            f"{scenario.source}: --band {samples}: {at_once} samples at once need an estimated "
+            f"{needed / 1e9:.3g} GB of memory (each {sample.describe()}), over the memory budget of "
+            f"{allowed:g} GB (raise it with budget.memory_gb or --max-memory, or run fewer --workers)"
+        )
+
+
+def band_record(nominal_figures: Mapping[str, float], outcome: BandOutcome) -> dict[str, Any]:
+    """``summary.json``'s ``band``: the design, each figure's nominal / min / median / max over the
+    samples that finished, each sample's values, status and figures, and a note on what is missing.
+
+    Parameters
+    ----------
+    nominal_figures : Mapping
+        The nominal run's figures (:func:`run_figures`).
+    outcome : BandOutcome
+    """
+    design = outcome.design
+    ok = [result for result in outcome.results if result is not None and result["status"] == "ok"]
+    figures = {}
+    for name, value in nominal_figures.items():
+        values = np.array([result["figures"][name] for result in ok if name in result["figures"]], dtype=float)
+        entry: dict[str, Any] = {"nominal": value, "samples": int(values.size)}
+        if values.size:
+            entry.update(min=float(values.min()), median=float(np.median(values)), max=float(values.max()))
+            entry["nominal_inside"] = bool(entry["min"] <= value <= entry["max"])
+        figures[name] = entry
+    record = {
+        "complete": not outcome.interrupted and len(ok) == design.samples,
+        "samples": design.samples,
+        "finished": outcome.finished,
+        "failed": outcome.failed,
+        "interrupted": outcome.interrupted,
+        "design": design.record(),
+        "figures": figures,
+        "sample_results": [
+            {"index": index, "values": design.settings(index), **(result or {"status": "not run"})}
+            for index, result in enumerate(outcome.results)
+        ],
+    }
+    notes = band_notes(outcome)
+    if notes:
+        record["note"] = "; ".join(notes)
+    return record
+
+
+def band_notes(outcome: BandOutcome) -> list[str]:
+    """What a reader of the band must know: samples failed or not run, nominal values outside their ranges."""
+    design = outcome.design
+    notes = []
+    failed = outcome.failed
+    if failed:
+        notes.append(
+            f"{len(failed)} of {design.samples} samples failed (sample(s) {', '.join(map(str, failed))}: "
+            "see sample_results); the band is over the others"
+        )
+    missing = [index for index, result in enumerate(outcome.results) if result is None]
+    if missing:
+        notes.append(
+            f"stopped: {len(outcome.finished)} of {design.samples} samples finished "
+            f"({', '.join(map(str, outcome.finished)) or 'none'}); the band is over those"
+        )
+    for parameter in design.ranges:
+        value = design.nominal[parameter.key]
+        if not parameter.low <= value <= parameter.high:
+            notes.append(
+                f"the nominal {parameter.key} = {value:g} {parameter.unit} lies outside its range "
+                f"{parameter.low:g}-{parameter.high:g} {parameter.unit}: the band is the spread over the "
+                "range, not around the nominal run, and need not contain it"
+            )
+    return notes
+
+
+def write_band_summary(out_dir: Path, record: Mapping[str, Any], band: Mapping[str, Any]) -> Path:
+    """``summary.json`` again: the nominal run's ``record`` (:meth:`~heliostep.run.RunResult.summary_record`)
+    with ``band`` added, renamed into place (the caller holds the folder's lock)."""
+    text = json.dumps({**record, "band": dict(band)}, indent=2, default=str) + "\n"
+    return write_text_atomic(Path(out_dir) / "summary.json", text)
