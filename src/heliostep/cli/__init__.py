@@ -29,6 +29,7 @@ COMMAND_MODULES = (
     "heliostep.cli.compare",
     "heliostep.cli.regress",
     "heliostep.cli.sweep",
+    "heliostep.cli.size",
     "heliostep.cli.fieldlight",
 )
 
