@@ -134,6 +134,24 @@ def _ramp_step_times(step_rate: float, drive: MotorDrive, current: float, inerti
     return start + 1.0 / rate0 + times  # the first step one period after the start
 
 
+def _bench_parameters(drive: MotorDrive, sequencer: Sequencer, load_inertia: float, brake: float) -> dict:
+    """The bench's FMU parameters: the drive's motor; the mechanics as inertia, brake and load lever."""
+    i_a0, i_b0 = sequencer.reference_currents(0)
+    return {
+        "motor": {**drive.motor_parameters(), "i_a_start": float(i_a0), "i_b_start": float(i_b0)},
+        "mechanics": {
+            "J_p": load_inertia * BENCH_RATIO**2,
+            "J_m": drive.rotor_inertia,
+            "T_c": brake,
+            "M_c": 0.0,
+            "b": 0.0,
+            "r": 0.3 / BENCH_RATIO,
+            "s": 0.3,
+            "theta_start": float(sequencer.position(0)),
+        },
+    }
+
+
 def steps_kept(
     drive: MotorDrive,
     current: float,
@@ -163,27 +181,15 @@ def steps_kept(
         stop = LOAD_RAMP_TIME + SETTLE_TIME
     indices = np.arange(len(step_times) + 1)
     i_a, i_b = sequencer.reference_currents(indices)
-    i_a0, i_b0 = sequencer.reference_currents(0)
-    parameters = {
-        "motor": {**drive.motor_parameters(), "i_a_start": float(i_a0), "i_b_start": float(i_b0)},
-        "mechanics": {
-            "J_p": load_inertia * BENCH_RATIO**2,
-            "J_m": drive.rotor_inertia,
-            "T_c": brake,
-            "M_c": 0.0,
-            "b": 0.0,
-            "r": 0.3 / BENCH_RATIO,
-            "s": 0.3,
-            "theta_start": float(sequencer.position(0)),
-        },
-    }
     inputs = [
         PiecewiseConstant("i_a_ref", "motor.i_a_ref", step_times, np.asarray(i_a, dtype=float)),
         PiecewiseConstant("i_b_ref", "motor.i_b_ref", step_times, np.asarray(i_b, dtype=float)),
         PiecewiseConstant("m_ext", "mechanics.m_ext", load_times, levels),
     ]
-    infos = {name: read_fmu(path) for name, path in paths.items()}
-    system = CoSimulation(infos, _DRIVE_CONNECTIONS, inputs, parameters)
+    parameters = _bench_parameters(drive, sequencer, load_inertia, brake)
+    system = CoSimulation(
+        {name: read_fmu(path) for name, path in paths.items()}, _DRIVE_CONNECTIONS, inputs, parameters
+    )
     if len(step_times) >= 2:  # judged at speed: midway between each of the last JUDGED_STEPS steps
         judged = step_times[-JUDGED_STEPS - 1 :]
         grid = 0.5 * (judged[:-1] + judged[1:])

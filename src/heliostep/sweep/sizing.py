@@ -208,9 +208,11 @@ def run_sizing_cases(
     scheduler: str | None = None,
     progress: bool = False,
     should_stop: Callable[[], bool] | None = None,
+    on_case: Callable[[str, dict], None] | None = None,
 ) -> dict[str, dict]:
     """Run the plan's cases (on Dask with ``scheduler``, else here, one after another); case key ->
-    its record. Stopped part-way, it returns the cases finished so far."""
+    its record. Stopped part-way, it returns the cases finished so far. ``on_case(key, record)`` is
+    called as each case finishes."""
     from tqdm import tqdm
 
     results: dict[str, dict] = {}
@@ -218,7 +220,7 @@ def run_sizing_cases(
     source, folder = plan.scenario.source, str(plan.folder)
     try:
         if scheduler:
-            _run_on_dask(plan, scheduler, results, bar, should_stop)
+            _run_on_dask(plan, scheduler, results, bar, should_stop, on_case)
             return results
         for case in plan.cases:
             if should_stop is not None and should_stop():
@@ -228,12 +230,14 @@ def run_sizing_cases(
                 break
             results[case.key] = record
             bar.update(1)
+            if on_case is not None:
+                on_case(case.key, record)
     finally:
         bar.close()
     return results
 
 
-def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_stop) -> None:
+def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_stop, on_case) -> None:
     """The cases on the scheduler's workers, collected as they finish; the rest cancelled on a stop."""
     from distributed import as_completed
 
@@ -249,8 +253,11 @@ def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_st
             if should_stop is not None and should_stop():
                 client.cancel(list(futures))
                 break
-            results[futures[future].key] = future.result()
+            key = futures[future].key
+            results[key] = future.result()
             bar.update(1)
+            if on_case is not None:
+                on_case(key, results[key])
 
 
 def _curves(plan: SizingPlan) -> dict[str, SpeedTorqueCurve]:

@@ -44,12 +44,15 @@ def size(
     progress: bool = False,
     should_stop: Callable[[], bool] | None = None,
     catalogue: str = "",
+    on_case: Callable[[str, dict], None] | None = None,
 ) -> dict:
     """Run the plan's cases, judge every candidate and write the sheet into ``out_dir``; the sheet."""
     folder = check_out_dir(out_dir)
     with hold_folder(folder):
         check_foreign(folder, SIZING_FILES)
-        results = run_sizing_cases(plan, scheduler=scheduler, progress=progress, should_stop=should_stop)
+        results = run_sizing_cases(
+            plan, scheduler=scheduler, progress=progress, should_stop=should_stop, on_case=on_case
+        )
         stopped = len(results) < len(plan.cases)
         sheet = judge_candidates(plan, results, curves=not stopped)
         sheet = {
