@@ -234,3 +234,33 @@ def test_an_interrupted_sizing_keeps_the_cases_it_finished_and_names_the_rest(tm
     assert row["simulation"]["days_simulated"] == [21] and row["simulation"]["days_unfinished"] == [22]
     assert row["simulation"]["per_day"]["21"]["steps_commanded"] > 0  # the finished case's figures kept
     assert "Incomplete" in (tmp_path / "out" / "sizing.html").read_text()
+
+
+def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
+    """--scheduler: the cases on a local cluster whose workers can neither build nor find an FMU (the FMUs
+    are shipped), the same figures as the local run's, bit for bit."""
+    from distributed import Client, LocalCluster
+
+    _, local_out = sized
+    empty = tmp_path / "no-models"
+    empty.mkdir()
+    catalogue = _catalogue(tmp_path, {"small": SMALL, "large": LARGE})
+    out = tmp_path / "out"
+    env = {"HELIOSTEP_MODELS": str(empty), "HELIOSTEP_FMUS": str(empty)}
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0", env=env
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        client.wait_for_workers(2)
+        argv = ["size", SCENARIO, "--catalogue", str(catalogue), *ARGS, "--out", str(out)]
+        assert main([*argv, "--scheduler", cluster.scheduler_address]) == 0
+    local = json.loads((local_out / "sizing.json").read_text())
+    remote = json.loads((out / "sizing.json").read_text())
+    for mine, theirs in zip(local["candidates"], remote["candidates"]):
+        day_local = mine["currents"][0]["simulation"]["per_day"]["21"]
+        day_remote = theirs["currents"][0]["simulation"]["per_day"]["21"]
+        for key in ("max_tracking_error_deg", "steps_commanded", "steps_lost", "electrical_energy_J"):
+            assert day_remote[key] == day_local[key]
+        assert theirs["currents"][0]["verdict"] == mine["currents"][0]["verdict"]

@@ -23,7 +23,10 @@ from __future__ import annotations
 
 import copy
 import datetime as dt
+import hashlib
 import math
+import os
+import sys
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -38,6 +41,7 @@ from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sweep.sizing_verdict import judge
+from heliostep.sweep.worker import FmuPayload, _local_fmu
 
 __all__ = [
     "DEFAULT_CURVE_RATES",
@@ -106,10 +110,10 @@ def _case_overrides(scenario: Scenario, candidate: MotorCandidate, current: floa
     )
 
 
-def _mechanics_values(scenario: Scenario) -> dict[str, float]:
+def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, float]:
     """The mechanics FMU's T_c, M_c, J_p: its defaults with the scenario's values over them."""
     instance = _instance(scenario, "wind_moment", "mechanics")
-    info = read_fmu(resolve_fmus(scenario)[instance])
+    info = read_fmu(fmu_paths[instance])
     given = scenario.parameters.get(instance, {})
     values = {}
     for name in ("T_c", "M_c", "J_p"):
@@ -166,7 +170,8 @@ def plan_sizing(
                 plan.cases.append(SizingCase(candidate.name, current, day, overrides))
     for case in plan.cases:  # every case's scenario valid before anything runs
         case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
-    plan.mechanics = _mechanics_values(scenario)
+    plan.fmu_paths = resolve_fmus(scenario)
+    plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
     return plan
 
 
@@ -176,13 +181,18 @@ def run_sizing_case(
     source: str,
     folder: str,
     should_stop: Callable[[], bool] | None = None,
+    fmu_paths: Mapping[str, Path] | None = None,
+    shipped: Mapping[str, FmuPayload] | None = None,
 ) -> dict:
     """One case (on a Dask worker or here): its figures, or why it failed; ``"interrupted": True``
-    when ``should_stop`` stopped it (not a finished case)."""
+    when ``should_stop`` stopped it (not a finished case). ``fmu_paths``: the FMUs resolved once;
+    ``shipped``: their bytes, sent to a worker that may have neither the models nor the cache."""
     scenario = case_scenario(raw, overrides, source, Path(folder))
+    if shipped is not None:
+        fmu_paths = {instance: _local_fmu(payload) for instance, payload in shipped.items()}
     started = clock.perf_counter()
     try:
-        result = run_scenario(scenario, keep_trace=False, should_stop=should_stop)
+        result = run_scenario(scenario, keep_trace=False, should_stop=should_stop, fmu_paths=fmu_paths)
     except RunFailed as failed:
         if failed.result.reason == "interrupted":
             return {"interrupted": True}
@@ -216,7 +226,8 @@ def run_sizing_cases(
     from tqdm import tqdm
 
     results: dict[str, dict] = {}
-    bar = tqdm(total=len(plan.cases), desc="sizing cases", unit="case", disable=not progress, mininterval=0.5)
+    quiet = not progress or not sys.stderr.isatty() or bool(os.environ.get("CI"))  # as the sweep's bar
+    bar = tqdm(total=len(plan.cases), desc="sizing cases", unit="case", disable=quiet, mininterval=0.5, file=sys.stderr)
     source, folder = plan.scenario.source, str(plan.folder)
     try:
         if scheduler:
@@ -225,7 +236,7 @@ def run_sizing_cases(
         for case in plan.cases:
             if should_stop is not None and should_stop():
                 break
-            record = run_sizing_case(plan.raw, case.overrides, source, folder, should_stop)
+            record = run_sizing_case(plan.raw, case.overrides, source, folder, should_stop, plan.fmu_paths)
             if record.get("interrupted"):
                 break
             results[case.key] = record
@@ -244,9 +255,16 @@ def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_st
     from heliostep.sweep.cluster import _dask_client
 
     source, folder = plan.scenario.source, str(plan.folder)
+    payloads = {}
+    for instance, path in plan.fmu_paths.items():
+        data = Path(path).read_bytes()
+        payloads[instance] = FmuPayload(name=Path(path).name, sha256=hashlib.sha256(data).hexdigest(), data=data)
     with _dask_client(scheduler=scheduler) as client:
+        [shipped] = client.scatter([payloads], broadcast=True)
         futures = {
-            client.submit(run_sizing_case, plan.raw, case.overrides, source, folder, pure=False): case
+            client.submit(
+                run_sizing_case, plan.raw, case.overrides, source, folder, None, None, shipped, pure=False
+            ): case
             for case in plan.cases
         }
         for future in as_completed(list(futures)):

@@ -43,6 +43,7 @@ class SizingPlan:
     curve_rates: tuple[float, ...]
     cases: list[SizingCase] = field(default_factory=list)
     mechanics: dict[str, float] = field(default_factory=dict)  # T_c, M_c, J_p
+    fmu_paths: dict[str, Path] = field(default_factory=dict)  # instance -> FMU, resolved once for every case
 
 
 def case_scenario(raw: dict, overrides: Sequence[str], source: str, folder: Path) -> Scenario:
