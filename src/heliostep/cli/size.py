@@ -9,7 +9,6 @@ from pathlib import Path
 from heliostep.cli.signals import stop_requests
 from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
 from heliostep.sweep.sizing import DEFAULT_CURVE_RATES, DEFAULT_SAFETY_FACTOR, FASTEST_DAYS, plan_sizing
-from heliostep.sweep.sizing_sheet import size
 
 SIZE_DESCRIPTION = (
     "Judge every candidate drive of a motor catalogue, at each of its currents, against the scenario's load: "
@@ -61,6 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from heliostep.sweep.sizing_sheet import size  # here: it imports matplotlib, which no other command's start needs
+
     candidates = load_catalogue(args.catalogue, args.candidate)
     plan = plan_sizing(
         args.scenario,
