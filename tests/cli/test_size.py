@@ -264,3 +264,13 @@ def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
         for key in ("max_tracking_error_deg", "steps_commanded", "steps_lost", "electrical_energy_J"):
             assert day_remote[key] == day_local[key]
         assert theirs["currents"][0]["verdict"] == mine["currents"][0]["verdict"]
+
+
+def test_the_command_line_defaults_are_the_sizings():
+    # cli.size spells its defaults out so that no command's start imports the sizing; they must agree
+    from heliostep.cli import size as command
+    from heliostep.sweep import sizing
+
+    assert command.FASTEST_DAYS == sizing.FASTEST_DAYS
+    assert command.DEFAULT_SAFETY_FACTOR == sizing.DEFAULT_SAFETY_FACTOR
+    assert command.DEFAULT_CURVE_RATES == sizing.DEFAULT_CURVE_RATES

@@ -7,8 +7,11 @@ import sys
 from pathlib import Path
 
 from heliostep.cli.signals import stop_requests
-from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
-from heliostep.sweep.sizing import DEFAULT_CURVE_RATES, DEFAULT_SAFETY_FACTOR, FASTEST_DAYS, plan_sizing
+
+#: The defaults of heliostep.sweep.sizing (imported when the command runs: every command's start stays short).
+FASTEST_DAYS = (80, 172, 265, 355)
+DEFAULT_SAFETY_FACTOR = 2.0
+DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
 
 SIZE_DESCRIPTION = (
     "Judge every candidate drive of a motor catalogue, at each of its currents, against the scenario's load: "
@@ -35,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("scenario", help="scenario YAML (or a shipped scenario's name)")
     parser.add_argument(
-        "--catalogue", type=Path, default=None, help=f"motor catalogue (default {shipped_catalogue_path().name})"
+        "--catalogue", type=Path, default=None, help="motor catalogue (default heliostep/data/motors.yaml)"
     )
     parser.add_argument("--candidate", action="append", default=[], help="only this catalogue entry (repeatable)")
     parser.add_argument(
@@ -60,7 +63,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from heliostep.sweep.sizing_sheet import size  # here: it imports matplotlib, which no other command's start needs
+    from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
+    from heliostep.sweep.sizing import plan_sizing
+    from heliostep.sweep.sizing_sheet import size
 
     candidates = load_catalogue(args.catalogue, args.candidate)
     plan = plan_sizing(

@@ -13,7 +13,6 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-from heliostep.plots.sizing import sizing_html
 from heliostep.results.outputs import check_out_dir
 from heliostep.results.run_folder import check_foreign, hold_folder, staging_folder, swap_in
 from heliostep.sweep.sizing import judge_candidates, run_sizing_cases
@@ -47,6 +46,8 @@ def size(
     on_case: Callable[[str, dict], None] | None = None,
 ) -> dict:
     """Run the plan's cases, judge every candidate and write the sheet into ``out_dir``; the sheet."""
+    from heliostep.plots.sizing import sizing_html  # here: matplotlib only when a sheet is drawn
+
     folder = check_out_dir(out_dir)
     with hold_folder(folder):
         check_foreign(folder, SIZING_FILES)
