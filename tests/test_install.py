@@ -54,6 +54,7 @@ def test_installed_package_carries_models_and_scenarios(installed):
     assert {p.name for p in (data / "models").glob("*.mo")} >= {"StepperMotor.mo", "PanelMechanics.mo"}
     assert (data / "scenarios" / "jan21-central.yaml").is_file()
     assert (data / "scenarios" / "jan21-central.reference.parquet").is_file()
+    assert (data / "motors.yaml").is_file()  # heliostep size's motor catalogue (issue 23)
     assert (installed / "heliostep" / "fmu" / "c" / "fmi2_model_exchange.c").is_file()
 
 

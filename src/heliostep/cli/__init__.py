@@ -29,6 +29,7 @@ COMMANDS = {
     "compare": "heliostep.cli.compare",
     "regress": "heliostep.cli.regress",
     "sweep": "heliostep.cli.sweep",
+    "size": "heliostep.cli.size",
     "field-light": "heliostep.cli.fieldlight",
     "export-ssp": "heliostep.cli.export_ssp",
 }

@@ -8,9 +8,13 @@
   stepping together [kJ]) and ``heatmap_light_lost_fraction.png`` (the same as a share of the
   ideal [%]): the figure over day of year x mirror index (the largest value over the other
   axes), when the table has at least two days and two mirrors;
-* ``torque_requirement.png``: per day of year, the required motor torque, the paper's
-  2x margin for wind on the simulated peak torque (largest over the mirrors), against
-  the motor's holding torque k_e x I (one line per phase current swept).
+* ``torque_requirement.png``: per day of year, the paper's rule, 2 x the simulated peak torque
+  (largest over the mirrors), against the motor's holding torque k_e x I (one line per phase
+  current swept). **Superseded by** ``heliostep size`` (:mod:`heliostep.sweep.sizing`): the peak is
+  the torque the motor produces to swing its load into the next detent, not the requirement; the
+  requirement is the load (wind through the transmission, friction, inertia) against the torque the
+  motor can deliver, with the margin on the load (docs/sizing.md). Kept, and titled as superseded,
+  so that sweeps drawn before stay comparable.
 
 Only cases with status "ok" are drawn; a missing cell (failed case) stays grey. Each cell
 prints its value; a peak-torque cell whose cases commanded no step says "no steps" (white). Figures
@@ -187,7 +191,9 @@ def heatmap_figure(table: pd.DataFrame, column: str, label: str, scale: float = 
 
 
 def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | None:
-    """Required torque (2 x peak, max over mirrors) per day against the holding torque k_e x I.
+    """The paper's rule (2 x peak, max over mirrors) per day against the holding torque k_e x I.
+
+    Superseded by ``heliostep size``'s load-based verdict (module docstring); the figure says so.
 
     Parameters
     ----------
@@ -236,7 +242,7 @@ def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | Non
         ax.set_xticks(np.arange(len(days)), [str(d) for d in days])
     ax.set_xlabel("day of year")
     ax.set_ylabel("torque [N.m]")
-    ax.set_title("Motor torque needed with the 2x wind margin vs holding torque")
+    ax.set_title("Paper's rule, 2 x peak torque vs holding torque (superseded: see heliostep size, docs/sizing.md)")
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(fontsize="small")
     path = Path(path)

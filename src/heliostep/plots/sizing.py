@@ -1,0 +1,269 @@
+"""The sizing sheet (``heliostep size``) as one self-contained HTML page: tables with units, plots
+embedded as base64 PNG, readable offline (no script, no external file).
+
+:func:`sizing_html` takes the sheet (:func:`heliostep.sweep.sizing_verdict.judge`'s mapping, with the
+run's header keys) and returns the page. Figures are :class:`matplotlib.figure.Figure` (no pyplot).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from matplotlib.figure import Figure
+
+__all__ = ["margins_png", "sizing_html", "speed_torque_png"]
+
+_DPI = 110
+
+
+def _png(figure: Figure) -> bytes:
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=_DPI, bbox_inches="tight")
+    return buffer.getvalue()
+
+
+def speed_torque_png(sheet: Mapping[str, Any]) -> bytes | None:
+    """Each candidate's pull-out torque against step rate, its holding torque, and the load x the safety
+    factor (the worst candidate's budget); None without curves."""
+    curves = [(c["name"], c["speed_torque"]) for c in sheet["candidates"] if "speed_torque" in c]
+    if not curves:
+        return None
+    figure = Figure(figsize=(7.5, 4.5))
+    axes = figure.add_subplot()
+    for name, curve in curves:
+        (line,) = axes.plot(curve["step_rates_per_s"], curve["pull_out_torques_Nm"], "o-", label=f"{name}, pull-out")
+        axes.axhline(curve["holding_torque_Nm"], color=line.get_color(), linestyle=":", linewidth=1)
+    loads = [row["load_budget"]["total_Nm"] for c in sheet["candidates"] for row in c["currents"]]
+    if loads:
+        axes.axhline(
+            max(loads) * sheet["safety_factor"],
+            color="black",
+            linestyle="--",
+            label=f"load x {sheet['safety_factor']:g} (worst instant)",
+        )
+    axes.set_xlabel("step rate [full steps/s]")
+    axes.set_ylabel("torque on the motor shaft [N.m]")
+    axes.set_title("speed-torque curves at each candidate's largest current (dotted: holding torque)")
+    axes.grid(True, alpha=0.3)
+    axes.legend(fontsize=7)
+    return _png(figure)
+
+
+def margins_png(sheet: Mapping[str, Any]) -> bytes | None:
+    """The tracking and idle margins of every candidate and current, against the safety factor."""
+    rows = [(f"{c['name']}\n{row['current_A']:g} A", row) for c in sheet["candidates"] for row in c["currents"]]
+    if not rows:
+        return None
+    figure = Figure(figsize=(max(6.0, 0.7 * len(rows) + 2), 4.5))
+    axes = figure.add_subplot()
+    positions = range(len(rows))
+    cap = 10.0 * sheet["safety_factor"]
+    for offset, key, label in ((-0.2, "tracking_margin", "tracking"), (0.2, "idle_margin", "idle current")):
+        values = [min(float(row[key]), cap) for _, row in rows]
+        axes.bar([p + offset for p in positions], values, width=0.4, label=label)
+    axes.axhline(
+        sheet["safety_factor"], color="black", linestyle="--", label=f"safety factor {sheet['safety_factor']:g}"
+    )
+    axes.set_xticks(list(positions), [name for name, _ in rows], fontsize=7, rotation=90)
+    axes.set_ylabel(f"margin to slip [1] (capped at {cap:g})")
+    axes.set_title("margins: torque the motor has / load it must carry")
+    axes.legend(fontsize=7)
+    return _png(figure)
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, float):
+        if math.isinf(value):
+            return "∞"
+        return f"{value:.4g}"
+    if isinstance(value, list | tuple):
+        return html.escape(", ".join(map(str, value)))
+    return html.escape(str(value))
+
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+    body = "".join("<tr>" + "".join(f"<td>{_cell(v)}</td>" for v in row) + "</tr>" for row in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _verdict_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "candidate [name]",
+        "current [A]",
+        "holding torque [N.m]",
+        "step limit from rest [N.m]",
+        "load at the worst instant [N.m]",
+        "tracking margin [1]",
+        "idle margin [1]",
+        "steps lost [steps]",
+        "steps missed [steps]",
+        "worst tracking error [deg]",
+        "drive energy per day [J]",
+        "verdict [pass/fail]",
+        "reasons [text]",
+    )
+    rows = []
+    for c in sheet["candidates"]:
+        for row in c["currents"]:
+            simulated = row["simulation"]
+            rows.append(
+                (
+                    c["name"],
+                    row["current_A"],
+                    row["holding_torque_Nm"],
+                    row["static_step_limit_Nm"],
+                    row["load_budget"]["total_Nm"],
+                    row["tracking_margin"],
+                    row["idle_margin"],
+                    simulated["steps_lost"],
+                    simulated["missed_steps"],
+                    simulated["max_tracking_error_deg"],
+                    simulated["drive_energy_per_day_J"],
+                    row["verdict"],
+                    "; ".join(row["reasons"]) or "passes",
+                )
+            )
+    return _table(headers, rows)
+
+
+def _budget_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "candidate [name]",
+        "day [day of year]",
+        "time in the window [s]",
+        "panel angle [deg]",
+        "ratio g [1]",
+        "wind moment on the panel [N.m]",
+        "wind on the shaft [N.m]",
+        "friction [N.m]",
+        "inertia [N.m]",
+        "total [N.m]",
+    )
+    rows = []
+    for c in sheet["candidates"]:
+        budget = c["currents"][0]["load_budget"]
+        rows.append(
+            (
+                c["name"],
+                budget["day_of_year"],
+                budget["time_s"],
+                budget["panel_angle_deg"],
+                budget["ratio"],
+                budget["wind_moment_Nm"],
+                budget["wind_Nm"],
+                budget["friction_Nm"],
+                budget["inertia_Nm"],
+                budget["total_Nm"],
+            )
+        )
+    return _table(headers, rows)
+
+
+def _catalogue_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "candidate [name]",
+        "manufacturer [text]",
+        "datasheet [text]",
+        "holding torque, 2 phases on [N.m]",
+        "rated current [A]",
+        "resistance [Ohm]",
+        "inductance [mH]",
+        "rotor inertia [kg.m2]",
+        "detent torque [N.m]",
+        "bus [V]",
+        "k_e [N.m/A]",
+    )
+    rows = [
+        (
+            c["name"],
+            c["manufacturer"],
+            c["datasheet"],
+            c["holding_torque_Nm"],
+            c["rated_current_A"],
+            c["resistance_Ohm"],
+            1e3 * c["inductance_H"],
+            c["rotor_inertia_kgm2"],
+            c["detent_torque_Nm"],
+            c["bus_voltage_V"],
+            c["torque_constant_NmA"],
+        )
+        for c in sheet["candidates"]
+    ]
+    return _table(headers, rows)
+
+
+def _curve_table(sheet: Mapping[str, Any]) -> str:
+    headers = ("candidate [name]", "current [A]", "step rate [full steps/s]", "pull-out torque [N.m]")
+    rows = [
+        (c["name"], c["speed_torque"]["current_A"], rate, torque)
+        for c in sheet["candidates"]
+        if "speed_torque" in c
+        for rate, torque in zip(c["speed_torque"]["step_rates_per_s"], c["speed_torque"]["pull_out_torques_Nm"])
+    ]
+    return _table(headers, rows)
+
+
+_STYLE = (
+    "body{font-family:sans-serif;margin:2em;max-width:90em}table{border-collapse:collapse;margin:1em 0}"
+    "th,td{border:1px solid #999;padding:0.25em 0.5em;font-size:0.85em;vertical-align:top}th{background:#eee}"
+)
+
+
+def _image(png: bytes | None, alt: str) -> str:
+    if png is None:
+        return ""
+    return f'<p><img alt="{html.escape(alt)}" src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}"></p>'
+
+
+def sizing_html(sheet: Mapping[str, Any]) -> str:
+    """The sizing sheet as one HTML page (everything embedded)."""
+    best = sheet.get("smallest_passing")
+    verdict = (
+        f"The smallest passing drive: <b>{html.escape(best['candidate'])} at {best['current_A']:g} A</b>."
+        if best
+        else "<b>No candidate passes.</b>"
+    )
+    smaller = "".join(
+        f"<li>{html.escape(item['candidate'])} at {item['current_A']:g} A ({html.escape(item['verdict'])}): "
+        f"{html.escape('; '.join(item['reasons']) or '–')}</li>"
+        for item in sheet.get("smaller_ones_fail_because", [])
+    )
+    status = (
+        ""
+        if sheet.get("complete", True)
+        else (
+            "<p><b>Incomplete</b>: interrupted; cases not run: "
+            f"{html.escape(', '.join(sheet.get('unfinished_cases', [])))}</p>"
+        )
+    )
+    parts = [
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>sizing: {html.escape(sheet['scenario'])}</title>",
+        f"<style>{_STYLE}</style></head><body>",
+        f"<h1>Sizing sheet: {html.escape(sheet['scenario'])}</h1>",
+        f"<p>Wind: {sheet['wind']['moment_Nm']:.4g} N.m on the panel axis ({html.escape(sheet['wind']['source'])}); "
+        f"safety factor {sheet['safety_factor']:g} on the load; days simulated (day of year): "
+        f"{html.escape(', '.join(map(str, sheet['days'])))}.</p>",
+        status,
+        f"<p>{verdict}</p>",
+        f"<h2>Why each smaller one fails</h2><ul>{smaller or '<li>none smaller</li>'}</ul>",
+        "<h2>Verdicts</h2>",
+        _verdict_table(sheet),
+        _image(margins_png(sheet), "margins"),
+        "<h2>Load budget at the worst instant</h2>",
+        _budget_table(sheet),
+        "<h2>Speed-torque curves</h2>",
+        _image(speed_torque_png(sheet), "speed-torque curves"),
+        _curve_table(sheet),
+        "<h2>Catalogue</h2>",
+        _catalogue_table(sheet),
+        "</body></html>",
+    ]
+    return "\n".join(parts)

@@ -1,0 +1,292 @@
+"""``heliostep size``: every candidate drive and current against a scenario's load, and the verdict.
+
+For a scenario and a motor catalogue (:mod:`heliostep.scenario.catalogue`), each candidate at each of
+its currents is judged on:
+
+* the **load budget** at the worst instant of the window (:mod:`heliostep.run.load_budget`): the design
+  wind moment reflected through the transmission, friction and the inertia torque of the fastest move;
+* the **margin to slip while tracking**: the largest static load the motor steps against from rest
+  (:func:`~heliostep.run.load_budget.static_step_limit`) over the load budget;
+* the **margin at idle current**: the holding torque at the idle current over the wind's share;
+* the **co-simulated days** (:data:`FASTEST_DAYS` or ``days``): the scenario's window on each day with
+  the candidate's motor, the current and the design wind moment, run through
+  :func:`~heliostep.run.run_scenario` (locally, or on Dask with a scheduler): steps missed and lost,
+  the worst tracking error, the drive's energy.
+
+It passes when both margins reach the safety factor (default :data:`DEFAULT_SAFETY_FACTOR`, the
+paper's 2, on the load) and no simulated step was missed or lost; the sheet names every reason a
+candidate fails. The speed-torque curve of each candidate (:mod:`heliostep.run.speed_torque`) is drawn
+beside it. The files (``sizing.json``, ``sizing.html``) are :mod:`heliostep.sweep.sizing_sheet`'s.
+"""
+
+from __future__ import annotations
+
+import copy
+import datetime as dt
+import hashlib
+import math
+import os
+import sys
+import time as clock
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+from heliostep.cosim import read_fmu
+from heliostep.errors import InputError
+from heliostep.run import RunFailed, resolve_fmus, run_scenario
+from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
+from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
+from heliostep.scenario.catalogue import MotorCandidate
+from heliostep.scenario.keys import apply_overrides
+from heliostep.scenario.yaml_io import read_yaml_file
+from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
+from heliostep.sweep.sizing_verdict import judge
+from heliostep.sweep.worker import FmuPayload, _local_fmu
+
+__all__ = [
+    "DEFAULT_CURVE_RATES",
+    "DEFAULT_SAFETY_FACTOR",
+    "FASTEST_DAYS",
+    "SizingCase",
+    "SizingPlan",
+    "design_gust_moment_placeholder",
+    "judge_candidates",
+    "plan_sizing",
+    "run_sizing_case",
+    "run_sizing_cases",
+]
+
+#: The paper's margin, here on the load (the paper put it on the motor's transient peak).
+DEFAULT_SAFETY_FACTOR = 2.0
+#: The days simulated unless ``days`` is given (day of the year): the equinoxes (about 20 March,
+#: 22 September: the sun's declination changes fastest, 0.4 deg/day) and the solstices (21 June,
+#: 21 December: the sun's daily path is longest and shortest, the tracking rates' extremes).
+FASTEST_DAYS = (80, 172, 265, 355)
+#: Step rates of each candidate's speed-torque curve on the sheet [full steps/s].
+DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
+#: PLACEHOLDER for the wind helper's module (issue 23): the hinge-moment coefficient C_M of a flat
+#: panel at its worst angle to the wind, of the order of Peterka & Derickson's peak heliostat hinge
+#: moments; unverified here. Replaced, with the air density, by the wind module's moment function.
+PLACEHOLDER_MOMENT_COEFFICIENT = 0.2
+#: PLACEHOLDER air density [kg/m3] (ISA sea level), see above.
+PLACEHOLDER_AIR_DENSITY = 1.225
+#: The paper's panel (Table 2): chord l = 1.5 m; its width along the axis from M = rho l sp w:
+#: 18 / (800 x 1.5 x 0.05) = 0.3 m.
+PANEL_CHORD_M = 1.5
+PANEL_WIDTH_M = 0.3
+
+
+def design_gust_moment_placeholder(scenario: Scenario, gust_speed: float) -> float:
+    """PLACEHOLDER: the moment on the panel axis [N.m] of a design gust of ``gust_speed`` [m/s],
+    M = C_M 1/2 rho v^2 A c with the constants above (A = l w, c = l of Table 2's panel).
+
+    Its one call site is :func:`plan_sizing`; the wind module of issue 23 (``heliostep.drive.wind``)
+    replaces it with its cited moment coefficient, gust factor and the site's air density."""
+    del scenario  # the real function takes the site (air density) and the panel from it
+    area = PANEL_CHORD_M * PANEL_WIDTH_M
+    return PLACEHOLDER_MOMENT_COEFFICIENT * 0.5 * PLACEHOLDER_AIR_DENSITY * gust_speed**2 * area * PANEL_CHORD_M
+
+
+def _date_of(year: int, day_of_year: int) -> dt.date:
+    return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
+
+
+def _instance(scenario: Scenario, role: str, default: str) -> str:
+    target = scenario.resolved_roles().get(role)
+    return target.partition(".")[0] if target else default
+
+
+def _case_overrides(scenario: Scenario, candidate: MotorCandidate, current: float, day: dt.date, wind: float):
+    motor, mechanics = _instance(scenario, "torque", "motor"), _instance(scenario, "wind_moment", "mechanics")
+    drive = candidate.drive()
+    values = [f"parameters.{motor}.{name}={value!r}" for name, value in drive.motor_parameters().items()]
+    return (
+        *values,
+        f"parameters.{mechanics}.J_m={drive.rotor_inertia!r}",
+        f"sequencer.current={current!r}",
+        f"sequencer.step_angle={candidate.step_angle!r}",
+        f"window.date={day.isoformat()}",
+        f"wind.moment={wind!r}",
+    )
+
+
+def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, float]:
+    """The mechanics FMU's T_c, M_c, J_p: its defaults with the scenario's values over them."""
+    instance = _instance(scenario, "wind_moment", "mechanics")
+    info = read_fmu(fmu_paths[instance])
+    given = scenario.parameters.get(instance, {})
+    values = {}
+    for name in ("T_c", "M_c", "J_p"):
+        if name in given:
+            values[name] = float(given[name])
+        elif name in info.variables and isinstance(info.variables[name].start, float):
+            values[name] = float(info.variables[name].start)
+        else:
+            values[name] = 0.0
+    return values
+
+
+def plan_sizing(
+    scenario_path: str | Path,
+    candidates: Sequence[MotorCandidate],
+    *,
+    design_gust: float | None = None,
+    days: Sequence[int] = (),
+    safety_factor: float = DEFAULT_SAFETY_FACTOR,
+    curve_rates: Sequence[float] = DEFAULT_CURVE_RATES,
+    overrides: Sequence[str] = (),
+) -> SizingPlan:
+    """Every case of the sizing, each case's scenario validated (an :class:`InputError` before any run).
+    ``overrides``: ``--set``-style items applied to the scenario first."""
+    path = resolve_scenario_path(scenario_path)
+    raw = read_yaml_file(path, "scenario")
+    if not isinstance(raw, dict):
+        raise InputError(f"{path}: the top level must be a mapping of keys (name, site, window, ...)")
+    raw = apply_overrides(raw, overrides, str(path))
+    scenario = validate_scenario(copy.deepcopy(raw), source=str(path), folder=path.absolute().parent)
+    if design_gust is not None and not (math.isfinite(design_gust) and design_gust >= 0):
+        raise InputError(f"--design-gust {design_gust!r}: expected a wind speed >= 0 [m/s]")
+    if not (math.isfinite(safety_factor) and safety_factor > 0):
+        raise InputError(f"--safety-factor {safety_factor!r}: expected > 0")
+    if any(not (math.isfinite(rate) and rate > 0) for rate in curve_rates):
+        raise InputError(f"--curve-rates {list(curve_rates)}: expected step rates > 0 [full steps/s]")
+    bad_days = [day for day in days if not 1 <= day <= 365]
+    if bad_days:
+        raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
+    if design_gust is not None:  # the one call site of the placeholder (see its docstring)
+        wind, source = design_gust_moment_placeholder(scenario, design_gust), f"design gust {design_gust:g} m/s"
+    else:
+        wind, source = scenario.wind.moment, f"{scenario.source}: wind.moment"
+    chosen_days = sorted(set(days)) if days else list(FASTEST_DAYS)
+    rates = tuple(sorted(float(rate) for rate in curve_rates))
+    plan = SizingPlan(
+        scenario, raw, path.absolute().parent, list(candidates), chosen_days, float(wind), source, safety_factor, rates
+    )
+    year = scenario.window.date.year
+    for candidate in plan.candidates:
+        for current in candidate.currents:
+            for day in plan.days:
+                overrides = _case_overrides(scenario, candidate, current, _date_of(year, day), plan.wind_moment)
+                plan.cases.append(SizingCase(candidate.name, current, day, overrides))
+    for case in plan.cases:  # every case's scenario valid before anything runs
+        case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
+    plan.fmu_paths = resolve_fmus(scenario)
+    plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
+    return plan
+
+
+def run_sizing_case(
+    raw: dict,
+    overrides: Sequence[str],
+    source: str,
+    folder: str,
+    should_stop: Callable[[], bool] | None = None,
+    fmu_paths: Mapping[str, Path] | None = None,
+    shipped: Mapping[str, FmuPayload] | None = None,
+) -> dict:
+    """One case (on a Dask worker or here): its figures, or why it failed; ``"interrupted": True``
+    when ``should_stop`` stopped it (not a finished case). ``fmu_paths``: the FMUs resolved once;
+    ``shipped``: their bytes, sent to a worker that may have neither the models nor the cache."""
+    scenario = case_scenario(raw, overrides, source, Path(folder))
+    if shipped is not None:
+        fmu_paths = {instance: _local_fmu(payload) for instance, payload in shipped.items()}
+    started = clock.perf_counter()
+    try:
+        result = run_scenario(scenario, keep_trace=False, should_stop=should_stop, fmu_paths=fmu_paths)
+    except RunFailed as failed:
+        if failed.result.reason == "interrupted":
+            return {"interrupted": True}
+        return {"complete": False, "error": str(failed)[:500], "wall_time_s": clock.perf_counter() - started}
+    figures = dict(result.summary or {})
+    keep = (
+        "max_tracking_error_deg",
+        "steps_commanded",
+        "missed_steps",
+        "steps_lost",
+        "electrical_energy_J",
+        "drive_energy_per_day_J",
+        "peak_torque_Nm",
+    )
+    record = {key: figures.get(key) for key in keep}
+    record.update(complete=True, wall_time_s=clock.perf_counter() - started)
+    return record
+
+
+def run_sizing_cases(
+    plan: SizingPlan,
+    *,
+    scheduler: str | None = None,
+    progress: bool = False,
+    should_stop: Callable[[], bool] | None = None,
+    on_case: Callable[[str, dict], None] | None = None,
+) -> dict[str, dict]:
+    """Run the plan's cases (on Dask with ``scheduler``, else here, one after another); case key ->
+    its record. Stopped part-way, it returns the cases finished so far. ``on_case(key, record)`` is
+    called as each case finishes."""
+    from tqdm import tqdm
+
+    results: dict[str, dict] = {}
+    quiet = not progress or not sys.stderr.isatty() or bool(os.environ.get("CI"))  # as the sweep's bar
+    bar = tqdm(total=len(plan.cases), desc="sizing cases", unit="case", disable=quiet, mininterval=0.5, file=sys.stderr)
+    source, folder = plan.scenario.source, str(plan.folder)
+    try:
+        if scheduler:
+            _run_on_dask(plan, scheduler, results, bar, should_stop, on_case)
+            return results
+        for case in plan.cases:
+            if should_stop is not None and should_stop():
+                break
+            record = run_sizing_case(plan.raw, case.overrides, source, folder, should_stop, plan.fmu_paths)
+            if record.get("interrupted"):
+                break
+            results[case.key] = record
+            bar.update(1)
+            if on_case is not None:
+                on_case(case.key, record)
+    finally:
+        bar.close()
+    return results
+
+
+def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_stop, on_case) -> None:
+    """The cases on the scheduler's workers, collected as they finish; the rest cancelled on a stop."""
+    from distributed import as_completed
+
+    from heliostep.sweep.cluster import _dask_client
+
+    source, folder = plan.scenario.source, str(plan.folder)
+    payloads = {}
+    for instance, path in plan.fmu_paths.items():
+        data = Path(path).read_bytes()
+        payloads[instance] = FmuPayload(name=Path(path).name, sha256=hashlib.sha256(data).hexdigest(), data=data)
+    with _dask_client(scheduler=scheduler) as client:
+        [shipped] = client.scatter([payloads], broadcast=True)
+        futures = {
+            client.submit(
+                run_sizing_case, plan.raw, case.overrides, source, folder, None, None, shipped, pure=False
+            ): case
+            for case in plan.cases
+        }
+        for future in as_completed(list(futures)):
+            if should_stop is not None and should_stop():
+                client.cancel(list(futures))
+                break
+            key = futures[future].key
+            results[key] = future.result()
+            bar.update(1)
+            if on_case is not None:
+                on_case(key, results[key])
+
+
+def _curves(plan: SizingPlan) -> dict[str, SpeedTorqueCurve]:
+    """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated)."""
+    mode, microsteps = plan.scenario.sequencer.mode, plan.scenario.sequencer.microsteps
+    return {
+        c.name: speed_torque_curve(c.drive(), c.currents[-1], plan.curve_rates, mode=mode, microsteps=microsteps)
+        for c in plan.candidates
+    }
+
+
+def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool = True) -> dict:
+    """The sizing sheet's content: per candidate and current, the figures and the verdict."""
+    return judge(plan, results, _curves(plan) if curves else {})

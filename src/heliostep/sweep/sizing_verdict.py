@@ -1,0 +1,148 @@
+"""The sizing's verdicts: each candidate and current judged on its load budget, margins and simulated days.
+
+See :mod:`heliostep.sweep.sizing` for what is judged. Candidates are ordered from the smallest (lowest
+datasheet holding torque) up, and currents from the lowest; the smallest passing pair is the
+recommendation, and every pair before it is listed with the reasons it fails.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+from heliostep.drive.inputs import prepare_inputs
+from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit
+from heliostep.run.speed_torque import SpeedTorqueCurve
+from heliostep.scenario.catalogue import MotorCandidate
+from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
+
+__all__ = ["judge"]
+
+
+def _ratio(capacity: float, load: float) -> float:
+    return math.inf if load <= 0 else capacity / load
+
+
+def _budgets(plan: SizingPlan, candidate: MotorCandidate) -> dict[int, LoadBudget]:
+    """The load budget of each day (the reference does not depend on the current)."""
+    budgets = {}
+    for case in plan.cases:
+        if case.candidate == candidate.name and case.day_of_year not in budgets:
+            scenario = case_scenario(plan.raw, case.overrides, plan.scenario.source, plan.folder)
+            inputs = prepare_inputs(scenario)
+            budgets[case.day_of_year] = load_budget(
+                scenario, inputs, plan.wind_moment, plan.mechanics, candidate.rotor_inertia
+            )
+    return budgets
+
+
+def _simulated(plan: SizingPlan, candidate: MotorCandidate, current: float, results: Mapping[str, dict]) -> dict:
+    """The co-simulated days of one candidate and current, summed up."""
+    days = [case for case in plan.cases if case.candidate == candidate.name and case.current == current]
+    finished = [(case, results[case.key]) for case in days if case.key in results]
+    ok = [(case, record) for case, record in finished if record.get("complete")]
+    failed = [(case.day_of_year, record.get("error", "")) for case, record in finished if not record.get("complete")]
+    energies = [
+        record["drive_energy_per_day_J"] for _, record in ok if record.get("drive_energy_per_day_J") is not None
+    ]
+    errors = [record["max_tracking_error_deg"] for _, record in ok if record.get("max_tracking_error_deg") is not None]
+    return {
+        "days_simulated": [case.day_of_year for case, _ in ok],
+        "days_unfinished": [case.day_of_year for case in days if case.key not in results],
+        "days_failed": failed,
+        "steps_commanded": sum(int(record.get("steps_commanded") or 0) for _, record in ok),
+        "missed_steps": sum(int(record.get("missed_steps") or 0) for _, record in ok),
+        "steps_lost": sum(int(record.get("steps_lost") or 0) for _, record in ok),
+        "max_tracking_error_deg": max(errors) if errors else None,
+        "electrical_energy_J": sum(float(record.get("electrical_energy_J") or 0.0) for _, record in ok),
+        "drive_energy_per_day_J": sum(energies) / len(energies) if energies else None,
+        "drive_energy_per_year_J": 365.0 * sum(energies) / len(energies) if energies else None,
+        "per_day": {str(case.day_of_year): record for case, record in finished},
+    }
+
+
+def _reasons(plan: SizingPlan, row: dict, budget: LoadBudget, day: int) -> list[str]:
+    """Why a candidate at a current fails (empty: it passes)."""
+    factor, reasons = plan.safety_factor, []
+    if row["tracking_margin"] < factor:
+        reasons.append(
+            f"tracking margin {row['tracking_margin']:.2f} < {factor:g}: the motor steps from rest against at most "
+            f"{row['static_step_limit_Nm']:.3g} N.m, the load is {budget.total_Nm:.3g} N.m (wind "
+            f"{budget.wind_Nm:.3g}, friction {budget.friction_Nm:.3g}, inertia {budget.inertia_Nm:.2g} N.m) at "
+            f"{budget.panel_angle_deg:.1f} deg panel angle on day {day}"
+        )
+    if row["idle_margin"] < factor:
+        reasons.append(
+            f"idle margin {row['idle_margin']:.2f} < {factor:g}: at idle current it holds "
+            f"{row['idle_holding_torque_Nm']:.3g} N.m against a wind torque of {budget.wind_Nm:.3g} N.m on the shaft"
+        )
+    simulated = row["simulation"]
+    if simulated["steps_lost"] or simulated["missed_steps"]:
+        reasons.append(
+            f"{simulated['steps_lost']} steps lost and {simulated['missed_steps']} missed in the co-simulated days "
+            f"{simulated['days_simulated']}"
+        )
+    for failed_day, error in simulated["days_failed"]:
+        reasons.append(f"the co-simulation of day {failed_day} failed: {error}")
+    return reasons
+
+
+def _judge_current(
+    plan: SizingPlan, candidate: MotorCandidate, current: float, budgets: dict, results: Mapping[str, dict]
+) -> dict:
+    drive, sequencer = candidate.drive(), plan.scenario.sequencer
+    day, budget = max(budgets.items(), key=lambda item: item[1].total_Nm)
+    step_limit = static_step_limit(drive, current, sequencer.mode, sequencer.microsteps)
+    idle_holding = drive.holding_torque(current * sequencer.idle_current_fraction)
+    row = {
+        "current_A": current,
+        "holding_torque_Nm": drive.holding_torque(current),
+        "static_step_limit_Nm": step_limit,
+        "idle_current_A": current * sequencer.idle_current_fraction,
+        "idle_holding_torque_Nm": idle_holding,
+        "load_budget": {**budget.record(), "day_of_year": day},
+        "tracking_margin": _ratio(step_limit, budget.total_Nm),
+        "idle_margin": _ratio(idle_holding, budget.wind_Nm),
+        "simulation": _simulated(plan, candidate, current, results),
+    }
+    row["reasons"] = _reasons(plan, row, budget, day)
+    if row["simulation"]["days_unfinished"]:
+        row["verdict"] = "incomplete"
+        row["reasons"].append(f"days not simulated (interrupted): {row['simulation']['days_unfinished']}")
+    else:
+        row["verdict"] = "fail" if row["reasons"] else "pass"
+    return row
+
+
+def judge(plan: SizingPlan, results: Mapping[str, dict], curves: Mapping[str, SpeedTorqueCurve]) -> dict:
+    """The sheet: ``candidates`` (each with its currents' figures and verdicts), the smallest passing
+    candidate and current, and why each smaller one fails."""
+    candidates, ordered = [], []
+    for candidate in sorted(plan.candidates, key=lambda c: c.holding_torque):
+        budgets = _budgets(plan, candidate)
+        rows = [_judge_current(plan, candidate, current, budgets, results) for current in candidate.currents]
+        passing = [row for row in rows if row["verdict"] == "pass"]
+        entry = {
+            **candidate.record(),
+            "currents": rows,
+            "verdict": "pass"
+            if passing
+            else ("incomplete" if any(r["verdict"] == "incomplete" for r in rows) else "fail"),
+            "smallest_passing_current_A": passing[0]["current_A"] if passing else None,
+        }
+        if candidate.name in curves:
+            entry["speed_torque"] = curves[candidate.name].record()
+        candidates.append(entry)
+        ordered += [(candidate.name, row) for row in rows]
+    first = next((k for k, (_, row) in enumerate(ordered) if row["verdict"] == "pass"), None)
+    smaller = ordered if first is None else ordered[:first]
+    return {
+        "candidates": candidates,
+        "smallest_passing": None
+        if first is None
+        else {"candidate": ordered[first][0], "current_A": ordered[first][1]["current_A"]},
+        "smaller_ones_fail_because": [
+            {"candidate": name, "current_A": row["current_A"], "verdict": row["verdict"], "reasons": row["reasons"]}
+            for name, row in smaller
+        ],
+    }

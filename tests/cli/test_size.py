@@ -1,0 +1,276 @@
+"""``heliostep size`` (issue 23): a two-candidate catalogue against a design gust, one candidate passing
+and one failing for a reason the sheet names; the sheet's HTML parsed (every image a PNG that decodes,
+every table column with its unit); bad input refused with exit 2 before any simulation.
+
+Real runs: the shipped scenario's window shortened to 60 s on one day, the real FMUs and CVODE.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+from html.parser import HTMLParser
+from pathlib import Path
+
+import matplotlib.image
+import pytest
+import yaml
+
+from heliostep.cli import main
+from heliostep.paths import scenarios_dir
+from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
+
+SCENARIO = str(scenarios_dir() / "jan21-central.yaml")
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+SMALL = {  # TRINAMIC QSH8618-65-59-340 (QMot manual V1.08, Table 2.1), run at 3 A
+    "manufacturer": "TRINAMIC Motion Control (QMot)",
+    "model": "QSH8618-65-59-340",
+    "datasheet": "QMot QSH8618 manual V1.08, Table 2.1",
+    "holding_torque": 3.4,
+    "rated_current": 5.9,
+    "resistance": 0.28,
+    "inductance": 1.7e-3,
+    "rotor_inertia": 1.0e-4,
+    "detent_torque": 0.078,
+    "step_angle": 1.8,
+    "bus_voltage": 48.0,
+    "currents": [3.0],
+}
+LARGE = {  # TRINAMIC QSH8618-156-62-1280, at its rated 6.2 A
+    **SMALL,
+    "model": "QSH8618-156-62-1280",
+    "holding_torque": 12.8,
+    "rated_current": 6.2,
+    "resistance": 0.75,
+    "inductance": 9.0e-3,
+    "rotor_inertia": 4.0e-4,
+    "detent_torque": 0.353,
+    "currents": [6.2],
+}
+GUST = 30.0  # [m/s]
+ARGS = ["--design-gust", str(GUST), "--days", "21", "--curve-rates", "5", "--set", "window.duration=60"]
+
+
+def _catalogue(folder: Path, motors: dict) -> Path:
+    path = folder / "motors.yaml"
+    path.write_text(yaml.safe_dump({"motors": motors}), encoding="utf-8")
+    return path
+
+
+class _Sheet(HTMLParser):
+    """The tables' header cells and the images' sources of an HTML page."""
+
+    def __init__(self):
+        super().__init__()
+        self.headers: list[list[str]] = []
+        self.images: list[str] = []
+        self._in_th = False
+        self.external: list[str] = []
+
+    def handle_starttag(self, tag, attrs):
+        attributes = dict(attrs)
+        if tag == "table":
+            self.headers.append([])
+        elif tag == "th":
+            self._in_th = True
+            self.headers[-1].append("")
+        elif tag == "img":
+            self.images.append(attributes.get("src", ""))
+        elif tag in ("script", "link") or (tag != "img" and "src" in attributes):
+            self.external.append(tag)
+
+    def handle_endtag(self, tag):
+        if tag == "th":
+            self._in_th = False
+
+    def handle_data(self, data):
+        if self._in_th:
+            self.headers[-1][-1] += data
+
+
+@pytest.fixture(scope="module")
+def sized(tmp_path_factory, fmu_paths):
+    folder = tmp_path_factory.mktemp("size")
+    catalogue = _catalogue(folder, {"small": SMALL, "large": LARGE})
+    out = folder / "out"
+    status = main(["size", SCENARIO, "--catalogue", str(catalogue), *ARGS, "--out", str(out)])
+    return status, out
+
+
+def _held(entry: dict, current: float) -> float:
+    """k_e K I / (K + R), k_e = T_hold / (sqrt(2) I_rated): the datasheet's torque is two phases on."""
+    k_e = entry["holding_torque"] / (math.sqrt(2) * entry["rated_current"])
+    return k_e * 100.0 * current / (100.0 + entry["resistance"])
+
+
+def test_one_candidate_passes_and_the_other_fails_for_a_named_reason(sized):
+    status, out = sized
+    assert status == 0
+    sheet = json.loads((out / "sizing.json").read_text())
+    assert sheet["complete"] is True
+    by_name = {c["name"]: c for c in sheet["candidates"]}
+    small, large = by_name["small"]["currents"][0], by_name["large"]["currents"][0]
+    assert large["verdict"] == "pass" and large["reasons"] == []
+    assert small["verdict"] == "fail"
+    assert any(reason.startswith("tracking margin") for reason in small["reasons"])
+    assert sheet["smallest_passing"] == {"candidate": "large", "current_A": 6.2}
+    assert [item["candidate"] for item in sheet["smaller_ones_fail_because"]] == ["small"]
+    # the figures against first principles: the gust's moment reflected through g = s / (r cos^2 theta_p)
+    budget = small["load_budget"]
+    theta_p = math.radians(budget["panel_angle_deg"])
+    assert budget["wind_Nm"] == pytest.approx(sheet["wind"]["moment_Nm"] * 2.5e-3 * math.cos(theta_p) ** 2 / 0.3)
+    assert budget["friction_Nm"] == pytest.approx(0.08 + 3.3e-3 * 2.5e-3 * math.cos(theta_p) ** 2 / 0.3)
+    # one phase on, full steps: the step limit is T_hold sin(pi/4), against a load below it, so the
+    # co-simulated day keeps its steps: the candidate fails on the margin alone
+    assert small["static_step_limit_Nm"] == pytest.approx(_held(SMALL, 3.0) / math.sqrt(2), rel=1e-6)
+    assert small["tracking_margin"] == pytest.approx(small["static_step_limit_Nm"] / budget["total_Nm"])
+    assert 1.0 < small["tracking_margin"] < 2.0
+    assert small["simulation"]["steps_lost"] == 0 and small["simulation"]["missed_steps"] == 0
+    assert small["simulation"]["steps_commanded"] > 0
+    assert large["tracking_margin"] >= 2.0 and large["idle_margin"] >= 2.0
+
+
+def test_the_sheet_is_self_contained_html_with_pngs_and_units(sized):
+    _, out = sized
+    page = _Sheet()
+    page.feed((out / "sizing.html").read_text(encoding="utf-8"))
+    assert page.external == []
+    assert len(page.images) >= 2
+    for source in page.images:
+        assert source.startswith("data:image/png;base64,")
+        data = base64.b64decode(source.partition(",")[2], validate=True)
+        assert data.startswith(PNG_SIGNATURE)
+        pixels = matplotlib.image.imread(io.BytesIO(data), format="png")
+        assert pixels.shape[0] > 100 and pixels.shape[1] > 100
+    assert len(page.headers) >= 4
+    for table in page.headers:
+        assert table, "a table without a header"
+        for header in table:
+            assert header.strip().endswith("]") and "[" in header, header
+
+
+def test_shipped_catalogue_has_three_or_more_complete_nema34_entries():
+    candidates = load_catalogue()
+    assert len(candidates) >= 3
+    for candidate in candidates:
+        assert 2.0 <= candidate.holding_torque <= 13.0  # NEMA 34 class
+        assert 24.0 <= candidate.bus_voltage <= 48.0
+        assert candidate.drive().rotor_teeth == pytest.approx(50.0)
+    # the datasheet-to-model mapping on QSH8618-80-55-460: 4.6 N.m / (sqrt(2) 5.5 A)
+    entry = {c.name: c for c in candidates}["QSH8618-80-55-460"]
+    assert entry.torque_constant == pytest.approx(4.6 / (math.sqrt(2) * 5.5))
+    assert shipped_catalogue_path().name == "motors.yaml"
+
+
+@pytest.mark.parametrize(
+    ("change", "named"),
+    [
+        ({"drop": "inductance"}, "motors.small.inductance: missing"),
+        ({"set": ("resistance", -0.1)}, "motors.small.resistance: expected > 0"),
+        ({"set": ("currents", [])}, "motors.small.currents"),
+        ({"set": ("holding_torque", "a lot")}, "motors.small.holding_torque: expected a number"),
+    ],
+)
+def test_a_bad_catalogue_entry_is_exit_2_naming_file_and_key(tmp_path, capsys, change, named):
+    entry = dict(SMALL)
+    if "drop" in change:
+        del entry[change["drop"]]
+    else:
+        key, value = change["set"]
+        entry[key] = value
+    catalogue = _catalogue(tmp_path, {"small": entry})
+    out = tmp_path / "out"
+    assert main(["size", SCENARIO, "--catalogue", str(catalogue), *ARGS, "--out", str(out)]) == 2
+    message = capsys.readouterr().err
+    assert str(catalogue) in message and named in message
+    assert not out.exists()  # refused before anything was written or simulated
+
+
+def test_an_unknown_candidate_is_exit_2(tmp_path, capsys):
+    catalogue = _catalogue(tmp_path, {"small": SMALL})
+    argv = ["size", SCENARIO, "--catalogue", str(catalogue), "--candidate", "huge", *ARGS, "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    message = capsys.readouterr().err
+    assert str(catalogue) in message and "unknown candidate(s) 'huge'" in message and "small" in message
+
+
+@pytest.mark.parametrize(
+    ("option", "named"),
+    [(["--design-gust", "-5"], "--design-gust"), (["--days", "400"], "--days"), (["--safety-factor", "0"], "--safety")],
+)
+def test_bad_options_are_exit_2(tmp_path, capsys, option, named):
+    catalogue = _catalogue(tmp_path, {"small": SMALL})
+    argv = ["size", SCENARIO, "--catalogue", str(catalogue), "--set", "window.duration=60", *option]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    assert named in capsys.readouterr().err
+
+
+def test_an_interrupted_sizing_keeps_the_cases_it_finished_and_names_the_rest(tmp_path, fmu_paths):
+    from heliostep.sweep.sizing import plan_sizing
+    from heliostep.sweep.sizing_sheet import size
+
+    catalogue = _catalogue(tmp_path, {"small": SMALL})
+    plan = plan_sizing(
+        SCENARIO,
+        load_catalogue(catalogue),
+        design_gust=GUST,
+        days=[21, 22],
+        curve_rates=[5.0],
+        overrides=["window.duration=20"],
+    )
+    finished: list[str] = []  # the stop request comes once the first case has finished
+
+    sheet = size(
+        plan, tmp_path / "out", should_stop=lambda: bool(finished), on_case=lambda key, _: finished.append(key)
+    )
+    written = json.loads((tmp_path / "out" / "sizing.json").read_text())
+    assert written["complete"] is False and sheet["complete"] is False
+    assert written["finished_cases"] == ["small@3A/day21"] == finished
+    assert written["unfinished_cases"] == ["small@3A/day22"]
+    row = written["candidates"][0]["currents"][0]
+    assert row["verdict"] == "incomplete"
+    assert row["simulation"]["days_simulated"] == [21] and row["simulation"]["days_unfinished"] == [22]
+    assert row["simulation"]["per_day"]["21"]["steps_commanded"] > 0  # the finished case's figures kept
+    assert "Incomplete" in (tmp_path / "out" / "sizing.html").read_text()
+
+
+def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
+    """--scheduler: the cases on a local cluster whose workers can neither build nor find an FMU (the FMUs
+    are shipped), the same figures as the local run's, bit for bit."""
+    from distributed import Client, LocalCluster
+
+    _, local_out = sized
+    empty = tmp_path / "no-models"
+    empty.mkdir()
+    catalogue = _catalogue(tmp_path, {"small": SMALL, "large": LARGE})
+    out = tmp_path / "out"
+    env = {"HELIOSTEP_MODELS": str(empty), "HELIOSTEP_FMUS": str(empty)}
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0", env=env
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        client.wait_for_workers(2)
+        argv = ["size", SCENARIO, "--catalogue", str(catalogue), *ARGS, "--out", str(out)]
+        assert main([*argv, "--scheduler", cluster.scheduler_address]) == 0
+    local = json.loads((local_out / "sizing.json").read_text())
+    remote = json.loads((out / "sizing.json").read_text())
+    for mine, theirs in zip(local["candidates"], remote["candidates"]):
+        day_local = mine["currents"][0]["simulation"]["per_day"]["21"]
+        day_remote = theirs["currents"][0]["simulation"]["per_day"]["21"]
+        for key in ("max_tracking_error_deg", "steps_commanded", "steps_lost", "electrical_energy_J"):
+            assert day_remote[key] == day_local[key]
+        assert theirs["currents"][0]["verdict"] == mine["currents"][0]["verdict"]
+
+
+def test_the_command_line_defaults_are_the_sizings():
+    # cli.size spells its defaults out so that no command's start imports the sizing; they must agree
+    from heliostep.cli import size as command
+    from heliostep.sweep import sizing
+
+    assert command.FASTEST_DAYS == sizing.FASTEST_DAYS
+    assert command.DEFAULT_SAFETY_FACTOR == sizing.DEFAULT_SAFETY_FACTOR
+    assert command.DEFAULT_CURVE_RATES == sizing.DEFAULT_CURVE_RATES
