@@ -31,7 +31,10 @@ import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+import numpy as np
+
 from heliostep.cosim import read_fmu
+from heliostep.drive.wind import air_density, panel_wind_moment
 from heliostep.errors import InputError
 from heliostep.run import RunFailed, resolve_fmus, run_scenario
 from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
@@ -49,7 +52,7 @@ __all__ = [
     "FASTEST_DAYS",
     "SizingCase",
     "SizingPlan",
-    "design_gust_moment_placeholder",
+    "design_gust_moment",
     "judge_candidates",
     "plan_sizing",
     "run_sizing_case",
@@ -64,27 +67,19 @@ DEFAULT_SAFETY_FACTOR = 2.0
 FASTEST_DAYS = (80, 172, 265, 355)
 #: Step rates of each candidate's speed-torque curve on the sheet [full steps/s].
 DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
-#: PLACEHOLDER for the wind helper's module (issue 23): the hinge-moment coefficient C_M of a flat
-#: panel at its worst angle to the wind, of the order of Peterka & Derickson's peak heliostat hinge
-#: moments; unverified here. Replaced, with the air density, by the wind module's moment function.
-PLACEHOLDER_MOMENT_COEFFICIENT = 0.2
-#: PLACEHOLDER air density [kg/m3] (ISA sea level), see above.
-PLACEHOLDER_AIR_DENSITY = 1.225
-#: The paper's panel (Table 2): chord l = 1.5 m; its width along the axis from M = rho l sp w:
-#: 18 / (800 x 1.5 x 0.05) = 0.3 m.
-PANEL_CHORD_M = 1.5
-PANEL_WIDTH_M = 0.3
 
 
-def design_gust_moment_placeholder(scenario: Scenario, gust_speed: float) -> float:
-    """PLACEHOLDER: the moment on the panel axis [N.m] of a design gust of ``gust_speed`` [m/s],
-    M = C_M 1/2 rho v^2 A c with the constants above (A = l w, c = l of Table 2's panel).
-
-    Its one call site is :func:`plan_sizing`; the wind module of issue 23 (``heliostep.drive.wind``)
-    replaces it with its cited moment coefficient, gust factor and the site's air density."""
-    del scenario  # the real function takes the site (air density) and the panel from it
-    area = PANEL_CHORD_M * PANEL_WIDTH_M
-    return PLACEHOLDER_MOMENT_COEFFICIENT * 0.5 * PLACEHOLDER_AIR_DENSITY * gust_speed**2 * area * PANEL_CHORD_M
+def design_gust_moment(scenario: Scenario, gust_speed: float) -> float:
+    """The largest moment on the panel axis [N.m] a design gust of ``gust_speed`` [m/s] puts on the
+    scenario's mirror, at the panel's worst angle to the wind: max over theta_p of
+    |C_M(theta_p)| 1/2 rho v^2 A c (:func:`heliostep.drive.wind.panel_wind_moment`: its cited moment
+    coefficient; A the mirror's aperture, c its width across the axis; rho the site's air density at
+    ``wind.air_temperature``, ISA's without one). A design gust is a peak speed: no gust factor."""
+    angles = np.radians(np.linspace(0.0, 90.0, 9001))  # C_M's peak lies inside (25.5 deg): found to 0.01 deg
+    density = air_density(scenario.site.altitude, scenario.wind.air_temperature)
+    optics = scenario.optics
+    moments = panel_wind_moment(gust_speed, angles, optics.aperture_area, optics.mirror_width, density, 1.0)
+    return float(np.max(np.abs(moments)))
 
 
 def _date_of(year: int, day_of_year: int) -> dt.date:
@@ -153,8 +148,8 @@ def plan_sizing(
     bad_days = [day for day in days if not 1 <= day <= 365]
     if bad_days:
         raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
-    if design_gust is not None:  # the one call site of the placeholder (see its docstring)
-        wind, source = design_gust_moment_placeholder(scenario, design_gust), f"design gust {design_gust:g} m/s"
+    if design_gust is not None:
+        wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
     else:
         wind, source = scenario.wind.moment, f"{scenario.source}: wind.moment"
     chosen_days = sorted(set(days)) if days else list(FASTEST_DAYS)
