@@ -22,10 +22,12 @@ model StepperMotor
   parameter Real G_m(unit = "S") = 0 "Iron-loss conductance 1/Rm of the magnetising resistance (none sourced: 0)";
   // T_d: detent torque, the rotor magnet's pull on the stator teeth with the windings off; it
   // has 4 N_c periods per turn, its stable points at the full steps (the Simscape block's term).
-  // No catalogue of this motor class giving it could be read for this model: 0 by default; the
-  // range (up to 0.14 N.m, 5 % of our one-phase holding torque k_e I = 2.75 N.m) and its status
-  // are in docs/physics.md.
-  parameter Real T_d(unit = "N.m") = 0 "Detent torque amplitude (no catalogue value read: 0)";
+  // Source: TRINAMIC, QMot QSH8618 manual V1.08, Table 2.1 (NEMA 34 hybrid steppers): detent
+  // torque 0.078 N.m at a 3.4 N.m two-phase holding torque (QSH8618-65), 0.117 at 4.6 (-80), 0.235
+  // at 8.7, 0.353 at 12.8: 2.3-2.8 % of it. The paper's motor holds sqrt(2) k_e I = 3.89 N.m with
+  // both phases at 5.5 A; interpolated between the -65 and the -80 by holding torque: 0.094 N.m
+  // (the catalogue's ratios give 0.089-0.107 N.m; docs/physics.md, "The motor's losses").
+  parameter Real T_d(unit = "N.m") = 0.094 "Detent torque amplitude (TRINAMIC QSH8618 catalogue, interpolated)";
   // The run starts at the loop's holding equilibrium: with the rotor still, L di/dt = 0 gives
   // K (i_ref - i) = R i, i.e. i = K i_ref / (K + R) (while |R i| <= dV, the chopper unsaturated).
   parameter Real i_a_start(unit = "A") = 0 "Reference current of phase A held before the start";

@@ -9,7 +9,7 @@ model StepperMotorIdealCurrent
   parameter Real T_current(unit = "s") = 1e-3 "Time constant of the current lag";
   // Iron loss and detent torque as in StepperMotor (its comments and docs/physics.md give the sources).
   parameter Real G_m(unit = "S") = 0 "Iron-loss conductance 1/Rm of the magnetising resistance (none sourced: 0)";
-  parameter Real T_d(unit = "N.m") = 0 "Detent torque amplitude (no catalogue value read: 0)";
+  parameter Real T_d(unit = "N.m") = 0.094 "Detent torque amplitude (TRINAMIC QSH8618 catalogue, interpolated)";
   parameter Real i_a_start(unit = "A") = 0 "Initial current of phase A";
   parameter Real i_b_start(unit = "A") = 0 "Initial current of phase B";
   input Real i_a_ref(unit = "A") "Reference current of phase A";

@@ -60,10 +60,12 @@ def _ranges_file(folder: Path, text: str) -> Path:
 
 
 def test_shipped_ranges_carry_the_sourced_driver_ranges():
-    """The shipped file gives docs/physics.md's driver ranges, each with its source; no friction
-    entry (no source gives a range for T_c or M_c)."""
+    """The shipped file gives docs/physics.md's driver ranges and the rotor damping's, each with its
+    source; no friction entry (no source gives a range for T_c or M_c)."""
     ranges = {parameter.key: parameter for parameter in load_ranges()}
-    assert set(ranges) == {"parameters.motor.V_supply", "parameters.motor.K_current"}
+    assert set(ranges) == {"parameters.motor.V_supply", "parameters.motor.K_current", "parameters.mechanics.B_m"}
+    damping = ranges["parameters.mechanics.B_m"]
+    assert (damping.low, damping.high, damping.unit) == (0.0, 8e-4, "N.m.s/rad") and "Simscape" in damping.source
     bus, gain = ranges["parameters.motor.V_supply"], ranges["parameters.motor.K_current"]
     assert (bus.low, bus.high, bus.unit) == (24.0, 48.0, "V")
     assert (gain.low, gain.high, gain.unit) == (23.0, 45.0, "V/A")
@@ -71,7 +73,7 @@ def test_shipped_ranges_carry_the_sourced_driver_ranges():
     # K = 2 pi f_c L for a 2-4 kHz crossover and L = 1.8 mH (Table 3): the range's ends
     assert 2 * np.pi * 2e3 * 1.8e-3 == pytest.approx(gain.low, abs=0.5)
     assert 2 * np.pi * 4e3 * 1.8e-3 == pytest.approx(gain.high, abs=0.5)
-    assert "T_c" in RANGES_FILE.read_text() and "parameters.mechanics" not in str(set(ranges))
+    assert "T_c" in RANGES_FILE.read_text() and not {"parameters.mechanics.T_c", "parameters.mechanics.M_c"} & set(ranges)
 
 
 @pytest.mark.parametrize("n", [3, 4, 7])
@@ -81,7 +83,7 @@ def test_latin_hypercube_puts_one_sample_in_each_stratum(n, fmu_paths):
     scenario = _short()
     paths = resolve_fmus(scenario)
     design = band_design(scenario, load_ranges(), n, seed=5, fmu_paths=paths)
-    assert design.values.shape == (n, 2)
+    assert design.values.shape == (n, 3)
     for column, parameter in enumerate(design.ranges):
         values = design.values[:, column]
         assert np.all((values >= parameter.low) & (values <= parameter.high))
@@ -91,17 +93,22 @@ def test_latin_hypercube_puts_one_sample_in_each_stratum(n, fmu_paths):
     assert np.array_equal(design.values, again.values)
     other = band_design(scenario, load_ranges(), n, seed=6, fmu_paths=paths)
     assert not np.array_equal(design.values, other.values)
-    # the nominal values are the FMU's defaults (the scenario sets neither): 3.1 V and 100 V/A, outside
-    assert design.nominal == {"parameters.motor.V_supply": 3.1, "parameters.motor.K_current": 100.0}
-    assert [key["nominal_in_range"] for key in design.record()["keys"]] == [False, False]
+    # the nominal values are the FMUs' defaults (the scenario sets none): 3.1 V and 100 V/A, outside;
+    # the Simscape class damping 8e-4 N.m.s/rad, the range's top
+    assert design.nominal == {
+        "parameters.motor.V_supply": 3.1,
+        "parameters.motor.K_current": 100.0,
+        "parameters.mechanics.B_m": 8e-4,
+    }
+    assert [key["nominal_in_range"] for key in design.record()["keys"]] == [False, False, True]
 
 
 def test_paper_literal_pins_the_papers_bus(fmu_paths):
-    """jan21-paper-literal keeps the paper's 3.1 V: only the current-loop gain varies."""
+    """jan21-paper-literal keeps the paper's 3.1 V and its undamped rotor: only the current-loop gain varies."""
     scenario = load_scenario(scenarios_dir() / "jan21-paper-literal.yaml", SHORT)
     design = band_design(scenario, load_ranges(), 3, fmu_paths=resolve_fmus(scenario))
     assert [parameter.key for parameter in design.ranges] == ["parameters.motor.K_current"]
-    assert design.pinned == ("parameters.motor.V_supply",)
+    assert design.pinned == ("parameters.motor.V_supply", "parameters.mechanics.B_m")
     for index in range(3):
         assert design.scenario_of(scenario, index).parameters["motor"].get("V_supply") is None  # the FMU's 3.1 V
 

@@ -95,7 +95,7 @@ def output_grid(
 
 #: Table 3 motor constants and the averaged chopper's loop gain: the shipped motor models'
 #: defaults, used for the initial equilibrium unless the scenario sets them.
-MOTOR_DEFAULTS = {"k_e": 0.5, "N_c": 50.0, "R": 0.1, "K_current": 100.0, "T_d": 0.0}
+MOTOR_DEFAULTS = {"k_e": 0.5, "N_c": 50.0, "R": 0.1, "K_current": 100.0, "T_d": 0.094}
 
 
 def held_current(scenario: Scenario, reference: float) -> float:

@@ -72,6 +72,8 @@ class MotorDrive:
         J_m [kg.m2].
     current_gain : float
         The averaged chopper's loop gain K [V/A].
+    detent_torque : float or None
+        The detent torque amplitude T_d [N.m]; None: the motor FMU's default.
     """
 
     resistance: float
@@ -81,6 +83,7 @@ class MotorDrive:
     bus_voltage: float
     rotor_inertia: float
     current_gain: float = DEFAULT_CURRENT_GAIN
+    detent_torque: float | None = None
 
     @property
     def step_angle(self) -> float:
@@ -104,6 +107,7 @@ class MotorDrive:
             "N_c": self.rotor_teeth,
             "V_supply": self.bus_voltage,
             "K_current": self.current_gain,
+            **({} if self.detent_torque is None else {"T_d": self.detent_torque}),
         }
 
 
@@ -139,6 +143,7 @@ class MotorCandidate:
             rotor_teeth=90.0 / self.step_angle,
             bus_voltage=self.bus_voltage,
             rotor_inertia=self.rotor_inertia,
+            detent_torque=self.detent_torque,
         )
 
     def record(self) -> dict:
