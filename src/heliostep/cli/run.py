@@ -10,10 +10,9 @@ import numpy as np
 
 from heliostep.cli.signals import stop_requests
 from heliostep.drive.sequencer import PreparationStopped
-from heliostep.errors import HeliostepError
-from heliostep.results.outputs import TMP_PREFIX, check_out_dir, check_out_name
+from heliostep.results.outputs import TMP_PREFIX, check_out_name
 from heliostep.results.rescue import rescue_folder
-from heliostep.results.run_folder import check_foreign, hold_folder
+from heliostep.results.run_folder import owned_folder
 from heliostep.results.trace_io import TraceWriteError
 from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
 from heliostep.run.estimate import check_budget, estimate_run
@@ -131,16 +130,9 @@ def _run_command(args: argparse.Namespace) -> int:
         check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, csv=args.csv))
         out_dir = out_name or Path("out") / scenario.name
         fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
-        existed = out_dir.exists()
-        check_out_dir(out_dir)
-        try:
-            with hold_folder(out_dir):  # the folder's lock, for the run's life
-                check_foreign(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False))
-                return _run_in_folder(args, scenario, out_dir, fmu_paths, stop)
-        except HeliostepError:
-            if not existed:  # bad input found while setting up: leave no empty folder
-                _remove_if_empty(out_dir)
-            raise
+        # the folder's lock, for the run's life; a folder made here and left empty by bad input is removed
+        with owned_folder(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False)):
+            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop)
 
 
 def _budget_overrides(args: argparse.Namespace) -> list[str]:
@@ -220,13 +212,6 @@ def _warn(result: RunResult) -> None:
             "sequencer.step_angle, window)",
             file=sys.stderr,
         )
-
-
-def _remove_if_empty(folder: Path) -> None:
-    try:
-        folder.rmdir()
-    except OSError:
-        pass
 
 
 def _rescue(result: RunResult) -> Path | None:
