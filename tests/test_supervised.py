@@ -13,6 +13,7 @@ import json
 import os
 import re
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -173,3 +174,56 @@ def test_a_watchdog_that_is_not_positive_is_bad_input(tmp_path, fmu_paths):
     result = subprocess.run(command, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert result.returncode == 2, result.stderr[-3000:]
     assert "argument --watchdog: 0 s; expected a positive number of seconds" in result.stderr
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # ended meanwhile
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie, dead but not yet reaped by whoever adopted it, is not alive)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux's /proc to find the child")
+@pytest.mark.parametrize("start", ["fork", "exec"])
+def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faulty_fmu, tmp_path, fmu_paths):
+    from heliostep.cosim.watch import FUNCTIONS, LAYOUT
+
+    out, private = tmp_path / "out", tmp_path / "tmp"
+    process = _start(_scenario(tmp_path, faulty_fmu, 5, t_fault=20.0), out, private, start=start)  # watchdog 60 s
+    deadline = time.monotonic() + 90
+    hung = None
+    while hung is None:  # until the child's call record says it is inside the looping fmi2GetDerivatives
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < deadline, "the FMU did not reach its fault"
+        for record in private.glob("heliostep-child-*/calls"):
+            try:
+                _, function, _, _, at = struct.unpack(LAYOUT, record.read_bytes())
+            except (OSError, struct.error):
+                continue
+            if FUNCTIONS[function] == "fmi2GetDerivatives" and at >= 20.0:
+                hung = record
+        time.sleep(0.05)
+    children = _children(process.pid)
+    assert len(children) == 1, children
+    child = children[0]
+    assert _alive(child)
+    process.kill()  # SIGKILL: the supervisor cannot clean up, nor kill its child itself
+    process.communicate(timeout=30)
+    deadline = time.monotonic() + 10
+    while _alive(child):  # the child, looping in native code, is ended by the kernel (or its watcher)
+        assert time.monotonic() < deadline, f"the hung child {child} outlived its supervisor"
+        time.sleep(0.05)

@@ -15,16 +15,22 @@ has failed, whatever its exit status.
 
 The child ignores SIGINT, SIGTERM and SIGHUP (a terminal sends them to the whole process group):
 the supervisor asks it to stop through the call record, or kills it. It stops on its own when
-the supervisor's process is gone.
+the supervisor's process is gone: at its next safe point, and at once when an FMU hangs or the
+supervisor was killed (SIGKILL) — the kernel kills it then (Linux: ``prctl(PR_SET_PDEATHSIG,
+SIGKILL)``, :func:`die_with_supervisor`; elsewhere a thread that polls the parent's pid every
+:data:`PARENT_POLL` s and ends the process), so a hung FMU's process never outlives its supervisor.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import os
 import pickle
 import signal
 import sys
 import tempfile
+import threading
 import time as clock
 import traceback
 from dataclasses import dataclass
@@ -38,7 +44,14 @@ from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.signals import SolverOptions
 from heliostep.errors import InputError
 
-__all__ = ["PROGRESS_INTERVAL", "SEND_INTERVAL", "Request", "main", "serve"]
+__all__ = ["PARENT_POLL", "PROGRESS_INTERVAL", "SEND_INTERVAL", "Request", "die_with_supervisor", "main", "serve"]
+
+#: [s] how often the thread that watches the supervisor looks at the parent's pid (where the
+#: kernel cannot be asked to kill the child with its parent).
+PARENT_POLL = 0.2
+
+#: prctl's option asking the kernel for a signal when the parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
 
 #: Progress reports at most this often [s of wall time].
 PROGRESS_INTERVAL = 0.25
@@ -100,6 +113,7 @@ def serve(connection: Connection, record: str, request: Request | None = None, t
     if tmpdir is not None:
         os.environ["TMPDIR"] = tempfile.tempdir = tmpdir
     supervisor = os.getppid()
+    die_with_supervisor(supervisor)
     watch.attach(record)
     RowBuffer.flush_interval = 0.0  # every block the master stores goes out (in the outbox)
     if request is None:
@@ -124,6 +138,25 @@ def serve(connection: Connection, record: str, request: Request | None = None, t
     except OSError:  # the supervisor is gone: nobody to tell
         return 1
     return 0
+
+
+def die_with_supervisor(supervisor: int) -> None:
+    """End this process (SIGKILL) as soon as its parent ``supervisor`` dies, even while an FMU
+    call never returns: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` on Linux, else a daemon thread
+    polling the parent's pid (it runs while the FMU's native code does: ctypes calls release the GIL)."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0:
+            if os.getppid() != supervisor:  # died before the request was made: nobody will signal
+                os._exit(1)
+            return
+
+    def watch_parent() -> None:
+        while os.getppid() == supervisor:
+            clock.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch_parent, name="heliostep-watch-supervisor", daemon=True).start()
 
 
 def _peak_rss_mb() -> float | None:
