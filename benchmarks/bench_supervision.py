@@ -8,12 +8,15 @@ an in-process one (``supervise=False``, ``heliostep run --no-supervise``) calls 
 process itself. The two are run alternately ``--repeat`` times (the machine's load drifts alike
 for both) and the wall time of the whole ``run_scenario`` call is printed per run, with the
 median of each and their ratio. Also checked: both give the same trace, bit for bit.
+Supervised runs are timed for each ``--block-rows`` (the child's kernel block and outbox bound,
+heliostep.cosim.child.BLOCK_ROWS: a crash loses fewer than twice that many rows).
 Prints figures; not a test.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
 from pathlib import Path
@@ -27,33 +30,57 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--scenario", type=Path, default=ROOT / "scenarios" / "jan21-day.yaml")
+    parser.add_argument(
+        "--block-rows",
+        type=int,
+        nargs="+",
+        default=[128, 4096],
+        help="the supervised child's block sizes to time (heliostep.cosim.child.BLOCK_ROWS; 128 is the default)",
+    )
     args = parser.parse_args()
 
+    import heliostep.cosim.child as child
     from heliostep.run import run_scenario
 
     run_scenario(args.scenario, supervise=False)  # FMUs and kernel built, files cached: not timed
-    times: dict[bool, list[float]] = {False: [], True: []}
+    modes: list[int | None] = [None, *args.block_rows]  # None: in-process
+    times: dict[int | None, list[float]] = {mode: [] for mode in modes}
+    cpu: dict[int | None, list[float]] = {mode: [] for mode in modes}  # [s] this process's and the child's
     traces = {}
     for k in range(args.repeat):
-        for supervise in (False, True) if k % 2 == 0 else (True, False):
-            start = time.perf_counter()
-            result = run_scenario(args.scenario, supervise=supervise)
-            times[supervise].append(time.perf_counter() - start)
-            traces[supervise] = result.trace
-            print(f"  run {k + 1}: {'supervised ' if supervise else 'in-process '} {times[supervise][-1]:7.3f} s")
-    same = list(traces[False].columns) == list(traces[True].columns) and all(
-        np.array_equal(traces[False][c].to_numpy(), traces[True][c].to_numpy(), equal_nan=True)
-        for c in traces[False].columns
-    )
-    inside, supervised = statistics.median(times[False]), statistics.median(times[True])
-    print(f"{args.scenario.name}: {len(traces[True])} trace rows, {args.repeat} runs each")
-    print(f"  in-process  median {inside:7.3f} s  (min {min(times[False]):.3f})")
-    print(f"  supervised  median {supervised:7.3f} s  (min {min(times[True]):.3f})")
-    print(
-        f"  supervised / in-process: {supervised / inside:.3f} (medians), "
-        f"{min(times[True]) / min(times[False]):.3f} (minima)"
-    )
-    print(f"  same trace bit for bit: {same}")
+        for mode in modes[k % len(modes) :] + modes[: k % len(modes)]:  # each first in turn: the load drifts alike
+            if mode is not None:
+                child.BLOCK_ROWS = mode  # read by the forked child
+            start, cpu_start = time.perf_counter(), _cpu_seconds()
+            result = run_scenario(args.scenario, supervise=mode is not None)
+            times[mode].append(time.perf_counter() - start)
+            cpu[mode].append(_cpu_seconds() - cpu_start)
+            traces[mode] = result.trace
+            print(f"  run {k + 1}: {_label(mode):34s} {times[mode][-1]:7.3f} s, CPU {cpu[mode][-1]:7.3f} s")
+    reference = traces[None]
+    print(f"{args.scenario.name}: {len(reference)} trace rows, {args.repeat} runs each")
+    inside, inside_cpu = statistics.median(times[None]), statistics.median(cpu[None])
+    for mode in modes:
+        same = list(reference.columns) == list(traces[mode].columns) and all(
+            np.array_equal(reference[c].to_numpy(), traces[mode][c].to_numpy(), equal_nan=True)
+            for c in reference.columns
+        )
+        median = statistics.median(times[mode])
+        print(
+            f"  {_label(mode):34s} median {median:7.3f} s (min {min(times[mode]):.3f}); "
+            f"/ in-process {median / inside:.3f}; CPU median {statistics.median(cpu[mode]):7.3f} s, "
+            f"/ in-process {statistics.median(cpu[mode]) / inside_cpu:.3f}; same trace bit for bit: {same}"
+        )
+
+
+def _cpu_seconds() -> float:
+    """CPU time [s] of this process and of its children that ended (the supervised child)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def _label(mode: int | None) -> str:
+    return "in-process" if mode is None else f"supervised, {mode}-row blocks (lost < {2 * mode})"
 
 
 if __name__ == "__main__":

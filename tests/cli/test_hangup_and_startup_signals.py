@@ -8,10 +8,8 @@ from __future__ import annotations
 
 import glob
 import json
-import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -19,19 +17,7 @@ import pytest
 
 from heliostep.paths import scenarios_dir
 from heliostep.results.trace_io import read_trace
-
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
-
-
-def _popen(args: list[str], tmp: Path) -> subprocess.Popen:
-    tmp.mkdir(exist_ok=True)
-    return subprocess.Popen(
-        [*HELIOSTEP, *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "TMPDIR": str(tmp)},
-    )
+from heliostep_process import popen_heliostep
 
 
 def _wait_for_numpy(process: subprocess.Popen) -> None:
@@ -49,7 +35,7 @@ def _wait_for_numpy(process: subprocess.Popen) -> None:
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
 @pytest.mark.parametrize("delay", [0.0, 0.25])
 def test_a_stop_signal_during_the_imports_is_one_line_and_its_exit_status(sig, delay, tmp_path, fmu_paths):
-    process = _popen(["run", "jan21-central", "--out", str(tmp_path / "out")], tmp_path / "tmp")
+    process = popen_heliostep(["run", "jan21-central", "--out", str(tmp_path / "out")], tmp_path / "tmp")
     _wait_for_numpy(process)
     time.sleep(delay)  # the command's modules (pandas, pvlib, matplotlib, ...) are being imported
     process.send_signal(sig)
@@ -65,7 +51,7 @@ def test_sighup_mid_simulation_keeps_the_trace_so_far_and_leaves_no_temporary_fi
     scenario = tmp_path / "five-days.yaml"
     scenario.write_text(text.replace("name: jan21-day", "name: five-days"))
     out, tmp = tmp_path / "out", tmp_path / "tmp"
-    process = _popen(["run", str(scenario), "--out", str(out)], tmp)
+    process = popen_heliostep(["run", str(scenario), "--out", str(out)], tmp)
     deadline = time.monotonic() + 60
     while not list(out.glob(".heliostep-tmp-*-trace.parquet")):  # streaming: simulating
         assert process.poll() is None and time.monotonic() < deadline, process.communicate()
@@ -86,7 +72,7 @@ def test_sighup_mid_simulation_keeps_the_trace_so_far_and_leaves_no_temporary_fi
 
 def test_sighup_while_the_figures_are_drawn_keeps_the_results_and_no_figure_folder(tmp_path, fmu_paths):
     out, tmp = tmp_path / "out", tmp_path / "tmp"
-    process = _popen(["run", "jan21-central", "--out", str(out), "--set", "window.duration=120"], tmp)
+    process = popen_heliostep(["run", "jan21-central", "--out", str(out), "--set", "window.duration=120"], tmp)
     deadline = time.monotonic() + 60
     while not glob.glob(str(out / ".heliostep-tmp-*" / ".heliostep-tmp-figures-*")):  # drawing has begun
         assert process.poll() is None and time.monotonic() < deadline, process.communicate()
@@ -99,7 +85,7 @@ def test_sighup_while_the_figures_are_drawn_keeps_the_results_and_no_figure_fold
     assert not list(out.glob(".heliostep-tmp-*")), "a temporary (figure) folder was left"
     assert list(tmp.iterdir()) == []
     # a rerun finds nothing of it left behind and writes every figure
-    rerun = _popen(["run", "jan21-central", "--out", str(out), "--set", "window.duration=120"], tmp)
+    rerun = popen_heliostep(["run", "jan21-central", "--out", str(out), "--set", "window.duration=120"], tmp)
     _, stderr = rerun.communicate(timeout=120)
     assert rerun.returncode == 0, stderr
     assert len(list(out.glob("*.png"))) == 8 and not list(out.glob(".heliostep-tmp-*"))

@@ -10,10 +10,8 @@ from __future__ import annotations
 
 import glob
 import json
-import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,25 +19,13 @@ import pytest
 
 from heliostep.paths import scenarios_dir
 from heliostep.results.trace_io import read_trace
+from heliostep_process import five_day_scenario, popen_heliostep
 
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
 SCENARIOS = scenarios_dir()
 
 
 def _fmu_dirs(tmp: Path) -> list[str]:
     return glob.glob(str(tmp / "heliostep-fmus-*"))
-
-
-def _popen(args: list[str], tmp: Path) -> subprocess.Popen:
-    """The command in a subprocess with its own TMPDIR (to see what it leaves there)."""
-    tmp.mkdir(exist_ok=True)
-    return subprocess.Popen(
-        [*HELIOSTEP, *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "TMPDIR": str(tmp)},
-    )
 
 
 def _wait_for_fmus(
@@ -50,17 +36,6 @@ def _wait_for_fmus(
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, "the FMUs were not unpacked"
         time.sleep(0.05)
-
-
-def _long_scenario(folder: Path) -> Path:
-    """jan21-day over five days from sunrise (a simulation of tens of seconds, still running when
-    the signal comes: one day alone now takes about a second)."""
-    text = (SCENARIOS / "jan21-day.yaml").read_text().replace("name: jan21-day", "name: jan21-five-days")
-    text = text.replace("end: sunset", "duration: 432000")
-    assert "duration: 432000" in text
-    path = folder / "jan21-five-days.yaml"
-    path.write_text(text)
-    return path
 
 
 def _signal_twice(process: subprocess.Popen, sig, gap: float, status: int, out: Path) -> None:
@@ -82,7 +57,7 @@ def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_
     (out / "fig08_panel_angle_ref.png").write_bytes(b"stale figure of an earlier run")
     (out / ".heliostep-manifest.json").write_text(json.dumps({"files": ["fig08_panel_angle_ref.png"]}))  # its record
     (out / "notes.txt").write_text("not heliostep's")
-    process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
+    process = popen_heliostep(["run", str(five_day_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)  # unpacked to be checked
     _wait_for_fmus(tmp_path / "tmp", process, pattern="heliostep-child-*")  # the supervised child's: it simulates
     deadline = time.monotonic() + 60.0  # the stream's file is made once the inputs are prepared: simulating
@@ -131,7 +106,9 @@ def test_signal_stops_sweep_cleanly_and_leaves_no_temporary_folder(sig, status, 
         "overrides:\n  window.duration: 7200\n  output.interval: 10.0\n"
     )
     out = tmp_path / "out"
-    process = _popen(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-plots"], tmp_path / "tmp")
+    process = popen_heliostep(
+        ["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-plots"], tmp_path / "tmp"
+    )
     deadline = time.monotonic() + 120  # the cluster started and one case finished, however loaded the machine
     while not list(out.rglob("*.parquet")):
         assert process.poll() is None and time.monotonic() < deadline, process.communicate()
@@ -153,7 +130,7 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
     complete; the first signal only asks to stop). The second one ends the command there: exit 130
     at once, the figures' staging folder and every temporary file removed, no traceback."""
     out = tmp_path / "run"
-    process = _popen(
+    process = popen_heliostep(
         ["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--set", "window.duration=120"],
         tmp_path / "tmp",
     )
@@ -187,7 +164,7 @@ def test_second_signal_mid_simulation_removes_the_trace_stream(tmp_path, fmu_pat
     stop, the second lands while the run stops (or computes its figures) and ends it at once. The
     half-finished stream is removed with everything else temporary."""
     out = tmp_path / "run"
-    process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
+    process = popen_heliostep(["run", str(five_day_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)
     deadline = time.monotonic() + 60.0  # the stream's file is made before the simulation starts
     while not list(out.glob(".heliostep-tmp-*-trace.parquet")):

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,8 +20,8 @@ from heliostep.cli import main
 from heliostep.paths import scenarios_dir
 from heliostep.results.run_folder import LOCK_NAME, MANIFEST_NAME
 from heliostep.results.trace_io import read_trace
+from heliostep_process import five_day_scenario, popen_heliostep
 
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
 SCENARIO = str(scenarios_dir() / "jan21-central.yaml")
 SHORT = ["--set", "window.duration=20"]
 #: Every figure a run with plots draws: the paper's Figs. 8-14 and the power on the tube.
@@ -40,18 +39,6 @@ FIGURES = {
 
 def _manifest(out: Path) -> dict:
     return json.loads((out / MANIFEST_NAME).read_text())
-
-
-def _long_scenario(folder: Path) -> Path:
-    """jan21-day over five days (a simulation of tens of seconds: still running when asked)."""
-    text = (scenarios_dir() / "jan21-day.yaml").read_text().replace("name: jan21-day", "name: jan21-five-days")
-    path = folder / "five-days.yaml"
-    path.write_text(text.replace("end: sunset", "duration: 432000"))
-    return path
-
-
-def _popen(args: list[str]) -> subprocess.Popen:
-    return subprocess.Popen([*HELIOSTEP, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def _wait_for(condition, process: subprocess.Popen, what: str, timeout: float = 60.0) -> None:
@@ -116,7 +103,7 @@ def test_a_scenario_name_that_is_a_path_is_refused_naming_the_key(name, tmp_path
 
 def test_a_second_run_into_a_held_folder_is_refused_naming_the_holder(tmp_path, fmu_paths, capsys):
     out = tmp_path / "out"
-    first = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)])
+    first = popen_heliostep(["run", str(five_day_scenario(tmp_path)), "--out", str(out)])
     try:
         _wait_for(lambda: list(out.glob(".heliostep-tmp-*-trace.parquet")), first, "the first run did not start")
         holder = json.loads((out / LOCK_NAME).read_text())
@@ -142,7 +129,7 @@ def test_a_second_run_into_a_held_folder_is_refused_naming_the_holder(tmp_path, 
 
 def test_the_lock_of_a_killed_run_is_taken_over_and_its_leftovers_removed(tmp_path, fmu_paths, capsys):
     out = tmp_path / "out"
-    first = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out)])
+    first = popen_heliostep(["run", str(five_day_scenario(tmp_path)), "--out", str(out)])
     _wait_for(lambda: list(out.glob(".heliostep-tmp-*-trace.parquet")), first, "the first run did not start")
     first.send_signal(signal.SIGKILL)  # no clean-up at all: the lock file and the stream stay
     first.communicate()
@@ -175,7 +162,7 @@ def test_a_double_ctrl_c_while_a_rerun_writes_leaves_one_run_never_old_beside_ne
     out = tmp_path / "out"
     assert main(["run", SCENARIO, "--out", str(out), *SHORT]) == 0  # the old run, complete, with figures
     old_rows = json.loads((out / "summary.json").read_text())["rows"]
-    process = _popen(["run", str(_long_scenario(tmp_path)), "--out", str(out), "--csv"])
+    process = popen_heliostep(["run", str(five_day_scenario(tmp_path)), "--out", str(out), "--csv"])
     _wait_for(lambda: list(out.glob(".heliostep-tmp-*-trace.parquet")), process, "the rerun did not start")
     time.sleep(1.0)
     process.send_signal(signal.SIGINT)  # stop: the rerun writes its trace so far (and a CSV of it)

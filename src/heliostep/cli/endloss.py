@@ -25,12 +25,17 @@ import datetime as dt
 from pathlib import Path
 
 from heliostep.errors import InputError
+from heliostep.results.outputs import check_out_name
+from heliostep.results.run_folder import owned_folder, write_swapped
 from heliostep.scenario.model import FIRST_YEAR, LAST_YEAR, window_date_problem
 from heliostep.solar import field_distances
 from heliostep.solar.endloss import end_loss_days, largest_shift
 from heliostep.solar.field import PANEL_LENGTH
 from heliostep.solar.optics import optical_chain
 from heliostep.solar.sun import Site
+
+#: The table of the days (with the year's figure, plots.endloss.END_LOSS_FILE, the files the command writes).
+DAYS_FILE = "end_loss_days.csv"
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -82,7 +87,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--transmittance", type=float, default=0.85, help="tau (default 0.85)")
     parser.add_argument("--absorptance", type=float, default=0.95, help="alpha (default 0.95)")
     parser.add_argument("--step-minutes", type=float, default=5.0, help="[min] time step (default 5)")
-    parser.add_argument("--out", type=Path, default=Path("end-loss-out"), help="output folder")
+    parser.add_argument("--out", default="end-loss-out", help="output folder (default end-loss-out)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG")
     parser.set_defaults(func=_end_loss_command)
     return parser
@@ -103,6 +108,7 @@ def _checked_options(args: argparse.Namespace) -> None:
 
 def _end_loss_command(args: argparse.Namespace) -> int:
     _checked_options(args)
+    out = check_out_name(args.out)
     site = Site(latitude=args.latitude, longitude=args.longitude, altitude=args.altitude, timezone=args.timezone)
     distances = field_distances(args.rows, args.spacing)
     width = args.spacing if args.mirror_width is None else args.mirror_width
@@ -112,31 +118,45 @@ def _end_loss_command(args: argparse.Namespace) -> int:
         end = largest_shift(site, args.year, args.tube_height, distances)
     if not 2 * end < args.length:
         raise InputError(f"--end-length {end:.3g} m: two end sections must be shorter than --length {args.length:g} m")
-    days = end_loss_days(
-        site,
-        args.year,
-        args.length,
-        args.tube_height,
-        distances,
-        width,
-        end,
-        efficiency,
-        days=args.days,
-        step_minutes=args.step_minutes,
-        mirror_length=args.mirror_length,
-        shading=not args.no_shading,
-        shading_step_minutes=args.shading_step_minutes,
-        receiver_width=args.receiver_width or None,
-    )
-    args.out.mkdir(parents=True, exist_ok=True)
-    days.to_csv(args.out / "end_loss_days.csv", float_format="%.6g")
-    written = [args.out / "end_loss_days.csv"]
-    if not args.no_plots:
-        from heliostep.plots.endloss import END_LOSS_FILE, plot_end_loss_year
+    from heliostep.plots.endloss import END_LOSS_FILE
 
-        title = f"\n{args.length:g} m plant, h = {args.tube_height:g} m, {args.rows} rows, {args.latitude:g} deg N"
-        path = plot_end_loss_year(days, args.out / END_LOSS_FILE, title)
-        written += [path] if path else []
+    with owned_folder(out, (DAYS_FILE, END_LOSS_FILE)):  # the folder's lock for the command's life
+        days = end_loss_days(
+            site,
+            args.year,
+            args.length,
+            args.tube_height,
+            distances,
+            width,
+            end,
+            efficiency,
+            days=args.days,
+            step_minutes=args.step_minutes,
+            mirror_length=args.mirror_length,
+            shading=not args.no_shading,
+            shading_step_minutes=args.shading_step_minutes,
+            receiver_width=args.receiver_width or None,
+        )
+        written = list(write_swapped(out, lambda staging: _write_days(args, days, staging)).values())
+    _print_totals(args, days, end, width)
+    for path in written:
+        print(f"  wrote {path}")
+    return 0
+
+
+def _write_days(args: argparse.Namespace, days, folder: Path) -> list[Path | None]:
+    """The table and (unless --no-plots) the year's figure written into ``folder``."""
+    days.to_csv(folder / DAYS_FILE, float_format="%.6g")
+    if args.no_plots:
+        return [folder / DAYS_FILE]
+    from heliostep.plots.endloss import END_LOSS_FILE, plot_end_loss_year
+
+    title = f"\n{args.length:g} m plant, h = {args.tube_height:g} m, {args.rows} rows, {args.latitude:g} deg N"
+    return [folder / DAYS_FILE, plot_end_loss_year(days, folder / END_LOSS_FILE, title)]
+
+
+def _print_totals(args: argparse.Namespace, days, end: float, width: float) -> None:
+    """The year's totals and the 21 December figures, on stdout."""
     single, two = days["energy_single_J"].sum(), days["energy_two_axis_J"].sum()
     print(f"end sections of two-axis mirrors: {end:.2f} m at each end; {len(days)} days of {args.year}")
     shading = "none (--no-shading)" if args.no_shading else f"rows {width:g} m wide at {args.spacing:g} m"
@@ -152,6 +172,3 @@ def _end_loss_command(args: argparse.Namespace) -> int:
             f"  21 December: dark length at noon {row['unlit_length_noon_m']:.2f} m, "
             f"lit {row['lit_length_noon_m']:.2f} m, gain {100 * row['gain']:.1f} %"
         )
-    for path in written:
-        print(f"  wrote {path}")
-    return 0

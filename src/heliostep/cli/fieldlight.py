@@ -19,6 +19,8 @@ import argparse
 from pathlib import Path
 
 from heliostep.results.field_light import field_light_days
+from heliostep.results.outputs import check_out_name
+from heliostep.results.run_folder import owned_folder, write_swapped
 from heliostep.scenario import load_scenario
 
 
@@ -41,43 +43,55 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument(
         "--shading-step-minutes", type=float, default=30.0, help="[min] time step of shading and blocking (default 30)"
     )
-    parser.add_argument("--out", type=Path, help="output folder (default out/<scenario name>-field-light)")
+    parser.add_argument("--out", help="output folder (default out/<scenario name>-field-light)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNGs")
     parser.set_defaults(func=_field_light_command)
     return parser
 
 
-def _field_light_command(args: argparse.Namespace) -> int:
-    scenario = load_scenario(args.scenario, args.overrides)
-    table = field_light_days(
-        scenario,
-        days=args.days,
-        step_minutes=args.step_minutes,
-        shading=not args.no_shading,
-        shading_step_minutes=args.shading_step_minutes,
-    )
-    out = args.out or Path("out") / f"{scenario.name}-field-light"
-    out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "field_light_days.csv", index=False, float_format="%.6g")
-    written = [out / "field_light_days.csv"]
-    if not args.no_plots and table["day_of_year"].nunique() >= 2:
-        from heliostep.plots.sweep import plot_heatmap
+#: The table of the days and mirrors.
+DAYS_FILE = "field_light_days.csv"
+#: The heatmaps: (column, PNG, colour-bar label, factor from the column's unit to the bar's).
+HEATMAPS = (
+    ("light_lost_J", "heatmap_light_lost_year.png", "light lost to the shared primary per day [MJ]", 1e-6),
+    (
+        "light_lost_fraction",
+        "heatmap_light_lost_fraction_year.png",
+        "light lost to the shared primary, share of ideal tracking [%]",
+        100.0,
+    ),
+)
 
-        for column, name, label, scale in (
-            ("light_lost_J", "heatmap_light_lost_year.png", "light lost to the shared primary per day [MJ]", 1e-6),
-            (
-                "light_lost_fraction",
-                "heatmap_light_lost_fraction_year.png",
-                "light lost to the shared primary, share of ideal tracking [%]",
-                100.0,
-            ),
-        ):
-            path = plot_heatmap(table, column, out / name, label, scale)
-            written += [path] if path else []
+
+def _field_light_command(args: argparse.Namespace) -> int:
+    out_name = check_out_name(args.out) if args.out is not None else None  # "" refused before anything
+    scenario = load_scenario(args.scenario, args.overrides)
+    out = out_name or Path("out") / f"{scenario.name}-field-light"
+    with owned_folder(out, [DAYS_FILE, *(name for _, name, _, _ in HEATMAPS)]):  # the lock for the command's life
+        table = field_light_days(
+            scenario,
+            days=args.days,
+            step_minutes=args.step_minutes,
+            shading=not args.no_shading,
+            shading_step_minutes=args.shading_step_minutes,
+        )
+        written = list(write_swapped(out, lambda staging: _write_table(args, table, staging)).values())
     _print_year(scenario, table, shading=not args.no_shading)
     for path in written:
         print(f"  wrote {path}")
     return 0
+
+
+def _write_table(args: argparse.Namespace, table, folder: Path) -> list[Path | None]:
+    """The table and (unless --no-plots, or over one day) the heatmaps written into ``folder``."""
+    table.to_csv(folder / DAYS_FILE, index=False, float_format="%.6g")
+    written: list[Path | None] = [folder / DAYS_FILE]
+    if not args.no_plots and table["day_of_year"].nunique() >= 2:
+        from heliostep.plots.sweep import plot_heatmap
+
+        for column, name, label, scale in HEATMAPS:
+            written.append(plot_heatmap(table, column, folder / name, label, scale))
+    return written
 
 
 def _print_year(scenario, table, shading: bool) -> None:

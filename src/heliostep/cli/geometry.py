@@ -30,6 +30,8 @@ import pandas as pd
 
 from heliostep import solar as geometry
 from heliostep.errors import InputError
+from heliostep.results.outputs import check_out_name
+from heliostep.results.run_folder import owned_folder, write_swapped
 from heliostep.scenario.model import window_date_problem
 
 DEFAULT_DATES = ("2025-12-21", "2025-01-21", "2025-03-21", "2025-06-21")
@@ -38,6 +40,16 @@ PAPER_TUBE_HEIGHT = 3.0  # [m]
 PAPER_LATITUDE = 40.0  # [deg]
 ASSUMED_LONGITUDE = 14.25  # [deg] assumption
 ASSUMED_TIMEZONE = "Europe/Rome"  # assumption
+#: Every file the command may write into --out (a rerun replaces only those, listed in its manifest).
+GEOMETRY_FILES = (
+    "end_loss.csv",
+    "two_axis_angles.csv",
+    "end_loss.png",
+    "two_axis_angles.png",
+    "paper_case.csv",
+    "paper_case_panel_angle.png",
+    "paper_case_rotor_angle.png",
+)
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -307,18 +319,21 @@ def run(args) -> int:
     # matplotlib only once the inputs are known to be good
     from heliostep.plots import geometry as plots
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    end_loss, two_axis = day_tables(site, plant, dates, distances, step)
-    end_loss.to_csv(out / "end_loss.csv", index=False)
-    two_axis.to_csv(out / "two_axis_angles.csv", index=False)
-    written += [out / "end_loss.csv", out / "two_axis_angles.csv"]
-    written.append(plots.plot_end_loss(end_loss, out / "end_loss.png", site.timezone, plant.tube_height))
-    written.append(plots.plot_two_axis_angles(two_axis, out / "two_axis_angles.png", site.timezone))
+    out = check_out_name(args.out)
+    with owned_folder(out, GEOMETRY_FILES):  # the folder's lock for the command's life
+        end_loss, two_axis = day_tables(site, plant, dates, distances, step)
 
-    if paper_inputs is not None:
-        written += _write_paper_case(plots, site, paper_inputs, out)
+        def write(staging: Path) -> list[Path]:
+            end_loss.to_csv(staging / "end_loss.csv", index=False)
+            two_axis.to_csv(staging / "two_axis_angles.csv", index=False)
+            files = [staging / "end_loss.csv", staging / "two_axis_angles.csv"]
+            files.append(plots.plot_end_loss(end_loss, staging / "end_loss.png", site.timezone, plant.tube_height))
+            files.append(plots.plot_two_axis_angles(two_axis, staging / "two_axis_angles.png", site.timezone))
+            if paper_inputs is not None:
+                files += _write_paper_case(plots, site, paper_inputs, staging)
+            return files
+
+        written = list(write_swapped(out, write).values())
     for path in written:
         print(f"wrote {path}")
     return 0

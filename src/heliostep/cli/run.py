@@ -11,10 +11,9 @@ import numpy as np
 from heliostep.cli.band import add_band_options, prepare_band, run_band_after
 from heliostep.cli.signals import stop_requests
 from heliostep.drive.sequencer import PreparationStopped
-from heliostep.errors import HeliostepError
-from heliostep.results.outputs import TMP_PREFIX, check_out_dir, check_out_name
+from heliostep.results.outputs import TMP_PREFIX, check_out_name
 from heliostep.results.rescue import rescue_folder
-from heliostep.results.run_folder import check_foreign, hold_folder
+from heliostep.results.run_folder import owned_folder
 from heliostep.results.trace_io import TraceWriteError
 from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
 from heliostep.run.estimate import check_budget, estimate_run
@@ -134,16 +133,9 @@ def _run_command(args: argparse.Namespace) -> int:
         out_dir = out_name or Path("out") / scenario.name
         fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
         band = prepare_band(args, scenario, fmu_paths)  # --band's design and keys checked before any run
-        existed = out_dir.exists()
-        check_out_dir(out_dir)
-        try:
-            with hold_folder(out_dir):  # the folder's lock, for the run's life
-                check_foreign(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False))
-                return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band)
-        except HeliostepError:
-            if not existed:  # bad input found while setting up: leave no empty folder
-                _remove_if_empty(out_dir)
-            raise
+        # the folder's lock, for the run's life; a folder made here and left empty by bad input is removed
+        with owned_folder(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False)):
+            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band)
 
 
 def _budget_overrides(args: argparse.Namespace) -> list[str]:
@@ -228,13 +220,6 @@ def _warn(result: RunResult) -> None:
             "sequencer.step_angle, window)",
             file=sys.stderr,
         )
-
-
-def _remove_if_empty(folder: Path) -> None:
-    try:
-        folder.rmdir()
-    except OSError:
-        pass
 
 
 def _rescue(result: RunResult) -> Path | None:

@@ -24,6 +24,8 @@ import pandas as pd
 
 from heliostep.cli.signals import exit_status, stop_requests
 from heliostep.errors import HeliostepError, InputError
+from heliostep.results.outputs import check_out_name
+from heliostep.results.run_folder import claim, owned_folder, write_swapped
 from heliostep.sweep import (
     SweepOutcome,
     execute_cases,
@@ -55,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("sweep", type=Path, help="sweep YAML file")
     parser.add_argument(
-        "--out", type=Path, metavar="DIR", help="folder of results.parquet and the plots (default: out/<sweep name>)"
+        "--out", metavar="DIR", help="folder of results.parquet and the plots (default: out/<sweep name>)"
     )
     parser.add_argument(
         "--scheduler",
@@ -87,31 +89,18 @@ def _run_command(args: argparse.Namespace) -> int:
         raise InputError(f"--workers must be >= 1, got {args.workers}")
     if args.connect_timeout <= 0:
         raise InputError(f"--connect-timeout must be > 0 s, got {args.connect_timeout}")
+    out_name = check_out_name(str(args.out)) if args.out is not None else None  # "" refused before anything
     results_path = None
     try:
         with stop_requests(raise_exception=_Stopped), _scratch_tmpdir():
             spec = load_sweep(args.sweep)
             cases = expand_cases(spec)
-            out_dir = args.out or Path("out") / spec.name
+            out_dir = out_name or Path("out") / spec.name
             results_path = out_dir / RESULTS_FILE
             if args.list:
                 print(_case_listing(cases, read_results(results_path)))
                 return 0
-            outcome = execute_cases(
-                cases,
-                results_path,
-                scheduler=args.scheduler,
-                n_workers=args.workers,
-                connect_timeout=args.connect_timeout,
-                retry_failed=args.retry_failed,
-                progress=True,
-                metadata=sweep_metadata(spec),
-            )
-            plots = []
-            if not args.no_plots and len(outcome.table):
-                from heliostep.plots.sweep import plot_sweep
-
-                plots = plot_sweep(outcome.table, out_dir)
+            outcome, plots = _sweep_in_folder(args, spec, cases, out_dir)
     except KeyboardInterrupt as stopped:
         signum = stopped.signum if isinstance(stopped, _Stopped) else signal.SIGINT
         print(f"heliostep sweep: stopped by {signal.Signals(signum).name}; {_recorded(results_path)}", file=sys.stderr)
@@ -131,6 +120,39 @@ def _run_command(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 1 if outcome.failed else 0
+
+
+def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tuple[SweepOutcome, list[Path]]:
+    """The cases run into ``out_dir``, its lock held meanwhile: results.parquet (listed in the
+    folder's manifest, then updated in place as cases finish: a rerun resumes it) and the
+    figures, swapped in; the earlier figures are removed before any case runs (they would show
+    other results)."""
+    from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE
+
+    out_dir.mkdir(parents=True, exist_ok=True)  # a folder that cannot be made: an OSError, a run failure
+    with owned_folder(out_dir, [RESULTS_FILE, *(name for _, name, _ in HEATMAPS), TORQUE_FILE]):
+        claim(out_dir, [RESULTS_FILE])
+        write_swapped(out_dir, lambda staging: [], keep={RESULTS_FILE})  # the older figures out
+        outcome = execute_cases(
+            cases,
+            out_dir / RESULTS_FILE,
+            scheduler=args.scheduler,
+            n_workers=args.workers,
+            connect_timeout=args.connect_timeout,
+            retry_failed=args.retry_failed,
+            progress=True,
+            metadata=sweep_metadata(spec),
+        )
+
+        def draw(staging: Path) -> list[Path]:
+            if args.no_plots or not len(outcome.table):
+                return []
+            from heliostep.plots.sweep import plot_sweep
+
+            return plot_sweep(outcome.table, staging)
+
+        plots = list(write_swapped(out_dir, draw, keep={RESULTS_FILE}).values())
+    return outcome, plots
 
 
 def _recorded(results_path: Path | None) -> str:

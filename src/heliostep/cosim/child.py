@@ -15,16 +15,22 @@ has failed, whatever its exit status.
 
 The child ignores SIGINT, SIGTERM and SIGHUP (a terminal sends them to the whole process group):
 the supervisor asks it to stop through the call record, or kills it. It stops on its own when
-the supervisor's process is gone.
+the supervisor's process is gone: at its next safe point, and at once when an FMU hangs or the
+supervisor was killed (SIGKILL) — the kernel kills it then (Linux: ``prctl(PR_SET_PDEATHSIG,
+SIGKILL)``, :func:`die_with_supervisor`; elsewhere a thread that polls the parent's pid every
+:data:`PARENT_POLL` s and ends the process), so a hung FMU's process never outlives its supervisor.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import os
 import pickle
 import signal
 import sys
 import tempfile
+import threading
 import time as clock
 import traceback
 from dataclasses import dataclass
@@ -33,20 +39,49 @@ from multiprocessing.connection import Connection
 import numpy as np
 
 from heliostep.cosim import watch
+from heliostep.cosim.kernel import Kernel
 from heliostep.cosim.master import CoSimulation, SimulationError
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.signals import SolverOptions
 from heliostep.errors import InputError
 
-__all__ = ["PROGRESS_INTERVAL", "SEND_INTERVAL", "Request", "main", "serve"]
+__all__ = [
+    "BLOCK_ROWS",
+    "MAX_ROWS_LOST",
+    "PARENT_POLL",
+    "PROGRESS_INTERVAL",
+    "SEND_INTERVAL",
+    "Request",
+    "die_with_supervisor",
+    "main",
+    "serve",
+]
+
+#: [s] how often the thread that watches the supervisor looks at the parent's pid (where the
+#: kernel cannot be asked to kill the child with its parent).
+PARENT_POLL = 0.2
+
+#: prctl's option asking the kernel for a signal when the parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
 
 #: Progress reports at most this often [s of wall time].
 PROGRESS_INTERVAL = 0.25
 
 #: The rows of the trace and of the solution go to the supervisor together, at most this often
-#: [s of wall time] (one message, their blocks and order kept): a crash loses at most the rows of
-#: that long. (One message per block would cost more than the simulation on a busy machine.)
+#: [s of wall time] (one message, their blocks and order kept) or once :data:`BLOCK_ROWS` trace
+#: rows are held. (One message per block would cost more than the simulation on a busy machine.)
 SEND_INTERVAL = 0.05
+
+#: The child's kernel hands its rows to the master once it holds this many trace rows (rows at
+#: output times, ``Kernel.OUTPUTS_PER_BLOCK``; 4096 in-process; the rows of internal steps, for
+#: the monitor only, still in blocks of 4096), and its outbox sends them once it holds this many (or after
+#: :data:`SEND_INTERVAL`): the rows a crash or a hang of an FMU loses are those of the kernel's
+#: block not yet handed over and those of the outbox not yet sent, fewer than :data:`MAX_ROWS_LOST`.
+BLOCK_ROWS = 128
+
+#: The most trace rows a supervised run loses when its child crashes, hangs or is killed (the
+#: rows computed before are in the supervisor; tests/test_supervised.py holds it to this).
+MAX_ROWS_LOST = 2 * BLOCK_ROWS
 
 
 class _Outbox:
@@ -55,17 +90,20 @@ class _Outbox:
     def __init__(self, connection: Connection):
         self.connection = connection
         self.items: list[tuple[str, np.ndarray]] = []
+        self.trace_rows = 0  # trace rows among the items
         self.sent = clock.monotonic()
 
     def add(self, kind: str, block: np.ndarray) -> None:
         self.items.append((kind, np.array(block, dtype=float)))  # a copy: the master reuses its buffers
-        if clock.monotonic() - self.sent >= SEND_INTERVAL:
+        if kind == "rows":
+            self.trace_rows += len(block)
+        if self.trace_rows >= BLOCK_ROWS or clock.monotonic() - self.sent >= SEND_INTERVAL:
             self.flush()
 
     def flush(self) -> None:
         if self.items:
             self.connection.send(("blocks", self.items))
-            self.items = []
+            self.items, self.trace_rows = [], 0
         self.sent = clock.monotonic()
 
 
@@ -107,8 +145,10 @@ def serve(connection: Connection, record: str, request: Request | None = None, t
     if tmpdir is not None:
         os.environ["TMPDIR"] = tempfile.tempdir = tmpdir
     supervisor = os.getppid()
+    die_with_supervisor(supervisor)
     watch.attach(record)
     RowBuffer.flush_interval = 0.0  # every block the master stores goes out (in the outbox)
+    Kernel.OUTPUTS_PER_BLOCK = BLOCK_ROWS  # and the kernel hands its trace rows over in small blocks
     if request is None:
         request = pickle.loads(connection.recv_bytes())
     connection.send(("started", None))
@@ -131,6 +171,25 @@ def serve(connection: Connection, record: str, request: Request | None = None, t
     except OSError:  # the supervisor is gone: nobody to tell
         return 1
     return 0
+
+
+def die_with_supervisor(supervisor: int) -> None:
+    """End this process (SIGKILL) as soon as its parent ``supervisor`` dies, even while an FMU
+    call never returns: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` on Linux, else a daemon thread
+    polling the parent's pid (it runs while the FMU's native code does: ctypes calls release the GIL)."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0:
+            if os.getppid() != supervisor:  # died before the request was made: nobody will signal
+                os._exit(1)
+            return
+
+    def watch_parent() -> None:
+        while os.getppid() == supervisor:
+            clock.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch_parent, name="heliostep-watch-supervisor", daemon=True).start()
 
 
 def _peak_rss_mb() -> float | None:

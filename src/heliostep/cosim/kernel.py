@@ -154,6 +154,7 @@ class AdvanceArgs(ctypes.Structure):
         ("kinds", ctypes.c_void_p),
         ("capacity", ctypes.c_long),
         ("max_steps", ctypes.c_long),
+        ("max_outputs", ctypes.c_long),
         ("next_output", ctypes.c_long),
         ("n_rows", ctypes.c_long),
         ("steps", ctypes.c_long),
@@ -262,6 +263,9 @@ class Kernel:
 
     #: Rows one call of :c:func:`hs_advance` records before it hands them over.
     ROWS_PER_BLOCK = 4096
+    #: Rows at output times (the trace's) one call records before it hands them over: fewer in a
+    #: supervised child (:data:`heliostep.cosim.child.BLOCK_ROWS`), whose crash loses the rows not handed over.
+    OUTPUTS_PER_BLOCK = 4096
 
     def __init__(
         self,
@@ -383,6 +387,7 @@ class Kernel:
             kinds=self.kinds.ctypes.data,
             capacity=self.ROWS_PER_BLOCK,
             max_steps=max_steps,
+            max_outputs=max(1, self.OUTPUTS_PER_BLOCK),
             next_output=next_output,
             t_reached=np.nan,
         )

@@ -48,7 +48,7 @@ from heliostep.results.mirror_power import attitude_light
 from heliostep.solar import DEFAULT_MIRROR_SPACING, N_FIELD_MIRRORS, field_distances, irradiance, sharing_errors
 from heliostep.solar.optics import mirror_normal
 from heliostep.solar.receiver_shadow import receiver_shadow_fraction, receiver_width
-from heliostep.solar.shading import row_losses
+from heliostep.solar.shading import interpolated_at_coarse_instants, row_losses
 from heliostep.solar.sun import solar_position, sun_vector
 from heliostep.solar.tracking import two_axis_angles
 
@@ -217,12 +217,12 @@ def _unhidden_share(sun, up, primary, secondary, distances, tube_height, conf, e
     share[lit] = 1.0 - own
     if every is None:
         return share
-    coarse = np.unique(np.concatenate([lit[::every], lit[-1:]]))
-    normals = np.stack(mirror_normal(primary[coarse], secondary[coarse]), axis=-1)  # (K, N, 3)
-    neighbours = row_losses(
-        sun[:, coarse].T, normals, distances, conf.mirror_width, conf.mirror_length, only_lost=True
-    )["lost"]
-    for mirror in range(share.shape[1]):
-        hidden = np.interp(lit, coarse, neighbours[:, mirror])
-        share[lit, mirror] *= 1.0 - hidden  # the two combined as independent
+
+    def neighbours(coarse: np.ndarray) -> np.ndarray:
+        normals = np.stack(mirror_normal(primary[coarse], secondary[coarse]), axis=-1)  # (K, N, 3)
+        return row_losses(sun[:, coarse].T, normals, distances, conf.mirror_width, conf.mirror_length, only_lost=True)[
+            "lost"
+        ]
+
+    share[lit] *= 1.0 - interpolated_at_coarse_instants(lit, every, neighbours)  # the two combined as independent
     return share

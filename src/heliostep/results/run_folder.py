@@ -16,6 +16,13 @@ its results swapped in at once.
   records (``metadata.json``, ``summary.json``) last. No signal can leave the old run's files
   beside the new ones; the manifest written first, listing both, lets a run after a SIGKILL in
   the middle of it remove them all.
+
+Every command that writes a folder (``run``, ``regress``, ``sweep``, ``geometry``, ``end-loss``,
+``field-light``) owns it so: :func:`owned_folder` (the folder checked and made, its lock held for
+the command's life, the files it may write checked against the manifest) and
+:func:`write_swapped` (files written into a staging folder by a callable, then swapped in); a
+file a command updates in place as it goes (a sweep's ``results.parquet``, resumable) is listed
+in the manifest first (:func:`claim`).
 """
 
 from __future__ import annotations
@@ -29,23 +36,26 @@ import socket
 import sys
 import tempfile
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from heliostep.errors import InputError
-from heliostep.results.outputs import TMP_PREFIX
+from heliostep.errors import HeliostepError, InputError
+from heliostep.results.outputs import TMP_PREFIX, check_out_dir
 
 __all__ = [
     "LOCK_NAME",
     "MANIFEST_NAME",
     "FolderLock",
     "check_foreign",
+    "claim",
     "hold_folder",
     "manifest_files",
+    "owned_folder",
     "remove_leftovers",
     "staging_folder",
     "swap_in",
+    "write_swapped",
 ]
 
 LOCK_NAME = ".heliostep-lock"
@@ -250,3 +260,47 @@ def swap_in(folder: str | Path, staging: Path, names: Iterable[str], keep: Itera
         _write_manifest(folder, keep | set(names), "complete")
     shutil.rmtree(staging, ignore_errors=True)
     return {name: folder / name for name in names}
+
+
+def claim(folder: str | Path, names: Iterable[str]) -> None:
+    """List ``names`` in ``folder``'s manifest before heliostep writes them in place (a file a
+    command updates as it goes, never swapped: a sweep's ``results.parquet``)."""
+    folder = Path(folder)
+    _write_manifest(folder, manifest_files(folder) | set(names), "complete")
+
+
+@contextmanager
+def owned_folder(folder: str | Path, names: Iterable[str], command: str | None = None) -> Iterator[Path]:
+    """``folder`` made if needed and proved writable, its lock held within the block
+    (:func:`hold_folder`), and refused when it holds a file named like one of ``names`` (those the
+    command may write) that its manifest does not list (:func:`check_foreign`). A folder this
+    made is removed again when the block ends in a :class:`~heliostep.errors.HeliostepError`
+    with the folder empty (bad input found while setting up)."""
+    folder = Path(folder)
+    existed = folder.exists()
+    check_out_dir(folder)
+    try:
+        with hold_folder(folder, command):
+            check_foreign(folder, names)
+            yield folder
+    except HeliostepError:
+        if not existed:
+            try:
+                folder.rmdir()
+            except OSError:  # not empty: something was written
+                pass
+        raise
+
+
+def write_swapped(
+    folder: str | Path, write: Callable[[Path], Iterable[Path | None]], keep: Iterable[str] = ()
+) -> dict[str, Path]:
+    """The files ``write(staging)`` writes into a staging folder in ``folder`` (it returns their
+    paths; None for one not written) swapped into ``folder`` (:func:`swap_in`: the earlier run's
+    files but those in ``keep`` removed, signals held back meanwhile). Returns name -> path."""
+    staging = staging_folder(folder)
+    try:
+        names = [Path(path).name for path in write(staging) if path is not None]
+        return swap_in(folder, staging, names, keep)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)

@@ -198,13 +198,22 @@ class _Supervisor:
             if current != calls:
                 calls, progressed = current, now
             elif now - progressed > (self.watchdog if self.started else max(self.watchdog, STARTUP_LIMIT)):
-                return "hung", self._hang_message()
+                return self._killed("hung", self._hang_message)
             if stop_asked is None and should_stop is not None and should_stop():
                 self.record.request_stop()
                 stop_asked = now
             elif stop_asked is not None and now - stop_asked > STOP_GRACE:
-                return "stuck", self._where()
+                return self._killed("stuck", self._where)
         return self.outcome
+
+    def _killed(self, kind: str, message: Callable[[], str]) -> tuple[str, object]:
+        """The child killed (hung, or not stopping when asked) and every row it sent before
+        received: (``kind``, ``message()``)."""
+        self.process.kill()
+        self.process.wait()
+        while not self.ended and self.outcome is None and self._receive():
+            pass
+        return kind, message()
 
     def _receive(self) -> bool:
         """Dispatch the messages waiting (up to :data:`_POLL` for the first); True if any came."""

@@ -14,7 +14,7 @@ import numpy as np
 from heliostep.solar.checks import as_float_array
 from heliostep.solar.field import PANEL_LENGTH
 from heliostep.solar.receiver_shadow import receiver_shadow_fraction
-from heliostep.solar.shading import row_losses
+from heliostep.solar.shading import interpolated_at_coarse_instants, row_losses
 from heliostep.solar.sun import sun_vector
 from heliostep.solar.tracking import single_axis_tilt, two_axis_normal
 
@@ -100,11 +100,11 @@ def interpolated_losses(
     up = np.flatnonzero(elevation > 0.0)
     if up.size == 0:
         return out
-    day = labels[up]
-    turns = np.r_[True, day[1:] != day[:-1]]
-    coarse = np.unique(np.concatenate([up[::every], up[turns], up[np.r_[turns[1:], True]]]))
-    sampled = shading_losses(elevation[coarse], azimuth[coarse], *geometry)["two_axis_neighbours"]
-    for row in range(sampled.shape[1]):
-        out["two_axis_neighbours"][up, row] = np.interp(up, coarse, sampled[:, row])
+    out["two_axis_neighbours"][up] = interpolated_at_coarse_instants(
+        up,
+        every,
+        lambda coarse: shading_losses(elevation[coarse], azimuth[coarse], *geometry)["two_axis_neighbours"],
+        labels,
+    )
     out["two_axis"][up] = 1.0 - (1.0 - out["two_axis_neighbours"][up]) * (1.0 - out["two_axis_receiver"][up])
     return out

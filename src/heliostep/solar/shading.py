@@ -47,6 +47,8 @@ from heliostep.solar.checks import as_float_array, check_positive
 from heliostep.solar.optics import mirror_axes
 from heliostep.solar.receiver_shadow import receiver_shadow_band
 
+__all__ = ["row_losses", "interpolated_at_coarse_instants"]
+
 
 def reflected_direction(sun, normal):
     """Direction of the light a flat mirror reflects, r = 2 (S . n) n - S (law of reflection).
@@ -451,3 +453,20 @@ def _band_footprint(band, reach: float) -> tuple[np.ndarray, np.ndarray]:
     uv = np.stack(corners, axis=-2)  # (T, N, 8, 2)
     uv = np.where(ok[..., None, None], uv, np.nan)
     return uv[..., None, :, 0], uv[..., None, :, 1]
+
+
+def interpolated_at_coarse_instants(up, every: int, sample, labels=None) -> np.ndarray:
+    """Losses computed at coarse instants only and interpolated between: ``sample(coarse)`` (the
+    values, (K, N), at the instants of index ``coarse``) at every ``every``-th of the instants
+    ``up`` (indices, increasing: those with the sun up) and the first and last of each day
+    (``labels``: a day label per instant; one day without), linear in the instants' index to each
+    of ``up``. Returns (len(up), N)."""
+    up = np.asarray(up)
+    if labels is None:
+        coarse = np.unique(np.concatenate([up[::every], up[-1:]]))
+    else:
+        day = np.asarray(labels)[up]
+        turns = np.r_[True, day[1:] != day[:-1]]
+        coarse = np.unique(np.concatenate([up[::every], up[turns], up[np.r_[turns[1:], True]]]))
+    sampled = np.asarray(sample(coarse))
+    return np.stack([np.interp(up, coarse, sampled[:, column]) for column in range(sampled.shape[1])], axis=-1)

@@ -154,6 +154,7 @@ static int read_row(hs_kernel *k, double t, double *row) {
 int hs_advance(hs_kernel *k, hs_advance_args *a) {
     double t;
     int final;
+    long outputs = 0; /* output-time rows recorded in this call */
     for (;;) {
         if (k->status) return ADVANCE_FMU_FAILED;
         if (!k->pending) {
@@ -179,12 +180,13 @@ int hs_advance(hs_kernel *k, hs_advance_args *a) {
             while (a->next_output < a->n_grid
                    && (final ? a->grid[a->next_output] < t - eps : a->grid[a->next_output] <= t + eps)) {
                 double g = a->grid[a->next_output];
-                if (a->n_rows >= a->capacity) return ADVANCE_FULL;
+                if (a->n_rows >= a->capacity || outputs >= a->max_outputs) return ADVANCE_FULL;
                 if (!k->discrete && k->get_dky(a->cvode_mem, g < t ? g : t, 0, a->dky) < 0) return ADVANCE_DKY_FAILED;
                 if (hs_prepare(k, g, k->discrete ? NULL : k->data(a->dky), 0)) return ADVANCE_FMU_FAILED;
                 if (read_row(k, g, a->rows + a->n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
                 a->kinds[a->n_rows] = 1;
                 a->n_rows++;
+                outputs++;
                 a->next_output++;
             }
         }
@@ -229,6 +231,7 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_advance_args, dky), FIELD(hs_advance_args, t_stop), FIELD(hs_advance_args, grid),
     FIELD(hs_advance_args, n_grid), FIELD(hs_advance_args, interpolate), FIELD(hs_advance_args, rows),
     FIELD(hs_advance_args, kinds), FIELD(hs_advance_args, capacity), FIELD(hs_advance_args, max_steps),
+    FIELD(hs_advance_args, max_outputs),
     FIELD(hs_advance_args, next_output), FIELD(hs_advance_args, n_rows), FIELD(hs_advance_args, steps),
     FIELD(hs_advance_args, t_reached), FIELD(hs_advance_args, cvode_flag),
     CODE(F_SET_TIME), CODE(F_SET_STATES), CODE(F_GET_REAL), CODE(F_SET_REAL), CODE(F_GET_DERIVATIVES),

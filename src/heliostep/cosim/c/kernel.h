@@ -102,6 +102,7 @@ typedef struct {
     long *kinds;              /* per row: 0 an internal step, 1 an output time */
     long capacity;
     long max_steps;           /* internal steps allowed in all calls towards t_stop */
+    long max_outputs;         /* output-time rows one call records before it returns ADVANCE_FULL */
     /* updated by hs_advance */
     long next_output;         /* index into grid of the next output time to record */
     long n_rows;              /* rows recorded (the caller empties the buffer between calls) */
