@@ -136,6 +136,19 @@ def test_solver_failure_keeps_the_trace_so_far(drive):
     assert error.statistics["rhs"] > 0
 
 
+def test_an_input_change_a_rounding_error_after_an_output_time_takes_effect(drive):
+    """A change at 0.05 + 1 ulp with an output row at 0.05 (found by the speed-torque bench: the
+    change was consumed at 0.05 with the value from before it, and never applied)."""
+    change = np.nextafter(0.05, 1.0)
+    switch_on = [PiecewiseConstant("i_a_ref", "motor.i_a_ref", np.array([change]), np.array([0.0, 5.5]))]
+    system = CoSimulation(drive, DRIVE_CONNECTIONS, switch_on)
+    trace = system.simulate(0.0, 0.1, np.round(np.arange(0, 0.1, 0.01), 12)).trace
+    last = trace.iloc[-1]
+    assert last["i_a_ref"] == 5.5
+    # the loop holds K i_ref / (K + R) of it ([paper] eq. 7 at rest, the averaged chopper: docs/physics.md)
+    assert last["motor.i_a"] == pytest.approx(100.0 * 5.5 / (100.0 + 0.1), rel=1e-4)
+
+
 def test_unknown_parameter_instance_is_named(drive):
     with pytest.raises(InputError, match="unknown FMU instance"):
         CoSimulation(drive, DRIVE_CONNECTIONS, parameters={"motr": {"L": 1e-3}})

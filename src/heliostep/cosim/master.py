@@ -339,18 +339,22 @@ class _Run:
             raise _Interrupted()
 
     # --------------------------------------------------------------- events
-    def _event_iteration(self, system: CoupledSystem, t: float, new_inputs: bool) -> None:
-        """Event mode at ``t``: set inputs, iterate discrete states to a fixed point."""
+    def _event_iteration(self, system: CoupledSystem, t: float, new_inputs: bool, input_time: float) -> None:
+        """Event mode at ``t``: set inputs (their values from ``input_time`` on), iterate discrete states
+        to a fixed point."""
         self.counts["events"] += 1
         if self.graph.sampled is not None:  # at a communication point the sampled components step
             self.graph.sampled.communicate(t)
-        new_values = [item.value_at(t) for item in self.graph.inputs] if new_inputs else None
+        new_values = [item.value_at(input_time) for item in self.graph.inputs] if new_inputs else None
         event_iteration(system, self.input_values, new_values, self.time)
 
-    def _event(self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool) -> None:
-        """Record the row before, handle the event at ``t``, restart CVODE, record the row after."""
+    def _event(
+        self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool, input_time: float | None = None
+    ) -> None:
+        """Record the row before, handle the event at ``t``, restart CVODE, record the row after. An input
+        change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``)."""
         self.record(t)
-        self._event_iteration(system, t, new_inputs=new_inputs)
+        self._event_iteration(system, t, new_inputs, t if input_time is None else max(t, input_time))
         try:
             integrator.reset(t)  # re-reads the states (changed or not) and restarts CVODE
         except BaseException:
@@ -441,8 +445,9 @@ class _Run:
             while next_output < len(grid) and grid[next_output] <= t + eps:
                 next_output += 1
             if next_change < len(change_times) and change_times[next_change] <= t + eps:
+                # a change a rounding error after t (an output time just before it) takes effect here
+                self._event(system, integrator, t, new_inputs=True, input_time=float(change_times[next_change]))
                 next_change += 1
-                self._event(system, integrator, t, new_inputs=True)
                 continue
             if t >= stop_time - eps:
                 break
