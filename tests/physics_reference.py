@@ -29,7 +29,9 @@ def _torque(i_a, i_b, theta, omega, k_e, N_c, G_m, T_d):
     return electromagnetic - T_d * np.sin(4 * N_c * theta)
 
 
-def stepper_motor(i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, N_c, V_supply, K_current, G_m=0.0, T_d=0.0):
+def stepper_motor(
+    i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, N_c, V_supply, K_current, G_m=0.0, T_d=MOTOR_LOSSES["T_d"]
+):
     """Averaged-chopper motor: returns di_a/dt, di_b/dt, torque, v_a, v_b, power."""
     v_a = np.clip(K_current * (i_a_ref - i_a), -V_supply, V_supply)
     v_b = np.clip(K_current * (i_b_ref - i_b), -V_supply, V_supply)
@@ -39,7 +41,9 @@ def stepper_motor(i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, N_c, V
     return di_a, di_b, torque, v_a, v_b, v_a * i_a + v_b * i_b
 
 
-def ideal_current_motor(i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, N_c, T_current, G_m=0.0, T_d=0.0):
+def ideal_current_motor(
+    i_a, i_b, i_a_ref, i_b_ref, theta, omega, *, L, R, k_e, N_c, T_current, G_m=0.0, T_d=MOTOR_LOSSES["T_d"]
+):
     """Currents lag their references; voltages from eqs 7-8 solved for v."""
     di_a = (i_a_ref - i_a) / T_current
     di_b = (i_b_ref - i_b) / T_current

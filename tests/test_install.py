@@ -141,4 +141,4 @@ def test_installed_package_carries_the_parameter_ranges(installed, tmp_path):
     assert done.returncode == 0, done.stderr
     path, keys = done.stdout.splitlines()
     assert Path(path).resolve() == (installed / "heliostep" / "data" / "parameter_ranges.yaml").resolve()
-    assert keys == "['parameters.motor.K_current', 'parameters.motor.V_supply']"
+    assert keys == "['parameters.mechanics.B_m', 'parameters.motor.K_current', 'parameters.motor.V_supply']"

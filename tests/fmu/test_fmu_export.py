@@ -9,6 +9,7 @@ from scipy.integrate import solve_ivp
 from conftest import MODELS
 from heliostep.cosim.fmi import ModelExchangeInstance, read_fmu
 from physics_reference import (
+    MOTOR_LOSSES,
     RATED_CURRENT,
     TABLE2_PANEL,
     TABLE3_MOTOR,
@@ -308,7 +309,9 @@ def test_phase_current_step_with_rotor_held_matches_radau(fmu_paths):
     assert result["i_a"][early] == pytest.approx(3.1 / 1.8e-3 * 1e-3, rel=0.05)
     # ... and settles at K I / (K + R), the proportional loop's steady state
     assert result["i_a"][-1] == pytest.approx(100 * RATED_CURRENT / 100.1, rel=1e-6)
-    assert result["tau"][-1] == pytest.approx(-0.5 * result["i_a"][-1] * np.sin(50 * theta_held), rel=1e-6)
+    # ... and the torque is eq. 9's of phase A with the detent torque's pull toward the full step
+    detent = MOTOR_LOSSES["T_d"] * np.sin(4 * 50 * theta_held)
+    assert result["tau"][-1] == pytest.approx(-0.5 * result["i_a"][-1] * np.sin(50 * theta_held) - detent, rel=1e-6)
 
 
 def test_torque_step_into_mechanics_matches_radau(fmu_paths):

@@ -73,7 +73,8 @@ def test_shipped_ranges_carry_the_sourced_driver_ranges():
     # K = 2 pi f_c L for a 2-4 kHz crossover and L = 1.8 mH (Table 3): the range's ends
     assert 2 * np.pi * 2e3 * 1.8e-3 == pytest.approx(gain.low, abs=0.5)
     assert 2 * np.pi * 4e3 * 1.8e-3 == pytest.approx(gain.high, abs=0.5)
-    assert "T_c" in RANGES_FILE.read_text() and not {"parameters.mechanics.T_c", "parameters.mechanics.M_c"} & set(ranges)
+    friction = {"parameters.mechanics.T_c", "parameters.mechanics.M_c"}
+    assert "T_c" in RANGES_FILE.read_text() and not friction & set(ranges)
 
 
 @pytest.mark.parametrize("n", [3, 4, 7])
@@ -117,8 +118,9 @@ def test_band_extremes_bracket_the_nominal_run(client, fmu_paths, tmp_path):
     """One key (the bus voltage, 24-48 V) and N = 3 with the nominal at the range's middle, 36 V: the
     nominal lies in the middle stratum, so one sample is below it and one above. A figure monotone in
     the bus is then bracketed by the band's extremes exactly: peak torque and max tracking error
-    grow with it (the faster current rise swings the rotor harder), the settling time falls (both
-    checked here on the samples). Every other
+    grow with it (the faster current rise swings the rotor harder; both checked here on the samples).
+    Every other (the settling time too: with the detent torque it moves by under 1e-3 of itself over
+    the range)
     figure is bracketed to within 10 x the solver's rtol (1e-6) of its size: those barely depend on
     the bus (a spread below 1e-4 of their value), and the solver does not order them more finely."""
     ranges = _ranges_file(
@@ -134,7 +136,7 @@ def test_band_extremes_bracket_the_nominal_run(client, fmu_paths, tmp_path):
     record = band_record(nominal, outcome)
     assert record["complete"] and record["failed"] == [] and "note" not in record
     figures = record["figures"]
-    for name in ("peak_torque_Nm", "max_tracking_error_deg", "settling_time_s.max"):
+    for name in ("peak_torque_Nm", "max_tracking_error_deg"):
         entry = figures[name]
         assert entry["min"] < entry["nominal"] < entry["max"], (name, entry)
         # monotone in the bus over the samples and the nominal, so bracketed (either direction)
@@ -146,7 +148,9 @@ def test_band_extremes_bracket_the_nominal_run(client, fmu_paths, tmp_path):
     for name, entry in figures.items():
         if name.startswith("solver."):  # the solver's work: counted, not a smooth function of the bus
             continue
-        tolerance = 10 * 1e-6 * max(abs(entry["nominal"]), abs(entry["min"]), abs(entry["max"]))
+        # relative to the figure's size, and absolute for the figures that are 0 but for the solver's
+        # noise (final_lag_steps: a few 1e-8 of a step either side of the detent)
+        tolerance = 10 * 1e-6 * (1.0 + max(abs(entry["nominal"]), abs(entry["min"]), abs(entry["max"])))
         assert entry["min"] - tolerance <= entry["nominal"] <= entry["max"] + tolerance, (name, entry)
         assert entry["samples"] == 3
     values = [result["figures"]["peak_torque_Nm"] for result in outcome.results]

@@ -186,14 +186,7 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         result.write(out_dir, plots=not args.no_plots, csv=csv, should_stop=stop.is_set, before_figures=report)
     except (OSError, TraceWriteError) as exc:  # a full disk, a file-size limit: a run failure, rescued
         print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
-        rescue = _rescue(result)
-        if rescue:
-            print(f"heliostep run: the results were written to {rescue} instead", file=sys.stderr)
-            stream = result.trace_file
-            if stream is not None and stream.parent == out_dir and stream.name.startswith(TMP_PREFIX):
-                stream.unlink(missing_ok=True)  # the stream cut short: its rows are in the rescue
-        else:
-            print("heliostep run: error: no folder could take the results either", file=sys.stderr)
+        _rescue_into_a_fresh_folder(result, out_dir)
         return status or 1
     if band is not None:  # the band runs after a complete nominal run only
         status = run_band_after(args, band, result, out_dir, fmu_paths, stop, status)
@@ -220,6 +213,18 @@ def _warn(result: RunResult) -> None:
             "sequencer.step_angle, window)",
             file=sys.stderr,
         )
+
+
+def _rescue_into_a_fresh_folder(result: RunResult, out_dir: Path) -> None:
+    """The results that ``out_dir`` could not take written to a rescue folder, and said where."""
+    rescue = _rescue(result)
+    if rescue:
+        print(f"heliostep run: the results were written to {rescue} instead", file=sys.stderr)
+        stream = result.trace_file
+        if stream is not None and stream.parent == out_dir and stream.name.startswith(TMP_PREFIX):
+            stream.unlink(missing_ok=True)  # the stream cut short: its rows are in the rescue
+    else:
+        print("heliostep run: error: no folder could take the results either", file=sys.stderr)
 
 
 def _rescue(result: RunResult) -> Path | None:

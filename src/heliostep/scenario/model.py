@@ -302,7 +302,7 @@ class Scenario(Section):
             )
         if not problems:  # (a date or duration pandas cannot take is not resolved)
             try:
-                self._resolve_window()
+                _window_bounds(self.window, self.site)
             except KeyProblems as exc:
                 problems += exc.problems
         if problems:
@@ -397,7 +397,7 @@ class Scenario(Section):
             Timezone-aware, in the site's timezone.
         """
         try:
-            return self._resolve_window()
+            return _window_bounds(self.window, self.site)
         except KeyProblems as exc:
             raise InputError(
                 "\n".join(f"{self._source}: {dotted(path)}: {message}" for path, message in exc.problems)
@@ -427,10 +427,6 @@ class Scenario(Section):
     def folder(self) -> Path:
         """Folder that relative FMU paths are resolved against."""
         return self._folder
-
-    # ----------------------------------------------------------------------- helpers
-    def _resolve_window(self) -> tuple[pd.Timestamp, pd.Timestamp]:
-        return _window_bounds(self.window, self.site)
 
 
 def _window_bounds(window: WindowConfig, site: SiteConfig) -> tuple[pd.Timestamp, pd.Timestamp]:
