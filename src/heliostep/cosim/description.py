@@ -59,6 +59,8 @@ class FMUInfo:
     description: object = None  # fmpy's ModelDescription
     #: read for Co-Simulation (a sampled component) rather than Model Exchange
     co_simulation: bool = False
+    #: "2.0" or "3.0" (FMI 3.0 Model Exchange: :mod:`heliostep.cosim.fmi3`)
+    fmi_version: str = "2.0"
 
     def names(self, causality: str) -> list[str]:
         return [v.name for v in self.variables.values() if v.causality == causality]
@@ -73,8 +75,8 @@ class FMUInfo:
 
     @property
     def traced_outputs(self) -> list[str]:
-        """Outputs that go into the trace (as floats): every type but String."""
-        return [name for name in self.outputs if self.variables[name].type != "String"]
+        """Outputs that go into the trace (as floats): every type but String (and FMI 3's Binary)."""
+        return [name for name in self.outputs if self.variables[name].type not in ("String", "Binary")]
 
     @property
     def parameters(self) -> list[str]:
@@ -108,8 +110,12 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
         description = read_model_description(str(path), validate=False)
     except Exception as exc:
         raise InputError(f"{path}: not a readable FMU ({exc})") from None
+    if description.fmiVersion == "3.0":
+        from heliostep.cosim.description3 import read_fmu3
+
+        return read_fmu3(path, description, co_simulation)
     if description.fmiVersion != "2.0":
-        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0")
+        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0 or 3.0")
     interface = description.coSimulation if co_simulation else description.modelExchange
     if interface is None and co_simulation:
         raise InputError(f"{path}: the FMU does not support Co-Simulation, but communication_interval asks for it")
@@ -214,14 +220,18 @@ CS_REQUIRED_FUNCTIONS = (
 )
 
 
-def _check_binary(path: Path, model_identifier: str, functions: tuple[str, ...] = REQUIRED_FUNCTIONS) -> None:
+def _check_binary(
+    path: Path, model_identifier: str, functions: tuple[str, ...] = REQUIRED_FUNCTIONS, platform: str | None = None
+) -> None:
     """The FMU must have a binary for this platform that loads and exports the FMI 2.0 ME API.
 
     Refused with :class:`InputError` naming the ``.fmu`` file and the platform (never the
     temporary folder it is unpacked to).
     """
-    from fmpy import platform, sharedLibraryExtension
+    import fmpy
 
+    platform = platform or fmpy.platform
+    sharedLibraryExtension = fmpy.sharedLibraryExtension
     member = f"binaries/{platform}/{model_identifier}{sharedLibraryExtension}"
     with zipfile.ZipFile(path) as archive:
         names = archive.namelist()
@@ -247,7 +257,7 @@ def _check_binary(path: Path, model_identifier: str, functions: tuple[str, ...] 
         _ctypes.dlclose(dll._handle)
     if missing:
         raise InputError(
-            f"{path}: the binary for {platform} ({member}) lacks the FMI 2.0 "
+            f"{path}: the binary for {platform} ({member}) lacks the FMI {functions[0][3]}.0 "
             f"{'Co-Simulation' if 'fmi2DoStep' in functions else 'Model Exchange'} function(s) {', '.join(missing)}"
         )
 
@@ -280,9 +290,9 @@ def convert_value(variable: VariableInfo, value):
     Real from numbers, Integer/Enumeration from whole numbers, Boolean from True/False, 0/1 or
     "true"/"false", String from anything."""
     try:
-        if variable.type == "Real":
+        if variable.type in ("Real", "Float32"):
             return float(value)
-        if variable.type in ("Integer", "Enumeration"):
+        if variable.type in ("Integer", "Enumeration") or variable.type.lstrip("U").startswith("Int"):
             if isinstance(value, bool) or float(value) != int(float(value)):
                 raise ValueError
             return int(float(value))
