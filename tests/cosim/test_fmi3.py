@@ -156,3 +156,52 @@ def test_unsupported_fmi3_features_are_refused_up_front_naming_the_fmu_and_the_f
     with pytest.raises(InputError) as refused:
         read_fmu(path)
     assert str(path) in str(refused.value) and feature in str(refused.value)
+
+
+def test_on_the_python_right_hand_side_the_mixed_system_gives_the_same_first_principles(fmus, monkeypatch):
+    from heliostep.cosim import master
+
+    monkeypatch.setattr(master, "COMPILED_RHS", False)
+    result = run(
+        fmus,
+        {"ramp": "Gain", "lag": "Threshold3", "integral": "Gain"},
+        [("ramp.s", "lag.u"), ("lag.y", "integral.u")],
+        parameters={"ramp": {"k": 0.0, "b": 1.0}, "integral": {"k": 1.0, "b": 0.0}},
+        stop=3.0,
+        n=31,
+        rtol=1e-9,
+    )
+    assert result.statistics["compiled_rhs"] is False
+    trace = result.trace.drop_duplicates("time", keep="last")
+    np.testing.assert_allclose(trace["lag.y"], exact_y(trace["time"].to_numpy()), atol=1e-7)
+    np.testing.assert_allclose(trace["integral.s"], exact_integral(trace["time"].to_numpy()), atol=1e-7)
+
+
+def test_an_fmi3_counter_beside_the_shipped_drive_terminates_the_run_said_in_summary_json(tmp_path, capsys, fmus):
+    import json
+
+    from heliostep.cli import main
+    from heliostep.paths import scenarios_dir
+
+    out = tmp_path / "out"
+    args = ["run", str(scenarios_dir() / "jan21-central.yaml"), "--out", str(out), "--no-plots"]
+    args += ["--set", "window.duration=12", "--set", f"fmus.counter={fmus['Counter3']}"]
+    assert main([*args, "--set", "parameters.counter.t_stop=2.5"]) == 1  # supervised: in a child process
+    assert "terminated by counter at t = 3 s" in capsys.readouterr().out  # the first event at or after 2.5 s
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["terminated"]["instances"] == ["counter"] and summary["terminated"]["time_s"] == pytest.approx(3.0)
+
+
+def test_a_clock_fmu_in_a_scenario_is_exit_2_naming_the_fmu_and_the_clock(tmp_path, capsys):
+    from heliostep.cli import main
+    from heliostep.paths import scenarios_dir
+
+    clocked = build_mini3_fmu(
+        "Counter3",
+        tmp_path,
+        extra='    <Clock name="tick" valueReference="20" causality="input" variability="discrete"/>',
+    )
+    args = ["run", str(scenarios_dir() / "jan21-central.yaml"), "--out", str(tmp_path / "out"), "--no-plots"]
+    assert main([*args, "--no-supervise", "--set", f"fmus.counter={clocked}"]) == 2
+    error = capsys.readouterr().err
+    assert str(clocked) in error and "clock" in error
