@@ -51,6 +51,7 @@ def test_the_counter_alone_agrees_with_fmpy_and_terminates_at_its_event(fmus):
     )
     assert result.terminated and result.termination_time == pytest.approx(5.0)
     assert result.statistics["termination_instances"] == ["c"]
+    assert "fmi3UpdateDiscreteStates: terminateSimulation" in result.termination_reason
     assert result.statistics["compiled_rhs"] is True
     trace = result.trace
     # fmpy's run stops at the same event; its last row holds the values before the event, as
