@@ -30,6 +30,7 @@ def fmus(tmp_path_factory):
     out = tmp_path_factory.mktemp("fmi3")
     built = {name: build_mini3_fmu(name, out) for name in ("Counter3", "Threshold3")}
     built["Gain"] = build_mini_fmu("Gain", out)
+    built["PassThrough"] = build_mini_fmu("PassThrough", out)
     return built
 
 
@@ -113,6 +114,23 @@ def test_fmi2_and_fmi3_fmus_in_one_system_follow_first_principles(fmus):
     np.testing.assert_allclose(trace["integral.s"], exact_integral(t), atol=1e-7)
     crossing = result.trace["time"][result.trace["lag.crossings"].diff() == 1].iloc[0]
     assert crossing == pytest.approx(brentq(lambda s: exact_y(s) - LEVEL, 0.1, 3.0), abs=1e-7)
+
+
+def test_the_counters_int32_and_boolean_outputs_drive_an_fmi2_fmus_integer_and_boolean_inputs(fmus):
+    result = run(
+        fmus,
+        {"c": "Counter3", "p": "PassThrough"},
+        [("c.count", "p.u_i"), ("c.odd", "p.u_b"), ("c.x", "p.u_c")],
+        parameters={"c": {"t_stop": 100.0}},
+        stop=6.0,
+        n=13,
+    )
+    trace = result.trace.drop_duplicates("time", keep="last")
+    t = trace["time"].to_numpy()
+    np.testing.assert_array_equal(trace["p.y_i"], np.floor(t))  # count = floor(t), through FMI 2.0's Integer
+    np.testing.assert_array_equal(trace["p.y_b"], np.floor(t) % 2)  # odd, through FMI 2.0's Boolean
+    np.testing.assert_allclose(trace["p.y_c"], t, rtol=1e-9)  # x = t (scale 1)
+    assert result.statistics["time_events"] == 6 and not result.terminated
 
 
 def test_an_fmi3_instance_logs_into_its_own_messages(fmus, caplog):
