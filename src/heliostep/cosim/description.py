@@ -1,6 +1,7 @@
 """What heliostep reads of an FMU before running it: ``modelDescription.xml`` and its binary.
 
-:func:`read_fmu` checks that the file is an FMI 2.0 Model Exchange FMU with a binary for
+:func:`read_fmu` checks that the file is an FMI 2.0 (or 3.0, :func:`read_fmu3`, the end of this
+module) Model Exchange FMU with a binary for
 this platform that loads and exports every FMI 2.0 Model Exchange function (else
 :class:`~heliostep.errors.InputError` naming the ``.fmu`` file and the platform) and returns
 an :class:`FMUInfo` with every variable and its type. :func:`convert_value` turns a value
@@ -59,6 +60,8 @@ class FMUInfo:
     description: object = None  # fmpy's ModelDescription
     #: read for Co-Simulation (a sampled component) rather than Model Exchange
     co_simulation: bool = False
+    #: "2.0" or "3.0" (FMI 3.0 Model Exchange: :mod:`heliostep.cosim.fmi3`)
+    fmi_version: str = "2.0"
 
     def names(self, causality: str) -> list[str]:
         return [v.name for v in self.variables.values() if v.causality == causality]
@@ -73,8 +76,8 @@ class FMUInfo:
 
     @property
     def traced_outputs(self) -> list[str]:
-        """Outputs that go into the trace (as floats): every type but String."""
-        return [name for name in self.outputs if self.variables[name].type != "String"]
+        """Outputs that go into the trace (as floats): every type but String (and FMI 3's Binary)."""
+        return [name for name in self.outputs if self.variables[name].type not in ("String", "Binary")]
 
     @property
     def parameters(self) -> list[str]:
@@ -108,8 +111,10 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
         description = read_model_description(str(path), validate=False)
     except Exception as exc:
         raise InputError(f"{path}: not a readable FMU ({exc})") from None
+    if description.fmiVersion == "3.0":
+        return read_fmu3(path, description, co_simulation)
     if description.fmiVersion != "2.0":
-        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0")
+        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0 or 3.0")
     interface = description.coSimulation if co_simulation else description.modelExchange
     if interface is None and co_simulation:
         raise InputError(f"{path}: the FMU does not support Co-Simulation, but communication_interval asks for it")
@@ -214,14 +219,18 @@ CS_REQUIRED_FUNCTIONS = (
 )
 
 
-def _check_binary(path: Path, model_identifier: str, functions: tuple[str, ...] = REQUIRED_FUNCTIONS) -> None:
+def _check_binary(
+    path: Path, model_identifier: str, functions: tuple[str, ...] = REQUIRED_FUNCTIONS, platform: str | None = None
+) -> None:
     """The FMU must have a binary for this platform that loads and exports the FMI 2.0 ME API.
 
     Refused with :class:`InputError` naming the ``.fmu`` file and the platform (never the
     temporary folder it is unpacked to).
     """
-    from fmpy import platform, sharedLibraryExtension
+    import fmpy
 
+    platform = platform or fmpy.platform
+    sharedLibraryExtension = fmpy.sharedLibraryExtension
     member = f"binaries/{platform}/{model_identifier}{sharedLibraryExtension}"
     with zipfile.ZipFile(path) as archive:
         names = archive.namelist()
@@ -247,7 +256,7 @@ def _check_binary(path: Path, model_identifier: str, functions: tuple[str, ...] 
         _ctypes.dlclose(dll._handle)
     if missing:
         raise InputError(
-            f"{path}: the binary for {platform} ({member}) lacks the FMI 2.0 "
+            f"{path}: the binary for {platform} ({member}) lacks the FMI {functions[0][3]}.0 "
             f"{'Co-Simulation' if 'fmi2DoStep' in functions else 'Model Exchange'} function(s) {', '.join(missing)}"
         )
 
@@ -280,9 +289,9 @@ def convert_value(variable: VariableInfo, value):
     Real from numbers, Integer/Enumeration from whole numbers, Boolean from True/False, 0/1 or
     "true"/"false", String from anything."""
     try:
-        if variable.type == "Real":
+        if variable.type in ("Real", "Float32"):
             return float(value)
-        if variable.type in ("Integer", "Enumeration"):
+        if variable.type in ("Integer", "Enumeration") or variable.type.lstrip("U").startswith("Int"):
             if isinstance(value, bool) or float(value) != int(float(value)):
                 raise ValueError
             return int(float(value))
@@ -297,3 +306,121 @@ def convert_value(variable: VariableInfo, value):
         return str(value)
     except (TypeError, ValueError):
         raise InputError(f"parameter {variable.name}: {value!r} is not a valid {variable.type} value") from None
+
+
+# ---------------------------------------------------------------------- FMI 3.0
+# What heliostep reads of an FMI 3.0 FMU: its Model Exchange interface, variables and refusals.
+#
+# :func:`read_fmu3` turns fmpy's reading of an FMI 3.0 ``modelDescription.xml`` into the same
+# :class:`~heliostep.cosim.description.FMUInfo` as an FMI 2.0 FMU's (``fmi_version`` "3.0"), so the
+# master, the connections and the compiled kernel treat both alike. The FMI 3.0 types the master
+# exchanges map onto FMI 2.0's: Float64 is "Real", Int32 "Integer", Boolean "Boolean" (their calls
+# go through the adapter of :mod:`heliostep.cosim.fmi3`). Parameters and local variables may have
+# any FMI 3.0 type. What the master does not support is refused up front with
+# :class:`~heliostep.errors.InputError` naming the FMU and the feature: Co-Simulation or Scheduled
+# Execution only, clocks (and clocked variables), array variables, and inputs or outputs of a type
+# other than Float64, Int32 and Boolean (Float32, Int8 ... UInt64, Enumeration, String, Binary).
+
+#: FMI 3.0 type -> the master's type name (FMI 2.0's where the kernel exchanges it)
+_TYPE_NAMES = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean"}
+
+#: The functions every FMI 3.0 Model Exchange binary must export that heliostep calls.
+REQUIRED_FUNCTIONS3 = (
+    "fmi3GetVersion",
+    "fmi3InstantiateModelExchange",
+    "fmi3FreeInstance",
+    "fmi3EnterInitializationMode",
+    "fmi3ExitInitializationMode",
+    "fmi3Terminate",
+    "fmi3Reset",
+    "fmi3GetFloat64",
+    "fmi3SetFloat64",
+    "fmi3GetInt32",
+    "fmi3SetInt32",
+    "fmi3GetBoolean",
+    "fmi3SetBoolean",
+    "fmi3EnterEventMode",
+    "fmi3UpdateDiscreteStates",
+    "fmi3EnterContinuousTimeMode",
+    "fmi3CompletedIntegratorStep",
+    "fmi3SetTime",
+    "fmi3SetContinuousStates",
+    "fmi3GetContinuousStateDerivatives",
+    "fmi3GetEventIndicators",
+    "fmi3GetContinuousStates",
+    "fmi3GetNominalsOfContinuousStates",
+)
+
+
+def read_fmu3(path: Path, description, co_simulation: bool = False) -> FMUInfo:
+    """An FMI 3.0 FMU read by fmpy (``description``) as the master's :class:`FMUInfo`, or
+    :class:`InputError` naming ``path`` and the feature heliostep does not support."""
+    from fmpy import platform_tuple
+
+    if co_simulation or description.modelExchange is None:
+        offered = [
+            kind
+            for kind, interface in (
+                ("Co-Simulation", description.coSimulation),
+                ("Scheduled Execution", getattr(description, "scheduledExecution", None)),
+            )
+            if interface is not None
+        ]
+        raise InputError(
+            f"{path}: FMI 3.0 {' and '.join(offered) or 'without Model Exchange'}: heliostep runs FMI 3.0 FMUs "
+            "through Model Exchange only (FMI 3.0 Co-Simulation and Scheduled Execution are not supported)"
+        )
+    _refuse_unsupported(path, description)
+    interface = description.modelExchange
+    _check_binary(path, interface.modelIdentifier, REQUIRED_FUNCTIONS3, platform_tuple)
+    variables = {
+        v.name: VariableInfo(
+            name=v.name,
+            value_reference=v.valueReference,
+            type=_TYPE_NAMES.get(v.type, v.type),
+            causality=v.causality,
+            variability=v.variability,
+            unit=_unit(v),
+            start=None if v.start is None else _parse_start(_TYPE_NAMES.get(v.type, v.type), v.start),
+            description=v.description or "",
+        )
+        for v in description.modelVariables
+    }
+    inputs = {v.name for v in description.modelVariables if v.causality == "input"}
+    feedthrough = {}
+    for unknown in description.outputs:
+        dependencies = unknown.dependencies
+        names = sorted(inputs) if dependencies is None else [d.name for d in dependencies if d.name in inputs]
+        feedthrough[unknown.variable.name] = names
+    return FMUInfo(
+        path=path,
+        model_name=description.modelName,
+        model_identifier=interface.modelIdentifier,
+        guid=description.instantiationToken or description.guid or "",
+        variables=variables,
+        states=[d.variable.derivative.name for d in description.derivatives],
+        n_event_indicators=len(description.eventIndicators or []),
+        output_feedthrough=feedthrough,
+        needs_completed_integrator_step=bool(getattr(interface, "needsCompletedIntegratorStep", False)),
+        description=description,
+        fmi_version="3.0",
+    )
+
+
+def _refuse_unsupported(path: Path, description) -> None:
+    """Clocks, clocked variables, arrays, and inputs/outputs of a type the master cannot exchange."""
+    for v in description.modelVariables:
+        if v.type == "Clock" or getattr(v, "clocks", None):
+            raise InputError(
+                f"{path}: FMI 3.0 clocks ({'clock' if v.type == 'Clock' else 'clocked variable'} {v.name!r}) are "
+                "not supported by heliostep's master"
+            )
+        if getattr(v, "dimensions", None):
+            raise InputError(
+                f"{path}: FMI 3.0 array variable {v.name!r} ({v.type}): array variables are not supported yet"
+            )
+        if v.causality in ("input", "output") and v.type not in _TYPE_NAMES:
+            raise InputError(
+                f"{path}: FMI 3.0 {v.causality} {v.name!r} of type {v.type}: heliostep exchanges and traces FMI 3.0 "
+                f"inputs and outputs of type {', '.join(_TYPE_NAMES)} only (other types as parameters or locals)"
+            )

@@ -19,6 +19,9 @@ from heliostep.errors import RunFailure
 
 __all__ = ["Terminated", "discrete_fixed_point", "event_iteration"]
 
+#: the event-iteration function of each FMI version, for the messages
+_UPDATE_FUNCTION = {"2.0": "fmi2NewDiscreteStates", "3.0": "fmi3UpdateDiscreteStates"}
+
 
 class Terminated(Exception):
     """An FMU asked to terminate the simulation (fmi2NewDiscreteStates/CompletedIntegratorStep)."""
@@ -51,8 +54,11 @@ def discrete_fixed_point(system: CoupledSystem, time: float, max_rounds: int = 1
                 stop.append(unit.name)
         if stop:  # the round is complete: pass the final outputs on, then end the run
             system.propagate_at_event()
+            functions = sorted(
+                {_UPDATE_FUNCTION[unit.info.fmi_version] for unit in system.unit_list if unit.name in stop}
+            )
             raise Terminated(
-                f"{', '.join(stop)} asked to terminate the simulation (fmi2NewDiscreteStates: terminateSimulation)",
+                f"{', '.join(stop)} asked to terminate the simulation ({'/'.join(functions)}: terminateSimulation)",
                 time,
                 stop,
             )

@@ -28,13 +28,22 @@ if TYPE_CHECKING:
     from heliostep.cosim.kernel import KernelLink, KernelUnit
 
 
+def _instance_class(info: FMUInfo) -> type[ModelExchangeInstance]:
+    """The instance class of the FMU's FMI version (FMI 3.0: :mod:`heliostep.cosim.fmi3`)."""
+    if info.fmi_version == "3.0":
+        from heliostep.cosim.fmi3 import ModelExchange3Instance
+
+        return ModelExchange3Instance
+    return ModelExchangeInstance
+
+
 class Unit:
     """One FMU instance of the system and what the master reads of it."""
 
     def __init__(self, name: str, info: FMUInfo, parameters: Mapping[str, Any], index: int = -1):
         self.name = name
         self.info = info
-        self.fmu = ModelExchangeInstance(info, name, parameters, index=index)
+        self.fmu = _instance_class(info)(info, name, parameters, index=index)
         self.n_states = self.fmu.n_states
         self.n_indicators = self.fmu.n_event_indicators
         self.outputs = info.traced_outputs  # every type but String, traced as floats

@@ -68,6 +68,26 @@ FUNCTIONS = KERNEL_FUNCTIONS + (
     "fmi2Terminate",
     "fmi2Reset",
     "fmi2FreeInstance",
+    # FMI 3.0's own (heliostep.cosim.fmi3); its fmi2-shaped calls are noted by their fmi2 names
+    "fmi3InstantiateModelExchange",
+    "fmi3EnterInitializationMode",
+    "fmi3ExitInitializationMode",
+    "fmi3EnterEventMode",
+    "fmi3UpdateDiscreteStates",
+    "fmi3EnterContinuousTimeMode",
+    "fmi3CompletedIntegratorStep",
+    "fmi3GetNominalsOfContinuousStates",
+    "fmi3Terminate",
+    "fmi3Reset",
+    "fmi3FreeInstance",
+    "fmi3SetFloat32",
+    "fmi3SetInt8",
+    "fmi3SetUInt8",
+    "fmi3SetInt16",
+    "fmi3SetUInt16",
+    "fmi3SetUInt32",
+    "fmi3SetInt64",
+    "fmi3SetUInt64",
 )
 _INDEX = {name: k for k, name in enumerate(FUNCTIONS)}
 
