@@ -53,7 +53,7 @@ FMI_LAYER = "fmi2_model_exchange.c"
 SOURCE_FILES = (FMI_LAYER, "equations.c")
 FMI2_PLATFORM = "linux64"
 #: The FMI versions an FMU can be exported as, each with its C layer (written once for all models)
-#: and its binaries folder (FMI 2.0: ``linux64``; FMI 3.0, section 2.5.1.1: ``x86_64-linux``).
+#: and its binaries folder (FMI 2.0: ``linux64``; FMI 3.0, its platform tuple: ``x86_64-linux``).
 FMI_LAYERS = {2: FMI_LAYER, 3: "fmi3_model_exchange.c"}
 PLATFORMS = {2: FMI2_PLATFORM, 3: "x86_64-linux"}
 #: The evaluation core both layers include (state and argument checks, the equations' evaluation).
@@ -346,7 +346,7 @@ def export_fmu(
     description.write_bytes(describe(model, layout, guid, evaluate, generation_tool, source_files))
 
     files = {"modelDescription.xml": description, f"binaries/{platform}/{model.name}.so": library}
-    if fmi_version == 3:  # FMI 3.0 lists the sources in sources/buildDescription.xml (section 2.5.1.2)
+    if fmi_version == 3:  # FMI 3.0 lists the sources in sources/buildDescription.xml
         build_description = sources / "buildDescription.xml"
         build_description.write_bytes(build_description_fmi3(model.name, source_files))
         files["sources/buildDescription.xml"] = build_description

@@ -216,8 +216,8 @@ def model_description_fmi3(
     """``modelDescription.xml`` for the model in FMI 3.0 form (Model Exchange only): the same
     variables, value references, units and dependencies as :func:`model_description`, as
     ``Float64`` variables, plus the independent variable ``time`` (value reference
-    ``len(layout.variables)``); the ``ModelStructure`` lists value references (FMI 3.0,
-    section 2.4.8), not 1-based indices. ``source_files`` go to ``sources/buildDescription.xml``
+    ``len(layout.variables)``); the ``ModelStructure`` lists value references (FMI 3.0),
+    not 1-based indices. ``source_files`` go to ``sources/buildDescription.xml``
     (:func:`build_description_fmi3`), which FMI 3.0 uses instead of ``SourceFiles``."""
     del source_files  # listed in buildDescription.xml
     root = ET.Element(
@@ -290,7 +290,7 @@ def _model_structure_fmi3(root: ET.Element, model: FlatModel, layout: Layout, de
 
 
 def build_description_fmi3(model_identifier: str, source_files: tuple[str, ...]) -> bytes:
-    """``sources/buildDescription.xml`` (FMI 3.0, section 2.5.1.2): the C files to compile."""
+    """``sources/buildDescription.xml`` (FMI 3.0 standard): the C files to compile."""
     root = ET.Element("fmiBuildDescription", {"fmiVersion": "3.0"})
     configuration = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": model_identifier})
     file_set = ET.SubElement(configuration, "SourceFileSet", {"language": "C99"})

@@ -20,7 +20,7 @@
  *
  * Every function checks the instance state against the FMI 3.0 Model Exchange state machine
  * (Instantiated -> InitializationMode -> EventMode <-> ContinuousTimeMode -> Terminated;
- * FMI 3.0 standard, section 3.2, figure 35), every argument and value reference before it
+ * FMI 3.0 standard, section 3.2), every argument and value reference before it
  * changes anything, and reports problems through the logger with fmi3Error: a bad call
  * never crashes the host.
  */
