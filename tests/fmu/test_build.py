@@ -55,6 +55,7 @@ def test_fmu_ships_its_sources_and_a_binary(fmu_paths):
         "modelDescription.xml",
         "binaries/linux64/DriveSystem.so",
         "sources/fmi2_model_exchange.c",
+        "sources/model_exchange_core.h",
         "sources/equations.c",
         "sources/model.h",
     ):

@@ -1,8 +1,9 @@
-"""Modelica models -> FMI 2.0 Model Exchange FMUs, built on first use and cached by content.
+"""Modelica models -> FMI 2.0 (or 3.0) Model Exchange FMUs, built on first use and cached by content.
 
 :mod:`~heliostep.fmu.modelica` (pymoca front end), :mod:`~heliostep.fmu.export` (CasADi code
-generation, modelDescription, gcc, zip), ``c/fmi2_model_exchange.c`` (the FMI C layer written
-once for every model), :mod:`~heliostep.fmu.build` (the content-keyed cache) and
+generation, modelDescription, gcc, zip), ``c/fmi2_model_exchange.c`` and
+``c/fmi3_model_exchange.c`` (the FMI C layers written once for every model, sharing
+``c/model_exchange_core.h``), :mod:`~heliostep.fmu.build` (the content-keyed cache) and
 :mod:`~heliostep.fmu.reference` (variant name or path). Imports nothing of heliostep but
 :mod:`heliostep.errors`, :mod:`heliostep.paths` and :mod:`heliostep.toolchain`.
 """

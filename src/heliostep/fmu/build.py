@@ -1,9 +1,10 @@
 """Building the project's FMUs from the Modelica models, cached by content.
 
-Every ``models/NAME.mo`` becomes ``NAME.fmu`` in the FMU cache through one loop (no per-model build
-code). An FMU is rebuilt only when its *build key* changes: a SHA-256 of every Modelica
-file of the folder, the FMI C layer, the build code and the versions of heliostep, pymoca,
-CasADi, fmpy and the C compiler. The key also makes the FMU's GUID, so a built FMU says
+Every ``models/NAME.mo`` becomes ``NAME.fmu`` (FMI 2.0) or ``NAME-fmi3.fmu`` (FMI 3.0, ``build-fmus
+--fmi 3``) in the FMU cache through one loop (no per-model build code). An FMU is rebuilt only when
+its *build key* changes: a SHA-256 of every Modelica file of the folder, the FMI version, its C layer
+and their shared core, the build code and the versions of heliostep, pymoca, CasADi, fmpy and the C
+compiler. The key also makes the FMU's GUID, so a built FMU says
 which sources it came from.
 
 The cache keeps each build under its key, ``CACHE/KEY16/NAME.fmu`` (``KEY16``: the key's first
@@ -38,13 +39,15 @@ from pathlib import Path
 
 from heliostep._version import __version__
 from heliostep.errors import InputError
-from heliostep.fmu.export import FMI_LAYER, compiler, export_fmu
+from heliostep.fmu.export import FMI_LAYERS, LAYER_CORE, compiler, export_fmu
 from heliostep.fmu.modelica import available_models, load_model, model_files
 from heliostep.fmu.reference import is_variant_name
 from heliostep.paths import fmus_dir, models_dir
 from heliostep.toolchain import compiler_version, exclusive_lock
 
-_GUID = re.compile(rb'\sguid="([^"]*)"')
+#: A variant name ``NAME-fmi3`` is model ``NAME`` built as an FMI 3.0 FMU (:func:`ensure_fmu`).
+FMI3_SUFFIX = "-fmi3"
+_GUID = re.compile(rb'\s(?:guid|instantiationToken)="([^"]*)"')
 
 
 def _toolchain() -> list[str]:
@@ -55,14 +58,22 @@ def _toolchain() -> list[str]:
     return versions
 
 
-def build_key(model_name: str, models: Path) -> str:
+def _check_version(fmi_version: int) -> None:
+    if fmi_version not in FMI_LAYERS:
+        raise InputError(f"FMI version {fmi_version!r}: expected one of {', '.join(map(str, FMI_LAYERS))}")
+
+
+def build_key(model_name: str, models: Path, fmi_version: int = 2) -> str:
     """SHA-256 of everything a built FMU depends on (see the module docstring)."""
+    _check_version(fmi_version)
     digest = hashlib.sha256()
     digest.update(model_name.encode())
+    if fmi_version != 2:  # the FMI 2.0 key stays what it was before FMI 3.0 came
+        digest.update(f"fmi{fmi_version}\0".encode())
     for path in model_files(models):
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     package = resources.files("heliostep.fmu")
-    for name in ("c/" + FMI_LAYER, "export.py", "model_xml.py", "modelica.py"):
+    for name in ("c/" + FMI_LAYERS[fmi_version], "c/" + LAYER_CORE, "export.py", "model_xml.py", "modelica.py"):
         digest.update((package / name).read_bytes())
     for line in _toolchain():
         digest.update(line.encode() + b"\0")
@@ -74,7 +85,7 @@ def guid_of_key(key: str) -> str:
 
 
 def fmu_guid(path: Path) -> str | None:
-    """The GUID in an FMU's modelDescription.xml, or None if it cannot be read."""
+    """The GUID (FMI 3.0: instantiation token) in an FMU's modelDescription.xml, or None if it cannot be read."""
     try:
         with zipfile.ZipFile(path) as archive:
             match = _GUID.search(archive.read("modelDescription.xml"))
@@ -83,9 +94,10 @@ def fmu_guid(path: Path) -> str | None:
     return match.group(1).decode() if match else None
 
 
-def cached_fmu_path(model_name: str, key: str, cache: Path) -> Path:
-    """Where the FMU of ``model_name`` with build ``key`` lives in ``cache``."""
-    return cache / key[:16] / f"{model_name}.fmu"
+def cached_fmu_path(model_name: str, key: str, cache: Path, fmi_version: int = 2) -> Path:
+    """Where the FMU of ``model_name`` with build ``key`` lives in ``cache`` (``NAME.fmu`` for FMI 2.0,
+    ``NAME-fmi3.fmu`` for FMI 3.0, so that both can be copied to one folder)."""
+    return cache / key[:16] / (f"{model_name}.fmu" if fmi_version == 2 else f"{model_name}{FMI3_SUFFIX}.fmu")
 
 
 def digest_path(fmu_path: Path) -> Path:
@@ -111,15 +123,19 @@ def verified(fmu_path: Path) -> bool:
         return False
 
 
-def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None = None, force: bool = False) -> Path:
-    """The FMU of ``models/model_name.mo`` in the cache ``out_dir`` (:func:`cached_fmu_path`),
-    built unless a verified one with the same build key is there (see the module docstring)."""
+def build_fmu(
+    model_name: str, out_dir: Path | None = None, models: Path | None = None, force: bool = False, fmi_version: int = 2
+) -> Path:
+    """The FMI ``fmi_version`` (2 or 3) FMU of ``models/model_name.mo`` in the cache ``out_dir``
+    (:func:`cached_fmu_path`), built unless a verified one with the same build key is there (see
+    the module docstring)."""
     models = Path(models or models_dir())
     out_dir = Path(out_dir or fmus_dir())
+    _check_version(fmi_version)
     if model_name not in available_models(models):
         raise InputError(f"{models}: no model {model_name!r}; available: {', '.join(available_models(models))}")
-    key = build_key(model_name, models)
-    fmu_path = cached_fmu_path(model_name, key, out_dir)
+    key = build_key(model_name, models, fmi_version)
+    fmu_path = cached_fmu_path(model_name, key, out_dir, fmi_version)
     if not force and verified(fmu_path):  # up to date: no lock, nothing written
         return fmu_path
     scratch = out_dir / ".build"
@@ -127,7 +143,7 @@ def build_fmu(model_name: str, out_dir: Path | None = None, models: Path | None 
         if not force and verified(fmu_path):  # built by another process meanwhile
             return fmu_path
         _clear_dead_builds(scratch, model_name)
-        return _build(model_name, models, key, fmu_path, scratch)
+        return _build(model_name, models, key, fmu_path, scratch, fmi_version)
 
 
 @contextmanager
@@ -147,14 +163,14 @@ def _build_lock(scratch: Path, model_name: str) -> Iterator[None]:
         lock.__exit__(None, None, None)
 
 
-def _build(model_name: str, models: Path, key: str, fmu_path: Path, scratch: Path) -> Path:
+def _build(model_name: str, models: Path, key: str, fmu_path: Path, scratch: Path, fmi_version: int) -> Path:
     """Export the model to ``fmu_path`` (its digest recorded beside it), working in ``scratch``."""
     model = load_model(models, model_name)
     work_dir = Path(tempfile.mkdtemp(prefix=f"{model_name}-{os.getpid()}-", dir=scratch))
     try:
         fmu_path.parent.mkdir(parents=True, exist_ok=True)
         tool = f"heliostep {__version__} (pymoca + CasADi); build key {key}"
-        export_fmu(model, fmu_path, guid_of_key(key), work_dir, tool)
+        export_fmu(model, fmu_path, guid_of_key(key), work_dir, tool, fmi_version)
         record = work_dir / "digest"
         record.write_text(file_sha256(fmu_path) + "\n")
         record.replace(digest_path(fmu_path))  # the FMU counts as built once this is in place
@@ -185,11 +201,15 @@ def _alive(pid: int) -> bool:
 
 
 def build_all(
-    names: list[str] | None = None, out_dir: Path | None = None, models: Path | None = None, force: bool = False
+    names: list[str] | None = None,
+    out_dir: Path | None = None,
+    models: Path | None = None,
+    force: bool = False,
+    fmi_version: int = 2,
 ) -> list[Path]:
-    """Build every model of the folder (or the ones named)."""
+    """Build every model of the folder (or the ones named) as FMI ``fmi_version`` FMUs."""
     models = Path(models or models_dir())
-    return [build_fmu(name, out_dir, models, force) for name in names or available_models(models)]
+    return [build_fmu(name, out_dir, models, force, fmi_version) for name in names or available_models(models)]
 
 
 def copy_fmu(fmu_path: Path, out_dir: Path) -> Path:
@@ -212,7 +232,8 @@ def ensure_fmu(
     """The FMU for a variant name or a path, building it from the models when missing or stale.
 
     A path to an ``.fmu`` file is returned as it is (after checking it exists). A bare name
-    is, in this order: a model of the models folder (built into the FMU cache), an FMU
+    is, in this order: a model of the models folder (built into the FMU cache; ``NAME-fmi3``:
+    model ``NAME`` as an FMI 3.0 FMU), an FMU
     dropped into one of the ``search`` folders (e.g. ``fmus/`` beside the scenario and in the
     current directory), or one in the FMU cache folder.
     """
@@ -226,6 +247,8 @@ def ensure_fmu(
         return path
     if (models / f"{text}.mo").exists():
         return build_fmu(text, fmus, models)
+    if text.endswith(FMI3_SUFFIX) and (models / f"{text[: -len(FMI3_SUFFIX)]}.mo").exists():
+        return build_fmu(text[: -len(FMI3_SUFFIX)], fmus, models, fmi_version=3)
     folders = [*search, fmus]
     for folder in folders:
         dropped = Path(folder) / f"{text}.fmu"

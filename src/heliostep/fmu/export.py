@@ -1,4 +1,4 @@
-"""Export a flat model (:mod:`heliostep.fmu.modelica`) as an FMI 2.0 Model Exchange FMU.
+"""Export a flat model (:mod:`heliostep.fmu.modelica`) as an FMI 2.0 or 3.0 Model Exchange FMU.
 
 Steps, the same for every model:
 
@@ -15,7 +15,9 @@ Steps, the same for every model:
    ``model_start(p) -> x0`` gives the start values of the states bound to parameters.
 2. CasADi generates C for all of them (``equations.c``/``equations.h``).
 3. ``model.h`` describes the model to the FMI layer written once for all models
-   (``heliostep/c/fmi2_model_exchange.c``): sizes, start values, names.
+   (``heliostep/c/fmi2_model_exchange.c``, or ``fmi3_model_exchange.c`` beside it for FMI 3.0:
+   the same evaluation core with the FMI 3.0 API): sizes, start values, names. Both versions
+   compile the very same generated equations.
 4. ``modelDescription.xml``: causality, variability, initial, start values, units (with SI
    base units), descriptions and a ``ModelStructure`` whose dependencies come from CasADi's
    Jacobian sparsity of ``model_eval``.
@@ -35,7 +37,7 @@ import casadi as ca
 
 from heliostep._version import __version__
 from heliostep.errors import RunFailure
-from heliostep.fmu.model_xml import Layout, model_description
+from heliostep.fmu.model_xml import Layout, build_description_fmi3, model_description, model_description_fmi3
 from heliostep.fmu.modelica import FlatModel, ModelicaError
 
 #: The everyday solve: exactly two Newton steps from the previous solution, never stopping
@@ -50,6 +52,12 @@ ROBUST_OPTIONS = {"abstol": 1e-12, "abstolStep": 1e-14, "max_iter": 50, "error_o
 FMI_LAYER = "fmi2_model_exchange.c"
 SOURCE_FILES = (FMI_LAYER, "equations.c")
 FMI2_PLATFORM = "linux64"
+#: The FMI versions an FMU can be exported as, each with its C layer (written once for all models)
+#: and its binaries folder (FMI 2.0: ``linux64``; FMI 3.0, its platform tuple: ``x86_64-linux``).
+FMI_LAYERS = {2: FMI_LAYER, 3: "fmi3_model_exchange.c"}
+PLATFORMS = {2: FMI2_PLATFORM, 3: "x86_64-linux"}
+#: The evaluation core both layers include (state and argument checks, the equations' evaluation).
+LAYER_CORE = "model_exchange_core.h"
 
 
 class BuildError(RunFailure):
@@ -243,12 +251,13 @@ def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool, st
 
 
 def fmi_headers_dir() -> Path:
-    """The folder of FMI 2.0 headers that fmpy ships (``fmpy/c-code``)."""
+    """The folder of FMI 2.0 and 3.0 headers that fmpy ships (``fmpy/c-code``)."""
     import fmpy
 
     path = Path(fmpy.__file__).parent / "c-code"
-    if not (path / "fmi2Functions.h").exists():
-        raise BuildError(f"{path}: the FMI 2.0 headers of fmpy were not found")
+    for header in ("fmi2Functions.h", "fmi3Functions.h"):
+        if not (path / header).exists():
+            raise BuildError(f"{path}: the FMI header {header} of fmpy was not found")
     return path
 
 
@@ -266,8 +275,8 @@ def _run(command: list[str], what: str) -> None:
         raise BuildError(f"{what} failed:\n{result.stdout}{result.stderr}")
 
 
-def compile_binary(source_dir: Path, library: Path) -> None:
-    """Compile the FMI layer and the generated equations into a shared library."""
+def compile_binary(source_dir: Path, library: Path, source_files: tuple[str, ...] = SOURCE_FILES) -> None:
+    """Compile the FMI layer and the generated equations (``source_files``) into a shared library."""
     cc = compiler()
     common = [
         "-std=c99",
@@ -281,7 +290,7 @@ def compile_binary(source_dir: Path, library: Path) -> None:
         f"-I{source_dir}",
     ]
     objects = []
-    for name in SOURCE_FILES:
+    for name in source_files:
         extra = []
         if name == "equations.c":
             # CasADi's generated code keeps unused 'mem' arguments in its calling convention
@@ -303,11 +312,16 @@ def write_zip(fmu_path: Path, files: dict[str, Path]) -> None:
             archive.writestr(info, files[name].read_bytes())
 
 
-def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path, generation_tool: str) -> Path:
-    """Generate, compile and zip ``model`` into ``fmu_path`` (written whole or not at all).
+def export_fmu(
+    model: FlatModel, fmu_path: Path, guid: str, work_dir: Path, generation_tool: str, fmi_version: int = 2
+) -> Path:
+    """Generate, compile and zip ``model`` into ``fmu_path`` (written whole or not at all), an FMI
+    ``fmi_version`` (2 or 3) Model Exchange FMU; ``guid`` is its GUID (FMI 3.0: instantiation token).
 
     ``work_dir`` must be on the same file system as ``fmu_path``.
     """
+    layer_name, platform = FMI_LAYERS[fmi_version], PLATFORMS[fmi_version]
+    source_files = (layer_name, "equations.c")
     work_dir = Path(work_dir)
     sources = work_dir / "sources"
     sources.mkdir(parents=True, exist_ok=True)
@@ -321,16 +335,22 @@ def export_fmu(model: FlatModel, fmu_path: Path, guid: str, work_dir: Path, gene
             generator.add(function)
     generator.generate(str(sources) + "/")
     (sources / "model.h").write_text(model_header(model, layout, guid, evaluate.is_a("SXFunction"), partial_indices))
-    layer = resources.files("heliostep.fmu") / "c" / FMI_LAYER
-    (sources / FMI_LAYER).write_bytes(layer.read_bytes())
+    layer = resources.files("heliostep.fmu") / "c" / layer_name
+    (sources / layer_name).write_bytes(layer.read_bytes())
+    (sources / LAYER_CORE).write_bytes((resources.files("heliostep.fmu") / "c" / LAYER_CORE).read_bytes())
 
-    library = work_dir / "binaries" / FMI2_PLATFORM / f"{model.name}.so"
-    compile_binary(sources, library)
+    library = work_dir / "binaries" / platform / f"{model.name}.so"
+    compile_binary(sources, library, source_files)
     description = work_dir / "modelDescription.xml"
-    description.write_bytes(model_description(model, layout, guid, evaluate, generation_tool, SOURCE_FILES))
+    describe = model_description if fmi_version == 2 else model_description_fmi3
+    description.write_bytes(describe(model, layout, guid, evaluate, generation_tool, source_files))
 
-    files = {"modelDescription.xml": description, f"binaries/{FMI2_PLATFORM}/{model.name}.so": library}
-    for name in (*SOURCE_FILES, "equations.h", "model.h"):
+    files = {"modelDescription.xml": description, f"binaries/{platform}/{model.name}.so": library}
+    if fmi_version == 3:  # FMI 3.0 lists the sources in sources/buildDescription.xml
+        build_description = sources / "buildDescription.xml"
+        build_description.write_bytes(build_description_fmi3(model.name, source_files))
+        files["sources/buildDescription.xml"] = build_description
+    for name in (*source_files, LAYER_CORE, "equations.h", "model.h"):
         files[f"sources/{name}"] = sources / name
     files[f"sources/{model.source_file.name}"] = model.source_file
     built = work_dir / f"{model.name}.fmu"

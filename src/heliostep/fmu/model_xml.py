@@ -1,4 +1,4 @@
-"""``modelDescription.xml`` of an exported model (FMI 2.0 Model Exchange), and the value
+"""``modelDescription.xml`` of an exported model (FMI 2.0 or 3.0 Model Exchange), and the value
 references of its variables (:class:`Layout`, shared with the C header :mod:`heliostep.fmu.export`
 writes).
 
@@ -16,7 +16,7 @@ import casadi as ca
 
 from heliostep.fmu.modelica import FlatModel, ModelicaError, Variable
 
-__all__ = ["BASE_UNITS", "Layout", "model_description"]
+__all__ = ["BASE_UNITS", "Layout", "build_description_fmi3", "model_description", "model_description_fmi3"]
 
 #: Exponents of the SI base units of the units the models use (FMI 2.0 ``BaseUnit``).
 BASE_UNITS = {
@@ -129,9 +129,9 @@ def model_description(
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
 
 
-def _unit_definitions(root: ET.Element, layout: Layout) -> None:
-    """``UnitDefinitions``: every unit the variables use, with its SI base units where known."""
-    units = sorted({v.unit for v in layout.variables if v.unit})
+def _unit_definitions(root: ET.Element, layout: Layout, extra: tuple[str, ...] = ()) -> None:
+    """``UnitDefinitions``: every unit the variables use (and ``extra``), with its SI base units where known."""
+    units = sorted({v.unit for v in layout.variables if v.unit} | set(extra))
     if units:
         unit_definitions = ET.SubElement(root, "UnitDefinitions")
         for unit in units:
@@ -200,3 +200,102 @@ def _model_structure(root: ET.Element, model: FlatModel, layout: Layout, deps: d
             or (v.kind == "state" and v.start is None)
         ):
             ET.SubElement(initial, "Unknown", {"index": str(vr + 1)})
+
+
+# ---------------------------------------------------------------- FMI 3.0
+
+
+def model_description_fmi3(
+    model: FlatModel,
+    layout: Layout,
+    instantiation_token: str,
+    evaluate: ca.Function,
+    generation_tool: str,
+    source_files: tuple[str, ...],
+) -> bytes:
+    """``modelDescription.xml`` for the model in FMI 3.0 form (Model Exchange only): the same
+    variables, value references, units and dependencies as :func:`model_description`, as
+    ``Float64`` variables, plus the independent variable ``time`` (value reference
+    ``len(layout.variables)``); the ``ModelStructure`` lists value references (FMI 3.0),
+    not 1-based indices. ``source_files`` go to ``sources/buildDescription.xml``
+    (:func:`build_description_fmi3`), which FMI 3.0 uses instead of ``SourceFiles``."""
+    del source_files  # listed in buildDescription.xml
+    root = ET.Element(
+        "fmiModelDescription",
+        {
+            "fmiVersion": "3.0",
+            "modelName": model.name,
+            "instantiationToken": instantiation_token,
+            "description": model.description,
+            "generationTool": generation_tool,
+            "variableNamingConvention": "structured",
+        },
+    )
+    ET.SubElement(
+        root,
+        "ModelExchange",
+        {
+            "modelIdentifier": model.name,
+            "needsCompletedIntegratorStep": "false",
+            "canGetAndSetFMUState": "false",
+            "canSerializeFMUState": "false",
+            "providesDirectionalDerivatives": "false",
+            "providesAdjointDerivatives": "false",
+        },
+    )
+    _unit_definitions(root, layout, ("s",))  # "s": the unit of time
+    categories = ET.SubElement(root, "LogCategories")
+    for name, text in (("logStatusError", "errors"), ("logStatusFatal", "fatal errors"), ("logAll", "all messages")):
+        ET.SubElement(categories, "Category", {"name": name, "description": text})
+    ET.SubElement(root, "DefaultExperiment", {"startTime": "0", "stopTime": "1", "tolerance": "1e-06"})
+    variables = ET.SubElement(root, "ModelVariables")
+    time_attributes = {"name": "time", "valueReference": str(len(layout.variables)), "causality": "independent"}
+    ET.SubElement(variables, "Float64", {**time_attributes, "variability": "continuous", "unit": "s"})
+    state_vr = {v.name: layout.vr(v.name) + 1 for v in model.states}
+    for vr, v in enumerate(layout.variables):
+        attributes, real = _scalar_variable(v, vr, state_vr)
+        if "derivative" in real:  # FMI 3.0: the state's value reference, FMI 2.0: its 1-based index
+            real["derivative"] = str(int(real["derivative"]) - 1)
+        ET.SubElement(variables, "Float64", {**attributes, **real})
+    deps = {name: [i - 1 for i in indices] for name, indices in _dependencies(evaluate, model, layout).items()}
+    _model_structure_fmi3(root, model, layout, deps)
+    ET.indent(root)
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def _model_structure_fmi3(root: ET.Element, model: FlatModel, layout: Layout, deps: dict[str, list[int]]) -> None:
+    """FMI 3.0 ``ModelStructure``: ``Output``, ``ContinuousStateDerivative`` and ``InitialUnknown``
+    elements, in this order, each naming its variable and its dependencies by value reference."""
+    structure = ET.SubElement(root, "ModelStructure")
+
+    def unknown(tag: str, vr: int, dependencies: list[int] | None) -> None:
+        attributes = {"valueReference": str(vr)}
+        if dependencies is not None:
+            attributes["dependencies"] = " ".join(map(str, dependencies))
+        ET.SubElement(structure, tag, attributes)
+
+    for v in layout.variables:
+        if v.is_output:
+            vr = layout.vr(v.name)
+            unknown("Output", vr, [vr] if v.kind == "state" else deps[v.name])
+    for v in model.derivatives:
+        unknown("ContinuousStateDerivative", layout.vr(v.name), deps[v.name])
+    for vr, v in enumerate(layout.variables):
+        if (
+            (v.is_output and not (v.kind == "state" and v.start is not None))
+            or v.kind in ("derivative", "calculated_parameter")
+            or (v.kind == "state" and v.start is None)
+        ):
+            unknown("InitialUnknown", vr, None)
+
+
+def build_description_fmi3(model_identifier: str, source_files: tuple[str, ...]) -> bytes:
+    """``sources/buildDescription.xml`` (FMI 3.0 standard): the C files to compile."""
+    root = ET.Element("fmiBuildDescription", {"fmiVersion": "3.0"})
+    configuration = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": model_identifier})
+    file_set = ET.SubElement(configuration, "SourceFileSet", {"language": "C99"})
+    for name in source_files:
+        ET.SubElement(file_set, "SourceFile", {"name": name})
+    ET.SubElement(file_set, "IncludeDirectory", {"name": "."})
+    ET.indent(root)
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"

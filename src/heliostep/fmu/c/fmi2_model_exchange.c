@@ -22,6 +22,8 @@
  *   [OFF_X, OFF_U)    continuous states
  *   [OFF_U, OFF_C)    inputs
  *   [OFF_C, N_REALS)  computed: derivatives, algebraic variables, calculated parameters
+ * The instance, these checks and the evaluation are in "model_exchange_core.h", shared with
+ * the FMI 3.0 layer (fmi3_model_exchange.c); this file holds the FMI 2.0 API.
  *
  * Every function checks the instance state against the FMI 2.0 state machine, every value
  * reference against the layout, and reports problems through the logger with fmi2Error:
@@ -38,215 +40,17 @@
 #include "equations.h"
 #include "model.h"
 
-#define OFF_X (N_PARAMETERS)
-#define OFF_U (OFF_X + N_STATES)
-#define OFF_C (OFF_U + N_INPUTS)
-#define N_REALS (OFF_C + N_COMPUTED)
+typedef fmi2Status Status;
+typedef fmi2ValueReference ValueReference;
+#define STATUS_OK fmi2OK
+#define STATUS_ERROR fmi2Error
+#define INSTANCE_LOGGER fmi2CallbackFunctions functions;
 
-/* An equation's residual is trusted when |F_i| <= RESIDUAL_RTOL * scale_i + RESIDUAL_ATOL, where
- * scale_i (from the generated code) is the size of the terms that equation balances, in its
- * own units: one absolute tolerance would be too loose for some equations, too tight for others. */
-#define RESIDUAL_RTOL 1e-8
-#define RESIDUAL_ATOL 1e-10
+#include "model_exchange_core.h"
 
-typedef enum {
-    Instantiated = 1 << 0,
-    InitializationMode = 1 << 1,
-    EventMode = 1 << 2,
-    ContinuousTimeMode = 1 << 3,
-    Terminated = 1 << 4,
-    ErrorState = 1 << 5
-} ModelState;
-
-#define ANY_STATE (Instantiated | InitializationMode | EventMode | ContinuousTimeMode | Terminated | ErrorState)
-#define INITIALIZED (EventMode | ContinuousTimeMode | Terminated | ErrorState)
-#define READABLE (InitializationMode | INITIALIZED)
-
-typedef struct {
-    fmi2CallbackFunctions functions;
-    char *instance_name;
-    fmi2Boolean logging_on;
-    ModelState state;
-    double time;
-    int computed_valid;   /* every computed variable is up to date */
-    int state_part_valid; /* those that depend on no input (IN_STATE_PART) are up to date */
-    double r[N_REALS];
-    double guess[N_COMPUTED + 1];
-    double computed[N_COMPUTED + 1];
-    double residual[N_UNKNOWNS + 1];
-    double scale[N_UNKNOWNS + 1];
-    const casadi_real **arg;
-    casadi_real **res;
-    casadi_int *iw;
-    casadi_real *w;
-} Instance;
-
-/* ---------------------------------------------------------------- logging and checks */
-
-static void log_message(Instance *inst, fmi2Status status, const char *category, const char *format, ...) {
-    char message[512];
-    va_list args;
-    if (!inst || !inst->functions.logger) return;
-    if (status == fmi2OK && !inst->logging_on) return;
-    va_start(args, format);
-    vsnprintf(message, sizeof message, format, args);
-    va_end(args);
-    inst->functions.logger(inst->functions.componentEnvironment, inst->instance_name, status, category, message);
-}
-
-#define LOG_ERROR(inst, ...) log_message((inst), fmi2Error, "logStatusError", __VA_ARGS__)
-
-static const char *state_name(ModelState state) {
-    switch (state) {
-    case Instantiated: return "instantiated";
-    case InitializationMode: return "initialization mode";
-    case EventMode: return "event mode";
-    case ContinuousTimeMode: return "continuous-time mode";
-    case Terminated: return "terminated";
-    default: return "error";
-    }
-}
-
-/* Checks that the instance exists and is in one of the allowed states. */
-static int invalid_state(Instance *inst, const char *function, int allowed) {
-    if (!inst) return 1;
-    if (!(inst->state & allowed)) {
-        LOG_ERROR(inst, "%s: not allowed in %s", function, state_name(inst->state));
-        return 1;
-    }
-    return 0;
-}
-
-static int null_argument(Instance *inst, const char *function, const char *name, const void *pointer) {
-    if (pointer) return 0;
-    LOG_ERROR(inst, "%s: argument %s must not be NULL", function, name);
-    return 1;
-}
-
-static int wrong_size(Instance *inst, const char *function, const char *name, size_t given, size_t expected) {
-    if (given == expected) return 0;
-    LOG_ERROR(inst, "%s: %s is %lu, the model has %lu", function, name, (unsigned long)given, (unsigned long)expected);
-    return 1;
-}
-
-/* After fmi2Error the instance is in the error state (FMI 2.0 state machine, as the
- * Reference FMUs do): only fmi2Get*, fmi2Terminate, fmi2Reset, fmi2FreeInstance and
- * fmi2SetDebugLogging are allowed, and nothing computed before is trusted any more. An
- * illegal call sequence is refused without changing the state. */
-static fmi2Status enter_error_state(Instance *inst) {
-    if (inst) {
-        inst->state = ErrorState;
-        inst->computed_valid = inst->state_part_valid = 0;
-    }
-    return fmi2Error;
-}
-
-static int invalid_vr(Instance *inst, const char *function, fmi2ValueReference vr) {
-    if (vr < N_REALS) return 0;
-    LOG_ERROR(inst, "%s: invalid value reference %u (the model has %u real variables)", function, vr, (unsigned)N_REALS);
-    return 1;
-}
-
-/* ---------------------------------------------------------------- evaluation */
-
-typedef int (*EquationFunction)(const casadi_real **, casadi_real **, casadi_int *, casadi_real *, int);
-
-/* Values below TINY (e.g. a phase current decaying as exp(-t/18 us) for 0.1 s reaches 1e-155 A)
- * are zero for the physics of any SI quantity, but the generated QR factorisation of the Newton
- * step squares them: below sqrt(DBL_MIN) ~ 1.5e-154 the squares underflow to zero and the
- * Householder step returns 0/0 = NaN. They are flushed to zero before every evaluation. */
-#define TINY 1e-100
-
-static void flush_tiny(double *values, int n) {
-    for (int i = 0; i < n; i++) {
-        if (values[i] != 0.0 && fabs(values[i]) < TINY) values[i] = 0.0;
-    }
-}
-
-static int eval_equations(Instance *inst, EquationFunction equations, const double *guess, int newton) {
-    if (newton) { /* only the Newton step's QR factorisation needs it */
-        flush_tiny(inst->r + OFF_X, N_STATES + N_INPUTS);
-        flush_tiny(inst->guess, N_COMPUTED);
-    }
-    inst->arg[0] = &inst->time;
-    inst->arg[1] = inst->r + OFF_X;
-    inst->arg[2] = inst->r + OFF_U;
-    inst->arg[3] = inst->r;
-    inst->arg[4] = guess;
-    inst->res[0] = inst->computed;
-    inst->res[1] = inst->residual;
-    if (equations(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
-    int scaled = 0; /* the scale is computed only for a residual the absolute bound does not pass */
-    for (int i = 0; i < N_UNKNOWNS; i++) {
-        if (fabs(inst->residual[i]) <= RESIDUAL_ATOL) continue;
-        if (!scaled) {
-            inst->res[0] = inst->scale;
-            if (model_scale(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
-            scaled = 1;
-        }
-        if (!(fabs(inst->residual[i]) <= RESIDUAL_RTOL * fabs(inst->scale[i]) + RESIDUAL_ATOL)) return 0;
-    }
-    return 1;
-}
-
-/* Calculated start values of the states (those bound to parameters). */
-static void compute_state_starts(Instance *inst) {
-    double x0[N_STATES + 1];
-    inst->arg[0] = inst->r;
-    inst->res[0] = x0;
-    model_start(inst->arg, inst->res, inst->iw, inst->w, 0);
-    for (int i = 0; i < N_STATES; i++) {
-        if (STATE_START_CALCULATED[i]) inst->r[OFF_X + i] = x0[i];
-    }
-}
-
-/* Brings the computed variables up to date; logs and returns fmi2Error if that fails. */
-static fmi2Status update(Instance *inst, const char *function) {
-    static const double zeros[N_COMPUTED + 1] = {0};
-    if (inst->computed_valid) return fmi2OK;
-    if (inst->state & (Instantiated | InitializationMode)) compute_state_starts(inst);
-    /* the previous solution is the Newton iteration's guess (an explicit model_eval needs none) */
-    if (!EXPLICIT_EVAL) memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED);
-    if (!eval_equations(inst, model_eval, inst->guess, !EXPLICIT_EVAL) &&
-        !(EXPLICIT_EVAL && (memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED), 0)) &&
-        !eval_equations(inst, model_solve, inst->guess, 1) && !eval_equations(inst, model_solve, zeros, 1)) {
-        LOG_ERROR(inst, "%s: the model equations could not be solved at t = %g", function, inst->time);
-        return enter_error_state(inst);
-    }
-    for (int i = 0; i < N_COMPUTED; i++) {
-        if (!isfinite(inst->computed[i])) {
-            LOG_ERROR(inst, "%s: %s is not finite at t = %g", function, VARIABLE_NAMES[OFF_C + i], inst->time);
-            return enter_error_state(inst);
-        }
-    }
-    memcpy(inst->r + OFF_C, inst->computed, sizeof(double) * N_COMPUTED);
-    inst->computed_valid = inst->state_part_valid = 1;
-    return fmi2OK;
-}
-
-/* Brings the computed variables that depend on no input up to date (model_state_part, the
- * straight-line code of only those: e.g. a mechanics model's angle and speed while its torque
- * input is new), or everything where the model has no such part or is initializing. */
-static fmi2Status update_state_part(Instance *inst, const char *function) {
-#if N_STATE_PART
-    double part[N_STATE_PART];
-    if (inst->computed_valid || inst->state_part_valid) return fmi2OK;
-    if (inst->state & (Instantiated | InitializationMode)) return update(inst, function);
-    inst->arg[0] = &inst->time;
-    inst->arg[1] = inst->r + OFF_X;
-    inst->arg[2] = inst->r + OFF_U;
-    inst->arg[3] = inst->r;
-    inst->res[0] = part;
-    if (model_state_part(inst->arg, inst->res, inst->iw, inst->w, 0)) return update(inst, function);
-    for (int j = 0; j < N_STATE_PART; j++) {
-        if (!isfinite(part[j])) return update(inst, function); /* the full evaluation reports it */
-    }
-    for (int j = 0; j < N_STATE_PART; j++) inst->r[OFF_C + STATE_PART_INDEX[j]] = part[j];
-    inst->state_part_valid = 1;
-    return fmi2OK;
-#else
-    return update(inst, function);
-#endif
+static void deliver_message(Instance *inst, Status status, const char *category, const char *message) {
+    if (inst->functions.logger)
+        inst->functions.logger(inst->functions.componentEnvironment, inst->instance_name, status, category, message);
 }
 
 /* ---------------------------------------------------------------- life cycle */
