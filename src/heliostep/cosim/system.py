@@ -25,7 +25,7 @@ from heliostep.cosim.signals import SolverOptions
 
 if TYPE_CHECKING:
     from heliostep.cosim.connections import ConnectionGraph
-    from heliostep.cosim.kernel import KernelLink, KernelUnit
+    from heliostep.cosim.kernel import KernelLink, KernelLoop, KernelUnit
 
 
 class Unit:
@@ -249,6 +249,22 @@ class CoupledSystem:
             column += len(outputs)
             units.append((u.fmu, int(x), int(z), outputs))
         return units
+
+    def kernel_loop(self) -> KernelLoop | None:
+        """The algebraic loops for :class:`~heliostep.cosim.kernel.Kernel` (the solver, and per torn
+        connection: target unit index, target value reference, source unit index, source value
+        reference), or None when there are none or a torn connection is not Real to Real."""
+        if self.loop is None:
+            return None
+        index = {name: k for k, name in enumerate(self.units)}
+        torn = []
+        for c in self.graph.torn:
+            (target, input_), (source, output) = split_name(c.target, "target"), split_name(c.source, "source")
+            ends = self.units[target].info.variable(input_), self.units[source].info.variable(output)
+            if any(end.type != "Real" for end in ends):
+                return None
+            torn.append((index[target], ends[0].value_reference, index[source], ends[1].value_reference))
+        return self.loop, torn
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path."""
