@@ -133,8 +133,9 @@ def _lag_loop(mini, compiled: bool, monkeypatch, k: float = 0.5, b: float = 1.0)
 def test_the_compiled_loop_matches_the_python_loop_and_the_closed_form(mini, monkeypatch):
     """A loop whose solution moves with a state, so every evaluation takes Newton iterations: in C
     (the compiled kernel) and in Python (HELIOSTEP_COMPILED_RHS=0) the same Newton, the same
-    number of evaluations, the same trace to rounding (1e-12 relative: the linear solves may round
-    differently), both on the closed form.
+    number of evaluations, the same trace bit for bit (one torn input; with several, the linear
+    solves, Gaussian elimination in C and LAPACK in Python, may differ by rounding), both on the
+    closed form.
 
     u = k (u - y) + b  =>  u = (b - k y) / (1 - k) = 2 - y, e = 2 - 2 y, so T dy/dt = 2 - 2 y and
     y(t) = 1 - exp(-2 t / T) = 1 - exp(-4 t); the Gain's integral s has ds/dt = u = 2 - y:
@@ -154,12 +155,39 @@ def test_the_compiled_loop_matches_the_python_loop_and_the_closed_form(mini, mon
     assert c["loop_iterations"] == p["loop_iterations"] > c["loop_solves"] / 2  # it moves: Newton works
     assert c["loop_most_iterations"] == p["loop_most_iterations"] <= 2  # a linear loop: one step, to rounding
     print(f"loop, 1 s: compiled {seconds[True]:.3f} s, Python {seconds[False]:.3f} s, {c['rhs']} RHS each")
-    for column in ("lag.y", "g.s", "g.y"):
-        np.testing.assert_allclose(runs[True].trace[column], runs[False].trace[column], rtol=1e-12, atol=1e-15)
+    # one torn input: the same arithmetic in C and Python (the 1x1 solve is one division), bit for bit
+    pd.testing.assert_frame_equal(runs[True].trace, runs[False].trace, check_exact=True)
     t = runs[True].trace["time"].to_numpy()
     np.testing.assert_allclose(runs[True].trace["lag.y"], 1 - np.exp(-4 * t), rtol=1e-6, atol=1e-8)
     np.testing.assert_allclose(runs[True].trace["g.s"], t + (1 - np.exp(-4 * t)) / 4, rtol=1e-6, atol=1e-8)
     np.testing.assert_allclose(runs[True].trace["g.y"], 2 - (1 - np.exp(-4 * t)), rtol=1e-6)
+
+
+def test_a_loop_beside_the_drive_costs_the_same_evaluations_compiled_as_in_python(drive, mini, monkeypatch):
+    """The drive with an extra Lag-Gain loop (benchmarks/bench_loops.py's system, 0.6 s): compiled,
+    the drive's connections are copied once per solve and only the loop's in each Newton evaluation;
+    the same RHS count and Newton iterations as the Python path, the same trace bit for bit (the
+    drive's connections copied again carry the same values), the loop on its closed form
+    y = 1 - exp(-4 t). Times printed, not asserted."""
+    import time as clock
+
+    fmus = {**drive, "lag": mini["Lag"], "g": mini["Gain"]}
+    connections = DRIVE_CONNECTIONS + [Connection("lag.e", "g.u"), Connection("g.y", "lag.u")]
+    grid = np.round(np.arange(0.0, 0.6 + 1e-9, 1e-3), 12)
+    runs, seconds = {}, {}
+    for compiled in (True, False):
+        monkeypatch.setattr(master, "COMPILED_RHS", compiled)
+        system = CoSimulation(fmus, connections, _inputs(), parameters={"lag": {"T": 0.5}, "g": {"k": 0.5, "b": 1.0}})
+        began = clock.perf_counter()
+        runs[compiled] = system.simulate(0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=lambda rows: None)
+        seconds[compiled] = clock.perf_counter() - began
+    c, p = runs[True].statistics, runs[False].statistics
+    print(f"drive + loop, 0.6 s: compiled {seconds[True]:.3f} s, Python {seconds[False]:.3f} s, {c['rhs']} RHS each")
+    assert c["compiled_rhs"] and not p["compiled_rhs"]
+    assert c["rhs"] == p["rhs"] > 0 and c["loop_iterations"] == p["loop_iterations"] > 0
+    pd.testing.assert_frame_equal(runs[True].trace, runs[False].trace, check_exact=True)  # one torn input
+    t = runs[True].trace["time"].to_numpy()
+    np.testing.assert_allclose(runs[True].trace["lag.y"], 1 - np.exp(-4 * t), rtol=1e-4, atol=1e-6)
 
 
 @pytest.mark.parametrize("compiled", [True, False])

@@ -351,11 +351,10 @@ def make_integrator(
     reads the master's inputs from ``input_values`` (updated in place) and records rows of
     ``row_width`` values."""
     nx, nz = system.n_states, system.n_indicators
-    loop = system.kernel_loop()
-    if compiled and (system.loop is None or loop is not None) and system.native_links is not None:
-        kernel = Kernel(
-            system.kernel_units(), system.native_links, nx, inputs=input_values, row_width=row_width, loop=loop
-        )
+    looped = system.kernel_loop()  # the links reordered for the loops, and the loops; None without
+    if compiled and (system.loop is None or looped is not None) and system.native_links is not None:
+        links, loop = looped if looped is not None else (system.native_links, None)
+        kernel = Kernel(system.kernel_units(), links, nx, inputs=input_values, row_width=row_width, loop=loop)
         if system.loop is not None:  # the loops solved in C too: their counts in the run's statistics
             system.loop.compiled_counts = kernel.loop_counts
         return CompiledIntegrator(system, kernel, nx, nz, start_time, options)

@@ -155,7 +155,7 @@ class LoopState(ctypes.Structure):
     """kernel.h ``hs_loop``: the torn inputs of the algebraic loops, solved in C."""
 
     _fields_ = (
-        [("n", ctypes.c_long)]
+        [("n", ctypes.c_long), ("first_link", ctypes.c_long)]
         + [
             (name, ctypes.c_void_p)
             for name in ("target_units", "source_units", "target_vrs", "source_vrs", "v", "work")
@@ -274,9 +274,10 @@ KernelUnit = tuple["ModelExchangeInstance", int, int, Sequence[tuple[str, int, i
 #: references, target value references).
 KernelLink = tuple[int, int, Sequence[int], Sequence[int]]
 #: The algebraic loops for the kernel: the Python solver (its names, tolerances, iteration bound
-#: and guess ``v``, shared) and per torn connection (target unit index, target value reference,
-#: source unit index, source value reference).
-KernelLoop = tuple["LoopSolver", Sequence[tuple[int, int, int, int]]]
+#: and guess ``v``, shared), per torn connection (target unit index, target value reference,
+#: source unit index, source value reference), and the index of the first of the kernel's links
+#: that depend on the torn inputs (those from it on are copied in every Newton evaluation).
+KernelLoop = tuple["LoopSolver", Sequence[tuple[int, int, int, int]], int]
 #: Advance's outcome: (hs_advance's code, time reached [s], index of the next output time, CVODE's last flag).
 AdvanceOutcome = tuple[int, float, int, int]
 
@@ -354,7 +355,7 @@ class Kernel:
         self.rhs = sundials.function_address(self._library, "hs_rhs")
         self.root = sundials.function_address(self._library, "hs_root")
 
-    def _fill_loop(self, solver: LoopSolver, torn: Sequence[tuple[int, int, int, int]]) -> None:
+    def _fill_loop(self, solver: LoopSolver, torn: Sequence[tuple[int, int, int, int]], first_link: int) -> None:
         """The C loop solver's structure: its torn connections, and the Python solver's guess and settings."""
         n = len(torn)
         arrays = (
@@ -366,7 +367,7 @@ class Kernel:
         )
         self._keep.append(arrays)
         state = self.loop_state
-        state.n = n
+        state.n, state.first_link = n, first_link
         state.target_units, state.source_units, state.target_vrs, state.source_vrs, state.work = (
             a.ctypes.data for a in arrays
         )

@@ -250,11 +250,16 @@ class CoupledSystem:
             units.append((u.fmu, int(x), int(z), outputs))
         return units
 
-    def kernel_loop(self) -> KernelLoop | None:
-        """The algebraic loops for :class:`~heliostep.cosim.kernel.Kernel` (the solver, and per torn
-        connection: target unit index, target value reference, source unit index, source value
-        reference), or None when there are none or a torn connection is not Real to Real."""
-        if self.loop is None:
+    def kernel_loop(self) -> tuple[list[KernelLink], KernelLoop] | None:
+        """The continuous links and the algebraic loops for :class:`~heliostep.cosim.kernel.Kernel`, or
+        None when there are no loops, a continuous connection is not Real or a torn one is not Real to Real.
+
+        The loops: the solver, per torn connection (target unit index, target value reference, source
+        unit index, source value reference) and the index of the first link that depends on the torn
+        inputs. The links: :attr:`native_links` with those that do not depend on the torn inputs
+        first (their relative order kept): a link depends on them when its source is a torn input's
+        unit or the target of a link that does (by unit: conservative)."""
+        if self.loop is None or self.native_links is None:
             return None
         index = {name: k for k, name in enumerate(self.units)}
         torn = []
@@ -264,7 +269,15 @@ class CoupledSystem:
             if any(end.type != "Real" for end in ends):
                 return None
             torn.append((index[target], ends[0].value_reference, index[source], ends[1].value_reference))
-        return self.loop, torn
+        reached = {target for target, _, _, _ in torn}
+        grown = True
+        while grown:
+            before = len(reached)
+            reached |= {link[1] for link in self.native_links if link[0] in reached}
+            grown = len(reached) > before
+        independent = [link for link in self.native_links if link[0] not in reached]
+        dependent = [link for link in self.native_links if link[0] in reached]
+        return independent + dependent, (self.loop, torn, len(independent))
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path."""

@@ -60,9 +60,9 @@ static int evaluate(hs_kernel *k, double t, const double *x) {
     return 0;
 }
 
-static int copy_links(hs_kernel *k, double t) {
+static int copy_links(hs_kernel *k, double t, long first, long end) {
     long j;
-    for (j = 0; j < k->n_links; j++) {
+    for (j = first; j < end; j++) {
         hs_link *l = &k->links[j];
         hs_unit *s = &k->units[l->source], *d = &k->units[l->target];
         CHECK(s->get_real(s->component, l->source_vrs, (size_t)l->n, l->buffer), l->source, F_GET_REAL);
@@ -73,7 +73,8 @@ static int copy_links(hs_kernel *k, double t) {
 
 /* ---------------------------------------------------------------- algebraic loops
  * Newton's method on the torn inputs, the twin of heliostep/cosim/loops.py LoopSolver.solve: the
- * same evaluations in the same order, the same convergence test and step size of the differences.
+ * same evaluations of r, the same convergence test and step size of the differences. It copies the
+ * connections that do not depend on v once per solve, not in each evaluation (the same values).
  * Two differences, both rounding: the linear solve is Gaussian elimination with partial pivoting
  * here (LAPACK's gesv there: the same for one torn input), and the first solve's uniqueness test
  * takes the 1-norm condition number (the 2-norm there; they differ by at most a factor n). */
@@ -93,7 +94,7 @@ static int loop_residual(hs_kernel *k, double t, const double *v, double *r) {
         hs_unit *u = &k->units[L->target_units[j]];
         CHECK(u->set_real(u->component, L->target_vrs + j, 1, v + j), L->target_units[j], F_SET_REAL);
     }
-    if (copy_links(k, t)) return -1;
+    if (copy_links(k, t, L->first_link, k->n_links)) return -1;
     for (j = 0; j < L->n; j++) {
         hs_unit *u = &k->units[L->source_units[j]];
         CHECK(u->get_real(u->component, L->source_vrs + j, 1, r + j), L->source_units[j], F_GET_REAL);
@@ -180,6 +181,7 @@ static int solve_loop(hs_kernel *k, double t) {
     double *v = L->work, *r = v + n, *vp = r + n, *rp = vp + n, *J = rp + n, *A = J + n * n, most = 0.0;
     memcpy(v, L->v, (size_t)n * sizeof(double));
     L->solves++;
+    if (copy_links(k, t, 0, L->first_link)) return -1; /* the connections that do not depend on v */
     if (loop_residual(k, t, v, r)) return -1;
     if (!L->checked) { /* the first solve checks the loop has a unique solution, even one met at once */
         if (loop_jacobian(k, t, v, r, J, vp, rp)) return -1;
@@ -214,7 +216,7 @@ static int solve_loop(hs_kernel *k, double t) {
 /* the continuous Real connections, with the loops solved when the system has any */
 static int propagate(hs_kernel *k, double t) {
     if (k->loop && k->loop->n) return solve_loop(k, t);
-    return copy_links(k, t);
+    return copy_links(k, t, 0, k->n_links);
 }
 
 int hs_rhs(double t, void *y, void *ydot, void *user_data) {
@@ -376,7 +378,7 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_kernel, get_dky), FIELD(hs_kernel, n_inputs), FIELD(hs_kernel, row_width), FIELD(hs_kernel, inputs),
     FIELD(hs_kernel, scratch), FIELD(hs_kernel, pending), FIELD(hs_kernel, step_time), FIELD(hs_kernel, step_flag),
     FIELD(hs_kernel, prepare), FIELD(hs_kernel, prepare_user), FIELD(hs_kernel, where), FIELD(hs_kernel, loop),
-    SIZE(hs_loop), FIELD(hs_loop, n), FIELD(hs_loop, target_units), FIELD(hs_loop, source_units),
+    SIZE(hs_loop), FIELD(hs_loop, n), FIELD(hs_loop, first_link), FIELD(hs_loop, target_units), FIELD(hs_loop, source_units),
     FIELD(hs_loop, target_vrs), FIELD(hs_loop, source_vrs), FIELD(hs_loop, v), FIELD(hs_loop, work),
     FIELD(hs_loop, rtol), FIELD(hs_loop, atol), FIELD(hs_loop, max_iterations), FIELD(hs_loop, checked),
     FIELD(hs_loop, solves), FIELD(hs_loop, iterations), FIELD(hs_loop, most_iterations), FIELD(hs_loop, failure),

@@ -58,10 +58,12 @@ typedef struct {
 
 /* The torn inputs of a system's algebraic loops, solved at every propagation (kernel.c, solve_loop):
  * Newton's method on r(v) = y(v) - v, v the torn inputs (set with fmi2SetReal), y the torn
- * sources' outputs (read with fmi2GetReal after the other connections are copied), a forward-
+ * sources' outputs (read with fmi2GetReal after the connections that depend on v are copied), a forward-
  * difference Jacobian, starting from the last solution (v, shared with heliostep/cosim/loops.py). */
 typedef struct {
     long n;                                   /* torn inputs */
+    long first_link;                          /* hs_kernel.links[first_link...] depend on them: copied
+                                                 in every evaluation of r, those before once per solve */
     const long *target_units, *source_units;  /* per torn connection: its target's and source's unit */
     const unsigned int *target_vrs, *source_vrs;
     double *v;                                /* the torn inputs: the starting guess, then the solution */
