@@ -190,6 +190,36 @@ def test_a_loop_beside_the_drive_costs_the_same_evaluations_compiled_as_in_pytho
     np.testing.assert_allclose(runs[True].trace["lag.y"], 1 - np.exp(-4 * t), rtol=1e-4, atol=1e-6)
 
 
+def test_two_loops_are_solved_together_in_c_as_in_python(mini, monkeypatch):
+    """Two Lag-Gain loops: two torn inputs, one Newton on both (a 2 x 2 Jacobian, Gaussian elimination
+    in C, LAPACK in Python: the same trace to rounding, 1e-12 relative). Each on its closed form:
+    u = k (u - y) + b gives T dy/dt = (b - y) / (1 - k), y = b (1 - exp(-t / (T (1 - k))))."""
+    fmus = {"lag1": mini["Lag"], "g1": mini["Gain"], "lag2": mini["Lag"], "g2": mini["Gain"]}
+    connections = [
+        Connection(f"{a}.{o}", f"{b}.{i}")
+        for a, o, b, i in (
+            ("lag1", "e", "g1", "u"),
+            ("g1", "y", "lag1", "u"),
+            ("lag2", "e", "g2", "u"),
+            ("g2", "y", "lag2", "u"),
+        )
+    ]
+    parameters = {"lag1": {"T": 0.5}, "g1": {"k": 0.5, "b": 1.0}, "lag2": {"T": 0.5}, "g2": {"k": -1.0, "b": 2.0}}
+    runs = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(master, "COMPILED_RHS", compiled)
+        system = CoSimulation(fmus, connections, parameters=parameters)
+        runs[compiled] = system.simulate(0.0, 1.0, np.linspace(0.0, 1.0, 11), SolverOptions(rtol=1e-8))
+    c, p = runs[True].statistics, runs[False].statistics
+    assert c["compiled_rhs"] and c["loop_solves_compiled"] == c["rhs"] > 0 and c["rhs"] == p["rhs"]
+    assert c["loop_iterations"] == p["loop_iterations"] > 0
+    for column in ("lag1.y", "lag2.y", "g1.s", "g2.s"):
+        np.testing.assert_allclose(runs[True].trace[column], runs[False].trace[column], rtol=1e-12, atol=1e-15)
+    t = runs[True].trace["time"].to_numpy()
+    np.testing.assert_allclose(runs[True].trace["lag1.y"], 1 - np.exp(-4 * t), rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(runs[True].trace["lag2.y"], 2 * (1 - np.exp(-t)), rtol=1e-6, atol=1e-8)
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_a_singular_loop_is_refused_naming_it_on_either_path(mini, monkeypatch, compiled):
     # k = 1: u = (u - y) + 1 has no solution for any y (dr/dv = 0): the loop is refused, named

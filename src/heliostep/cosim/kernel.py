@@ -363,7 +363,7 @@ class Kernel:
             np.array([c[2] for c in torn], dtype=np.int64),
             np.array([c[1] for c in torn], dtype=np.uint32),
             np.array([c[3] for c in torn], dtype=np.uint32),
-            np.zeros(2 * n * n + 4 * n),
+            np.zeros(3 * n * n + 4 * n),  # kernel.h hs_loop.work,
         )
         self._keep.append(arrays)
         state = self.loop_state

@@ -178,14 +178,15 @@ static int loop_unique(const double *J, double *A, double *inverse, long n) {
 static int solve_loop(hs_kernel *k, double t) {
     hs_loop *L = k->loop;
     long n = L->n, i, iteration;
-    double *v = L->work, *r = v + n, *vp = r + n, *rp = vp + n, *J = rp + n, *A = J + n * n, most = 0.0;
+    double *v = L->work, *r = v + n, *vp = r + n, *rp = vp + n, *J = rp + n, *A = J + n * n, *inverse = A + n * n;
+    double most = 0.0;
     memcpy(v, L->v, (size_t)n * sizeof(double));
     L->solves++;
     if (copy_links(k, t, 0, L->first_link)) return -1; /* the connections that do not depend on v */
     if (loop_residual(k, t, v, r)) return -1;
     if (!L->checked) { /* the first solve checks the loop has a unique solution, even one met at once */
         if (loop_jacobian(k, t, v, r, J, vp, rp)) return -1;
-        if (!loop_unique(J, A, rp, n)) return loop_fail(k, LOOP_SINGULAR, t, 0.0);
+        if (!loop_unique(J, A, inverse, n)) return loop_fail(k, LOOP_SINGULAR, t, 0.0);
         L->checked = 1;
         if (loop_residual(k, t, v, r)) return -1; /* every FMU left evaluated at v */
     }

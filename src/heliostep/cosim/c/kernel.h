@@ -67,7 +67,7 @@ typedef struct {
     const long *target_units, *source_units;  /* per torn connection: its target's and source's unit */
     const unsigned int *target_vrs, *source_vrs;
     double *v;                                /* the torn inputs: the starting guess, then the solution */
-    double *work;                             /* 2 n n + 4 n doubles */
+    double *work;                             /* 3 n n + 4 n doubles */
     double rtol, atol;                        /* converged when |r| <= atol + rtol |v| */
     long max_iterations;
     long checked;                             /* the first solve's check of a unique solution done */
