@@ -2,7 +2,7 @@
 
 The compiled path must give bit-identical traces to the Python callbacks (same FMI calls in the
 same order), surface FMU errors with the FMU's message and the time of the failing evaluation,
-and fall back to Python for algebraic loops. Interpolated output rows (one-step mode) must stay
+and solve algebraic loops in C as the Python path does. Interpolated output rows (one-step mode) must stay
 within the solver tolerance of rows where CVODE stops (at rtol 1e-6 the
 stopped, interpolated and normal-mode rotor angles differ by up to 3e-5 rad from each other).
 """
@@ -36,7 +36,7 @@ def drive(fmu_paths):
 @pytest.fixture(scope="module")
 def mini(tmp_path_factory):
     out = tmp_path_factory.mktemp("mini-kernel")
-    return {name: read_fmu(build_mini_fmu(name, out)) for name in ("PassThrough", "Switch", "Gain")}
+    return {name: read_fmu(build_mini_fmu(name, out)) for name in ("PassThrough", "Switch", "Gain", "Lag")}
 
 
 def _inputs():
@@ -105,7 +105,7 @@ def test_fmu_error_inside_the_compiled_rhs_keeps_its_message_and_time(mini, monk
     assert error.trace["time"].max() == pytest.approx(0.5)
 
 
-def test_algebraic_loops_fall_back_to_the_python_rhs(mini, monkeypatch):
+def test_an_algebraic_loop_of_two_gains_is_solved_in_the_compiled_kernel(mini, monkeypatch):
     monkeypatch.setattr(master, "COMPILED_RHS", True)
     gain = mini["Gain"]
     system = CoSimulation(
@@ -114,8 +114,130 @@ def test_algebraic_loops_fall_back_to_the_python_rhs(mini, monkeypatch):
         parameters={"a": {"k": 0.5, "b": 1.0}, "b": {"k": -3.0, "b": 2.0}},
     )
     result = system.simulate(0.0, 2.0, np.linspace(0.0, 2.0, 5))
-    assert not result.statistics["compiled_rhs"] and result.statistics["loop_solves"] > 0
-    np.testing.assert_allclose(result.trace["b.y"], -0.4, rtol=1e-9)
+    stats = result.statistics
+    assert stats["compiled_rhs"] and stats["loop_solves_compiled"] > 0 and stats["loop_solves"] > 0
+    np.testing.assert_allclose(result.trace["b.y"], -0.4, rtol=1e-9)  # (k_b b_a + b_b) / (1 - k_a k_b)
+
+
+def _lag_loop(mini, compiled: bool, monkeypatch, k: float = 0.5, b: float = 1.0):
+    """A Lag (T dy/dt = e, e = u - y) and a Gain (y = k u + b) in a loop: lag.e -> g.u, g.y -> lag.u."""
+    monkeypatch.setattr(master, "COMPILED_RHS", compiled)
+    system = CoSimulation(
+        {"lag": mini["Lag"], "g": mini["Gain"]},
+        [Connection("lag.e", "g.u"), Connection("g.y", "lag.u")],
+        parameters={"lag": {"T": 0.5}, "g": {"k": k, "b": b}},
+    )
+    return system.simulate(0.0, 1.0, np.linspace(0.0, 1.0, 11), SolverOptions(rtol=1e-8))
+
+
+def test_the_compiled_loop_matches_the_python_loop_and_the_closed_form(mini, monkeypatch):
+    """A loop whose solution moves with a state, so every evaluation takes Newton iterations: in C
+    (the compiled kernel) and in Python (HELIOSTEP_COMPILED_RHS=0) the same Newton, the same
+    number of evaluations, the same trace bit for bit (one torn input; with several, the linear
+    solves, Gaussian elimination in C and LAPACK in Python, may differ by rounding), both on the
+    closed form.
+
+    u = k (u - y) + b  =>  u = (b - k y) / (1 - k) = 2 - y, e = 2 - 2 y, so T dy/dt = 2 - 2 y and
+    y(t) = 1 - exp(-2 t / T) = 1 - exp(-4 t); the Gain's integral s has ds/dt = u = 2 - y:
+    s(t) = t + (1 - exp(-4 t)) / 4.
+    """
+    import time as clock
+
+    runs, seconds = {}, {}
+    for compiled in (True, False):
+        began = clock.perf_counter()
+        runs[compiled] = _lag_loop(mini, compiled, monkeypatch)
+        seconds[compiled] = clock.perf_counter() - began
+    c, p = runs[True].statistics, runs[False].statistics
+    assert c["compiled_rhs"] and not p["compiled_rhs"] and p["loop_solves_compiled"] == 0
+    assert c["loop_solves_compiled"] == c["rhs"] > 0  # one solve in C per right-hand side (no roots, no monitor)
+    assert c["rhs"] == p["rhs"] and c["loop_solves"] == p["loop_solves"]
+    assert c["loop_iterations"] == p["loop_iterations"] > c["loop_solves"] / 2  # it moves: Newton works
+    assert c["loop_most_iterations"] == p["loop_most_iterations"] <= 2  # a linear loop: one step, to rounding
+    print(f"loop, 1 s: compiled {seconds[True]:.3f} s, Python {seconds[False]:.3f} s, {c['rhs']} RHS each")
+    # one torn input: the same arithmetic in C and Python (the 1x1 solve is one division), bit for bit
+    pd.testing.assert_frame_equal(runs[True].trace, runs[False].trace, check_exact=True)
+    t = runs[True].trace["time"].to_numpy()
+    np.testing.assert_allclose(runs[True].trace["lag.y"], 1 - np.exp(-4 * t), rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(runs[True].trace["g.s"], t + (1 - np.exp(-4 * t)) / 4, rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(runs[True].trace["g.y"], 2 - (1 - np.exp(-4 * t)), rtol=1e-6)
+
+
+def test_a_loop_beside_the_drive_costs_the_same_evaluations_compiled_as_in_python(drive, mini, monkeypatch):
+    """The drive with an extra Lag-Gain loop (benchmarks/bench_loops.py's system, 0.6 s): compiled,
+    the drive's connections are copied once per solve and only the loop's in each Newton evaluation;
+    the same RHS count and Newton iterations as the Python path, the same trace bit for bit (the
+    drive's connections copied again carry the same values), the loop on its closed form
+    y = 1 - exp(-4 t). Times printed, not asserted."""
+    import time as clock
+
+    fmus = {**drive, "lag": mini["Lag"], "g": mini["Gain"]}
+    connections = DRIVE_CONNECTIONS + [Connection("lag.e", "g.u"), Connection("g.y", "lag.u")]
+    grid = np.round(np.arange(0.0, 0.6 + 1e-9, 1e-3), 12)
+    runs, seconds = {}, {}
+    for compiled in (True, False):
+        monkeypatch.setattr(master, "COMPILED_RHS", compiled)
+        system = CoSimulation(fmus, connections, _inputs(), parameters={"lag": {"T": 0.5}, "g": {"k": 0.5, "b": 1.0}})
+        began = clock.perf_counter()
+        runs[compiled] = system.simulate(0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=lambda rows: None)
+        seconds[compiled] = clock.perf_counter() - began
+    c, p = runs[True].statistics, runs[False].statistics
+    print(f"drive + loop, 0.6 s: compiled {seconds[True]:.3f} s, Python {seconds[False]:.3f} s, {c['rhs']} RHS each")
+    assert c["compiled_rhs"] and not p["compiled_rhs"]
+    assert c["rhs"] == p["rhs"] > 0 and c["loop_iterations"] == p["loop_iterations"] > 0
+    pd.testing.assert_frame_equal(runs[True].trace, runs[False].trace, check_exact=True)  # one torn input
+    t = runs[True].trace["time"].to_numpy()
+    np.testing.assert_allclose(runs[True].trace["lag.y"], 1 - np.exp(-4 * t), rtol=1e-4, atol=1e-6)
+
+
+def test_two_loops_are_solved_together_in_c_as_in_python(mini, monkeypatch):
+    """Two Lag-Gain loops: two torn inputs, one Newton on both (a 2 x 2 Jacobian, Gaussian elimination
+    in C, LAPACK in Python: the same trace to rounding, 1e-12 relative). Each on its closed form:
+    u = k (u - y) + b gives T dy/dt = (b - y) / (1 - k), y = b (1 - exp(-t / (T (1 - k))))."""
+    fmus = {"lag1": mini["Lag"], "g1": mini["Gain"], "lag2": mini["Lag"], "g2": mini["Gain"]}
+    connections = [
+        Connection(f"{a}.{o}", f"{b}.{i}")
+        for a, o, b, i in (
+            ("lag1", "e", "g1", "u"),
+            ("g1", "y", "lag1", "u"),
+            ("lag2", "e", "g2", "u"),
+            ("g2", "y", "lag2", "u"),
+        )
+    ]
+    parameters = {"lag1": {"T": 0.5}, "g1": {"k": 0.5, "b": 1.0}, "lag2": {"T": 0.5}, "g2": {"k": -1.0, "b": 2.0}}
+    runs = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(master, "COMPILED_RHS", compiled)
+        system = CoSimulation(fmus, connections, parameters=parameters)
+        runs[compiled] = system.simulate(0.0, 1.0, np.linspace(0.0, 1.0, 11), SolverOptions(rtol=1e-8))
+    c, p = runs[True].statistics, runs[False].statistics
+    assert c["compiled_rhs"] and c["loop_solves_compiled"] == c["rhs"] > 0 and c["rhs"] == p["rhs"]
+    assert c["loop_iterations"] == p["loop_iterations"] > 0
+    for column in ("lag1.y", "lag2.y", "g1.s", "g2.s"):
+        np.testing.assert_allclose(runs[True].trace[column], runs[False].trace[column], rtol=1e-12, atol=1e-15)
+    t = runs[True].trace["time"].to_numpy()
+    np.testing.assert_allclose(runs[True].trace["lag1.y"], 1 - np.exp(-4 * t), rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(runs[True].trace["lag2.y"], 2 * (1 - np.exp(-t)), rtol=1e-6, atol=1e-8)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_singular_loop_is_refused_naming_it_on_either_path(mini, monkeypatch, compiled):
+    # k = 1: u = (u - y) + 1 has no solution for any y (dr/dv = 0): the loop is refused, named
+    with pytest.raises(SimulationError, match=r"algebraic loop through g.u at t = 0 s: singular Jacobian"):
+        _lag_loop(mini, compiled, monkeypatch, k=1.0)
+
+
+def test_the_compiled_loop_refuses_a_singular_loop_itself(mini, monkeypatch):
+    """With the Python solver's check at initialization switched off, the C solver's own first solve
+    (CVODE's first right-hand side) refuses the loop, naming it, at the time of that evaluation.
+    k = 1, b = 0: u = u - y, met at once at initialization (y = 0), dr/dv = 0: no unique solution."""
+    from heliostep.cosim.loops import LoopError, LoopSolver
+
+    monkeypatch.setattr(LoopSolver, "_check_unique", lambda *args: None)
+    with pytest.raises(SimulationError, match=r"algebraic loop through g.u at t = 0 s: singular Jacobian") as failure:
+        _lag_loop(mini, True, monkeypatch, k=1.0, b=0.0)
+    assert isinstance(failure.value.__cause__, LoopError) and failure.value.statistics["compiled_rhs"]
+    assert failure.value.statistics["loop_solves_compiled"] == 1
 
 
 @pytest.mark.parametrize("compiled", [False, True])

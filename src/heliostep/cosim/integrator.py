@@ -17,9 +17,10 @@
 Its two implementations differ in the right-hand side and root function CVODE calls:
 :class:`CompiledIntegrator` gives CVODE the compiled kernel's ``hs_rhs``/``hs_root``
 (:mod:`heliostep.cosim.kernel`); :class:`CallbackIntegrator` gives it ctypes callbacks into the
-coupled system's Python methods (for algebraic loops, non-Real continuous connections, or
-``HELIOSTEP_COMPILED_RHS=0``). Both run the one loop over CVODE's internal steps, the kernel's
-``hs_advance`` (:meth:`heliostep.cosim.kernel.Kernel.advance`): with the Python callbacks the
+coupled system's Python methods (for non-Real continuous connections or torn connections, or
+``HELIOSTEP_COMPILED_RHS=0``; algebraic loops of Real connections are solved in the kernel).
+Both run the one loop over CVODE's internal steps, the kernel's ``hs_advance``
+(:meth:`heliostep.cosim.kernel.Kernel.advance`): with the Python callbacks the
 kernel is handed the coupled system's own preparation of the FMUs for each row.
 """
 
@@ -345,13 +346,17 @@ def make_integrator(
     compiled: bool = True,
 ) -> Integrator:
     """CVODE on the compiled kernel (``compiled`` and the system allows it) or, where the Python
-    callbacks are needed (switched off, algebraic loops, non-Real continuous connections), on
+    callbacks are needed (switched off, non-Real continuous or torn connections), on
     those; the kernel's one-step loop in both cases when the run is ``monitored``. The kernel
     reads the master's inputs from ``input_values`` (updated in place) and records rows of
     ``row_width`` values."""
     nx, nz = system.n_states, system.n_indicators
-    if compiled and system.loop is None and system.native_links is not None:
-        kernel = Kernel(system.kernel_units(), system.native_links, nx, inputs=input_values, row_width=row_width)
+    looped = system.kernel_loop()  # the links reordered for the loops, and the loops; None without
+    if compiled and (system.loop is None or looped is not None) and system.native_links is not None:
+        links, loop = looped if looped is not None else (system.native_links, None)
+        kernel = Kernel(system.kernel_units(), links, nx, inputs=input_values, row_width=row_width, loop=loop)
+        if system.loop is not None:  # the loops solved in C too: their counts in the run's statistics
+            system.loop.compiled_counts = kernel.loop_counts
         return CompiledIntegrator(system, kernel, nx, nz, start_time, options)
     errors = CallbackErrors()
     native = None

@@ -14,11 +14,18 @@ CVODE, and refuses every further evaluation until the master has collected the e
 (:meth:`Kernel.take_error`, which turns it into the instance's
 :class:`~heliostep.cosim.fmi.FMIError`).
 
+Algebraic loops (the torn connections of :mod:`heliostep.cosim.loops`) are solved in the same C
+code at every propagation: Newton's method on the torn inputs with a forward-difference
+Jacobian, the twin of :meth:`heliostep.cosim.loops.LoopSolver.solve` (same evaluations, same
+tolerance and iteration bound, the guess shared), the rest of the system unchanged. A loop that
+fails (no convergence, a singular Jacobian) is recorded like an FMU error and collected as the
+solver's :class:`~heliostep.cosim.loops.LoopError`, naming the loop.
+
 :meth:`Kernel.advance` is heliostep's one loop over CVODE's internal steps (:c:func:`hs_advance`,
 one-step mode): after each internal step, and at the output times passed on the way
 (interpolated), it records a row (time, master inputs, every FMU's traced outputs) into a buffer
-the master takes in blocks. Where the master propagates the connections itself (algebraic loops,
-non-Real connections, the Python right-hand side) it hands the kernel a ``prepare`` callback
+the master takes in blocks. Where the master propagates the connections itself (non-Real
+connections, the Python right-hand side) it hands the kernel a ``prepare`` callback
 that sets the FMUs to each row's time and states instead of the kernel's own C code.
 
 The ctypes Structures below mirror ``kernel.h``; ``tests/cosim/test_kernel_layout.py`` checks
@@ -50,6 +57,7 @@ from heliostep.toolchain import compiler_version, exclusive_lock
 
 if TYPE_CHECKING:
     from heliostep.cosim.fmi import FMIError, ModelExchangeInstance
+    from heliostep.cosim.loops import LoopError, LoopSolver
 
 #: The kernel's C source and header (package data beside this module).
 SOURCE_PATH = Path(__file__).resolve().parent / "c" / "kernel.c"
@@ -61,6 +69,9 @@ FUNCTIONS = list(watch.KERNEL_FUNCTIONS)
 #: What :c:func:`hs_advance` returns (kernel.h).
 ADVANCE_REACHED, ADVANCE_ROOT, ADVANCE_FULL, ADVANCE_MAX_STEPS = 0, 1, 2, 3
 ADVANCE_CVODE_FAILED, ADVANCE_FMU_FAILED, ADVANCE_DKY_FAILED = -1, -2, -3
+
+#: kernel.h: hs_kernel.status of a failed loop, and hs_loop.failure's codes.
+LOOP_FAILED, LOOP_NO_CONVERGENCE, LOOP_SINGULAR = 100, 1, 2
 
 #: kernel.h's ``prepare_t``: ``int prepare(double t, const double *x, void *user)``.
 PREPARE_CALLBACK = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p)
@@ -136,7 +147,23 @@ class KernelState(ctypes.Structure):
         ("prepare", ctypes.c_void_p),
         ("prepare_user", ctypes.c_void_p),
         ("where", ctypes.c_void_p),
+        ("loop", ctypes.c_void_p),
     ]
+
+
+class LoopState(ctypes.Structure):
+    """kernel.h ``hs_loop``: the torn inputs of the algebraic loops, solved in C."""
+
+    _fields_ = (
+        [("n", ctypes.c_long), ("first_link", ctypes.c_long)]
+        + [
+            (name, ctypes.c_void_p)
+            for name in ("target_units", "source_units", "target_vrs", "source_vrs", "v", "work")
+        ]
+        + [("rtol", ctypes.c_double), ("atol", ctypes.c_double)]
+        + [(name, ctypes.c_long) for name in ("max_iterations", "checked", "solves", "iterations", "most_iterations")]
+        + [("failure", ctypes.c_long), ("failed_time", ctypes.c_double), ("failed_residual", ctypes.c_double)]
+    )
 
 
 class AdvanceArgs(ctypes.Structure):
@@ -171,6 +198,7 @@ STRUCTURES: dict[str, type[ctypes.Structure]] = {
     "hs_link": Link,
     "hs_kernel": KernelState,
     "hs_advance_args": AdvanceArgs,
+    "hs_loop": LoopState,
 }
 
 
@@ -245,6 +273,11 @@ KernelUnit = tuple["ModelExchangeInstance", int, int, Sequence[tuple[str, int, i
 #: One continuous Real connection group: (source unit index, target unit index, source value
 #: references, target value references).
 KernelLink = tuple[int, int, Sequence[int], Sequence[int]]
+#: The algebraic loops for the kernel: the Python solver (its names, tolerances, iteration bound
+#: and guess ``v``, shared), per torn connection (target unit index, target value reference,
+#: source unit index, source value reference), and the index of the first of the kernel's links
+#: that depend on the torn inputs (those from it on are copied in every Newton evaluation).
+KernelLoop = tuple["LoopSolver", Sequence[tuple[int, int, int, int]], int]
 #: Advance's outcome: (hs_advance's code, time reached [s], index of the next output time, CVODE's last flag).
 AdvanceOutcome = tuple[int, float, int, int]
 
@@ -275,6 +308,7 @@ class Kernel:
         inputs: np.ndarray | None = None,
         row_width: int = 1,
         prepare: Callable[[float, int | None], int] | None = None,
+        loop: KernelLoop | None = None,
     ):
         self.instances = [fmu for fmu, _, _, _ in units]
         self._keep: list[Any] = []  # arrays whose addresses the C structures hold
@@ -310,12 +344,41 @@ class Kernel:
         if prepare is not None:  # kept: the C code holds its address
             self._prepare = PREPARE_CALLBACK(lambda t, x, user: prepare(t, x))
             self.state.prepare = ctypes.cast(self._prepare, ctypes.c_void_p).value
+        self.loop_solver = None if loop is None else loop[0]
+        self.loop_state = LoopState()
+        if loop is not None:
+            self._fill_loop(*loop)
         self.rows = np.zeros((self.ROWS_PER_BLOCK, row_width))
         self.kinds = np.zeros(self.ROWS_PER_BLOCK, dtype=np.int64)
         self.user_data = ctypes.cast(ctypes.pointer(self.state), ctypes.c_void_p)
         self._library = library()
         self.rhs = sundials.function_address(self._library, "hs_rhs")
         self.root = sundials.function_address(self._library, "hs_root")
+
+    def _fill_loop(self, solver: LoopSolver, torn: Sequence[tuple[int, int, int, int]], first_link: int) -> None:
+        """The C loop solver's structure: its torn connections, and the Python solver's guess and settings."""
+        n = len(torn)
+        arrays = (
+            np.array([c[0] for c in torn], dtype=np.int64),
+            np.array([c[2] for c in torn], dtype=np.int64),
+            np.array([c[1] for c in torn], dtype=np.uint32),
+            np.array([c[3] for c in torn], dtype=np.uint32),
+            np.zeros(3 * n * n + 4 * n),  # kernel.h hs_loop.work,
+        )
+        self._keep.append(arrays)
+        state = self.loop_state
+        state.n, state.first_link = n, first_link
+        state.target_units, state.source_units, state.target_vrs, state.source_vrs, state.work = (
+            a.ctypes.data for a in arrays
+        )
+        state.v = solver.v.ctypes.data  # shared: each solver starts from the other's last solution
+        state.rtol, state.atol, state.max_iterations = solver.rtol, solver.atol, solver.max_iterations
+        self.state.loop = ctypes.cast(ctypes.pointer(state), ctypes.c_void_p).value
+
+    def loop_counts(self) -> tuple[int, int, int]:
+        """The C loop solver's solves, Newton iterations and most iterations in one solve."""
+        state = self.loop_state
+        return int(state.solves), int(state.iterations), int(state.most_iterations)
 
     def _fill_unit(
         self, u: Unit, fmu: ModelExchangeInstance, x_offset: int, z_offset: int, outputs: Sequence[tuple[str, int, int]]
@@ -406,11 +469,17 @@ class Kernel:
         """Right-hand-side evaluations of :c:func:`hs_rhs` so far."""
         return int(self.state.rhs_count)
 
-    def take_error(self) -> tuple[FMIError, float] | None:
-        """The FMIError of a failed evaluation (the FMU's messages, the true time) and that time,
-        or None; clears it."""
+    def take_error(self) -> tuple[FMIError | LoopError, float] | None:
+        """The FMIError of a failed evaluation (the FMU's messages, the true time) or the LoopError
+        of a loop that failed, and that time, or None; clears it."""
         if not self.state.status:
             return None
+        if self.state.status == LOOP_FAILED and self.loop_solver is not None:
+            loop, self.state.status = self.loop_state, 0
+            time = float(loop.failed_time)
+            if loop.failure == LOOP_SINGULAR:
+                return self.loop_solver.singular(time), time
+            return self.loop_solver.no_convergence(time, float(loop.failed_residual)), time
         fmu = self.instances[self.state.failed_unit]
         time = float(self.state.failed_time)
         fmu.time = time

@@ -9,6 +9,11 @@ feedthrough order as usual, and the torn source output ``y(v)`` is read back. Th
 when ``y(v) = v``: Newton's method on ``r(v) = y(v) - v`` with a forward-difference Jacobian,
 starting from the previous solution. The last evaluation is always at the accepted ``v``, so
 every FMU is left consistent.
+
+The compiled kernel solves the same loops the same way in C at every right-hand-side and root
+evaluation (``c/kernel.c``, ``solve_loop``; :class:`heliostep.cosim.kernel.Kernel`'s ``loop``),
+starting from the same guess :attr:`LoopSolver.v` (shared, updated in place); this class then
+solves them at events and on the Python path (``HELIOSTEP_COMPILED_RHS=0``).
 """
 
 from __future__ import annotations
@@ -47,6 +52,8 @@ class LoopSolver:
         self.solves = 0
         self.iterations = 0
         self.most_iterations = 0
+        #: the compiled kernel's (solves, iterations, most iterations), when it solves the loops too
+        self.compiled_counts: Callable[[], tuple[int, int, int]] | None = None
 
     def _residual(self, v: np.ndarray, propagate: Callable[[], None]) -> np.ndarray:
         self.write(v)
@@ -63,7 +70,7 @@ class LoopSolver:
             r = self._residual(v, propagate)  # every FMU left evaluated at v
         for iteration in range(self.max_iterations + 1):
             if np.all(np.abs(r) <= self.atol + self.rtol * np.abs(v)) and np.all(np.isfinite(r)):
-                self.v = v
+                self.v[:] = v  # in place: the compiled kernel reads it
                 self.iterations += iteration
                 self.most_iterations = max(self.most_iterations, iteration)
                 return
@@ -72,13 +79,16 @@ class LoopSolver:
             try:
                 step = np.linalg.solve(self._jacobian(v, r, propagate), -r)
             except np.linalg.LinAlgError:
-                raise self._singular(time) from None
+                raise self.singular(time) from None
             v = v + step
             r = self._residual(v, propagate)
-        raise LoopError(
+        raise self.no_convergence(time, float(np.max(np.abs(r))))
+
+    def no_convergence(self, time: float, residual: float) -> LoopError:
+        """The error of a loop not solved in ``max_iterations`` at ``time`` [s], its largest residual left."""
+        return LoopError(
             f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: no "
-            f"convergence in {self.max_iterations} Newton iterations (residual "
-            f"{np.max(np.abs(r)):.3g})"
+            f"convergence in {self.max_iterations} Newton iterations (residual {residual:.3g})"
         )
 
     def _jacobian(self, v: np.ndarray, r: np.ndarray, propagate: Callable[[], None]) -> np.ndarray:
@@ -96,17 +106,20 @@ class LoopSolver:
         solution: refused, naming the loop, rather than accepted at whatever v it starts from."""
         jacobian = self._jacobian(v, r, propagate)
         if not np.all(np.isfinite(jacobian)) or np.linalg.cond(jacobian) > 1e12:
-            raise self._singular(time)
+            raise self.singular(time)
 
-    def _singular(self, time: float) -> LoopError:
+    def singular(self, time: float) -> LoopError:
         return LoopError(
             f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: "
             "singular Jacobian (the loop has no unique solution)"
         )
 
     def statistics(self) -> dict:
+        """Solves, Newton iterations and the most in one solve: this solver's and the compiled kernel's."""
+        solves, iterations, most = self.compiled_counts() if self.compiled_counts is not None else (0, 0, 0)
         return {
-            "loop_solves": self.solves,
-            "loop_iterations": self.iterations,
-            "loop_most_iterations": self.most_iterations,
+            "loop_solves": self.solves + solves,
+            "loop_iterations": self.iterations + iterations,
+            "loop_most_iterations": max(self.most_iterations, most),
+            "loop_solves_compiled": solves,
         }

@@ -40,8 +40,8 @@ The trace has a row at every output time and a row just before and just after ev
 (two rows with the same time), so nothing that happens at a step is lost to interpolation.
 
 CVODE's right-hand side and root function are compiled C (:class:`~heliostep.cosim.integrator.CompiledIntegrator`,
-switch :data:`COMPILED_RHS`), or Python callbacks for runs with algebraic loops or non-Real
-continuous connections (:class:`~heliostep.cosim.integrator.CallbackIntegrator`). With a monitor
+switch :data:`COMPILED_RHS`; algebraic loops solved in it too), or Python callbacks for runs with
+non-Real continuous or torn connections (:class:`~heliostep.cosim.integrator.CallbackIntegrator`). With a monitor
 (every run of heliostep's) the loop over CVODE's internal steps is C on either
 (:meth:`heliostep.cosim.kernel.Kernel.advance`, the one such loop), recording the rows the monitor
 sees in blocks; with :data:`INTERPOLATE_OUTPUTS` (``HELIOSTEP_INTERPOLATE_OUTPUTS=0`` stops CVODE
@@ -103,7 +103,8 @@ class _Interrupted(Exception):
 
 
 #: CVODE calls the compiled right-hand side and root function (:mod:`heliostep.cosim.kernel`)
-#: directly; runs with algebraic loops or non-Real continuous connections get Python callbacks.
+#: directly (algebraic loops solved in C too); runs with non-Real continuous or torn connections
+#: get Python callbacks.
 COMPILED_RHS = os.environ.get("HELIOSTEP_COMPILED_RHS", "1") == "1"
 
 #: With a monitor (one-step CVODE), stop the solver only at input changes, time events and the

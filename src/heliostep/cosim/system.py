@@ -25,7 +25,7 @@ from heliostep.cosim.signals import SolverOptions
 
 if TYPE_CHECKING:
     from heliostep.cosim.connections import ConnectionGraph
-    from heliostep.cosim.kernel import KernelLink, KernelUnit
+    from heliostep.cosim.kernel import KernelLink, KernelLoop, KernelUnit
 
 
 def _instance_class(info: FMUInfo) -> type[ModelExchangeInstance]:
@@ -258,6 +258,35 @@ class CoupledSystem:
             column += len(outputs)
             units.append((u.fmu, int(x), int(z), outputs))
         return units
+
+    def kernel_loop(self) -> tuple[list[KernelLink], KernelLoop] | None:
+        """The continuous links and the algebraic loops for :class:`~heliostep.cosim.kernel.Kernel`, or
+        None when there are no loops, a continuous connection is not Real or a torn one is not Real to Real.
+
+        The loops: the solver, per torn connection (target unit index, target value reference, source
+        unit index, source value reference) and the index of the first link that depends on the torn
+        inputs. The links: :attr:`native_links` with those that do not depend on the torn inputs
+        first (their relative order kept): a link depends on them when its source is a torn input's
+        unit or the target of a link that does (by unit: conservative)."""
+        if self.loop is None or self.native_links is None:
+            return None
+        index = {name: k for k, name in enumerate(self.units)}
+        torn = []
+        for c in self.graph.torn:
+            (target, input_), (source, output) = split_name(c.target, "target"), split_name(c.source, "source")
+            ends = self.units[target].info.variable(input_), self.units[source].info.variable(output)
+            if any(end.type != "Real" for end in ends):
+                return None
+            torn.append((index[target], ends[0].value_reference, index[source], ends[1].value_reference))
+        reached = {target for target, _, _, _ in torn}
+        grown = True
+        while grown:
+            before = len(reached)
+            reached |= {link[1] for link in self.native_links if link[0] in reached}
+            grown = len(reached) > before
+        independent = [link for link in self.native_links if link[0] not in reached]
+        dependent = [link for link in self.native_links if link[0] in reached]
+        return independent + dependent, (self.loop, torn, len(independent))
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path."""

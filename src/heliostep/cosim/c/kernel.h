@@ -23,7 +23,7 @@ typedef int (*cvode_t)(void *, double, void *, double *, int);
 typedef int (*get_dky_t)(void *, double, int, void *);
 /* The master's own preparation of the FMUs at (t, x) for a row of hs_advance, replacing the
  * kernel's (set time and states, propagate the continuous Real connections) where the master
- * propagates itself (algebraic loops, non-Real connections, the Python right-hand side): x is
+ * propagates itself (non-Real or torn connections, the Python right-hand side): x is
  * NULL for a system without states. It is not called after the last internal step (the master
  * sets the states itself then). Returns 0, or -1 after recording its error on the master's side. */
 typedef int (*prepare_t)(double t, const double *x, void *user);
@@ -56,6 +56,26 @@ typedef struct {
     double *buffer;
 } hs_link;
 
+/* The torn inputs of a system's algebraic loops, solved at every propagation (kernel.c, solve_loop):
+ * Newton's method on r(v) = y(v) - v, v the torn inputs (set with fmi2SetReal), y the torn
+ * sources' outputs (read with fmi2GetReal after the connections that depend on v are copied), a forward-
+ * difference Jacobian, starting from the last solution (v, shared with heliostep/cosim/loops.py). */
+typedef struct {
+    long n;                                   /* torn inputs */
+    long first_link;                          /* hs_kernel.links[first_link...] depend on them: copied
+                                                 in every evaluation of r, those before once per solve */
+    const long *target_units, *source_units;  /* per torn connection: its target's and source's unit */
+    const unsigned int *target_vrs, *source_vrs;
+    double *v;                                /* the torn inputs: the starting guess, then the solution */
+    double *work;                             /* 3 n n + 4 n doubles */
+    double rtol, atol;                        /* converged when |r| <= atol + rtol |v| */
+    long max_iterations;
+    long checked;                             /* the first solve's check of a unique solution done */
+    long solves, iterations, most_iterations;
+    long failure;                             /* 0, LOOP_NO_CONVERGENCE or LOOP_SINGULAR */
+    double failed_time, failed_residual;
+} hs_loop;
+
 /* a supervisor's record of the FMI call in progress (heliostep/cosim/watch.py, Record) */
 typedef struct {
     long long unit, function, calls, stop; /* unit index, F_* code, calls begun, stop asked */
@@ -86,6 +106,7 @@ typedef struct {
     /* NULL, or a supervisor's record: before every FMI call the unit's index, the F_* code, the
      * time and a count of the calls begun are stored there */
     hs_where *where;
+    hs_loop *loop;            /* NULL, or the algebraic loops solved at every propagation */
 } hs_kernel;
 
 /* One call of hs_advance: what the caller sets, then what hs_advance updates. */
@@ -114,6 +135,9 @@ typedef struct {
 /* the FMI function of a failed evaluation (hs_kernel.failed_function) */
 enum { F_SET_TIME, F_SET_STATES, F_GET_REAL, F_SET_REAL, F_GET_DERIVATIVES, F_GET_EVENT_INDICATORS,
        F_GET_INTEGER, F_GET_BOOLEAN };
+
+/* hs_kernel.status of a loop that failed (hs_loop.failure says how); FMI statuses are 0-5 */
+enum { LOOP_FAILED = 100, LOOP_NO_CONVERGENCE = 1, LOOP_SINGULAR = 2 };
 
 /* what hs_advance returns */
 enum { ADVANCE_REACHED = 0, ADVANCE_ROOT = 1, ADVANCE_FULL = 2, ADVANCE_MAX_STEPS = 3,
