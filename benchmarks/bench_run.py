@@ -95,7 +95,7 @@ def monolithic(captured, repeat: int) -> tuple[float, dict]:
     table = np.array(rows, dtype=[("time", float)] + [(s.target.split(".", 1)[1], float) for s in inputs])
     start_values = {
         f"{instance}.{name}": value
-        for instance, values in system._parameters.items()
+        for instance, values in system.parameters.items()
         for name, value in values.items()
         if f"{instance}.{name}" in variables
     }
