@@ -17,11 +17,23 @@ edge, C_M = C_N (1/2 - x_cp / c):
   experiments, 1873; the naval architects' rudder-torque law), moving from about a fifth of the
   chord at small angles to the middle broadside.
 
-A panel tilted by theta_p about a horizontal axis with the wind horizontal and across the axis (the
-worst direction; the file's direction is not used) sees alpha = |theta_p|; the moment turns the
-panel away from the wind's edge-on attitude, i.e. it *increases* |theta_p| whichever side the wind
-comes from (a flat plate pivoted at its middle turns broadside): M has the sign of theta_p. It is 0
-flat (theta_p = 0, the stow attitude) and broadside (|theta_p| = 90 deg), largest (0.198) at 25.5 deg.
+The wind's direction: only the horizontal component of the wind normal to the panel's axis loads it
+(:func:`cross_wind_speed`), u = -v sin(phi - psi) for a wind blowing *from* azimuth phi on an axis
+along azimuth psi (both clockwise from north; u > 0 blows towards the side the panel's normal tilts to
+at theta_p > 0, azimuth psi + 90 deg). This is the cross-flow (independence) principle of a long
+yawed body: its loads are those of the velocity component normal to its axis (W. R. Sears, "The
+boundary layer of yawed cylinders", J. Aeronautical Sciences 15, 1948; J. C. Cooke, Proc. Cambridge
+Phil. Soc. 46, 1950). Exact for an infinitely long body with a laminar boundary layer, an
+approximation for a finite, separated panel: its end flow, and the load left with the wind along
+the axis, are neglected (docs/physics.md). Without a direction the wind is taken normal
+to the axis (u = v, the worst case).
+
+The signed angle of attack (:func:`attack_angle`) is theta_p in the frame of a wind blowing towards
++psi + 90 deg: it flips sign with the side the wind comes from. The moment in the panel's sense is
+M = sign(u) C_M*(sign(u) theta_p) q A c with C_M*(beta) = sign(beta) C_M(|beta|) the flat plate's odd
+curve, so the two sign flips cancel: a flat plate pivoted at its middle turns broadside, M has the
+sign of theta_p whichever side the wind comes from (it *increases* |theta_p|). It is 0 flat
+(theta_p = 0, the stow attitude) and broadside (|theta_p| = 90 deg), largest (0.198) at 25.5 deg.
 
 The mechanics FMU's ``m_ext`` is the moment *opposing* positive rotation (models/PanelMechanics.mo),
 so ``m_ext = -M`` (:func:`external_moment`).
@@ -43,7 +55,10 @@ __all__ = [
     "DURST_GUST_FACTOR",
     "ISA_SEA_LEVEL_DENSITY",
     "air_density",
+    "attack_angle",
     "centre_of_pressure",
+    "cross_wind_moment",
+    "cross_wind_speed",
     "external_moment",
     "moment_coefficient",
     "normal_force_coefficient",
@@ -108,6 +123,53 @@ def air_density(altitude, temperature=None) -> np.ndarray:
     return pressure / (AIR_GAS_CONSTANT * kelvin)  # ideal gas
 
 
+def cross_wind_speed(speed, direction=None, axis_azimuth: float = 0.0) -> np.ndarray:
+    """The wind's horizontal component normal to the panel's axis [m/s], signed (the module's docstring).
+
+    Parameters
+    ----------
+    speed : float or array  [m/s]
+        Mean wind speed.
+    direction : float or array, optional  [deg]
+        Where the wind blows *from*, clockwise from north (meteorological); None or NaN: normal to the
+        axis (the worst case, ``speed`` itself).
+    axis_azimuth : float  [deg]
+        The panel's axis, clockwise from north (an axis is the same at psi and psi + 180 deg).
+
+    Returns
+    -------
+    numpy.ndarray  [m/s]
+        u = -v sin(phi - psi): > 0 blowing towards azimuth psi + 90 deg, where the panel's normal
+        tilts at positive angles.
+    """
+    v = np.asarray(speed, dtype=float)
+    if direction is None:
+        return v
+    phi = np.asarray(direction, dtype=float)
+    cross = -v * np.sin(np.radians(phi - axis_azimuth))  # cross-flow principle (Sears 1948)
+    return np.where(np.isfinite(phi), cross, v)
+
+
+def attack_angle(panel_angle, cross_speed) -> np.ndarray:
+    """The signed angle of attack [rad]: ``panel_angle`` in the frame of a wind blowing towards the
+    panel's positive side, i.e. -``panel_angle`` for a wind ``cross_speed`` < 0 (from that side)."""
+    theta = np.asarray(panel_angle, dtype=float)
+    return np.where(np.asarray(cross_speed, dtype=float) < 0.0, -theta, theta)
+
+
+def cross_wind_moment(cross_speed, panel_angle, area: float, chord: float, density, gust_factor: float = 1.0):
+    """The moment [N.m] of a wind component ``cross_speed`` [m/s] normal to the axis (signed,
+    :func:`cross_wind_speed`) on a panel at ``panel_angle`` [rad], in the sense of positive rotation:
+    M = sign(u) C_M*(beta) 1/2 rho (G u)^2 A c, beta = :func:`attack_angle`, C_M* the flat plate's odd curve."""
+    u = np.asarray(cross_speed, dtype=float)
+    beta = attack_angle(panel_angle, u)
+    side = np.where(u < 0.0, -1.0, 1.0)  # the wind's frame back to the panel's
+    coefficient = np.sign(np.sin(beta)) * moment_coefficient(_attack(beta))  # C_M*(beta), odd
+    dynamic_pressure = 0.5 * np.asarray(density, dtype=float) * (gust_factor * u) ** 2  # q = rho (G u)^2 / 2
+    moment = side * coefficient * dynamic_pressure * area * chord  # M = C_M q A c
+    return float(moment) if np.ndim(moment) == 0 else moment
+
+
 def panel_wind_moment(
     speed,
     panel_angle,
@@ -115,15 +177,19 @@ def panel_wind_moment(
     chord: float,
     density=ISA_SEA_LEVEL_DENSITY,
     gust_factor: float = 1.0,
+    *,
+    direction=None,
+    axis_azimuth: float = 0.0,
 ):
     """The wind's moment on the panel axis [N.m], in the sense of positive rotation (vectorised).
 
-    M = sign(theta_p) C_M(|theta_p|) 1/2 rho (G v)^2 A c (the module's docstring: sources, sign).
+    M = sign(theta_p) C_M(|theta_p|) 1/2 rho (G u)^2 A c, u the wind's component normal to the axis
+    (the module's docstring: sources, signs, the direction).
 
     Parameters
     ----------
     speed : float or array  [m/s]
-        Mean wind speed, horizontal, taken across the panel's axis.
+        Mean wind speed, horizontal.
     panel_angle : float or array  [rad]
         The panel's tilt from horizontal about its axis.
     area : float  [m^2]
@@ -134,20 +200,21 @@ def panel_wind_moment(
         :func:`air_density`.
     gust_factor : float, default 1  [-]
         Peak over mean speed (:data:`DURST_GUST_FACTOR` for a mean from a weather file).
+    direction : float or array, optional  [deg]
+        Where the wind blows from, clockwise from north; None (or NaN): normal to the axis, the worst case.
+    axis_azimuth : float, default 0  [deg]
+        The panel's axis, clockwise from north.
 
     Returns
     -------
     float or numpy.ndarray  [N.m]
         Positive where it turns the panel towards positive angles (a float for scalar inputs).
     """
-    theta = np.asarray(panel_angle, dtype=float)
-    dynamic_pressure = 0.5 * density * (gust_factor * np.asarray(speed, dtype=float)) ** 2  # q = rho (G v)^2 / 2
-    moment = (
-        np.sign(np.sin(theta)) * moment_coefficient(_attack(theta)) * dynamic_pressure * area * chord
-    )  # M = C_M q A c
-    return float(moment) if np.ndim(moment) == 0 else moment
+    cross = cross_wind_speed(speed, direction, axis_azimuth)
+    return cross_wind_moment(cross, panel_angle, area, chord, density, gust_factor)
 
 
 def external_moment(speed, panel_angle, area: float, chord: float, density, gust_factor: float = 1.0):
-    """The mechanics FMU's ``m_ext`` [N.m] (opposing positive rotation): ``-panel_wind_moment(...)``."""
-    return -panel_wind_moment(speed, panel_angle, area, chord, density, gust_factor)
+    """The mechanics FMU's ``m_ext`` [N.m] (opposing positive rotation) of a wind component ``speed``
+    [m/s] normal to the axis (signed, :func:`cross_wind_speed`): ``-cross_wind_moment(...)``."""
+    return -cross_wind_moment(speed, panel_angle, area, chord, density, gust_factor)

@@ -14,6 +14,12 @@ and the tracking error (< 0.1 deg), which changes C_M by at most max|dC_M/dalpha
 1.06 x 1.75e-3 = 1.9e-3 (1 % of C_M's largest, 0.198; docs/physics.md). On each hold the value is
 the larger in magnitude of the moments at the hold's two ends, so the held signal never
 understates the continuous one between the knots.
+
+The wind's component normal to the panel's axis (:func:`heliostep.drive.wind.cross_wind_speed`) is
+taken at the knots and linear between them (the vector's interpolation, as the weather file's
+direction is interpolated), so q ~ u^2 is still largest at a hold's end. The axis
+(:func:`panel_axis_azimuth`): the primary axis runs along the tube, the secondary across it (taken
+horizontal: it turns with the primary, whose angle stays below the secondary's range here).
 """
 
 from __future__ import annotations
@@ -24,12 +30,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from heliostep.drive.wind import air_density, external_moment
+from heliostep.drive.wind import air_density, cross_wind_speed, external_moment
 from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.solar.irradiance import WeatherFile
 
-__all__ = ["WindKnots", "WindSignal", "commanded_panel_angle", "moment_signal", "wind_speed_knots"]
+__all__ = [
+    "WindKnots",
+    "WindSignal",
+    "commanded_panel_angle",
+    "moment_signal",
+    "panel_axis_azimuth",
+    "wind_speed_knots",
+]
 
 
 @dataclass(frozen=True)
@@ -82,12 +95,20 @@ def _weather_path(scenario: Scenario) -> Path:
 @dataclass(frozen=True)
 class WindKnots:
     """The wind over the window, linear between knots: ``times`` [s from the start], mean ``speed``
-    [m/s] and the air's ``temperature`` [degC] (None: the scenario's ``wind.air_temperature`` or
-    the ISA's)."""
+    [m/s], the air's ``temperature`` [degC] (None: the scenario's ``wind.air_temperature`` or
+    the ISA's) and the ``direction`` the wind blows from [deg clockwise from north] (None, or NaN
+    at a knot: normal to the panel's axis, the worst case)."""
 
     times: np.ndarray
     speed: np.ndarray
     temperature: np.ndarray | None = None
+    direction: np.ndarray | None = None
+
+    def cross_speed(self, times, axis_azimuth: float) -> np.ndarray:
+        """The wind's component normal to an axis along ``axis_azimuth`` [deg] at ``times`` [s], signed
+        [m/s] (:func:`heliostep.drive.wind.cross_wind_speed` at the knots, linear between them)."""
+        at_knots = cross_wind_speed(self.speed, self.direction, axis_azimuth)
+        return np.interp(np.asarray(times, dtype=float), self.times, np.broadcast_to(at_knots, self.times.shape))
 
     def density(self, scenario: Scenario, times) -> np.ndarray:
         """Air density [kg/m^3] at ``times`` [s]: the site's altitude at the file's temperature where
@@ -103,14 +124,16 @@ def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -
     """The mean wind speed's knots over the window (:class:`WindKnots`); None with a constant moment
     (no speed). InputError names the file and key when a weather file has no wind speed over the window."""
     wind = scenario.wind
+    given = None if wind.direction is None else float(wind.direction)
     if wind.speed is not None:
-        return WindKnots(np.array([0.0, duration]), np.array([wind.speed, wind.speed]))
+        times = np.array([0.0, duration])
+        return WindKnots(times, np.array([wind.speed, wind.speed]), None, _constant(given, times))
     if wind.profile is not None:
         t = np.array([p[0] for p in wind.profile], dtype=float)
         v = np.array([p[1] for p in wind.profile], dtype=float)
         inside = t[(t > 0.0) & (t < duration)]
         times = np.concatenate([[0.0], inside, [duration]])
-        return WindKnots(times, np.interp(times, t, v))
+        return WindKnots(times, np.interp(times, t, v), None, _constant(given, times))
     if wind.weather_file is None:
         return None
     path = _weather_path(scenario)
@@ -126,7 +149,21 @@ def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -
             f"marked missing) over the window {start} - {end}; expected a speed [m/s] at every stamp"
         )
     temperature = None if series.air_temperature is None else series.air_temperature.to_numpy(dtype=float)
-    return WindKnots((instants - start).total_seconds().to_numpy(dtype=float), speed, temperature)
+    times = (instants - start).total_seconds().to_numpy(dtype=float)
+    direction = None if series.wind_direction is None else series.wind_direction.to_numpy(dtype=float)
+    return WindKnots(times, speed, temperature, direction if given is None else _constant(given, times))
+
+
+def _constant(direction: float | None, times: np.ndarray) -> np.ndarray | None:
+    return None if direction is None else np.full(times.shape, direction)
+
+
+def panel_axis_azimuth(scenario: Scenario) -> float:
+    """The driven panel's axis [deg clockwise from north]: the tube's azimuth for the primary axis, 90 deg
+    more for the secondary (docs/physics.md, frames: the primary turns about the tube's y, the
+    secondary about an axis across it)."""
+    tube = scenario.plant.to_plant().azimuth
+    return float(tube if scenario.mirror.axis == "primary" else tube + 90.0)
 
 
 def commanded_panel_angle(rotor_angle, panel_start: float, pinion_radius: float, lever_arm: float) -> np.ndarray:
@@ -156,6 +193,7 @@ def moment_signal(
     """
     wind, optics = scenario.wind, scenario.optics
     t_knots, v_knots = knots.times, knots.speed
+    axis = panel_axis_azimuth(scenario)
     grid = np.arange(0.0, duration, wind.update_interval)
     changes = np.unique(np.concatenate([step_times, t_knots, grid]))
     changes = changes[(changes > 0.0) & (changes < duration)]
@@ -164,7 +202,7 @@ def moment_signal(
     angle = commanded_panel(starts)  # held over each interval (the command changes only at steps)
 
     def at(times):
-        speed = np.interp(times, t_knots, v_knots)
+        speed = knots.cross_speed(times, axis)  # the component normal to the axis
         density = knots.density(scenario, times)
         return external_moment(speed, angle, optics.aperture_area, optics.mirror_width, density, wind.gust_factor)
 

@@ -319,7 +319,9 @@ class WindConfig(Section):
     The load is a constant ``moment`` [N.m], or the moment of a wind speed
     (:func:`heliostep.drive.wind.panel_wind_moment`) from one source: a constant ``speed``, a
     ``weather_file`` (TMY3/EPW, its wind speed at its stamps) or a ``profile`` (a design gust,
-    [time from the window start [s], speed [m/s]] points, linear between them). With a speed the
+    [time from the window start [s], speed [m/s]] points, linear between them); its component normal
+    to the panel's axis loads the panel, the wind from ``direction`` (null: the file's, else the worst
+    case, normal to the axis). With a speed the
     panel stows above ``stow_speed`` (null: never) at ``slew_rate`` to ``stow_angle`` and returns
     once the wind has stayed at or below it for ``calm_time``.
     """
@@ -329,6 +331,13 @@ class WindConfig(Section):
     weather_file: str | None = Field(None, description="TMY3 (.csv) or EPW (.epw) file whose wind speed is used")
     profile: list[tuple[Real, Real]] | None = Field(
         None, description="design gust: [[time [s] from the window start, speed [m/s]], ...], linear between"
+    )
+    direction: Real | None = Field(
+        None,
+        ge=0.0,
+        le=360.0,
+        description="[deg] the wind blows from, clockwise from north; null: the weather file's where it has one, "
+        "else normal to the panel's axis (the worst case)",
     )
     gust_factor: Real = Field(DEFAULT_GUST_FACTOR, ge=1.0, description="[-], peak over mean speed, on the moment")
     air_temperature: Real | None = Field(
@@ -349,6 +358,10 @@ class WindConfig(Section):
         given = [key for key in ("speed", "weather_file", "profile") if getattr(self, key) is not None]
         if len(given) > 1:
             raise KeyProblems([((given[1],), f"give one wind speed source, got {', '.join(given)}")])
+        if self.direction is not None and not given:
+            raise KeyProblems(
+                [(("direction",), "a wind direction needs a wind speed (speed, weather_file or profile)")]
+            )
         if given and self.moment != 0.0:
             raise KeyProblems([(("moment",), f"a constant moment or a wind speed ({given[0]}), not both")])
         if self.profile is not None:
