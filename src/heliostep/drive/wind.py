@@ -44,7 +44,9 @@ at the ISA temperature T0 - L h unless a temperature is given.
 
 Gust factor: the peak 3-s gust over the hourly mean speed in open terrain at 10 m, 1.52 (Durst's
 curve: C. S. Durst, "Wind speeds over short periods of time", *Meteorological Magazine* 89, 1960;
-ASCE 7-16 commentary, Fig. C26.5-1). A weather file's speed is a mean; the moment takes the gust.
+ASCE 7-16 commentary, Fig. C26.5-1), for extratropical winds: tropical-cyclone gust factors are
+higher (Krayer & Marshall, Bull. Amer. Meteor. Soc. 73, 1992; docs/physics.md). A weather file's
+speed is a mean; the moment takes the gust.
 """
 
 from __future__ import annotations
