@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from heliostep.drive import wind
+from heliostep.drive.inputs import prepare_inputs
 from heliostep.drive.wind_load import moment_signal, panel_axis_azimuth, wind_speed_knots
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
@@ -163,3 +164,26 @@ def test_a_direction_without_a_wind_speed_is_an_input_error():
         load_scenario(scenarios_dir() / "jan21-windy.yaml", ["wind.profile=null", "wind.direction=90"])
     with pytest.raises(InputError, match="wind.direction"):
         load_scenario(scenarios_dir() / "jan21-windy.yaml", ["wind.direction=400"])
+
+
+def test_the_runs_wind_input_takes_the_files_direction(tmp_path):
+    # the drive's m_ext signal as a run gets it (prepare_inputs): a wind from the north blows along the
+    # primary axis of a north-south plant and loads nothing; from the east it is the worst case
+    def signal(direction: float):
+        path = write_epw(
+            tmp_path / f"d{direction:g}.epw",
+            latitude=40.0,
+            longitude=14.25,
+            wind_of_hour=lambda h: 10.0,
+            direction_of_hour=lambda h: direction,
+        )
+        inputs = prepare_inputs(_scenario(path, 'window.start="11:15"', "window.duration=20"))
+        return inputs.wind_signal
+
+    along, across = signal(360.0), signal(90.0)  # EPW: 360 is north (0 is "undefined")
+    assert np.max(np.abs(along.values)) < 1e-9 * np.max(np.abs(across.values))
+    panel = across.angles  # the commanded panel angle over each hold
+    c_n = 1.0 / (0.222 + 0.283 / np.sin(np.abs(panel)))
+    cm = np.sign(panel) * c_n * (0.5 - 0.195 - 0.305 * np.sin(np.abs(panel)))
+    density = 101325.0 / (287.05287 * 283.15)  # the EPW's dry bulb, 10 degC, at sea level
+    np.testing.assert_allclose(across.values, -cm * 0.5 * density * (1.52 * 10.0) ** 2 * AREA * CHORD, rtol=1e-9)
