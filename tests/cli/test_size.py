@@ -202,7 +202,12 @@ def test_an_unknown_candidate_is_exit_2(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     ("option", "named"),
-    [(["--design-gust", "-5"], "--design-gust"), (["--days", "400"], "--days"), (["--safety-factor", "0"], "--safety")],
+    [
+        (["--design-gust", "-5"], "--design-gust"),
+        (["--days", "400"], "--days"),
+        (["--days", "some"], "--days some: expected days of the year (1..365) or 'all'"),
+        (["--safety-factor", "0"], "--safety"),
+    ],
 )
 def test_bad_options_are_exit_2(tmp_path, capsys, option, named):
     catalogue = _catalogue(tmp_path, {"small": SMALL})
@@ -273,8 +278,8 @@ def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
 def test_the_command_line_defaults_are_the_sizings():
     # cli.size spells its defaults out so that no command's start imports the sizing; they must agree
     from heliostep.cli import size as command
-    from heliostep.sweep import sizing
+    from heliostep.sweep import sizing, sizing_days
 
-    assert command.FASTEST_DAYS == sizing.FASTEST_DAYS
+    assert command.ALL_DAYS == sizing_days.ALL_DAYS
     assert command.DEFAULT_SAFETY_FACTOR == sizing.DEFAULT_SAFETY_FACTOR
     assert command.DEFAULT_CURVE_RATES == sizing.DEFAULT_CURVE_RATES

@@ -167,6 +167,28 @@ def _budget_table(sheet: Mapping[str, Any]) -> str:
     return _table(headers, rows)
 
 
+def _days_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "day [day of year]",
+        "date [YYYY-MM-DD]",
+        "largest panel rate in the window [deg/s]",
+        "largest mean wind in the window [m/s]",
+        "why [text]",
+    )
+    selection = sheet.get("day_selection") or {"days": [{"day_of_year": d} for d in sheet["days"]]}
+    rows = [
+        (
+            day["day_of_year"],
+            day.get("date"),
+            day.get("panel_rate_deg_s"),
+            day.get("wind_speed_m_s"),
+            "; ".join(day.get("reasons", [])),
+        )
+        for day in selection["days"]
+    ]
+    return _table(headers, rows)
+
+
 def _catalogue_table(sheet: Mapping[str, Any]) -> str:
     headers = (
         "candidate [name]",
@@ -262,6 +284,9 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         "<h2>Speed-torque curves</h2>",
         _image(speed_torque_png(sheet), "speed-torque curves"),
         _curve_table(sheet),
+        "<h2>Days simulated</h2>",
+        f"<p>{html.escape((sheet.get('day_selection') or {}).get('criterion', ''))}</p>",
+        _days_table(sheet),
         "<h2>Catalogue</h2>",
         _catalogue_table(sheet),
         "</body></html>",

@@ -8,7 +8,8 @@ its currents is judged on:
 * the **margin to slip while tracking**: the largest static load the motor steps against from rest
   (:func:`~heliostep.run.load_budget.static_step_limit`) over the load budget;
 * the **margin at idle current**: the holding torque at the idle current over the wind's share;
-* the **co-simulated days** (:data:`FASTEST_DAYS` or ``days``): the scenario's window on each day with
+* the **co-simulated days** (:mod:`heliostep.sweep.sizing_days`: the sun's fastest days and, with a weather
+  file, the year's windiest, found over the year; or ``days``, or all 365): the scenario's window on each day with
   the candidate's motor, the current and the design wind moment, run through
   :func:`~heliostep.run.run_scenario` (locally, or on Dask with a scheduler): steps missed and lost,
   the worst tracking error, the drive's energy.
@@ -42,6 +43,7 @@ from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenari
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
+from heliostep.sweep.sizing_days import select_days
 from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sweep.sizing_verdict import judge
 from heliostep.sweep.worker import FmuPayload, _local_fmu
@@ -49,7 +51,6 @@ from heliostep.sweep.worker import FmuPayload, _local_fmu
 __all__ = [
     "DEFAULT_CURVE_RATES",
     "DEFAULT_SAFETY_FACTOR",
-    "FASTEST_DAYS",
     "SizingCase",
     "SizingPlan",
     "design_gust_moment",
@@ -61,10 +62,6 @@ __all__ = [
 
 #: The paper's margin, here on the load (the paper put it on the motor's transient peak).
 DEFAULT_SAFETY_FACTOR = 2.0
-#: The days simulated unless ``days`` is given (day of the year): the equinoxes (about 20 March,
-#: 22 September: the sun's declination changes fastest, 0.4 deg/day) and the solstices (21 June,
-#: 21 December: the sun's daily path is longest and shortest, the tracking rates' extremes).
-FASTEST_DAYS = (80, 172, 265, 355)
 #: Step rates of each candidate's speed-torque curve on the sheet [full steps/s].
 DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
 
@@ -126,12 +123,13 @@ def plan_sizing(
     candidates: Sequence[MotorCandidate],
     *,
     design_gust: float | None = None,
-    days: Sequence[int] = (),
+    days: Sequence[int] | str = (),
     safety_factor: float = DEFAULT_SAFETY_FACTOR,
     curve_rates: Sequence[float] = DEFAULT_CURVE_RATES,
     overrides: Sequence[str] = (),
 ) -> SizingPlan:
     """Every case of the sizing, each case's scenario validated (an :class:`InputError` before any run).
+    ``days``: days of the year, ``"all"``, or empty for the selection of :mod:`heliostep.sweep.sizing_days`;
     ``overrides``: ``--set``-style items applied to the scenario first."""
     path = resolve_scenario_path(scenario_path)
     raw = read_yaml_file(path, "scenario")
@@ -145,18 +143,27 @@ def plan_sizing(
         raise InputError(f"--safety-factor {safety_factor!r}: expected > 0")
     if any(not (math.isfinite(rate) and rate > 0) for rate in curve_rates):
         raise InputError(f"--curve-rates {list(curve_rates)}: expected step rates > 0 [full steps/s]")
-    bad_days = [day for day in days if not 1 <= day <= 365]
+    bad_days = [] if isinstance(days, str) else [day for day in days if not 1 <= day <= 365]
     if bad_days:
         raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
     if design_gust is not None:
         wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
     else:
         wind, source = scenario.wind.moment, f"{scenario.source}: wind.moment"
-    chosen_days = sorted(set(days)) if days else list(FASTEST_DAYS)
+    selection = select_days(scenario, days)
     rates = tuple(sorted(float(rate) for rate in curve_rates))
     plan = SizingPlan(
-        scenario, raw, path.absolute().parent, list(candidates), chosen_days, float(wind), source, safety_factor, rates
+        scenario,
+        raw,
+        path.absolute().parent,
+        list(candidates),
+        selection.days,
+        float(wind),
+        source,
+        safety_factor,
+        rates,
     )
+    plan.day_selection = selection
     year = scenario.window.date.year
     for candidate in plan.candidates:
         for current in candidate.currents:
