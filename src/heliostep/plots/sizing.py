@@ -35,9 +35,18 @@ def speed_torque_png(sheet: Mapping[str, Any]) -> bytes | None:
         return None
     figure = Figure(figsize=(7.5, 4.5))
     axes = figure.add_subplot()
+    worst = {c["name"]: c["speed_torque_worst"] for c in sheet["candidates"] if "speed_torque_worst" in c}
     for name, curve in curves:
         (line,) = axes.plot(curve["step_rates_per_s"], curve["pull_out_torques_Nm"], "o-", label=f"{name}, pull-out")
         axes.axhline(curve["holding_torque_Nm"], color=line.get_color(), linestyle=":", linewidth=1)
+        if name in worst:
+            axes.plot(
+                worst[name]["step_rates_per_s"],
+                worst[name]["pull_out_torques_Nm"],
+                "x--",
+                color=line.get_color(),
+                label=f"{name}, pull-out at the ranges' worst corner",
+            )
     loads = [row["load_budget"]["total_Nm"] for c in sheet["candidates"] for row in c["currents"]]
     if loads:
         axes.axhline(
@@ -107,6 +116,9 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
         "steps missed [steps]",
         "worst tracking error [deg]",
         "drive energy per day [J]",
+        "drive energy per year [kWh]",
+        "light change vs ideal tracking, stowed included [%]",
+        "light lost while stowed [J]",
         "verdict [pass/fail]",
         "reasons [text]",
     )
@@ -127,6 +139,9 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
                     simulated["missed_steps"],
                     simulated["max_tracking_error_deg"],
                     simulated["drive_energy_per_day_J"],
+                    simulated.get("drive_energy_per_year_kWh"),
+                    None if simulated.get("light_change_share") is None else 100.0 * simulated["light_change_share"],
+                    simulated.get("light_lost_stowed_J"),
                     row["verdict"],
                     "; ".join(row["reasons"]) or "passes",
                 )
@@ -223,14 +238,68 @@ def _catalogue_table(sheet: Mapping[str, Any]) -> str:
 
 
 def _curve_table(sheet: Mapping[str, Any]) -> str:
-    headers = ("candidate [name]", "current [A]", "step rate [full steps/s]", "pull-out torque [N.m]")
+    headers = (
+        "candidate [name]",
+        "current [A]",
+        "step rate [full steps/s]",
+        "pull-out torque [N.m]",
+        "pull-out at the ranges' worst corner [N.m]",
+    )
+    rows = []
+    for c in sheet["candidates"]:
+        if "speed_torque" not in c:
+            continue
+        curve, worst = c["speed_torque"], c.get("speed_torque_worst")
+        for k, (rate, torque) in enumerate(zip(curve["step_rates_per_s"], curve["pull_out_torques_Nm"])):
+            rows.append(
+                (c["name"], curve["current_A"], rate, torque, worst["pull_out_torques_Nm"][k] if worst else None)
+            )
+    return _table(headers, rows)
+
+
+def _band_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "candidate [name]",
+        "current [A]",
+        "corners [count]",
+        "tracking margin, nominal [1]",
+        "tracking margin, least over the corners [1]",
+        "tracking margin, largest [1]",
+        "idle margin, least [1]",
+        "idle margin, largest [1]",
+        "corner of the least tracking margin [key=value]",
+        "keys not in the margins [key]",
+    )
     rows = [
-        (c["name"], c["speed_torque"]["current_A"], rate, torque)
+        (
+            c["name"],
+            row["current_A"],
+            row["band"]["corners"],
+            row["tracking_margin"],
+            row["band"]["tracking_margin_min"],
+            row["band"]["tracking_margin_max"],
+            row["band"]["idle_margin_min"],
+            row["band"]["idle_margin_max"],
+            ", ".join(f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()),
+            row["band"]["keys_not_in_the_margins"],
+        )
         for c in sheet["candidates"]
-        if "speed_torque" in c
-        for rate, torque in zip(c["speed_torque"]["step_rates_per_s"], c["speed_torque"]["pull_out_torques_Nm"])
+        for row in c["currents"]
+        if "band" in row
     ]
     return _table(headers, rows)
+
+
+def _energy_note(sheet: Mapping[str, Any]) -> str:
+    rows = [row["simulation"] for c in sheet["candidates"] for row in c["currents"]]
+    estimator = next(
+        (r.get("drive_energy_per_year_estimator") for r in rows if r.get("drive_energy_per_year_estimator")), ""
+    )
+    return (
+        f"<p>Drive energy per year: {html.escape(estimator)}. Light change: the light on the receiver over the "
+        "simulated windows against ideal two-axis tracking of the same windows, the light lost while stowed "
+        "included.</p>"
+    )
 
 
 _STYLE = (
@@ -278,9 +347,14 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"<h2>Why each smaller one fails</h2><ul>{smaller or '<li>none smaller</li>'}</ul>",
         "<h2>Verdicts</h2>",
         _verdict_table(sheet),
+        _energy_note(sheet),
         _image(margins_png(sheet), "margins"),
         "<h2>Load budget at the worst instant</h2>",
         _budget_table(sheet),
+        "<h2>Uncertainty band of the drive physics</h2>",
+        "<p>The margins at every corner of the bands' parameter ranges (data/parameter_ranges.yaml); the "
+        "speed-torque curve co-simulated again at the worst corner (the lowest bus and loop gain).</p>",
+        _band_table(sheet),
         "<h2>Speed-torque curves</h2>",
         _image(speed_torque_png(sheet), "speed-torque curves"),
         _curve_table(sheet),

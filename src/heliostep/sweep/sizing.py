@@ -43,6 +43,8 @@ from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenari
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
+from heliostep.sweep.band import load_ranges
+from heliostep.sweep.sizing_band import drive_at, worst_corner
 from heliostep.sweep.sizing_days import select_days
 from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sweep.sizing_verdict import judge
@@ -164,6 +166,7 @@ def plan_sizing(
         rates,
     )
     plan.day_selection = selection
+    plan.ranges = load_ranges()
     year = scenario.window.date.year
     for candidate in plan.candidates:
         for current in candidate.currents:
@@ -207,7 +210,13 @@ def run_sizing_case(
         "steps_lost",
         "electrical_energy_J",
         "drive_energy_per_day_J",
+        "drive_power_mean_W",
         "peak_torque_Nm",
+        "light_energy_ideal_J",
+        "light_energy_J",
+        "light_lost_J",
+        "light_lost_stowed_J",
+        "stowed_time_s",
     )
     record = {key: figures.get(key) for key in keep}
     record.update(complete=True, wall_time_s=clock.perf_counter() - started)
@@ -280,15 +289,24 @@ def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_st
                 on_case(key, results[key])
 
 
-def _curves(plan: SizingPlan) -> dict[str, SpeedTorqueCurve]:
-    """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated)."""
+def _curves(plan: SizingPlan, worst: bool = False) -> dict[str, SpeedTorqueCurve]:
+    """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated); ``worst``: at
+    the ranges' worst corner (:func:`heliostep.sweep.sizing_band.worst_corner`)."""
     mode, microsteps = plan.scenario.sequencer.mode, plan.scenario.sequencer.microsteps
+    motor = _instance(plan.scenario, "torque", "motor")
+    corner = worst_corner(plan.ranges) if worst else {}
     return {
-        c.name: speed_torque_curve(c.drive(), c.currents[-1], plan.curve_rates, mode=mode, microsteps=microsteps)
+        c.name: speed_torque_curve(
+            drive_at(c.drive(), corner, motor), c.currents[-1], plan.curve_rates, mode=mode, microsteps=microsteps
+        )
         for c in plan.candidates
     }
 
 
 def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool = True) -> dict:
-    """The sizing sheet's content: per candidate and current, the figures and the verdict."""
-    return judge(plan, results, _curves(plan) if curves else {})
+    """The sizing sheet's content: per candidate and current, the figures and the verdict; with ``curves``
+    each candidate's speed-torque curve, nominal and at the ranges' worst corner."""
+    if not curves:
+        return judge(plan, results, {}, {})
+    worst = _curves(plan, worst=True) if plan.ranges else {}
+    return judge(plan, results, _curves(plan), worst)

@@ -92,9 +92,10 @@ class DaySelection:
     days: list[int]
     chosen: list[ChosenDay] = field(default_factory=list)
     criterion: str = ""
+    kind: str = "selected"  # "selected" (the fastest and windiest), "all" (365) or "given"
 
     def record(self) -> dict:
-        return {"criterion": self.criterion, "days": [day.record() for day in self.chosen]}
+        return {"kind": self.kind, "criterion": self.criterion, "days": [day.record() for day in self.chosen]}
 
 
 def _date_of(year: int, day_of_year: int) -> dt.date:
@@ -225,11 +226,11 @@ def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelect
             raise InputError(f"--days {days!r}: expected days of the year (1..365) or {ALL_DAYS!r}")
         every = list(range(1, DAYS_IN_YEAR + 1))
         chosen = [ChosenDay(d, _date_of(year, d), ("every day of the year (--days all)",)) for d in every]
-        return DaySelection(every, chosen, "every day of the year (--days all)")
+        return DaySelection(every, chosen, "every day of the year (--days all)", "all")
     if days:
         given = sorted(set(int(d) for d in days))
         chosen = [ChosenDay(d, _date_of(year, d), ("given (--days)",)) for d in given]
-        return DaySelection(given, chosen, "the days given (--days)")
+        return DaySelection(given, chosen, "the days given (--days)", "given")
     windows = day_windows(scenario)
     rates = panel_rates(scenario, windows)
     has_weather = scenario.wind.weather_file is not None
