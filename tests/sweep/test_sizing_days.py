@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import math
 
 import numpy as np
 import pandas as pd
@@ -116,3 +117,51 @@ def test_all_days_and_given_days_are_taken_as_they_are():
     assert given.days == [21, 172] and given.chosen[0].reasons == ("given (--days)",)
     with pytest.raises(InputError, match="--days 'some'"):
         select_days(scenario, "some")
+
+
+def _hinge_moment(speed: float, attack: float) -> float:
+    """M = C_M 1/2 rho (G v)^2 A c of the flat mirror about its mid-chord: Hoerner's normal force
+    C_N = 1 / (0.222 + 0.283 / sin a) at Joessel's centre of pressure x/c = 0.195 + 0.305 sin a; ISA
+    sea-level air, Durst's gust factor 1.52, the 0.3 m x 1.5 m mirror (A = 0.45 m^2, c = 0.3 m)."""
+    normal = 1.0 / (0.222 + 0.283 / math.sin(attack))
+    arm = 0.5 - (0.195 + 0.305 * math.sin(attack))
+    return normal * arm * 0.5 * 1.225 * (1.52 * speed) ** 2 * 0.45 * 0.3
+
+
+def test_the_weather_files_wind_is_each_days_load_budget(tmp_path, fmu_paths):
+    """Without a design gust the budget takes each day's wind over time: the windiest day's gust at the
+    window's start is the worst instant, its moment the flat plate's, reflected through g."""
+    from heliostep.scenario.catalogue import load_catalogue
+    from heliostep.sweep.sizing import judge_candidates, plan_sizing
+
+    _year_tmy3(tmp_path / "year.csv")
+    (tmp_path / "s.yaml").write_text(CENTRAL.read_text())
+    candidates = load_catalogue(None, ["QSH8618-80-55-460"])
+    overrides = ["site.timezone=Etc/GMT-1", "wind.weather_file=year.csv", "wind.stow_speed=null"]
+    plan = plan_sizing(tmp_path / "s.yaml", candidates, overrides=[*overrides, "window.duration=60"])
+    assert plan.wind_moment is None and {40, 200, 250} < set(plan.days)
+    assert all("wind.moment" not in item for case in plan.cases for item in case.overrides)
+    sheet = judge_candidates(plan, {}, curves=False)  # the budgets need no simulation
+    budget = sheet["candidates"][0]["currents"][0]["load_budget"]
+    assert budget["day_of_year"] == 200 and budget["time_s"] < 1.0  # 20 m/s at 10:00, the window's start
+    attack = math.radians(abs(budget["panel_angle_deg"]))
+    assert abs(budget["wind_moment_Nm"]) == pytest.approx(_hinge_moment(20.0, attack), rel=1e-2)
+    # g = s / (r cos^2 theta_p), the paper's lever 0.3 m and pinion 2.5 mm
+    assert budget["wind_Nm"] == pytest.approx(
+        abs(budget["wind_moment_Nm"]) * 2.5e-3 * math.cos(attack) ** 2 / 0.3, rel=1e-9
+    )
+
+
+def test_with_a_weather_file_only_the_days_it_covers_are_taken(tmp_path):
+    from weather_files import write_epw
+
+    write_epw(tmp_path / "w.epw", latitude=40.0, longitude=14.25, wind_of_hour=lambda h: 3.0 + h)  # 21 January
+    (tmp_path / "s.yaml").write_text(CENTRAL.read_text())
+    scenario = load_scenario(tmp_path / "s.yaml", ["wind.weather_file=w.epw"])
+    selection = select_days(scenario)
+    # the one day the file covers is both the fastest and the windiest there: 3 + 10 m/s at 10:00, 3 + 11 at
+    # 11:00, so 13 + 5/60 m/s at the window's end (10:05)
+    assert selection.days == [21]
+    assert selection.chosen[0].wind_speed_m_s == pytest.approx(13.0 + 5.0 / 60.0)
+    with pytest.raises(InputError, match=r"w\.epw has no wind speed within the window on day\(s\) \[172\]"):
+        select_days(scenario, [21, 172])

@@ -314,6 +314,12 @@ def _image(png: bytes | None, alt: str) -> str:
     return f'<p><img alt="{html.escape(alt)}" src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}"></p>'
 
 
+def _wind_text(wind: Mapping[str, Any]) -> str:
+    if wind["moment_Nm"] is None:
+        return f"{html.escape(wind['source'])} (each day's moment at its worst instant: the load budget table)"
+    return f"{wind['moment_Nm']:.4g} N.m on the panel axis ({html.escape(wind['source'])})"
+
+
 def sizing_html(sheet: Mapping[str, Any]) -> str:
     """The sizing sheet as one HTML page (everything embedded)."""
     best = sheet.get("smallest_passing")
@@ -339,7 +345,7 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>sizing: {html.escape(sheet['scenario'])}</title>",
         f"<style>{_STYLE}</style></head><body>",
         f"<h1>Sizing sheet: {html.escape(sheet['scenario'])}</h1>",
-        f"<p>Wind: {sheet['wind']['moment_Nm']:.4g} N.m on the panel axis ({html.escape(sheet['wind']['source'])}); "
+        f"<p>Wind: {_wind_text(sheet['wind'])}; "
         f"safety factor {sheet['safety_factor']:g} on the load; days simulated (day of year): "
         f"{html.escape(', '.join(map(str, sheet['days'])))}.</p>",
         status,

@@ -81,6 +81,13 @@ def design_gust_moment(scenario: Scenario, gust_speed: float) -> float:
     return float(np.max(np.abs(moments)))
 
 
+def _speed_source(scenario: Scenario) -> str:
+    wind = scenario.wind
+    if wind.weather_file is not None:
+        return f"wind.weather_file {wind.weather_file}"
+    return "wind.speed" if wind.speed is not None else "wind.profile"
+
+
 def _date_of(year: int, day_of_year: int) -> dt.date:
     return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
@@ -90,7 +97,11 @@ def _instance(scenario: Scenario, role: str, default: str) -> str:
     return target.partition(".")[0] if target else default
 
 
-def _case_overrides(scenario: Scenario, candidate: MotorCandidate, current: float, day: dt.date, wind: float):
+def _case_overrides(
+    scenario: Scenario, candidate: MotorCandidate, current: float, day: dt.date, wind: float | None
+) -> tuple[str, ...]:
+    """A case's ``--set`` items; ``wind``: the design moment [N.m], which replaces the scenario's wind
+    speed source (if any), or None: the scenario's wind over time as it is."""
     motor, mechanics = _instance(scenario, "torque", "motor"), _instance(scenario, "wind_moment", "mechanics")
     drive = candidate.drive()
     values = [f"parameters.{motor}.{name}={value!r}" for name, value in drive.motor_parameters().items()]
@@ -100,8 +111,14 @@ def _case_overrides(scenario: Scenario, candidate: MotorCandidate, current: floa
         f"sequencer.current={current!r}",
         f"sequencer.step_angle={candidate.step_angle!r}",
         f"window.date={day.isoformat()}",
-        f"wind.moment={wind!r}",
+        *(() if wind is None else _design_wind(scenario, wind)),
     )
+
+
+def _design_wind(scenario: Scenario, wind: float) -> tuple[str, ...]:
+    """The design moment as the case's wind: the constant ``wind.moment``, the speed sources off."""
+    sources = [key for key in ("speed", "weather_file", "profile") if getattr(scenario.wind, key) is not None]
+    return (*(f"wind.{key}=null" for key in sources), f"wind.moment={wind!r}")
 
 
 def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, float]:
@@ -148,8 +165,11 @@ def plan_sizing(
     bad_days = [] if isinstance(days, str) else [day for day in days if not 1 <= day <= 365]
     if bad_days:
         raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
+    wind: float | None
     if design_gust is not None:
         wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
+    elif scenario.wind.has_speed:
+        wind, source = None, f"{scenario.source}: the wind over time ({_speed_source(scenario)}), each day's own"
     else:
         wind, source = scenario.wind.moment, f"{scenario.source}: wind.moment"
     selection = select_days(scenario, days)
@@ -160,7 +180,7 @@ def plan_sizing(
         path.absolute().parent,
         list(candidates),
         selection.days,
-        float(wind),
+        None if wind is None else float(wind),
         source,
         safety_factor,
         rates,

@@ -175,27 +175,48 @@ def _weather_path(scenario: Scenario) -> Path:
     return path if path.is_absolute() else Path(scenario.folder) / path
 
 
+def _window_instants(window: tuple[pd.Timestamp, pd.Timestamp]) -> pd.DatetimeIndex:
+    """A window's ends and the whole hours inside it: where a linear interpolant has its largest value."""
+    start, end = window
+    hours = pd.date_range(start.ceil("h"), end.floor("h"), freq="h")
+    return pd.DatetimeIndex([start, *[h for h in hours if start < h < end], end])
+
+
+def _largest_speeds(weather: WeatherFile, instants: pd.DatetimeIndex, owner: np.ndarray, days: int) -> np.ndarray:
+    """The largest speed per owner day of ``instants`` (NaN where any is missing); InputError when the
+    file does not cover them."""
+    series = weather.series(instants)
+    speeds = np.full(days, np.nan)
+    if series.wind_speed is None:
+        return speeds
+    frame = pd.DataFrame({"day": owner, "speed": series.wind_speed.to_numpy(dtype=float)})
+    grouped = frame.groupby("day")["speed"]
+    largest = grouped.max().where(grouped.apply(lambda v: bool(np.all(np.isfinite(v)))))
+    speeds[largest.index.to_numpy()] = largest.to_numpy()
+    return speeds
+
+
 def window_wind_speeds(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp, pd.Timestamp] | None]) -> np.ndarray:
     """The largest mean wind speed within each day's window [m/s] (the weather file's, linear between its
     stamps: the largest is at a whole hour inside the window or at an end); NaN where the file does not
-    cover the window or marks the speed missing."""
+    cover the window or marks the speed missing. One evaluation of the file for every day when it covers
+    them all, else day by day."""
     weather = WeatherFile.read(_weather_path(scenario), scenario.site.to_site())
-    speeds = np.full(len(windows), np.nan)
-    for day, window in enumerate(windows):
-        if window is None:
-            continue
-        start, end = window
-        hours = pd.date_range(start.ceil("h"), end.floor("h"), freq="h")
-        instants = pd.DatetimeIndex([start, *[h for h in hours if start < h < end], end])
-        try:
-            series = weather.series(instants)
-        except InputError:  # the file does not cover this day
-            continue
-        if series.wind_speed is not None:
-            values = series.wind_speed.to_numpy(dtype=float)
-            if np.all(np.isfinite(values)):
-                speeds[day] = float(values.max())
-    return speeds
+    parts = [(day, _window_instants(window)) for day, window in enumerate(windows) if window is not None]
+    if not parts:
+        return np.full(len(windows), np.nan)
+    owner = np.concatenate([np.full(len(instants), day) for day, instants in parts])
+    instants = parts[0][1].append([instants for _, instants in parts[1:]])
+    try:
+        return _largest_speeds(weather, instants, owner, len(windows))
+    except InputError:  # the file does not cover every day: those it covers, one by one
+        speeds = np.full(len(windows), np.nan)
+        for day, day_instants in parts:
+            try:
+                speeds[day] = _largest_speeds(weather, day_instants, np.zeros(len(day_instants), int), 1)[0]
+            except InputError:
+                continue
+        return speeds
 
 
 def windiest_days(speeds: np.ndarray, count: int = WINDIEST_DAY_COUNT) -> list[int]:
@@ -213,13 +234,13 @@ def _criterion(has_weather: bool) -> str:
     if not has_weather:
         return fastest + "; no weather file, so no windiest days (the wind is the same every day)"
     return (
-        f"{fastest}; and the year's windiest days: the {WINDIEST_DAY_COUNT} days with the highest mean wind "
-        "speed within the window in the weather file"
+        f"{fastest}, among the days the weather file covers; and the year's windiest days: the "
+        f"{WINDIEST_DAY_COUNT} days with the highest mean wind speed within the window in the weather file"
     )
 
 
-def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelection:
-    """The days to simulate: ``days`` as given, every day with ``"all"``, else the module's selection."""
+def _taken(scenario: Scenario, days: Sequence[int] | str) -> DaySelection:
+    """``"all"`` or the given days, as they are."""
     year = scenario.window.date.year
     if isinstance(days, str):
         if days != ALL_DAYS:
@@ -227,19 +248,44 @@ def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelect
         every = list(range(1, DAYS_IN_YEAR + 1))
         chosen = [ChosenDay(d, _date_of(year, d), ("every day of the year (--days all)",)) for d in every]
         return DaySelection(every, chosen, "every day of the year (--days all)", "all")
-    if days:
-        given = sorted(set(int(d) for d in days))
-        chosen = [ChosenDay(d, _date_of(year, d), ("given (--days)",)) for d in given]
-        return DaySelection(given, chosen, "the days given (--days)", "given")
-    windows = day_windows(scenario)
-    rates = panel_rates(scenario, windows)
-    has_weather = scenario.wind.weather_file is not None
-    speeds = window_wind_speeds(scenario, windows) if has_weather else np.full(len(windows), np.nan)
-    if has_weather and not np.any(np.isfinite(speeds)):
+    given = sorted(set(int(d) for d in days))
+    chosen = [ChosenDay(d, _date_of(year, d), ("given (--days)",)) for d in given]
+    return DaySelection(given, chosen, "the days given (--days)", "given")
+
+
+def _covered_speeds(scenario: Scenario, windows) -> np.ndarray:
+    """:func:`window_wind_speeds`, InputError naming the file when it has a speed on no day."""
+    speeds = window_wind_speeds(scenario, windows)
+    if not np.any(np.isfinite(speeds)):
         raise InputError(
             f"{scenario.source}: wind.weather_file: {_weather_path(scenario)} has no wind speed within the window "
             f"on any day it covers; expected a speed [m/s] at its stamps"
         )
+    return speeds
+
+
+def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelection:
+    """The days to simulate: ``days`` as given, every day with ``"all"``, else the module's selection. With
+    a weather file only days it covers (with a wind speed in the window) can be simulated: a given day it
+    does not cover is an InputError naming the file, and the fastest days are sought among those it covers."""
+    has_weather = scenario.wind.weather_file is not None
+    if days:
+        selection = _taken(scenario, days)
+        if has_weather:
+            speeds = _covered_speeds(scenario, day_windows(scenario))
+            missing = [d for d in selection.days if not np.isfinite(speeds[d - 1])]
+            if missing:
+                raise InputError(
+                    f"{scenario.source}: wind.weather_file: {_weather_path(scenario)} has no wind speed within the "
+                    f"window on day(s) {missing[:10]}{' ...' if len(missing) > 10 else ''} of --days"
+                )
+        return selection
+    year = scenario.window.date.year
+    windows = day_windows(scenario)
+    rates = panel_rates(scenario, windows)
+    speeds = _covered_speeds(scenario, windows) if has_weather else np.full(len(windows), np.nan)
+    if has_weather:
+        rates = np.where(np.isfinite(speeds), rates, np.nan)  # only the days the file covers
     reasons: dict[int, list[str]] = {}
     for rank, day in enumerate(fastest_days(rates), start=1):
         text = f"sun's fastest #{rank}: the panel turns at up to {np.degrees(rates[day - 1]):.4g} deg/s in the window"

@@ -39,7 +39,7 @@ class SizingPlan:
     folder: Path
     candidates: list[MotorCandidate]
     days: list[int]
-    wind_moment: float  # [N.m] on the panel axis
+    wind_moment: float | None  # [N.m] on the panel axis; None: the scenario's wind over time
     wind_source: str
     safety_factor: float
     curve_rates: tuple[float, ...]

@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping
 
 from heliostep.drive.inputs import prepare_inputs
-from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit
+from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit, wind_moment_at
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.sweep.sizing_band import margin_band, worst_corner
@@ -35,15 +35,15 @@ def _ratio(capacity: float, load: float) -> float:
 
 
 def _budgets(plan: SizingPlan, candidate: MotorCandidate) -> dict[int, LoadBudget]:
-    """The load budget of each day (the reference does not depend on the current)."""
+    """The load budget of each day (the reference does not depend on the current): the design moment, or
+    the day's wind over time at each reference instant (its stow moves in the reference)."""
     budgets = {}
     for case in plan.cases:
         if case.candidate == candidate.name and case.day_of_year not in budgets:
             scenario = case_scenario(plan.raw, case.overrides, plan.scenario.source, plan.folder)
             inputs = prepare_inputs(scenario)
-            budgets[case.day_of_year] = load_budget(
-                scenario, inputs, plan.wind_moment, plan.mechanics, candidate.rotor_inertia
-            )
+            wind = wind_moment_at(inputs) if plan.wind_moment is None else plan.wind_moment
+            budgets[case.day_of_year] = load_budget(scenario, inputs, wind, plan.mechanics, candidate.rotor_inertia)
     return budgets
 
 
