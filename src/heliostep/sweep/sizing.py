@@ -137,6 +137,19 @@ def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict
     return values
 
 
+def _check_options(design_gust, days, safety_factor: float, curve_rates: Sequence[float]) -> None:
+    """The options' values, InputError naming the option."""
+    if design_gust is not None and not (math.isfinite(design_gust) and design_gust >= 0):
+        raise InputError(f"--design-gust {design_gust!r}: expected a wind speed >= 0 [m/s]")
+    if not (math.isfinite(safety_factor) and safety_factor > 0):
+        raise InputError(f"--safety-factor {safety_factor!r}: expected > 0")
+    if any(not (math.isfinite(rate) and rate > 0) for rate in curve_rates):
+        raise InputError(f"--curve-rates {list(curve_rates)}: expected step rates > 0 [full steps/s]")
+    bad_days = [] if isinstance(days, str) else [day for day in days if not 1 <= day <= 365]
+    if bad_days:
+        raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
+
+
 def plan_sizing(
     scenario_path: str | Path,
     candidates: Sequence[MotorCandidate],
@@ -156,15 +169,7 @@ def plan_sizing(
         raise InputError(f"{path}: the top level must be a mapping of keys (name, site, window, ...)")
     raw = apply_overrides(raw, overrides, str(path))
     scenario = validate_scenario(copy.deepcopy(raw), source=str(path), folder=path.absolute().parent)
-    if design_gust is not None and not (math.isfinite(design_gust) and design_gust >= 0):
-        raise InputError(f"--design-gust {design_gust!r}: expected a wind speed >= 0 [m/s]")
-    if not (math.isfinite(safety_factor) and safety_factor > 0):
-        raise InputError(f"--safety-factor {safety_factor!r}: expected > 0")
-    if any(not (math.isfinite(rate) and rate > 0) for rate in curve_rates):
-        raise InputError(f"--curve-rates {list(curve_rates)}: expected step rates > 0 [full steps/s]")
-    bad_days = [] if isinstance(days, str) else [day for day in days if not 1 <= day <= 365]
-    if bad_days:
-        raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
+    _check_options(design_gust, days, safety_factor, curve_rates)
     wind: float | None
     if design_gust is not None:
         wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
