@@ -131,8 +131,10 @@ def test_energy_per_year_light_change_and_the_band_per_candidate(sized):
         ideal, actual = record["light_energy_ideal_J"], record["light_energy_J"]
         assert simulated["light_change_share"] == pytest.approx((actual - ideal) / ideal)
         assert simulated["light_lost_stowed_J"] == 0
-        # to first order a panel error e turns the normal by e and the cosine by at most e: |share| <= 2 e
-        assert 0.0 < -simulated["light_change_share"] <= 2.0 * math.radians(simulated["max_tracking_error_deg"])
+        # to first order a panel error e turns the normal by e and changes the cosine by tan(theta_i) e, < 2 e
+        # while the incidence theta_i < 63 deg (the central mirror on 21 January at 10:00: about 33 deg);
+        # either sign: the stepped panel is not always further from the cosine optimum than the ideal law
+        assert 0.0 < abs(simulated["light_change_share"]) <= 2.0 * math.radians(simulated["max_tracking_error_deg"])
         # the band: only the loop gain K (23 .. 45 V/A) moves the static margins, through K I / (K + R)
         band, total = row["band"], row["load_budget"]["total_Nm"]
         assert band["corners"] == 8 and band["keys_in_the_margins"] == ["parameters.motor.K_current"]
