@@ -15,6 +15,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import matplotlib.image
+import pandas as pd
 import pytest
 import yaml
 
@@ -99,10 +100,57 @@ def sized(tmp_path_factory, fmu_paths):
     return status, out
 
 
-def _held(entry: dict, current: float) -> float:
-    """k_e K I / (K + R), k_e = T_hold / (sqrt(2) I_rated): the datasheet's torque is two phases on."""
+def _held(entry: dict, current: float, gain: float = 100.0) -> float:
+    """k_e K I / (K + R), k_e = T_hold / (sqrt(2) I_rated): the datasheet's torque is two phases on; K the
+    chopper's loop gain [V/A] (the catalogue's drives: 100)."""
     k_e = entry["holding_torque"] / (math.sqrt(2) * entry["rated_current"])
-    return k_e * 100.0 * current / (100.0 + entry["resistance"])
+    return k_e * gain * current / (gain + entry["resistance"])
+
+
+def test_energy_per_year_light_change_and_the_band_per_candidate(sized):
+    """The figures issue 23 names beyond the margins, against calculations written here."""
+    import pvlib
+
+    _, out = sized
+    sheet = json.loads((out / "sizing.json").read_text())
+    assert sheet["day_selection"]["kind"] == "given" and sheet["day_selection"]["days"][0]["date"] == "2025-01-21"
+    # daylight of 21 January 2025 at 40 N 14.25 E (pvlib's SPA sunrise and sunset)
+    day = pd.DatetimeIndex(["2025-01-21 12:00"]).tz_localize("Europe/Rome")
+    events = pvlib.solarposition.sun_rise_set_transit_spa(day, 40.0, 14.25)
+    daylight = (events["sunset"].iloc[0] - events["sunrise"].iloc[0]).total_seconds()
+    for entry, motor in ((c, {"small": SMALL, "large": LARGE}[c["name"]]) for c in sheet["candidates"]):
+        row = entry["currents"][0]
+        simulated, record = row["simulation"], row["simulation"]["per_day"]["21"]
+        # one given day: the year is 365 x (the window's mean power x the day's daylight)
+        assert simulated["drive_energy_per_year_J"] == pytest.approx(
+            365.0 * record["electrical_energy_J"] / 60.0 * daylight, rel=2e-3
+        )
+        assert simulated["drive_energy_per_year_kWh"] == pytest.approx(simulated["drive_energy_per_year_J"] / 3.6e6)
+        assert simulated["drive_energy_per_year_estimator"].startswith("365 x the mean")
+        # the light change: actual - ideal over the window, no stow in a constant design moment
+        ideal, actual = record["light_energy_ideal_J"], record["light_energy_J"]
+        assert simulated["light_change_share"] == pytest.approx((actual - ideal) / ideal)
+        assert simulated["light_lost_stowed_J"] == 0
+        # to first order a panel error e turns the normal by e and changes the cosine by tan(theta_i) e, < 2 e
+        # while the incidence theta_i < 63 deg (the central mirror on 21 January at 10:00: about 33 deg);
+        # either sign: the stepped panel is not always further from the cosine optimum than the ideal law
+        assert 0.0 < abs(simulated["light_change_share"]) <= 2.0 * math.radians(simulated["max_tracking_error_deg"])
+        # the band: only the loop gain K (23 .. 45 V/A) moves the static margins, through K I / (K + R)
+        band, total = row["band"], row["load_budget"]["total_Nm"]
+        assert band["corners"] == 8 and band["keys_in_the_margins"] == ["parameters.motor.K_current"]
+        assert band["tracking_margin_min"] == pytest.approx(_held(motor, row["current_A"], 23.0) / math.sqrt(2) / total)
+        assert band["tracking_margin_max"] == pytest.approx(_held(motor, row["current_A"], 45.0) / math.sqrt(2) / total)
+        idle = _held(motor, row["idle_current_A"], 23.0) / row["load_budget"]["wind_Nm"]
+        assert band["idle_margin_min"] == pytest.approx(idle)
+        # the curve at the worst corner: the lowest bus and gain, the bench's damping the range's top
+        worst = entry["speed_torque_worst"]
+        assert worst["parameters"] == {
+            "parameters.motor.V_supply": 24.0,
+            "parameters.motor.K_current": 23.0,
+            "parameters.mechanics.B_m": 8e-4,
+        }
+        assert worst["holding_torque_Nm"] < entry["speed_torque"]["holding_torque_Nm"]
+        assert worst["holding_torque_Nm"] == pytest.approx(_held(motor, row["current_A"], 23.0), rel=0.03)
 
 
 def test_one_candidate_passes_and_the_other_fails_for_a_named_reason(sized):
@@ -202,7 +250,12 @@ def test_an_unknown_candidate_is_exit_2(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     ("option", "named"),
-    [(["--design-gust", "-5"], "--design-gust"), (["--days", "400"], "--days"), (["--safety-factor", "0"], "--safety")],
+    [
+        (["--design-gust", "-5"], "--design-gust"),
+        (["--days", "400"], "--days"),
+        (["--days", "some"], "--days some: expected days of the year (1..365) or 'all'"),
+        (["--safety-factor", "0"], "--safety"),
+    ],
 )
 def test_bad_options_are_exit_2(tmp_path, capsys, option, named):
     catalogue = _catalogue(tmp_path, {"small": SMALL})
@@ -273,8 +326,8 @@ def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
 def test_the_command_line_defaults_are_the_sizings():
     # cli.size spells its defaults out so that no command's start imports the sizing; they must agree
     from heliostep.cli import size as command
-    from heliostep.sweep import sizing
+    from heliostep.sweep import sizing, sizing_days
 
-    assert command.FASTEST_DAYS == sizing.FASTEST_DAYS
+    assert command.ALL_DAYS == sizing_days.ALL_DAYS
     assert command.DEFAULT_SAFETY_FACTOR == sizing.DEFAULT_SAFETY_FACTOR
     assert command.DEFAULT_CURVE_RATES == sizing.DEFAULT_CURVE_RATES

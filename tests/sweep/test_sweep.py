@@ -377,7 +377,7 @@ def test_cli_runs_lists_and_reports_failures(client, tmp_path, capsys, heliostep
     assert heliostep_main(["sweep", str(sweep), "--out", str(out), "--scheduler", address]) == 0
     printed = capsys.readouterr().out
     assert "4 run now, 0 already done, 0 failed" in printed and "results.parquet" in printed
-    assert (out / "results.parquet").is_file() and (out / TORQUE_FILE).is_file()
+    assert (out / "results.parquet").is_file() and not (out / TORQUE_FILE).exists()  # the old rule retired
 
     assert heliostep_main(["sweep", str(sweep), "--out", str(out), "--list"]) == 0
     listing = capsys.readouterr().out
@@ -413,11 +413,11 @@ def test_cli_runs_lists_and_reports_failures(client, tmp_path, capsys, heliostep
 def test_plots_heatmaps_only_with_days_and_mirrors(client, tmp_path):
     table = run_sweep(SMOKE, tmp_path / "results.parquet", client=client).table
     written = plot_sweep(table, tmp_path / "plots")
-    assert sorted(p.name for p in written) == sorted([name for _, name, _ in HEATMAPS] + [TORQUE_FILE])
+    assert sorted(p.name for p in written) == sorted(name for _, name, _ in HEATMAPS)  # no torque_requirement.png
     for path in written:
         assert path.read_bytes().startswith(PNG_SIGNATURE)
     one_day = table[table["day_of_year"] == 21]
-    assert [p.name for p in plot_sweep(one_day, tmp_path / "one-day")] == [TORQUE_FILE]
+    assert plot_sweep(one_day, tmp_path / "one-day") == [] and not (tmp_path / "one-day" / TORQUE_FILE).exists()
 
 
 def test_a_crashing_fmu_fails_its_case_only_named(client, tmp_path):

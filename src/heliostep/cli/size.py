@@ -9,7 +9,7 @@ from pathlib import Path
 from heliostep.cli.signals import stop_requests
 
 #: The defaults of heliostep.sweep.sizing (imported when the command runs: every command's start stays short).
-FASTEST_DAYS = (80, 172, 265, 355)
+ALL_DAYS = "all"
 DEFAULT_SAFETY_FACTOR = 2.0
 DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
 
@@ -20,7 +20,10 @@ SIZE_DESCRIPTION = (
     "scenario's window co-simulated on each day with the candidate's motor (steps missed and lost, worst "
     "tracking error, drive energy). A candidate passes when both margins reach the safety factor and no step "
     "is missed or lost. Writes sizing.json and sizing.html (self-contained) into --out.\n\n"
-    f"Days: --days, else the equinoxes and solstices (days {', '.join(map(str, FASTEST_DAYS))}). The cases run "
+    "Days: --days DOY ..., or --days all (every day of the year, meant for --scheduler); else the days that "
+    "matter, found over the scenario's year: the sun's fastest days (the peaks of the year's curve of the ideal "
+    "panel angle's largest rate within the window) and, with wind.weather_file, the year's windiest days (the "
+    "highest mean wind speed within the window); the sheet says which and why. The cases run "
     "here one after another, or on a Dask cluster with --scheduler. Ctrl+C (SIGINT), SIGTERM or SIGHUP stops "
     "after the case in progress: the sheet is written with the cases finished, marked complete: false, naming "
     "those not run.\n\n"
@@ -44,7 +47,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--design-gust", type=float, default=None, metavar="M_PER_S", help="design gust [m/s] (else wind.moment)"
     )
-    parser.add_argument("--days", type=int, nargs="+", default=[], metavar="DOY", help="days of the year to simulate")
+    parser.add_argument(
+        "--days",
+        nargs="+",
+        default=[],
+        metavar="DOY",
+        help=f"days of the year to simulate (1..365), or {ALL_DAYS!r} (default: the fastest and windiest days)",
+    )
     parser.add_argument("--safety-factor", type=float, default=DEFAULT_SAFETY_FACTOR, help="on the load (default 2)")
     parser.add_argument(
         "--curve-rates",
@@ -62,6 +71,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=main)
 
 
+def _days(values: list[str]) -> list[int] | str:
+    """``--days``: day numbers, or the one word ``all``."""
+    from heliostep.errors import InputError
+
+    if values == [ALL_DAYS]:
+        return ALL_DAYS
+    try:
+        return [int(value) for value in values]
+    except ValueError:
+        raise InputError(f"--days {' '.join(values)}: expected days of the year (1..365) or {ALL_DAYS!r}") from None
+
+
 def main(args: argparse.Namespace) -> int:
     from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
     from heliostep.sweep.sizing import plan_sizing
@@ -72,7 +93,7 @@ def main(args: argparse.Namespace) -> int:
         args.scenario,
         candidates,
         design_gust=args.design_gust,
-        days=args.days,
+        days=_days(args.days),
         safety_factor=args.safety_factor,
         curve_rates=args.curve_rates,
         overrides=args.set,

@@ -35,9 +35,18 @@ def speed_torque_png(sheet: Mapping[str, Any]) -> bytes | None:
         return None
     figure = Figure(figsize=(7.5, 4.5))
     axes = figure.add_subplot()
+    worst = {c["name"]: c["speed_torque_worst"] for c in sheet["candidates"] if "speed_torque_worst" in c}
     for name, curve in curves:
         (line,) = axes.plot(curve["step_rates_per_s"], curve["pull_out_torques_Nm"], "o-", label=f"{name}, pull-out")
         axes.axhline(curve["holding_torque_Nm"], color=line.get_color(), linestyle=":", linewidth=1)
+        if name in worst:
+            axes.plot(
+                worst[name]["step_rates_per_s"],
+                worst[name]["pull_out_torques_Nm"],
+                "x--",
+                color=line.get_color(),
+                label=f"{name}, pull-out at the ranges' worst corner",
+            )
     loads = [row["load_budget"]["total_Nm"] for c in sheet["candidates"] for row in c["currents"]]
     if loads:
         axes.axhline(
@@ -107,6 +116,9 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
         "steps missed [steps]",
         "worst tracking error [deg]",
         "drive energy per day [J]",
+        "drive energy per year [kWh]",
+        "light change vs ideal tracking, stowed included [%]",
+        "light lost while stowed [J]",
         "verdict [pass/fail]",
         "reasons [text]",
     )
@@ -127,6 +139,9 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
                     simulated["missed_steps"],
                     simulated["max_tracking_error_deg"],
                     simulated["drive_energy_per_day_J"],
+                    simulated.get("drive_energy_per_year_kWh"),
+                    None if simulated.get("light_change_share") is None else 100.0 * simulated["light_change_share"],
+                    simulated.get("light_lost_stowed_J"),
                     row["verdict"],
                     "; ".join(row["reasons"]) or "passes",
                 )
@@ -167,6 +182,28 @@ def _budget_table(sheet: Mapping[str, Any]) -> str:
     return _table(headers, rows)
 
 
+def _days_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "day [day of year]",
+        "date [YYYY-MM-DD]",
+        "largest panel rate in the window [deg/s]",
+        "largest mean wind in the window [m/s]",
+        "why [text]",
+    )
+    selection = sheet.get("day_selection") or {"days": [{"day_of_year": d} for d in sheet["days"]]}
+    rows = [
+        (
+            day["day_of_year"],
+            day.get("date"),
+            day.get("panel_rate_deg_s"),
+            day.get("wind_speed_m_s"),
+            "; ".join(day.get("reasons", [])),
+        )
+        for day in selection["days"]
+    ]
+    return _table(headers, rows)
+
+
 def _catalogue_table(sheet: Mapping[str, Any]) -> str:
     headers = (
         "candidate [name]",
@@ -201,14 +238,68 @@ def _catalogue_table(sheet: Mapping[str, Any]) -> str:
 
 
 def _curve_table(sheet: Mapping[str, Any]) -> str:
-    headers = ("candidate [name]", "current [A]", "step rate [full steps/s]", "pull-out torque [N.m]")
+    headers = (
+        "candidate [name]",
+        "current [A]",
+        "step rate [full steps/s]",
+        "pull-out torque [N.m]",
+        "pull-out at the ranges' worst corner [N.m]",
+    )
+    rows = []
+    for c in sheet["candidates"]:
+        if "speed_torque" not in c:
+            continue
+        curve, worst = c["speed_torque"], c.get("speed_torque_worst")
+        for k, (rate, torque) in enumerate(zip(curve["step_rates_per_s"], curve["pull_out_torques_Nm"])):
+            rows.append(
+                (c["name"], curve["current_A"], rate, torque, worst["pull_out_torques_Nm"][k] if worst else None)
+            )
+    return _table(headers, rows)
+
+
+def _band_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "candidate [name]",
+        "current [A]",
+        "corners [count]",
+        "tracking margin, nominal [1]",
+        "tracking margin, least over the corners [1]",
+        "tracking margin, largest [1]",
+        "idle margin, least [1]",
+        "idle margin, largest [1]",
+        "corner of the least tracking margin [key=value]",
+        "keys not in the margins [key]",
+    )
     rows = [
-        (c["name"], c["speed_torque"]["current_A"], rate, torque)
+        (
+            c["name"],
+            row["current_A"],
+            row["band"]["corners"],
+            row["tracking_margin"],
+            row["band"]["tracking_margin_min"],
+            row["band"]["tracking_margin_max"],
+            row["band"]["idle_margin_min"],
+            row["band"]["idle_margin_max"],
+            ", ".join(f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()),
+            row["band"]["keys_not_in_the_margins"],
+        )
         for c in sheet["candidates"]
-        if "speed_torque" in c
-        for rate, torque in zip(c["speed_torque"]["step_rates_per_s"], c["speed_torque"]["pull_out_torques_Nm"])
+        for row in c["currents"]
+        if "band" in row
     ]
     return _table(headers, rows)
+
+
+def _energy_note(sheet: Mapping[str, Any]) -> str:
+    rows = [row["simulation"] for c in sheet["candidates"] for row in c["currents"]]
+    estimator = next(
+        (r.get("drive_energy_per_year_estimator") for r in rows if r.get("drive_energy_per_year_estimator")), ""
+    )
+    return (
+        f"<p>Drive energy per year: {html.escape(estimator)}. Light change: the light on the receiver over the "
+        "simulated windows against ideal two-axis tracking of the same windows, the light lost while stowed "
+        "included.</p>"
+    )
 
 
 _STYLE = (
@@ -221,6 +312,12 @@ def _image(png: bytes | None, alt: str) -> str:
     if png is None:
         return ""
     return f'<p><img alt="{html.escape(alt)}" src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}"></p>'
+
+
+def _wind_text(wind: Mapping[str, Any]) -> str:
+    if wind["moment_Nm"] is None:
+        return f"{html.escape(wind['source'])} (each day's moment at its worst instant: the load budget table)"
+    return f"{wind['moment_Nm']:.4g} N.m on the panel axis ({html.escape(wind['source'])})"
 
 
 def sizing_html(sheet: Mapping[str, Any]) -> str:
@@ -248,7 +345,7 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>sizing: {html.escape(sheet['scenario'])}</title>",
         f"<style>{_STYLE}</style></head><body>",
         f"<h1>Sizing sheet: {html.escape(sheet['scenario'])}</h1>",
-        f"<p>Wind: {sheet['wind']['moment_Nm']:.4g} N.m on the panel axis ({html.escape(sheet['wind']['source'])}); "
+        f"<p>Wind: {_wind_text(sheet['wind'])}; "
         f"safety factor {sheet['safety_factor']:g} on the load; days simulated (day of year): "
         f"{html.escape(', '.join(map(str, sheet['days'])))}.</p>",
         status,
@@ -256,12 +353,20 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"<h2>Why each smaller one fails</h2><ul>{smaller or '<li>none smaller</li>'}</ul>",
         "<h2>Verdicts</h2>",
         _verdict_table(sheet),
+        _energy_note(sheet),
         _image(margins_png(sheet), "margins"),
         "<h2>Load budget at the worst instant</h2>",
         _budget_table(sheet),
+        "<h2>Uncertainty band of the drive physics</h2>",
+        "<p>The margins at every corner of the bands' parameter ranges (data/parameter_ranges.yaml); the "
+        "speed-torque curve co-simulated again at the worst corner (the lowest bus and loop gain).</p>",
+        _band_table(sheet),
         "<h2>Speed-torque curves</h2>",
         _image(speed_torque_png(sheet), "speed-torque curves"),
         _curve_table(sheet),
+        "<h2>Days simulated</h2>",
+        f"<p>{html.escape((sheet.get('day_selection') or {}).get('criterion', ''))}</p>",
+        _days_table(sheet),
         "<h2>Catalogue</h2>",
         _catalogue_table(sheet),
         "</body></html>",

@@ -8,13 +8,14 @@
   stepping together [kJ]) and ``heatmap_light_lost_fraction.png`` (the same as a share of the
   ideal [%]): the figure over day of year x mirror index (the largest value over the other
   axes), when the table has at least two days and two mirrors;
-* ``torque_requirement.png``: per day of year, the paper's rule, 2 x the simulated peak torque
-  (largest over the mirrors), against the motor's holding torque k_e x I (one line per phase
-  current swept). **Superseded by** ``heliostep size`` (:mod:`heliostep.sweep.sizing`): the peak is
-  the torque the motor produces to swing its load into the next detent, not the requirement; the
-  requirement is the load (wind through the transmission, friction, inertia) against the torque the
-  motor can deliver, with the margin on the load (docs/sizing.md). Kept, and titled as superseded,
-  so that sweeps drawn before stay comparable.
+* no torque verdict. The figure that was drawn here, ``torque_requirement.png`` (the paper's rule,
+  2 x the simulated peak torque against the holding torque k_e x I), is no longer written: the
+  peak is the torque the motor produces to swing its load into the next detent, not the
+  requirement. The requirement is ``heliostep size``'s (:mod:`heliostep.sweep.sizing`): the load
+  budget at each day's worst instant (wind through the transmission, friction, inertia) against
+  the torque the motor can deliver, with the safety factor on the load (docs/sizing.md). The name
+  stays owned by the sweep's folder (:data:`TORQUE_FILE`), so a figure an earlier version wrote is
+  removed with the older figures rather than left showing the old rule.
 
 Only cases with status "ok" are drawn; a missing cell (failed case) stays grey. Each cell
 prints its value; a peak-torque cell whose cases commanded no step says "no steps" (white). Figures
@@ -24,7 +25,6 @@ are built with :class:`matplotlib.figure.Figure` (no pyplot state).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -44,7 +44,6 @@ __all__ = [
     "heatmap_figure",
     "plot_heatmap",
     "plot_sweep",
-    "plot_torque_requirement",
 ]
 
 #: (column, PNG, colour-bar label) of each heatmap.
@@ -65,7 +64,7 @@ HEATMAP_SCALES = {"light_lost_J": 1e-3, "light_lost_fraction": 100.0}
 STEP_COLUMNS = frozenset({"peak_torque_Nm"})
 #: Most cells of a heatmap whose values are printed in them.
 MAX_ANNOTATED_CELLS = 600
-#: PNG of the torque requirement plot.
+#: The retired torque requirement figure (no longer written; still owned by a sweep's folder, module docstring).
 TORQUE_FILE = "torque_requirement.png"
 #: Most tick labels on a heatmap axis: one per mirror of the field.
 _MAX_TICKS = N_FIELD_MIRRORS
@@ -190,66 +189,6 @@ def heatmap_figure(table: pd.DataFrame, column: str, label: str, scale: float = 
     return fig
 
 
-def plot_torque_requirement(table: pd.DataFrame, path: str | Path) -> Path | None:
-    """The paper's rule (2 x peak, max over mirrors) per day against the holding torque k_e x I.
-
-    Superseded by ``heliostep size``'s load-based verdict (module docstring); the figure says so.
-
-    Parameters
-    ----------
-    table : pandas.DataFrame
-        The sweep table: ``day_of_year``, ``current_A``, ``required_torque_Nm``,
-        ``holding_torque_Nm``, ``role``, ``status``.
-    path : str or Path
-        PNG to write.
-
-    Returns
-    -------
-    Path or None
-        None when no case has a peak torque.
-    """
-    rows = table[table["status"] == "ok"].dropna(subset=["required_torque_Nm", "day_of_year"])
-    if rows.empty:
-        return None
-    fig = Figure(figsize=(9.0, 4.8), layout="constrained")
-    ax = fig.add_subplot()
-    days = sorted(int(d) for d in rows["day_of_year"].unique())
-    bars = len(days) <= 31
-    series = list(rows.groupby(["role", "current_A"], sort=True))
-    width = 0.8 / max(1, len(series))
-    colors: dict[float, Any] = {}  # current [A] -> its bars' colour
-    for k, ((role, current), group) in enumerate(series):
-        required = group.groupby("day_of_year")["required_torque_Nm"].max().reindex(days)
-        who = "shared primary" if role == "shared-primary" else "max over mirrors"
-        label = f"required 2 x peak torque, {who}, I = {current:g} A"
-        if bars:
-            positions = np.arange(len(days)) + (k - (len(series) - 1) / 2) * width
-            drawn = ax.bar(positions, required.to_numpy(dtype=float), width, label=label)
-            colors[current] = colors.get(current, drawn.patches[0].get_facecolor())
-        else:
-            (line,) = ax.plot(days, required.to_numpy(dtype=float), label=label)
-            colors[current] = colors.get(current, line.get_color())
-    for current, group in rows.groupby("current_A", sort=True):
-        for holding in sorted(group["holding_torque_Nm"].dropna().unique()):
-            ax.axhline(
-                holding,
-                color=colors.get(current, "k"),
-                linestyle="--",
-                linewidth=1.2,
-                label=f"holding torque k_e x I = {holding:.3g} N.m (I = {current:g} A)",
-            )
-    if bars:
-        ax.set_xticks(np.arange(len(days)), [str(d) for d in days])
-    ax.set_xlabel("day of year")
-    ax.set_ylabel("torque [N.m]")
-    ax.set_title("Paper's rule, 2 x peak torque vs holding torque (superseded: see heliostep size, docs/sizing.md)")
-    ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(fontsize="small")
-    path = Path(path)
-    fig.savefig(path, dpi=_DPI)
-    return path
-
-
 def plot_sweep(table: pd.DataFrame, out_dir: str | Path) -> list[Path]:
     """Write the sweep's figures (see the module docstring) into ``out_dir``.
 
@@ -263,7 +202,7 @@ def plot_sweep(table: pd.DataFrame, out_dir: str | Path) -> list[Path]:
     Returns
     -------
     list of Path
-        The PNGs written (heatmaps only when the table spans two or more days and mirrors).
+        The heatmaps written (only when the table spans two or more days and mirrors; none otherwise).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -274,7 +213,4 @@ def plot_sweep(table: pd.DataFrame, out_dir: str | Path) -> list[Path]:
             path = plot_heatmap(table, column, out_dir / name, label, HEATMAP_SCALES.get(column, 1.0))
             if path is not None:
                 written.append(path)
-    path = plot_torque_requirement(table, out_dir / TORQUE_FILE)
-    if path is not None:
-        written.append(path)
     return written

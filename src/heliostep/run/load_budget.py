@@ -29,7 +29,7 @@ from heliostep.drive.inputs import DriveInputs
 from heliostep.scenario import Scenario
 from heliostep.scenario.catalogue import MotorDrive
 
-__all__ = ["LoadBudget", "load_budget", "static_step_limit"]
+__all__ = ["LoadBudget", "load_budget", "static_step_limit", "wind_moment_at"]
 
 
 @dataclass(frozen=True)
@@ -51,14 +51,19 @@ class LoadBudget:
 
 
 def load_budget(
-    scenario: Scenario, inputs: DriveInputs, wind_moment: float, mechanics: Mapping[str, float], rotor_inertia: float
+    scenario: Scenario,
+    inputs: DriveInputs,
+    wind_moment: float | np.ndarray,
+    mechanics: Mapping[str, float],
+    rotor_inertia: float,
 ) -> LoadBudget:
     """The load budget over ``inputs``' reference.
 
     Parameters
     ----------
-    wind_moment : float
-        The design moment on the panel axis [N.m].
+    wind_moment : float or array
+        The design moment on the panel axis [N.m], or the moment at each of ``inputs.reference_times``
+        (the wind over time, :func:`wind_moment_at`).
     mechanics : mapping
         The mechanics FMU's ``T_c`` [N.m], ``M_c`` [N.m] and ``J_p`` [kg.m2] (its defaults with the
         scenario's values over them).
@@ -84,9 +89,19 @@ def load_budget(
         time_s=float(times[worst]),
         panel_angle_deg=float(np.degrees(panel[worst])),
         ratio=float(ratio[worst]),
-        wind_moment_Nm=float(wind_moment),
+        wind_moment_Nm=float(np.broadcast_to(wind_moment, np.shape(times))[worst]),
         max_step_rate_per_s=float(np.max(speed) / inputs.sequencer.step_angle),
     )
+
+
+def wind_moment_at(inputs: DriveInputs) -> np.ndarray:
+    """The wind's moment on the panel axis [N.m] at each reference instant: the ``m_ext`` signal held
+    there (``values[0]`` before ``times[0]``, ``values[k + 1]`` from ``times[k]`` on; its sign turned back,
+    m_ext = -M), or the constant ``wind_moment`` without a wind speed."""
+    signal, times = inputs.wind_signal, inputs.reference_times
+    if signal is None:
+        return np.full(np.shape(times), float(inputs.wind_moment))
+    return -np.asarray(signal.values)[np.searchsorted(signal.times, times, side="right")]
 
 
 def _transition_limit(a_from: float, a_to: float, delta: float) -> float:

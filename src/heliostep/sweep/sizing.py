@@ -8,7 +8,8 @@ its currents is judged on:
 * the **margin to slip while tracking**: the largest static load the motor steps against from rest
   (:func:`~heliostep.run.load_budget.static_step_limit`) over the load budget;
 * the **margin at idle current**: the holding torque at the idle current over the wind's share;
-* the **co-simulated days** (:data:`FASTEST_DAYS` or ``days``): the scenario's window on each day with
+* the **co-simulated days** (:mod:`heliostep.sweep.sizing_days`: the sun's fastest days and, with a weather
+  file, the year's windiest, found over the year; or ``days``, or all 365): the scenario's window on each day with
   the candidate's motor, the current and the design wind moment, run through
   :func:`~heliostep.run.run_scenario` (locally, or on Dask with a scheduler): steps missed and lost,
   the worst tracking error, the drive's energy.
@@ -42,6 +43,9 @@ from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenari
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
+from heliostep.sweep.band import load_ranges
+from heliostep.sweep.sizing_band import drive_at, worst_corner
+from heliostep.sweep.sizing_days import select_days
 from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sweep.sizing_verdict import judge
 from heliostep.sweep.worker import FmuPayload, _local_fmu
@@ -49,7 +53,6 @@ from heliostep.sweep.worker import FmuPayload, _local_fmu
 __all__ = [
     "DEFAULT_CURVE_RATES",
     "DEFAULT_SAFETY_FACTOR",
-    "FASTEST_DAYS",
     "SizingCase",
     "SizingPlan",
     "design_gust_moment",
@@ -61,10 +64,6 @@ __all__ = [
 
 #: The paper's margin, here on the load (the paper put it on the motor's transient peak).
 DEFAULT_SAFETY_FACTOR = 2.0
-#: The days simulated unless ``days`` is given (day of the year): the equinoxes (about 20 March,
-#: 22 September: the sun's declination changes fastest, 0.4 deg/day) and the solstices (21 June,
-#: 21 December: the sun's daily path is longest and shortest, the tracking rates' extremes).
-FASTEST_DAYS = (80, 172, 265, 355)
 #: Step rates of each candidate's speed-torque curve on the sheet [full steps/s].
 DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
 
@@ -82,6 +81,13 @@ def design_gust_moment(scenario: Scenario, gust_speed: float) -> float:
     return float(np.max(np.abs(moments)))
 
 
+def _speed_source(scenario: Scenario) -> str:
+    wind = scenario.wind
+    if wind.weather_file is not None:
+        return f"wind.weather_file {wind.weather_file}"
+    return "wind.speed" if wind.speed is not None else "wind.profile"
+
+
 def _date_of(year: int, day_of_year: int) -> dt.date:
     return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
@@ -91,7 +97,11 @@ def _instance(scenario: Scenario, role: str, default: str) -> str:
     return target.partition(".")[0] if target else default
 
 
-def _case_overrides(scenario: Scenario, candidate: MotorCandidate, current: float, day: dt.date, wind: float):
+def _case_overrides(
+    scenario: Scenario, candidate: MotorCandidate, current: float, day: dt.date, wind: float | None
+) -> tuple[str, ...]:
+    """A case's ``--set`` items; ``wind``: the design moment [N.m], which replaces the scenario's wind
+    speed source (if any), or None: the scenario's wind over time as it is."""
     motor, mechanics = _instance(scenario, "torque", "motor"), _instance(scenario, "wind_moment", "mechanics")
     drive = candidate.drive()
     values = [f"parameters.{motor}.{name}={value!r}" for name, value in drive.motor_parameters().items()]
@@ -101,8 +111,14 @@ def _case_overrides(scenario: Scenario, candidate: MotorCandidate, current: floa
         f"sequencer.current={current!r}",
         f"sequencer.step_angle={candidate.step_angle!r}",
         f"window.date={day.isoformat()}",
-        f"wind.moment={wind!r}",
+        *(() if wind is None else _design_wind(scenario, wind)),
     )
+
+
+def _design_wind(scenario: Scenario, wind: float) -> tuple[str, ...]:
+    """The design moment as the case's wind: the constant ``wind.moment``, the speed sources off."""
+    sources = [key for key in ("speed", "weather_file", "profile") if getattr(scenario.wind, key) is not None]
+    return (*(f"wind.{key}=null" for key in sources), f"wind.moment={wind!r}")
 
 
 def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, float]:
@@ -121,17 +137,31 @@ def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict
     return values
 
 
+def _check_options(design_gust, days, safety_factor: float, curve_rates: Sequence[float]) -> None:
+    """The options' values, InputError naming the option."""
+    if design_gust is not None and not (math.isfinite(design_gust) and design_gust >= 0):
+        raise InputError(f"--design-gust {design_gust!r}: expected a wind speed >= 0 [m/s]")
+    if not (math.isfinite(safety_factor) and safety_factor > 0):
+        raise InputError(f"--safety-factor {safety_factor!r}: expected > 0")
+    if any(not (math.isfinite(rate) and rate > 0) for rate in curve_rates):
+        raise InputError(f"--curve-rates {list(curve_rates)}: expected step rates > 0 [full steps/s]")
+    bad_days = [] if isinstance(days, str) else [day for day in days if not 1 <= day <= 365]
+    if bad_days:
+        raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
+
+
 def plan_sizing(
     scenario_path: str | Path,
     candidates: Sequence[MotorCandidate],
     *,
     design_gust: float | None = None,
-    days: Sequence[int] = (),
+    days: Sequence[int] | str = (),
     safety_factor: float = DEFAULT_SAFETY_FACTOR,
     curve_rates: Sequence[float] = DEFAULT_CURVE_RATES,
     overrides: Sequence[str] = (),
 ) -> SizingPlan:
     """Every case of the sizing, each case's scenario validated (an :class:`InputError` before any run).
+    ``days``: days of the year, ``"all"``, or empty for the selection of :mod:`heliostep.sweep.sizing_days`;
     ``overrides``: ``--set``-style items applied to the scenario first."""
     path = resolve_scenario_path(scenario_path)
     raw = read_yaml_file(path, "scenario")
@@ -139,24 +169,29 @@ def plan_sizing(
         raise InputError(f"{path}: the top level must be a mapping of keys (name, site, window, ...)")
     raw = apply_overrides(raw, overrides, str(path))
     scenario = validate_scenario(copy.deepcopy(raw), source=str(path), folder=path.absolute().parent)
-    if design_gust is not None and not (math.isfinite(design_gust) and design_gust >= 0):
-        raise InputError(f"--design-gust {design_gust!r}: expected a wind speed >= 0 [m/s]")
-    if not (math.isfinite(safety_factor) and safety_factor > 0):
-        raise InputError(f"--safety-factor {safety_factor!r}: expected > 0")
-    if any(not (math.isfinite(rate) and rate > 0) for rate in curve_rates):
-        raise InputError(f"--curve-rates {list(curve_rates)}: expected step rates > 0 [full steps/s]")
-    bad_days = [day for day in days if not 1 <= day <= 365]
-    if bad_days:
-        raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
+    _check_options(design_gust, days, safety_factor, curve_rates)
+    wind: float | None
     if design_gust is not None:
         wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
+    elif scenario.wind.has_speed:
+        wind, source = None, f"{scenario.source}: the wind over time ({_speed_source(scenario)}), each day's own"
     else:
         wind, source = scenario.wind.moment, f"{scenario.source}: wind.moment"
-    chosen_days = sorted(set(days)) if days else list(FASTEST_DAYS)
+    selection = select_days(scenario, days)
     rates = tuple(sorted(float(rate) for rate in curve_rates))
     plan = SizingPlan(
-        scenario, raw, path.absolute().parent, list(candidates), chosen_days, float(wind), source, safety_factor, rates
+        scenario,
+        raw,
+        path.absolute().parent,
+        list(candidates),
+        selection.days,
+        None if wind is None else float(wind),
+        source,
+        safety_factor,
+        rates,
     )
+    plan.day_selection = selection
+    plan.ranges = load_ranges()
     year = scenario.window.date.year
     for candidate in plan.candidates:
         for current in candidate.currents:
@@ -200,7 +235,13 @@ def run_sizing_case(
         "steps_lost",
         "electrical_energy_J",
         "drive_energy_per_day_J",
+        "drive_power_mean_W",
         "peak_torque_Nm",
+        "light_energy_ideal_J",
+        "light_energy_J",
+        "light_lost_J",
+        "light_lost_stowed_J",
+        "stowed_time_s",
     )
     record = {key: figures.get(key) for key in keep}
     record.update(complete=True, wall_time_s=clock.perf_counter() - started)
@@ -273,15 +314,24 @@ def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_st
                 on_case(key, results[key])
 
 
-def _curves(plan: SizingPlan) -> dict[str, SpeedTorqueCurve]:
-    """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated)."""
+def _curves(plan: SizingPlan, worst: bool = False) -> dict[str, SpeedTorqueCurve]:
+    """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated); ``worst``: at
+    the ranges' worst corner (:func:`heliostep.sweep.sizing_band.worst_corner`)."""
     mode, microsteps = plan.scenario.sequencer.mode, plan.scenario.sequencer.microsteps
+    motor = _instance(plan.scenario, "torque", "motor")
+    corner = worst_corner(plan.ranges) if worst else {}
     return {
-        c.name: speed_torque_curve(c.drive(), c.currents[-1], plan.curve_rates, mode=mode, microsteps=microsteps)
+        c.name: speed_torque_curve(
+            drive_at(c.drive(), corner, motor), c.currents[-1], plan.curve_rates, mode=mode, microsteps=microsteps
+        )
         for c in plan.candidates
     }
 
 
 def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool = True) -> dict:
-    """The sizing sheet's content: per candidate and current, the figures and the verdict."""
-    return judge(plan, results, _curves(plan) if curves else {})
+    """The sizing sheet's content: per candidate and current, the figures and the verdict; with ``curves``
+    each candidate's speed-torque curve, nominal and at the ranges' worst corner."""
+    if not curves:
+        return judge(plan, results, {}, {})
+    worst = _curves(plan, worst=True) if plan.ranges else {}
+    return judge(plan, results, _curves(plan), worst)

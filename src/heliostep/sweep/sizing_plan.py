@@ -10,6 +10,8 @@ from pathlib import Path
 from heliostep.scenario import Scenario, validate_scenario
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
+from heliostep.sweep.band import ParameterRange
+from heliostep.sweep.sizing_days import DaySelection
 
 __all__ = ["SizingCase", "SizingPlan", "case_scenario"]
 
@@ -37,13 +39,15 @@ class SizingPlan:
     folder: Path
     candidates: list[MotorCandidate]
     days: list[int]
-    wind_moment: float  # [N.m] on the panel axis
+    wind_moment: float | None  # [N.m] on the panel axis; None: the scenario's wind over time
     wind_source: str
     safety_factor: float
     curve_rates: tuple[float, ...]
     cases: list[SizingCase] = field(default_factory=list)
     mechanics: dict[str, float] = field(default_factory=dict)  # T_c, M_c, J_p
     fmu_paths: dict[str, Path] = field(default_factory=dict)  # instance -> FMU, resolved once for every case
+    day_selection: DaySelection | None = None  # the days and why each (heliostep.sweep.sizing_days)
+    ranges: tuple[ParameterRange, ...] = ()  # the drive physics' ranges (heliostep.sweep.sizing_band)
 
 
 def case_scenario(raw: dict, overrides: Sequence[str], source: str, folder: Path) -> Scenario:

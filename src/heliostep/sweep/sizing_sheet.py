@@ -63,6 +63,7 @@ def size(
             "wind": {"moment_Nm": plan.wind_moment, "source": plan.wind_source},
             "safety_factor": plan.safety_factor,
             "days": plan.days,
+            "day_selection": plan.day_selection.record() if plan.day_selection is not None else None,
             "complete": not stopped,
             "finished_cases": [case.key for case in plan.cases if case.key in results],
             "unfinished_cases": [case.key for case in plan.cases if case.key not in results],

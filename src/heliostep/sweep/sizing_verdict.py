@@ -11,12 +11,23 @@ import math
 from collections.abc import Mapping
 
 from heliostep.drive.inputs import prepare_inputs
-from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit
+from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit, wind_moment_at
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate
+from heliostep.sweep.sizing_band import margin_band, worst_corner
 from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
 
-__all__ = ["judge"]
+__all__ = ["ENERGY_ESTIMATORS", "judge"]
+
+#: How the drive's energy per year is estimated from the simulated days, by the kind of day selection.
+ENERGY_ESTIMATORS = {
+    "selected": (
+        "365 x the mean drive energy per day of the simulated days; the days are the year's most demanding "
+        "(the sun's fastest, the windiest), so this is an upper estimate of the year's energy, not a proven bound"
+    ),
+    "all": "the sum of the 365 days' drive energy per day (365 x their mean)",
+    "given": "365 x the mean drive energy per day of the days given (as representative as they are)",
+}
 
 
 def _ratio(capacity: float, load: float) -> float:
@@ -24,15 +35,15 @@ def _ratio(capacity: float, load: float) -> float:
 
 
 def _budgets(plan: SizingPlan, candidate: MotorCandidate) -> dict[int, LoadBudget]:
-    """The load budget of each day (the reference does not depend on the current)."""
+    """The load budget of each day (the reference does not depend on the current): the design moment, or
+    the day's wind over time at each reference instant (its stow moves in the reference)."""
     budgets = {}
     for case in plan.cases:
         if case.candidate == candidate.name and case.day_of_year not in budgets:
             scenario = case_scenario(plan.raw, case.overrides, plan.scenario.source, plan.folder)
             inputs = prepare_inputs(scenario)
-            budgets[case.day_of_year] = load_budget(
-                scenario, inputs, plan.wind_moment, plan.mechanics, candidate.rotor_inertia
-            )
+            wind = wind_moment_at(inputs) if plan.wind_moment is None else plan.wind_moment
+            budgets[case.day_of_year] = load_budget(scenario, inputs, wind, plan.mechanics, candidate.rotor_inertia)
     return budgets
 
 
@@ -46,7 +57,10 @@ def _simulated(plan: SizingPlan, candidate: MotorCandidate, current: float, resu
         record["drive_energy_per_day_J"] for _, record in ok if record.get("drive_energy_per_day_J") is not None
     ]
     errors = [record["max_tracking_error_deg"] for _, record in ok if record.get("max_tracking_error_deg") is not None]
+    kind = plan.day_selection.kind if plan.day_selection is not None else "given"
     return {
+        **_light(ok),
+        "drive_energy_per_year_estimator": ENERGY_ESTIMATORS[kind],
         "days_simulated": [case.day_of_year for case, _ in ok],
         "days_unfinished": [case.day_of_year for case in days if case.key not in results],
         "days_failed": failed,
@@ -57,7 +71,24 @@ def _simulated(plan: SizingPlan, candidate: MotorCandidate, current: float, resu
         "electrical_energy_J": sum(float(record.get("electrical_energy_J") or 0.0) for _, record in ok),
         "drive_energy_per_day_J": sum(energies) / len(energies) if energies else None,
         "drive_energy_per_year_J": 365.0 * sum(energies) / len(energies) if energies else None,
+        "drive_energy_per_year_kWh": 365.0 * sum(energies) / len(energies) / 3.6e6 if energies else None,
         "per_day": {str(case.day_of_year): record for case, record in finished},
+    }
+
+
+def _light(ok: list) -> dict:
+    """The light on the receiver over the simulated windows against ideal tracking (both summed over the
+    days [J]); the change includes the light lost while stowed (the actual light is the stowed panel's)."""
+    pairs = [(r.get("light_energy_J"), r.get("light_energy_ideal_J")) for _, r in ok]
+    pairs = [(float(a), float(i)) for a, i in pairs if a is not None and i is not None]
+    actual, ideal = sum(a for a, _ in pairs), sum(i for _, i in pairs)
+    stowed = [float(r["light_lost_stowed_J"]) for _, r in ok if r.get("light_lost_stowed_J") is not None]
+    return {
+        "light_energy_J": actual if pairs else None,
+        "light_energy_ideal_J": ideal if pairs else None,
+        "light_change_J": actual - ideal if pairs else None,
+        "light_change_share": (actual - ideal) / ideal if pairs and ideal > 0 else None,
+        "light_lost_stowed_J": sum(stowed),
     }
 
 
@@ -105,6 +136,9 @@ def _judge_current(
         "idle_margin": _ratio(idle_holding, budget.wind_Nm),
         "simulation": _simulated(plan, candidate, current, results),
     }
+    if plan.ranges:
+        motor = plan.scenario.resolved_roles().get("torque", "motor").partition(".")[0]
+        row["band"] = margin_band(drive, current, budget, plan.ranges, sequencer, motor)
     row["reasons"] = _reasons(plan, row, budget, day)
     if row["simulation"]["days_unfinished"]:
         row["verdict"] = "incomplete"
@@ -114,9 +148,15 @@ def _judge_current(
     return row
 
 
-def judge(plan: SizingPlan, results: Mapping[str, dict], curves: Mapping[str, SpeedTorqueCurve]) -> dict:
+def judge(
+    plan: SizingPlan,
+    results: Mapping[str, dict],
+    curves: Mapping[str, SpeedTorqueCurve],
+    worst_curves: Mapping[str, SpeedTorqueCurve] | None = None,
+) -> dict:
     """The sheet: ``candidates`` (each with its currents' figures and verdicts), the smallest passing
-    candidate and current, and why each smaller one fails."""
+    candidate and current, and why each smaller one fails; ``worst_curves``: each candidate's speed-torque
+    curve at the ranges' worst corner (:func:`heliostep.sweep.sizing_band.worst_corner`)."""
     candidates, ordered = [], []
     for candidate in sorted(plan.candidates, key=lambda c: c.holding_torque):
         budgets = _budgets(plan, candidate)
@@ -132,6 +172,11 @@ def judge(plan: SizingPlan, results: Mapping[str, dict], curves: Mapping[str, Sp
         }
         if candidate.name in curves:
             entry["speed_torque"] = curves[candidate.name].record()
+        if worst_curves and candidate.name in worst_curves:
+            entry["speed_torque_worst"] = {
+                **worst_curves[candidate.name].record(),
+                "parameters": worst_corner(plan.ranges),
+            }
         candidates.append(entry)
         ordered += [(candidate.name, row) for row in rows]
     first = next((k for k, (_, row) in enumerate(ordered) if row["verdict"] == "pass"), None)
