@@ -20,6 +20,7 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from heliostep.cosim.fmi3_types import fmi3_variables, integer_range
 from heliostep.errors import InputError
 
 
@@ -312,8 +313,6 @@ def convert_value(variable: VariableInfo, value):
         if variable.type in ("Integer", "Enumeration") or variable.type.lstrip("U").startswith("Int"):
             if isinstance(value, bool) or float(value) != int(float(value)):
                 raise ValueError
-            from heliostep.cosim.fmi3_types import integer_range
-
             whole, limits = int(value) if isinstance(value, int) else int(float(value)), integer_range(variable)
             if limits is not None and not limits[0] <= whole <= limits[1]:
                 raise ValueError
@@ -393,9 +392,8 @@ def read_fmu3(path: Path, description, co_simulation: bool = False) -> FMUInfo:
     _refuse_unsupported(path, description)
     interface = description.modelExchange
     _check_binary(path, interface.modelIdentifier, REQUIRED_FUNCTIONS3, platform_tuple)
-    from heliostep.cosim.fmi3_types import fmi3_variables
-
-    variables, states, n_indicators, feedthrough = fmi3_variables(description)
+    fields, states, n_indicators, feedthrough = fmi3_variables(description)
+    variables = {name: VariableInfo(**values) for name, values in fields.items()}
     return FMUInfo(
         path=path,
         model_name=description.modelName,

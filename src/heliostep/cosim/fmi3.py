@@ -6,7 +6,11 @@ adapter (``c/fmi3_adapter.c``, compiled once like the kernel and cached by conte
 ``fmi3Instance`` and its fmi3* functions, and its fmi2-shaped functions (``fmi2GetReal`` ...) are
 the adapter's: ``fmi3GetFloat64``/``SetFloat64``/``GetInt32``/``SetInt32`` with their extra
 ``nValues``, ``fmi3GetBoolean``/``SetBoolean`` with C ``bool`` values converted, the calls of the
-same shape passed through. So one kernel (``kernel.c``) runs FMI 2.0 and 3.0 FMUs in one system.
+same shape passed through, and every other variable (an array element, Float32, Int8 ... UInt64,
+an enumeration) reached through the adapter's slot table as a double
+(:mod:`heliostep.cosim.fmi3_types`). So one kernel (``kernel.c``) runs FMI 2.0 and 3.0 FMUs in one
+system. Off the hot path (event-time connections, parameters, String and Binary) each type is got
+and set with its own fmi3 function (:func:`~heliostep.cosim.fmi3_types.typed_access`).
 The life cycle is FMI 3.0's own: ``fmi3EnterInitializationMode`` (tolerance, start and stop time),
 ``fmi3EnterEventMode``, the ``fmi3UpdateDiscreteStates`` iteration (``discreteStatesNeedUpdate``,
 ``terminateSimulation``, ``nominalsOfContinuousStatesChanged``, ``valuesOfContinuousStatesChanged``,

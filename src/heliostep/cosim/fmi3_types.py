@@ -25,16 +25,12 @@ parameters and the Python paths. :func:`integer_range` gives the range connectio
 from __future__ import annotations
 
 import ctypes
-from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from heliostep.cosim.description import VariableInfo
 from heliostep.errors import InputError
-
-if TYPE_CHECKING:
-    from heliostep.cosim.fmi3 import ModelExchange3Instance
 
 #: FMI 3.0 type -> (ctypes type of one value, numpy dtype, the adapter's type code (fmi3_adapter.c))
 FMI3_TYPES: dict[str, tuple[Any, Any, int]] = {
@@ -71,14 +67,14 @@ _RANGES = {
 }
 
 
-def integer_range(variable: VariableInfo) -> tuple[int, int] | None:
+def integer_range(variable: Any) -> tuple[int, int] | None:
     """The range of an integer variable's values (FMI 2.0 Integer and Enumeration: Int32), else None."""
     if variable.fmi3_type:
         return _RANGES.get(variable.fmi3_type)
     return _RANGES["Int32"] if variable.type in ("Integer", "Enumeration") else None
 
 
-def type_label(variable: VariableInfo) -> str:
+def type_label(variable: Any) -> str:
     """The variable's type as its FMI version names it: "Int8 (FMI 3.0)"; FMI 2.0's plain ("Integer")."""
     return f"{variable.fmi3_type} (FMI 3.0)" if variable.fmi3_type else variable.type
 
@@ -109,11 +105,12 @@ def _starts(fmi3_type: str, start: Any, size: int) -> list[float | str | None]:
     return values or [None] * size
 
 
-def fmi3_variables(description) -> tuple[dict[str, VariableInfo], list[str], int, dict[str, list[str]]]:
-    """The variables of fmpy's FMI 3.0 ``description`` element-wise: (name -> variable, the states'
-    names, the number of event indicators, output -> the inputs it depends on directly)."""
+def fmi3_variables(description) -> tuple[dict[str, dict[str, Any]], list[str], int, dict[str, list[str]]]:
+    """The variables of fmpy's FMI 3.0 ``description`` element-wise: (name -> the fields of its
+    :class:`~heliostep.cosim.description.VariableInfo`, the states' names, the number of event
+    indicators, output -> the inputs it depends on directly)."""
     next_slot = 1 + max((v.valueReference for v in description.modelVariables), default=0)
-    variables: dict[str, VariableInfo] = {}
+    variables: dict[str, dict[str, Any]] = {}
     names_of: dict[int, list[str]] = {}  # FMI 3.0 value reference -> the names of its scalar or elements
     for v in description.modelVariables:
         shape = tuple(getattr(v, "shape", None) or ())
@@ -126,7 +123,7 @@ def fmi3_variables(description) -> tuple[dict[str, VariableInfo], list[str], int
                 reference = v.valueReference
             else:
                 reference, next_slot = next_slot, next_slot + 1
-            variables[name] = VariableInfo(
+            variables[name] = dict(
                 name=name,
                 value_reference=reference,
                 type=master_type,
@@ -143,7 +140,7 @@ def fmi3_variables(description) -> tuple[dict[str, VariableInfo], list[str], int
         names_of[v.valueReference] = names
     states = [name for d in description.derivatives for name in names_of[d.variable.derivative.valueReference]]
     n_indicators = sum(len(names_of[u.variable.valueReference]) for u in description.eventIndicators or [])
-    inputs = [name for name, var in variables.items() if var.causality == "input"]
+    inputs = [name for name, fields in variables.items() if fields["causality"] == "input"]
     feedthrough: dict[str, list[str]] = {}
     for unknown in description.outputs:
         dependencies = unknown.dependencies
@@ -157,7 +154,7 @@ def fmi3_variables(description) -> tuple[dict[str, VariableInfo], list[str], int
     return variables, states, n_indicators, feedthrough
 
 
-def slot_table(variables: dict[str, VariableInfo]) -> tuple[int, np.ndarray]:
+def slot_table(variables: Mapping[str, Any]) -> tuple[int, np.ndarray]:
     """(the first slot, the adapter's table: per slot its type code, FMI 3.0 value reference,
     element and array size, as int64 rows) for the adapter's ``fmi2GetReal``/``fmi2SetReal``."""
     slotted = sorted(
@@ -193,10 +190,9 @@ TYPED_CALLS = {
 }
 
 
-def typed_access(
-    fmu: ModelExchange3Instance, names: Sequence[str]
-) -> tuple[Callable[[], None], Callable[[], None], np.ndarray]:
-    """(get, set, buffer) for the named variables, all of one FMI 3.0 type: ``get()`` reads them into
+def typed_access(fmu: Any, names: Sequence[str]) -> tuple[Callable[[], None], Callable[[], None], np.ndarray]:
+    """(get, set, buffer) for the named variables of ``fmu`` (a
+    :class:`~heliostep.cosim.fmi3.ModelExchange3Instance`), all of one FMI 3.0 type: ``get()`` reads them into
     ``buffer``, ``set()`` writes ``buffer`` to them, each with one call of the type's own function on
     the FMI 3.0 value references (a whole array read, or written with its other elements as they are)."""
     variables = [fmu.info.variable(name) for name in names]
