@@ -179,3 +179,26 @@ def test_a_parameter_outside_its_fmi3_types_range_is_an_input_error_naming_it(fm
     with pytest.raises(InputError, match=r"count8_start: 128 is not a valid Int8 value"):
         system = CoSimulation({"s": read_fmu(fmus["Types3"])}, [], parameters={"s": {"count8_start": 128}})
         system.simulate(0.0, 0.5, np.linspace(0.0, 0.5, 3), SolverOptions())
+
+
+def test_types3_beside_the_shipped_drive_writes_its_elements_by_name_and_its_text_outputs(tmp_path, fmus):
+    import json
+
+    import pandas as pd
+
+    from heliostep.cli import main
+    from heliostep.paths import scenarios_dir
+
+    out = tmp_path / "out"
+    args = ["run", str(scenarios_dir() / "jan21-central.yaml"), "--out", str(out), "--no-plots"]
+    assert main([*args, "--set", "window.duration=3", "--set", f"fmus.types={fmus['Types3']}"]) == 0
+    trace = pd.read_parquet(out / "trace.parquet").drop_duplicates("time", keep="last")
+    t = trace["time"].to_numpy()
+    elements = [f"types.a_out[{i},{j}]" for i in (1, 2) for j in (1, 2, 3)]
+    assert [c for c in trace.columns if c.startswith("types.a_out")] == elements  # row-major, 1-based
+    assert (trace["types.a_out[2,1]"] == 21.0).all() and (trace["types.a_out[1,3]"] == 13.0).all()
+    np.testing.assert_array_equal(trace["types.count8"], wrapped_int8(120 + np.floor(t / PERIOD + 1e-9)))
+    np.testing.assert_allclose(trace["types.x[2]"], -0.5 * t, rtol=1e-9, atol=1e-12)
+    texts = json.loads((out / "metadata.json").read_text())["statistics"]["text_outputs"]
+    assert texts["types.tick_text"][-1] == [3.0, f"tick {wrapped_int8(120 + 12)}"]  # 132 as an Int8: -124
+    assert texts["types.tick_bytes"][-1] == [3.0, bytes([132, 0xA5]).hex()]
