@@ -5,7 +5,9 @@ FMI 3.0 FMU, :func:`fmi3_variables` gives every scalar variable its own name and
 an array variable a name of its own: ``a[1]``, ``a[2,3]``, the indices 1-based and in row-major
 order (FMI 3.0 serializes arrays row-major, FMI 3.0 standard section 2.4.7.1; the names are
 Modelica's and the FMI display convention's). fmpy's results (``fmpy.simulate_fmu``) keep one
-column per array with the array's shape instead: element ``a[i,j]`` is fmpy's ``result["a"][:, i-1, j-1]``.
+column per array with the array's shape instead: element ``a[i,j]`` is fmpy's ``result["a"][:, i-1, j-1]``
+(fmpy's ``plot_result`` labels it 0-based, ``a[i-1,j-1]``; heliostep keeps the 1-based names an FMI 2.0
+export of a Modelica model gives its scalars, so traces compare across FMI versions).
 
 Each such variable keeps its FMI 3.0 type (``fmi3_type``), the FMI 3.0 value reference of its
 scalar or array (``fmi3_reference``), its element and the array's size. Float64, Int32 and Boolean
