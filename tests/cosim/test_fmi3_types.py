@@ -4,7 +4,8 @@ Types3 (``tests/data/mini3/types3.c``, built by ``tests/types3_fmu.py``) passes 
 type through (T_out = T_in), a 2 x 3 Float64 array (a_out = a_in + offset) and has generators:
 states x (Float64 [2]) with der(x) = rates, an Int8 counter count8 (count8_start + one per time
 event k * period, wrapping as an Int8 does), a Float32 ramp32 = float32(slope * t), a String
-tick_text = "tick <count8>" and a Binary tick_bytes = {count8 as a byte, 0xA5}.
+tick_text = "<greeting> <count8>" and a Binary tick_bytes = count8 as a byte and tag (greeting, a
+String parameter, "tick"; tag, a Binary parameter, {0xA5}).
 
 Alone it is compared with fmpy's own FMI 3.0 simulation (``fmpy.simulate_fmu``, fmi_type
 ModelExchange) and with first principles; connected to itself, to the FMI 3.0 Counter3 and to
@@ -48,6 +49,7 @@ def test_types3_alone_agrees_with_fmpy_for_every_type_and_names_the_array_elemen
     import fmpy
 
     parameters = {"count8_start": START8, "slope": 0.3, "offset[2,1]": -7.5, "rates[2]": 2.0}
+    parameters |= {"greeting": "step", "tag": "5a0b"}  # a String and a Binary parameter (hexadecimal digits)
     system = CoSimulation({"s": read_fmu(fmus["Types3"])}, [], parameters={"s": parameters})
     result = system.simulate(0.0, 1.0, np.linspace(0.0, 1.0, 5), SolverOptions(rtol=1e-9))
     offset = [11.0, 12.0, 13.0, -7.5, 22.0, 23.0]
@@ -81,8 +83,8 @@ def test_types3_alone_agrees_with_fmpy_for_every_type_and_names_the_array_elemen
     assert list(trace["s.count8"]) == [125, 126, 127, -128, -127]
     np.testing.assert_array_equal(trace["s.ramp32"], np.float32(np.float64(np.float32(0.3)) * t))
     texts = result.statistics["text_outputs"]
-    assert texts["s.tick_text"] == [[tk, f"tick {c}"] for tk, c in zip(t, wrapped_int8(START8 + ticks))]
-    assert texts["s.tick_bytes"] == [[tk, bytes([int(c) % 256, 0xA5]).hex()] for tk, c in zip(t, START8 + ticks)]
+    assert texts["s.tick_text"] == [[tk, f"step {c}"] for tk, c in zip(t, wrapped_int8(START8 + ticks))]
+    assert texts["s.tick_bytes"] == [[tk, bytes([int(c) % 256, 0x5A, 0x0B]).hex()] for tk, c in zip(t, START8 + ticks)]
     assert texts["s.String_out"] == [[0.0, "none"]] and texts["s.Binary_out"] == [[0.0, "a5"]]
 
 

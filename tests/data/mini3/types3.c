@@ -7,7 +7,8 @@
  * 2 x 3 Float64 arrays (row-major, as FMI 3.0 serializes arrays).
  * Generators: x (Float64 [2], states) with der(x) = rates; count8 (Int8) = count8_start + the number
  * of time events k * period so far, wrapping as an Int8 does (127 + 1 = -128); ramp32 (Float32) =
- * (float)(slope * time); tick_text (String) = "tick <count8>"; tick_bytes (Binary) = {count8 as a byte, 0xA5}.
+ * (float)(slope * time); tick_text (String) = "<greeting> <count8>" (greeting a String parameter,
+ * "tick"); tick_bytes (Binary) = count8 as a byte followed by tag (a Binary parameter, {0xA5}).
  * Every get/set checks its value references, types and nValues (the number of values of all
  * arrays), as FMI 3.0 asks; an array is set and got whole. */
 #include <math.h>
@@ -24,7 +25,7 @@ enum {
     TIME, F32_IN, F32_OUT, F64_IN, F64_OUT, I8_IN, I8_OUT, U8_IN, U8_OUT, I16_IN, I16_OUT, U16_IN, U16_OUT,
     I32_IN, I32_OUT, U32_IN, U32_OUT, I64_IN, I64_OUT, U64_IN, U64_OUT, BOOL_IN, BOOL_OUT, STR_IN, STR_OUT,
     BIN_IN, BIN_OUT, ENUM_IN, ENUM_OUT, A_IN, A_OUT, OFFSET, X, DER_X, RATES, PERIOD, COUNT8, COUNT8_START,
-    RAMP32, SLOPE, TICK_TEXT, TICK_BYTES, N_VR
+    RAMP32, SLOPE, TICK_TEXT, TICK_BYTES, GREETING, TAG, N_VR
 };
 typedef enum { F32, F64, I8, U8, I16, U16, I32, U32, I64, U64, BOOL, STR, BIN } Kind;
 /* each value reference: its kind, its number of elements and its first slot in the kind's storage */
@@ -43,6 +44,7 @@ static const struct { Kind kind; int size; int slot; bool settable; } VR[N_VR] =
     [DER_X] = {F64, 2, 23, false}, [RATES] = {F64, 2, 25, true}, [PERIOD] = {F64, 1, 27, true},
     [COUNT8] = {I8, 1, 2, false}, [COUNT8_START] = {I8, 1, 3, true}, [RAMP32] = {F32, 1, 2, false},
     [SLOPE] = {F32, 1, 3, true}, [TICK_TEXT] = {STR, 1, 2, false}, [TICK_BYTES] = {BIN, 1, 2, false},
+    [GREETING] = {STR, 1, 3, true}, [TAG] = {BIN, 1, 3, true},
 };
 #define MAX_BINARY 64
 
@@ -58,9 +60,9 @@ typedef struct {
     int64_t i64[4];
     uint64_t u64[2];
     bool b[2];
-    char str[3][64];
-    uint8_t bin[3][MAX_BINARY];
-    size_t bin_size[3];
+    char str[4][64];
+    uint8_t bin[4][MAX_BINARY];
+    size_t bin_size[4];
     double time, next_event;
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback log;
@@ -85,6 +87,9 @@ static void set_starts(Instance *m) {
     strcpy(m->str[0], "none");
     m->bin[0][0] = 0xA5;
     m->bin_size[0] = 1;
+    strcpy(m->str[3], "tick");
+    m->bin[3][0] = 0xA5;
+    m->bin_size[3] = 1;
     m->next_event = INFINITY;
 }
 
@@ -110,10 +115,10 @@ static void outputs(Instance *m) {
     for (int k = 0; k < 2; k++) m->f64[VR[DER_X].slot + k] = m->f64[VR[RATES].slot + k];
     m->f32[VR[RAMP32].slot] = (float)((double)m->f32[VR[SLOPE].slot] * m->time);
     int8_t count = m->i8[VR[COUNT8].slot];
-    snprintf(m->str[2], sizeof m->str[2], "tick %d", (int)count);
+    snprintf(m->str[2], sizeof m->str[2], "%.40s %d", m->str[3], (int)count);
     m->bin[2][0] = (uint8_t)count;
-    m->bin[2][1] = 0xA5;
-    m->bin_size[2] = 2;
+    memcpy(m->bin[2] + 1, m->bin[3], m->bin_size[3] < MAX_BINARY ? m->bin_size[3] : MAX_BINARY - 1);
+    m->bin_size[2] = 1 + (m->bin_size[3] < MAX_BINARY ? m->bin_size[3] : MAX_BINARY - 1);
 }
 
 /* a value reference's storage check: known, of the kind, settable when setting; counts its values */
