@@ -150,20 +150,10 @@ def test_an_fmi3_instance_logs_into_its_own_messages(fmus, caplog):
             "clock",
         ),
         (
-            '    <Float64 name="v" valueReference="21" causality="output" variability="continuous">'
-            '<Dimension start="2"/></Float64>',
+            '    <Float64 name="v" valueReference="21" causality="output" variability="discrete" clocks="20"/>\n'
+            '    <Clock name="tick" valueReference="20" causality="input" variability="discrete"/>',
             "ModelExchange",
-            "array variable 'v'",
-        ),
-        (
-            '    <Float32 name="w" valueReference="22" causality="output" variability="discrete"/>',
-            "ModelExchange",
-            "Float32",
-        ),
-        (
-            '    <Binary name="blob" valueReference="23" causality="output" variability="discrete"/>',
-            "ModelExchange",
-            "Binary",
+            "clocked variable 'v'",
         ),
         ("", "CoSimulation", "Co-Simulation"),
     ],

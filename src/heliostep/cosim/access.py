@@ -63,9 +63,11 @@ class VariableAccess:
     def link(self, outputs: list[str], target: VariableAccess, inputs: list[str]) -> Callable[[], None]:
         """A call that copies this instance's ``outputs`` to ``target``'s ``inputs``.
 
-        Real variables go through one buffer with the hot-path calls; Integer/Enumeration and
-        Boolean ones with fmi2Get/SetInteger and fmi2Get/SetBoolean (the caller has checked
-        that connected variables have compatible types).
+        Real variables go through one buffer with the hot-path calls; the others in groups of one
+        (source type, target type), each end with the calls of its type (fmi2Get/SetInteger,
+        fmi2Get/SetBoolean, fmi2Get/SetString; an FMI 3.0 instance's own typed calls), the values
+        converted by numpy as they are copied (the caller has checked that connected variables
+        have compatible types).
         """
         types = [self.info.variable(name).type for name in outputs]
         if all(t == "Real" for t in types):
@@ -89,16 +91,10 @@ class VariableAccess:
             copy.keep = (source_vrs, target_vrs, buffer)  # type: ignore[attr-defined]
             return copy
         groups = []
-        for kind in dict.fromkeys(types):
-            pairs = [(o, i) for o, i, t in zip(outputs, inputs, types) if t == kind]
-            groups.append(
-                (
-                    self._typed(kind, [o for o, _ in pairs]),
-                    target._typed(
-                        target.info.variable(pairs[0][1]).type if kind != "Real" else "Real", [i for _, i in pairs]
-                    ),
-                )
-            )
+        kinds = list(zip(types, [target.info.variable(name).type for name in inputs]))
+        for kind in dict.fromkeys(kinds):  # one group per (source type, target type)
+            pairs = [(o, i) for o, i, k in zip(outputs, inputs, kinds) if k == kind]
+            groups.append((self._typed(kind[0], [o for o, _ in pairs]), target._typed(kind[1], [i for _, i in pairs])))
 
         def copy_typed() -> None:
             for (get, _, get_buffer), (_, put, put_buffer) in groups:
@@ -110,6 +106,17 @@ class VariableAccess:
 
     def _typed(self, kind: str, names: list[str]) -> tuple[Callable[[], None], Callable[[], None], np.ndarray]:
         """(get, set, buffer) for variables of one type: the calls read into / write from buffer."""
+        if kind == "String":
+            refs = self.value_references(names)
+            texts = np.array([""] * len(names), dtype=object)
+
+            def get_texts() -> None:
+                texts[:] = self.get_string(refs)
+
+            def put_texts() -> None:
+                self.set_string(refs, list(texts))
+
+            return get_texts, put_texts, texts
         if kind not in _TYPES:
             raise InputError(f"{self.info.path}: {', '.join(names)}: {kind} variables cannot be exchanged")
         ctype, dtype, getter, setter = _TYPES[kind]

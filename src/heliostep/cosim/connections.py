@@ -14,11 +14,36 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from heliostep.cosim.fmi import FMUInfo
+from heliostep.cosim.fmi3_types import integer_range, type_label
 from heliostep.cosim.signals import Connection, PiecewiseConstant
 from heliostep.errors import InputError
 
-#: Connectable FMI types: a connection's two ends must fall in the same class.
-_TYPE_CLASS = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean"}
+#: Connectable types (FMI 2.0's names, FMI 3.0's Float64/Int32 as "Real"/"Integer"): a connection's two
+#: ends must fall in the same class; an integer target must hold every value of its source's type
+#: (:func:`_compatible`). Master inputs (numbers) drive every class but String and Binary.
+_TYPE_CLASS = {
+    **{name: "Real" for name in ("Real", "Float32")},
+    **{
+        name: "Integer"
+        for name in ("Integer", "Enumeration", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64")
+    },
+    "Boolean": "Boolean",
+    "String": "String",
+    "Binary": "Binary",
+}
+
+
+def _compatible(source, target) -> str:
+    """Why ``source`` cannot feed ``target`` (VariableInfo), or "" when it can."""
+    if _TYPE_CLASS[source.type] != _TYPE_CLASS[target.type]:
+        return "types are incompatible"
+    source_range, target_range = integer_range(source), integer_range(target)
+    if source_range is None or target_range is None or source.type == target.type == "Enumeration":
+        return ""
+    (low, high), (target_low, target_high) = source_range, target_range
+    if low < target_low or high > target_high:
+        return f"types are incompatible: {target.name} cannot hold every value of {source.name} [{low}, {high}]"
+    return ""
 
 
 def split_name(qualified: str, what: str) -> tuple[str, str]:
@@ -62,8 +87,8 @@ class ConnectionGraph:
         var = info.variables[variable]
         if var.causality != causality:
             raise InputError(f"{what} {qualified!r}: expected an {causality}, it is a {var.type} {var.causality}")
-        if var.type not in _TYPE_CLASS:
-            raise InputError(f"{what} {qualified!r}: {var.type} variables cannot be connected or driven")
+        if var.type not in _TYPE_CLASS or (what.startswith("input ") and var.type in ("String", "Binary")):
+            raise InputError(f"{what} {qualified!r}: {type_label(var)} variables cannot be connected or driven")
         return instance, var
 
     def _check_connections(self, connections: Sequence[Connection]) -> list[Connection]:
@@ -85,10 +110,11 @@ class ConnectionGraph:
         for c in self.connections:
             _, source = self._variable(c.source, "connection source", "output")
             _, target = self._variable(c.target, "connection target", "input")
-            if _TYPE_CLASS[source.type] != _TYPE_CLASS[target.type]:
+            problem = _compatible(source, target)
+            if problem:
                 raise InputError(
-                    f"connection {c.source} -> {c.target}: types are incompatible "
-                    f"({c.source} is {source.type}, {c.target} is {target.type})"
+                    f"connection {c.source} -> {c.target}: {problem} "
+                    f"({c.source} is {type_label(source)}, {c.target} is {type_label(target)})"
                 )
             if source.unit and target.unit and source.unit != target.unit:
                 raise InputError(

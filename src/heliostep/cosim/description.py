@@ -20,6 +20,7 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from heliostep.cosim.fmi3_types import fmi3_variables, integer_range
 from heliostep.errors import InputError
 
 
@@ -35,11 +36,28 @@ class VariableInfo:
     unit: str = ""
     start: float | str | None = None  # float for Real/Integer/Boolean/Enumeration, str for String
     description: str = ""
+    #: FMI 3.0 only (:mod:`heliostep.cosim.fmi3_types`): the variable's FMI 3.0 type, its FMI 3.0
+    #: value reference, its element (row-major, 0-based; -1: a scalar) and the array's number of elements
+    fmi3_type: str = ""
+    fmi3_reference: int = -1
+    element: int = -1
+    size: int = 1
 
     @property
     def discrete(self) -> bool:
-        """Changes only at events: every non-Real variable, and Real ones of variability discrete."""
-        return self.type != "Real" or self.variability != "continuous"
+        """Changes only at events: every non-float variable, and float ones of variability discrete."""
+        return self.type not in ("Real", "Float32") or self.variability != "continuous"
+
+    @property
+    def through_slot(self) -> bool:
+        """An FMI 3.0 variable the fmi2-shaped calls reach through the adapter's slot table (every
+        array element, every scalar but Float64, Int32 and Boolean): read and set as a double there."""
+        return bool(self.fmi3_type) and self.value_reference != self.fmi3_reference
+
+    @property
+    def exchanged_as_real(self) -> bool:
+        """Read and set as a double by the compiled kernel (FMI 2.0 Real, FMI 3.0 Float64 and Float32)."""
+        return self.type in ("Real", "Float32")
 
 
 @dataclass
@@ -286,15 +304,19 @@ def _extract(path: Path) -> str:
 
 def convert_value(variable: VariableInfo, value):
     """A scenario value converted to the variable's type (InputError when it does not fit):
-    Real from numbers, Integer/Enumeration from whole numbers, Boolean from True/False, 0/1 or
-    "true"/"false", String from anything."""
+    Real from numbers, Integer/Enumeration (and FMI 3.0's Int8 ... UInt64) from whole numbers in the
+    type's range, Boolean from True/False, 0/1 or "true"/"false", Binary from bytes or hexadecimal
+    digits, String from anything."""
     try:
         if variable.type in ("Real", "Float32"):
             return float(value)
         if variable.type in ("Integer", "Enumeration") or variable.type.lstrip("U").startswith("Int"):
             if isinstance(value, bool) or float(value) != int(float(value)):
                 raise ValueError
-            return int(float(value))
+            whole, limits = int(value) if isinstance(value, int) else int(float(value)), integer_range(variable)
+            if limits is not None and not limits[0] <= whole <= limits[1]:
+                raise ValueError
+            return whole
         if variable.type == "Boolean":
             if isinstance(value, str):
                 if value.strip().lower() not in ("true", "false", "1", "0"):
@@ -303,6 +325,8 @@ def convert_value(variable: VariableInfo, value):
             if value not in (0, 1, True, False):
                 raise ValueError
             return bool(value)
+        if variable.type == "Binary":  # bytes, or their hexadecimal digits
+            return bytes(value) if isinstance(value, (bytes, bytearray)) else bytes.fromhex(str(value))
         return str(value)
     except (TypeError, ValueError):
         raise InputError(f"parameter {variable.name}: {value!r} is not a valid {variable.type} value") from None
@@ -313,16 +337,11 @@ def convert_value(variable: VariableInfo, value):
 #
 # :func:`read_fmu3` turns fmpy's reading of an FMI 3.0 ``modelDescription.xml`` into the same
 # :class:`~heliostep.cosim.description.FMUInfo` as an FMI 2.0 FMU's (``fmi_version`` "3.0"), so the
-# master, the connections and the compiled kernel treat both alike. The FMI 3.0 types the master
-# exchanges map onto FMI 2.0's: Float64 is "Real", Int32 "Integer", Boolean "Boolean" (their calls
-# go through the adapter of :mod:`heliostep.cosim.fmi3`). Parameters and local variables may have
-# any FMI 3.0 type. What the master does not support is refused up front with
-# :class:`~heliostep.errors.InputError` naming the FMU and the feature: Co-Simulation or Scheduled
-# Execution only, clocks (and clocked variables), array variables, and inputs or outputs of a type
-# other than Float64, Int32 and Boolean (Float32, Int8 ... UInt64, Enumeration, String, Binary).
-
-#: FMI 3.0 type -> the master's type name (FMI 2.0's where the kernel exchanges it)
-_TYPE_NAMES = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean"}
+# master, the connections and the compiled kernel treat both alike: every variable type, array
+# variables element by element (``a[1,2]``), their calls through the adapter of
+# :mod:`heliostep.cosim.fmi3` (:mod:`heliostep.cosim.fmi3_types`). What the master does not support
+# is refused up front with :class:`~heliostep.errors.InputError` naming the FMU and the feature:
+# Co-Simulation or Scheduled Execution only, clocks (and clocked variables).
 
 #: The functions every FMI 3.0 Model Exchange binary must export that heliostep calls.
 REQUIRED_FUNCTIONS3 = (
@@ -373,33 +392,16 @@ def read_fmu3(path: Path, description, co_simulation: bool = False) -> FMUInfo:
     _refuse_unsupported(path, description)
     interface = description.modelExchange
     _check_binary(path, interface.modelIdentifier, REQUIRED_FUNCTIONS3, platform_tuple)
-    variables = {
-        v.name: VariableInfo(
-            name=v.name,
-            value_reference=v.valueReference,
-            type=_TYPE_NAMES.get(v.type, v.type),
-            causality=v.causality,
-            variability=v.variability,
-            unit=_unit(v),
-            start=None if v.start is None else _parse_start(_TYPE_NAMES.get(v.type, v.type), v.start),
-            description=v.description or "",
-        )
-        for v in description.modelVariables
-    }
-    inputs = {v.name for v in description.modelVariables if v.causality == "input"}
-    feedthrough = {}
-    for unknown in description.outputs:
-        dependencies = unknown.dependencies
-        names = sorted(inputs) if dependencies is None else [d.name for d in dependencies if d.name in inputs]
-        feedthrough[unknown.variable.name] = names
+    fields, states, n_indicators, feedthrough = fmi3_variables(description)
+    variables = {name: VariableInfo(**values) for name, values in fields.items()}
     return FMUInfo(
         path=path,
         model_name=description.modelName,
         model_identifier=interface.modelIdentifier,
         guid=description.instantiationToken or description.guid or "",
         variables=variables,
-        states=[d.variable.derivative.name for d in description.derivatives],
-        n_event_indicators=len(description.eventIndicators or []),
+        states=states,
+        n_event_indicators=n_indicators,
         output_feedthrough=feedthrough,
         needs_completed_integrator_step=bool(getattr(interface, "needsCompletedIntegratorStep", False)),
         description=description,
@@ -408,19 +410,10 @@ def read_fmu3(path: Path, description, co_simulation: bool = False) -> FMUInfo:
 
 
 def _refuse_unsupported(path: Path, description) -> None:
-    """Clocks, clocked variables, arrays, and inputs/outputs of a type the master cannot exchange."""
+    """Clocks and clocked variables (the master has no clocked partitions)."""
     for v in description.modelVariables:
         if v.type == "Clock" or getattr(v, "clocks", None):
             raise InputError(
                 f"{path}: FMI 3.0 clocks ({'clock' if v.type == 'Clock' else 'clocked variable'} {v.name!r}) are "
                 "not supported by heliostep's master"
-            )
-        if getattr(v, "dimensions", None):
-            raise InputError(
-                f"{path}: FMI 3.0 array variable {v.name!r} ({v.type}): array variables are not supported yet"
-            )
-        if v.causality in ("input", "output") and v.type not in _TYPE_NAMES:
-            raise InputError(
-                f"{path}: FMI 3.0 {v.causality} {v.name!r} of type {v.type}: heliostep exchanges and traces FMI 3.0 "
-                f"inputs and outputs of type {', '.join(_TYPE_NAMES)} only (other types as parameters or locals)"
             )

@@ -6,7 +6,11 @@ adapter (``c/fmi3_adapter.c``, compiled once like the kernel and cached by conte
 ``fmi3Instance`` and its fmi3* functions, and its fmi2-shaped functions (``fmi2GetReal`` ...) are
 the adapter's: ``fmi3GetFloat64``/``SetFloat64``/``GetInt32``/``SetInt32`` with their extra
 ``nValues``, ``fmi3GetBoolean``/``SetBoolean`` with C ``bool`` values converted, the calls of the
-same shape passed through. So one kernel (``kernel.c``) runs FMI 2.0 and 3.0 FMUs in one system.
+same shape passed through, and every other variable (an array element, Float32, Int8 ... UInt64,
+an enumeration) reached through the adapter's slot table as a double
+(:mod:`heliostep.cosim.fmi3_types`). So one kernel (``kernel.c``) runs FMI 2.0 and 3.0 FMUs in one
+system. Off the hot path (event-time connections, parameters, String and Binary) each type is got
+and set with its own fmi3 function (:func:`~heliostep.cosim.fmi3_types.typed_access`).
 The life cycle is FMI 3.0's own: ``fmi3EnterInitializationMode`` (tolerance, start and stop time),
 ``fmi3EnterEventMode``, the ``fmi3UpdateDiscreteStates`` iteration (``discreteStatesNeedUpdate``,
 ``terminateSimulation``, ``nominalsOfContinuousStatesChanged``, ``valuesOfContinuousStatesChanged``,
@@ -23,7 +27,7 @@ import os
 import subprocess
 import tempfile
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +46,8 @@ from heliostep.cosim.fmi import (
     _environment_ids,
     _extract,
 )
-from heliostep.errors import RunFailure
+from heliostep.cosim.fmi3_types import TYPED_CALLS, slot_table, typed_access
+from heliostep.errors import InputError
 
 ADAPTER_SOURCE = Path(__file__).resolve().parent / "c" / "fmi3_adapter.c"
 
@@ -77,22 +82,35 @@ _ADAPTER_FIELDS = (
 )
 
 
+#: the typed functions of the adapter's slots, by type code (fmi3_adapter.c, fmi3_types.FMI3_TYPES)
+_SLOT_TYPES = (
+    "Float64",
+    "Float32",
+    "Int8",
+    "UInt8",
+    "Int16",
+    "UInt16",
+    "Int32",
+    "UInt32",
+    "Int64",
+    "UInt64",
+    "Boolean",
+)
+
+
+#: hs3_adapter's fields (fmi3_adapter.c), in its order
+_ADAPTER_STRUCT: list[tuple[str, Any]] = (
+    [("instance", ctypes.c_void_p)]
+    + [(field, ctypes.c_void_p) for field, _ in _ADAPTER_FIELDS]
+    + [("slot_base", ctypes.c_uint), ("n_slots", ctypes.c_size_t), ("slots", ctypes.c_void_p)]
+    + [("scratch", ctypes.c_void_p)]
+    + [("typed_get", ctypes.c_void_p * len(_SLOT_TYPES)), ("typed_set", ctypes.c_void_p * len(_SLOT_TYPES))]
+)
+
+
 class _Adapter(ctypes.Structure):
-    _fields_ = [("instance", ctypes.c_void_p)] + [(field, ctypes.c_void_p) for field, _ in _ADAPTER_FIELDS]
+    _fields_ = _ADAPTER_STRUCT
 
-
-#: ctypes type of the values of each FMI 3.0 type set as a parameter through its own function
-_SET_TYPES: dict[str, Any] = {
-    "Float32": ctypes.c_float,
-    "Int8": ctypes.c_int8,
-    "UInt8": ctypes.c_uint8,
-    "Int16": ctypes.c_int16,
-    "UInt16": ctypes.c_uint16,
-    "UInt32": ctypes.c_uint32,
-    "Int64": ctypes.c_int64,
-    "UInt64": ctypes.c_uint64,
-    "Enumeration": ctypes.c_int64,
-}
 
 _STATUS_ONLY = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
 _B = ctypes.c_bool
@@ -234,8 +252,22 @@ class ModelExchange3Instance(ModelExchangeInstance):
         """The adapter (its handle is the component the kernel and the hot path pass) and the calls."""
         assert self._model is not None
         dll, library = self._model.dll, adapter_library()
+
+        def address(name: str) -> int | None:
+            return ctypes.cast(dll[name], ctypes.c_void_p).value
+
+        base, self._slots = slot_table(self.info.variables)
+        largest = max((v.size for v in self.info.variables.values()), default=1)
+        self._scratch = np.zeros(max(largest, 1), dtype=np.float64)  # 8 bytes a value, for any type
         self._adapter = _Adapter(
-            self._instance, *[ctypes.cast(dll[name], ctypes.c_void_p).value for _, name in _ADAPTER_FIELDS]
+            self._instance,
+            *[address(name) for _, name in _ADAPTER_FIELDS],
+            base,
+            len(self._slots),
+            self._slots.ctypes.data,
+            self._scratch.ctypes.data,
+            (ctypes.c_void_p * len(_SLOT_TYPES))(*[address(f"fmi3Get{t}") for t in _SLOT_TYPES]),
+            (ctypes.c_void_p * len(_SLOT_TYPES))(*[address(f"fmi3Set{t}") for t in _SLOT_TYPES]),
         )
         self._component = ctypes.addressof(self._adapter)
         self._addresses = {
@@ -244,7 +276,7 @@ class ModelExchange3Instance(ModelExchangeInstance):
         prototypes = {**_CALLS, **_HOT_CALLS}
         self._functions = {name: prototypes[name](self._addresses[name]) for name in _ADAPTED}
         self._hot = {name: self._functions[name] for name in _HOT_CALLS}
-        self._fmi3 = {name: prototype((name, dll)) for name, prototype in _CALLS3.items()}
+        self._fmi3 = {name: prototype((name, dll)) for name, prototype in {**_CALLS3, **TYPED_CALLS}.items()}
 
     def function_address(self, name: str) -> int:
         """The address of the fmi2-shaped function ``name`` (the adapter's, taking :attr:`component`)."""
@@ -264,33 +296,38 @@ class ModelExchange3Instance(ModelExchangeInstance):
             raise self.status_error(function, status)
         return status
 
-    # ------------------------------------------------------------------ parameters of any type
+    # ------------------------------------------------------------------ variables of any type
+    def _typed(self, kind: str, names: list[str]) -> tuple[Callable[[], None], Callable[[], None], np.ndarray]:
+        """(get, set, buffer) of variables of one type, with FMI 3.0's function of their type
+        (:func:`~heliostep.cosim.fmi3_types.typed_access`; ``kind`` is the master's type name)."""
+        return typed_access(self, names)
+
     def set_parameters(self, values: Mapping[str, object]) -> None:
-        """Set parameters by name: Float64, Int32, Boolean and String as for FMI 2.0, the other
-        FMI 3.0 types (Float32, Int8 ... UInt64, Enumeration) each with its own fmi3Set function."""
+        """Set parameters by name (an array's elements by theirs, ``p[2]``), each FMI 3.0 type with its
+        own fmi3Set function: Float32/64, Int8 ... UInt64, Boolean, String, Binary, Enumeration."""
         from heliostep.cosim.description import convert_value
 
-        others = {
-            k: v for k, v in values.items() if k in self.info.variables and self.info.variables[k].type in _SET_TYPES
-        }
-        super().set_parameters({k: v for k, v in values.items() if k not in others})
-        for name, value in others.items():
-            variable = self.info.variables[name]
-            ctype = _SET_TYPES[variable.type]
-            function = "fmi3SetInt64" if variable.type == "Enumeration" else f"fmi3Set{variable.type}"
-            prototype = ctypes.CFUNCTYPE(
-                ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p, ctypes.c_size_t
+        valid = self.info.parameters
+        unknown = [name for name in values if name not in valid]
+        if unknown:
+            raise InputError(
+                f"{self.info.path}: {self.info.model_name} has no parameter "
+                f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}"
             )
-            assert self._model is not None
-            call = prototype((function, self._model.dll))
-            vr, data = ctypes.c_uint32(variable.value_reference), ctype(convert_value(variable, value))
-            watch.note(self.index, function, self.time)
-            status = call(self._instance, ctypes.byref(vr), 1, ctypes.byref(data), 1)
-            if status > 1:
-                raise self.status_error(function, status)
+        by_type: dict[str, list[tuple[str, Any]]] = {}
+        for name, value in values.items():
+            variable = self.info.variables[name]
+            by_type.setdefault(variable.fmi3_type, []).append((name, convert_value(variable, value)))
+        for items in by_type.values():
+            _, put, buffer = typed_access(self, [name for name, _ in items])
+            buffer[:] = [value for _, value in items]
+            put()
 
     def set_string(self, value_references, values) -> None:
-        raise RunFailure(f"{self.name}: String parameters of FMI 3.0 FMUs are not supported")
+        by_reference = {v.value_reference: v.name for v in self.info.variables.values() if v.fmi3_type == "String"}
+        _, put, buffer = typed_access(self, [by_reference[r] for r in value_references])
+        buffer[:] = list(values)
+        put()
 
     # ------------------------------------------------------------------ life cycle
     def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:

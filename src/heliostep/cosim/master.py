@@ -67,6 +67,7 @@ from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.sampled import split_sampled
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 from heliostep.cosim.system import CoupledSystem
+from heliostep.cosim.text_outputs import TextOutputs
 from heliostep.errors import HeliostepError, InputError, RunFailure
 
 __all__ = [
@@ -276,6 +277,7 @@ class _Run:
         self.termination_instances: list[str] = []
         self.system: CoupledSystem | None = None  # from the start of execute
         self.integrator: Integrator | None = None  # once the FMUs are initialized
+        self.texts: TextOutputs | None = None  # the String and Binary outputs, if any
         self._no_outputs = np.zeros(0)
 
     # --------------------------------------------------------------- results
@@ -304,6 +306,7 @@ class _Run:
             "algebraic_loops": list(self.graph.loops),
             **({"sampled_components": self.graph.sampled.statistics()} if self.graph.sampled is not None else {}),
             "max_buffered_rows": self.rows.max_buffered,
+            **({"text_outputs": self.texts.values} if self.texts is not None else {}),
             **(system.loop.statistics() if system is not None and system.loop is not None else {}),
         }
 
@@ -348,6 +351,8 @@ class _Run:
             self.graph.sampled.communicate(t)
         new_values = [item.value_at(input_time) for item in self.graph.inputs] if new_inputs else None
         event_iteration(system, self.input_values, new_values, self.time)
+        if self.texts is not None:
+            self.texts.sample(t)
 
     def _event(
         self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool, input_time: float | None = None
@@ -389,6 +394,10 @@ class _Run:
         for unit in system.unit_list:
             unit.fmu.exit_initialization_mode()
         discrete_fixed_point(system, self.time)
+        texts = TextOutputs(system)
+        self.texts = texts if texts.readers else None
+        if self.texts is not None:
+            self.texts.sample(start_time)
         for unit in system.unit_list:
             unit.fmu.enter_continuous_time_mode()
         if sampled is not None:
@@ -404,6 +413,8 @@ class _Run:
         except Terminated as stop:
             self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
             self.termination_instances = list(stop.instances)
+            if self.texts is not None:
+                self.texts.sample(stop.time)
             self.record(stop.time)
 
     def _advance(

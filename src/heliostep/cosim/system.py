@@ -123,9 +123,9 @@ class CoupledSystem:
                 if discrete:
                     continue
                 self.links.append(link)
-                real = all(source_fmu.info.variable(o).type == "Real" for o in outputs) and all(
-                    target_fmu.info.variable(i).type == "Real" for i in inputs
-                )
+                real = all(source_fmu.info.variable(o).exchanged_as_real for o in outputs) and all(
+                    target_fmu.info.variable(i).exchanged_as_real for i in inputs
+                )  # FMI 3.0 Float32 too: the adapter converts it (fmi3_types)
                 if self.native_links is not None and real:
                     self.native_links.append(
                         (
@@ -251,8 +251,12 @@ class CoupledSystem:
         units: list[KernelUnit] = []
         column = 1 + len(self.input_values)
         for u, x, z in zip(self.unit_list, self.offsets[:-1], self.z_offsets[:-1]):
-            outputs = [
-                (u.info.variable(name).type, u.info.variable(name).value_reference, column + j)
+            outputs = [  # an FMI 3.0 slot (array element, Float32, Int8 ...) is read as a double (fmi3_types)
+                (
+                    "Real" if u.info.variable(name).through_slot else u.info.variable(name).type,
+                    u.info.variable(name).value_reference,
+                    column + j,
+                )
                 for j, name in enumerate(u.outputs)
             ]
             column += len(outputs)

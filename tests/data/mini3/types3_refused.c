@@ -1,0 +1,35 @@
+/* The FMI 3.0 functions Types3 (types3.c) does not offer: clocks, FMU states, directional and
+ * adjoint derivatives, Co-Simulation and Scheduled Execution. fmpy binds every FMI 3.0 function when
+ * it loads a binary, so each is exported and returns fmi3Error (3). No FMI header on purpose (the
+ * prototypes are not the standard's). */
+#define REFUSED(NAME) \
+    int NAME(void) { return 3; }
+REFUSED(fmi3ActivateModelPartition)
+REFUSED(fmi3DeserializeFMUState)
+REFUSED(fmi3DoStep)
+REFUSED(fmi3EnterConfigurationMode)
+REFUSED(fmi3EnterStepMode)
+REFUSED(fmi3EvaluateDiscreteStates)
+REFUSED(fmi3ExitConfigurationMode)
+REFUSED(fmi3FreeFMUState)
+REFUSED(fmi3GetAdjointDerivative)
+REFUSED(fmi3GetClock)
+REFUSED(fmi3GetDirectionalDerivative)
+REFUSED(fmi3GetFMUState)
+REFUSED(fmi3GetIntervalDecimal)
+REFUSED(fmi3GetIntervalFraction)
+REFUSED(fmi3GetNumberOfVariableDependencies)
+REFUSED(fmi3GetOutputDerivatives)
+REFUSED(fmi3GetShiftDecimal)
+REFUSED(fmi3GetShiftFraction)
+REFUSED(fmi3GetVariableDependencies)
+REFUSED(fmi3InstantiateCoSimulation)
+REFUSED(fmi3InstantiateScheduledExecution)
+REFUSED(fmi3SerializeFMUState)
+REFUSED(fmi3SerializedFMUStateSize)
+REFUSED(fmi3SetClock)
+REFUSED(fmi3SetFMUState)
+REFUSED(fmi3SetIntervalDecimal)
+REFUSED(fmi3SetIntervalFraction)
+REFUSED(fmi3SetShiftDecimal)
+REFUSED(fmi3SetShiftFraction)
