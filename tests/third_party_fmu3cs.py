@@ -37,11 +37,15 @@ LAG3_VARIABLES = (
 )
 
 
-def lag3_model_description(interfaces: tuple[str, ...] = ("ModelExchange", "CoSimulation")) -> str:
-    """Lag3's FMI 3.0 ``modelDescription.xml`` with the interface elements ``interfaces``."""
+def lag3_model_description(
+    interfaces: tuple[str, ...] = ("ModelExchange", "CoSimulation"), variable_steps: bool = True
+) -> str:
+    """Lag3's FMI 3.0 ``modelDescription.xml`` with the interface elements ``interfaces`` (its
+    CoSimulation element saying canHandleVariableCommunicationStepSize="true" with ``variable_steps``)."""
+    variable = ' canHandleVariableCommunicationStepSize="true"' if variable_steps else ""
     elements = {
         "ModelExchange": '  <ModelExchange modelIdentifier="Lag3"/>',
-        "CoSimulation": '  <CoSimulation modelIdentifier="Lag3" canHandleVariableCommunicationStepSize="true"/>',
+        "CoSimulation": f'  <CoSimulation modelIdentifier="Lag3"{variable}/>',
     }
     lines = []
     for vr, (name, type_, causality, variability, start) in enumerate(LAG3_VARIABLES):
@@ -95,6 +99,7 @@ def build_lag3_fmu(
     sources_only: bool = False,
     source_edit: tuple[str, str] | None = None,
     name: str = "Lag3",
+    variable_steps: bool = True,
 ) -> Path:
     """``out_dir/<name>.fmu``: Lag3 with the ``interfaces`` given, compiled (or, with ``sources_only``,
     its sources and buildDescription.xml only); ``source_edit`` (old, new) replaces text in lag3.c."""
@@ -113,7 +118,7 @@ def build_lag3_fmu(
             if result.returncode != 0:
                 raise RuntimeError(f"gcc failed for Lag3:\n{result.stderr}")
         with zipfile.ZipFile(fmu, "w") as archive:
-            _write(archive, "modelDescription.xml", lag3_model_description(interfaces))
+            _write(archive, "modelDescription.xml", lag3_model_description(interfaces, variable_steps))
             if not sources_only:
                 _write(archive, "binaries/x86_64-linux/Lag3.so", library.read_bytes())
             _write(archive, "sources/lag3.c", source)

@@ -136,6 +136,15 @@ def test_a_cs_only_fmi3_fmu_without_an_interval_and_an_me_only_one_with_one_are_
         read_fmu(me_only, co_simulation=True)
 
 
+def test_a_shorter_last_step_is_refused_for_an_fmu_that_cannot_vary_its_step(fmus, tmp_path):
+    # Lag3 says canHandleVariableCommunicationStepSize="true": 1.05 s at 0.1 s ends with a step of 0.05 s
+    assert example(fmus, 0.1, stop=1.05).statistics["sampled_components"]["lag"]["steps"] == 11
+    fixed = {**fmus, "Lag3": build_lag3_fmu(tmp_path, variable_steps=False)}  # the attribute left out: false
+    with pytest.raises(InputError, match=r"communication_interval\.lag: 0\.1 s does not divide the window \(1\.05 s\)"):
+        example(fixed, 0.1, stop=1.05)
+    assert example(fixed, 0.15, stop=1.05).statistics["sampled_components"]["lag"]["steps"] == 7  # 0.15 divides it
+
+
 @pytest.mark.parametrize(
     "misbehave, flag",
     [

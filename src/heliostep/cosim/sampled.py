@@ -146,12 +146,24 @@ class SampledComponent:
         count = math.floor((stop_time - start_time) / self.interval * (1.0 + 1e-12))
         self.times = start_time + self.interval * np.arange(1, count + 1)
         if not len(self.times) or self.times[-1] < stop_time * (1.0 - 1e-12):
+            self._check_shorter_step(stop_time - start_time)
             self.times = np.append(self.times, stop_time)  # the last point at the stop time
         self.steps = 0
         kind = CoSimulation3Instance if self.info.fmi_version == "3.0" else CoSimulationInstance
         self.instance = kind(self.info, self.name, self.parameters)
         self.instance.initialize(start_time, stop_time, inputs)
         self._read()
+
+    def _check_shorter_step(self, window: float) -> None:
+        """A last step shorter than the interval needs ``canHandleVariableCommunicationStepSize``
+        (FMI 2.0 and 3.0: false unless the FMU says true); InputError naming the key otherwise."""
+        interface = getattr(self.info.description, "coSimulation", None)
+        if interface is not None and not getattr(interface, "canHandleVariableCommunicationStepSize", False):
+            raise InputError(
+                f"communication_interval.{self.name}: {self.interval:g} s does not divide the window ({window:g} s), "
+                f"and {self.info.path.name} cannot take a shorter last step (its CoSimulation element has no "
+                'canHandleVariableCommunicationStepSize="true"): choose an interval that divides the window'
+            )
 
     def _read(self) -> None:
         assert self.instance is not None
