@@ -100,8 +100,9 @@ def _unit(variable) -> str:
 
 
 def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
-    """Read and check an FMU: it must be FMI 2.0 with Model Exchange (else :class:`InputError`);
-    with ``co_simulation``, with Co-Simulation (run as a sampled component, :mod:`heliostep.cosim.sampled`)."""
+    """Read and check an FMU: it must be FMI 2.0 or 3.0 (:func:`read_fmu3`) with Model Exchange (else
+    :class:`InputError`); with ``co_simulation``, with Co-Simulation (run as a sampled component,
+    :mod:`heliostep.cosim.sampled`)."""
     from fmpy import read_model_description
 
     path = Path(path)

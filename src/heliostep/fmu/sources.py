@@ -25,10 +25,12 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import tempfile
 import zipfile
+import zlib
 from dataclasses import dataclass
 from importlib import metadata, resources
 from pathlib import Path
@@ -109,13 +111,15 @@ def with_platform_binary(path: Path, cache: Path) -> Path:
     try:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
-    except (OSError, zipfile.BadZipFile):
+            head = archive.read("modelDescription.xml")[:4096] if "modelDescription.xml" in names else b""
+    except (OSError, zipfile.BadZipFile, zlib.error, EOFError):
         return path  # read_fmu names what is wrong with it
-    present = {p for p in _platforms() if any(n.startswith(f"binaries/{p}/") for n in names)}
-    if len(present) == 2 or not any(n.startswith("sources/") for n in names):
-        return path
+    version = re.search(rb'fmiVersion\s*=\s*"([^"]*)"', head)
+    platform = _platforms()[version is not None and version.group(1).startswith(b"3.")]
+    if any(n.startswith(f"binaries/{platform}/") for n in names) or not any(n.startswith("sources/") for n in names):
+        return path  # a binary for this platform (the common case: decided without parsing the XML), or no sources
     build = _source_build(path, names)
-    if build is None or build.platform in present:
+    if build is None:
         return path
     key = source_build_key(path)
     target = Path(cache) / SOURCE_CACHE / key[:16] / path.name
