@@ -118,8 +118,9 @@ def _unit(variable) -> str:
 
 
 def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
-    """Read and check an FMU: it must be FMI 2.0 with Model Exchange (else :class:`InputError`);
-    with ``co_simulation``, with Co-Simulation (run as a sampled component, :mod:`heliostep.cosim.sampled`)."""
+    """Read and check an FMU: it must be FMI 2.0 or 3.0 (:func:`read_fmu3`) with Model Exchange (else
+    :class:`InputError`); with ``co_simulation``, with Co-Simulation (run as a sampled component,
+    :mod:`heliostep.cosim.sampled`)."""
     from fmpy import read_model_description
 
     path = Path(path)
@@ -275,7 +276,8 @@ def _check_binary(
     if missing:
         raise InputError(
             f"{path}: the binary for {platform} ({member}) lacks the FMI {functions[0][3]}.0 "
-            f"{'Co-Simulation' if 'fmi2DoStep' in functions else 'Model Exchange'} function(s) {', '.join(missing)}"
+            f"{'Co-Simulation' if functions[-1].endswith('DoStep') else 'Model Exchange'} function(s) "
+            f"{', '.join(missing)}"
         )
 
 
@@ -341,7 +343,8 @@ def convert_value(variable: VariableInfo, value):
 # variables element by element (``a[1,2]``), their calls through the adapter of
 # :mod:`heliostep.cosim.fmi3` (:mod:`heliostep.cosim.fmi3_types`). What the master does not support
 # is refused up front with :class:`~heliostep.errors.InputError` naming the FMU and the feature:
-# Co-Simulation or Scheduled Execution only, clocks (and clocked variables).
+# Scheduled Execution, Co-Simulation only unless asked for (``co_simulation``: a sampled component,
+# :mod:`heliostep.cosim.sampled3`), clocks (and clocked variables).
 
 #: The functions every FMI 3.0 Model Exchange binary must export that heliostep calls.
 REQUIRED_FUNCTIONS3 = (
@@ -376,22 +379,12 @@ def read_fmu3(path: Path, description, co_simulation: bool = False) -> FMUInfo:
     :class:`InputError` naming ``path`` and the feature heliostep does not support."""
     from fmpy import platform_tuple
 
-    if co_simulation or description.modelExchange is None:
-        offered = [
-            kind
-            for kind, interface in (
-                ("Co-Simulation", description.coSimulation),
-                ("Scheduled Execution", getattr(description, "scheduledExecution", None)),
-            )
-            if interface is not None
-        ]
-        raise InputError(
-            f"{path}: FMI 3.0 {' and '.join(offered) or 'without Model Exchange'}: heliostep runs FMI 3.0 FMUs "
-            "through Model Exchange only (FMI 3.0 Co-Simulation and Scheduled Execution are not supported)"
-        )
+    interface = description.coSimulation if co_simulation else description.modelExchange
+    if interface is None:
+        _refuse_interface3(path, description, co_simulation)
     _refuse_unsupported(path, description)
-    interface = description.modelExchange
-    _check_binary(path, interface.modelIdentifier, REQUIRED_FUNCTIONS3, platform_tuple)
+    required = CS_REQUIRED_FUNCTIONS3 if co_simulation else REQUIRED_FUNCTIONS3
+    _check_binary(path, interface.modelIdentifier, required, platform_tuple)
     fields, states, n_indicators, feedthrough = fmi3_variables(description)
     variables = {name: VariableInfo(**values) for name, values in fields.items()}
     return FMUInfo(
@@ -405,7 +398,39 @@ def read_fmu3(path: Path, description, co_simulation: bool = False) -> FMUInfo:
         output_feedthrough=feedthrough,
         needs_completed_integrator_step=bool(getattr(interface, "needsCompletedIntegratorStep", False)),
         description=description,
+        co_simulation=co_simulation,
         fmi_version="3.0",
+    )
+
+
+#: The functions an FMI 3.0 Co-Simulation binary must export for a sampled component.
+CS_REQUIRED_FUNCTIONS3 = (
+    "fmi3GetVersion",
+    "fmi3InstantiateCoSimulation",
+    "fmi3FreeInstance",
+    "fmi3EnterInitializationMode",
+    "fmi3ExitInitializationMode",
+    "fmi3Terminate",
+    "fmi3GetFloat64",
+    "fmi3SetFloat64",
+    "fmi3DoStep",
+)
+
+
+def _refuse_interface3(path: Path, description, co_simulation: bool) -> None:
+    """The interface asked for is missing: an InputError saying what the FMU offers and what to do."""
+    if co_simulation:
+        raise InputError(f"{path}: the FMU does not support Co-Simulation, but communication_interval asks for it")
+    if description.coSimulation is not None:
+        raise InputError(
+            f"{path}: FMI 3.0 Co-Simulation only (no Model Exchange); heliostep integrates Model Exchange FMUs "
+            "itself, or runs a Co-Simulation FMU as a sampled component: give its instance a communication_interval "
+            "(docs/fmus.md)"
+        )
+    offered = "Scheduled Execution" if getattr(description, "scheduledExecution", None) is not None else "no interface"
+    raise InputError(
+        f"{path}: FMI 3.0 {offered}: heliostep runs FMI 3.0 FMUs through Model Exchange, or Co-Simulation as a "
+        "sampled component (FMI 3.0 Scheduled Execution is not supported)"
     )
 
 

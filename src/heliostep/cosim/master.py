@@ -347,12 +347,15 @@ class _Run:
         """Event mode at ``t``: set inputs (their values from ``input_time`` on), iterate discrete states
         to a fixed point."""
         self.counts["events"] += 1
+        stop = None
         if self.graph.sampled is not None:  # at a communication point the sampled components step
-            self.graph.sampled.communicate(t)
+            stop = self.graph.sampled.communicate(t)  # a CS FMU's terminateSimulation: after the new inputs
         new_values = [item.value_at(input_time) for item in self.graph.inputs] if new_inputs else None
         event_iteration(system, self.input_values, new_values, self.time)
         if self.texts is not None:
             self.texts.sample(t)
+        if stop is not None:
+            raise stop
 
     def _event(
         self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool, input_time: float | None = None

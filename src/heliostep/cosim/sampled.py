@@ -1,7 +1,8 @@
-"""Co-Simulation FMUs (FMI 2.0) as sampled components of the Model Exchange system.
+"""Co-Simulation FMUs (FMI 2.0 and 3.0) as sampled components of the Model Exchange system.
 
 A Co-Simulation FMU integrates itself; the master only says when to step. Here it runs as a
-*sampled component*: stepped with ``fmi2DoStep`` at a fixed communication interval ``h`` (the
+*sampled component*: stepped with ``fmi2DoStep`` (FMI 3.0: ``fmi3DoStep``, the instance in
+:mod:`heliostep.cosim.sampled3`) at a fixed communication interval ``h`` (the
 scenario's ``communication_interval.NAME``), its inputs **sampled** at each communication point
 and held until the next, its outputs **held** between communication points. Each communication
 point is a time event of the Model Exchange system: the master stops CVODE there, the component
@@ -14,7 +15,9 @@ This is loose coupling: a connected Model Exchange FMU sees a staircase, delayed
 the CS FMU sees its inputs as a staircase too. For a ramp through a first-order lag the delay is
 about ``h / 2`` on each side (docs/fmus.md gives the measured figures). An algebraic loop through
 a CS FMU cannot be solved at a communication point with held values, so it is refused up front
-(:func:`split_sampled`). Only Real variables of a CS FMU may be connected.
+(:func:`split_sampled`). Only Real variables of a CS FMU (FMI 3.0: Float64) may be connected. A
+step whose FMU asks to terminate (FMI 3.0's ``terminateSimulation``) ends the run at that point
+(:class:`~heliostep.cosim.events.Terminated`), after every component due there has stepped.
 
 The component's outputs connected to Model Exchange inputs are master inputs of the Model Exchange
 system (:class:`SampledSignal`, duck-typed like :class:`~heliostep.cosim.signals.PiecewiseConstant`,
@@ -34,7 +37,9 @@ import numpy as np
 
 from heliostep.cosim.connections import ConnectionGraph, split_name
 from heliostep.cosim.description import FMUInfo, _extract, convert_value
+from heliostep.cosim.events import Terminated
 from heliostep.cosim.fmi import FMIError, _by_environment, _callbacks, _environment_ids
+from heliostep.cosim.sampled3 import CoSimulation3Instance
 from heliostep.cosim.signals import Connection, PiecewiseConstant
 from heliostep.errors import InputError
 
@@ -103,10 +108,11 @@ class CoSimulationInstance:
         refs = [self.info.variables[n].value_reference for n in names]
         return list(self._do("fmi2GetReal", self._slave.getReal, refs))
 
-    def do_step(self, to_time: float) -> None:
-        """fmi2DoStep from the instance's time to ``to_time`` [s]."""
+    def do_step(self, to_time: float) -> bool:
+        """fmi2DoStep from the instance's time to ``to_time`` [s]; False (FMI 2.0's step says no termination)."""
         self._do("fmi2DoStep", self._slave.doStep, self.time, to_time - self.time)
         self.time = to_time
+        return False
 
     def close(self) -> None:
         """fmi2Terminate (errors ignored: the run's own error, if any, is what counts) and fmi2FreeInstance."""
@@ -134,17 +140,30 @@ class SampledComponent:
         self.held = {v: float(info.variables[v].start or 0.0) for v in self.outputs}  # before the start: starts
         self.times: np.ndarray = np.zeros(0)  # the communication points after the start, up to the stop time
         self.steps = 0
-        self.instance: CoSimulationInstance | None = None
+        self.instance: CoSimulationInstance | CoSimulation3Instance | None = None
 
     def start(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
         count = math.floor((stop_time - start_time) / self.interval * (1.0 + 1e-12))
         self.times = start_time + self.interval * np.arange(1, count + 1)
         if not len(self.times) or self.times[-1] < stop_time * (1.0 - 1e-12):
+            self._check_shorter_step(stop_time - start_time)
             self.times = np.append(self.times, stop_time)  # the last point at the stop time
         self.steps = 0
-        self.instance = CoSimulationInstance(self.info, self.name, self.parameters)
+        kind = CoSimulation3Instance if self.info.fmi_version == "3.0" else CoSimulationInstance
+        self.instance = kind(self.info, self.name, self.parameters)
         self.instance.initialize(start_time, stop_time, inputs)
         self._read()
+
+    def _check_shorter_step(self, window: float) -> None:
+        """A last step shorter than the interval needs ``canHandleVariableCommunicationStepSize``
+        (FMI 2.0 and 3.0: false unless the FMU says true); InputError naming the key otherwise."""
+        interface = getattr(self.info.description, "coSimulation", None)
+        if interface is not None and not getattr(interface, "canHandleVariableCommunicationStepSize", False):
+            raise InputError(
+                f"communication_interval.{self.name}: {self.interval:g} s does not divide the window ({window:g} s), "
+                f"and {self.info.path.name} cannot take a shorter last step (its CoSimulation element has no "
+                'canHandleVariableCommunicationStepSize="true"): choose an interval that divides the window'
+            )
 
     def _read(self) -> None:
         assert self.instance is not None
@@ -158,11 +177,13 @@ class SampledComponent:
             np.any(np.abs(self.times - time) <= 1e-9 * max(1.0, abs(time)))
         )
 
-    def step_to(self, time: float) -> None:
+    def step_to(self, time: float) -> bool:
+        """Step to ``time`` [s] and read the outputs; whether the FMU asks to terminate the simulation."""
         assert self.instance is not None
-        self.instance.do_step(time)
+        terminate = self.instance.do_step(time)
         self.steps += 1
         self._read()
+        return terminate
 
 
 class SampledSignal:
@@ -184,7 +205,9 @@ class SampledSignal:
         return np.array([self.component.held[self.variable]])
 
     def value_at(self, time: float) -> float:
-        self.group.communicate(time)
+        stop = self.group.communicate(time)  # the master communicates first: nothing due here, normally
+        if stop is not None:
+            raise stop
         return self.component.held[self.variable]
 
 
@@ -243,13 +266,18 @@ class SampledSystem:
             if pairs and component.instance is not None:
                 component.instance.set_real([p[0] for p in pairs], [p[1] for p in pairs])
 
-    def communicate(self, time: float) -> None:
+    def communicate(self, time: float) -> Terminated | None:
         """At a communication point: the components due step to it with the inputs they held, then
-        their inputs are sampled (the Model Exchange system at ``time``, before its event)."""
+        their inputs are sampled (the Model Exchange system at ``time``, before its event). A
+        :class:`~heliostep.cosim.events.Terminated` to raise once the event is handled (the held outputs
+        passed on) when a component asked to terminate the simulation, else None."""
         due = [component for component in self.components.values() if component.due(time)]
-        for component in due:
-            component.step_to(time)
+        stop = [component.name for component in due if component.step_to(time)]
         self._sample(due)
+        if not stop:
+            return None
+        reason = f"{', '.join(stop)} asked to terminate the simulation (fmi3DoStep: terminateSimulation)"
+        return Terminated(reason, time, stop)
 
     def statistics(self) -> dict[str, dict[str, float]]:
         return {name: {"interval_s": c.interval, "steps": c.steps} for name, c in self.components.items()}

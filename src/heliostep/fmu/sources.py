@@ -1,11 +1,18 @@
 """Source FMUs: an FMU that ships only ``sources/`` compiled on first use, cached by content.
 
-FMI 2.0 lets an FMU carry its C sources instead of (or besides) binaries: ``sources/`` holds them
-and ``modelDescription.xml`` lists the files to compile (``<SourceFiles>`` of the
-``ModelExchange`` element). :func:`with_platform_binary` leaves an FMU with a binary for this
+FMI 2.0 and 3.0 let an FMU carry its C sources instead of (or besides) binaries: ``sources/``
+holds them, and the files to compile are listed in ``modelDescription.xml`` (FMI 2.0:
+``<SourceFiles>`` of the ``ModelExchange`` or ``CoSimulation`` element) or in
+``sources/buildDescription.xml`` (FMI 3.0: ``BuildConfiguration`` / ``SourceFileSet`` /
+``SourceFile``, with its ``PreprocessorDefinition`` and ``IncludeDirectory`` elements); fmpy reads
+both into ``ModelDescription.buildConfigurations``. Without a list, every ``.c`` at the top of
+``sources/`` is compiled. :func:`with_platform_binary` leaves an FMU with a binary for this
 platform as it is; one without a binary but with sources is compiled with the project's toolchain
-(the C compiler of :func:`heliostep.fmu.export.compiler`, against the FMI 2.0 headers fmpy ships)
-into a copy of the FMU that adds ``binaries/<platform>/<modelIdentifier>.so``.
+(the C compiler of :func:`heliostep.fmu.export.compiler`, against the FMI 2.0 and 3.0 headers fmpy
+ships) into a copy of the FMU that adds ``binaries/<platform>/<modelIdentifier>.so`` (FMI 2.0:
+``linux64``; FMI 3.0: the platform tuple ``x86_64-linux``), one per model identifier of its
+interfaces. (fmpy's own ``fmpy.build.build_platform_binary`` builds FMI 3.0 sources too, but
+through CMake; heliostep keeps one toolchain, the compiler its FMUs and kernel are built with.)
 
 The copy is cached like the project's own FMUs: under ``CACHE/sources/KEY16/NAME.fmu``, ``KEY16``
 the first 16 hex digits of a SHA-256 of the FMU's bytes, this module and the compiler's version
@@ -18,10 +25,13 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import tempfile
 import zipfile
+import zlib
+from dataclasses import dataclass
 from importlib import metadata, resources
 from pathlib import Path
 
@@ -37,28 +47,53 @@ SOURCE_CACHE = "sources"
 _FIXED_TIME = (1980, 1, 1, 0, 0, 0)  # zip entries' time stamps: the copy is the same bytes every time
 
 
-def _platform() -> str:
-    from fmpy import platform
+@dataclass(frozen=True)
+class _SourceBuild:
+    """What to compile of a source FMU: per model identifier its source files and flags, and the
+    platform folder its binaries go to."""
 
-    return platform
+    platform: str
+    #: modelIdentifier -> (source files relative to sources/, -D and -I flags)
+    libraries: dict[str, tuple[list[str], list[str]]]
 
 
-def _identifier_and_sources(path: Path, names: list[str]) -> tuple[str, list[str]] | None:
-    """(modelIdentifier, the source files to compile) of a source-only Model Exchange FMU, else None."""
+def _platforms() -> tuple[str, str]:
+    """The platform folders of this machine: FMI 2.0's (``linux64``) and FMI 3.0's (``x86_64-linux``)."""
+    from fmpy import platform, platform_tuple
+
+    return platform, platform_tuple
+
+
+def _source_build(path: Path, names: list[str]) -> _SourceBuild | None:
+    """What to compile of a source FMU (FMI 2.0 or 3.0, Model Exchange or Co-Simulation), else None."""
     from fmpy import read_model_description
 
     try:
         description = read_model_description(str(path), validate=False)
     except Exception:  # an FMU fmpy cannot read: read_fmu refuses it with its own message
         return None
-    interface = description.modelExchange
-    if description.fmiVersion != "2.0" or interface is None:
+    interfaces = [i for i in (description.modelExchange, description.coSimulation) if i is not None]
+    if description.fmiVersion not in ("2.0", "3.0") or not interfaces:
         return None
-    listed = list(getattr(interface, "sourceFiles", None) or [])
-    if not listed:  # no list: every C file at the top of sources/
-        listed = sorted(n[len("sources/") :] for n in names if n.startswith("sources/") and n.endswith(".c"))
-        listed = [n for n in listed if "/" not in n]
-    return interface.modelIdentifier, listed
+    every_c = sorted(n[len("sources/") :] for n in names if n.startswith("sources/") and n.endswith(".c"))
+    libraries = {}
+    for identifier in dict.fromkeys(i.modelIdentifier for i in interfaces):
+        sets = [
+            file_set
+            for configuration in description.buildConfigurations or []
+            if configuration.modelIdentifier == identifier
+            for file_set in configuration.sourceFileSets
+        ]
+        listed = list(dict.fromkeys(name for file_set in sets for name in file_set.sourceFiles))
+        flags = [
+            f"-D{d.name}" + (f"={d.value}" if d.value is not None else "")
+            for file_set in sets
+            for d in file_set.preprocessorDefinitions
+            if not d.optional
+        ]
+        flags += [f"-Isources/{folder}" for file_set in sets for folder in file_set.includeDirectories]
+        libraries[identifier] = (listed or [n for n in every_c if "/" not in n], flags)
+    return _SourceBuild(_platforms()[description.fmiVersion == "3.0"], libraries)
 
 
 def source_build_key(path: Path) -> str:
@@ -76,12 +111,15 @@ def with_platform_binary(path: Path, cache: Path) -> Path:
     try:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
-    except (OSError, zipfile.BadZipFile):
+            head = archive.read("modelDescription.xml")[:4096] if "modelDescription.xml" in names else b""
+    except (OSError, zipfile.BadZipFile, zlib.error, EOFError):
         return path  # read_fmu names what is wrong with it
-    if any(n.startswith(f"binaries/{_platform()}/") for n in names) or not any(n.startswith("sources/") for n in names):
-        return path
-    found = _identifier_and_sources(path, names)
-    if found is None:
+    version = re.search(rb'fmiVersion\s*=\s*"([^"]*)"', head)
+    platform = _platforms()[version is not None and version.group(1).startswith(b"3.")]
+    if any(n.startswith(f"binaries/{platform}/") for n in names) or not any(n.startswith("sources/") for n in names):
+        return path  # a binary for this platform (the common case: decided without parsing the XML), or no sources
+    build = _source_build(path, names)
+    if build is None:
         return path
     key = source_build_key(path)
     target = Path(cache) / SOURCE_CACHE / key[:16] / path.name
@@ -90,7 +128,7 @@ def with_platform_binary(path: Path, cache: Path) -> Path:
     try:
         with exclusive_lock(Path(cache) / ".build" / f"source-{key[:16]}.lock"):
             if not verified(target):
-                _compile(path, names, *found, target)
+                _compile(path, names, build, target)
     except OSError as exc:
         raise InputError(
             f"{path}: a source FMU, to be compiled into the FMU cache {cache} ($HELIOSTEP_FMUS), which cannot be "
@@ -99,43 +137,50 @@ def with_platform_binary(path: Path, cache: Path) -> Path:
     return target
 
 
-def _compile(path: Path, names: list[str], identifier: str, sources: list[str], target: Path) -> None:
-    """Compile the FMU's sources into a copy with the binary added, at ``target`` (digest beside it)."""
-    import fmpy
-
-    work = Path(tempfile.mkdtemp(prefix=f"source-{identifier}-{os.getpid()}-", dir=target.parents[2] / ".build"))
+def _compile(path: Path, names: list[str], build: _SourceBuild, target: Path) -> None:
+    """Compile the FMU's sources into a copy with the binaries added, at ``target`` (digest beside it)."""
+    work = Path(tempfile.mkdtemp(prefix=f"source-{path.stem}-{os.getpid()}-", dir=target.parents[2] / ".build"))
     try:
         with zipfile.ZipFile(path) as archive:
             archive.extractall(work / "fmu")
-        folder = work / "fmu" / "sources"
-        missing = [s for s in sources if not (folder / s).is_file()]
-        if missing:
-            raise InputError(
-                f"{path}: its modelDescription.xml lists source files not in sources/: {', '.join(missing)}"
-            )
-        library = work / f"{identifier}.so"
-        headers = str(Path(fmpy.__file__).parent / "c-code")
-        command = [compiler(), "-shared", "-fPIC", "-O2", "-I", "sources", "-I", headers]
-        command += [f"sources/{s}" for s in sources] + ["-o", str(library), "-lm"]
-        plain = {**os.environ, "LC_ALL": "C"}  # the compiler's messages in plain ASCII, paths inside the FMU
-        result = subprocess.run(command, capture_output=True, text=True, cwd=work / "fmu", env=plain)
-        if result.returncode != 0:
-            raise InputError(
-                f"{path}: a source FMU that does not compile: {_first_error(result.stderr + result.stdout)}"
-            )
+        libraries = {
+            identifier: _compile_library(path, work, identifier, sources, flags)
+            for identifier, (sources, flags) in build.libraries.items()
+        }
         target.parent.mkdir(parents=True, exist_ok=True)
         partial = work / target.name
         with zipfile.ZipFile(path) as original, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as copy:
             for name in names:
                 copy.writestr(zipfile.ZipInfo(name, _FIXED_TIME), original.read(name), zipfile.ZIP_DEFLATED)
-            entry = zipfile.ZipInfo(f"binaries/{_platform()}/{identifier}.so", _FIXED_TIME)
-            copy.writestr(entry, library.read_bytes(), zipfile.ZIP_DEFLATED)
+            for identifier, library in libraries.items():
+                entry = zipfile.ZipInfo(f"binaries/{build.platform}/{identifier}.so", _FIXED_TIME)
+                copy.writestr(entry, library.read_bytes(), zipfile.ZIP_DEFLATED)
         partial.replace(target)
         record = work / "digest"
         record.write_text(file_sha256(target) + "\n")
         record.replace(digest_path(target))  # the copy counts as compiled once this is in place
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _compile_library(path: Path, work: Path, identifier: str, sources: list[str], flags: list[str]) -> Path:
+    """``work/<identifier>.so`` compiled from the extracted FMU's ``sources`` (InputError naming the
+    FMU and the compiler's first error when they do not compile)."""
+    import fmpy
+
+    folder = work / "fmu" / "sources"
+    missing = [s for s in sources if not (folder / s).is_file()]
+    if missing:
+        raise InputError(f"{path}: its build description lists source files not in sources/: {', '.join(missing)}")
+    library = work / f"{identifier}.so"
+    headers = str(Path(fmpy.__file__).parent / "c-code")
+    command = [compiler(), "-shared", "-fPIC", "-O2", "-I", "sources", "-I", headers, *flags]
+    command += [f"sources/{s}" for s in sources] + ["-o", str(library), "-lm"]
+    plain = {**os.environ, "LC_ALL": "C"}  # the compiler's messages in plain ASCII, paths inside the FMU
+    result = subprocess.run(command, capture_output=True, text=True, cwd=work / "fmu", env=plain)
+    if result.returncode != 0:
+        raise InputError(f"{path}: a source FMU that does not compile: {_first_error(result.stderr + result.stdout)}")
+    return library
 
 
 def _first_error(output: str) -> str:

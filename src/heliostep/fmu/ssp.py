@@ -13,6 +13,8 @@ connections with a transformation, components that are not FMUs.
 :func:`write_ssp` writes a scenario's system: its FMUs as ``resources/INSTANCE.fmu``, every
 input, output and parameter as a connector (type, unit, the units' SI base units from each
 FMU's ``UnitDefinitions``), the connections, and the scenario's parameters as inline bindings.
+FMI 2.0 and 3.0 FMUs alike: FMI 3.0's Float64/Float32 connectors are SSP ``Real``, its integer
+types ``Integer``.
 """
 
 from __future__ import annotations
@@ -33,6 +35,10 @@ __all__ = ["FMU_TYPE", "SSPSystem", "read_ssp", "write_ssp"]
 #: The MIME type of an FMU component in SSP 1.0.
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 _FIXED_TIME = (1980, 1, 1, 0, 0, 0)
+#: FMI type -> SSP 1.0 connector type (FMI 3.0's types onto SSP's Real and Integer; an Enumeration,
+#: which in SSP needs its type's name, as Integer); Real, Integer, Boolean, String and Binary as they are
+_SSP_TYPES = {"Enumeration": "Integer", "Float64": "Real", "Float32": "Real"}
+_SSP_TYPES.update({f"{sign}Int{bits}": "Integer" for sign in ("", "U") for bits in (8, 16, 32, 64)})
 
 
 @dataclass
@@ -152,7 +158,7 @@ def _connectors(fmu: Path, units: dict[str, str]) -> list[str]:
     for v in description.modelVariables:
         if v.causality not in ("input", "output", "parameter"):
             continue
-        kind = "Integer" if v.type == "Enumeration" else v.type
+        kind = _SSP_TYPES.get(v.type, v.type)
         unit = getattr(v, "unit", None) or getattr(getattr(v, "declaredType", None), "unit", None)
         unit_attribute = f" unit={quoteattr(unit)}" if kind == "Real" and unit in units else ""
         lines.append(
