@@ -79,7 +79,8 @@ CALM = 2.0  # [m/s] every other hour
 
 
 def _year_tmy3(path) -> None:
-    """A TMY3 file of a whole (non-leap) year, 1999, UTC+1, calm but for WINDY's hours."""
+    """A TMY3 file of a whole (non-leap) year, 1999, UTC+1, calm but for WINDY's hours, the wind from the south:
+    normal to the central mirror's secondary axis (azimuth 90 deg), so its whole speed loads the panel."""
     lines = [
         "000000,'TEST',XX,1.0,40.0,14.25,0",
         "Date (MM/DD/YYYY),Time (HH:MM),GHI (W/m^2),DNI (W/m^2),DHI (W/m^2),Wdir (degrees),Wspd (m/s)",
@@ -89,7 +90,7 @@ def _year_tmy3(path) -> None:
         for hour in range(1, 25):
             when, speed = WINDY.get(day, (None, CALM))
             wind = speed if hour == when else CALM
-            lines.append(f"{date:%m/%d/%Y},{hour:02d}:00,0,500,0,270,{wind}")
+            lines.append(f"{date:%m/%d/%Y},{hour:02d}:00,0,500,0,180,{wind}")
     path.write_text("\n".join(lines) + "\n")
 
 
