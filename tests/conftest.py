@@ -6,6 +6,8 @@ import pytest
 
 from heliostep.fmu.build import build_fmu
 
+pytest.register_assert_rewrite("lag_reference")  # its checks say their values when they fail, as a test's do
+
 MODELS = (
     "StepperMotor",
     "StepperMotorIdealCurrent",

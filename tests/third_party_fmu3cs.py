@@ -1,4 +1,5 @@
-"""Build the FMI 3.0 Co-Simulation test FMU of ``tests/data/mini3cs/`` (``lag3.c``, ``stubs3.c``).
+"""Build the FMI 3.0 Co-Simulation test FMU of ``tests/data/mini3cs/`` (``lag3.c``; every FMI 3.0 function it
+does not define from ``tests/data/mini3/fmi3_stubs.c``).
 
 Lag3 is a first-order lag T dy/dt = u - y, e = u - y, exporting FMI 3.0 Model Exchange and
 Co-Simulation from one binary (its fmi3DoStep: RK4 at the internal step h_int, the input held): the
@@ -16,11 +17,11 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from third_party_fmu3 import CFLAGS, fmi3_headers
+from third_party_fmu3 import CFLAGS, FMI3_STUBS, fmi3_headers
 
 MINI3CS_DIR = Path(__file__).parent / "data" / "mini3cs"
 LAG3_TOKEN = "{c0a7e1f2-3101-4000-8000-000000000101}"
-SOURCES = ("lag3.c", "stubs3.c")
+SOURCES = ("lag3.c", FMI3_STUBS.name)
 _FIXED_TIME = (1980, 1, 1, 0, 0, 0)
 
 #: (name, type, causality, variability, start); each value reference is the index
@@ -114,7 +115,7 @@ def build_lag3_fmu(
         library = Path(work) / "Lag3.so"
         if not sources_only:
             command = ["gcc", *CFLAGS, f"-I{fmi3_headers()}", "-o", str(library), str(Path(work) / "lag3.c")]
-            result = subprocess.run(command + [str(MINI3CS_DIR / "stubs3.c"), "-lm"], capture_output=True, text=True)
+            result = subprocess.run(command + [str(FMI3_STUBS), "-lm"], capture_output=True, text=True)
             if result.returncode != 0:
                 raise RuntimeError(f"gcc failed for Lag3:\n{result.stderr}")
         with zipfile.ZipFile(fmu, "w") as archive:
@@ -122,7 +123,7 @@ def build_lag3_fmu(
             if not sources_only:
                 _write(archive, "binaries/x86_64-linux/Lag3.so", library.read_bytes())
             _write(archive, "sources/lag3.c", source)
-            _write(archive, "sources/stubs3.c", (MINI3CS_DIR / "stubs3.c").read_text())
+            _write(archive, f"sources/{FMI3_STUBS.name}", FMI3_STUBS.read_text())
             if sources_only:
                 _write(archive, "sources/buildDescription.xml", BUILD_DESCRIPTION)
     return fmu

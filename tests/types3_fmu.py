@@ -14,7 +14,7 @@ from pathlib import Path
 
 from third_party_fmu3 import CFLAGS, MINI3_DIR, fmi3_headers
 
-SOURCES = ("types3.c", "types3_refused.c")
+SOURCES = ("types3.c", "fmi3_stubs.c")  # the FMI 3.0 functions Types3 does not offer: stubs
 
 
 def build_types3_fmu(out_dir: Path) -> Path:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heliostep.cosim import watch
-from heliostep.cosim.description import FMUInfo, convert_value
+from heliostep.cosim.description import FMUInfo, VariableInfo, convert_value
 from heliostep.errors import InputError
 
 #: ctypes element type and numpy dtype of the values of each FMI type, and its get/set functions
@@ -138,19 +138,8 @@ class VariableAccess:
     def set_parameters(self, values: Mapping[str, object]) -> None:
         """Set parameters by name, each with the function of its type (Real, Integer,
         Enumeration, Boolean, String): before initialization, or tunable ones in event mode."""
-        valid = self.info.parameters
-        unknown = [name for name in values if name not in valid]
-        if unknown:
-            raise InputError(
-                f"{self.info.path}: {self.info.model_name} has no parameter "
-                f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}"
-            )
-        by_type: dict[str, list[tuple[int, Any]]] = {}
-        for name, value in values.items():
-            variable = self.info.variables[name]
-            by_type.setdefault(variable.type, []).append((variable.value_reference, convert_value(variable, value)))
-        for kind, items in by_type.items():
-            refs, data = [r for r, _ in items], [v for _, v in items]
+        for kind, items in self._parameters_by_type(values, lambda variable: variable.type).items():
+            refs, data = [variable.value_reference for _, variable, _ in items], [value for _, _, value in items]
             if kind == "Real":
                 self.set_real(refs, data)
             elif kind in ("Integer", "Enumeration"):
@@ -159,6 +148,25 @@ class VariableAccess:
                 self.set_boolean(refs, data)
             else:
                 self.set_string(refs, data)
+
+    def _parameters_by_type(
+        self, values: Mapping[str, object], type_of: Callable[[VariableInfo], str]
+    ) -> dict[str, list[tuple[str, VariableInfo, Any]]]:
+        """Parameter values by name grouped by their variable's type (``type_of``: FMI 2.0's or 3.0's),
+        each ``(name, variable, value converted to its type)``, in the order given; InputError naming
+        the FMU and every unknown name, with the valid ones."""
+        valid = self.info.parameters
+        unknown = [name for name in values if name not in valid]
+        if unknown:
+            raise InputError(
+                f"{self.info.path}: {self.info.model_name} has no parameter "
+                f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}"
+            )
+        by_type: dict[str, list[tuple[str, VariableInfo, Any]]] = {}
+        for name, value in values.items():
+            variable = self.info.variables[name]
+            by_type.setdefault(type_of(variable), []).append((name, variable, convert_value(variable, value)))
+        return by_type
 
     def set_real(self, value_references: Iterable[int], values: Iterable[float]) -> None:
         vrs, n = self._vrs(value_references)

@@ -47,7 +47,6 @@ from heliostep.cosim.fmi import (
     _extract,
 )
 from heliostep.cosim.fmi3_types import TYPED_CALLS, slot_table, typed_access
-from heliostep.errors import InputError
 
 ADAPTER_SOURCE = Path(__file__).resolve().parent / "c" / "fmi3_adapter.c"
 
@@ -305,22 +304,9 @@ class ModelExchange3Instance(ModelExchangeInstance):
     def set_parameters(self, values: Mapping[str, object]) -> None:
         """Set parameters by name (an array's elements by theirs, ``p[2]``), each FMI 3.0 type with its
         own fmi3Set function: Float32/64, Int8 ... UInt64, Boolean, String, Binary, Enumeration."""
-        from heliostep.cosim.description import convert_value
-
-        valid = self.info.parameters
-        unknown = [name for name in values if name not in valid]
-        if unknown:
-            raise InputError(
-                f"{self.info.path}: {self.info.model_name} has no parameter "
-                f"{', '.join(map(repr, unknown))}; valid parameters: {', '.join(valid)}"
-            )
-        by_type: dict[str, list[tuple[str, Any]]] = {}
-        for name, value in values.items():
-            variable = self.info.variables[name]
-            by_type.setdefault(variable.fmi3_type, []).append((name, convert_value(variable, value)))
-        for items in by_type.values():
-            _, put, buffer = typed_access(self, [name for name, _ in items])
-            buffer[:] = [value for _, value in items]
+        for items in self._parameters_by_type(values, lambda variable: variable.fmi3_type).values():
+            _, put, buffer = typed_access(self, [name for name, _, _ in items])
+            buffer[:] = [value for _, _, value in items]
             put()
 
     def set_string(self, value_references, values) -> None:

@@ -29,16 +29,16 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from heliostep.cosim.co_simulation import CoSimulationInstanceBase
 from heliostep.cosim.connections import ConnectionGraph, split_name
-from heliostep.cosim.description import FMUInfo, _extract, convert_value
+from heliostep.cosim.description import FMUInfo
 from heliostep.cosim.events import Terminated
-from heliostep.cosim.fmi import FMIError, _by_environment, _callbacks, _environment_ids
+from heliostep.cosim.fmi import _callbacks
 from heliostep.cosim.sampled3 import CoSimulation3Instance
 from heliostep.cosim.signals import Connection, PiecewiseConstant
 from heliostep.errors import InputError
@@ -49,85 +49,35 @@ if TYPE_CHECKING:
 __all__ = ["CoSimulationInstance", "SampledComponent", "SampledSignal", "SampledSystem", "split_sampled"]
 
 
-class CoSimulationInstance:
+class CoSimulationInstance(CoSimulationInstanceBase):
     """One instance of an FMI 2.0 Co-Simulation FMU (fmpy's ``FMU2Slave``), every FMI error an
     :class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time and the FMU's messages."""
+
+    _FMI, _REAL = "fmi2", "Real"
 
     def __init__(self, info: FMUInfo, name: str, parameters: Mapping[str, object]):
         from fmpy.fmi2 import FMU2Slave
 
-        self.info, self.name = info, name
-        self.messages: deque[str] = deque(maxlen=50)
-        self.time = float("nan")
-        self._environment = next(_environment_ids)
-        _by_environment[self._environment] = self  # type: ignore[assignment]  # the logger routes by this
+        super().__init__(info, name, parameters)
         self._callbacks = _callbacks(self._environment)
-        self._slave: Any = None
-        slave = FMU2Slave(
-            guid=info.guid, unzipDirectory=_extract(info.path), modelIdentifier=info.model_identifier, instanceName=name
-        )
+        slave = self._new_slave(FMU2Slave)
         self._do("fmi2Instantiate", slave.instantiate, callbacks=self._callbacks)
         self._slave = slave
-        self._parameters = dict(parameters)
 
-    def _do(self, function: str, call: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        self.messages.clear()
-        try:
-            return call(*args, **kwargs)
-        except Exception as exc:  # fmpy's FMICallException and the like
-            raise FMIError(function, self.name, f"failure ({exc})", self.messages, self.time) from None
+    def _enter_initialization_mode(self, start_time: float, stop_time: float) -> None:
+        """fmi2SetupExperiment (start and stop time [s]) and fmi2EnterInitializationMode."""
+        self._do("fmi2SetupExperiment", self._slave.setupExperiment, startTime=start_time, stopTime=stop_time)
+        self._do("fmi2EnterInitializationMode", self._slave.enterInitializationMode)
 
-    def initialize(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
-        """setupExperiment, parameters and inputs set in initialization mode, exitInitializationMode."""
-        slave, variables = self._slave, self.info.variables
-        self.time = start_time
-        self._do("fmi2SetupExperiment", slave.setupExperiment, startTime=start_time, stopTime=stop_time)
-        self._do("fmi2EnterInitializationMode", slave.enterInitializationMode)
-        for name, value in self._parameters.items():
-            if name not in variables or variables[name].causality != "parameter":
-                known = ", ".join(v for v in variables if variables[v].causality == "parameter")
-                raise InputError(
-                    f"{self.name} ({self.info.path.name}) has no parameter {name!r}; its parameters: {known}"
-                )
-            self._set(name, convert_value(variables[name], value))
-        for name, value in inputs.items():
-            self._set(name, value)
-        self._do("fmi2ExitInitializationMode", slave.exitInitializationMode)
-
-    def _set(self, name: str, value: Any) -> None:
-        variable = self.info.variables[name]
+    def _setter(self, name: str) -> str:
         setter = {"Real": "setReal", "Integer": "setInteger", "Enumeration": "setInteger", "Boolean": "setBoolean"}
-        method = setter.get(variable.type, "setString")
-        self._do(f"fmi2S{method[1:]}", getattr(self._slave, method), [variable.value_reference], [value])
-
-    def set_real(self, names: Sequence[str], values: Sequence[float]) -> None:
-        refs = [self.info.variables[n].value_reference for n in names]
-        self._do("fmi2SetReal", self._slave.setReal, refs, [float(v) for v in values])
-
-    def get_real(self, names: Sequence[str]) -> list[float]:
-        refs = [self.info.variables[n].value_reference for n in names]
-        return list(self._do("fmi2GetReal", self._slave.getReal, refs))
+        return setter.get(self.info.variables[name].type, "setString")
 
     def do_step(self, to_time: float) -> bool:
         """fmi2DoStep from the instance's time to ``to_time`` [s]; False (FMI 2.0's step says no termination)."""
         self._do("fmi2DoStep", self._slave.doStep, self.time, to_time - self.time)
         self.time = to_time
         return False
-
-    def close(self) -> None:
-        """fmi2Terminate (errors ignored: the run's own error, if any, is what counts) and fmi2FreeInstance."""
-        slave, self._slave = self._slave, None
-        if slave is None:
-            return
-        for call in (slave.terminate, slave.freeInstance):
-            try:
-                call()
-            except Exception:  # noqa: BLE001 - closing after a failure must not hide it
-                pass
-        try:
-            slave.freeLibrary()
-        except Exception:  # noqa: BLE001
-            pass
 
 
 class SampledComponent:

@@ -2,9 +2,11 @@
 
 :class:`CoSimulation3Instance` has the API of :class:`~heliostep.cosim.sampled.CoSimulationInstance`
 (FMI 2.0), so a :class:`~heliostep.cosim.sampled.SampledComponent` steps an FMI 2.0 or 3.0
-Co-Simulation FMU alike. The binary is loaded by fmpy (``fmpy.fmi3.FMU3Slave``); the instance is
-made with ``fmi3InstantiateCoSimulation`` called directly, so that its ``instanceEnvironment``
-routes its log messages to it (fmpy's own ``instantiate`` passes none), with ``eventModeUsed`` and
+Co-Simulation FMU alike; what both do alike is their base's,
+:class:`~heliostep.cosim.co_simulation.CoSimulationInstanceBase`, and only the FMI calls are here.
+The binary is loaded by fmpy (``fmpy.fmi3.FMU3Slave``); the instance is made with
+``fmi3InstantiateCoSimulation`` called directly, so that its ``instanceEnvironment`` routes its log
+messages to it (fmpy's own ``instantiate`` passes none), with ``eventModeUsed`` and
 ``earlyReturnAllowed`` false and no intermediate update: the FMU handles its events inside
 ``fmi3DoStep`` and completes every step (FMI 3.0 standard, section 4.2, basic Co-Simulation).
 
@@ -26,14 +28,12 @@ from __future__ import annotations
 
 import ctypes
 import os
-from collections import deque
-from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from collections.abc import Mapping
 
-from heliostep.cosim.description import FMUInfo, _extract, convert_value
-from heliostep.cosim.fmi import FMIError, _by_environment, _environment_ids
+from heliostep.cosim.co_simulation import CoSimulationInstanceBase
+from heliostep.cosim.description import FMUInfo
+from heliostep.cosim.fmi import FMIError
 from heliostep.cosim.fmi3 import _logger3
-from heliostep.errors import InputError
 
 __all__ = ["CoSimulation3Instance"]
 
@@ -41,23 +41,18 @@ __all__ = ["CoSimulation3Instance"]
 _SETTERS = {"Enumeration": "setInt64", "Boolean": "setBoolean", "String": "setString"}
 
 
-class CoSimulation3Instance:
+class CoSimulation3Instance(CoSimulationInstanceBase):
     """One instance of an FMI 3.0 Co-Simulation FMU, every FMI error an
     :class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time and the FMU's messages."""
+
+    _FMI, _REAL = "fmi3", "Float64"
 
     def __init__(self, info: FMUInfo, name: str, parameters: Mapping[str, object]):
         from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3ValueReference
 
-        self.info, self.name = info, name
-        self.messages: deque[str] = deque(maxlen=50)
-        self.time = float("nan")
-        self._environment = next(_environment_ids)
-        _by_environment[self._environment] = self  # type: ignore[assignment]  # the logger routes by this
+        super().__init__(info, name, parameters)
         self._types = {v.name: v.type for v in info.description.modelVariables}  # type: ignore[attr-defined]
-        self._slave: Any = None
-        slave = FMU3Slave(
-            guid=info.guid, unzipDirectory=_extract(info.path), modelIdentifier=info.model_identifier, instanceName=name
-        )
+        slave = self._new_slave(FMU3Slave)
         resources = (os.path.join(slave.unzipDirectory, "resources") + os.path.sep).encode()
         required = (fmi3ValueReference * 0)()
         self._no_update = fmi3IntermediateUpdateCallback()  # NULL: no intermediate update
@@ -84,45 +79,14 @@ class CoSimulation3Instance:
             slave.freeLibrary()
             raise
         self._slave = slave
-        self._parameters = dict(parameters)
 
-    def _do(self, function: str, call: Callable[..., Any], *args: Any) -> Any:
-        self.messages.clear()
-        try:
-            return call(*args)
-        except Exception as exc:  # fmpy's FMICallException and the like
-            raise FMIError(function, self.name, f"failure ({exc})", self.messages, self.time) from None
+    def _enter_initialization_mode(self, start_time: float, stop_time: float) -> None:
+        """fmi3EnterInitializationMode with the start and stop time [s] (FMI 3.0 has no SetupExperiment)."""
+        self._do("fmi3EnterInitializationMode", self._slave.enterInitializationMode, None, start_time, stop_time)
 
-    def initialize(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
-        """EnterInitializationMode (start and stop time), parameters and inputs set, ExitInitializationMode."""
-        slave, variables = self._slave, self.info.variables
-        self.time = start_time
-        self._do("fmi3EnterInitializationMode", slave.enterInitializationMode, None, start_time, stop_time)
-        for name, value in self._parameters.items():
-            if name not in variables or variables[name].causality != "parameter":
-                known = ", ".join(v for v in variables if variables[v].causality == "parameter")
-                raise InputError(
-                    f"{self.name} ({self.info.path.name}) has no parameter {name!r}; its parameters: {known}"
-                )
-            self._set(name, convert_value(variables[name], value))
-        for name, value in inputs.items():
-            self._set(name, value)
-        self._do("fmi3ExitInitializationMode", slave.exitInitializationMode)
-
-    def _set(self, name: str, value: Any) -> None:
+    def _setter(self, name: str) -> str:
         type_ = self._types[name]
-        method = _SETTERS.get(type_, f"set{type_}")
-        self._do(
-            f"fmi3S{method[1:]}", getattr(self._slave, method), [self.info.variables[name].value_reference], [value]
-        )
-
-    def set_real(self, names: Sequence[str], values: Sequence[float]) -> None:
-        refs = [self.info.variables[n].value_reference for n in names]
-        self._do("fmi3SetFloat64", self._slave.setFloat64, refs, [float(v) for v in values])
-
-    def get_real(self, names: Sequence[str]) -> list[float]:
-        refs = [self.info.variables[n].value_reference for n in names]
-        return list(self._do("fmi3GetFloat64", self._slave.getFloat64, refs))
+        return _SETTERS.get(type_, f"set{type_}")
 
     def do_step(self, to_time: float) -> bool:
         """fmi3DoStep from the instance's time to ``to_time`` [s]; whether the FMU asks to terminate
@@ -162,18 +126,3 @@ class CoSimulation3Instance:
                 self.time,
             )
         return bool(terminate)
-
-    def close(self) -> None:
-        """fmi3Terminate (errors ignored: the run's own error, if any, is what counts) and fmi3FreeInstance."""
-        slave, self._slave = self._slave, None
-        if slave is None:
-            return
-        for call in (slave.terminate, slave.freeInstance):
-            try:
-                call()
-            except Exception:  # noqa: BLE001 - closing after a failure must not hide it
-                pass
-        try:
-            slave.freeLibrary()
-        except Exception:  # noqa: BLE001
-            pass

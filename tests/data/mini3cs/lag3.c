@@ -2,7 +2,8 @@
  * Lag3 -- a first-order lag T dy/dt = u - y (y: its state and output, no direct feedthrough) and the lag
  * error e = u - y (direct feedthrough of u), as one FMI 3.0 binary exporting both Model Exchange and
  * Co-Simulation: the tests' FMI 3.0 CS FMU and its ME twin, the same equations. Written for heliostep's
- * tests against fmpy's FMI 3.0 headers (fmi3Functions.h); every other FMI 3.0 function is in stubs3.c.
+ * tests against fmpy's FMI 3.0 headers (fmi3Functions.h); every other FMI 3.0 function is in
+ * ../mini3/fmi3_stubs.c.
  *
  * Co-Simulation (FMI 3.0 standard, section 4): fmi3DoStep integrates with the input held over the step,
  * fixed-step classical Runge-Kutta (RK4) at the internal step h_int (the step divided into
