@@ -168,6 +168,7 @@ class KernelFigures:
         lib.hs_figures_row.restype = ctypes.c_int
         lib.hs_figures_finish.argtypes = [ctypes.c_void_p, ctypes.c_double]
         lib.hs_figures_free.argtypes = [ctypes.c_void_p]
+        lib.hs_figures_judge_open.argtypes = [ctypes.c_void_p, ctypes.c_double]
         self._library = lib
         s = self.state = FigureState()
         s.torque, s.power, s.panel, s.rotor = spec.torque, spec.power, spec.panel, spec.rotor
@@ -210,35 +211,47 @@ class KernelFigures:
     def totals(self) -> FigureTotals:
         """The figures accumulated, the step open at the last row judged up to it (once; then kept)."""
         if self._totals is None:
-            s, a = self.state, self._arrays
-            if s.count:
-                self._library.hs_figures_finish(self.address, a["last"][0])
-            self._totals = FigureTotals(
-                int(s.count),
-                int(s.unordered),
-                (float(s.first_time), float(s.first_rotor)),
-                a["last"].copy(),
-                bool(s.last_repeated),
-                float(s.peak_torque),
-                float(s.peak_current),
-                float(s.energy),
-                float(s.error_max),
-                float(s.error_sq_int),
-                float(s.error_sq_sum),
-                float(s.last_error),
-                a["outcomes"][: int(s.judged)].copy(),
-                int(s.max_held),
-                float(s.lag),
-                a["low"].copy(),
-                a["high"].copy(),
-                a["worst"].copy(),
-                a["worst_at"].copy(),
-                a["window"][: int(s.window_rows)].copy(),
-                float(s.peak),
-                float(s.peak_time),
-                float(s.peak_value),
-            )
+            if self.state.count:
+                self._library.hs_figures_finish(self.address, self._arrays["last"][0])
+            self._totals = self._read(self.state)
         return self._totals
+
+    def snapshot(self) -> FigureTotals:
+        """The figures so far, the open step judged up to the last row on a copy (the run goes on)."""
+        if self._totals is not None:
+            return self._totals
+        copy = FigureState.from_buffer_copy(self.state)
+        if copy.count:
+            self._library.hs_figures_judge_open(ctypes.addressof(copy), self._arrays["last"][0])
+        return self._read(copy)
+
+    def _read(self, s: FigureState) -> FigureTotals:
+        a = self._arrays
+        return FigureTotals(
+            int(s.count),
+            int(s.unordered),
+            (float(s.first_time), float(s.first_rotor)),
+            a["last"].copy(),
+            bool(s.last_repeated),
+            float(s.peak_torque),
+            float(s.peak_current),
+            float(s.energy),
+            float(s.error_max),
+            float(s.error_sq_int),
+            float(s.error_sq_sum),
+            float(s.last_error),
+            a["outcomes"][: int(s.judged)].copy(),
+            int(s.max_held),
+            float(s.lag),
+            a["low"].copy(),
+            a["high"].copy(),
+            a["worst"].copy(),
+            a["worst_at"].copy(),
+            a["window"][: int(s.window_rows)].copy(),
+            float(s.peak),
+            float(s.peak_time),
+            float(s.peak_value),
+        )
 
     def close(self) -> None:
         """The open step's rows freed (also done by :meth:`totals`)."""

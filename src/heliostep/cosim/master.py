@@ -557,4 +557,10 @@ def _kernel_figures(monitor: Callable[[np.ndarray], None] | None, width: int) ->
     if not KERNEL_FIGURES or spec is None or not hasattr(monitor, "take_kernel_figures"):
         return None
     figure_spec = spec()
-    return None if figure_spec is None else KernelFigures(figure_spec, width)
+    if figure_spec is None:
+        return None
+    figures = KernelFigures(figure_spec, width)
+    bind = getattr(monitor, "bind_kernel_figures", None)  # a monitor that reports the figures as they go
+    if bind is not None:
+        bind(figures)
+    return figures

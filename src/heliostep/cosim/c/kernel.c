@@ -465,7 +465,7 @@ int hs_figures_row(hs_figures *f, const double *row, long width) {
     return 0;
 }
 
-void hs_figures_finish(hs_figures *f, double end) {
+void hs_figures_judge_open(hs_figures *f, double end) {
     if (f->open && f->judged < f->n_steps && f->held) {
         long n = f->held;
         if (f->judged + 1 == f->n_steps) { /* the last step: up to its first row at the end */
@@ -477,6 +477,10 @@ void hs_figures_finish(hs_figures *f, double end) {
         f->judged++;
         f->open = 0;
     }
+}
+
+void hs_figures_finish(hs_figures *f, double end) {
+    hs_figures_judge_open(f, end);
     hs_figures_free(f);
 }
 

@@ -187,6 +187,8 @@ int hs_advance(hs_kernel *k, hs_advance_args *a);
  * the open step's rows freed. hs_figures_row returns -1 when memory for the step's rows runs out */
 int hs_figures_row(hs_figures *f, const double *row, long width);
 void hs_figures_finish(hs_figures *f, double end);
+/* the open step judged to the end, its rows kept (on a copy of the structure: a snapshot of the figures) */
+void hs_figures_judge_open(hs_figures *f, double end);
 void hs_figures_free(hs_figures *f);
 /* sizeof("hs_unit"), offsetof("hs_unit.nx") or the value of a code ("ADVANCE_ROOT"); -1 if unknown */
 long hs_describe(const char *name);
