@@ -312,13 +312,7 @@ class _Run:
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
         CVODE's memory freed; the figures the kernel accumulated handed to the monitor."""
-        if self.figures is not None:
-            figures, self.figures = self.figures, None
-            kernel = getattr(self.integrator, "kernel", None)
-            if kernel is not None:
-                kernel.state.figures = None
-            take_totals: Callable[[FigureTotals], None] = getattr(self.monitor, "take_kernel_figures")  # noqa: B009
-            take_totals(figures.totals())
+        _hand_over_figures(self)
         if self.graph.sampled is not None:
             self.graph.sampled.close()
         if self.system is not None:
@@ -564,3 +558,15 @@ def _kernel_figures(monitor: Callable[[np.ndarray], None] | None, width: int) ->
     if bind is not None:
         bind(figures)
     return figures
+
+
+def _hand_over_figures(run: _Run) -> None:
+    """The figures the kernel accumulated to the monitor (once: the accumulator is dropped)."""
+    if run.figures is None:
+        return
+    figures, run.figures = run.figures, None
+    kernel = getattr(run.integrator, "kernel", None)
+    if kernel is not None:
+        kernel.state.figures = None
+    take_totals: Callable[[FigureTotals], None] = getattr(run.monitor, "take_kernel_figures")  # noqa: B009
+    take_totals(figures.totals())
