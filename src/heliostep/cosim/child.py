@@ -34,7 +34,7 @@ import threading
 import time as clock
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from multiprocessing.connection import Connection
 
 import numpy as np
@@ -145,8 +145,9 @@ class _FiguresToSupervisor:
     def __call__(self, block: np.ndarray) -> None:
         self.outbox.add("solution", block)
 
-    def kernel_figures(self) -> FigureSpec:
-        return self.spec
+    def kernel_figures(self) -> dict:
+        """The spec's fields, as a monitor offers them (the master makes the spec of them)."""
+        return {field.name: getattr(self.spec, field.name) for field in fields(self.spec)}
 
     def take_kernel_figures(self, totals: FigureTotals) -> None:
         self.outbox.after_send = None

@@ -61,7 +61,7 @@ import pandas as pd
 
 from heliostep.cosim.connections import ConnectionGraph
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
-from heliostep.cosim.figures import KERNEL_FIGURES, FigureTotals, KernelFigures
+from heliostep.cosim.figures import KERNEL_FIGURES, FigureSpec, FigureTotals, KernelFigures
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
 from heliostep.cosim.rows import RowBuffer
@@ -545,15 +545,16 @@ class _Run:
 
 
 def _kernel_figures(monitor: Callable[[np.ndarray], None] | None, width: int) -> KernelFigures | None:
-    """The kernel's figure accumulator for ``monitor`` when it offers a spec (``kernel_figures``) and
+    """The kernel's figure accumulator for ``monitor`` when it offers a spec (``kernel_figures()``: the
+    fields of a :class:`~heliostep.cosim.figures.FigureSpec`, or None) and
     :data:`~heliostep.cosim.figures.KERNEL_FIGURES` allows it; None: the monitor takes every row."""
     spec = getattr(monitor, "kernel_figures", None)
     if not KERNEL_FIGURES or spec is None or not hasattr(monitor, "take_kernel_figures"):
         return None
-    figure_spec = spec()
-    if figure_spec is None:
+    fields = spec()
+    if fields is None:
         return None
-    figures = KernelFigures(figure_spec, width)
+    figures = KernelFigures(FigureSpec(**fields), width)
     bind = getattr(monitor, "bind_kernel_figures", None)  # a monitor that reports the figures as they go
     if bind is not None:
         bind(figures)

@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from heliostep.cosim.figures import FigureSpec, FigureTotals
 from heliostep.drive.sequencer import Sequencer, StepSchedule
 from heliostep.results.run_summary import Peaks, StepFigures, Tracking
 from heliostep.results.steps import (
@@ -228,16 +228,17 @@ class SolutionRecorder:
         """The most rotor rows held at once for a step not yet judged."""
         return self.steps.max_held
 
-    def kernel_figures(self) -> FigureSpec | None:
-        """What the kernel accumulates for this recorder (None: the rows are needed here: no panel
-        reference as a piecewise cubic, or rows not yet taken)."""
+    def kernel_figures(self) -> dict | None:
+        """What the kernel accumulates for this recorder, the fields of
+        :class:`heliostep.cosim.figures.FigureSpec` (None: the rows are needed here: no panel
+        reference as a piecewise cubic, or rows already taken)."""
         reference = self.reference
         if self.count or self._pending or (self._tracking and not _is_cubic(reference)):
             return None
         tracked = self._tracking and reference is not None
         schedule, sequencer = self.schedule, self.sequencer
         envelope = self.envelope
-        return FigureSpec(
+        return dict(
             torque=self._torque[0] if self._torque else -1,
             currents=tuple(self._currents),
             power=-1 if self._power is None else self._power,
@@ -260,8 +261,9 @@ class SolutionRecorder:
             max_rows=self.peak_window.max_rows if self.peak_window is not None else 1,
         )
 
-    def take_kernel_figures(self, totals: FigureTotals) -> None:
-        """The figures the kernel accumulated (from :meth:`kernel_figures`'s spec), in place of rows."""
+    def take_kernel_figures(self, totals: Any) -> None:
+        """The figures the kernel accumulated (:class:`heliostep.cosim.figures.FigureTotals`, from
+        :meth:`kernel_figures`'s spec), in place of rows; taken again, they replace those taken before."""
         self.count, self.unordered = totals.count, totals.unordered
         if not totals.count:
             return
@@ -435,7 +437,7 @@ class SolutionRecorder:
 class _JudgedInKernel:
     """The steps the kernel judged (:class:`~heliostep.results.steps.StepJudge`'s answers)."""
 
-    def __init__(self, sequencer: Sequencer, schedule: StepSchedule, totals: FigureTotals):
+    def __init__(self, sequencer: Sequencer, schedule: StepSchedule, totals: Any):
         self.max_held, self.lag = totals.max_held, totals.lag
         self.outcomes = [
             StepOutcome(

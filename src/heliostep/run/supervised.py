@@ -393,4 +393,5 @@ def _figure_spec(monitor: Callable[[np.ndarray], None] | None) -> FigureSpec | N
     spec = getattr(monitor, "kernel_figures", None)
     if not master_module.KERNEL_FIGURES or spec is None or not hasattr(monitor, "take_kernel_figures"):
         return None
-    return spec()
+    fields = spec()
+    return None if fields is None else FigureSpec(**fields)
