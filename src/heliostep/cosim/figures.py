@@ -124,6 +124,7 @@ _FIELDS: list[tuple[str, Any]] = (
             "held_capacity",
             "max_held",
             "last_repeated",
+            "interval",
         )
     ]
     + [
@@ -197,7 +198,7 @@ class KernelFigures:
         s.band, s.miss_tolerance = spec.band, spec.miss_tolerance
         s.n_enveloped, s.bins, (s.env_start, s.env_end) = n_env, spec.bins, spec.span
         s.n_plotted, s.max_rows, s.half_width = n_plot, spec.max_rows, spec.half_width
-        s.peak = -np.inf
+        s.peak, s.interval = -np.inf, -1
         s.first_time = s.first_rotor = s.lag = s.peak_time = s.peak_value = np.nan
         self.address = ctypes.cast(ctypes.pointer(s), ctypes.c_void_p).value
         self._totals: FigureTotals | None = None

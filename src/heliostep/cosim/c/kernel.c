@@ -300,11 +300,13 @@ static int read_row(hs_kernel *k, double t, double *row) {
 
 /* scipy's PPoly at x: the interval with breaks[i] <= x < breaks[i + 1] (the first or the last beyond
  * the breaks, the last at the end), then sum_k c[3 - k][i] s^k with s = x - breaks[i] */
-static double reference_at(const hs_figures *f, double x) {
-    long n = f->n_breaks, m = n - 1, low = 0, high = n - 2, k;
+static double reference_at(hs_figures *f, double x) {
+    long n = f->n_breaks, m = n - 1, low = 0, high = n - 2, k, i = f->interval;
     double s, z = 1.0, value = 0.0;
     if (isnan(x)) return NAN;
-    if (x < f->breaks[0]) low = 0;
+    if (i >= 0 && i < n - 1 && f->breaks[i] <= x && (x < f->breaks[i + 1] || (i == n - 2 && x >= f->breaks[i + 1])))
+        low = i; /* the last row's interval: the same interval as the search finds (it is unique) */
+    else if (x < f->breaks[0]) low = 0;
     else if (x >= f->breaks[n - 1]) low = n - 2;
     else
         while (low < high) {
@@ -312,6 +314,7 @@ static double reference_at(const hs_figures *f, double x) {
             if (x < f->breaks[mid]) high = mid - 1;
             else low = mid;
         }
+    f->interval = low;
     s = x - f->breaks[low];
     for (k = 0; k < 4; k++) {
         value = value + f->coefs[(3 - k) * m + low] * z;
@@ -615,7 +618,7 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_figures, half_width), FIELD(hs_figures, window), FIELD(hs_figures, trail), FIELD(hs_figures, count),
     FIELD(hs_figures, unordered), FIELD(hs_figures, window_rows), FIELD(hs_figures, trail_rows),
     FIELD(hs_figures, judged), FIELD(hs_figures, open), FIELD(hs_figures, held), FIELD(hs_figures, held_capacity),
-    FIELD(hs_figures, max_held), FIELD(hs_figures, last_repeated), FIELD(hs_figures, first_time),
+    FIELD(hs_figures, max_held), FIELD(hs_figures, last_repeated), FIELD(hs_figures, interval), FIELD(hs_figures, first_time),
     FIELD(hs_figures, first_rotor), FIELD(hs_figures, lag), FIELD(hs_figures, previous), FIELD(hs_figures, until),
     FIELD(hs_figures, peak), FIELD(hs_figures, peak_time), FIELD(hs_figures, peak_value),
     FIELD(hs_figures, peak_torque), FIELD(hs_figures, peak_current), FIELD(hs_figures, energy),

@@ -111,6 +111,7 @@ typedef struct {
     double *window, *trail;   /* max_rows rows of n_plotted each */
     /* updated */
     long count, unordered, window_rows, trail_rows, judged, open, held, held_capacity, max_held, last_repeated;
+    long interval;            /* the reference's interval of the last row (rows come in time order) */
     double first_time, first_rotor, lag, previous, until, peak, peak_time, peak_value;
     double peak_torque, peak_current, energy, error_max, error_sq_int, error_sq_sum, last_error;
     double *last;             /* the last row (row width) */
