@@ -7,11 +7,14 @@ import ctypes
 import pytest
 
 import heliostep.cosim.kernel as kernel
+from heliostep.cosim.figures import FigureState
+
+STRUCTURES = {**kernel.STRUCTURES, "hs_figures": FigureState}
 
 
-@pytest.mark.parametrize("name", sorted(kernel.STRUCTURES))
+@pytest.mark.parametrize("name", sorted(STRUCTURES))
 def test_structure_size_and_field_offsets_match_the_c_side(name):
-    structure = kernel.STRUCTURES[name]
+    structure = STRUCTURES[name]
     assert kernel.describe(name) == ctypes.sizeof(structure)
     for field, _ in structure._fields_:
         assert kernel.describe(f"{name}.{field}") == getattr(structure, field).offset, f"{name}.{field}"
@@ -19,7 +22,7 @@ def test_structure_size_and_field_offsets_match_the_c_side(name):
 
 def test_codes_match_the_c_side():
     codes = {name: getattr(kernel, name) for name in dir(kernel) if name.startswith("ADVANCE_")}
-    assert len(codes) == 7
+    assert len(codes) == 8  # ADVANCE_NO_MEMORY: the figures' step rows could not be held
     for name, value in codes.items():
         assert kernel.describe(name) == value, name
     c_names = [

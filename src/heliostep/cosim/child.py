@@ -33,12 +33,14 @@ import tempfile
 import threading
 import time as clock
 import traceback
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, fields
 from multiprocessing.connection import Connection
 
 import numpy as np
 
 from heliostep.cosim import watch
+from heliostep.cosim.figures import FigureSpec, FigureTotals, KernelFigures
 from heliostep.cosim.kernel import Kernel
 from heliostep.cosim.master import CoSimulation, SimulationError
 from heliostep.cosim.rows import RowBuffer
@@ -92,6 +94,7 @@ class _Outbox:
         self.items: list[tuple[str, np.ndarray]] = []
         self.trace_rows = 0  # trace rows among the items
         self.sent = clock.monotonic()
+        self.after_send: Callable[[], None] | None = None  # called after each message of blocks
 
     def add(self, kind: str, block: np.ndarray) -> None:
         self.items.append((kind, np.array(block, dtype=float)))  # a copy: the master reuses its buffers
@@ -104,6 +107,8 @@ class _Outbox:
         if self.items:
             self.connection.send(("blocks", self.items))
             self.items, self.trace_rows = [], 0
+            if self.after_send is not None:
+                self.after_send()
         self.sent = clock.monotonic()
 
 
@@ -121,6 +126,33 @@ class Request:
     sink: bool = True
     monitor: bool = True
     progress: bool = False
+    figures: FigureSpec | None = None  # the monitor's figures accumulated in the kernel, sent at the end
+
+
+class _FiguresToSupervisor:
+    """The child's monitor when the figures are accumulated in its kernel: their totals go to the
+    supervisor (``("figures", totals)``, after the rows) instead of every solution row."""
+
+    def __init__(self, spec: FigureSpec, outbox: _Outbox):
+        self.spec, self.outbox = spec, outbox
+        self.figures: KernelFigures | None = None
+
+    def bind_kernel_figures(self, figures: KernelFigures) -> None:
+        """The master's accumulator: its snapshot follows every block of rows sent (a crash keeps them)."""
+        self.figures = figures
+        self.outbox.after_send = lambda: self.outbox.connection.send(("figures", figures.snapshot()))
+
+    def __call__(self, block: np.ndarray) -> None:
+        self.outbox.add("solution", block)
+
+    def kernel_figures(self) -> dict:
+        """The spec's fields, as a monitor offers them (the master makes the spec of them)."""
+        return {field.name: getattr(self.spec, field.name) for field in fields(self.spec)}
+
+    def take_kernel_figures(self, totals: FigureTotals) -> None:
+        self.outbox.after_send = None
+        self.outbox.flush()
+        self.outbox.connection.send(("figures", totals))
 
 
 def main(argv: list[str]) -> int:
@@ -221,11 +253,20 @@ def _simulate(request: Request, outbox: _Outbox, supervisor: int):
         request.output_times,
         request.solver,
         progress=progress if request.progress else None,
-        monitor=(lambda block: outbox.add("solution", block)) if request.monitor else None,
+        monitor=_child_monitor(request, outbox),
         should_stop=should_stop,
         sink=(lambda block: outbox.add("rows", block)) if request.sink else None,
         sink_rows=request.sink_rows,
     )
+
+
+def _child_monitor(request: Request, outbox: _Outbox):
+    """The solution rows to the supervisor, or (with ``request.figures``) the kernel's figures."""
+    if not request.monitor:
+        return None
+    if request.figures is not None:
+        return _FiguresToSupervisor(request.figures, outbox)
+    return lambda block: outbox.add("solution", block)
 
 
 if __name__ == "__main__":

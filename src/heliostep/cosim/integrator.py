@@ -37,6 +37,7 @@ from heliostep.cosim.kernel import (
     ADVANCE_DKY_FAILED,
     ADVANCE_FMU_FAILED,
     ADVANCE_MAX_STEPS,
+    ADVANCE_NO_MEMORY,
     ADVANCE_REACHED,
     ADVANCE_ROOT,
     Kernel,
@@ -247,6 +248,8 @@ class CVodeIntegrator:
             raise RuntimeError("an FMU failed inside the compiled one-step loop")
         if status == ADVANCE_MAX_STEPS:
             raise too_many_steps(self.max_num_steps, t_stop, reached)
+        if status == ADVANCE_NO_MEMORY:
+            raise RuntimeError("no memory for the rotor's rows of one step interval (the figures in the kernel)")
         if status == ADVANCE_DKY_FAILED:
             raise RuntimeError(f"CVodeGetDky failed between t = {reached:.9g} s and the step before")
         raise cvode_failure(self.error_info, flag)

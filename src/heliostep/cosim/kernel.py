@@ -68,7 +68,7 @@ FUNCTIONS = list(watch.KERNEL_FUNCTIONS)
 
 #: What :c:func:`hs_advance` returns (kernel.h).
 ADVANCE_REACHED, ADVANCE_ROOT, ADVANCE_FULL, ADVANCE_MAX_STEPS = 0, 1, 2, 3
-ADVANCE_CVODE_FAILED, ADVANCE_FMU_FAILED, ADVANCE_DKY_FAILED = -1, -2, -3
+ADVANCE_CVODE_FAILED, ADVANCE_FMU_FAILED, ADVANCE_DKY_FAILED, ADVANCE_NO_MEMORY = -1, -2, -3, -4
 
 #: kernel.h: hs_kernel.status of a failed loop, and hs_loop.failure's codes.
 LOOP_FAILED, LOOP_NO_CONVERGENCE, LOOP_SINGULAR = 100, 1, 2
@@ -148,6 +148,7 @@ class KernelState(ctypes.Structure):
         ("prepare_user", ctypes.c_void_p),
         ("where", ctypes.c_void_p),
         ("loop", ctypes.c_void_p),
+        ("figures", ctypes.c_void_p),
     ]
 
 
@@ -348,7 +349,7 @@ class Kernel:
         self.loop_state = LoopState()
         if loop is not None:
             self._fill_loop(*loop)
-        self.rows = np.zeros((self.ROWS_PER_BLOCK, row_width))
+        self.rows = np.zeros((self.ROWS_PER_BLOCK + 1, row_width))  # the last: a spare row (kernel.h figures)
         self.kinds = np.zeros(self.ROWS_PER_BLOCK, dtype=np.int64)
         self.user_data = ctypes.cast(ctypes.pointer(self.state), ctypes.c_void_p)
         self._library = library()

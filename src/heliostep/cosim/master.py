@@ -61,6 +61,7 @@ import pandas as pd
 
 from heliostep.cosim.connections import ConnectionGraph
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
+from heliostep.cosim.figures import KERNEL_FIGURES, FigureSpec, FigureTotals, KernelFigures
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
 from heliostep.cosim.rows import RowBuffer
@@ -268,6 +269,7 @@ class _Run:
         for name, info in graph.fmus.items():
             columns += [f"{name}.{output}" for output in info.traced_outputs]
         self.rows = RowBuffer(columns, sink, sink_rows)
+        self.figures = _kernel_figures(monitor, len(columns))  # None: every solution row to the monitor
         self.input_values = np.array([item.values[0] for item in graph.inputs], dtype=float)
         self.time = np.nan
         self.counts = {"integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
@@ -312,7 +314,8 @@ class _Run:
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
-        CVODE's memory freed."""
+        CVODE's memory freed; the figures the kernel accumulated handed to the monitor."""
+        _hand_over_figures(self)
         if self.graph.sampled is not None:
             self.graph.sampled.close()
         if self.system is not None:
@@ -325,13 +328,15 @@ class _Run:
         assert self.system is not None
         row = self.system.row(t)[None, :]
         self.rows.store(row)
-        if self.monitor is not None:
+        if self.figures is not None:
+            self.figures.row(row)
+        elif self.monitor is not None:
             self.monitor(row)
 
     def _take_rows(self, rows: np.ndarray, kinds: np.ndarray) -> None:
         """Rows from the one-step loop: all to the monitor, the output rows (kind 1) to the
         trace; then ``should_stop`` is asked (on a stop, the last row ends the trace)."""
-        if self.monitor is not None:
+        if self.monitor is not None and self.figures is None:  # with figures in the kernel: taken there
             self.monitor(rows)
         outputs = kinds == 1
         if outputs.any():
@@ -451,6 +456,11 @@ class _Run:
             self.monitor is not None,
             compiled=COMPILED_RHS,
         )
+        kernel = getattr(integrator, "kernel", None)
+        if self.figures is not None and kernel is not None:
+            kernel.state.figures = self.figures.address
+        elif self.figures is not None:  # no one-step loop in C: the rows to the monitor after all
+            raise RuntimeError("figures in the kernel asked of an integrator without the kernel's loop")
         interpolate = self.monitor is not None and INTERPOLATE_OUTPUTS
         t = start_time
         next_output = next_change = 0
@@ -546,3 +556,32 @@ class _Run:
             self.progress(t)
         if self.should_stop is not None and self.should_stop():
             raise _Interrupted()
+
+
+def _kernel_figures(monitor: Callable[[np.ndarray], None] | None, width: int) -> KernelFigures | None:
+    """The kernel's figure accumulator for ``monitor`` when it offers a spec (``kernel_figures()``: the
+    fields of a :class:`~heliostep.cosim.figures.FigureSpec`, or None) and
+    :data:`~heliostep.cosim.figures.KERNEL_FIGURES` allows it; None: the monitor takes every row."""
+    spec = getattr(monitor, "kernel_figures", None)
+    if not KERNEL_FIGURES or spec is None or not hasattr(monitor, "take_kernel_figures"):
+        return None
+    fields = spec()
+    if fields is None:
+        return None
+    figures = KernelFigures(FigureSpec(**fields), width)
+    bind = getattr(monitor, "bind_kernel_figures", None)  # a monitor that reports the figures as they go
+    if bind is not None:
+        bind(figures)
+    return figures
+
+
+def _hand_over_figures(run: _Run) -> None:
+    """The figures the kernel accumulated to the monitor (once: the accumulator is dropped)."""
+    if run.figures is None:
+        return
+    figures, run.figures = run.figures, None
+    kernel = getattr(run.integrator, "kernel", None)
+    if kernel is not None:
+        kernel.state.figures = None
+    take_totals: Callable[[FigureTotals], None] = getattr(run.monitor, "take_kernel_figures")  # noqa: B009
+    take_totals(figures.totals())

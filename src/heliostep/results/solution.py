@@ -6,18 +6,36 @@ sides) and at every output row; the recorder evaluates the definitions of
 judged once the next step is reached, :class:`~heliostep.results.steps.StepJudge`), so its
 memory does not grow with the run. Its :meth:`SolutionRecorder.figures` are stored in the run's
 metadata (``solution_figures``) and are the figures of ``summary.json``.
+
+The same figures can be accumulated in the compiled kernel instead, at each row as the kernel
+records it (:mod:`heliostep.cosim.figures`): the master asks the recorder's
+:meth:`SolutionRecorder.kernel_figures` and, when it gets a spec, hands the recorder no rows but the
+kernel's totals at the end (:meth:`SolutionRecorder.take_kernel_figures`).
+
+Why this module is long: the recorder, its two ways of being fed (rows, the kernel's totals) and
+the plots' window and envelope belong together: each figure is defined once here.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from heliostep.drive.sequencer import Sequencer, StepSchedule
 from heliostep.results.run_summary import Peaks, StepFigures, Tracking
-from heliostep.results.steps import StepJudge, judged_steps, lost_between, outcome_records
+from heliostep.results.steps import (
+    FULL_STEPS_PER_PERIOD,
+    MISS_TOLERANCE,
+    SETTLING_BAND,
+    StepJudge,
+    StepOutcome,
+    judged_steps,
+    lost_between,
+    outcome_records,
+)
 
 __all__ = [
     "ENVELOPE_BINS",
@@ -210,6 +228,68 @@ class SolutionRecorder:
         """The most rotor rows held at once for a step not yet judged."""
         return self.steps.max_held
 
+    def kernel_figures(self) -> dict | None:
+        """What the kernel accumulates for this recorder, the fields of
+        :class:`heliostep.cosim.figures.FigureSpec` (None: the rows are needed here: no panel
+        reference as a piecewise cubic, or rows already taken)."""
+        reference = self.reference
+        if self.count or self._pending or (self._tracking and not _is_cubic(reference)):
+            return None
+        tracked = self._tracking and reference is not None
+        schedule, sequencer = self.schedule, self.sequencer
+        envelope = self.envelope
+        return dict(
+            torque=self._torque[0] if self._torque else -1,
+            currents=tuple(self._currents),
+            power=-1 if self._power is None else self._power,
+            panel=self._panel if tracked and self._panel is not None else -1,
+            rotor=-1 if self._rotor is None else self._rotor,
+            breaks=np.asarray(getattr(reference, "x", np.zeros(0)), dtype=float) if tracked else np.zeros(0),
+            coefs=np.asarray(getattr(reference, "c", np.zeros((4, 0))), dtype=float) if tracked else np.zeros((4, 0)),
+            step_times=np.asarray(schedule.times, dtype=float),
+            commanded=np.asarray(sequencer.position(schedule.indices), dtype=float),
+            initial_command=float(sequencer.position(schedule.initial_index)),
+            increment=float(sequencer.increment),
+            period=float(FULL_STEPS_PER_PERIOD * sequencer.step_angle),
+            band=SETTLING_BAND,
+            miss_tolerance=MISS_TOLERANCE,
+            enveloped=tuple(envelope.columns) if envelope is not None else (),
+            span=(envelope.start, envelope.end) if envelope is not None else (0.0, 1.0),
+            bins=envelope.bins if envelope is not None else 1,
+            plotted=tuple(self._plotted) if self.peak_window is not None else (),
+            half_width=self.peak_window.half_width if self.peak_window is not None else PEAK_WINDOW_HALF_WIDTH,
+            max_rows=self.peak_window.max_rows if self.peak_window is not None else 1,
+        )
+
+    def take_kernel_figures(self, totals: Any) -> None:
+        """The figures the kernel accumulated (:class:`heliostep.cosim.figures.FigureTotals`, from
+        :meth:`kernel_figures`'s spec), in place of rows; taken again, they replace those taken before."""
+        self.count, self.unordered = totals.count, totals.unordered
+        if not totals.count:
+            return
+        first = np.full(len(totals.last), np.nan)
+        first[0] = totals.first[0]
+        if self._rotor is not None:
+            first[self._rotor] = totals.first[1]
+        self._first, self._last = first, totals.last.copy()
+        self._last_time_repeated = totals.last_time_repeated
+        self._peak_torque, self._peak_current, self._energy = totals.peak_torque, totals.peak_current, totals.energy
+        self._error_max, self._error_sq_int, self._error_sq_sum = (
+            totals.error_max,
+            totals.error_sq_int,
+            totals.error_sq_sum,
+        )
+        self._last_error = totals.last_error
+        self.steps = _JudgedInKernel(self.sequencer, self.schedule, totals)  # type: ignore[assignment]
+        window = self.peak_window
+        if window is not None and len(totals.window):
+            window.rows, window.peak = totals.window.copy(), totals.peak
+            window.peak_time, window.peak_value = totals.peak_time, totals.peak_value
+            window.max_held = len(totals.window)
+        if self.envelope is not None:
+            self.envelope.low, self.envelope.high = totals.low.copy(), totals.high.copy()
+            self.envelope.worst, self.envelope.worst_at = totals.worst.copy(), totals.worst_at.copy()
+
     def __call__(self, rows: np.ndarray) -> None:
         """Take rows: a 2-D block (the master's protocol) or a single row."""
         rows = np.array(rows, dtype=float, copy=True, ndmin=2)
@@ -352,6 +432,40 @@ class SolutionRecorder:
             high,
             worst,
         )
+
+
+class _JudgedInKernel:
+    """The steps the kernel judged (:class:`~heliostep.results.steps.StepJudge`'s answers)."""
+
+    def __init__(self, sequencer: Sequencer, schedule: StepSchedule, totals: Any):
+        self.max_held, self.lag = totals.max_held, totals.lag
+        self.outcomes = [
+            StepOutcome(
+                float(schedule.times[k]),
+                float(sequencer.position(schedule.indices[k])),
+                bool(missed),
+                None if np.isnan(settling) else float(settling),
+                float(move),
+            )
+            for k, (missed, settling, move) in enumerate(totals.outcomes)
+        ]
+
+    def outcomes_at_end(self, end: float) -> list[StepOutcome]:
+        """Every step judged, the last open one up to the end (judged in the kernel's finish)."""
+        return list(self.outcomes)
+
+
+def _is_cubic(reference: object) -> bool:
+    """Whether ``reference`` is a scalar piecewise cubic as scipy's PPoly holds it (breaks ``x``, ``c`` 4 x n)."""
+    c, x = getattr(reference, "c", None), getattr(reference, "x", None)
+    return (
+        isinstance(c, np.ndarray)
+        and isinstance(x, np.ndarray)
+        and c.ndim == 2
+        and c.shape[0] == 4
+        and len(x) == c.shape[1] + 1
+        and bool(getattr(reference, "extrapolate", False))
+    )
 
 
 def _role_column(index: Mapping[str, int], roles: Mapping[str, str], role: str) -> int | None:

@@ -44,7 +44,9 @@ import numpy as np
 import pandas as pd
 
 from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions
+from heliostep.cosim import master as master_module
 from heliostep.cosim.child import Request, serve
+from heliostep.cosim.figures import FigureSpec
 from heliostep.cosim.kernel import library_path
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.watch import FUNCTIONS, LAYOUT, RECORD_BYTES, STOP_OFFSET
@@ -232,6 +234,8 @@ class _Supervisor:
                         break
             elif kind == "progress" and self.callbacks.get("progress") is not None:
                 self.callbacks["progress"](payload)  # type: ignore[misc]
+            elif kind == "figures" and self.callbacks.get("figures") is not None:
+                self.callbacks["figures"](payload)  # type: ignore[misc]
             elif kind == "started":
                 self.started = True
             elif kind != "progress":
@@ -322,12 +326,15 @@ def simulate_supervised(
         sink=sink is not None,
         monitor=monitor is not None,
         progress=progress is not None,
+        figures=_figure_spec(monitor),
     )
     columns = master_columns(system)
     # the child hands over each block of rows its master stores; stored here again, they reach the
     # sink in the very blocks the master would hand it in-process (and none is lost in the child)
     rows = RowBuffer(columns, sink, sink_rows) if sink is not None else None
     callbacks = {"rows": rows.store if rows is not None else None, "solution": monitor, "progress": progress}
+    if request.figures is not None:  # the kernel's figures, sent once by the child's master
+        callbacks["figures"] = getattr(monitor, "take_kernel_figures")  # noqa: B009
     folder = Path(tempfile.mkdtemp(prefix="heliostep-child-"))
     supervisor = None
     try:
@@ -379,3 +386,12 @@ def _outcome(kind: str, payload, reached: float, columns: list[str]) -> MasterRe
         "interrupted",
         reached,
     )
+
+
+def _figure_spec(monitor: Callable[[np.ndarray], None] | None) -> FigureSpec | None:
+    """What the child's kernel accumulates for ``monitor`` (None: every solution row sent back), as in-process."""
+    spec = getattr(monitor, "kernel_figures", None)
+    if not master_module.KERNEL_FIGURES or spec is None or not hasattr(monitor, "take_kernel_figures"):
+        return None
+    fields = spec()
+    return None if fields is None else FigureSpec(**fields)
