@@ -72,9 +72,10 @@ def margins_png(sheet: Mapping[str, Any]) -> bytes | None:
     axes = figure.add_subplot()
     positions = range(len(rows))
     cap = 10.0 * sheet["safety_factor"]
-    for offset, key, label in ((-0.2, "tracking_margin", "tracking"), (0.2, "idle_margin", "idle current")):
-        values = [min(float(row[key]), cap) for _, row in rows]
-        axes.bar([p + offset for p in positions], values, width=0.4, label=label)
+    bars = (("tracking_margin", "tracking"), ("idle_margin", "idle current"), ("stow_margin", "stowing"))
+    for k, (key, label) in enumerate(bars):
+        values = [min(float(row[key]), cap) if row.get(key) is not None else 0.0 for _, row in rows]
+        axes.bar([p + 0.27 * (k - 1) for p in positions], values, width=0.27, label=label)
     axes.axhline(
         sheet["safety_factor"], color="black", linestyle="--", label=f"safety factor {sheet['safety_factor']:g}"
     )
@@ -112,6 +113,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
         "load at the worst instant [N.m]",
         "tracking margin [1]",
         "idle margin [1]",
+        "stow margin [1]",
         "steps lost [steps]",
         "steps missed [steps]",
         "worst tracking error [deg]",
@@ -135,6 +137,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
                     row["load_budget"]["total_Nm"],
                     row["tracking_margin"],
                     row["idle_margin"],
+                    row.get("stow_margin"),
                     simulated["steps_lost"],
                     simulated["missed_steps"],
                     simulated["max_tracking_error_deg"],
@@ -180,6 +183,60 @@ def _budget_table(sheet: Mapping[str, Any]) -> str:
             )
         )
     return _table(headers, rows)
+
+
+_STOW_NOTE = (
+    "<h2>Load while stowing</h2><p>A stow or return move at the slew rate in a wind at the stow speed (gust "
+    "factor on it), at the angle of the least margin; deliverable: the pull-out torque at the move's step rate "
+    "(the nominal curve, linear between its rates, scaled to the current by the holding torque), at most the "
+    "step limit from rest.</p>"
+)
+
+
+def _stow_table(sheet: Mapping[str, Any]) -> str:
+    headers = (
+        "candidate [name]",
+        "current [A]",
+        "stow wind speed [m/s]",
+        "slew rate [deg/s]",
+        "angles travelled [deg]",
+        "worst panel angle [deg]",
+        "step rate [full steps/s]",
+        "wind on the shaft [N.m]",
+        "friction [N.m]",
+        "inertia [N.m]",
+        "total [N.m]",
+        "pull-out at the rate [N.m]",
+        "deliverable [N.m]",
+        "stow margin [1]",
+    )
+    rows = [
+        (
+            c["name"],
+            row["current_A"],
+            *(
+                row["stow_load"][key]
+                for key in (
+                    "stow_speed_m_s",
+                    "slew_rate_deg_s",
+                    "angles_travelled_deg",
+                    "panel_angle_deg",
+                    "step_rate_per_s",
+                    "wind_Nm",
+                    "friction_Nm",
+                    "inertia_Nm",
+                    "total_Nm",
+                    "pull_out_Nm",
+                    "deliverable_Nm",
+                )
+            ),
+            row["stow_margin"],
+        )
+        for c in sheet["candidates"]
+        for row in c["currents"]
+        if row.get("stow_load")
+    ]
+    return _STOW_NOTE + _table(headers, rows)
 
 
 def _days_table(sheet: Mapping[str, Any]) -> str:
@@ -250,10 +307,9 @@ def _curve_table(sheet: Mapping[str, Any]) -> str:
         if "speed_torque" not in c:
             continue
         curve, worst = c["speed_torque"], c.get("speed_torque_worst")
-        for k, (rate, torque) in enumerate(zip(curve["step_rates_per_s"], curve["pull_out_torques_Nm"])):
-            rows.append(
-                (c["name"], curve["current_A"], rate, torque, worst["pull_out_torques_Nm"][k] if worst else None)
-            )
+        at_worst = dict(zip(worst["step_rates_per_s"], worst["pull_out_torques_Nm"])) if worst else {}
+        for rate, torque in zip(curve["step_rates_per_s"], curve["pull_out_torques_Nm"]):
+            rows.append((c["name"], curve["current_A"], rate, torque, at_worst.get(rate)))
     return _table(headers, rows)
 
 
@@ -357,6 +413,7 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         _image(margins_png(sheet), "margins"),
         "<h2>Load budget at the worst instant</h2>",
         _budget_table(sheet),
+        _stow_table(sheet),
         "<h2>Uncertainty band of the drive physics</h2>",
         "<p>The margins at every corner of the bands' parameter ranges (data/parameter_ranges.yaml); the "
         "speed-torque curve co-simulated again at the worst corner (the lowest bus and loop gain).</p>",
