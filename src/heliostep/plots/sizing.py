@@ -104,6 +104,15 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
+def _keyed_table(columns: Sequence[tuple[str, str]], records: Sequence[Mapping[str, Any]]) -> str:
+    """A table of ``records``, one row each: ``columns`` are (header with its unit in brackets, the
+    record's key); a header without a unit is refused (every table of the sheet carries its units)."""
+    unitless = [header for header, _ in columns if not (header.endswith("]") and "[" in header)]
+    if unitless:
+        raise ValueError(f"table headers without a unit in brackets: {unitless}")
+    return _table([header for header, _ in columns], [[record.get(key) for _, key in columns] for record in records])
+
+
 def _verdict_table(sheet: Mapping[str, Any]) -> str:
     headers = (
         "candidate [name]",
@@ -153,36 +162,20 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
 
 
 def _budget_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "day [day of year]",
-        "time in the window [s]",
-        "panel angle [deg]",
-        "ratio g [1]",
-        "wind moment on the panel [N.m]",
-        "wind on the shaft [N.m]",
-        "friction [N.m]",
-        "inertia [N.m]",
-        "total [N.m]",
+    records = [{"candidate": c["name"], **c["currents"][0]["load_budget"]} for c in sheet["candidates"]]
+    columns = (
+        ("candidate [name]", "candidate"),
+        ("day [day of year]", "day_of_year"),
+        ("time in the window [s]", "time_s"),
+        ("panel angle [deg]", "panel_angle_deg"),
+        ("ratio g [1]", "ratio"),
+        ("wind moment on the panel [N.m]", "wind_moment_Nm"),
+        ("wind on the shaft [N.m]", "wind_Nm"),
+        ("friction [N.m]", "friction_Nm"),
+        ("inertia [N.m]", "inertia_Nm"),
+        ("total [N.m]", "total_Nm"),
     )
-    rows = []
-    for c in sheet["candidates"]:
-        budget = c["currents"][0]["load_budget"]
-        rows.append(
-            (
-                c["name"],
-                budget["day_of_year"],
-                budget["time_s"],
-                budget["panel_angle_deg"],
-                budget["ratio"],
-                budget["wind_moment_Nm"],
-                budget["wind_Nm"],
-                budget["friction_Nm"],
-                budget["inertia_Nm"],
-                budget["total_Nm"],
-            )
-        )
-    return _table(headers, rows)
+    return _keyed_table(columns, records)
 
 
 _STOW_NOTE = (
@@ -194,49 +187,29 @@ _STOW_NOTE = (
 
 
 def _stow_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "current [A]",
-        "stow wind speed [m/s]",
-        "slew rate [deg/s]",
-        "angles travelled [deg]",
-        "worst panel angle [deg]",
-        "step rate [full steps/s]",
-        "wind on the shaft [N.m]",
-        "friction [N.m]",
-        "inertia [N.m]",
-        "total [N.m]",
-        "pull-out at the rate [N.m]",
-        "deliverable [N.m]",
-        "stow margin [1]",
-    )
-    rows = [
-        (
-            c["name"],
-            row["current_A"],
-            *(
-                row["stow_load"][key]
-                for key in (
-                    "stow_speed_m_s",
-                    "slew_rate_deg_s",
-                    "angles_travelled_deg",
-                    "panel_angle_deg",
-                    "step_rate_per_s",
-                    "wind_Nm",
-                    "friction_Nm",
-                    "inertia_Nm",
-                    "total_Nm",
-                    "pull_out_Nm",
-                    "deliverable_Nm",
-                )
-            ),
-            row["stow_margin"],
-        )
+    records = [
+        {"candidate": c["name"], "current_A": row["current_A"], "stow_margin": row["stow_margin"], **row["stow_load"]}
         for c in sheet["candidates"]
         for row in c["currents"]
         if row.get("stow_load")
     ]
-    return _STOW_NOTE + _table(headers, rows)
+    columns = (
+        ("candidate [name]", "candidate"),
+        ("current [A]", "current_A"),
+        ("stow wind speed [m/s]", "stow_speed_m_s"),
+        ("slew rate [deg/s]", "slew_rate_deg_s"),
+        ("angles travelled [deg]", "angles_travelled_deg"),
+        ("worst panel angle [deg]", "panel_angle_deg"),
+        ("step rate [full steps/s]", "step_rate_per_s"),
+        ("wind on the shaft [N.m]", "wind_Nm"),
+        ("friction [N.m]", "friction_Nm"),
+        ("inertia [N.m]", "inertia_Nm"),
+        ("total [N.m]", "total_Nm"),
+        ("pull-out at the rate [N.m]", "pull_out_Nm"),
+        ("deliverable [N.m]", "deliverable_Nm"),
+        ("stow margin [1]", "stow_margin"),
+    )
+    return _STOW_NOTE + _keyed_table(columns, records)
 
 
 def _days_table(sheet: Mapping[str, Any]) -> str:
@@ -262,36 +235,21 @@ def _days_table(sheet: Mapping[str, Any]) -> str:
 
 
 def _catalogue_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "manufacturer [text]",
-        "datasheet [text]",
-        "holding torque, 2 phases on [N.m]",
-        "rated current [A]",
-        "resistance [Ohm]",
-        "inductance [mH]",
-        "rotor inertia [kg.m2]",
-        "detent torque [N.m]",
-        "bus [V]",
-        "k_e [N.m/A]",
+    records = [{**c, "inductance_mH": 1e3 * c["inductance_H"]} for c in sheet["candidates"]]
+    columns = (
+        ("candidate [name]", "name"),
+        ("manufacturer [text]", "manufacturer"),
+        ("datasheet [text]", "datasheet"),
+        ("holding torque, 2 phases on [N.m]", "holding_torque_Nm"),
+        ("rated current [A]", "rated_current_A"),
+        ("resistance [Ohm]", "resistance_Ohm"),
+        ("inductance [mH]", "inductance_mH"),
+        ("rotor inertia [kg.m2]", "rotor_inertia_kgm2"),
+        ("detent torque [N.m]", "detent_torque_Nm"),
+        ("bus [V]", "bus_voltage_V"),
+        ("k_e [N.m/A]", "torque_constant_NmA"),
     )
-    rows = [
-        (
-            c["name"],
-            c["manufacturer"],
-            c["datasheet"],
-            c["holding_torque_Nm"],
-            c["rated_current_A"],
-            c["resistance_Ohm"],
-            1e3 * c["inductance_H"],
-            c["rotor_inertia_kgm2"],
-            c["detent_torque_Nm"],
-            c["bus_voltage_V"],
-            c["torque_constant_NmA"],
-        )
-        for c in sheet["candidates"]
-    ]
-    return _table(headers, rows)
+    return _keyed_table(columns, records)
 
 
 def _curve_table(sheet: Mapping[str, Any]) -> str:
