@@ -213,25 +213,16 @@ def _stow_table(sheet: Mapping[str, Any]) -> str:
 
 
 def _days_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "day [day of year]",
-        "date [YYYY-MM-DD]",
-        "largest panel rate in the window [deg/s]",
-        "largest mean wind in the window [m/s]",
-        "why [text]",
-    )
     selection = sheet.get("day_selection") or {"days": [{"day_of_year": d} for d in sheet["days"]]}
-    rows = [
-        (
-            day["day_of_year"],
-            day.get("date"),
-            day.get("panel_rate_deg_s"),
-            day.get("wind_speed_m_s"),
-            "; ".join(day.get("reasons", [])),
-        )
-        for day in selection["days"]
-    ]
-    return _table(headers, rows)
+    records = [{**day, "why": "; ".join(day.get("reasons", []))} for day in selection["days"]]
+    columns = (
+        ("day [day of year]", "day_of_year"),
+        ("date [YYYY-MM-DD]", "date"),
+        ("largest panel rate in the window [deg/s]", "panel_rate_deg_s"),
+        ("largest mean wind in the window [m/s]", "wind_speed_m_s"),
+        ("why [text]", "why"),
+    )
+    return _keyed_table(columns, records)
 
 
 def _catalogue_table(sheet: Mapping[str, Any]) -> str:
@@ -253,55 +244,60 @@ def _catalogue_table(sheet: Mapping[str, Any]) -> str:
 
 
 def _curve_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "current [A]",
-        "step rate [full steps/s]",
-        "pull-out torque [N.m]",
-        "pull-out at the ranges' worst corner [N.m]",
-    )
-    rows = []
+    records = []
     for c in sheet["candidates"]:
         if "speed_torque" not in c:
             continue
         curve, worst = c["speed_torque"], c.get("speed_torque_worst")
         at_worst = dict(zip(worst["step_rates_per_s"], worst["pull_out_torques_Nm"])) if worst else {}
         for rate, torque in zip(curve["step_rates_per_s"], curve["pull_out_torques_Nm"]):
-            rows.append((c["name"], curve["current_A"], rate, torque, at_worst.get(rate)))
-    return _table(headers, rows)
+            records.append(
+                {
+                    "name": c["name"],
+                    "current": curve["current_A"],
+                    "rate": rate,
+                    "torque": torque,
+                    "worst": at_worst.get(rate),
+                }
+            )
+    columns = (
+        ("candidate [name]", "name"),
+        ("current [A]", "current"),
+        ("step rate [full steps/s]", "rate"),
+        ("pull-out torque [N.m]", "torque"),
+        ("pull-out at the ranges' worst corner [N.m]", "worst"),
+    )
+    return _keyed_table(columns, records)
 
 
 def _band_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "current [A]",
-        "corners [count]",
-        "tracking margin, nominal [1]",
-        "tracking margin, least over the corners [1]",
-        "tracking margin, largest [1]",
-        "idle margin, least [1]",
-        "idle margin, largest [1]",
-        "corner of the least tracking margin [key=value]",
-        "keys not in the margins [key]",
-    )
-    rows = [
-        (
-            c["name"],
-            row["current_A"],
-            row["band"]["corners"],
-            row["tracking_margin"],
-            row["band"]["tracking_margin_min"],
-            row["band"]["tracking_margin_max"],
-            row["band"]["idle_margin_min"],
-            row["band"]["idle_margin_max"],
-            ", ".join(f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()),
-            row["band"]["keys_not_in_the_margins"],
-        )
+    records = [
+        {
+            **row["band"],
+            "name": c["name"],
+            "current_A": row["current_A"],
+            "tracking_margin": row["tracking_margin"],
+            "corner": ", ".join(
+                f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()
+            ),
+        }
         for c in sheet["candidates"]
         for row in c["currents"]
         if "band" in row
     ]
-    return _table(headers, rows)
+    columns = (
+        ("candidate [name]", "name"),
+        ("current [A]", "current_A"),
+        ("corners [count]", "corners"),
+        ("tracking margin, nominal [1]", "tracking_margin"),
+        ("tracking margin, least over the corners [1]", "tracking_margin_min"),
+        ("tracking margin, largest [1]", "tracking_margin_max"),
+        ("idle margin, least [1]", "idle_margin_min"),
+        ("idle margin, largest [1]", "idle_margin_max"),
+        ("corner of the least tracking margin [key=value]", "corner"),
+        ("keys not in the margins [key]", "keys_not_in_the_margins"),
+    )
+    return _keyed_table(columns, records)
 
 
 def _energy_note(sheet: Mapping[str, Any]) -> str:
