@@ -15,6 +15,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import matplotlib.image
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -182,6 +183,61 @@ def test_one_candidate_passes_and_the_other_fails_for_a_named_reason(sized):
     assert small["simulation"]["steps_lost"] == 0 and small["simulation"]["missed_steps"] == 0
     assert small["simulation"]["steps_commanded"] > 0
     assert large["tracking_margin"] >= 2.0 and large["idle_margin"] >= 2.0
+
+
+def _hinge_moment(speed: float, angle: float, gust: float = 1.52, density: float = 1.225) -> float:
+    """|C_M| 1/2 rho (G v)^2 A c for the 0.3 m x 1.5 m mirror, written out: Hoerner's flat-plate normal force
+    C_N = 1 / (0.222 + 0.283 / sin a) at Joessel's centre of pressure x_cp / c = 0.195 + 0.305 sin a."""
+    alpha = abs(angle)
+    if alpha == 0.0:
+        return 0.0
+    coefficient = (0.5 - 0.195 - 0.305 * math.sin(alpha)) / (0.222 + 0.283 / math.sin(alpha))
+    return abs(coefficient) * 0.5 * density * (gust * speed) ** 2 * 0.45 * 0.3
+
+
+def _stow_margin_here(entry: dict, motor: dict, current: float, low_deg: float, high_deg: float) -> float:
+    """The least stow margin over the angles travelled, from first principles: the scenario's defaults (stow
+    at 12 m/s mean, gust factor 1.52, slew 0.5 deg/s), the paper's lever 0.3 m and pinion 2.5 mm, the
+    mechanics' T_c = 0.08 N.m, M_c = 3.3e-3 N.m, J_p = 3.37 kg.m2; deliverable: the curve's pull-out at the
+    step rate (linear between its points), scaled by the current, at most the step limit T_hold sin(pi/4)."""
+    curve = entry["speed_torque"]
+    slew, step = math.radians(0.5), math.radians(motor["step_angle"])
+    least = math.inf
+    for k in range(181):
+        theta = math.radians(low_deg + (high_deg - low_deg) * k / 180)
+        g = 0.3 / (2.5e-3 * math.cos(theta) ** 2)
+        rate = g * slew / step
+        inertia = (motor["rotor_inertia"] + 3.37 / g**2) * (rate**2 * step + 2 * g * abs(math.tan(theta)) * slew**2)
+        load = _hinge_moment(12.0, theta) / g + 0.08 + 3.3e-3 / g + inertia
+        pull_out = float(np.interp(rate, curve["step_rates_per_s"], curve["pull_out_torques_Nm"]))
+        deliverable = min(pull_out * current / curve["current_A"], _held(motor, current) / math.sqrt(2))
+        least = min(least, deliverable / load)
+    return least
+
+
+def test_the_margin_while_stowing_against_the_pull_out_torque_at_the_slew_rate(sized):
+    _, out = sized
+    sheet = json.loads((out / "sizing.json").read_text())
+    for entry in sheet["candidates"]:
+        motor, row = {"small": SMALL, "large": LARGE}[entry["name"]], entry["currents"][0]
+        stow = row["stow_load"]
+        assert stow["stow_speed_m_s"] == 12.0 and stow["slew_rate_deg_s"] == 0.5
+        low, high = stow["angles_travelled_deg"]
+        assert low <= 0.0 <= high and low <= stow["panel_angle_deg"] <= high  # from the stow angle 0
+        # the step rate at the slew rate through g = s / (r cos^2 theta_p): 33.3 full steps/s at 0 deg
+        theta = math.radians(stow["panel_angle_deg"])
+        g = 0.3 / (2.5e-3 * math.cos(theta) ** 2)
+        assert stow["ratio"] == pytest.approx(g)
+        assert stow["step_rate_per_s"] == pytest.approx(g * 0.5 / 1.8)
+        assert stow["wind_moment_Nm"] == pytest.approx(_hinge_moment(12.0, theta), rel=1e-6)  # ISA rho 1.225
+        assert stow["wind_Nm"] == pytest.approx(stow["wind_moment_Nm"] / g)
+        # the curve is co-simulated at the moves' highest step rate (at the farthest angle travelled)
+        farthest = math.radians(max(abs(low), abs(high)))
+        top = 0.3 / (2.5e-3 * math.cos(farthest) ** 2) * 0.5 / 1.8
+        assert any(rate == pytest.approx(top) for rate in entry["speed_torque"]["step_rates_per_s"])
+        assert row["stow_margin"] == pytest.approx(_stow_margin_here(entry, motor, row["current_A"], low, high))
+        assert row["stow_margin"] >= 2.0  # a 12 m/s wind on the small mirror: far below the drive's torque
+        assert not any(reason.startswith("stow margin") for reason in row["reasons"])
 
 
 def test_the_sheet_is_self_contained_html_with_pngs_and_units(sized):

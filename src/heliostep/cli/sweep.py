@@ -213,7 +213,7 @@ def _report(name: str, outcome: SweepOutcome, plots: list[Path]) -> str:
     for column, label, unit in (
         ("max_tracking_error_deg", "max tracking error", "deg"),
         ("peak_torque_Nm", "peak torque", "N.m"),
-        ("required_torque_Nm", "required torque (2 x peak)", "N.m"),
+        ("load_torque_Nm", "load torque (worst instant)", "N.m"),
         ("primary_sharing_error_max_deg", "primary sharing error", "deg"),
     ):
         values = ok[column].dropna()

@@ -72,9 +72,10 @@ def margins_png(sheet: Mapping[str, Any]) -> bytes | None:
     axes = figure.add_subplot()
     positions = range(len(rows))
     cap = 10.0 * sheet["safety_factor"]
-    for offset, key, label in ((-0.2, "tracking_margin", "tracking"), (0.2, "idle_margin", "idle current")):
-        values = [min(float(row[key]), cap) for _, row in rows]
-        axes.bar([p + offset for p in positions], values, width=0.4, label=label)
+    bars = (("tracking_margin", "tracking"), ("idle_margin", "idle current"), ("stow_margin", "stowing"))
+    for k, (key, label) in enumerate(bars):
+        values = [min(float(row[key]), cap) if row.get(key) is not None else 0.0 for _, row in rows]
+        axes.bar([p + 0.27 * (k - 1) for p in positions], values, width=0.27, label=label)
     axes.axhline(
         sheet["safety_factor"], color="black", linestyle="--", label=f"safety factor {sheet['safety_factor']:g}"
     )
@@ -103,6 +104,15 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
+def _keyed_table(columns: Sequence[tuple[str, str]], records: Sequence[Mapping[str, Any]]) -> str:
+    """A table of ``records``, one row each: ``columns`` are (header with its unit in brackets, the
+    record's key); a header without a unit is refused (every table of the sheet carries its units)."""
+    unitless = [header for header, _ in columns if not (header.endswith("]") and "[" in header)]
+    if unitless:
+        raise ValueError(f"table headers without a unit in brackets: {unitless}")
+    return _table([header for header, _ in columns], [[record.get(key) for _, key in columns] for record in records])
+
+
 def _verdict_table(sheet: Mapping[str, Any]) -> str:
     headers = (
         "candidate [name]",
@@ -112,6 +122,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
         "load at the worst instant [N.m]",
         "tracking margin [1]",
         "idle margin [1]",
+        "stow margin [1]",
         "steps lost [steps]",
         "steps missed [steps]",
         "worst tracking error [deg]",
@@ -135,6 +146,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
                     row["load_budget"]["total_Nm"],
                     row["tracking_margin"],
                     row["idle_margin"],
+                    row.get("stow_margin"),
                     simulated["steps_lost"],
                     simulated["missed_steps"],
                     simulated["max_tracking_error_deg"],
@@ -150,144 +162,142 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
 
 
 def _budget_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "day [day of year]",
-        "time in the window [s]",
-        "panel angle [deg]",
-        "ratio g [1]",
-        "wind moment on the panel [N.m]",
-        "wind on the shaft [N.m]",
-        "friction [N.m]",
-        "inertia [N.m]",
-        "total [N.m]",
+    records = [{"candidate": c["name"], **c["currents"][0]["load_budget"]} for c in sheet["candidates"]]
+    columns = (
+        ("candidate [name]", "candidate"),
+        ("day [day of year]", "day_of_year"),
+        ("time in the window [s]", "time_s"),
+        ("panel angle [deg]", "panel_angle_deg"),
+        ("ratio g [1]", "ratio"),
+        ("wind moment on the panel [N.m]", "wind_moment_Nm"),
+        ("wind on the shaft [N.m]", "wind_Nm"),
+        ("friction [N.m]", "friction_Nm"),
+        ("inertia [N.m]", "inertia_Nm"),
+        ("total [N.m]", "total_Nm"),
     )
-    rows = []
-    for c in sheet["candidates"]:
-        budget = c["currents"][0]["load_budget"]
-        rows.append(
-            (
-                c["name"],
-                budget["day_of_year"],
-                budget["time_s"],
-                budget["panel_angle_deg"],
-                budget["ratio"],
-                budget["wind_moment_Nm"],
-                budget["wind_Nm"],
-                budget["friction_Nm"],
-                budget["inertia_Nm"],
-                budget["total_Nm"],
-            )
-        )
-    return _table(headers, rows)
+    return _keyed_table(columns, records)
+
+
+_STOW_NOTE = (
+    "<h2>Load while stowing</h2><p>A stow or return move at the slew rate in a wind at the stow speed (gust "
+    "factor on it), at the angle of the least margin; deliverable: the pull-out torque at the move's step rate "
+    "(the nominal curve, linear between its rates, scaled to the current by the holding torque), at most the "
+    "step limit from rest.</p>"
+)
+
+
+def _stow_table(sheet: Mapping[str, Any]) -> str:
+    records = [
+        {"candidate": c["name"], "current_A": row["current_A"], "stow_margin": row["stow_margin"], **row["stow_load"]}
+        for c in sheet["candidates"]
+        for row in c["currents"]
+        if row.get("stow_load")
+    ]
+    columns = (
+        ("candidate [name]", "candidate"),
+        ("current [A]", "current_A"),
+        ("stow wind speed [m/s]", "stow_speed_m_s"),
+        ("slew rate [deg/s]", "slew_rate_deg_s"),
+        ("angles travelled [deg]", "angles_travelled_deg"),
+        ("worst panel angle [deg]", "panel_angle_deg"),
+        ("step rate [full steps/s]", "step_rate_per_s"),
+        ("wind on the shaft [N.m]", "wind_Nm"),
+        ("friction [N.m]", "friction_Nm"),
+        ("inertia [N.m]", "inertia_Nm"),
+        ("total [N.m]", "total_Nm"),
+        ("pull-out at the rate [N.m]", "pull_out_Nm"),
+        ("deliverable [N.m]", "deliverable_Nm"),
+        ("stow margin [1]", "stow_margin"),
+    )
+    return _STOW_NOTE + _keyed_table(columns, records)
 
 
 def _days_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "day [day of year]",
-        "date [YYYY-MM-DD]",
-        "largest panel rate in the window [deg/s]",
-        "largest mean wind in the window [m/s]",
-        "why [text]",
-    )
     selection = sheet.get("day_selection") or {"days": [{"day_of_year": d} for d in sheet["days"]]}
-    rows = [
-        (
-            day["day_of_year"],
-            day.get("date"),
-            day.get("panel_rate_deg_s"),
-            day.get("wind_speed_m_s"),
-            "; ".join(day.get("reasons", [])),
-        )
-        for day in selection["days"]
-    ]
-    return _table(headers, rows)
+    records = [{**day, "why": "; ".join(day.get("reasons", []))} for day in selection["days"]]
+    columns = (
+        ("day [day of year]", "day_of_year"),
+        ("date [YYYY-MM-DD]", "date"),
+        ("largest panel rate in the window [deg/s]", "panel_rate_deg_s"),
+        ("largest mean wind in the window [m/s]", "wind_speed_m_s"),
+        ("why [text]", "why"),
+    )
+    return _keyed_table(columns, records)
 
 
 def _catalogue_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "manufacturer [text]",
-        "datasheet [text]",
-        "holding torque, 2 phases on [N.m]",
-        "rated current [A]",
-        "resistance [Ohm]",
-        "inductance [mH]",
-        "rotor inertia [kg.m2]",
-        "detent torque [N.m]",
-        "bus [V]",
-        "k_e [N.m/A]",
+    records = [{**c, "inductance_mH": 1e3 * c["inductance_H"]} for c in sheet["candidates"]]
+    columns = (
+        ("candidate [name]", "name"),
+        ("manufacturer [text]", "manufacturer"),
+        ("datasheet [text]", "datasheet"),
+        ("holding torque, 2 phases on [N.m]", "holding_torque_Nm"),
+        ("rated current [A]", "rated_current_A"),
+        ("resistance [Ohm]", "resistance_Ohm"),
+        ("inductance [mH]", "inductance_mH"),
+        ("rotor inertia [kg.m2]", "rotor_inertia_kgm2"),
+        ("detent torque [N.m]", "detent_torque_Nm"),
+        ("bus [V]", "bus_voltage_V"),
+        ("k_e [N.m/A]", "torque_constant_NmA"),
     )
-    rows = [
-        (
-            c["name"],
-            c["manufacturer"],
-            c["datasheet"],
-            c["holding_torque_Nm"],
-            c["rated_current_A"],
-            c["resistance_Ohm"],
-            1e3 * c["inductance_H"],
-            c["rotor_inertia_kgm2"],
-            c["detent_torque_Nm"],
-            c["bus_voltage_V"],
-            c["torque_constant_NmA"],
-        )
-        for c in sheet["candidates"]
-    ]
-    return _table(headers, rows)
+    return _keyed_table(columns, records)
 
 
 def _curve_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "current [A]",
-        "step rate [full steps/s]",
-        "pull-out torque [N.m]",
-        "pull-out at the ranges' worst corner [N.m]",
-    )
-    rows = []
+    records = []
     for c in sheet["candidates"]:
         if "speed_torque" not in c:
             continue
         curve, worst = c["speed_torque"], c.get("speed_torque_worst")
-        for k, (rate, torque) in enumerate(zip(curve["step_rates_per_s"], curve["pull_out_torques_Nm"])):
-            rows.append(
-                (c["name"], curve["current_A"], rate, torque, worst["pull_out_torques_Nm"][k] if worst else None)
+        at_worst = dict(zip(worst["step_rates_per_s"], worst["pull_out_torques_Nm"])) if worst else {}
+        for rate, torque in zip(curve["step_rates_per_s"], curve["pull_out_torques_Nm"]):
+            records.append(
+                {
+                    "name": c["name"],
+                    "current": curve["current_A"],
+                    "rate": rate,
+                    "torque": torque,
+                    "worst": at_worst.get(rate),
+                }
             )
-    return _table(headers, rows)
+    columns = (
+        ("candidate [name]", "name"),
+        ("current [A]", "current"),
+        ("step rate [full steps/s]", "rate"),
+        ("pull-out torque [N.m]", "torque"),
+        ("pull-out at the ranges' worst corner [N.m]", "worst"),
+    )
+    return _keyed_table(columns, records)
 
 
 def _band_table(sheet: Mapping[str, Any]) -> str:
-    headers = (
-        "candidate [name]",
-        "current [A]",
-        "corners [count]",
-        "tracking margin, nominal [1]",
-        "tracking margin, least over the corners [1]",
-        "tracking margin, largest [1]",
-        "idle margin, least [1]",
-        "idle margin, largest [1]",
-        "corner of the least tracking margin [key=value]",
-        "keys not in the margins [key]",
-    )
-    rows = [
-        (
-            c["name"],
-            row["current_A"],
-            row["band"]["corners"],
-            row["tracking_margin"],
-            row["band"]["tracking_margin_min"],
-            row["band"]["tracking_margin_max"],
-            row["band"]["idle_margin_min"],
-            row["band"]["idle_margin_max"],
-            ", ".join(f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()),
-            row["band"]["keys_not_in_the_margins"],
-        )
+    records = [
+        {
+            **row["band"],
+            "name": c["name"],
+            "current_A": row["current_A"],
+            "tracking_margin": row["tracking_margin"],
+            "corner": ", ".join(
+                f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()
+            ),
+        }
         for c in sheet["candidates"]
         for row in c["currents"]
         if "band" in row
     ]
-    return _table(headers, rows)
+    columns = (
+        ("candidate [name]", "name"),
+        ("current [A]", "current_A"),
+        ("corners [count]", "corners"),
+        ("tracking margin, nominal [1]", "tracking_margin"),
+        ("tracking margin, least over the corners [1]", "tracking_margin_min"),
+        ("tracking margin, largest [1]", "tracking_margin_max"),
+        ("idle margin, least [1]", "idle_margin_min"),
+        ("idle margin, largest [1]", "idle_margin_max"),
+        ("corner of the least tracking margin [key=value]", "corner"),
+        ("keys not in the margins [key]", "keys_not_in_the_margins"),
+    )
+    return _keyed_table(columns, records)
 
 
 def _energy_note(sheet: Mapping[str, Any]) -> str:
@@ -357,6 +367,7 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         _image(margins_png(sheet), "margins"),
         "<h2>Load budget at the worst instant</h2>",
         _budget_table(sheet),
+        _stow_table(sheet),
         "<h2>Uncertainty band of the drive physics</h2>",
         "<p>The margins at every corner of the bands' parameter ranges (data/parameter_ranges.yaml); the "
         "speed-torque curve co-simulated again at the worst corner (the lowest bus and loop gain).</p>",

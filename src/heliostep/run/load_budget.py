@@ -22,14 +22,26 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
+from heliostep.cosim import read_fmu
 from heliostep.drive.inputs import DriveInputs
+from heliostep.drive.wind import air_density, panel_wind_moment
 from heliostep.scenario import Scenario
 from heliostep.scenario.catalogue import MotorDrive
 
-__all__ = ["LoadBudget", "load_budget", "static_step_limit", "wind_moment_at"]
+__all__ = [
+    "LoadBudget",
+    "StowLoad",
+    "load_budget",
+    "mechanics_values",
+    "static_step_limit",
+    "step_limit_of_holding",
+    "stow_load",
+    "wind_moment_at",
+]
 
 
 @dataclass(frozen=True)
@@ -94,6 +106,18 @@ def load_budget(
     )
 
 
+def mechanics_values(scenario: Scenario, instance: str, mechanics_fmu: Path | None) -> dict[str, float]:
+    """The mechanics FMU's ``T_c``, ``M_c`` [N.m], ``J_p``, ``J_m`` [kg.m2]: the scenario's
+    ``parameters.<instance>`` values over the FMU's defaults (0 where neither has one)."""
+    given = scenario.parameters.get(instance, {})
+    variables = read_fmu(mechanics_fmu).variables if mechanics_fmu is not None else {}
+    values = {}
+    for name in ("T_c", "M_c", "J_p", "J_m"):
+        start = variables[name].start if name in variables else None
+        values[name] = float(given[name]) if name in given else (float(start) if isinstance(start, float) else 0.0)
+    return values
+
+
 def wind_moment_at(inputs: DriveInputs) -> np.ndarray:
     """The wind's moment on the panel axis [N.m] at each reference instant: the ``m_ext`` signal held
     there (``values[0]`` before ``times[0]``, ``values[k + 1]`` from ``times[k]`` on; its sign turned back,
@@ -118,7 +142,11 @@ def _transition_limit(a_from: float, a_to: float, delta: float) -> float:
 
 def static_step_limit(drive: MotorDrive, current: float, mode: str = "one-phase-on", microsteps: int = 1) -> float:
     """The largest static load on the shaft [N.m] against which a step is taken from rest (module docstring)."""
-    held = drive.holding_torque(current)
+    return step_limit_of_holding(drive.holding_torque(current), mode, microsteps)
+
+
+def step_limit_of_holding(held: float, mode: str = "one-phase-on", microsteps: int = 1) -> float:
+    """:func:`static_step_limit` of a motor whose one-phase holding torque is ``held`` [N.m]."""
     if microsteps > 1:
         return _transition_limit(held, held, math.pi / (2 * microsteps))
     if mode == "two-phase-on":
@@ -127,3 +155,65 @@ def static_step_limit(drive: MotorDrive, current: float, mode: str = "one-phase-
         one, two = held, math.sqrt(2.0) * held
         return min(_transition_limit(one, two, math.pi / 4), _transition_limit(two, one, math.pi / 4))
     return _transition_limit(held, held, math.pi / 2)
+
+
+@dataclass(frozen=True)
+class StowLoad:
+    """The load on the motor shaft during a stow or return move, at each panel angle it travels.
+
+    Attributes (arrays, one value per angle)
+    ----------------------------------------
+    panel_angles : [rad]
+    ratio : g = s / (r cos^2 theta_p) [-]
+    step_rate_per_s : the rotor's step rate at the slew rate, g omega_slew / step angle [full steps/s]
+    wind_moment_Nm : the wind's moment on the panel axis at the stow speed [N.m]
+    wind_Nm, friction_Nm, inertia_Nm, total_Nm : on the shaft [N.m]
+    """
+
+    panel_angles: np.ndarray
+    ratio: np.ndarray
+    step_rate_per_s: np.ndarray
+    wind_moment_Nm: np.ndarray
+    wind_Nm: np.ndarray
+    friction_Nm: np.ndarray
+    inertia_Nm: np.ndarray
+    total_Nm: np.ndarray
+
+
+def stow_load(
+    scenario: Scenario, panel_angles, mechanics: Mapping[str, float], rotor_inertia: float, step_angle: float
+) -> StowLoad | None:
+    """The load of a stow move at each of ``panel_angles`` [rad] (None when the scenario never stows).
+
+    The move runs at ``wind.slew_rate`` (omega_p) while the wind blows at the stow threshold
+    ``wind.stow_speed`` (the mean speed at which the move starts; with ``wind.gust_factor`` on it, normal
+    to the axis: the worst direction), so on the shaft:
+
+    * wind: |C_M(theta_p)| 1/2 rho (G v_stow)^2 A c / g (:func:`heliostep.drive.wind.panel_wind_moment`);
+    * friction: T_c + M_c / g;
+    * inertia: (J_m + J_p / g^2) alpha, alpha = f^2 phi + 2 g tan(theta_p) omega_p^2: the move starts at
+      the slew rate, so the rotor reaches its step rate f = g omega_p / phi within the first step period
+      (omega f, omega = f phi), plus the change of g along the move at constant panel speed.
+
+    Parameters
+    ----------
+    rotor_inertia : float  [kg.m2]
+    step_angle : float  [rad], the motor's full step phi.
+    """
+    wind = scenario.wind
+    if wind.stow_speed is None:
+        return None
+    angles = np.asarray(panel_angles, dtype=float)
+    transmission, optics = scenario.transmission, scenario.optics
+    ratio = transmission.lever_arm / (transmission.pinion_radius * np.cos(angles) ** 2)
+    slew = math.radians(wind.slew_rate)
+    rate = ratio * slew / step_angle
+    density = air_density(scenario.site.altitude, wind.air_temperature)
+    moment = np.abs(
+        panel_wind_moment(wind.stow_speed, angles, optics.aperture_area, optics.mirror_width, density, wind.gust_factor)
+    )
+    acceleration = rate**2 * step_angle + 2.0 * ratio * np.abs(np.tan(angles)) * slew**2
+    wind_shaft = moment / ratio
+    friction = mechanics["T_c"] + mechanics["M_c"] / ratio
+    inertia = (rotor_inertia + mechanics["J_p"] / ratio**2) * acceleration
+    return StowLoad(angles, ratio, rate, moment, wind_shaft, friction, inertia, wind_shaft + friction + inertia)

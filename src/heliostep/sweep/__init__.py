@@ -69,7 +69,7 @@ from heliostep.sweep.store import (
     default_results_path,
     read_results,
 )
-from heliostep.sweep.worker import WIND_MARGIN, FmuPayload, primary_sharing_error, run_case, summary_figures
+from heliostep.sweep.worker import FmuPayload, primary_sharing_error, run_case, summary_figures
 
 __all__ = [
     "CASE_COLUMNS",
@@ -82,7 +82,6 @@ __all__ = [
     "ROLES",
     "RUN_COLUMNS",
     "SHORTHAND_AXES",
-    "WIND_MARGIN",
     "FmuPayload",
     "SweepAxis",
     "SweepCase",

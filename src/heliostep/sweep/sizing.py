@@ -8,13 +8,15 @@ its currents is judged on:
 * the **margin to slip while tracking**: the largest static load the motor steps against from rest
   (:func:`~heliostep.run.load_budget.static_step_limit`) over the load budget;
 * the **margin at idle current**: the holding torque at the idle current over the wind's share;
+* the **margin while stowing** (:mod:`heliostep.sweep.sizing_stow`): a stow move's load (wind at the stow
+  threshold, friction, the move's inertia torque) against the pull-out torque at its step rate;
 * the **co-simulated days** (:mod:`heliostep.sweep.sizing_days`: the sun's fastest days and, with a weather
   file, the year's windiest, found over the year; or ``days``, or all 365): the scenario's window on each day with
   the candidate's motor, the current and the design wind moment, run through
   :func:`~heliostep.run.run_scenario` (locally, or on Dask with a scheduler): steps missed and lost,
   the worst tracking error, the drive's energy.
 
-It passes when both margins reach the safety factor (default :data:`DEFAULT_SAFETY_FACTOR`, the
+It passes when the three margins reach the safety factor (default :data:`DEFAULT_SAFETY_FACTOR`, the
 paper's 2, on the load) and no simulated step was missed or lost; the sheet names every reason a
 candidate fails. The speed-torque curve of each candidate (:mod:`heliostep.run.speed_torque`) is drawn
 beside it. The files (``sizing.json``, ``sizing.html``) are :mod:`heliostep.sweep.sizing_sheet`'s.
@@ -47,6 +49,7 @@ from heliostep.sweep.band import load_ranges
 from heliostep.sweep.sizing_band import drive_at, worst_corner
 from heliostep.sweep.sizing_days import select_days
 from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
+from heliostep.sweep.sizing_stow import stow_angles, stow_step_rates
 from heliostep.sweep.sizing_verdict import judge
 from heliostep.sweep.worker import FmuPayload, _local_fmu
 
@@ -314,18 +317,20 @@ def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_st
                 on_case(key, results[key])
 
 
-def _curves(plan: SizingPlan, worst: bool = False) -> dict[str, SpeedTorqueCurve]:
+def _curves(plan: SizingPlan, worst: bool = False, angles: np.ndarray | None = None) -> dict[str, SpeedTorqueCurve]:
     """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated); ``worst``: at
-    the ranges' worst corner (:func:`heliostep.sweep.sizing_band.worst_corner`)."""
+    the ranges' worst corner (:func:`heliostep.sweep.sizing_band.worst_corner`); ``angles``: a stow move's
+    panel angles [rad], whose highest step rate joins the curve's rates (the stow margin's point)."""
     mode, microsteps = plan.scenario.sequencer.mode, plan.scenario.sequencer.microsteps
     motor = _instance(plan.scenario, "torque", "motor")
     corner = worst_corner(plan.ranges) if worst else {}
-    return {
-        c.name: speed_torque_curve(
-            drive_at(c.drive(), corner, motor), c.currents[-1], plan.curve_rates, mode=mode, microsteps=microsteps
-        )
-        for c in plan.candidates
-    }
+    curves = {}
+    for c in plan.candidates:
+        stow_rates = stow_step_rates(plan, c, angles)
+        rates = sorted({*plan.curve_rates, *([float(np.max(stow_rates))] if len(stow_rates) else [])})
+        drive = drive_at(c.drive(), corner, motor)
+        curves[c.name] = speed_torque_curve(drive, c.currents[-1], rates, mode=mode, microsteps=microsteps)
+    return curves
 
 
 def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool = True) -> dict:
@@ -334,4 +339,5 @@ def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool
     if not curves:
         return judge(plan, results, {}, {})
     worst = _curves(plan, worst=True) if plan.ranges else {}
-    return judge(plan, results, _curves(plan), worst)
+    angles = stow_angles(plan)
+    return judge(plan, results, _curves(plan, angles=angles), worst, angles)

@@ -10,12 +10,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
+import numpy as np
+
 from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit, wind_moment_at
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.sweep.sizing_band import margin_band, worst_corner
 from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
+from heliostep.sweep.sizing_stow import stow_angles, stow_margin
 
 __all__ = ["ENERGY_ESTIMATORS", "judge"]
 
@@ -107,6 +110,14 @@ def _reasons(plan: SizingPlan, row: dict, budget: LoadBudget, day: int) -> list[
             f"idle margin {row['idle_margin']:.2f} < {factor:g}: at idle current it holds "
             f"{row['idle_holding_torque_Nm']:.3g} N.m against a wind torque of {budget.wind_Nm:.3g} N.m on the shaft"
         )
+    stow = row.get("stow_load")
+    if row.get("stow_margin") is not None and row["stow_margin"] < factor and stow is not None:
+        reasons.append(
+            f"stow margin {row['stow_margin']:.2f} < {factor:g}: stowing at {stow['step_rate_per_s']:.3g} steps/s "
+            f"it delivers {stow['deliverable_Nm']:.3g} N.m (pull-out {stow['pull_out_Nm']:.3g} N.m), the load is "
+            f"{stow['total_Nm']:.3g} N.m (wind {stow['wind_Nm']:.3g} at {stow['stow_speed_m_s']:g} m/s, friction "
+            f"{stow['friction_Nm']:.3g}, inertia {stow['inertia_Nm']:.2g} N.m) at {stow['panel_angle_deg']:.1f} deg"
+        )
     simulated = row["simulation"]
     if simulated["steps_lost"] or simulated["missed_steps"]:
         reasons.append(
@@ -119,7 +130,12 @@ def _reasons(plan: SizingPlan, row: dict, budget: LoadBudget, day: int) -> list[
 
 
 def _judge_current(
-    plan: SizingPlan, candidate: MotorCandidate, current: float, budgets: dict, results: Mapping[str, dict]
+    plan: SizingPlan,
+    candidate: MotorCandidate,
+    current: float,
+    budgets: dict,
+    results: Mapping[str, dict],
+    stow: tuple[SpeedTorqueCurve | None, np.ndarray | None] = (None, None),
 ) -> dict:
     drive, sequencer = candidate.drive(), plan.scenario.sequencer
     day, budget = max(budgets.items(), key=lambda item: item[1].total_Nm)
@@ -134,6 +150,7 @@ def _judge_current(
         "load_budget": {**budget.record(), "day_of_year": day},
         "tracking_margin": _ratio(step_limit, budget.total_Nm),
         "idle_margin": _ratio(idle_holding, budget.wind_Nm),
+        **(stow_margin(plan, candidate, current, step_limit, *stow) or {"stow_margin": None, "stow_load": None}),
         "simulation": _simulated(plan, candidate, current, results),
     }
     if plan.ranges:
@@ -153,14 +170,20 @@ def judge(
     results: Mapping[str, dict],
     curves: Mapping[str, SpeedTorqueCurve],
     worst_curves: Mapping[str, SpeedTorqueCurve] | None = None,
+    angles: np.ndarray | None = None,
 ) -> dict:
     """The sheet: ``candidates`` (each with its currents' figures and verdicts), the smallest passing
     candidate and current, and why each smaller one fails; ``worst_curves``: each candidate's speed-torque
-    curve at the ranges' worst corner (:func:`heliostep.sweep.sizing_band.worst_corner`)."""
+    curve at the ranges' worst corner (:func:`heliostep.sweep.sizing_band.worst_corner`); ``angles``: the
+    panel angles a stow move travels [rad] (:func:`heliostep.sweep.sizing_stow.stow_angles`, found when
+    not given): the stow margin is judged against each candidate's nominal curve."""
+    if angles is None and curves:
+        angles = stow_angles(plan)
     candidates, ordered = [], []
     for candidate in sorted(plan.candidates, key=lambda c: c.holding_torque):
         budgets = _budgets(plan, candidate)
-        rows = [_judge_current(plan, candidate, current, budgets, results) for current in candidate.currents]
+        stow = (curves.get(candidate.name), angles)
+        rows = [_judge_current(plan, candidate, current, budgets, results, stow) for current in candidate.currents]
         passing = [row for row in rows if row["verdict"] == "pass"]
         entry = {
             **candidate.record(),

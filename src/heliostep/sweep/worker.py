@@ -8,6 +8,7 @@ import datetime as dt
 import hashlib
 import json
 import logging
+import math
 import os
 import socket
 import tempfile
@@ -20,9 +21,10 @@ from pathlib import Path
 import pandas as pd
 
 from heliostep.cosim.fmi import read_fmu
-from heliostep.drive.inputs import reference_times
+from heliostep.drive.inputs import prepare_inputs, reference_times
 from heliostep.errors import HeliostepError
 from heliostep.run import run_scenario
+from heliostep.run.load_budget import load_budget, mechanics_values, step_limit_of_holding, wind_moment_at
 from heliostep.scenario import (
     Scenario,
     validate_scenario,
@@ -32,10 +34,6 @@ from heliostep.sweep.spec import SweepCase
 from heliostep.sweep.store import FIGURE_COLUMNS
 
 logger = logging.getLogger(__name__)
-
-
-#: The paper's margin on the simulated peak torque for the wind: required torque = 2 x peak.
-WIND_MARGIN = 2.0
 
 
 #: Longest error text kept in the table [characters].
@@ -102,7 +100,7 @@ def summary_figures(summary: Mapping) -> dict:
     dict
         The summary keys of :data:`FIGURE_COLUMNS` (None when missing), with
         ``settling_time_s`` as ``settling_time_max_s``, ``settling_time_mean_s`` and
-        ``settling_not_settled``, and ``required_torque_Nm`` = :data:`WIND_MARGIN` x peak torque [N.m].
+        ``settling_not_settled`` (the load columns are :func:`load_figures`').
     """
     figures = {
         name: summary.get(name)
@@ -112,7 +110,8 @@ def summary_figures(summary: Mapping) -> dict:
             "settling_time_max_s",
             "settling_time_mean_s",
             "settling_not_settled",
-            "required_torque_Nm",
+            "load_torque_Nm",
+            "tracking_margin",
             "holding_torque_Nm",
             "primary_sharing_error_max_deg",
             "primary_sharing_error_signed_deg",
@@ -122,9 +121,22 @@ def summary_figures(summary: Mapping) -> dict:
     figures["settling_time_max_s"] = settling.get("max")
     figures["settling_time_mean_s"] = settling.get("mean")
     figures["settling_not_settled"] = settling.get("not_settled")
-    peak = summary.get("peak_torque_Nm")
-    figures["required_torque_Nm"] = None if peak is None else WIND_MARGIN * peak
     return figures
+
+
+def load_figures(scenario: Scenario, local: Mapping[str, Path], held: float | None) -> dict:
+    """``load_torque_Nm``: the load budget on the motor shaft at the case's worst instant
+    (:func:`heliostep.run.load_budget.load_budget`: wind, friction, inertia [N.m]); ``tracking_margin``:
+    the static step limit of the holding torque ``held`` (k_e x I [N.m],
+    :func:`~heliostep.run.load_budget.step_limit_of_holding`) over that load (inf without a load)."""
+    mechanics = scenario.roles.instance_of("wind_moment") or "mechanics"
+    values = mechanics_values(scenario, mechanics, local.get(mechanics))
+    inputs = prepare_inputs(scenario)
+    budget = load_budget(scenario, inputs, wind_moment_at(inputs), values, values["J_m"])
+    sequencer = scenario.sequencer
+    limit = None if held is None else step_limit_of_holding(held, sequencer.mode, sequencer.microsteps)
+    margin = None if limit is None else (math.inf if budget.total_Nm <= 0 else limit / budget.total_Nm)
+    return {"load_torque_Nm": budget.total_Nm, "tracking_margin": margin}
 
 
 def _holding_torque(scenario: Scenario, motor: str | None, motor_fmu: Path | None) -> float | None:
@@ -178,9 +190,14 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
         result = run_scenario(scenario, keep_trace=False, supervise=True)
         row.update(summary_figures(result.summary))
         motor = scenario.roles.instance_of("torque")
-        row["holding_torque_Nm"] = _holding_torque(scenario, motor, local.get(motor))
+        row["holding_torque_Nm"] = _holding_torque(scenario, motor, local.get(motor) if motor else None)
     except Exception as exc:  # noqa: BLE001 - a failing case (RunFailed, InputError, ...) is recorded, never fatal
         row.update(status="failed", error_type=type(exc).__name__, error=_error_text(exc))
+    else:
+        try:  # the load columns (a case's own FMUs may lack a mechanics default): never the run's failure
+            row.update(load_figures(scenario, local, row["holding_torque_Nm"]))
+        except Exception as exc:  # noqa: BLE001
+            logger.warning("load figures of case %s: %s", case.case_id, exc)
     if scenario is not None:
         try:
             row.update(primary_sharing_error(scenario))
