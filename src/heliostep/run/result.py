@@ -315,12 +315,15 @@ class RunResult:
 
 def run_file_names(plots: bool = True, csv: bool = True) -> list[str]:
     """The names a run's :meth:`RunResult.write` may give its files (a folder holding one of them
-    that heliostep did not write is refused): those of the writers of traces, records and figures."""
+    that heliostep did not write is refused): those of the writers of traces, records and figures
+    (matplotlib is imported only with ``plots``: ``--no-plots`` never loads it)."""
+    names = [*TRACE_FILES[: 2 if csv else 1], *RECORD_FILES]
+    if not plots:
+        return names
     from heliostep.plots.light import POWER_FILE
     from heliostep.plots.run import FIGURE_FILES
 
-    names = [*TRACE_FILES[: 2 if csv else 1], *RECORD_FILES]
-    return names + ([*FIGURE_FILES, POWER_FILE] if plots else [])
+    return [*names, *FIGURE_FILES, POWER_FILE]
 
 
 class RunFailed(RunFailure):
