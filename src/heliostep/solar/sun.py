@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 
 import numpy as np
 import pandas as pd
@@ -162,23 +163,27 @@ def solar_position(
     temperature = check_finite_scalar(temperature, "temperature", " [degC]")
     delta_t = check_finite_scalar(delta_t, "delta_t", " [s]")
 
-    def compute() -> pd.DataFrame:
-        # imported here, not at the top: pvlib's __init__ imports all of pvlib (scipy.integrate, h5py, requests)
-        import pvlib.solarposition
-
-        return pvlib.solarposition.get_solarposition(
-            times,
-            latitude,
-            longitude,
-            altitude=altitude,
-            pressure=pressure,
-            method="nrel_numpy",
-            temperature=temperature,
-            delta_t=delta_t,
-        )
-
+    arguments = (times, latitude, longitude, altitude, pressure, temperature, delta_t)
     parameters = ("nrel_numpy", latitude, longitude, altitude, "none" if pressure is None else pressure)
+    compute = functools.partial(_pvlib_solar_position, *arguments)
     return cached_frame("solar_position", times, (*parameters, temperature, delta_t), compute)
+
+
+def _pvlib_solar_position(times, latitude, longitude, altitude, pressure, temperature, delta_t) -> pd.DataFrame:
+    """pvlib's SPA (``nrel_numpy``), the inputs checked (:func:`solar_position`)."""
+    # imported here, not at the top: pvlib's __init__ imports all of pvlib (scipy.integrate, h5py, requests)
+    import pvlib.solarposition
+
+    return pvlib.solarposition.get_solarposition(
+        times,
+        latitude,
+        longitude,
+        altitude=altitude,
+        pressure=pressure,
+        method="nrel_numpy",
+        temperature=temperature,
+        delta_t=delta_t,
+    )
 
 
 def sun_vector(elevation, azimuth, plant_azimuth: float = 0.0):
