@@ -10,7 +10,9 @@ quiet machine). A first run of each variant is not counted (it builds the FMUs a
 
     run: <s> s, no-plots <s> s
 
-followed by the references, the variants of the supervised child's start (``--no-supervise``; a
+followed by each variant's median wall and CPU time (user + system, the child processes' included), the
+figures drawn one after the other (``HELIOSTEP_PARALLEL_PLOTS=0``) against the default two processes,
+the references, the variants of the supervised child's start (``--no-supervise``; a
 child started as a new interpreter, ``HELIOSTEP_SUPERVISED_START=exec``, against the default fork)
 and, unless ``--no-breakdown``, where one run's time goes: the process started once more with
 ``--breakdown`` (this file as its own child), which times the stages of the run by wrapping their
@@ -27,6 +29,7 @@ import argparse
 import functools
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -57,22 +60,27 @@ STAGES = (
 )
 
 
-def run_once(args: list[str], env: dict | None = None) -> float:
-    """Wall time [s] of one process (its output discarded; a failure stops the benchmark)."""
+def run_once(args: list[str], env: dict | None = None) -> tuple[float, float]:
+    """(wall time, CPU time: user + system of the process and its children) [s] of one process (its
+    output discarded; a failure stops the benchmark)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     done = subprocess.run(args, capture_output=True, text=True, env=env)
     wall = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(args)} failed ({done.returncode}):\n{done.stderr}")
-    return wall
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def variants(scenario: Path, out: Path) -> dict[str, tuple[list[str], dict | None]]:
     """The processes timed side by side: name -> (arguments, environment or None)."""
     run = [*HELIOSTEP, "run", str(scenario)]
     exec_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "exec"}
+    serial_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "0"}
     return {
         "run": ([*run, "--out", str(out / "plots")], None),
+        "run, plots serial": ([*run, "--out", str(out / "serial")], serial_env),
         "no-plots": ([*run, "--out", str(out / "no-plots"), "--no-plots"], None),
         "no-plots --no-supervise": ([*run, "--out", str(out / "unsupervised"), "--no-plots", "--no-supervise"], None),
         "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
@@ -153,16 +161,24 @@ def main() -> int:
         for command, env in timed.values():  # warm-up: FMUs, kernel, caches; page cache
             run_once(command, env)
         walls: dict[str, list[float]] = {name: [] for name in timed}
+        cpus: dict[str, list[float]] = {name: [] for name in timed}
         for _ in range(args.repeat):
             for name, (command, env) in timed.items():
-                walls[name].append(run_once(command, env))
+                wall, cpu = run_once(command, env)
+                walls[name].append(wall)
+                cpus[name].append(cpu)
         median = {name: statistics.median(values) for name, values in walls.items()}
+        cpu = {name: statistics.median(values) for name, values in cpus.items()}
         print(f"run: {median['run']:.3f} s, no-plots {median['no-plots']:.3f} s")
         for name, values in walls.items():
-            print(f"  {name:26s} median {median[name]:.3f} s  ({', '.join(f'{v:.2f}' for v in values)})")
+            print(
+                f"  {name:26s} median {median[name]:.3f} s wall, {cpu[name]:.3f} s CPU  "
+                f"({', '.join(f'{v:.2f}' for v in values)})"
+            )
         print(
-            f"  plots add {median['run'] - median['no-plots']:.3f} s; the child's start as a new interpreter adds "
-            f"{median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
+            f"  plots add {median['run'] - median['no-plots']:.3f} s (drawn one after the other: "
+            f"{median['run, plots serial'] - median['no-plots']:.3f} s); the child's start as a new interpreter "
+            f"adds {median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
             f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s"
         )
         print(
