@@ -11,7 +11,8 @@ quiet machine). A first run of each variant is not counted (it builds the FMUs a
     run: <s> s, no-plots <s> s
 
 followed by each variant's median wall and CPU time (user + system, the child processes' included), the
-figures drawn one after the other (``HELIOSTEP_PARALLEL_PLOTS=0``) against the default two processes,
+figures drawn by default (on two cores when one is free), always on two (``HELIOSTEP_PARALLEL_PLOTS=1``)
+and one after the other (``=0``),
 the references, the variants of the supervised child's start (``--no-supervise``; a
 child started as a new interpreter, ``HELIOSTEP_SUPERVISED_START=exec``, against the default fork)
 and, unless ``--no-breakdown``, where one run's time goes: the process started once more with
@@ -78,8 +79,10 @@ def variants(scenario: Path, out: Path) -> dict[str, tuple[list[str], dict | Non
     run = [*HELIOSTEP, "run", str(scenario)]
     exec_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "exec"}
     serial_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "0"}
+    forked_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "1"}
     return {
         "run": ([*run, "--out", str(out / "plots")], None),
+        "run, plots forked": ([*run, "--out", str(out / "forked")], forked_env),
         "run, plots serial": ([*run, "--out", str(out / "serial")], serial_env),
         "no-plots": ([*run, "--out", str(out / "no-plots"), "--no-plots"], None),
         "no-plots --no-supervise": ([*run, "--out", str(out / "unsupervised"), "--no-plots", "--no-supervise"], None),
@@ -176,7 +179,8 @@ def main() -> int:
                 f"({', '.join(f'{v:.2f}' for v in values)})"
             )
         print(
-            f"  plots add {median['run'] - median['no-plots']:.3f} s (drawn one after the other: "
+            f"  plots add {median['run'] - median['no-plots']:.3f} s (on two cores: "
+            f"{median['run, plots forked'] - median['no-plots']:.3f} s, one after the other: "
             f"{median['run, plots serial'] - median['no-plots']:.3f} s); the child's start as a new interpreter "
             f"adds {median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
             f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s"
