@@ -1,6 +1,6 @@
 """The whole process of ``heliostep run`` timed from outside, with and without plots (prints figures; not a test).
 
-    .venv/bin/python benchmarks/bench_cli.py [scenario.yaml] [--repeat 5] [--no-breakdown]
+    .venv/bin/python benchmarks/bench_cli.py [scenario.yaml] [--repeat 5] [--no-breakdown] [--baseline SRC]
 
 Each repeat runs, side by side and alternating, a fresh ``heliostep run SCENARIO --out <tmp>`` (with
 plots), the same with ``--no-plots``, and two references that say how loaded the machine is:
@@ -13,7 +13,8 @@ quiet machine). A first run of each variant is not counted (it builds the FMUs a
 followed by each variant's median wall and CPU time (user + system, the child processes' included), the
 figures drawn by default (on two cores when one is free), always on two (``HELIOSTEP_PARALLEL_PLOTS=1``)
 and one after the other (``=0``),
-the references, the variants of the supervised child's start (``--no-supervise``; a
+the references (with ``--baseline``, another checkout's ``src`` run the same way, side by side, and
+the ratios to it), the variants of the supervised child's start (``--no-supervise``; a
 child started as a new interpreter, ``HELIOSTEP_SUPERVISED_START=exec``, against the default fork)
 and, unless ``--no-breakdown``, where one run's time goes: the process started once more with
 ``--breakdown`` (this file as its own child), which times the stages of the run by wrapping their
@@ -74,9 +75,17 @@ def run_once(args: list[str], env: dict | None = None) -> tuple[float, float]:
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def variants(scenario: Path, out: Path) -> dict[str, tuple[list[str], dict | None]]:
-    """The processes timed side by side: name -> (arguments, environment or None)."""
+def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[str, tuple[list[str], dict | None]]:
+    """The processes timed side by side: name -> (arguments, environment or None); with ``baseline`` (another
+    checkout's ``src``, imported first through ``PYTHONPATH``) its run and no-plots run too."""
     run = [*HELIOSTEP, "run", str(scenario)]
+    extra = {}
+    if baseline is not None:
+        old = {**os.environ, "PYTHONPATH": str(baseline)}
+        extra = {
+            "run, baseline": ([*run, "--out", str(out / "baseline-plots")], old),
+            "no-plots, baseline": ([*run, "--out", str(out / "baseline-no-plots"), "--no-plots"], old),
+        }
     exec_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "exec"}
     serial_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "0"}
     forked_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "1"}
@@ -89,6 +98,7 @@ def variants(scenario: Path, out: Path) -> dict[str, tuple[list[str], dict | Non
         "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
         "python -c pass": ([sys.executable, "-c", "pass"], None),
         "import pvlib": ([sys.executable, "-c", "import pvlib"], None),
+        **extra,
     }
 
 
@@ -153,6 +163,9 @@ def main() -> int:
     parser.add_argument("scenario", nargs="?", type=Path, default=SCENARIO)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--no-breakdown", action="store_true")
+    parser.add_argument(
+        "--baseline", type=Path, help="another checkout's src folder: its runs timed side by side (PYTHONPATH)"
+    )
     parser.add_argument("--breakdown", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.breakdown is not None:
@@ -160,7 +173,7 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory(prefix="heliostep-bench-cli-") as folder:
         out = Path(folder)
-        timed = variants(args.scenario, out)
+        timed = variants(args.scenario, out, args.baseline)
         for command, env in timed.values():  # warm-up: FMUs, kernel, caches; page cache
             run_once(command, env)
         walls: dict[str, list[float]] = {name: [] for name in timed}
@@ -185,6 +198,11 @@ def main() -> int:
             f"adds {median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
             f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s"
         )
+        if args.baseline is not None:
+            print(
+                f"  against {args.baseline}: run {median['run'] / median['run, baseline']:.2f}x, "
+                f"no-plots {median['no-plots'] / median['no-plots, baseline']:.2f}x of its time"
+            )
         print(
             f"  load: {os.getloadavg()[0]:.2f} (1 min), {os.cpu_count()} cores; import pvlib "
             f"{median['import pvlib']:.3f} s here, 0.7 s in issue #26 (quiet)"
