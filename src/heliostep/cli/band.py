@@ -7,8 +7,6 @@ import sys
 from pathlib import Path
 
 from heliostep.sweep.band import DEFAULT_SEED, MAX_BAND_SAMPLES, RANGES_FILE, BandDesign, band_design, load_ranges
-from heliostep.sweep.band_run import band_record, check_band_budget, run_band, run_figures, write_band_summary
-from heliostep.sweep.cluster import _probe_scheduler
 
 #: How long to try reaching --scheduler [s].
 CONNECT_TIMEOUT = 5.0
@@ -62,6 +60,10 @@ def prepare_band(args: argparse.Namespace, scenario, fmu_paths) -> BandDesign | 
     )
     for index in range(design.samples):  # each sample's scenario valid (an error names the sample)
         design.scenario_of(scenario, index)
+    # the band's runner and Dask imported only with --band (``heliostep run`` stays light without)
+    from heliostep.sweep.band_run import check_band_budget
+    from heliostep.sweep.cluster import _probe_scheduler
+
     if args.scheduler is None:
         check_band_budget(scenario, design.samples, args.workers)
     else:  # reachable, before the nominal run
@@ -83,6 +85,8 @@ def run_band_after(
         f"(Latin hypercube, seed {design.seed}) on {args.scheduler or 'a local Dask cluster'}",
         file=sys.stderr,
     )
+
+    from heliostep.sweep.band_run import band_record, run_band, run_figures, write_band_summary
 
     finished = []
 

@@ -23,11 +23,11 @@ from matplotlib.figure import Figure
 from heliostep.plots.run import _Clock
 from heliostep.plots.thinning import thin
 from heliostep.results.light import light_timeseries
+from heliostep.results.run_files import POWER_FILE  # (named where matplotlib is not imported)
 
 __all__ = ["POWER_FILE", "light_figure", "plot_light", "plot_light_run"]
 
 #: PNG of the power on the tube.
-POWER_FILE = "power_on_tube.png"
 _DPI = 120
 _MAX_BUCKETS = 2000
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import logging
 import zoneinfo
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
 
 import matplotlib.dates as mdates
@@ -28,6 +28,7 @@ from matplotlib.figure import Figure
 
 from heliostep.errors import InputError
 from heliostep.plots.thinning import thin
+from heliostep.results.run_files import FIGURE_FILES  # (PNG per figure, in the order drawn: named without matplotlib)
 from heliostep.results.solution import SolutionPlotData
 from heliostep.scenario import RolesConfig
 
@@ -52,16 +53,6 @@ ZOOM_HALF_WIDTH = 0.1
 LINE_WITH_ENVELOPE_MAX_SPAN = 3600.0
 #: Label of Fig. 14's line drawn from the solution rows (every solver step).
 TORQUE_ZOOM_LABEL = "motor torque (every solver step)"
-#: PNG written for each figure, in the order :func:`plot_run` draws them.
-FIGURE_FILES = (
-    "fig08_panel_angle_ref.png",
-    "fig09_rotor_angle_ref.png",
-    "fig10_phase_currents.png",
-    "fig11_torque.png",
-    "fig12_rotor_angle.png",
-    "fig13_panel_tracking.png",
-    "fig14_torque_zoom.png",
-)
 
 _DPI = 120
 _WIDE = (9.0, 4.5)
@@ -423,7 +414,7 @@ _FIGURES: tuple[tuple[str, Callable], ...] = tuple(
 
 # --------------------------------------------------------------------------- public
 def run_figures(
-    trace: pd.DataFrame | str | Path, metadata: Mapping | None, solution: SolutionPlotData | None = None
+    trace: pd.DataFrame | str | Path, metadata: Mapping | None, solution: SolutionPlotData | None = None, only=None
 ) -> Iterator[tuple[str, Figure | None]]:
     """The figures of :func:`plot_run`, one at a time: (file name, :class:`~matplotlib.figure.Figure`
     or None when skipped), for reading back what is drawn (same arguments as :func:`plot_run`)."""
@@ -444,13 +435,19 @@ def run_figures(
         parts.append(f"{clock.start:%Y-%m-%d}")
     context = f" ({', '.join(parts)})" if parts else ""
     for file_name, draw in _FIGURES:
+        if only is not None and file_name not in only:
+            continue
         figure = draw(columns, clock, context, solution)
         columns.release()
         yield file_name, figure
 
 
 def plot_run(
-    trace: pd.DataFrame | str | Path, out_dir, metadata: Mapping, solution: SolutionPlotData | None = None
+    trace: pd.DataFrame | str | Path,
+    out_dir,
+    metadata: Mapping,
+    solution: SolutionPlotData | None = None,
+    only: Collection[str] | None = None,
 ) -> list[Path]:
     """Write the paper's Figs. 8-14 for one run as PNGs.
 
@@ -478,6 +475,8 @@ def plot_run(
         max over the solver steps in each bin, the largest magnitude marked), with the output
         rows' line over windows up to :data:`LINE_WITH_ENVELOPE_MAX_SPAN`. Without it (a stored
         trace) they draw the trace's rows.
+    only : collection of str, optional
+        The file names (of :data:`FIGURE_FILES`) to draw, the others not built; default all.
 
     Returns
     -------
@@ -485,7 +484,7 @@ def plot_run(
         The PNGs written, in figure order (names in :data:`FIGURE_FILES`): a figure
         whose columns are missing is skipped, and so is Fig. 14 without steps.
     """
-    figures = run_figures(trace, metadata, solution)
+    figures = run_figures(trace, metadata, solution, only)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []

@@ -20,6 +20,8 @@ from heliostep.results.run_summary import RunStatus, RunSummary, status_record, 
 from heliostep.results.trace_io import TraceWriter, copy_trace_to_csv, iter_trace_blocks, write_trace
 
 __all__ = [
+    "FIGURE_FILES",
+    "POWER_FILE",
     "RECORD_FILES",
     "TRACE_FILES",
     "place_trace_file",
@@ -34,6 +36,19 @@ __all__ = [
 TRACE_FILES = ("trace.parquet", "trace.csv")
 #: The records a run writes (:func:`write_records`).
 RECORD_FILES = ("metadata.json", "summary.json")
+#: The figures a run draws, in the order drawn: the paper's Figs. 8-14 (:mod:`heliostep.plots.run`), then the
+#: power on the tube (:mod:`heliostep.plots.light`). Named here, so that a run knows its files (and a
+#: ``--no-plots`` run checks its folder) without importing matplotlib.
+FIGURE_FILES = (
+    "fig08_panel_angle_ref.png",
+    "fig09_rotor_angle_ref.png",
+    "fig10_phase_currents.png",
+    "fig11_torque.png",
+    "fig12_rotor_angle.png",
+    "fig13_panel_tracking.png",
+    "fig14_torque_zoom.png",
+)
+POWER_FILE = "power_on_tube.png"
 
 
 def write_held_trace(out_dir: Path, trace: pd.DataFrame, metadata: Mapping[str, str], csv: bool) -> dict[str, Path]:

@@ -20,6 +20,8 @@ from heliostep.results.outputs import TMP_PREFIX
 from heliostep.results.rescue import write_text_parts, write_trace_parts
 from heliostep.results.run_figures import present_columns
 from heliostep.results.run_files import (
+    FIGURE_FILES,
+    POWER_FILE,
     RECORD_FILES,
     TRACE_FILES,
     place_trace_file,
@@ -34,9 +36,16 @@ from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, su
 from heliostep.results.solution import SolutionPlotData
 from heliostep.results.trace import trace_metadata
 from heliostep.results.trace_io import iter_trace_blocks, read_trace
+from heliostep.run.forked import in_parallel
 from heliostep.scenario import Scenario
 
-__all__ = ["RunFailed", "RunResult", "run_file_names"]
+__all__ = ["CHILD_FIGURES", "OWN_FIGURES", "RunFailed", "RunResult", "run_file_names"]
+
+#: The figures a forked child draws (with the power on the tube) while the run's process draws
+#: :data:`OWN_FIGURES`: about half the drawing each (CPU seconds per figure, the paper's case:
+#: Figs. 8, 9, 14 0.2; 11, 12 0.35; 13 0.4; 10 0.65; the power on the tube 0.85, its light computed again).
+CHILD_FIGURES = ("fig09_rotor_angle_ref.png", "fig13_panel_tracking.png", "fig14_torque_zoom.png")
+OWN_FIGURES = tuple(name for name in FIGURE_FILES if name not in CHILD_FIGURES)
 
 
 @dataclass
@@ -180,16 +189,30 @@ class RunResult:
                 shutil.rmtree(staging, ignore_errors=True)
 
     def _draw(self, out_dir: Path) -> list[Path]:
-        """The figures drawn into ``out_dir`` (each renamed into place there)."""
-        from heliostep.plots.light import plot_light_run
-        from heliostep.plots.run import plot_run
-
+        """The figures drawn into ``out_dir`` (each renamed into place there), on two cores: a forked
+        child draws :data:`CHILD_FIGURES` and the power on the tube while this process draws the rest
+        (:func:`~heliostep.run.forked.in_parallel`; one after the other where it cannot fork). Each
+        process imports matplotlib itself, after the results are written and reported."""
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
             source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
-            drawn = plot_run(source, staging, self.trace_metadata(), self.solution_plot)
-            light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
-            drawn += plot_light_run(light, self.metadata, self.scenario, staging, self.weather)  # power on the tube
+            metadata = self.trace_metadata()
+
+            def figures(only: tuple[str, ...]) -> list[Path]:
+                from heliostep.plots.run import plot_run
+
+                return plot_run(source, staging, metadata, self.solution_plot, only=only)
+
+            def child_share() -> list[Path]:
+                from heliostep.plots.light import plot_light_run
+
+                drawn = figures(CHILD_FIGURES)
+                light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
+                return drawn + plot_light_run(light, self.metadata, self.scenario, staging, self.weather)
+
+            theirs, ours = in_parallel(child_share, lambda: figures(OWN_FIGURES))
+            order = [*FIGURE_FILES, POWER_FILE]
+            drawn = sorted([*theirs, *ours], key=lambda path: order.index(Path(path).name))
             written = []
             for path in drawn:
                 target = out_dir / Path(path).name
@@ -315,10 +338,8 @@ class RunResult:
 
 def run_file_names(plots: bool = True, csv: bool = True) -> list[str]:
     """The names a run's :meth:`RunResult.write` may give its files (a folder holding one of them
-    that heliostep did not write is refused): those of the writers of traces, records and figures."""
-    from heliostep.plots.light import POWER_FILE
-    from heliostep.plots.run import FIGURE_FILES
-
+    that heliostep did not write is refused): those of the writers of traces, records and figures
+    (named in :mod:`heliostep.results.run_files`: no matplotlib imported before the figures are drawn)."""
     names = [*TRACE_FILES[: 2 if csv else 1], *RECORD_FILES]
     return names + ([*FIGURE_FILES, POWER_FILE] if plots else [])
 

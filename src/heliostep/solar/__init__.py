@@ -47,8 +47,9 @@ neighbouring mirrors), :mod:`~heliostep.solar.receiver_shadow` (the receiver's o
 :mod:`~heliostep.solar.irradiance` (DNI and wind: pvlib clear sky or a
 TMY3/EPW file, hour-ending records), :mod:`~heliostep.solar.endloss` (lit length and energy on the
 tube of a plant, single-axis vs two-axis end mirrors, per instant, day and year), and
-:mod:`~heliostep.solar.checks`. This package imports nothing of heliostep but
-:mod:`heliostep.errors`.
+:mod:`~heliostep.solar.checks`; pvlib's sun grids are kept by content in the FMU cache
+(:mod:`~heliostep.solar.sun_cache`: a run seen before does not import pvlib). This package imports
+nothing of heliostep but :mod:`heliostep.errors` and :mod:`heliostep.paths` (the cache's folder).
 """
 
 from heliostep.solar.checks import check_timezone

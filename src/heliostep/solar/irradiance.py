@@ -44,6 +44,7 @@ import pandas as pd
 from heliostep.errors import InputError
 from heliostep.solar.checks import check_positive, check_times
 from heliostep.solar.sun import Site
+from heliostep.solar.sun_cache import cached_frame
 
 #: Largest latitude/longitude difference between a weather file's header and the site [deg].
 MAX_SITE_OFFSET = 1.0
@@ -53,6 +54,11 @@ RECORD = pd.Timedelta(hours=1)
 MID_RECORD = RECORD / 2
 #: Wind speeds outside [0, this) are the files' missing-value codes (EPW 999, TMY3 -9900) [m/s].
 MAX_WIND_SPEED = 999.0
+
+
+#: The columns of a given sun position that pvlib's clear sky reads (``Location.get_clearsky`` and
+#: ``get_airmass``: the apparent zenith or the zenith, by model; the apparent elevation).
+_SUN_COLUMNS_READ = ("apparent_zenith", "zenith", "apparent_elevation")
 
 
 def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Series:
@@ -70,16 +76,24 @@ def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Seri
     Returns
     -------
     pandas.Series  [W/m^2]
-        Named ``dni``, indexed by ``times``; 0 while the sun is down.
+        Named ``dni``, indexed by ``times``; 0 while the sun is down. Kept by content
+        (:mod:`heliostep.solar.sun_cache`): the same grid again is read back, pvlib not imported.
     """
-    import pvlib
-
     times = check_times(times)
-    location = pvlib.location.Location(site.latitude, site.longitude, site.timezone, site.altitude)
-    with warnings.catch_warnings():  # pvlib's pandas deprecations are not ours to fix
-        warnings.simplefilter("ignore")
-        sky = location.get_clearsky(times, model="ineichen", solar_position=sun)  # Ineichen & Perez (2002), pvlib
-    return sky["dni"].fillna(0.0).clip(lower=0.0).rename("dni")
+
+    def compute() -> pd.DataFrame:
+        import pvlib
+
+        location = pvlib.location.Location(site.latitude, site.longitude, site.timezone, site.altitude)
+        with warnings.catch_warnings():  # pvlib's pandas deprecations are not ours to fix
+            warnings.simplefilter("ignore")
+            sky = location.get_clearsky(times, model="ineichen", solar_position=sun)  # Ineichen & Perez (2002)
+        return sky["dni"].fillna(0.0).clip(lower=0.0).rename("dni").to_frame()
+
+    # kept by content (heliostep.solar.sun_cache): every input of the model, the given sun's columns it reads too
+    given = () if sun is None else tuple(sun[column].to_numpy(dtype=float) for column in _SUN_COLUMNS_READ)
+    parameters = ("ineichen", site.latitude, site.longitude, site.timezone, site.altitude, sun is None, *given)
+    return cached_frame("clear_sky_dni", times, parameters, compute)["dni"]
 
 
 def _check_site(path: Path, meta, site: Site, max_offset: float) -> None:

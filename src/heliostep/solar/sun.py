@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 
 import numpy as np
 import pandas as pd
-import pvlib
 
 from heliostep.errors import InputError
 from heliostep.solar.checks import (
@@ -24,6 +24,7 @@ from heliostep.solar.checks import (
     series_template,
     wrap_like,
 )
+from heliostep.solar.sun_cache import cached_frame
 
 #: Compass direction of the plant's +y axis for each orientation [deg].
 ORIENTATIONS = {"NS": 0.0, "EW": 90.0}
@@ -150,7 +151,8 @@ def solar_position(
     pandas.DataFrame
         Indexed by ``times``: ``apparent_elevation``, ``elevation``, ``apparent_zenith``,
         ``zenith``, ``azimuth`` (from North toward East), ``equation_of_time`` [min];
-        angles in degrees. The geometry below uses ``apparent_elevation``.
+        angles in degrees. The geometry below uses ``apparent_elevation``. Kept by content
+        (:mod:`heliostep.solar.sun_cache`): the same grid again is read back, pvlib not imported.
     """
     times = check_times(times)
     latitude = check_range(latitude, "latitude", -90.0, 90.0, "deg")
@@ -160,6 +162,18 @@ def solar_position(
         pressure = check_positive(pressure, "pressure", "Pa")
     temperature = check_finite_scalar(temperature, "temperature", " [degC]")
     delta_t = check_finite_scalar(delta_t, "delta_t", " [s]")
+
+    arguments = (times, latitude, longitude, altitude, pressure, temperature, delta_t)
+    parameters = ("nrel_numpy", latitude, longitude, altitude, "none" if pressure is None else pressure)
+    compute = functools.partial(_pvlib_solar_position, *arguments)
+    return cached_frame("solar_position", times, (*parameters, temperature, delta_t), compute)
+
+
+def _pvlib_solar_position(times, latitude, longitude, altitude, pressure, temperature, delta_t) -> pd.DataFrame:
+    """pvlib's SPA (``nrel_numpy``), the inputs checked (:func:`solar_position`)."""
+    # imported here, not at the top: pvlib's __init__ imports all of pvlib (scipy.integrate, h5py, requests)
+    import pvlib.solarposition
+
     return pvlib.solarposition.get_solarposition(
         times,
         latitude,
@@ -218,9 +232,19 @@ def sun_events(date, site: Site) -> dict[str, pd.Timestamp | None]:
         timezone, ``None`` where the sun does not rise or set that day (polar day or night).
     """
     noon = pd.DatetimeIndex([pd.Timestamp(dt.datetime.combine(date, dt.time(12)))]).tz_localize(site.timezone)
-    events = pvlib.solarposition.sun_rise_set_transit_spa(noon, site.latitude, site.longitude)
+    columns = ("sunrise", "transit", "sunset")
+
+    def compute() -> pd.DataFrame:  # the instants as int64 ns since the epoch (UTC), NaT's value where none
+        import pvlib.solarposition  # (see solar_position)
+
+        events = pvlib.solarposition.sun_rise_set_transit_spa(noon, site.latitude, site.longitude)
+        stamps = [events[column].iloc[0] for column in columns]
+        values = {c: [pd.NaT.value if pd.isna(s) else pd.Timestamp(s).value] for c, s in zip(columns, stamps)}
+        return pd.DataFrame(values, index=noon)
+
+    events = cached_frame("sun_events", noon, ("spa", site.latitude, site.longitude), compute)
     found = {}
-    for column in ("sunrise", "transit", "sunset"):
-        stamp = events[column].iloc[0]
-        found[column] = None if pd.isna(stamp) else pd.Timestamp(stamp).tz_convert(site.timezone)
+    for column in columns:
+        value = int(events[column].iloc[0])
+        found[column] = None if value == pd.NaT.value else pd.Timestamp(value, tz="UTC").tz_convert(site.timezone)
     return found

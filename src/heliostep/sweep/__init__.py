@@ -46,30 +46,48 @@ Modules: :mod:`~heliostep.sweep.spec` (sweep files, axes, cases), :mod:`~heliost
 Sits above :mod:`heliostep.run` (each case is a run); only :mod:`heliostep.cli` is above it.
 """
 
-from heliostep.sweep.cluster import CONSOLIDATE_EVERY, SweepOutcome, execute_cases, run_sweep
-from heliostep.sweep.field import FIELD_COLUMNS, field_sharing_errors, run_field
-from heliostep.sweep.spec import (
-    CENTRAL_MIRROR,
-    COMBINE_MODES,
-    ROLES,
-    SHORTHAND_AXES,
-    SweepAxis,
-    SweepCase,
-    SweepSpec,
-    expand_cases,
-    load_sweep,
-    sweep_from_scenario,
-    sweep_metadata,
-)
-from heliostep.sweep.store import (
-    CASE_COLUMNS,
-    CASE_STATUSES,
-    FIGURE_COLUMNS,
-    RUN_COLUMNS,
-    default_results_path,
-    read_results,
-)
-from heliostep.sweep.worker import FmuPayload, primary_sharing_error, run_case, summary_figures
+import importlib
+
+#: Each public name and the module that defines it: imported on first use (PEP 562), so that
+#: importing one submodule (``heliostep run --band``'s constants) does not import Dask, the
+#: Parquet table and the workers.
+_PUBLIC = {
+    "CASE_COLUMNS": "heliostep.sweep.store",
+    "CASE_STATUSES": "heliostep.sweep.store",
+    "CENTRAL_MIRROR": "heliostep.sweep.spec",
+    "COMBINE_MODES": "heliostep.sweep.spec",
+    "CONSOLIDATE_EVERY": "heliostep.sweep.cluster",
+    "FIELD_COLUMNS": "heliostep.sweep.field",
+    "FIGURE_COLUMNS": "heliostep.sweep.store",
+    "FmuPayload": "heliostep.sweep.worker",
+    "ROLES": "heliostep.sweep.spec",
+    "RUN_COLUMNS": "heliostep.sweep.store",
+    "SHORTHAND_AXES": "heliostep.sweep.spec",
+    "SweepAxis": "heliostep.sweep.spec",
+    "SweepCase": "heliostep.sweep.spec",
+    "SweepOutcome": "heliostep.sweep.cluster",
+    "SweepSpec": "heliostep.sweep.spec",
+    "default_results_path": "heliostep.sweep.store",
+    "execute_cases": "heliostep.sweep.cluster",
+    "expand_cases": "heliostep.sweep.spec",
+    "field_sharing_errors": "heliostep.sweep.field",
+    "load_sweep": "heliostep.sweep.spec",
+    "primary_sharing_error": "heliostep.sweep.worker",
+    "read_results": "heliostep.sweep.store",
+    "run_case": "heliostep.sweep.worker",
+    "run_field": "heliostep.sweep.field",
+    "run_sweep": "heliostep.sweep.cluster",
+    "summary_figures": "heliostep.sweep.worker",
+    "sweep_from_scenario": "heliostep.sweep.spec",
+    "sweep_metadata": "heliostep.sweep.spec",
+}
+
+
+def __getattr__(name: str):
+    if name in _PUBLIC:
+        return getattr(importlib.import_module(_PUBLIC[name]), name)
+    raise AttributeError(f"module 'heliostep.sweep' has no attribute {name!r}")
+
 
 __all__ = [
     "CASE_COLUMNS",

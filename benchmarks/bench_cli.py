@@ -1,0 +1,235 @@
+"""The whole process of ``heliostep run`` timed from outside, with and without plots (prints figures; not a test).
+
+    .venv/bin/python benchmarks/bench_cli.py [scenario.yaml] [--repeat 5] [--no-breakdown] [--baseline SRC]
+
+Each repeat runs, side by side and alternating, a fresh ``heliostep run SCENARIO --out <tmp>`` (with
+plots), the same with ``--no-plots``, and two references that say how loaded the machine is:
+``python -c pass`` (the interpreter alone) and ``python -c "import pvlib"`` (issue #26: 0.7 s on a
+quiet machine). A first run of each variant is not counted (it builds the FMUs and the kernel into
+``$HELIOSTEP_FMUS`` if they are not there). The line a script reads is the medians' line::
+
+    run: <s> s, no-plots <s> s
+
+followed by each variant's median wall and CPU time (user + system, the child processes' included), the
+figures drawn by default (on two cores when one is free), always on two (``HELIOSTEP_PARALLEL_PLOTS=1``)
+and one after the other (``=0``),
+the references (with ``--baseline``, another checkout's ``src`` run the same way, side by side, and
+the ratios to it), the variants of the supervised child's start (``--no-supervise``; a
+child started as a new interpreter, ``HELIOSTEP_SUPERVISED_START=exec``, against the default fork)
+and, unless ``--no-breakdown``, where one run's time goes: the process started once more with
+``--breakdown`` (this file as its own child), which times the stages of the run by wrapping their
+functions (the command's imports, the scenario read, the FMUs resolved and read, the drive inputs
+with the sun, the coupled system, the simulation in its supervised child, the figures, the files
+written, the plots) and the imports by package (``python -X importtime``, self times summed per
+top-level package). The wall times under load are several times a quiet machine's: compare the
+figures with the references of the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import re
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = ROOT / "scenarios" / "jan21-central.yaml"
+HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+
+#: (label, module, attribute) of the functions the breakdown times: leaves of the run's call tree,
+#: so no time is counted twice; patched where they are looked up.
+STAGES = (
+    ("scenario read and checked", "heliostep.cli.run", "load_scenario"),
+    ("estimate and budget", "heliostep.cli.run", "estimate_run"),
+    ("FMUs resolved (models hashed, cache looked up)", "heliostep.cli.run", "resolve_fmus"),
+    ("FMUs read (modelDescription, binary loaded)", "heliostep.run.runner", "read_fmus"),
+    ("weather", "heliostep.run.runner", "load_weather"),
+    ("drive inputs (sun, reference, step schedule)", "heliostep.run.runner", "prepare_inputs"),
+    ("coupled system built", "heliostep.run.runner", "CoSimulation"),
+    ("metadata (package versions)", "heliostep.run.runner", "_metadata"),
+    ("figure accumulator set up", "heliostep.run.runner", "_run_figures"),
+    ("simulation (supervised child, rows fed to the figures)", "heliostep.run.runner", "_co_simulate"),
+    ("figures after the simulation (light, summary)", "heliostep.results.run_figures.RunFigures", "summary"),
+    ("trace and records written", "heliostep.run.result.RunResult", "_write_staged"),
+    ("plots drawn", "heliostep.run.result.RunResult", "_draw"),
+)
+
+
+def run_once(args: list[str], env: dict | None = None) -> tuple[float, float]:
+    """(wall time, CPU time: user + system of the process and its children) [s] of one process (its
+    output discarded; a failure stops the benchmark)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    started = time.perf_counter()
+    done = subprocess.run(args, capture_output=True, text=True, env=env)
+    wall = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(args)} failed ({done.returncode}):\n{done.stderr}")
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[str, tuple[list[str], dict | None]]:
+    """The processes timed side by side: name -> (arguments, environment or None); with ``baseline`` (another
+    checkout's ``src``, imported first through ``PYTHONPATH``) its run and no-plots run too."""
+    run = [*HELIOSTEP, "run", str(scenario)]
+    extra = {}
+    if baseline is not None:
+        old = {**os.environ, "PYTHONPATH": str(baseline)}
+        extra = {
+            "run, baseline": ([*run, "--out", str(out / "baseline-plots")], old),
+            "no-plots, baseline": ([*run, "--out", str(out / "baseline-no-plots"), "--no-plots"], old),
+        }
+    exec_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "exec"}
+    serial_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "0"}
+    forked_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "1"}
+    return {
+        "run": ([*run, "--out", str(out / "plots")], None),
+        "run, plots forked": ([*run, "--out", str(out / "forked")], forked_env),
+        "run, plots serial": ([*run, "--out", str(out / "serial")], serial_env),
+        "no-plots": ([*run, "--out", str(out / "no-plots"), "--no-plots"], None),
+        "no-plots --no-supervise": ([*run, "--out", str(out / "unsupervised"), "--no-plots", "--no-supervise"], None),
+        "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
+        "python -c pass": ([sys.executable, "-c", "pass"], None),
+        "import pvlib": ([sys.executable, "-c", "import pvlib"], None),
+        **extra,
+    }
+
+
+def import_breakdown(scenario: Path, out: Path) -> list[tuple[str, float]]:
+    """Self import times [s] summed per top-level package, of a ``--no-plots`` run and a run with plots."""
+    rows = []
+    for name, extra in (("no-plots", ["--no-plots"]), ("run", [])):
+        args = [sys.executable, "-X", "importtime", *HELIOSTEP[1:], "run", str(scenario), "--out", str(out / name)]
+        done = subprocess.run([*args, *extra], capture_output=True, text=True)
+        totals: dict[str, float] = {}
+        for line in done.stderr.splitlines():
+            match = re.match(r"import time:\s+(\d+) \|\s+\d+ \|\s*(\S+)", line)
+            if match:
+                top = match[2].split(".")[0]
+                totals[top] = totals.get(top, 0.0) + int(match[1]) * 1e-6
+        ranked = sorted(totals.items(), key=lambda item: -item[1])
+        rest = sum(value for _, value in ranked[8:])
+        rows.append((f"imports, {name}: " + ", ".join(f"{k} {v:.2f}" for k, v in ranked[:8]), sum(totals.values())))
+        rows.append((f"  (other packages {rest:.2f})", rest))
+    return rows
+
+
+def breakdown_child(argv: list[str]) -> None:
+    """Run ``heliostep`` with ``argv`` in this process, its stages timed; print one line per stage."""
+    import importlib
+
+    started = time.perf_counter()
+    import heliostep.cli.run  # noqa: F401  (the command's modules: what make_parser imports)
+
+    spent = {"imports of the command's modules": time.perf_counter() - started}
+
+    def timed(label, function):
+        @functools.wraps(function)
+        def wrapper(*args, **kwargs):
+            begun = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[label] = spent.get(label, 0.0) + time.perf_counter() - begun
+
+        return wrapper
+
+    for label, module_name, attribute in STAGES:
+        path = module_name.split(".")
+        try:
+            owner = importlib.import_module(module_name)
+        except ModuleNotFoundError:  # a class: module.Class
+            owner = getattr(importlib.import_module(".".join(path[:-1])), path[-1])
+        setattr(owner, attribute, timed(label, getattr(owner, attribute)))
+    from heliostep.cli import main
+
+    status = main(argv)
+    total = time.perf_counter() - started
+    for label, seconds in spent.items():
+        print(f"{seconds:8.3f} s  {label}")
+    print(f"{total - sum(spent.values()):8.3f} s  other (parsing, folder lock, manifest, report)")
+    print(f"{total:8.3f} s  in the process after the interpreter's start (exit status {status})")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario", nargs="?", type=Path, default=SCENARIO)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--no-breakdown", action="store_true")
+    parser.add_argument(
+        "--baseline", type=Path, help="another checkout's src folder: its runs timed side by side (PYTHONPATH)"
+    )
+    parser.add_argument("--breakdown", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.breakdown is not None:
+        breakdown_child(args.breakdown)
+        return 0
+    with tempfile.TemporaryDirectory(prefix="heliostep-bench-cli-") as folder:
+        out = Path(folder)
+        timed = variants(args.scenario, out, args.baseline)
+        for command, env in timed.values():  # warm-up: FMUs, kernel, caches; page cache
+            run_once(command, env)
+        walls: dict[str, list[float]] = {name: [] for name in timed}
+        cpus: dict[str, list[float]] = {name: [] for name in timed}
+        for _ in range(args.repeat):
+            for name, (command, env) in timed.items():
+                wall, cpu = run_once(command, env)
+                walls[name].append(wall)
+                cpus[name].append(cpu)
+        median = {name: statistics.median(values) for name, values in walls.items()}
+        cpu = {name: statistics.median(values) for name, values in cpus.items()}
+        print(f"run: {median['run']:.3f} s, no-plots {median['no-plots']:.3f} s")
+        for name, values in walls.items():
+            print(
+                f"  {name:26s} median {median[name]:.3f} s wall, {cpu[name]:.3f} s CPU  "
+                f"({', '.join(f'{v:.2f}' for v in values)})"
+            )
+        print(
+            f"  plots add {median['run'] - median['no-plots']:.3f} s (on two cores: "
+            f"{median['run, plots forked'] - median['no-plots']:.3f} s, one after the other: "
+            f"{median['run, plots serial'] - median['no-plots']:.3f} s); the child's start as a new interpreter "
+            f"adds {median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
+            f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s"
+        )
+        if args.baseline is not None:
+            print(
+                f"  against {args.baseline}: run {median['run'] / median['run, baseline']:.2f}x, "
+                f"no-plots {median['no-plots'] / median['no-plots, baseline']:.2f}x of its time"
+            )
+        print(
+            f"  load: {os.getloadavg()[0]:.2f} (1 min), {os.cpu_count()} cores; import pvlib "
+            f"{median['import pvlib']:.3f} s here, 0.7 s in issue #26 (quiet)"
+        )
+        if args.no_breakdown:
+            return 0
+        for label, plots in (("with plots", []), ("--no-plots", ["--no-plots"])):
+            command = [
+                sys.executable,
+                __file__,
+                "--breakdown",
+                "run",
+                str(args.scenario),
+                "--out",
+                str(out / f"breakdown{len(plots)}"),
+                *plots,
+            ]
+            started = time.perf_counter()
+            done = subprocess.run(command, capture_output=True, text=True)
+            wall = time.perf_counter() - started
+            lines = [line for line in done.stdout.splitlines() if line.startswith(" ") and " s  " in line]
+            print(f"breakdown, {label} (one run, whole process {wall:.3f} s):")
+            print("\n".join(f"  {line}" for line in lines))
+        for label, seconds in import_breakdown(args.scenario, out):
+            print(f"  {seconds:6.2f} s  {label}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
