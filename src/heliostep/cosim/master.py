@@ -290,27 +290,7 @@ class _Run:
         )
 
     def statistics(self) -> dict:
-        system, integrator = self.system, self.integrator
-        rhs = (system.rhs_evaluations if system is not None else 0) + (
-            integrator.rhs_evaluations() if integrator is not None else 0
-        )
-        counts = {"rhs": rhs, **self.counts, "nominal_reads": system.nominal_reads if system is not None else 0}
-        return {
-            **counts,
-            "compiled_rhs": integrator is not None and integrator.compiled,
-            "wall_time": clock.perf_counter() - self.wall_start,
-            "states": system.n_states if system is not None else 0,
-            "event_indicators": system.n_indicators if system is not None else 0,
-            "terminated": self.terminated,
-            "termination_reason": self.termination_reason,
-            "termination_time": self.termination_time,
-            "termination_instances": self.termination_instances,
-            "algebraic_loops": list(self.graph.loops),
-            **({"sampled_components": self.graph.sampled.statistics()} if self.graph.sampled is not None else {}),
-            "max_buffered_rows": self.rows.max_buffered,
-            **({"text_outputs": self.texts.values} if self.texts is not None else {}),
-            **(system.loop.statistics() if system is not None and system.loop is not None else {}),
-        }
+        return _statistics(self)
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
@@ -573,6 +553,31 @@ def _kernel_figures(monitor: Callable[[np.ndarray], None] | None, width: int) ->
     if bind is not None:
         bind(figures)
     return figures
+
+
+def _statistics(run: _Run) -> dict:
+    """The run's counters and what it met (terminations, loops, sampled components, text outputs)."""
+    system, integrator = run.system, run.integrator
+    rhs = (system.rhs_evaluations if system is not None else 0) + (
+        integrator.rhs_evaluations() if integrator is not None else 0
+    )
+    counts = {"rhs": rhs, **run.counts, "nominal_reads": system.nominal_reads if system is not None else 0}
+    return {
+        **counts,
+        "compiled_rhs": integrator is not None and integrator.compiled,
+        "wall_time": clock.perf_counter() - run.wall_start,
+        "states": system.n_states if system is not None else 0,
+        "event_indicators": system.n_indicators if system is not None else 0,
+        "terminated": run.terminated,
+        "termination_reason": run.termination_reason,
+        "termination_time": run.termination_time,
+        "termination_instances": run.termination_instances,
+        "algebraic_loops": list(run.graph.loops),
+        **({"sampled_components": run.graph.sampled.statistics()} if run.graph.sampled is not None else {}),
+        "max_buffered_rows": run.rows.max_buffered,
+        **({"text_outputs": run.texts.values} if run.texts is not None else {}),
+        **(system.loop.statistics() if system is not None and system.loop is not None else {}),
+    }
 
 
 def _hand_over_figures(run: _Run) -> None:
