@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from heliostep.cli.band import add_band_options, prepare_band, run_band_after
-from heliostep.cli.signals import stop_requests
+from heliostep.cli.signals import ForcedStop, stop_requests
 from heliostep.drive.sequencer import PreparationStopped
 from heliostep.results.outputs import TMP_PREFIX, check_out_name
 from heliostep.results.rescue import rescue_folder
@@ -188,6 +188,9 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
         _rescue_into_a_fresh_folder(result, out_dir)
         return status or 1
+    except ForcedStop:  # a second signal while writing: the stream cut short is not left in --out
+        _discard_stream(result, out_dir)
+        raise
     if band is not None:  # the band runs after a complete nominal run only
         status = run_band_after(args, band, result, out_dir, fmu_paths, stop, status)
     if stop.is_set() and status == 0:
@@ -215,14 +218,20 @@ def _warn(result: RunResult) -> None:
         )
 
 
+def _discard_stream(result: RunResult, out_dir: Path) -> None:
+    """The run's streamed trace removed where it is still a temporary file in ``out_dir`` (not swapped in):
+    a second stop signal asks for no more writing, and no file of heliostep's is left unlisted there."""
+    stream = result.trace_file
+    if stream is not None and stream.parent == out_dir and stream.name.startswith(TMP_PREFIX):
+        stream.unlink(missing_ok=True)
+
+
 def _rescue_into_a_fresh_folder(result: RunResult, out_dir: Path) -> None:
     """The results that ``out_dir`` could not take written to a rescue folder, and said where."""
     rescue = _rescue(result)
     if rescue:
         print(f"heliostep run: the results were written to {rescue} instead", file=sys.stderr)
-        stream = result.trace_file
-        if stream is not None and stream.parent == out_dir and stream.name.startswith(TMP_PREFIX):
-            stream.unlink(missing_ok=True)  # the stream cut short: its rows are in the rescue
+        _discard_stream(result, out_dir)  # the stream cut short: its rows are in the rescue
     else:
         print("heliostep run: error: no folder could take the results either", file=sys.stderr)
 
