@@ -13,7 +13,7 @@ sweep (365 x 14 cases) from the mean time per case of the spread days
 (the days' lengths and step counts vary over the year; the longest day alone overstates it), and prints
 it also as one line for scripts: ``year-field: <h> core-hours, <h> h on 2 workers`` (ideal scaling).
 
-The clusters are started and their workers warmed up (heliostep imported) before the
+The clusters are started and their workers warmed up (heliostep's case modules and pvlib imported) before the
 clock starts; the FMUs are built before. Timed: validation, shipping the FMUs, the
 runs and writing the results table.
 
@@ -89,7 +89,10 @@ def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> t
         Client(cluster) as client,
     ):
         client.wait_for_workers(n_workers)
-        client.run(importlib.import_module, "heliostep.sweep")  # warm up: imports outside the clock
+        # warm up: the imports a case needs, outside the clock (heliostep.sweep loads its modules on first
+        # use, and pvlib is imported where the sun is computed: both would fall on the first case)
+        for module in ("heliostep.sweep.worker", "heliostep.run", "pvlib", "scipy.interpolate"):
+            client.run(importlib.import_module, module)
         for attempt in range(repeat):
             started = clock.perf_counter()
             cases = expand_cases(load_sweep(sweep))

@@ -19,6 +19,7 @@ the plots' window and envelope belong together: each figure is defined once here
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -435,11 +436,18 @@ class SolutionRecorder:
 
 
 class _JudgedInKernel:
-    """The steps the kernel judged (:class:`~heliostep.results.steps.StepJudge`'s answers)."""
+    """The steps the kernel judged (:class:`~heliostep.results.steps.StepJudge`'s answers), made into
+    :class:`StepOutcome` objects when first asked: a supervised run hands the kernel's totals over after
+    every block, and building every step's outcome each time would cost steps x blocks."""
 
     def __init__(self, sequencer: Sequencer, schedule: StepSchedule, totals: Any):
         self.max_held, self.lag = totals.max_held, totals.lag
-        self.outcomes = [
+        self._sequencer, self._schedule, self._judged = sequencer, schedule, totals.outcomes
+
+    @functools.cached_property
+    def outcomes(self) -> list[StepOutcome]:
+        schedule, sequencer = self._schedule, self._sequencer
+        return [
             StepOutcome(
                 float(schedule.times[k]),
                 float(sequencer.position(schedule.indices[k])),
@@ -447,7 +455,7 @@ class _JudgedInKernel:
                 None if np.isnan(settling) else float(settling),
                 float(move),
             )
-            for k, (missed, settling, move) in enumerate(totals.outcomes)
+            for k, (missed, settling, move) in enumerate(self._judged)
         ]
 
     def outcomes_at_end(self, end: float) -> list[StepOutcome]:
