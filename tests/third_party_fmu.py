@@ -168,15 +168,30 @@ MINI_FMUS = {
             ("T", "Real", "parameter", "fixed", 0.5, None),
         ],
     ),
+    "LagStop": (  # the Lag whose Co-Simulation step stops at t_stop: fmi2Discard, then fmi2Terminated
+        "lag_stop.c",
+        "{c0a7e1f2-0008-4000-8000-000000000008}",
+        0,
+        [
+            ("u", "Real", "input", "continuous", 0.0, None),
+            ("y", "Real", "output", "continuous", 0.0, None),
+            ("e", "Real", "output", "continuous", None, None),
+            ("der(y)", "Real", "local", "continuous", None, "y"),
+            ("T", "Real", "parameter", "fixed", 0.5, None),
+            ("t_stop", "Real", "parameter", "fixed", 1e300, None),
+            ("says_terminated", "Integer", "parameter", "fixed", 1, None),
+        ],
+    ),
 }
 #: direct feedthrough: model -> output -> the input it depends on
 _FEEDTHROUGH = {
     "PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"},
     "Gain": {"y": "u"},
     "Lag": {"e": "u"},
+    "LagStop": {"e": "u"},
 }
 #: the mini FMUs whose modelDescription.xml also declares Co-Simulation (fmi2DoStep in mini_fmu.h)
-CO_SIMULATION = {"Lag"}
+CO_SIMULATION = {"Lag", "LagStop"}
 
 
 def _model_description(name: str) -> str:

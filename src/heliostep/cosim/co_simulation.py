@@ -44,11 +44,14 @@ class CoSimulationInstanceBase:
     _FMI = ""
     #: the version's name of a 64-bit floating point variable's type ("Real", "Float64"): its set/get functions
     _REAL = ""
+    #: how the version's step says the FMU asks to terminate (in the run's termination reason)
+    TERMINATION = ""
 
     def __init__(self, info: FMUInfo, name: str, parameters: Mapping[str, object]):
         self.info, self.name = info, name
         self.messages: deque[str] = deque(maxlen=50)
         self.time = float("nan")
+        self.last_successful_time: float | None = None  # where a step that asked to terminate ended [s]
         self._environment = next(_environment_ids)
         _by_environment[self._environment] = self  # type: ignore[assignment]  # the logger routes by this
         self._slave: Any = None

@@ -38,13 +38,16 @@ from heliostep.cosim.co_simulation import CoSimulationInstanceBase
 from heliostep.cosim.connections import ConnectionGraph, split_name
 from heliostep.cosim.description import FMUInfo
 from heliostep.cosim.events import Terminated
-from heliostep.cosim.fmi import _callbacks
+from heliostep.cosim.fmi import FMIError, _callbacks
 from heliostep.cosim.sampled3 import CoSimulation3Instance
 from heliostep.cosim.signals import Connection, PiecewiseConstant
 from heliostep.errors import InputError
 
 if TYPE_CHECKING:
     from heliostep.cosim.system import CoupledSystem
+
+#: fmi2Status fmi2Discard and fmi2StatusKind fmi2LastSuccessfulTime, fmi2Terminated (fmi2FunctionTypes.h)
+FMI2_DISCARD, FMI2_LAST_SUCCESSFUL_TIME, FMI2_TERMINATED = 2, 2, 3
 
 __all__ = ["CoSimulationInstance", "SampledComponent", "SampledSignal", "SampledSystem", "split_sampled"]
 
@@ -54,6 +57,7 @@ class CoSimulationInstance(CoSimulationInstanceBase):
     :class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time and the FMU's messages."""
 
     _FMI, _REAL = "fmi2", "Real"
+    TERMINATION = "fmi2DoStep: fmi2Discard, then fmi2Terminated"
 
     def __init__(self, info: FMUInfo, name: str, parameters: Mapping[str, object]):
         from fmpy.fmi2 import FMU2Slave
@@ -74,10 +78,46 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         return setter.get(self.info.variables[name].type, "setString")
 
     def do_step(self, to_time: float) -> bool:
-        """fmi2DoStep from the instance's time to ``to_time`` [s]; False (FMI 2.0's step says no termination)."""
-        self._do("fmi2DoStep", self._slave.doStep, self.time, to_time - self.time)
+        """fmi2DoStep from the instance's time to ``to_time`` [s]; whether the FMU asks to terminate.
+
+        FMI 2.0 has no termination flag on a step: a slave that must stop returns ``fmi2Discard``
+        and then says ``fmi2Terminated`` through ``fmi2GetBooleanStatus`` (FMI 2.0.4, section 4.2.3:
+        the master may then read its outputs and must not step it again). heliostep takes that as
+        the FMU asking to terminate at this communication point (the run ends there, as for an FMI
+        3.0 ``terminateSimulation``); the last time the slave reached (``fmi2LastSuccessfulTime``)
+        is kept in :attr:`last_successful_time` where the FMU tells it. A discarded step without
+        ``fmi2Terminated`` is an :class:`~heliostep.cosim.fmi.FMIError`: a sampled component's
+        communication points are fixed, so heliostep does not retry with a shorter step.
+        """
+        self.messages.clear()
+        try:
+            self._slave.doStep(self.time, to_time - self.time)
+        except Exception as exc:  # fmpy's FMICallException (its status) and the like
+            if getattr(exc, "status", None) != FMI2_DISCARD:
+                raise FMIError("fmi2DoStep", self.name, f"failure ({exc})", self.messages, self.time) from None
+            if not self._discarded_because_terminated(to_time):
+                detail = (
+                    f"fmi2Discard without fmi2Terminated (the step from t = {self.time:g} s to {to_time:g} s; a "
+                    "sampled component's communication points are fixed: heliostep does not retry a shorter step)"
+                )
+                raise FMIError("fmi2DoStep", self.name, detail, self.messages, self.time) from None
+            self.time = to_time
+            return True
         self.time = to_time
         return False
+
+    def _discarded_because_terminated(self, to_time: float) -> bool:
+        """After an ``fmi2Discard``: whether the slave says ``fmi2Terminated`` (a status it cannot
+        give counts as no), with its ``fmi2LastSuccessfulTime`` [s] kept where it gives one."""
+        try:
+            terminated = bool(self._slave.getBooleanStatus(FMI2_TERMINATED))
+        except Exception:  # noqa: BLE001 - fmi2GetBooleanStatus unsupported: not a termination
+            return False
+        try:
+            self.last_successful_time = float(self._slave.getRealStatus(FMI2_LAST_SUCCESSFUL_TIME))
+        except Exception:  # noqa: BLE001 - optional for the slave: the point asked for stands
+            self.last_successful_time = to_time
+        return terminated
 
 
 class SampledComponent:
@@ -226,8 +266,14 @@ class SampledSystem:
         self._sample(due)
         if not stop:
             return None
-        reason = f"{', '.join(stop)} asked to terminate the simulation (fmi3DoStep: terminateSimulation)"
-        return Terminated(reason, time, stop)
+        said = []
+        for name in stop:
+            instance = self.components[name].instance
+            assert instance is not None
+            reached = instance.last_successful_time
+            at = f", its last successful time {reached:.9g} s" if reached is not None and reached != time else ""
+            said.append(f"{name} asked to terminate the simulation ({instance.TERMINATION}{at})")
+        return Terminated("; ".join(said), time, stop)
 
     def statistics(self) -> dict[str, dict[str, float]]:
         return {name: {"interval_s": c.interval, "steps": c.steps} for name, c in self.components.items()}

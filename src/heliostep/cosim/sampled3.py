@@ -46,6 +46,7 @@ class CoSimulation3Instance(CoSimulationInstanceBase):
     :class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time and the FMU's messages."""
 
     _FMI, _REAL = "fmi3", "Float64"
+    TERMINATION = "fmi3DoStep: terminateSimulation"
 
     def __init__(self, info: FMUInfo, name: str, parameters: Mapping[str, object]):
         from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3ValueReference

@@ -45,6 +45,7 @@ typedef struct Instance {
     double v[N_VARS];
     double next_event; /* the model's next time event (or a negative value: none) */
     int cs;            /* instantiated for Co-Simulation (fmi2DoStep integrates the states itself) */
+    int cs_terminated; /* a step ended at the model's stop time (MINI_CS_STOP): fmi2Terminated */
 } Instance;
 
 static void logf_(Instance *m, fmi2Status status, const char *format, ...)
@@ -372,7 +373,13 @@ fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real z[], size_t nz)
  * fmi2DoStep integrates the continuous states over the communication step with the classical
  * fourth-order Runge-Kutta method at a fixed internal step of at most MINI_CS_STEP seconds, the
  * inputs held; time events and state events are not handled inside a step (the CS twins of the
- * tests have none). */
+ * tests have none).
+ *
+ * A model may define MINI_CS_STOP(m), its stop time [s], and MINI_CS_SAYS_TERMINATED(m): a step
+ * that would pass the stop time integrates up to it and returns fmi2Discard; the slave then says
+ * fmi2Terminated (fmi2GetBooleanStatus) if MINI_CS_SAYS_TERMINATED(m), and its
+ * fmi2LastSuccessfulTime (fmi2GetRealStatus) is the stop time (FMI 2.0.4, section 4.2.3). A step
+ * after that is an error. */
 #ifndef MINI_CS_STEP
 #define MINI_CS_STEP 1e-3
 #endif
@@ -396,6 +403,13 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     if (!(h > 0.0)) return fail(m, "fmi2DoStep: communication step size %g, expected > 0", h);
     if (fabs(t - m->time) > 1e-9 * (1.0 + fabs(t)))
         return fail(m, "fmi2DoStep: communication point %.17g, the FMU is at %.17g", t, m->time);
+    if (m->cs_terminated) return fail(m, "fmi2DoStep: the slave stopped at t = %g (fmi2Discard)", m->time);
+#ifdef MINI_CS_STOP
+    if (t + h > MINI_CS_STOP(m) + 1e-12 * (1.0 + fabs(t))) {
+        m->cs_terminated = 1;
+        h = MINI_CS_STOP(m) > t ? MINI_CS_STOP(m) - t : 0.0; /* integrated up to the stop time, then discarded */
+    }
+#endif
     n = (int)ceil(h / MINI_CS_STEP - 1e-9);
     for (k = 0; k < N_STATES; k++) x[k] = m->v[STATES[k]];
     for (step = 0; step < n && N_STATES > 0; step++) {
@@ -413,6 +427,10 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     for (k = 0; k < N_STATES; k++) m->v[STATES[k]] = x[k];
     m->time = t + h;
     model_outputs(m);
+    if (m->cs_terminated) {
+        logf_(m, fmi2Discard, "fmi2DoStep: stopped at t = %g, before the communication point", m->time);
+        return fmi2Discard;
+    }
     return fmi2OK;
 }
 
@@ -424,7 +442,25 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 { (void)vr; (void)n; (void)order; (void)value; UNSUPPORTED() }
 fmi2Status fmi2CancelStep(fmi2Component c) { UNSUPPORTED() }
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) { (void)s; (void)value; UNSUPPORTED() }
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) { (void)s; (void)value; UNSUPPORTED() }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
+{
+    Instance *m = (Instance *)c;
+    if (!allowed(m, "fmi2GetRealStatus", M_READABLE) || !m->cs || value == NULL || s != fmi2LastSuccessfulTime)
+        UNSUPPORTED()
+    *value = m->time;
+    return fmi2OK;
+}
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) { (void)s; (void)value; UNSUPPORTED() }
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) { (void)s; (void)value; UNSUPPORTED() }
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
+{
+    Instance *m = (Instance *)c;
+    if (!allowed(m, "fmi2GetBooleanStatus", M_READABLE) || !m->cs || value == NULL || s != fmi2Terminated)
+        UNSUPPORTED()
+#ifdef MINI_CS_SAYS_TERMINATED
+    *value = m->cs_terminated && MINI_CS_SAYS_TERMINATED(m) ? fmi2True : fmi2False;
+#else
+    *value = m->cs_terminated ? fmi2True : fmi2False;
+#endif
+    return fmi2OK;
+}
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) { (void)s; (void)value; UNSUPPORTED() }
