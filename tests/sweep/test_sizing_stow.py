@@ -58,3 +58,20 @@ def test_a_scenario_that_never_stows_has_no_stow_margin(fmu_paths):
     row = judge(plan, {}, {NAME: curve})["candidates"][0]["currents"][0]
     assert row["stow_margin"] is None and row["stow_load"] is None
     assert not any(r.startswith("stow margin") for r in row["reasons"])
+
+
+def test_the_stow_margin_at_the_worst_corner_is_judged_on_that_corners_curve(fmu_paths):
+    plan = _plan("40")
+    assert plan.ranges  # the drive physics' ranges (data/parameter_ranges.yaml): the band is computed
+    curve = SpeedTorqueCurve(5.9, 2.0, np.array([5.0, 1000.0]), np.array([0.05, 0.01]))
+    # at the worst corner (lowest bus and loop gain) a curve half as strong: the load is the same (it
+    # depends on the rotor's inertia and step angle, not on the bus or the loop gain), the held current's
+    # ratio too (K I / (K + R) at 3 A over 5.9 A), and both curves stay below the step limit from rest, so
+    # the margin there is half the nominal one
+    worst = SpeedTorqueCurve(5.9, 2.0, np.array([5.0, 1000.0]), np.array([0.025, 0.005]))
+    sheet = judge(plan, {}, {NAME: curve}, {NAME: worst})
+    for row in sheet["candidates"][0]["currents"]:
+        assert row["band"]["stow_margin_worst_corner"] == pytest.approx(row["stow_margin"] / 2.0, rel=1e-12)
+    # without the worst corner's curve there is no such margin (and the nominal one stands)
+    row = judge(plan, {}, {NAME: curve})["candidates"][0]["currents"][0]
+    assert row["band"]["stow_margin_worst_corner"] is None and row["stow_margin"] is not None

@@ -294,6 +294,7 @@ def _band_table(sheet: Mapping[str, Any]) -> str:
         ("tracking margin, largest [1]", "tracking_margin_max"),
         ("idle margin, least [1]", "idle_margin_min"),
         ("idle margin, largest [1]", "idle_margin_max"),
+        ("stow margin at the worst corner [1]", "stow_margin_worst_corner"),
         ("corner of the least tracking margin [key=value]", "corner"),
         ("keys not in the margins [key]", "keys_not_in_the_margins"),
     )

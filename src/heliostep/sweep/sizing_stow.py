@@ -30,7 +30,7 @@ import numpy as np
 from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.load_budget import stow_load
 from heliostep.run.speed_torque import SpeedTorqueCurve
-from heliostep.scenario.catalogue import MotorCandidate
+from heliostep.scenario.catalogue import MotorCandidate, MotorDrive
 from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
 
 __all__ = ["ANGLE_POINTS", "stow_angles", "stow_margin", "stow_step_rates"]
@@ -72,12 +72,14 @@ def stow_margin(
     step_limit: float,
     curve: SpeedTorqueCurve | None,
     angles: np.ndarray | None,
+    drive: MotorDrive | None = None,
 ) -> dict | None:
     """The margin to slip while stowing at ``current`` [A] and its worst angle's figures (module
-    docstring); None without a stow or a curve."""
+    docstring); None without a stow or a curve. ``drive``: the candidate's drive with other parameters
+    (e.g. at the ranges' worst corner, with that corner's ``curve`` and ``step_limit``); by default its own."""
     if angles is None or curve is None:
         return None
-    drive = candidate.drive()
+    drive = drive if drive is not None else candidate.drive()
     load = stow_load(plan.scenario, angles, plan.mechanics, drive.rotor_inertia, drive.step_angle)
     if load is None:
         return None

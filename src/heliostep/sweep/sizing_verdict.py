@@ -16,7 +16,7 @@ from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit, wind_moment_at
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate
-from heliostep.sweep.sizing_band import margin_band, worst_corner
+from heliostep.sweep.sizing_band import drive_at, margin_band, worst_corner
 from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
 from heliostep.sweep.sizing_stow import stow_angles, stow_margin
 
@@ -136,6 +136,7 @@ def _judge_current(
     budgets: dict,
     results: Mapping[str, dict],
     stow: tuple[SpeedTorqueCurve | None, np.ndarray | None] = (None, None),
+    worst_curve: SpeedTorqueCurve | None = None,
 ) -> dict:
     drive, sequencer = candidate.drive(), plan.scenario.sequencer
     day, budget = max(budgets.items(), key=lambda item: item[1].total_Nm)
@@ -156,6 +157,8 @@ def _judge_current(
     if plan.ranges:
         motor = plan.scenario.resolved_roles().get("torque", "motor").partition(".")[0]
         row["band"] = margin_band(drive, current, budget, plan.ranges, sequencer, motor)
+        worst_stow = _worst_corner_stow(plan, candidate, current, stow[1], worst_curve, motor)
+        row["band"]["stow_margin_worst_corner"] = worst_stow
     row["reasons"] = _reasons(plan, row, budget, day)
     if row["simulation"]["days_unfinished"]:
         row["verdict"] = "incomplete"
@@ -163,6 +166,23 @@ def _judge_current(
     else:
         row["verdict"] = "fail" if row["reasons"] else "pass"
     return row
+
+
+def _worst_corner_stow(
+    plan: SizingPlan,
+    candidate: MotorCandidate,
+    current: float,
+    angles: np.ndarray | None,
+    curve: SpeedTorqueCurve | None,
+    motor: str,
+) -> float | None:
+    """The stow margin [1] at the ranges' worst corner: that corner's drive (bus and loop gain), its step
+    limit from rest and its co-simulated speed-torque curve; None without a stow or that curve."""
+    varied = drive_at(candidate.drive(), worst_corner(plan.ranges), motor)
+    sequencer = plan.scenario.sequencer
+    limit = static_step_limit(varied, current, sequencer.mode, sequencer.microsteps)
+    margin = stow_margin(plan, candidate, current, limit, curve, angles, varied)
+    return None if margin is None else margin["stow_margin"]
 
 
 def judge(
@@ -183,7 +203,10 @@ def judge(
     for candidate in sorted(plan.candidates, key=lambda c: c.holding_torque):
         budgets = _budgets(plan, candidate)
         stow = (curves.get(candidate.name), angles)
-        rows = [_judge_current(plan, candidate, current, budgets, results, stow) for current in candidate.currents]
+        worst = worst_curves.get(candidate.name) if worst_curves else None
+        rows = [
+            _judge_current(plan, candidate, current, budgets, results, stow, worst) for current in candidate.currents
+        ]
         passing = [row for row in rows if row["verdict"] == "pass"]
         entry = {
             **candidate.record(),
