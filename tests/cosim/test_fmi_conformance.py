@@ -100,6 +100,31 @@ def test_counter_alone_matches_fmpy_and_terminates_at_9_s(mini, infos):
     assert trace["c.x"].iloc[-1] == pytest.approx(36.0, abs=1e-6)  # 0 + 1 + ... + 8
 
 
+@pytest.mark.parametrize("interpolate", [False, True])
+def test_a_time_event_a_rounding_error_after_an_output_time_is_handled_at_its_own_instant(
+    infos, interpolate, monkeypatch
+):
+    # np.linspace(0, 2.9, 30) holds 0.49999999999999994, 0.9999999999999999, ...: output times a rounding
+    # error before the counter's time events every 0.5 s. Stopping there, the master once took each event
+    # as passed (within eps of the time reached) and lost it and every later one (count 0 at the end).
+    from heliostep.cosim import master
+
+    monkeypatch.setattr(master, "INTERPOLATE_OUTPUTS", interpolate)
+    grid = np.linspace(0.0, 2.9, 30)
+    assert 0.5 - grid[5] == pytest.approx(5.55e-17, rel=0.01)  # the output time just before the event
+    monitor = (lambda rows: None) if interpolate else None
+    result = CoSimulation({"c": infos["Counter"]}, parameters={"c": {"period": 0.5}}).simulate(
+        0.0, 2.9, grid, monitor=monitor
+    )
+    assert result.statistics["time_events"] == 5  # at 0.5, 1.0, ... 2.5 s
+    trace = result.trace
+    for k in range(1, 6):  # count steps by one at each event, at the event's own time
+        before, after = at(trace, 0.5 * k)["c.count"].to_numpy()[[0, -1]]
+        assert (before, after) == (k - 1, k)
+    # first principles: x = the integral of the count, 0.5 (0 + 1 + ... + 4) + 0.4 * 5 at 2.9 s
+    assert trace["c.x"].iloc[-1] == pytest.approx(0.5 * 10 + 0.4 * 5, abs=1e-6)
+
+
 def test_integer_and_boolean_parameters_are_set_with_their_own_functions(infos):
     grid = np.array([0.0, 3.5])
     doubled = CoSimulation({"c": infos["Counter"]}, parameters={"c": {"step": 2, "t_stop": 4.0}})

@@ -1,0 +1,163 @@
+"""Issue #24: the master run against FMI 3.0 FMUs that nobody in the project wrote, of the kinds the
+issue names: exported by PythonFMU3 (``tests/third_party_pythonfmu3.py``: its own C++ FMI 3.0 layer
+and modelDescription.xml), each checked against fmpy's own FMI 3.0 simulation and first principles:
+
+- a first-order lag (Model Exchange) driven by an FMI 2.0 ramp in one system, in the compiled kernel:
+  y = t - T (1 - exp(-t / T));
+- a counter with an Int32 output and time events that asks to terminate;
+- a state event: x falls at a rate r from 1, reset to 1 where it crosses zero: crossings at k / r;
+- outputs of several types (Int32, Int64, UInt64, Boolean) and a Float64[3] array, traced element-wise;
+- the lag as Co-Simulation, sampled: the recurrence of the sampled ramp;
+- the counter beside the shipped drive in a supervised ``heliostep run``: the termination said.
+"""
+
+from __future__ import annotations
+
+import json
+
+import fmpy
+import numpy as np
+import pytest
+
+import lag_reference
+from heliostep.cosim import Connection, CoSimulation, SolverOptions, read_fmu
+from third_party_fmu import build_mini_fmu
+from third_party_pythonfmu3 import MODELS, build_pythonfmu3
+
+T_LAG = 0.5
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pythonfmu3")
+    built = {model: build_pythonfmu3(model, out) for model in MODELS}
+    built["Gain"] = build_mini_fmu("Gain", out)
+    return built
+
+
+def simulate(fmus, instances, connections=(), parameters=None, stop=3.0, n=31, intervals=None):
+    system = CoSimulation(
+        {
+            name: read_fmu(fmus[model], co_simulation=bool(intervals and name in intervals))
+            for name, model in instances.items()
+        },
+        [Connection(*c) for c in connections],
+        parameters=parameters or {},
+        communication_intervals=intervals,
+    )
+    return system.simulate(0.0, stop, np.linspace(0.0, stop, n), SolverOptions(rtol=1e-9))
+
+
+def test_the_fmus_are_pythonfmu3s_own_fmi3_exports(fmus):
+    for model in MODELS:
+        description = fmpy.read_model_description(str(fmus[model]))
+        assert description.fmiVersion == "3.0" and description.generationTool.startswith("PythonFMU3")
+        assert fmpy.validation.validate_fmu(str(fmus[model])) == []  # fmpy's checks of its XML
+
+
+def test_a_pythonfmu3_lag_driven_by_an_fmi2_ramp_follows_the_exact_solution_in_the_compiled_kernel(fmus):
+    result = simulate(
+        fmus,
+        {"ramp": "Gain", "lag": "lag_me"},
+        [("ramp.s", "lag.u")],
+        {"ramp": {"k": 0.0, "b": 1.0}, "lag": {"T": T_LAG}},
+        n=301,
+    )
+    trace = result.trace
+    assert np.max(np.abs(trace["lag.y"] - lag_reference.exact_lag(trace["time"], T_LAG))) < 1e-6
+    assert result.statistics["compiled_rhs"] is True  # FMI 2.0 and FMI 3.0 in one compiled system
+
+
+def test_the_counter_terminates_at_its_limit_where_fmpy_stops_and_counts_the_time_events(fmus):
+    result = simulate(fmus, {"c": "counter_me"}, parameters={"c": {"period": 0.25, "limit": 5}})
+    reference = fmpy.simulate_fmu(str(fmus["counter_me"]), stop_time=3.0, output_interval=0.05)
+    assert result.terminated and result.termination_time == pytest.approx(1.25)
+    assert result.statistics["termination_instances"] == ["c"]
+    assert (
+        "c asked to terminate the simulation (fmi3UpdateDiscreteStates: terminateSimulation)"
+        in result.termination_reason
+    )
+    assert reference["time"][-1] == pytest.approx(1.25)  # fmpy stops at the same event
+    trace = result.trace
+    assert trace["c.count"].iloc[-1] == 5 and trace["time"].iloc[-1] == pytest.approx(1.25)
+    between = trace[trace["time"] < 1.25 - 1e-9].drop_duplicates("time", keep="last")
+    np.testing.assert_array_equal(between["c.count"], np.floor(between["time"] / 0.25 + 1e-9))
+    assert result.statistics["time_events"] == 5
+
+
+def test_the_state_event_crosses_where_first_principles_and_fmpy_say(fmus):
+    rate = 2.0
+    result = simulate(fmus, {"b": "bounce_me"}, parameters={"b": {"rate": rate}}, stop=2.2, n=23)
+    reference = fmpy.simulate_fmu(
+        str(fmus["bounce_me"]), stop_time=2.2, output_interval=0.1, start_values={"rate": rate}, relative_tolerance=1e-9
+    )
+    trace = result.trace
+    crossings = trace["time"][trace["b.crossings"].diff() == 1].to_numpy()
+    np.testing.assert_allclose(crossings, np.arange(1, 5) / rate, atol=1e-7)  # k / r
+    assert result.statistics["state_events"] == 4
+    fmpy_crossings = reference["time"][np.flatnonzero(np.diff(reference["crossings"]) == 1) + 1]
+    np.testing.assert_allclose(crossings, fmpy_crossings, atol=1e-6)
+    rows = trace.drop_duplicates("time", keep="last")
+    for t in (0.1, 0.7, 1.3, 1.9):  # x = 1 - r (t - k / r) after the k-th crossing
+        row = rows.iloc[int(np.argmin(np.abs(rows["time"].to_numpy() - t)))]
+        k = np.floor(row["time"] * rate)
+        assert row["time"] == pytest.approx(t)
+        assert row["b.x"] == pytest.approx(1.0 - rate * (row["time"] - k / rate), abs=1e-7)
+        assert row["b.crossings"] == k
+
+
+def test_outputs_of_every_integer_type_a_boolean_and_an_array_are_traced_element_wise(fmus):
+    result = simulate(fmus, {"types": "types_me"}, parameters={"types": {"period": 0.5}}, stop=2.9, n=30)
+    trace = result.trace
+    assert [c for c in trace.columns if c.startswith("types.")] == [
+        "types.whole",
+        "types.big",
+        "types.unsigned",
+        "types.odd",
+        "types.scaled[1]",
+        "types.scaled[2]",
+        "types.scaled[3]",
+    ]
+    rows = trace.drop_duplicates("time", keep="last")
+    k = np.floor(rows["time"].to_numpy() / 0.5 + 1e-9)  # the events so far
+    np.testing.assert_array_equal(rows["types.whole"], k)
+    np.testing.assert_array_equal(rows["types.big"], k * 2.0**33)  # Int64, exact in a double
+    np.testing.assert_array_equal(rows["types.unsigned"], k + 2.0**40)  # UInt64
+    np.testing.assert_array_equal(rows["types.odd"], k % 2)
+    for i in (1, 2, 3):
+        np.testing.assert_array_equal(rows[f"types.scaled[{i}]"], i * k)
+    assert result.statistics["time_events"] == 5
+
+
+def test_the_pythonfmu3_cs_lag_runs_sampled_as_the_recurrence_of_the_sampled_ramp(fmus):
+    h = 0.1
+    result = simulate(
+        fmus,
+        {"ramp": "Gain", "lag": "lag_cs"},
+        [("ramp.s", "lag.u")],
+        {"ramp": {"k": 0.0, "b": 1.0}, "lag": {"T": T_LAG}},
+        n=301,
+        intervals={"lag": h},
+    )
+    points, y = lag_reference.sampled_lag(h, 3.0, T_LAG)
+    trace = result.trace
+    mid = trace[np.isclose((trace["time"] / h) % 1.0, 0.5, atol=1e-6)]  # half-way between points: held
+    k = np.floor(mid["time"].to_numpy() / h + 1e-9).astype(int)
+    assert len(mid) > 20
+    np.testing.assert_allclose(mid["lag.y"].to_numpy(), y[k], atol=1e-12)
+    assert result.statistics["sampled_components"]["lag"] == {"interval_s": h, "steps": 30}
+
+
+def test_the_pythonfmu3_counter_beside_the_shipped_drive_terminates_a_supervised_run_said_in_the_summary(
+    fmus, tmp_path, capsys
+):
+    from heliostep.cli import main
+    from heliostep.paths import scenarios_dir
+
+    out = tmp_path / "out"
+    args = ["run", str(scenarios_dir() / "jan21-central.yaml"), "--out", str(out), "--no-plots"]
+    args += ["--set", "window.duration=12", "--set", f"fmus.counter={fmus['counter_me']}"]
+    assert main([*args, "--set", "parameters.counter={period: 1.0, limit: 3}"]) == 1  # in a child process
+    assert "terminated by counter at t = 3 s" in capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["terminated"]["instances"] == ["counter"] and summary["terminated"]["time_s"] == pytest.approx(3.0)
