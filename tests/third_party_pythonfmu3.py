@@ -1,4 +1,5 @@
-"""Build FMI 3.0 FMUs with PythonFMU3 (``pythonfmu3`` on PyPI): an exporter nobody in heliostep wrote.
+"""Build FMI 3.0 FMUs with PythonFMU3 (``pythonfmu3`` on PyPI), and FMI 2.0 Co-Simulation ones with its
+sibling PythonFMU (``pythonfmu``): exporters nobody in heliostep wrote.
 
 PythonFMU3 packs a Python class into an FMU with its own C++ FMI 3.0 layer (a prebuilt binary from its
 wheel that runs the class in an embedded interpreter) and its own ``modelDescription.xml``. The
@@ -20,6 +21,8 @@ MODELS = {
     "types_me": "PyTypes",  # Model Exchange: Int32, Int64, UInt64, Boolean, a Float64[3] array
     "lag_cs": "PyLagCS",  # Co-Simulation: the lag's exact step with its input held
 }
+#: the FMI 2.0 Co-Simulation models (PythonFMU)
+MODELS2 = {"lag2_cs": "PyLag2CS"}  # the lag's exact step; a step past t_stop refused (do_step False)
 
 
 def build_pythonfmu3(model: str, out_dir: Path) -> Path:
@@ -30,4 +33,15 @@ def build_pythonfmu3(model: str, out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     built = Path(FmuBuilder.build_FMU(SOURCE_DIR / f"{model}.py", dest=out_dir, needsExecutionTool="false"))
     assert built.name == f"{MODELS[model]}.fmu", built
+    return built
+
+
+def build_pythonfmu(model: str, out_dir: Path) -> Path:
+    """Build ``tests/data/pythonfmu3/<model>.py`` with PythonFMU (FMI 2.0 Co-Simulation) into ``out_dir``."""
+    from pythonfmu.builder import FmuBuilder
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    built = Path(FmuBuilder.build_FMU(SOURCE_DIR / f"{model}.py", dest=out_dir))
+    assert built.name == f"{MODELS2[model]}.fmu", built
     return built

@@ -8,7 +8,9 @@ and modelDescription.xml), each checked against fmpy's own FMI 3.0 simulation an
 - a state event: x falls at a rate r from 1, reset to 1 where it crosses zero: crossings at k / r;
 - outputs of several types (Int32, Int64, UInt64, Boolean) and a Float64[3] array, traced element-wise;
 - the lag as Co-Simulation, sampled: the recurrence of the sampled ramp;
-- the counter beside the shipped drive in a supervised ``heliostep run``: the termination said.
+- the counter beside the shipped drive in a supervised ``heliostep run``: the termination said;
+- an FMI 2.0 Co-Simulation lag exported by PythonFMU, sampled, and its refused step (``do_step``
+  returning False: PythonFMU's ``fmi2Discard``, then ``fmi2Terminated``) ending the run there.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import pytest
 import lag_reference
 from heliostep.cosim import Connection, CoSimulation, SolverOptions, read_fmu
 from third_party_fmu import build_mini_fmu
-from third_party_pythonfmu3 import MODELS, build_pythonfmu3
+from third_party_pythonfmu3 import MODELS, MODELS2, build_pythonfmu, build_pythonfmu3
 
 T_LAG = 0.5
 
@@ -31,6 +33,7 @@ T_LAG = 0.5
 def fmus(tmp_path_factory):
     out = tmp_path_factory.mktemp("pythonfmu3")
     built = {model: build_pythonfmu3(model, out) for model in MODELS}
+    built.update({model: build_pythonfmu(model, out) for model in MODELS2})
     built["Gain"] = build_mini_fmu("Gain", out)
     return built
 
@@ -161,3 +164,25 @@ def test_the_pythonfmu3_counter_beside_the_shipped_drive_terminates_a_supervised
     assert "terminated by counter at t = 3 s" in capsys.readouterr().out
     summary = json.loads((out / "summary.json").read_text())
     assert summary["terminated"]["instances"] == ["counter"] and summary["terminated"]["time_s"] == pytest.approx(3.0)
+
+
+def test_a_pythonfmu_fmi2_cs_lag_runs_sampled_and_its_refused_step_ends_the_run_said_with_its_last_time(fmus):
+    assert fmpy.read_model_description(str(fmus["lag2_cs"])).generationTool.startswith("PythonFMU")
+    h = 0.1
+    parameters = {"ramp": {"k": 0.0, "b": 1.0}, "lag": {"T": T_LAG}}
+    instances, connections = {"ramp": "Gain", "lag": "lag2_cs"}, [("ramp.s", "lag.u")]
+    result = simulate(fmus, instances, connections, parameters, n=301, intervals={"lag": h})
+    _, y = lag_reference.sampled_lag(h, 3.0, T_LAG)
+    trace = result.trace
+    mid = trace[np.isclose((trace["time"] / h) % 1.0, 0.5, atol=1e-6)]
+    k = np.floor(mid["time"].to_numpy() / h + 1e-9).astype(int)
+    np.testing.assert_allclose(mid["lag.y"].to_numpy(), y[k], atol=1e-12)
+    assert not result.terminated
+    # the step from 1.2 s to 1.3 s passes t_stop = 1.25 s: PythonFMU returns fmi2Discard and then says
+    # fmi2Terminated, its last successful time 1.2 s; the run ends at the point 1.3 s, the lag held at y(1.2)
+    stopped = simulate(
+        fmus, instances, connections, {**parameters, "lag": {"T": T_LAG, "t_stop": 1.25}}, n=301, intervals={"lag": h}
+    )
+    assert stopped.terminated and stopped.termination_time == pytest.approx(1.3)
+    assert "fmi2DoStep: fmi2Discard, then fmi2Terminated, its last successful time 1.2 s" in stopped.termination_reason
+    assert stopped.trace["lag.y"].iloc[-1] == pytest.approx(y[12], abs=1e-12)
