@@ -18,7 +18,8 @@ MODELS = {
     "lag_me": "PyLag",  # Model Exchange: T dy/dt = u - y
     "counter_me": "PyCounter",  # Model Exchange: Int32 count at time events, terminates at a limit
     "bounce_me": "PyBounce",  # Model Exchange: a state event (x falls to zero, reset to one)
-    "types_me": "PyTypes",  # Model Exchange: Int32, Int64, UInt64, Boolean, a Float64[3] array
+    "types_me": "PyTypes",  # Model Exchange: Int32, Int64, UInt64, Boolean, String, a Float64[3] array
+    "pass_me": "PyPass",  # Model Exchange: a pass-through of those types and the array
     "lag_cs": "PyLagCS",  # Co-Simulation: the lag's exact step with its input held
 }
 #: the FMI 2.0 Co-Simulation models (PythonFMU)

@@ -20,6 +20,7 @@ import json
 import fmpy
 import numpy as np
 import pytest
+from fmpy.validation import validate_fmu
 
 import lag_reference
 from heliostep.cosim import Connection, CoSimulation, SolverOptions, read_fmu
@@ -55,7 +56,7 @@ def test_the_fmus_are_pythonfmu3s_own_fmi3_exports(fmus):
     for model in MODELS:
         description = fmpy.read_model_description(str(fmus[model]))
         assert description.fmiVersion == "3.0" and description.generationTool.startswith("PythonFMU3")
-        assert fmpy.validation.validate_fmu(str(fmus[model])) == []  # fmpy's checks of its XML
+        assert validate_fmu(str(fmus[model])) == []  # fmpy's checks of its XML
 
 
 def test_a_pythonfmu3_lag_driven_by_an_fmi2_ramp_follows_the_exact_solution_in_the_compiled_kernel(fmus):
@@ -121,6 +122,7 @@ def test_outputs_of_every_integer_type_a_boolean_and_an_array_are_traced_element
         "types.scaled[2]",
         "types.scaled[3]",
     ]
+    assert result.statistics["text_outputs"]["types.label"][:3] == [[0.0, "k=0"], [0.5, "k=1"], [1.0, "k=2"]]
     rows = trace.drop_duplicates("time", keep="last")
     k = np.floor(rows["time"].to_numpy() / 0.5 + 1e-9)  # the events so far
     np.testing.assert_array_equal(rows["types.whole"], k)
@@ -130,6 +132,29 @@ def test_outputs_of_every_integer_type_a_boolean_and_an_array_are_traced_element
     for i in (1, 2, 3):
         np.testing.assert_array_equal(rows[f"types.scaled[{i}]"], i * k)
     assert result.statistics["time_events"] == 5
+
+
+def test_a_pass_through_of_every_type_and_an_array_fed_element_by_element_gives_back_its_inputs(fmus):
+    connections = [
+        ("types.whole", "p.i32_in"),
+        ("types.big", "p.i64_in"),
+        ("types.unsigned", "p.u64_in"),
+        ("types.odd", "p.b_in"),
+        ("types.label", "p.s_in"),
+        ("types.scaled[1]", "p.a_in[3]"),  # reversed, element by element
+        ("types.scaled[2]", "p.a_in[2]"),
+        ("types.scaled[3]", "p.a_in[1]"),
+    ]
+    result = simulate(fmus, {"types": "types_me", "p": "pass_me"}, connections, stop=2.9, n=30)
+    trace = result.trace
+    for source, target in connections[:4]:
+        np.testing.assert_array_equal(trace[target.replace("_in", "_out")], trace[source])
+    for i in (1, 2, 3):
+        np.testing.assert_array_equal(trace[f"p.a_out[{4 - i}]"], trace[f"types.scaled[{i}]"])
+    k = np.floor(trace["time"].drop_duplicates(keep="last").to_numpy() / 0.5 + 1e-9)
+    assert trace["p.a_out[1]"].drop_duplicates().tolist() == [3.0 * j for j in range(int(k.max()) + 1)]
+    texts = result.statistics["text_outputs"]  # the String, at each change
+    assert texts["p.s_out"] == texts["types.label"] == [[0.5 * j, f"k={j}"] for j in range(6)]
 
 
 def test_the_pythonfmu3_cs_lag_runs_sampled_as_the_recurrence_of_the_sampled_ramp(fmus):
@@ -186,3 +211,35 @@ def test_a_pythonfmu_fmi2_cs_lag_runs_sampled_and_its_refused_step_ends_the_run_
     assert stopped.terminated and stopped.termination_time == pytest.approx(1.3)
     assert "fmi2DoStep: fmi2Discard, then fmi2Terminated, its last successful time 1.2 s" in stopped.termination_reason
     assert stopped.trace["lag.y"].iloc[-1] == pytest.approx(y[12], abs=1e-12)
+
+
+def test_a_crash_inside_the_third_party_fmu_fails_a_supervised_run_named_with_its_trace_so_far(fmus, tmp_path, capsys):
+    from heliostep.cli import main
+    from heliostep.paths import scenarios_dir
+    from heliostep.results.trace_io import read_trace
+
+    # past t_fail the lag's derivatives raise and PythonFMU3's C++ layer dies of it (SIGSEGV): the
+    # supervised run (the master in a child process) says where, keeps the trace so far and exits 1
+    def run(out, t_fail):
+        args = ["run", str(scenarios_dir() / "jan21-central.yaml"), "--out", str(out), "--no-plots"]
+        overrides = (
+            "window.duration=60",
+            f"fmus.lag={fmus['lag_me']}",
+            f"parameters.lag={{T: 0.5, t_fail: {t_fail}}}",
+            "connections=[[motor.tau, mechanics.tau], [mechanics.theta, motor.theta],"
+            " [mechanics.omega, motor.omega], [mechanics.omega, lag.u]]",
+        )
+        return main([*args, *(item for o in overrides for item in ("--set", o))])
+
+    assert run(tmp_path / "complete", 1e300) == 0
+    assert run(tmp_path / "out", 40.0) == 1
+    error = capsys.readouterr().err
+    assert "was killed by SIGSEGV in fmi3GetContinuousStateDerivatives of FMU instance 'lag' (model PyLag)" in error
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["complete"] is False and summary["reason"] == "fmu-crashed"
+    trace, meta = read_trace(tmp_path / "out" / "trace.parquet")
+    assert meta["complete"] == "false" and 20.0 < trace["time"].iloc[-1] <= 40.0
+    # the rows kept are those of the run without the crash, up to where it stopped
+    complete, _ = read_trace(tmp_path / "complete" / "trace.parquet")
+    for column in ("time", "motor.tau", "mechanics.theta_p", "lag.y"):
+        np.testing.assert_array_equal(trace[column].to_numpy(), complete[column].to_numpy()[: len(trace)])

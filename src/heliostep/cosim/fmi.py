@@ -302,7 +302,8 @@ class ModelExchangeInstance(VariableAccess):
                 self.mode = "error"
             elif status >= 4:
                 self.mode = "fatal"
-            status = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+            names = _STATUS if not function.startswith("fmi3") else [n.replace("fmi2", "fmi3") for n in _STATUS]
+            status = names[status] if 0 <= status < len(names) else str(status)  # the function's own version
         error = FMIError(function, self.name, status, self.messages, self.time)
         self.messages.clear()  # never reported twice, never with a later error
         return error

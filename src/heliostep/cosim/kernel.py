@@ -484,6 +484,8 @@ class Kernel:
         fmu = self.instances[self.state.failed_unit]
         time = float(self.state.failed_time)
         fmu.time = time
-        error = fmu.status_error(FUNCTIONS[self.state.failed_function], int(self.state.status))
+        error = fmu.status_error(
+            watch.called_function(self.state.failed_function, fmu.info.fmi_version), int(self.state.status)
+        )
         self.state.status = 0
         return error, time

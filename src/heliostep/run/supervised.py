@@ -49,7 +49,7 @@ from heliostep.cosim.child import Request, serve
 from heliostep.cosim.figures import FigureSpec
 from heliostep.cosim.kernel import library_path
 from heliostep.cosim.rows import RowBuffer
-from heliostep.cosim.watch import FUNCTIONS, LAYOUT, RECORD_BYTES, STOP_OFFSET
+from heliostep.cosim.watch import LAYOUT, RECORD_BYTES, STOP_OFFSET, called_function
 from heliostep.errors import HeliostepError, InputError
 
 __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_supervised"]
@@ -266,8 +266,8 @@ class _Supervisor:
         if calls == 0 or not 0 <= unit < len(self.names):
             return "before any FMU call"
         name = self.names[unit]
-        model = self.request.system.fmus[name].model_name
-        call = FUNCTIONS[function] if 0 <= function < len(FUNCTIONS) else "an FMI call"
+        info = self.request.system.fmus[name]
+        model, call = info.model_name, called_function(function, info.fmi_version)
         at = f" at t = {time:.9g} s" if np.isfinite(time) else ""
         return f"in {call} of FMU instance '{name}' (model {model}){at}"
 

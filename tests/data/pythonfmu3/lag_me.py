@@ -1,7 +1,9 @@
 """A first-order lag T dy/dt = u - y as an FMI 3.0 Model Exchange FMU built by PythonFMU3.
 
 heliostep's tests build it with ``pythonfmu3.builder.FmuBuilder`` (an exporter nobody in the project
-wrote: its own C++ FMI layer, its own modelDescription.xml) and run it against first principles.
+wrote: its own C++ FMI layer, its own modelDescription.xml) and run it against first principles. Past
+``t_fail`` [s] its derivatives raise, which PythonFMU3 0.3.4 does not survive: its C++ layer reads the
+failed call's result (NULL) and the process dies with SIGSEGV, a real third-party crash.
 """
 
 from pythonfmu3 import Float64, Fmi3Causality, Fmi3Initial, Fmi3SlaveBase, Fmi3Variability, ModelExchange
@@ -16,6 +18,7 @@ class PyLag(Fmi3SlaveBase, ModelExchange):
         self.y = 0.0
         self.dery = 0.0
         self.T = 0.5
+        self.t_fail = 1e300
         self.register_variable(
             Float64("time", causality=Fmi3Causality.independent, variability=Fmi3Variability.continuous)
         )
@@ -33,7 +36,10 @@ class PyLag(Fmi3SlaveBase, ModelExchange):
             Float64("dery", causality=Fmi3Causality.local, variability=Fmi3Variability.continuous, derivative=2)
         )
         self.register_variable(Float64("T", causality=Fmi3Causality.parameter, variability=Fmi3Variability.fixed))
+        self.register_variable(Float64("t_fail", causality=Fmi3Causality.parameter, variability=Fmi3Variability.fixed))
 
     def get_continuous_state_derivatives(self):
+        if self.time > self.t_fail:
+            raise ValueError(f"failing on request past t_fail = {self.t_fail} s")
         self.dery = (self.u - self.y) / self.T
         return [self.dery]

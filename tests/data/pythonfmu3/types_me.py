@@ -1,7 +1,8 @@
 """Outputs of several FMI 3.0 types and an array, as a Model Exchange FMU built by PythonFMU3: at time
 events every ``period`` [s] (fmi3UpdateDiscreteStates: nextEventTime) the event count k steps by one,
 and the outputs are ``whole`` (Int32) = k, ``big`` (Int64) = k * 2^33, ``unsigned`` (UInt64) = k + 2^40,
-``odd`` (Boolean) = k odd, ``scaled`` (Float64[3], discrete) = (k, 2k, 3k). No state."""
+``odd`` (Boolean) = k odd, ``label`` (String) = "k=<k>", ``scaled`` (Float64[3], discrete) = (k, 2k, 3k).
+No state."""
 
 import numpy as np
 from pythonfmu3 import (
@@ -15,6 +16,7 @@ from pythonfmu3 import (
     Int32,
     Int64,
     ModelExchange,
+    String,
     UInt64,
 )
 
@@ -29,6 +31,7 @@ class PyTypes(Fmi3SlaveBase, ModelExchange):
         self.big = 0
         self.unsigned = 2**40
         self.odd = False
+        self.label = "k=0"
         self.scaled = np.zeros(3)
         discrete = Fmi3Variability.discrete
         self.register_variable(
@@ -39,6 +42,7 @@ class PyTypes(Fmi3SlaveBase, ModelExchange):
         self.register_variable(Int64("big", causality=Fmi3Causality.output, variability=discrete))
         self.register_variable(UInt64("unsigned", causality=Fmi3Causality.output, variability=discrete))
         self.register_variable(Boolean("odd", causality=Fmi3Causality.output, variability=discrete))
+        self.register_variable(String("label", causality=Fmi3Causality.output, variability=discrete))
         self.register_variable(
             Float64("scaled", causality=Fmi3Causality.output, variability=discrete, dimensions=[Dimension(start="3")])
         )
@@ -51,5 +55,6 @@ class PyTypes(Fmi3SlaveBase, ModelExchange):
         if self.time >= due - 1e-9 * max(1.0, due):
             k = self.whole + 1
             self.whole, self.big, self.unsigned, self.odd = k, k * 2**33, k + 2**40, k % 2 == 1
+            self.label = f"k={k}"
             self.scaled = np.array([k, 2.0 * k, 3.0 * k])
         return Fmi3UpdateDiscreteStatesResult(nextEventTimeDefined=True, nextEventTime=self.period * (self.whole + 1))
