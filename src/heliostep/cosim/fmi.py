@@ -379,14 +379,18 @@ class ModelExchangeInstance(VariableAccess):
         self._call("fmi2EnterEventMode")
         self.mode = "event"
 
-    def update_discrete_states(self, max_iterations: int = 100) -> EventResult:
-        """Iterate fmi2NewDiscreteStates until the FMU needs no more (FMI 2.0 event iteration)."""
+    def update_discrete_states(self, max_iterations: int = 100, first=None) -> EventResult:
+        """Iterate fmi2NewDiscreteStates until the FMU needs no more (FMI 2.0 event iteration). ``first``:
+        the fmi2EventInfo of a first call already made (by the compiled kernel), the iteration goes on from it."""
         from fmpy.fmi2 import fmi2EventInfo
 
         info = fmi2EventInfo()
         changed = nominals = False
-        for _ in range(max_iterations):
-            self._call("fmi2NewDiscreteStates", ctypes.byref(info))
+        for iteration in range(max_iterations):
+            if iteration == 0 and first is not None:
+                ctypes.memmove(ctypes.byref(info), ctypes.byref(first), ctypes.sizeof(info))  # that answer
+            else:
+                self._call("fmi2NewDiscreteStates", ctypes.byref(info))
             changed |= bool(info.valuesOfContinuousStatesChanged)
             nominals |= bool(info.nominalsOfContinuousStatesChanged)
             if info.terminateSimulation or not info.newDiscreteStatesNeeded:

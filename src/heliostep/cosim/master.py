@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from heliostep.cosim import fast_events as events
 from heliostep.cosim.connections import ConnectionGraph
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
 from heliostep.cosim.figures import KERNEL_FIGURES, FigureSpec, FigureTotals, KernelFigures
@@ -281,6 +282,7 @@ class _Run:
         self.integrator: Integrator | None = None  # once the FMUs are initialized
         self.texts: TextOutputs | None = None  # the String and Binary outputs, if any
         self._no_outputs = np.zeros(0)
+        self.fast_events: events.FastEvents | None = None  # the events in one call of the kernel, where allowed
 
     # --------------------------------------------------------------- results
     def failure(self, exc: BaseException) -> SimulationError:
@@ -318,9 +320,11 @@ class _Run:
         trace; then ``should_stop`` is asked (on a stop, the last row ends the trace)."""
         if self.monitor is not None and self.figures is None:  # with figures in the kernel: taken there
             self.monitor(rows)
-        outputs = kinds == 1
-        if outputs.any():
-            self.rows.store(rows[outputs].copy())
+        outputs = np.count_nonzero(kinds)  # kinds are 0 or 1
+        if outputs == len(kinds):  # all output rows (figures in the kernel: the steps' rows stay there)
+            self.rows.store(rows.copy())
+        elif outputs:
+            self.rows.store(rows[kinds == 1].copy())
         self.time = float(rows[-1, 0])
         if self.should_stop is not None and self.should_stop():
             if kinds[-1] != 1:  # the trace ends where the run stops: at the last solution row
@@ -343,10 +347,24 @@ class _Run:
             raise stop
 
     def _event(
-        self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool, input_time: float | None = None
+        self,
+        system: CoupledSystem,
+        integrator: Integrator,
+        t: float,
+        new_inputs: bool,
+        input_time: float | None = None,
+        prepare: bool = False,
     ) -> None:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after. An input
-        change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``)."""
+        change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``).
+        With the compiled events (:mod:`~heliostep.cosim.fast_events`) this is one call of the kernel
+        (``prepare``: the time set and the connections copied in it first), the Python path after it
+        where an FMU's answer asks for more."""
+        if self.fast_events is not None:
+            events.fast_event(
+                self, system, integrator, t, new_inputs, t if input_time is None else max(t, input_time), prepare
+            )
+            return
         self.record(t)
         self._event_iteration(system, t, new_inputs, t if input_time is None else max(t, input_time))
         try:
@@ -437,6 +455,15 @@ class _Run:
             compiled=COMPILED_RHS,
         )
         kernel = getattr(integrator, "kernel", None)
+        served = (
+            self.graph.sampled is None and self.texts is None and (self.monitor is None or self.figures is not None)
+        )
+        if events.fast_events(system, kernel, integrator.compiled, served):
+            x = getattr(integrator, "x")  # noqa: B009 - CVODE's state vector, read by the kernel at the restart
+            self.fast_events = events.FastEvents(
+                system, kernel, self.graph.inputs, self.input_values, integrator.cvode_mem, x
+            )
+            integrator.states = events.CompiledStates(system, self.fast_events)  # type: ignore[attr-defined]
         if self.figures is not None and kernel is not None:
             kernel.state.figures = self.figures.address
         elif self.figures is not None:  # no one-step loop in C: the rows to the monitor after all
@@ -514,6 +541,12 @@ class _Run:
     ) -> None:
         """At the time reached: the FMUs' completed step, then the event there or the output row."""
         self.time = t
+        if self.fast_events is not None and not system.needs_step_call and (state_event or input_event or time_event):
+            self.counts["state_events"] += int(state_event)
+            self.counts["time_events"] += int(time_event)
+            self._event(system, integrator, t, new_inputs=input_event, prepare=True)  # the time set in the kernel
+            self._report(t)
+            return
         system.set_time(t)
         system.propagate()
         step_event = False
@@ -532,6 +565,10 @@ class _Run:
             self._event(system, integrator, t, new_inputs=input_event)
         elif t >= t_output:
             self.record(t)
+        self._report(t)
+
+    def _report(self, t: float) -> None:
+        """After each solver call: the progress, then ``should_stop`` asked."""
         if self.progress:
             self.progress(t)
         if self.should_stop is not None and self.should_stop():
