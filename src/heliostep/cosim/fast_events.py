@@ -13,9 +13,13 @@ kernel stops right after that FMU's call and the master goes on in Python from t
 when the outputs changed in the round (the next round in Python).
 
 :func:`fast_events` says whether a run can use it: FMI 2.0 units only, every connection continuous and
-Real (the kernel's own links), no algebraic loop, every master input driving a Real input, no Boolean
-output, no sampled Co-Simulation component, no String output, the compiled right-hand side, and the
-rows the monitor sees accumulated in the kernel (or no monitor). Anything else takes the Python path,
+Real (the kernel's own links), no algebraic loop, every master input driving a Real input, no sampled
+Co-Simulation component, no String output, the compiled right-hand side, and the rows the monitor sees
+accumulated in the kernel (or no monitor). The outputs are read as the kernel reads every row
+(``read_row``: a Boolean as 0 or 1, FMI's fmi2True and fmi2False).
+
+``statistics["compiled_events"]`` counts the events done wholly in the kernel, ``["resumed_events"]``
+those it began and the Python path finished. Anything else takes the Python path,
 as does every run with :data:`FAST_EVENTS` off (``HELIOSTEP_FAST_EVENTS=0``).
 """
 
@@ -138,7 +142,7 @@ def fast_events(system: CoupledSystem, kernel: Kernel | None, compiled: bool, se
         return False
     graph = system.graph
     for unit in system.unit_list:
-        if unit.info.fmi_version != "2.0" or any(unit.info.variable(o).type == "Boolean" for o in unit.outputs):
+        if unit.info.fmi_version != "2.0":
             return False
     for item in graph.inputs:
         if item.target:
@@ -182,24 +186,23 @@ class FastEvents:
                 targets.append((k, index[instance], system.units[instance].info.variable(variable).value_reference))
         width = int(kernel.state.row_width)
         self.n_outputs = width - 1 - len(inputs)
-        self._keep = [
-            signals,
-            np.array([s[0].ctypes.data for s in signals] or [0], dtype=np.uintp),
+        arrays: list[np.ndarray] = [
+            np.array([s[0].ctypes.data for s in signals] or [0], dtype=np.uintp),  # times
             np.array([len(s[0]) for s in signals] or [0], dtype=np.int64),
-            np.array([s[1].ctypes.data for s in signals] or [0], dtype=np.uintp),
+            np.array([s[1].ctypes.data for s in signals] or [0], dtype=np.uintp),  # values
             np.array([t[0] for t in targets] or [0], dtype=np.int64),
             np.array([t[1] for t in targets] or [0], dtype=np.int64),
             np.array([t[2] for t in targets] or [0], dtype=np.uint32),
-            np.zeros((2, width)),
-            values,
+            np.zeros((2, width)),  # work
         ]
+        self._keep = (signals, arrays, values)  # the C structure holds their addresses
         s = self.events = Events()
         s.units = ctypes.addressof(self._units)
         s.n_inputs, s.inputs = len(inputs), values.ctypes.data
-        s.times, s.n_times, s.values = (a.ctypes.data for a in self._keep[1:4])
+        s.times, s.n_times, s.values = (a.ctypes.data for a in arrays[0:3])
         s.n_targets = len(targets)
-        s.target_input, s.target_unit, s.target_vr = (a.ctypes.data for a in self._keep[4:7])
-        s.n_outputs, s.work = self.n_outputs, self._keep[7].ctypes.data
+        s.target_input, s.target_unit, s.target_vr = (a.ctypes.data for a in arrays[3:6])
+        s.n_outputs, s.work = self.n_outputs, arrays[6].ctypes.data
         s.reinit = sundials.cvode_address("CVodeReInit")
         code = watch.FUNCTIONS.index
         s.f_enter_event, s.f_new_discrete = code("fmi2EnterEventMode"), code("fmi2NewDiscreteStates")
@@ -243,6 +246,7 @@ def fast_event(
             unit.fmu.time = t
     args = fast.args
     if status == EVENT_DONE:
+        run.counts["compiled_events"] += 1
         for unit in units:
             unit.next_event_time = None
         trace = run.rows
@@ -256,6 +260,7 @@ def fast_event(
         run.rows.store(fast.rows[:1].copy())
     if status < 0:
         _raise_failure(run, fast, integrator, status)
+    run.counts["resumed_events"] += 1
     for unit in units:  # all in event mode, the first round begun
         unit.fmu.mode = "event"
     general = status == EVENT_GENERAL

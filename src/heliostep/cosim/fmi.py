@@ -379,9 +379,13 @@ class ModelExchangeInstance(VariableAccess):
         self._call("fmi2EnterEventMode")
         self.mode = "event"
 
-    def update_discrete_states(self, max_iterations: int = 100, first=None) -> EventResult:
-        """Iterate fmi2NewDiscreteStates until the FMU needs no more (FMI 2.0 event iteration). ``first``:
-        the fmi2EventInfo of a first call already made (by the compiled kernel), the iteration goes on from it."""
+    def update_discrete_states(self, max_iterations: int = 100) -> EventResult:
+        """Iterate fmi2NewDiscreteStates until the FMU needs no more (FMI 2.0 event iteration)."""
+        return self.resume_discrete_states(None, max_iterations)
+
+    def resume_discrete_states(self, first, max_iterations: int = 100) -> EventResult:
+        """:meth:`update_discrete_states` going on from ``first``, the fmi2EventInfo of a first call already
+        made (by the compiled kernel, :mod:`~heliostep.cosim.fast_events`; None: none made)."""
         from fmpy.fmi2 import fmi2EventInfo
 
         info = fmi2EventInfo()

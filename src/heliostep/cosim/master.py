@@ -274,6 +274,7 @@ class _Run:
         self.input_values = np.array([item.values[0] for item in graph.inputs], dtype=float)
         self.time = np.nan
         self.counts = {"integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
+        self.counts.update(compiled_events=0, resumed_events=0)  # events in the kernel (fast_events)
         self.wall_start = clock.perf_counter()
         self.terminated, self.termination_reason = False, ""
         self.termination_time: float | None = None
@@ -458,11 +459,9 @@ class _Run:
         served = (
             self.graph.sampled is None and self.texts is None and (self.monitor is None or self.figures is not None)
         )
-        if events.fast_events(system, kernel, integrator.compiled, served):
-            x = getattr(integrator, "x")  # noqa: B009 - CVODE's state vector, read by the kernel at the restart
-            self.fast_events = events.FastEvents(
-                system, kernel, self.graph.inputs, self.input_values, integrator.cvode_mem, x
-            )
+        if kernel is not None and events.fast_events(system, kernel, integrator.compiled, served):
+            memory, x = getattr(integrator, "cvode_mem"), getattr(integrator, "x")  # noqa: B009 - CVODE's, for the restart
+            self.fast_events = events.FastEvents(system, kernel, self.graph.inputs, self.input_values, memory, x)
             integrator.states = events.CompiledStates(system, self.fast_events)  # type: ignore[attr-defined]
         if self.figures is not None and kernel is not None:
             kernel.state.figures = self.figures.address
