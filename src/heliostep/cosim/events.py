@@ -71,7 +71,7 @@ def discrete_fixed_point(
         stop = []
         for unit in system.unit_list[start:]:
             if first is not None:
-                result, first = unit.fmu.resume_discrete_states(first), None  # an FMI 2.0 unit
+                result, first = unit.fmu.update_discrete_states(first=first), None  # an FMI 2.0 unit
             else:
                 result = unit.fmu.update_discrete_states()
             changed |= result.states_changed

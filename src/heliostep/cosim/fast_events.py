@@ -231,12 +231,23 @@ class FastEvents:
                 unit.fmu.mode = "event"
 
 
-def fast_event(
-    run: Any, system: CoupledSystem, integrator: Any, t: float, new_inputs: bool, input_time: float, prepare: bool
-) -> None:
-    """The master's event at ``t`` [s] through :c:func:`hs_event` (``run``: the master's ``_Run``): both rows
-    stored, or the Python path from where the kernel stopped (:class:`~heliostep.cosim.events.Resume`);
-    a failure raised as the Python path raises it."""
+def compiled_events(run: Any, system: CoupledSystem, integrator: Any, kernel: Kernel | None) -> FastEvents | None:
+    """The run's :class:`FastEvents` where :func:`fast_events` allows them (``run``: the master's ``_Run``;
+    ``integrator``: its CVODE on ``kernel``), the integrator's states then read and set by the kernel too."""
+    served = run.graph.sampled is None and run.texts is None and (run.monitor is None or run.figures is not None)
+    if kernel is None or not fast_events(system, kernel, integrator.compiled, served):
+        return None
+    fast = FastEvents(system, kernel, run.graph.inputs, run.input_values, integrator.cvode_mem, integrator.x)
+    integrator.states = CompiledStates(system, fast)
+    return fast
+
+
+def fast_event(run: Any, t: float, new_inputs: bool, input_time: float, prepare: bool = False) -> None:
+    """The master's event at ``t`` [s] through :c:func:`hs_event` (``run``: the master's ``_Run``; ``prepare``:
+    the time set and the connections copied first, in the kernel): both rows stored, or the Python path from
+    where the kernel stopped (:class:`~heliostep.cosim.events.Resume`); a failure raised as the Python path
+    raises it."""
+    system, integrator = run.system, run.integrator
     fast: FastEvents = run.fast_events
     run.counts["events"] += 1
     status = fast(t, new_inputs, input_time, prepare)

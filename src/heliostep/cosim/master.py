@@ -274,7 +274,7 @@ class _Run:
         self.input_values = np.array([item.values[0] for item in graph.inputs], dtype=float)
         self.time = np.nan
         self.counts = {"integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
-        self.counts.update(compiled_events=0, resumed_events=0)  # events in the kernel (fast_events)
+        self.counts.update(compiled_events=0, resumed_events=0)  # (fast_events) in the kernel, begun there
         self.wall_start = clock.perf_counter()
         self.terminated, self.termination_reason = False, ""
         self.termination_time: float | None = None
@@ -321,11 +321,9 @@ class _Run:
         trace; then ``should_stop`` is asked (on a stop, the last row ends the trace)."""
         if self.monitor is not None and self.figures is None:  # with figures in the kernel: taken there
             self.monitor(rows)
-        outputs = np.count_nonzero(kinds)  # kinds are 0 or 1
-        if outputs == len(kinds):  # all output rows (figures in the kernel: the steps' rows stay there)
-            self.rows.store(rows.copy())
-        elif outputs:
-            self.rows.store(rows[kinds == 1].copy())
+        outputs = kinds == 1
+        if outputs.any():
+            self.rows.store(rows[outputs].copy())
         self.time = float(rows[-1, 0])
         if self.should_stop is not None and self.should_stop():
             if kinds[-1] != 1:  # the trace ends where the run stops: at the last solution row
@@ -348,24 +346,12 @@ class _Run:
             raise stop
 
     def _event(
-        self,
-        system: CoupledSystem,
-        integrator: Integrator,
-        t: float,
-        new_inputs: bool,
-        input_time: float | None = None,
-        prepare: bool = False,
+        self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool, input_time: float | None = None
     ) -> None:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after. An input
-        change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``).
-        With the compiled events (:mod:`~heliostep.cosim.fast_events`) this is one call of the kernel
-        (``prepare``: the time set and the connections copied in it first), the Python path after it
-        where an FMU's answer asks for more."""
-        if self.fast_events is not None:
-            events.fast_event(
-                self, system, integrator, t, new_inputs, t if input_time is None else max(t, input_time), prepare
-            )
-            return
+        change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``)."""
+        if self.fast_events is not None:  # in one call of the kernel (the Python path after it where asked)
+            return events.fast_event(self, t, new_inputs, t if input_time is None else max(t, input_time))
         self.record(t)
         self._event_iteration(system, t, new_inputs, t if input_time is None else max(t, input_time))
         try:
@@ -456,13 +442,7 @@ class _Run:
             compiled=COMPILED_RHS,
         )
         kernel = getattr(integrator, "kernel", None)
-        served = (
-            self.graph.sampled is None and self.texts is None and (self.monitor is None or self.figures is not None)
-        )
-        if kernel is not None and events.fast_events(system, kernel, integrator.compiled, served):
-            memory, x = getattr(integrator, "cvode_mem"), getattr(integrator, "x")  # noqa: B009 - CVODE's, for the restart
-            self.fast_events = events.FastEvents(system, kernel, self.graph.inputs, self.input_values, memory, x)
-            integrator.states = events.CompiledStates(system, self.fast_events)  # type: ignore[attr-defined]
+        self.fast_events = events.compiled_events(self, system, integrator, kernel)
         if self.figures is not None and kernel is not None:
             kernel.state.figures = self.figures.address
         elif self.figures is not None:  # no one-step loop in C: the rows to the monitor after all
@@ -540,14 +520,10 @@ class _Run:
     ) -> None:
         """At the time reached: the FMUs' completed step, then the event there or the output row."""
         self.time = t
-        if self.fast_events is not None and not system.needs_step_call and (state_event or input_event or time_event):
-            self.counts["state_events"] += int(state_event)
-            self.counts["time_events"] += int(time_event)
-            self._event(system, integrator, t, new_inputs=input_event, prepare=True)  # the time set in the kernel
-            self._report(t)
-            return
-        system.set_time(t)
-        system.propagate()
+        prepare = self.fast_events is not None and not system.needs_step_call  # then in the kernel's event call
+        if not (prepare and (state_event or input_event or time_event)):
+            system.set_time(t)
+            system.propagate()
         step_event = False
         for unit in system.needs_step_call:
             enter, terminate = unit.fmu.completed_integrator_step()
@@ -561,13 +537,12 @@ class _Run:
         if state_event or step_event or input_event or time_event:
             self.counts["state_events"] += int(state_event)
             self.counts["time_events"] += int(time_event)
-            self._event(system, integrator, t, new_inputs=input_event)
+            if prepare:
+                events.fast_event(self, t, input_event, t, prepare=True)
+            else:
+                self._event(system, integrator, t, new_inputs=input_event)
         elif t >= t_output:
             self.record(t)
-        self._report(t)
-
-    def _report(self, t: float) -> None:
-        """After each solver call: the progress, then ``should_stop`` asked."""
         if self.progress:
             self.progress(t)
         if self.should_stop is not None and self.should_stop():
