@@ -165,3 +165,46 @@ def test_idle_reduction_cuts_holding_energy_by_the_square(fraction, microsteps):
     e_idle = holding_energy(*idle_currents(schedule, zero, end), end, R_PHASE)
     assert e_full == pytest.approx(R_PHASE * current**2 * end)
     assert e_idle / e_full == pytest.approx(fraction**2, rel=1e-12)
+
+
+def _walk_by_whole_spline_roots(reference, sequencer, fraction=0.5):
+    """The schedule the long way: at each step, every root of the whole spline (scipy's public
+    ``PPoly.solve``) at the two trigger levels, the direction from the slope's sign, the first after t."""
+    start, stop = reference.x[0], reference.x[-1]
+    slope = reference.derivative()
+    index = sequencer.nearest_index(float(reference(start)))
+    t, times, indices = start, [], []
+    while True:
+        position = float(sequencer.position(index))
+        found = []
+        for level, direction in (
+            (position + fraction * sequencer.increment, 1),
+            (position - fraction * sequencer.increment, -1),
+        ):
+            roots = [r for r in reference.solve(level, extrapolate=False) if np.isfinite(r) and start < r <= stop]
+            later = [r for r in roots if r > t and np.sign(slope(r)) == direction]
+            found.append(min(later) if later else np.inf)
+        if not np.isfinite(min(found)):
+            return np.array(times), np.array(indices)
+        t, index = (found[0], index + 1) if found[0] <= found[1] else (found[1], index - 1)
+        times.append(t)
+        indices.append(index)
+
+
+@pytest.mark.parametrize("lattice", [True, False], ids=["levels solved at once", "one level at a time"])
+def test_the_schedule_is_the_whole_spline_roots_bit_for_bit(lattice, monkeypatch):
+    """A reference that rises, turns and falls over 600 pieces (a sun-like swing with a wobble): the
+    schedule solved from the lattice of levels at once, and one level at a time, is the long way's bit for bit."""
+    import heliostep.drive.sequencer as sequencer_module
+
+    if not lattice:
+        monkeypatch.setattr(sequencer_module, "LATTICE_MAX_LEVELS", 0)
+    times = np.linspace(0.0, 600.0, 601)
+    angle = 0.4 * np.sin(times / 200.0) + 0.002 * np.sin(times / 7.0)
+    reference = reference_interpolant(times, angle)
+    sequencer = Sequencer(step_angle=STEP / 4)
+    schedule = schedule_steps(reference, sequencer)
+    expected_times, expected_indices = _walk_by_whole_spline_roots(reference, sequencer)
+    assert len(schedule) > 80 and np.any(np.diff(schedule.indices) < 0)  # it steps both ways
+    assert np.array_equal(schedule.times.view(np.uint64), expected_times.view(np.uint64))
+    assert np.array_equal(schedule.indices, expected_indices)

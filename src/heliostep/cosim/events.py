@@ -11,13 +11,15 @@ raises :class:`Terminated`, which ends the run normally at that instant.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from heliostep.cosim.system import CoupledSystem
 from heliostep.errors import RunFailure
 
-__all__ = ["Terminated", "discrete_fixed_point", "event_iteration"]
+__all__ = ["Resume", "Terminated", "discrete_fixed_point", "event_iteration"]
 
 #: the event-iteration function of each FMI version, for the messages
 _UPDATE_FUNCTION = {"2.0": "fmi2NewDiscreteStates", "3.0": "fmi3UpdateDiscreteStates"}
@@ -33,20 +35,45 @@ class Terminated(Exception):
         self.instances = tuple(instances)  # the instances that asked
 
 
-def discrete_fixed_point(system: CoupledSystem, time: float, max_rounds: int = 100) -> bool:
+@dataclass
+class Resume:
+    """Where the compiled kernel (:mod:`heliostep.cosim.fast_events`) left a first round of
+    ``fmi2NewDiscreteStates`` for the Python path to go on from: the outputs the round propagated from,
+    and ``unit``, the index of the unit whose first call's answer ``info`` (an fmi2EventInfo) asks for more
+    (its iteration goes on from it, then the units after it); ``unit`` None: the round is complete and
+    changed the outputs to ``previous`` (the next round follows). The units before ``unit`` answered
+    with no flag set."""
+
+    previous: np.ndarray
+    unit: int | None = None
+    info: Any = None
+
+
+def discrete_fixed_point(
+    system: CoupledSystem, time: float, max_rounds: int = 100, resume: Resume | None = None
+) -> bool:
     """NewDiscreteStates on every FMU, re-propagating outputs, until nothing changes; whether a
-    discrete state changed. ``time`` [s] is the run's time, for the messages.
+    discrete state changed. ``time`` [s] is the run's time, for the messages; ``resume``: go on from
+    a first round the compiled kernel began (:class:`Resume`).
 
     The outputs are compared with those the round propagated from (read before the first
     round): when NewDiscreteStates changed none, the inputs set from them are consistent
     and one round is the fixed point (a step instant of the shipped drive needs one)."""
     changed = False
-    previous = system.outputs()
-    for _ in range(max_rounds):
-        system.propagate_at_event()
+    previous = system.outputs() if resume is None else resume.previous
+    rounds = range(max_rounds) if resume is None or resume.unit is not None else range(1, max_rounds)
+    for round_ in rounds:
+        start, first = 0, None
+        if resume is not None and resume.unit is not None and round_ == 0:
+            start, first = resume.unit, resume.info  # the kernel propagated and called the units before
+        else:
+            system.propagate_at_event()
         stop = []
-        for unit in system.unit_list:
-            result = unit.fmu.update_discrete_states()
+        for unit in system.unit_list[start:]:
+            if first is not None:
+                result, first = unit.fmu.update_discrete_states(first=first), None  # an FMI 2.0 unit
+            else:
+                result = unit.fmu.update_discrete_states()
             changed |= result.states_changed
             system.nominals_changed |= result.nominals_changed
             unit.next_event_time = result.next_event_time

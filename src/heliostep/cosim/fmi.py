@@ -72,10 +72,9 @@ _logger_callback = None
 
 def _dispatch_log(environment, instance_name, status, category, message) -> None:
     """The fmi2CallbackLogger of every instance: the message goes to the instance whose
-    componentEnvironment the FMU passes back (by instance name for FMUs that pass none).
-
-    fmpy's native logger proxy (which formats the printf-style arguments ctypes cannot see)
-    keeps a single logger per process; it is always this one function, so that does not matter."""
+    componentEnvironment the FMU passes back (by instance name for FMUs that pass none). fmpy's native
+    logger proxy (which formats the printf-style arguments ctypes cannot see) keeps a single logger per
+    process; it is always this one function, so that does not matter."""
     try:
         instance = _by_environment.get(environment or 0)
         name = instance_name.decode("utf-8", "replace") if isinstance(instance_name, bytes) else str(instance_name)
@@ -182,8 +181,7 @@ class EventResult:
 
 
 def _callbacks(environment: int):
-    """fmi2CallbackFunctions for one instance: heliostep's logger (its messages routed by
-    ``componentEnvironment``), memory through fmpy's calloc/free."""
+    """fmi2CallbackFunctions for one instance: heliostep's logger (routed by componentEnvironment), fmpy's memory."""
     from fmpy import calloc, free
     from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions
 
@@ -380,14 +378,18 @@ class ModelExchangeInstance(VariableAccess):
         self._call("fmi2EnterEventMode")
         self.mode = "event"
 
-    def update_discrete_states(self, max_iterations: int = 100) -> EventResult:
-        """Iterate fmi2NewDiscreteStates until the FMU needs no more (FMI 2.0 event iteration)."""
+    def update_discrete_states(self, max_iterations: int = 100, first=None) -> EventResult:
+        """Iterate fmi2NewDiscreteStates until the FMU needs no more (FMI 2.0 event iteration); ``first``: the
+        fmi2EventInfo of a first call already made (the compiled kernel's, :mod:`~heliostep.cosim.fast_events`)."""
         from fmpy.fmi2 import fmi2EventInfo
 
         info = fmi2EventInfo()
         changed = nominals = False
-        for _ in range(max_iterations):
-            self._call("fmi2NewDiscreteStates", ctypes.byref(info))
+        for iteration in range(max_iterations):
+            if iteration or first is None:
+                self._call("fmi2NewDiscreteStates", ctypes.byref(info))
+            else:  # the kernel's call: its answer
+                ctypes.memmove(ctypes.byref(info), ctypes.byref(first), ctypes.sizeof(info))
             changed |= bool(info.valuesOfContinuousStatesChanged)
             nominals |= bool(info.nominalsOfContinuousStatesChanged)
             if info.terminateSimulation or not info.newDiscreteStatesNeeded:

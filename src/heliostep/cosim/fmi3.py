@@ -333,7 +333,7 @@ class ModelExchange3Instance(ModelExchangeInstance):
         self._call3("fmi3EnterEventMode")
         self.mode = "event"
 
-    def update_discrete_states(self, max_iterations: int = 100) -> EventResult:
+    def update_discrete_states(self, max_iterations: int = 100, first: None = None) -> EventResult:
         """Iterate fmi3UpdateDiscreteStates until ``discreteStatesNeedUpdate`` is false (or it terminates)."""
         need, terminate, nominals, values, defined = (ctypes.c_bool() for _ in range(5))
         next_time = ctypes.c_double()

@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from heliostep.cosim import fast_events as events
 from heliostep.cosim.connections import ConnectionGraph
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
 from heliostep.cosim.figures import KERNEL_FIGURES, FigureSpec, FigureTotals, KernelFigures
@@ -273,6 +274,7 @@ class _Run:
         self.input_values = np.array([item.values[0] for item in graph.inputs], dtype=float)
         self.time = np.nan
         self.counts = {"integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
+        self.counts.update(compiled_events=0, resumed_events=0)  # (fast_events) in the kernel, begun there
         self.wall_start = clock.perf_counter()
         self.terminated, self.termination_reason = False, ""
         self.termination_time: float | None = None
@@ -281,6 +283,7 @@ class _Run:
         self.integrator: Integrator | None = None  # once the FMUs are initialized
         self.texts: TextOutputs | None = None  # the String and Binary outputs, if any
         self._no_outputs = np.zeros(0)
+        self.fast_events: events.FastEvents | None = None  # the events in one call of the kernel, where allowed
 
     # --------------------------------------------------------------- results
     def failure(self, exc: BaseException) -> SimulationError:
@@ -347,6 +350,8 @@ class _Run:
     ) -> None:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after. An input
         change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``)."""
+        if self.fast_events is not None:  # in one call of the kernel (the Python path after it where asked)
+            return events.fast_event(self, t, new_inputs, t if input_time is None else max(t, input_time))
         self.record(t)
         self._event_iteration(system, t, new_inputs, t if input_time is None else max(t, input_time))
         try:
@@ -437,6 +442,7 @@ class _Run:
             compiled=COMPILED_RHS,
         )
         kernel = getattr(integrator, "kernel", None)
+        self.fast_events = events.compiled_events(self, system, integrator, kernel)
         if self.figures is not None and kernel is not None:
             kernel.state.figures = self.figures.address
         elif self.figures is not None:  # no one-step loop in C: the rows to the monitor after all
@@ -519,8 +525,10 @@ class _Run:
     ) -> None:
         """At the time reached: the FMUs' completed step, then the event there or the output row."""
         self.time = t
-        system.set_time(t)
-        system.propagate()
+        prepare = self.fast_events is not None and not system.needs_step_call  # then in the kernel's event call
+        if not (prepare and (state_event or input_event or time_event)):
+            system.set_time(t)
+            system.propagate()
         step_event = False
         for unit in system.needs_step_call:
             enter, terminate = unit.fmu.completed_integrator_step()
@@ -534,7 +542,10 @@ class _Run:
         if state_event or step_event or input_event or time_event:
             self.counts["state_events"] += int(state_event)
             self.counts["time_events"] += int(time_event)
-            self._event(system, integrator, t, new_inputs=input_event)
+            if prepare:
+                events.fast_event(self, t, input_event, t, prepare=True)
+            else:
+                self._event(system, integrator, t, new_inputs=input_event)
         elif t >= t_output:
             self.record(t)
         if self.progress:

@@ -19,12 +19,22 @@ Stable positions follow from the torque law C = −k_e i_a sin(N_c θ) − k_e i
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator, PPoly
+from scipy.interpolate import PchipInterpolator
+
+try:  # the root finder of scipy's PPoly.solve, called as it calls it (without its per-call Python)
+    from scipy.interpolate._ppoly import real_roots as _real_roots
+except ImportError:  # pragma: no cover - another scipy: the same through the public API
+    from scipy.interpolate import PPoly
+
+    def _real_roots(c, x, y, discontinuity, extrapolate):
+        return [PPoly.construct_fast(c[:, :, 0], x, extrapolate=extrapolate).solve(y, discontinuity, extrapolate)]
+
 
 from heliostep.errors import InputError
 from heliostep.scenario import SEQUENCER_MODES, SEQUENCER_TRIGGERS, SequencerConfig
@@ -193,12 +203,20 @@ def schedule_steps(
     start = reference.x[0]
     if initial_index is None:
         initial_index = sequencer.nearest_index(float(reference(start)))
-    next_crossing = _LevelCrossings(reference).next_crossing
+    crossings = _LevelCrossings(reference)
+    increment = sequencer.increment
+    step = fraction * increment
+    lattice = crossings.lattice(sequencer, step, initial_index)  # every level with a crossing, solved at once
+    next_crossing = crossings.next_crossing
     times, indices, index, t = [], [], initial_index, start
     while True:
-        position = float(sequencer.position(index))
-        up = next_crossing(position + fraction * sequencer.increment, +1, t)
-        down = next_crossing(position - fraction * sequencer.increment, -1, t)
+        if lattice is not None and lattice[0] <= index < lattice[0] + len(lattice[1]):
+            up_level, down_level = lattice[1][index - lattice[0]], lattice[2][index - lattice[0]]
+        else:  # (never: the lattice spans the reference's range)
+            position = float(sequencer.position(index))
+            up_level, down_level = position + step, position - step
+        up = next_crossing(up_level, +1, t)
+        down = next_crossing(down_level, -1, t)
         if not np.isfinite(min(up, down)):
             break
         t, index = (up, index + 1) if up <= down else (down, index - 1)
@@ -207,6 +225,10 @@ def schedule_steps(
         if should_stop is not None and len(times) % STOP_CHECK_STEPS == 0 and should_stop():
             raise PreparationStopped(f"stopped while scheduling the steps ({len(times)} so far, t = {t:.6g} s)")
     return StepSchedule(np.array(times, dtype=float), np.array(indices, dtype=int), initial_index)
+
+
+#: Levels solved at once at most (beyond, each level is solved when the walk reaches it).
+LATTICE_MAX_LEVELS = 4_000_000
 
 
 class _LevelCrossings:
@@ -220,38 +242,82 @@ class _LevelCrossings:
         self.reference = reference
         self.start, self.stop = reference.x[0], reference.x[-1]
         self.slope = reference.derivative()
-        self._crossings: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._crossings: dict[float, tuple[list[float], list[int]]] = {}
         self.knots = reference.x
+        self._piece_c = np.ascontiguousarray(np.transpose(reference.c)[:, :, None, None])  # piece k: (4, 1, 1)
         ends = reference(self.knots)
         self.piece_low, self.piece_high = np.minimum(ends[:-1], ends[1:]), np.maximum(ends[:-1], ends[1:])
         self.margin = 1e-12 * max(1.0, float(np.abs(ends).max()))
 
     def solve(self, level: float) -> list[float]:
         """The times where the reference equals ``level`` [rad], sorted, near-duplicates merged."""
-        reference, knots, margin = self.reference, self.knots, self.margin
+        margin = self.margin
         pieces = np.nonzero((self.piece_low - margin <= level) & (level <= self.piece_high + margin))[0]
-        roots = []
-        for k in pieces:  # construct_fast: the same piece without __init__'s checks (a third of the time)
-            piece = PPoly.construct_fast(reference.c[:, k : k + 1], knots[k : k + 2], extrapolate=False)
-            roots += [t for t in piece.solve(level, extrapolate=False) if np.isfinite(t)]
+        return self._merged([t for k in pieces for t in self._piece_roots(int(k), level)])
+
+    def _piece_roots(self, k: int, level: float) -> list[float]:
+        """The finite roots of piece ``k`` at ``level``: scipy's ``PPoly.solve(level, extrapolate=False)`` on the
+        piece alone, called as it calls its root finder (on the piece's coefficients, C-contiguous)."""
+        roots = _real_roots(self._piece_c[k], self.knots[k : k + 2], level, True, False)[0]
+        return [t for t in roots.tolist() if np.isfinite(t)]
+
+    @staticmethod
+    def _merged(roots: list[float]) -> list[float]:
         roots = sorted(roots)
         return [t for i, t in enumerate(roots) if i == 0 or t - roots[i - 1] > 1e-12 * max(1.0, abs(t))]
 
-    def crossings_of(self, level: float) -> tuple[np.ndarray, np.ndarray]:
+    def crossings_of(self, level: float) -> tuple[list[float], list[int]]:
         """Times in (start, stop] where the reference crosses ``level``, and the directions."""
         if level not in self._crossings:
-            roots = [t for t in self.solve(level) if self.start < t <= self.stop]
-            slopes = self.slope(np.array(roots, dtype=float)) if roots else np.zeros(0)  # one call for all
-            directions = [_crossing_direction(self.reference, float(d), t, level) for t, d in zip(roots, slopes)]
-            self._crossings[level] = (np.array(roots), np.array(directions, dtype=int))
+            self._store([level], [self.solve(level)])
         return self._crossings[level]
+
+    def _store(self, levels: list[float], solved: list[list[float]]) -> None:
+        """The crossings of each of ``levels`` from its roots ``solved``; the slopes at all of them in one call."""
+        kept = [[t for t in roots if self.start < t <= self.stop] for roots in solved]
+        every = [t for roots in kept for t in roots]
+        slopes = iter(self.slope(np.array(every, dtype=float)).tolist() if every else [])
+        for level, roots in zip(levels, kept):  # (zip takes a slope only for a root)
+            directions = [_crossing_direction(self.reference, d, t, level) for t, d in zip(roots, slopes)]
+            self._crossings[level] = (roots, directions)
+
+    def lattice(self, sequencer: Sequencer, step: float, initial_index: int) -> tuple[int, list, list] | None:
+        """The up and down levels (position ± ``step``) of every step index whose levels lie within the
+        reference's range, their crossings solved at once: (first index, up levels, down levels), or None
+        when they would be more than :data:`LATTICE_MAX_LEVELS`. The same values as one level at a time:
+        the same pieces per level, the same root finder on each, the same merging."""
+        low, high = float(self.piece_low.min()) - self.margin, float(self.piece_high.max()) + self.margin
+        increment, offset = sequencer.increment, sequencer.offset
+        first = min(initial_index, int(np.floor((low - offset - step) / increment)) - 2)
+        last = max(initial_index, int(np.ceil((high - offset + step) / increment)) + 2)
+        if not 0 <= 2 * (last - first + 1) <= LATTICE_MAX_LEVELS:
+            return None
+        positions = sequencer.position(np.arange(first, last + 1))
+        ups, downs = positions + step, positions - step
+        levels = np.unique(np.concatenate([ups, downs]))
+        # per piece, the levels it can cross (the test of solve, as two searches on the sorted levels)
+        begin = np.searchsorted(levels, self.piece_low - self.margin, side="left")
+        end = np.searchsorted(levels, self.piece_high + self.margin, side="right")
+        counts = np.maximum(end - begin, 0)
+        pieces = np.repeat(np.arange(len(begin)), counts)
+        which = np.repeat(begin - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
+        order = np.argsort(which, kind="stable")  # by level, then piece (as solve's nonzero)
+        found: dict[int, list[float]] = {}
+        values = levels.tolist()
+        for j, k in zip(which[order].tolist(), pieces[order].tolist()):
+            found.setdefault(j, []).extend(self._piece_roots(k, values[j]))
+        solved = [j for j in found if values[j] not in self._crossings]
+        self._store([values[j] for j in solved], [self._merged(found[j]) for j in solved])
+        for level in values:
+            self._crossings.setdefault(level, ([], []))
+        return first, ups.tolist(), downs.tolist()
 
     def next_crossing(self, level: float, direction: int, after: float) -> float:
         """The first time [s] after ``after`` where the reference crosses ``level`` in ``direction``."""
         times, directions = self.crossings_of(level)
-        for k in range(np.searchsorted(times, after, side="right"), len(times)):
+        for k in range(bisect.bisect_right(times, after), len(times)):
             if directions[k] == direction:
-                return float(times[k])
+                return times[k]
         return np.inf
 
 

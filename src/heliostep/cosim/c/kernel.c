@@ -637,3 +637,199 @@ long hs_describe(const char *name) {
         if (strcmp(layout[i].name, name) == 0) return layout[i].value;
     return -1;
 }
+
+/* ================================================================ events (issue #26): hs_event
+ * The fixed work of one event of the master (heliostep/cosim/master.py _Run._event) in one call,
+ * the FMI calls in the order the Python path makes them (heliostep/cosim/events.py event_iteration
+ * and discrete_fixed_point, CoupledSystem.row, CVodeIntegrator.reset):
+ *   (prepare) fmi2SetTime on every unit and the continuous Real connections copied;
+ *   the row before (read_row; into the figures when the kernel accumulates them);
+ *   fmi2EnterEventMode on every unit;
+ *   (new inputs) each master input's value from input_time on (the values of its piecewise-constant
+ *     signal at searchsorted(times, input_time, 'right')) and fmi2SetReal into its target;
+ *   the outputs read, the connections copied, fmi2NewDiscreteStates on each unit once;
+ *   when a unit's fmi2EventInfo has any flag set (a new round needed, terminate, the states or their
+ *     nominals changed, a next time event), EVENT_GENERAL: the master goes on in Python from that unit
+ *     (events.py Resume), nothing after it called here;
+ *   the outputs read again: changed, EVENT_CHANGED (the master goes on with the next round in Python);
+ *   else fmi2EnterContinuousTimeMode on every unit, the states into CVODE's vector, CVodeReInit and
+ *   the row after: EVENT_DONE.
+ * Only for FMI 2.0 units with all connections continuous Real, no algebraic loop, Real input targets
+ * (heliostep/cosim/fast_events.py decides); an FMI status worse than fmi2Warning is recorded as in
+ * hs_rhs (EVENT_FAILED). Everything here is this section's own: it calls read_row, copy_links and
+ * hs_figures_row and changes nothing above. */
+
+typedef int (*status_only_t)(fmi2Component);
+typedef int (*new_discrete_t)(fmi2Component, void *);
+typedef int (*reinit_t)(void *, double, void *);
+
+/* fmi2EventInfo (fmi2Boolean is int) */
+typedef struct {
+    int new_discrete_states_needed, terminate_simulation, nominals_changed, values_changed, next_event_time_defined;
+    double next_event_time;
+} hs_event_info;
+
+typedef struct {
+    status_only_t enter_event_mode, enter_continuous_time_mode;
+    new_discrete_t new_discrete_states;
+    get_x_t get_states;
+} hs_event_unit;
+
+/* set once per run */
+typedef struct {
+    hs_event_unit *units;           /* as many as hs_kernel.units */
+    long n_inputs;                  /* the master inputs (hs_kernel.n_inputs) */
+    double *inputs;                 /* their current values (the array hs_kernel.inputs points to) */
+    const double *const *times;     /* per input: its change times, sorted */
+    const long *n_times;
+    const double *const *values;    /* per input: n_times + 1 values */
+    long n_targets;                 /* inputs set into an FMU, in the master's order */
+    const long *target_input, *target_unit;
+    const unsigned int *target_vr;
+    long n_outputs;                 /* the traced outputs: the row from column 1 + n_inputs on */
+    double *work;                   /* 2 rows */
+    reinit_t reinit;                /* CVodeReInit */
+    long f_enter_event, f_new_discrete, f_enter_continuous, f_get_states; /* codes for the record (watch.FUNCTIONS) */
+} hs_events;
+
+/* one call */
+typedef struct {
+    double t, input_time;
+    int new_inputs, prepare;
+    void *cvode_mem, *y;
+    double *rows;                   /* 2 rows: before and after */
+    /* updated */
+    long recorded;                  /* rows recorded (and passed to the figures) */
+    long entered, continued;        /* units in event mode / back in continuous-time mode */
+    long unit;                      /* EVENT_GENERAL: the unit whose event info asks for more */
+    hs_event_info info;             /* and that info */
+    double *outputs;                /* EVENT_GENERAL: the outputs before the round; EVENT_CHANGED: after it */
+    int cvode_flag;
+} hs_event_args;
+
+enum { EVENT_DONE = 0, EVENT_GENERAL = 1, EVENT_CHANGED = 2, EVENT_FAILED = -1, EVENT_REINIT_FAILED = -2,
+       EVENT_NO_MEMORY = -3 };
+
+/* numpy's searchsorted(times, x, side='right'): the number of times <= x */
+static long events_after(const double *times, long n, double x) {
+    long low = 0, high = n;
+    while (low < high) {
+        long mid = low + (high - low) / 2;
+        if (!(x < times[mid])) low = mid + 1;
+        else high = mid;
+    }
+    return low;
+}
+
+static int events_round(hs_kernel *k, hs_events *e, hs_event_args *a) {
+    double t = a->t, *before = e->work, *after = e->work + k->row_width;
+    long i, j, first = 1 + k->n_inputs;
+    if (read_row(k, t, before)) return EVENT_FAILED;
+    if (copy_links(k, t, 0, k->n_links)) return EVENT_FAILED;
+    for (i = 0; i < k->n_units; i++) {
+        hs_event_info info = {0, 0, 0, 0, 0, 0.0};
+        CHECK(e->units[i].new_discrete_states(k->units[i].component, &info), i, e->f_new_discrete);
+        if (info.new_discrete_states_needed || info.terminate_simulation || info.nominals_changed
+            || info.values_changed || info.next_event_time_defined) {
+            a->unit = i;
+            a->info = info;
+            memcpy(a->outputs, before + first, (size_t)e->n_outputs * sizeof(double));
+            return EVENT_GENERAL;
+        }
+    }
+    if (read_row(k, t, after)) return EVENT_FAILED;
+    for (j = 0; j < e->n_outputs; j++)
+        if (!(after[first + j] == before[first + j])) { /* numpy's array_equal: NaN differs */
+            memcpy(a->outputs, after + first, (size_t)e->n_outputs * sizeof(double));
+            return EVENT_CHANGED;
+        }
+    return EVENT_DONE;
+}
+
+int hs_event(hs_kernel *k, hs_events *e, hs_event_args *a) {
+    double t = a->t;
+    long i, j;
+    int outcome;
+    a->entered = a->continued = a->recorded = 0;
+    if (k->status) return EVENT_FAILED;
+    if (a->prepare) {
+        for (i = 0; i < k->n_units; i++) CHECK(k->units[i].set_time(k->units[i].component, t), i, F_SET_TIME);
+        if (copy_links(k, t, 0, k->n_links)) return EVENT_FAILED;
+    }
+    if (read_row(k, t, a->rows)) return EVENT_FAILED;
+    a->recorded = 1;
+    if (k->figures && hs_figures_row(k->figures, a->rows, k->row_width)) return EVENT_NO_MEMORY;
+    for (i = 0; i < k->n_units; i++) {
+        CHECK(e->units[i].enter_event_mode(k->units[i].component), i, e->f_enter_event);
+        a->entered = i + 1;
+    }
+    if (a->new_inputs) {
+        for (j = 0; j < e->n_inputs; j++)
+            e->inputs[j] = e->values[j][events_after(e->times[j], e->n_times[j], a->input_time)];
+        for (j = 0; j < e->n_targets; j++) {
+            hs_unit *u = &k->units[e->target_unit[j]];
+            CHECK(u->set_real(u->component, e->target_vr + j, 1, e->inputs + e->target_input[j]), e->target_unit[j],
+                  F_SET_REAL);
+        }
+    }
+    outcome = events_round(k, e, a);
+    if (outcome != EVENT_DONE) return outcome;
+    for (i = 0; i < k->n_units; i++) {
+        CHECK(e->units[i].enter_continuous_time_mode(k->units[i].component), i, e->f_enter_continuous);
+        a->continued = i + 1;
+    }
+    if (!k->discrete) {
+        double *x = k->data(a->y);
+        for (i = 0; i < k->n_units; i++) {
+            hs_unit *u = &k->units[i];
+            if (u->nx) CHECK(e->units[i].get_states(u->component, x + u->x_offset, (size_t)u->nx), i, e->f_get_states);
+        }
+    }
+    a->cvode_flag = e->reinit(a->cvode_mem, t, a->y);
+    if (a->cvode_flag != 0) return EVENT_REINIT_FAILED;
+    if (read_row(k, t, a->rows + k->row_width)) return EVENT_FAILED;
+    a->recorded = 2;
+    if (k->figures && hs_figures_row(k->figures, a->rows + k->row_width, k->row_width)) return EVENT_NO_MEMORY;
+    return EVENT_DONE;
+}
+
+/* every unit's states from (set) or into (!set) x: CoupledSystem.set_x / get_x in one call, the same FMI
+ * calls; t: the instances' time (for the record and an error) */
+int hs_event_states(hs_kernel *k, hs_events *e, double *x, int set, double t) {
+    long i;
+    if (k->status) return EVENT_FAILED;
+    for (i = 0; i < k->n_units; i++) {
+        hs_unit *u = &k->units[i];
+        if (!u->nx) continue;
+        if (set) CHECK(u->set_states(u->component, x + u->x_offset, (size_t)u->nx), i, F_SET_STATES);
+        else CHECK(e->units[i].get_states(u->component, x + u->x_offset, (size_t)u->nx), i, e->f_get_states);
+    }
+    return EVENT_DONE;
+}
+
+/* this section's layout, for the test of the ctypes mirror (heliostep/cosim/fast_events.py) */
+static const struct { const char *name; long value; } event_layout[] = {
+    SIZE(hs_event_info), FIELD(hs_event_info, next_event_time_defined), FIELD(hs_event_info, next_event_time),
+    SIZE(hs_event_unit), FIELD(hs_event_unit, enter_continuous_time_mode), FIELD(hs_event_unit, new_discrete_states),
+    FIELD(hs_event_unit, get_states),
+    SIZE(hs_events), FIELD(hs_events, units), FIELD(hs_events, n_inputs), FIELD(hs_events, inputs),
+    FIELD(hs_events, times), FIELD(hs_events, n_times), FIELD(hs_events, values), FIELD(hs_events, n_targets),
+    FIELD(hs_events, target_input), FIELD(hs_events, target_unit), FIELD(hs_events, target_vr),
+    FIELD(hs_events, n_outputs), FIELD(hs_events, work), FIELD(hs_events, reinit), FIELD(hs_events, f_enter_event),
+    FIELD(hs_events, f_new_discrete), FIELD(hs_events, f_enter_continuous), FIELD(hs_events, f_get_states),
+    SIZE(hs_event_args), FIELD(hs_event_args, t), FIELD(hs_event_args, input_time), FIELD(hs_event_args, new_inputs),
+    FIELD(hs_event_args, prepare), FIELD(hs_event_args, cvode_mem), FIELD(hs_event_args, y),
+    FIELD(hs_event_args, rows), FIELD(hs_event_args, recorded), FIELD(hs_event_args, entered), FIELD(hs_event_args, continued),
+    FIELD(hs_event_args, unit), FIELD(hs_event_args, info), FIELD(hs_event_args, outputs),
+    FIELD(hs_event_args, cvode_flag),
+    CODE(EVENT_DONE), CODE(EVENT_GENERAL), CODE(EVENT_CHANGED), CODE(EVENT_FAILED), CODE(EVENT_REINIT_FAILED),
+    CODE(EVENT_NO_MEMORY),
+};
+
+long hs_event_describe(const char *name) {
+    size_t i;
+    for (i = 0; i < sizeof(event_layout) / sizeof(event_layout[0]); i++)
+        if (strcmp(event_layout[i].name, name) == 0) return event_layout[i].value;
+    return -1;
+}
+/* ================================================================ end of events */
