@@ -191,21 +191,21 @@ class RunResult:
     def _draw(self, out_dir: Path) -> list[Path]:
         """The figures drawn into ``out_dir`` (each renamed into place there), on two cores: a forked
         child draws :data:`CHILD_FIGURES` and the power on the tube while this process draws the rest
-        (:func:`~heliostep.run.forked.in_parallel`; one after the other where it cannot fork). Each
-        process imports matplotlib itself, after the results are written and reported."""
+        (:func:`~heliostep.run.forked.in_parallel`; one after the other where it cannot fork). The plotting
+        modules are imported here, after the results are written and reported, and the child inherits
+        them: matplotlib is imported once, not once in each process."""
+        from heliostep.plots.light import plot_light_run
+        from heliostep.plots.run import plot_run
+
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
             source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
             metadata = self.trace_metadata()
 
             def figures(only: tuple[str, ...]) -> list[Path]:
-                from heliostep.plots.run import plot_run
-
                 return plot_run(source, staging, metadata, self.solution_plot, only=only)
 
             def child_share() -> list[Path]:
-                from heliostep.plots.light import plot_light_run
-
                 drawn = figures(CHILD_FIGURES)
                 light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
                 return drawn + plot_light_run(light, self.metadata, self.scenario, staging, self.weather)
