@@ -297,8 +297,14 @@ def _nothing_clipped_or_overlapping(name, fig):
         assert drawn.x1 <= edge.x1 and drawn.y1 <= edge.y1, (name, "clipped right or above", drawn, edge)
     frames = sorted(fig.axes, key=lambda ax: -ax.get_window_extent().y0)  # top to bottom
     for upper, lower in zip(frames, frames[1:]):
-        assert lower.get_tightbbox(renderer).y1 <= upper.get_window_extent().y0, (name, "a panel's text in the one above")
-        assert upper.get_tightbbox(renderer).y0 >= lower.get_window_extent().y1, (name, "a panel's text in the one below")
+        assert lower.get_tightbbox(renderer).y1 <= upper.get_window_extent().y0, (
+            name,
+            "a panel's text in the one above",
+        )
+        assert upper.get_tightbbox(renderer).y0 >= lower.get_window_extent().y1, (
+            name,
+            "a panel's text in the one below",
+        )
 
 
 def test_the_fixed_layout_clips_nothing_and_panels_do_not_overlap(solved):
