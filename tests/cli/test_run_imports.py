@@ -16,10 +16,12 @@ import sys
 
 from heliostep.paths import scenarios_dir
 
-#: Modules a ``--no-plots`` run has no use for (matplotlib: plots; dask/distributed: sweeps and bands).
-NEVER = ("matplotlib", "dask", "distributed")
+#: Modules a ``--no-plots`` run has no use for (matplotlib: plots; dask/distributed: sweeps and bands; casadi
+#: and pymoca: building an FMU, which a run of FMUs already built does not).
+NEVER = ("matplotlib", "dask", "distributed", "casadi", "pymoca")
 #: Modules only pvlib's computation needs (a run whose sun grids are all cached imports none of them).
-PVLIB_ONLY = ("pvlib", "h5py", "scipy.integrate")
+#: (urllib.request: pvlib's requests; heliostep's SSP reader, which imports it too, only for a ``system:`` key)
+PVLIB_ONLY = ("pvlib", "h5py", "scipy.integrate", "urllib.request")
 
 RUN_AND_REPORT = (
     "import json, sys\n"

@@ -279,3 +279,45 @@ def test_the_run_writes_its_figures_from_the_solution(solved, tmp_path):
         pytest.skip("one run is enough")
     written = [path.name for path in run.plot(tmp_path)]
     assert "fig14_torque_zoom.png" in written and "fig11_torque.png" in written
+
+
+def _nothing_clipped_or_overlapping(name, fig):
+    """Every text drawn (tick labels, axis labels, titles, offset texts, legends) inside the figure, and
+    no panel's texts reaching into its neighbour's frame (the fixed layout's margins and gaps are enough)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    fig.set_dpi(run_plots._DPI)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    edge = fig.bbox
+    for ax in fig.axes:
+        drawn = ax.get_tightbbox(renderer)
+        assert drawn.x0 >= edge.x0 and drawn.y0 >= edge.y0, (name, "clipped left or below", drawn, edge)
+        assert drawn.x1 <= edge.x1 and drawn.y1 <= edge.y1, (name, "clipped right or above", drawn, edge)
+    frames = sorted(fig.axes, key=lambda ax: -ax.get_window_extent().y0)  # top to bottom
+    for upper, lower in zip(frames, frames[1:]):
+        assert lower.get_tightbbox(renderer).y1 <= upper.get_window_extent().y0, (
+            name,
+            "a panel's text in the one above",
+        )
+        assert upper.get_tightbbox(renderer).y0 >= lower.get_window_extent().y1, (
+            name,
+            "a panel's text in the one below",
+        )
+
+
+def test_the_fixed_layout_clips_nothing_and_panels_do_not_overlap(solved):
+    from heliostep.plots.light import light_figure
+    from heliostep.results.light import light_timeseries
+
+    run, figures = solved
+    assert len([fig for fig in figures.values() if fig is not None]) == 7
+    for name, fig in figures.items():
+        if fig is not None:
+            assert fig.get_layout_engine() is None  # fixed margins, no text-extent pass before the draw
+            _nothing_clipped_or_overlapping(name, fig)
+    columns = ["panel_angle_ref", run.metadata.get("roles", {}).get("panel_angle", "")]
+    series = light_timeseries(run.trace_columns(columns), run.metadata, run.scenario, run.weather)
+    title = f" ({run.scenario.name}, {run.scenario.window.date}, mirror at d = 0 m, secondary driven)"
+    _nothing_clipped_or_overlapping("power", light_figure(series, run.metadata, title))

@@ -1,5 +1,6 @@
 """Tests of heliostep.run.forked (work in a forked child beside this process) and of a run's figures drawn
-on two cores: the same PNGs, byte for byte, as drawn one after the other. Real forks, real signals."""
+on two cores (and, by ``RunResult.write``, while the records are written): the same PNGs, byte for byte, as
+drawn one after the other. Real forks, real signals."""
 
 from __future__ import annotations
 
@@ -85,9 +86,11 @@ out = Path(sys.argv[2])
 os.environ["HELIOSTEP_PARALLEL_PLOTS"] = "1"
 forks = can_fork()
 parallel = [str(path) for path in result.plot(out / "parallel")]
+files = result.write(out / "written")  # drawn by a forked child while the records are written
+written = [str(files[name]) for name in sorted(files, key=list(files).index) if name.endswith(".png")]
 os.environ["HELIOSTEP_PARALLEL_PLOTS"] = "0"
 serial = [str(path) for path in result.plot(out / "serial")]
-print(json.dumps({"forks": forks, "parallel": parallel, "serial": serial}))
+print(json.dumps({"forks": forks, "parallel": parallel, "written": written, "serial": serial}))
 """
 
 
@@ -100,8 +103,11 @@ def test_the_figures_drawn_on_two_cores_are_those_drawn_in_one_process_byte_for_
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert report["forks"] is True
-    parallel, serial = [[Path(name) for name in report[key]] for key in ("parallel", "serial")]
+    parallel, written, serial = [[Path(name) for name in report[key]] for key in ("parallel", "written", "serial")]
     assert [path.name for path in parallel] == [path.name for path in serial] == [*FIGURE_FILES, POWER_FILE]
+    assert sorted(path.name for path in written) == sorted(path.name for path in serial)
     for drawn, alone in zip(parallel, serial):
         assert drawn.read_bytes() == alone.read_bytes(), drawn.name
         assert drawn.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for drawn in written:  # a run's write(): drawn while its records were written, the same PNGs
+        assert drawn.read_bytes() == (serial[0].parent / drawn.name).read_bytes(), drawn.name

@@ -32,13 +32,15 @@ import subprocess
 import zipfile
 from importlib import resources
 from pathlib import Path
-
-import casadi as ca
+from typing import TYPE_CHECKING
 
 from heliostep._version import __version__
 from heliostep.errors import RunFailure
 from heliostep.fmu.model_xml import Layout, build_description_fmi3, model_description, model_description_fmi3
 from heliostep.fmu.modelica import FlatModel, ModelicaError
+
+if TYPE_CHECKING:  # casadi is imported where an FMU is built: a run of built FMUs needs none of it
+    import casadi as ca
 
 #: The everyday solve: exactly two Newton steps from the previous solution, never stopping
 #: early on an absolute residual test. A warm start that is already "close enough" would
@@ -73,6 +75,8 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
     gives the size of the terms each equation balances, for the C layer's residual check (which
     computes it only when a residual is not negligible outright).
     """
+    import casadi as ca
+
     sym = model.symbols
     stack = lambda variables: ca.vertcat(*[sym[v.name] for v in variables])  # noqa: E731
     x, u, p = stack(model.states), stack(model.inputs), stack(model.parameters)
@@ -126,6 +130,8 @@ def sequential_solution(residual: ca.SX, unknowns: ca.SX) -> list[ca.SX] | None:
     known values, or None when some equations are left (a system of several unknowns, or one
     nonlinear in its unknown): those models keep the Newton solve.
     """
+    import casadi as ca
+
     n = unknowns.numel()
     equations = [residual[i] for i in range(n)]
     solution: dict[int, ca.SX] = {}
@@ -157,6 +163,8 @@ def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, calculated: 
     evaluation costs the model's own arithmetic; the residual is still returned for the C
     layer's check.
     """
+    import casadi as ca
+
     sizes = [v.numel() for v in (model.time,)] + [len(model.states), len(model.inputs), len(model.parameters)]
     t, x, u, p = (ca.SX.sym(name, size) for name, size in zip("txup", sizes))
     n_unknowns = len(model.derivatives) + len(model.algebraics)
@@ -193,6 +201,8 @@ def state_part(evaluate: ca.Function) -> tuple[ca.Function | None, list[int]]:
     input has changed since the last full evaluation, as Modelica tools evaluate only the
     equations an output needs. None (and no indices) for a Newton-solved model.
     """
+    import casadi as ca
+
     if not evaluate.is_a("SXFunction"):
         return None, []
     on_inputs = set(evaluate.sparsity_jac(2, 0).row())
@@ -320,6 +330,8 @@ def export_fmu(
 
     ``work_dir`` must be on the same file system as ``fmu_path``.
     """
+    import casadi as ca
+
     layer_name, platform = FMI_LAYERS[fmi_version], PLATFORMS[fmi_version]
     source_files = (layer_name, "equations.c")
     work_dir = Path(work_dir)

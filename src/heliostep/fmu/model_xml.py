@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-
-import casadi as ca
+from typing import TYPE_CHECKING
 
 from heliostep.fmu.modelica import FlatModel, ModelicaError, Variable
+
+if TYPE_CHECKING:  # (annotations only: casadi is imported where an FMU is built)
+    import casadi as ca
 
 __all__ = ["BASE_UNITS", "Layout", "build_description_fmi3", "model_description", "model_description_fmi3"]
 

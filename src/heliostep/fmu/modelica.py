@@ -20,11 +20,12 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import casadi as ca
+from typing import TYPE_CHECKING, Any
 
 from heliostep.errors import InputError
+
+if TYPE_CHECKING:  # casadi is imported where a model is translated: a run of built FMUs needs none of it
+    import casadi as ca
 
 
 class ModelicaError(InputError):
@@ -150,6 +151,8 @@ def parse_models(models_dir: Path):
 
 def _number(value) -> float | None:
     """A finite float from a pymoca attribute, or None (unset, NaN or an expression)."""
+    import casadi as ca
+
     if isinstance(value, ca.MX):
         if not value.is_constant():
             return None
@@ -221,6 +224,8 @@ class _VariableFactory:
 
 def _constant_substitution(cas: Any) -> Callable[[list[ca.MX]], list[ca.MX]]:
     """A function substituting the model's constants by their values everywhere."""
+    import casadi as ca
+
     constant_symbols = [c.symbol for c in cas.constants]
     constant_values = [ca.MX(_number(c.value) or 0.0) for c in cas.constants]
 
@@ -236,6 +241,8 @@ def _parameters(
     cas: Any, make: _VariableFactory, source_file: Path, model_name: str
 ) -> tuple[list[Variable], list[Variable], list[ca.MX]]:
     """(parameters with a value, calculated parameters, their value expressions)."""
+    import casadi as ca
+
     parameters, calculated, calculated_values = [], [], []
     for var in cas.parameters:
         value = _number(var.value)
@@ -254,6 +261,8 @@ def _resolve_calculated(
 ) -> list[ca.MX]:
     """The calculated parameters' values with no calculated parameter left in them (they may
     refer to each other: substituted until none is left)."""
+    import casadi as ca
+
     for _ in range(len(values) + 1):
         if not values or not any(ca.depends_on(v, ca.vertcat(*calc_symbols)) for v in values):
             break
@@ -265,6 +274,8 @@ def _resolve_calculated(
 
 def load_model(models_dir: Path, model_name: str) -> FlatModel:
     """Parse, flatten and translate ``model_name`` from the ``.mo`` files of ``models_dir``."""
+    import casadi as ca
+
     source_file, description, comments, cas = _translate(Path(models_dir), model_name)
     make = _VariableFactory(set(cas.outputs), comments)
     substitute_constants = _constant_substitution(cas)

@@ -20,7 +20,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from heliostep.plots.run import _Clock
+from heliostep.plots.layout import fixed_axes
+from heliostep.plots.run import PNG_OPTIONS, _Clock
 from heliostep.plots.thinning import thin
 from heliostep.results.light import light_timeseries
 from heliostep.results.run_files import POWER_FILE  # (named where matplotlib is not imported)
@@ -30,6 +31,8 @@ __all__ = ["POWER_FILE", "light_figure", "plot_light", "plot_light_run"]
 #: PNG of the power on the tube.
 _DPI = 120
 _MAX_BUCKETS = 2000
+#: Left of the panels [in]: the powers' tick labels (e.g. 0.0435, -0.0010) and the axis labels.
+_LEFT = 1.05
 
 
 def _energy_text(power: np.ndarray, time: np.ndarray) -> str:
@@ -63,7 +66,7 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     if fig is None:
         return None
     path = Path(path)
-    fig.savefig(path, dpi=_DPI)
+    fig.savefig(path, dpi=_DPI, pil_kwargs=PNG_OPTIONS)
     return path
 
 
@@ -79,8 +82,7 @@ def light_figure(series: pd.DataFrame, metadata: Mapping, title: str = "") -> Fi
     shared = series["power_shared_W"].to_numpy() if "power_shared_W" in series else ideal
     actual = series["power_actual_W"].to_numpy() if "power_actual_W" in series else None
     rows = 2 if actual is None else 3
-    fig = Figure(figsize=(9.0, 3.0 + 2.0 * rows), layout="constrained")
-    axes = fig.subplots(rows, 1, sharex=True, height_ratios=(2,) + (1,) * (rows - 1))
+    fig, axes = fixed_axes((9.0, 3.0 + 2.0 * rows), rows, _LEFT, height_ratios=(2,) + (1,) * (rows - 1))
     _draw_power(axes[0], clock, time, ideal, reference, actual, title)
     sharing = [
         (ideal - shared, "shared primary (ideal - shared)", "C1", "-"),
@@ -127,7 +129,7 @@ def _draw_power(
         )
     top.set_ylabel("power on the tube [kW]")
     top.legend(loc="best", fontsize="small")
-    top.set_title(f"Light absorbed by the tube{title}")
+    top.set_title(f"Light absorbed by the tube{title}", fontsize="medium")  # (a long scenario name fits)
 
 
 def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, ylabel: str) -> None:

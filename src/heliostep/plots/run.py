@@ -27,6 +27,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from heliostep.errors import InputError
+from heliostep.plots.layout import fixed_axes
 from heliostep.plots.thinning import thin
 from heliostep.results.run_files import FIGURE_FILES  # (PNG per figure, in the order drawn: named without matplotlib)
 from heliostep.results.solution import SolutionPlotData
@@ -55,6 +56,8 @@ LINE_WITH_ENVELOPE_MAX_SPAN = 3600.0
 TORQUE_ZOOM_LABEL = "motor torque (every solver step)"
 
 _DPI = 120
+#: zlib's fastest level for the PNGs: the same pixels, files about 15 % larger, a third of the encoding's time.
+PNG_OPTIONS = {"compress_level": 1}
 _WIDE = (9.0, 4.5)
 _TALL = (9.0, 6.5)
 
@@ -211,9 +214,9 @@ def _line(ax, clock: _Clock, time: np.ndarray, values: np.ndarray, *args, **kwar
     ax.plot(clock.x(time[keep]), values[keep], *args, **kwargs)
 
 
-def _figure(rows: int = 1, size=_WIDE):
-    fig = Figure(figsize=size, layout="constrained")
-    axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
+def _figure(left: float, rows: int = 1, size=_WIDE):
+    """A figure of ``rows`` panels sharing their time axis, ``left`` [in] for the y labels (a fixed layout)."""
+    fig, axes = fixed_axes(size, rows, left)
     for ax in axes:
         ax.grid(True, alpha=0.3)
     return fig, axes
@@ -255,7 +258,7 @@ def _with_rows(solution: SolutionPlotData | None, clock: _Clock) -> bool:
 def _fig08(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has("panel_angle_ref"):
         return None
-    fig, axes = _figure()
+    fig, axes = _figure(0.95)
     _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), color="C0")
     axes[0].set_ylabel("panel angle reference [deg]")
     axes[0].set_title(_title("panel angle reference", 8, context))
@@ -265,7 +268,7 @@ def _fig08(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
 def _fig09(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has("rotor_angle_ref"):
         return None
-    fig, axes = _figure()
+    fig, axes = _figure(0.85)
     _line(axes[0], clock, trace.time, trace.degrees("rotor_angle_ref"), color="C1")
     axes[0].set_ylabel("rotor angle reference [deg]")
     axes[0].set_title(_title("rotor angle reference (0 at the window start)", 9, context))
@@ -275,7 +278,7 @@ def _fig09(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
 def _fig10(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has(trace.col("current_a"), trace.col("current_b")):
         return None
-    fig, axes = _figure(2, _TALL)
+    fig, axes = _figure(0.7, 2, _TALL)
     for ax, phase, color in zip(axes, ("a", "b"), ("C0", "C3")):
         column = trace.col(f"current_{phase}")
         enveloped = _envelope(ax, clock, solution, column, "C0" if phase == "a" else "C9", f"i_{phase}", "A")
@@ -296,7 +299,7 @@ def _fig11(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     column = trace.col("torque")
     if not trace.has(column):
         return None
-    fig, axes = _figure()
+    fig, axes = _figure(0.8)
     enveloped = _envelope(axes[0], clock, solution, column, "C2", "torque", "N.m")
     if not enveloped or _with_rows(solution, clock):
         _line(axes[0], clock, trace.time, trace[column], color="C2", linewidth=1.0, label="output rows")
@@ -314,7 +317,7 @@ def _fig12(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     if not trace.has(rotor):
         return None
     commanded = trace.has("rotor_angle_cmd")
-    fig, axes = _figure(2 if commanded else 1, _TALL if commanded else _WIDE)
+    fig, axes = _figure(0.9, 2 if commanded else 1, _TALL if commanded else _WIDE)
     ax = axes[0]
     actual = trace.degrees(rotor)
     if trace.has("rotor_angle_ref"):
@@ -337,7 +340,7 @@ def _fig12(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
 def _fig13(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has(trace.col("panel_angle"), "panel_angle_ref"):
         return None
-    fig, axes = _figure(2, _TALL)
+    fig, axes = _figure(0.95, 2, _TALL)
     desired, actual = trace.degrees("panel_angle_ref"), trace.degrees(trace.col("panel_angle"))
     _line(axes[0], clock, trace.time, desired, "--", color="k", linewidth=1.2, label="desired (reference)")
     _line(axes[0], clock, trace.time, actual, "-", color="C0", linewidth=1.0, label="actual")
@@ -386,8 +389,7 @@ def _solution_zoom(solution: SolutionPlotData, clock: _Clock, context: str) -> F
 
 def _zoom(clock: _Clock, context: str, title: str, centre: float, shown, steps: np.ndarray, peak, label: str) -> Figure:
     """Fig. 14: torque against the time from ``centre`` [ms], the step instants and the peak marked."""
-    fig = Figure(figsize=_WIDE, layout="constrained")
-    ax = fig.add_subplot()
+    fig, (ax,) = fixed_axes(_WIDE, 1, 0.8)
     ax.grid(True, alpha=0.3)
     time, torque = shown
     style = ".-" if time.size <= 400 else "-"
@@ -492,6 +494,6 @@ def plot_run(
         if figure is None:
             logger.info("%s skipped: its columns (or steps) are not in the trace", file_name)
             continue
-        figure.savefig(out_dir / file_name, dpi=_DPI)
+        figure.savefig(out_dir / file_name, dpi=_DPI, pil_kwargs=PNG_OPTIONS)
         written.append(out_dir / file_name)
     return written

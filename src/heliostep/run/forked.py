@@ -10,10 +10,10 @@ or is stopped (a second signal: ``ForcedStop``), the child is killed and reaped 
 exception goes on.
 
 Without a fork (Windows), on one core, with other threads running (a fork copies one thread, and
-any lock another one held: a Dask worker's threads), with no core free (the 1-minute load average
-above the cores less one: the child would only add its own imports; ``HELIOSTEP_PARALLEL_PLOTS=1``
-forks all the same) or with ``HELIOSTEP_PARALLEL_PLOTS=0``, the two pieces run here one after the
-other (:func:`can_fork`).
+any lock another one held: a Dask worker's threads) or with ``HELIOSTEP_PARALLEL_PLOTS=0``, the two
+pieces run here one after the other (:func:`can_fork`). A busy machine forks all the same: the child
+imports nothing (a run's plotting modules are imported before the fork), so its share costs the
+CPU it would cost here.
 """
 
 from __future__ import annotations
@@ -35,11 +35,7 @@ def can_fork() -> bool:
     choice = os.environ.get("HELIOSTEP_PARALLEL_PLOTS", "auto").strip().lower()
     if choice in ("0", "off", "no", "false"):
         return False
-    cores = os.cpu_count() or 1
-    if not (hasattr(os, "fork") and cores > 1 and threading.active_count() == 1):
-        return False
-    # "auto": only with a core free (a second process on a busy machine only adds its imports)
-    return choice in ("1", "on", "yes", "true") or os.getloadavg()[0] <= cores - 1
+    return hasattr(os, "fork") and (os.cpu_count() or 1) > 1 and threading.active_count() == 1
 
 
 def in_parallel(in_child: Callable[[], Any], here: Callable[[], Any]) -> tuple[Any, Any]:

@@ -36,7 +36,7 @@ from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, su
 from heliostep.results.solution import SolutionPlotData
 from heliostep.results.trace import trace_metadata
 from heliostep.results.trace_io import iter_trace_blocks, read_trace
-from heliostep.run.forked import in_parallel
+from heliostep.run.forked import can_fork, in_parallel
 from heliostep.scenario import Scenario
 
 __all__ = ["CHILD_FIGURES", "OWN_FIGURES", "RunFailed", "RunResult", "run_file_names"]
@@ -191,21 +191,21 @@ class RunResult:
     def _draw(self, out_dir: Path) -> list[Path]:
         """The figures drawn into ``out_dir`` (each renamed into place there), on two cores: a forked
         child draws :data:`CHILD_FIGURES` and the power on the tube while this process draws the rest
-        (:func:`~heliostep.run.forked.in_parallel`; one after the other where it cannot fork). Each
-        process imports matplotlib itself, after the results are written and reported."""
+        (:func:`~heliostep.run.forked.in_parallel`; one after the other where it cannot fork). The plotting
+        modules are imported here, after the results are written and reported, and the child inherits
+        them: matplotlib is imported once, not once in each process."""
+        from heliostep.plots.light import plot_light_run
+        from heliostep.plots.run import plot_run
+
         staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
         try:
             source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
             metadata = self.trace_metadata()
 
             def figures(only: tuple[str, ...]) -> list[Path]:
-                from heliostep.plots.run import plot_run
-
                 return plot_run(source, staging, metadata, self.solution_plot, only=only)
 
             def child_share() -> list[Path]:
-                from heliostep.plots.light import plot_light_run
-
                 drawn = figures(CHILD_FIGURES)
                 light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
                 return drawn + plot_light_run(light, self.metadata, self.scenario, staging, self.weather)
@@ -257,22 +257,24 @@ class RunResult:
         into place, signals held back, so no interrupt leaves old and new files side by side; a
         file heliostep did not write is never removed or replaced. When ``should_stop()`` turns
         true the figures (drawn last) are skipped. ``before_figures()``, when given, is called once the
-        trace and records are in place, before the figures are drawn (the command line reports the
-        figures there: a reader has them a second before the plots).
+        trace and records are in place, before the figures are swapped in (the command line reports
+        the figures there: a reader has them a second before the plots).
+
+        A trace held in memory is drawn while the records are written, where a child can be forked
+        (:func:`~heliostep.run.forked.can_fork`): the child imports the plotting modules and draws
+        (on two cores, :meth:`_draw`) while this process writes; its PNGs are swapped in after the
+        records, as they are when drawn after them. A streamed trace (a file this process moves
+        while writing) is drawn after the records are in place.
         """
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         with hold_folder(out_dir):
             check_foreign(out_dir, run_file_names(plots, csv))
-            staging, source = staging_folder(out_dir), self.trace_file
-            try:  # trace and records swapped in, the earlier run's files (figures too) out
-                written = swap_in(out_dir, staging, self._write_staged(staging, csv))
-            finally:  # (also when a signal held back during the swap is raised as it ends)
-                self._trace_file_after_swap(out_dir, staging, source)
-                shutil.rmtree(staging, ignore_errors=True)
-            if before_figures is not None:
-                before_figures()
-            if plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop()):
+            drawing = plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop())
+            if drawing and self.held_trace is not None and can_fork():
+                return self._write_while_drawing(out_dir, csv, should_stop, before_figures)
+            written = self._write_records(out_dir, csv, before_figures)
+            if drawing and not (should_stop and should_stop()):
                 staging = staging_folder(out_dir)  # then the figures, added to them
                 try:
                     drawn = [path.name for path in self._draw(staging)]
@@ -280,6 +282,42 @@ class RunResult:
                 finally:
                     shutil.rmtree(staging, ignore_errors=True)
         return written
+
+    def _write_records(self, out_dir: Path, csv: bool, before_figures: Callable[[], None] | None) -> dict[str, Path]:
+        """The trace and records swapped into ``out_dir`` (the earlier run's files, figures too, out),
+        then ``before_figures()``: name -> path."""
+        staging, source = staging_folder(out_dir), self.trace_file
+        try:
+            written = swap_in(out_dir, staging, self._write_staged(staging, csv))
+        finally:  # (also when a signal held back during the swap is raised as it ends)
+            self._trace_file_after_swap(out_dir, staging, source)
+            shutil.rmtree(staging, ignore_errors=True)
+        if before_figures is not None:
+            before_figures()
+        return written
+
+    def _write_while_drawing(
+        self, out_dir: Path, csv: bool, should_stop: Callable[[], bool] | None, before_figures
+    ) -> dict[str, Path]:
+        """:meth:`write` with the figures drawn into a staging folder by a forked child while this
+        process writes the records; the child killed (no figure) when the writing fails or a stop
+        is asked for meanwhile."""
+        staging = staging_folder(out_dir)
+
+        def records() -> dict[str, Path]:
+            written = self._write_records(out_dir, csv, before_figures)
+            if should_stop and should_stop():
+                raise _FiguresSkipped(written)
+            return written
+
+        try:
+            try:
+                drawn, written = in_parallel(lambda: [path.name for path in self._draw(staging)], records)
+            except _FiguresSkipped as skipped:  # (the child killed and reaped by in_parallel)
+                return skipped.written
+            return {**written, **swap_in(out_dir, staging, drawn, keep=written)}
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
 
     def _trace_file_after_swap(self, out_dir: Path, staging: Path, source: Path | None) -> None:
         """Where the trace file is once the swap has ended: in ``out_dir`` when the one moved
@@ -334,6 +372,14 @@ class RunResult:
         for name, text in record_texts(self.figures, self.status, self.metadata).items():
             written += write_text_parts(folder, name, text)
         return written
+
+
+class _FiguresSkipped(Exception):
+    """A stop asked for while the records were written: the figures being drawn are dropped."""
+
+    def __init__(self, written: dict[str, Path]):
+        super().__init__("figures skipped")
+        self.written = written
 
 
 def run_file_names(plots: bool = True, csv: bool = True) -> list[str]:

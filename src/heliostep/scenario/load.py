@@ -8,7 +8,6 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from heliostep.errors import InputError
-from heliostep.fmu.ssp import read_ssp
 from heliostep.paths import fmus_dir, scenarios_dir
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.model import DEFAULT_FMUS, Scenario
@@ -62,6 +61,8 @@ def _with_ssp_system(data: dict, source: str, folder: Path) -> dict:
     if not isinstance(reference, str) or not reference.lower().endswith(".ssp"):
         raise InputError(f"{source}: system: expected the path of an .ssp file, got {reference!r}")
     path = Path(reference) if Path(reference).is_absolute() else folder / reference
+    from heliostep.fmu.ssp import read_ssp  # (here: its XML writer imports urllib, http, ssl and email)
+
     try:
         system = read_ssp(path, fmus_dir())
     except InputError as exc:
