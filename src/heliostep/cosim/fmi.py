@@ -292,16 +292,15 @@ class ModelExchangeInstance(VariableAccess):
 
     # ------------------------------------------------------------------ the error path
     def status_error(self, function: str, status: int | str) -> FMIError:
-        """The :class:`FMIError` of ``function`` returning ``status`` (an fmi2Status or a text),
-        with the FMU's messages since the last call and the instance's time; an fmi2Error or
-        fmi2Fatal puts the instance in its error or fatal mode. The messages are not reported again."""
+        """The :class:`FMIError` of ``function`` returning ``status`` (a status or a text), with the FMU's messages
+        since the last call and the instance's time; an error or fatal status sets that mode. Messages go once."""
         if isinstance(status, int):
             if status == 3:
                 self.mode = "error"
             elif status >= 4:
                 self.mode = "fatal"
-            names = _STATUS if not function.startswith("fmi3") else [n.replace("fmi2", "fmi3") for n in _STATUS]
-            status = names[status] if 0 <= status < len(names) else str(status)  # the function's own version
+            names = [n.replace("fmi2", function[:4]) for n in _STATUS]  # the function's own version's names
+            status = names[status] if 0 <= status < len(names) else str(status)
         error = FMIError(function, self.name, status, self.messages, self.time)
         self.messages.clear()  # never reported twice, never with a later error
         return error

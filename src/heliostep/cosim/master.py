@@ -474,11 +474,7 @@ class _Run:
                 t_next = min(t_change, t_time_event, stop_time)
             else:
                 t_next = min(t_output, t_change, t_time_event, stop_time)
-            if t_next < t_time_event <= t_next + 1e-12 * max(1.0, abs(t_next)):
-                # an output time or input change a rounding error before an FMU's time event: the
-                # event's own instant (the row is taken there); stopping short of it, the event would
-                # count as passed (it is within eps of t) and never be handled
-                t_next = t_time_event
+            t_next = _to_time_event(t_next, t_time_event)
             self.counts["integrator_calls"] += 1
             state_event, t, next_output, t_output = self._integrate(
                 integrator, t_next, grid, next_output, t_output, interpolate
@@ -552,6 +548,13 @@ class _Run:
             self.progress(t)
         if self.should_stop is not None and self.should_stop():
             raise _Interrupted()
+
+
+def _to_time_event(t_next: float, t_time_event: float) -> float:
+    """The time to stop at: an output time or input change ``t_next`` [s] a rounding error before an FMU's time
+    event moves to the event's own instant (the row is taken there); stopping short of it, the event would
+    count as passed (within eps of the time reached) and never be handled."""
+    return t_time_event if t_next < t_time_event <= t_next + 1e-12 * max(1.0, abs(t_next)) else t_next
 
 
 def _kernel_figures(monitor: Callable[[np.ndarray], None] | None, width: int) -> KernelFigures | None:

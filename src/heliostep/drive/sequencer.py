@@ -206,7 +206,7 @@ def schedule_steps(
     crossings = _LevelCrossings(reference)
     increment = sequencer.increment
     step = fraction * increment
-    lattice = crossings.lattice(sequencer, step, initial_index)  # every level with a crossing, solved at once
+    lattice = crossings.lattice(sequencer, step, initial_index, should_stop)  # every level with a crossing, at once
     next_crossing = crossings.next_crossing
     times, indices, index, t = [], [], initial_index, start
     while True:
@@ -281,7 +281,9 @@ class _LevelCrossings:
             directions = [_crossing_direction(self.reference, d, t, level) for t, d in zip(roots, slopes)]
             self._crossings[level] = (roots, directions)
 
-    def lattice(self, sequencer: Sequencer, step: float, initial_index: int) -> tuple[int, list, list] | None:
+    def lattice(
+        self, sequencer: Sequencer, step: float, initial_index: int, should_stop: Callable[[], bool] | None = None
+    ) -> tuple[int, list, list] | None:
         """The up and down levels (position ± ``step``) of every step index whose levels lie within the
         reference's range, their crossings solved at once: (first index, up levels, down levels), or None
         when they would be more than :data:`LATTICE_MAX_LEVELS`. The same values as one level at a time:
@@ -304,8 +306,10 @@ class _LevelCrossings:
         order = np.argsort(which, kind="stable")  # by level, then piece (as solve's nonzero)
         found: dict[int, list[float]] = {}
         values = levels.tolist()
-        for j, k in zip(which[order].tolist(), pieces[order].tolist()):
+        for n, (j, k) in enumerate(zip(which[order].tolist(), pieces[order].tolist())):
             found.setdefault(j, []).extend(self._piece_roots(k, values[j]))
+            if should_stop is not None and n % STOP_CHECK_STEPS == STOP_CHECK_STEPS - 1 and should_stop():
+                raise PreparationStopped(f"stopped while solving the step levels ({n + 1} of {len(which)} so far)")
         solved = [j for j in found if values[j] not in self._crossings]
         self._store([values[j] for j in solved], [self._merged(found[j]) for j in solved])
         for level in values:
