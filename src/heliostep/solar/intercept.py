@@ -182,25 +182,47 @@ def _g1(x, sigma):
     return x * ndtr(z) + sigma * _INV_SQRT_2PI * np.exp(-0.5 * z**2)
 
 
-def _g2(x, sigma):
-    """Antiderivative of :func:`_g1` in x [m^2]."""
+def _g2(x, sigma, sigma_squared):
+    """Antiderivative of :func:`_g1` in x [m^2] (``sigma_squared`` = sigma**2, computed once by the caller)."""
     z = x / sigma
-    return 0.5 * (x**2 + sigma**2) * ndtr(z) + 0.5 * x * sigma * _INV_SQRT_2PI * np.exp(-0.5 * z**2)
+    return 0.5 * (x**2 + sigma_squared) * ndtr(z) + 0.5 * x * sigma * _INV_SQRT_2PI * np.exp(-0.5 * z**2)
 
 
-def _below(z, a, b, sigma):
-    """P(U(-a, a) + U(-b, b) + N(0, sigma^2) <= z), a >= b >= 0, sigma > 0."""
-    scale = np.maximum(a, sigma)
+def _image_kinds(a, b, sigma):
+    """Which closed form each row's image takes in :func:`_below`: ``point`` (a, b negligible
+    against sigma: the Gaussian alone) and ``single`` (b negligible: one box and the Gaussian);
+    the rest take both boxes."""
     point = a <= 1e-4 * sigma
-    single = ~point & (b <= 1e-4 * scale)
-    a_safe = np.where(point, 1.0, a)
-    b_safe = np.where(single | point, 1.0, b)
+    return point, ~point & (b <= 1e-4 * np.maximum(a, sigma))
+
+
+def _below(z, a, b, sigma, kinds=None):
+    """P(U(-a, a) + U(-b, b) + N(0, sigma^2) <= z), a >= b >= 0, sigma > 0.
+
+    Each row takes one closed form (:func:`_image_kinds`; ``kinds``: that function's result,
+    computed once by a caller evaluating several z's) and only that one is evaluated: the rows
+    of a kind are computed by the same operations on the same values as over the whole array,
+    so the result is the same bit for bit as evaluating every form and choosing."""
+    point, single = _image_kinds(a, b, sigma) if kinds is None else kinds
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        double = (_g2(z + a + b, sigma) - _g2(z + a - b, sigma) - _g2(z - a + b, sigma) + _g2(z - a - b, sigma)) / (
-            4.0 * a_safe * b_safe
-        )  # the trapezoid's CDF convolved with the Gaussian
-        box = (_g1(z + a, sigma) - _g1(z - a, sigma)) / (2.0 * a_safe)  # erf's of the box
-    return np.where(point, ndtr(z / sigma), np.where(single, box, double))
+        if not (point.any() or single.any()):  # the usual case: every row a double box
+            return _double_box(z, a, b, sigma)
+        z, a, b, sigma, point, single = np.broadcast_arrays(z, a, b, sigma, point, single)
+        out = np.empty(z.shape)
+        double = ~(point | single)
+        out[double] = _double_box(z[double], a[double], b[double], sigma[double])
+        za, aa, sa = z[single], a[single], sigma[single]
+        out[single] = (_g1(za + aa, sa) - _g1(za - aa, sa)) / (2.0 * aa)  # erf's of the box
+        out[point] = ndtr(z[point] / sigma[point])
+    return out
+
+
+def _double_box(z, a, b, sigma):
+    """:func:`_below` where both boxes count: the trapezoid's CDF convolved with the Gaussian."""
+    s2 = sigma**2
+    return (
+        _g2(z + a + b, sigma, s2) - _g2(z + a - b, sigma, s2) - _g2(z - a + b, sigma, s2) + _g2(z - a - b, sigma, s2)
+    ) / (4.0 * a * b)
 
 
 def box_gauss_fraction(centre, half_a, half_b, sigma, half_window):
@@ -229,7 +251,8 @@ def box_gauss_fraction(centre, half_a, half_b, sigma, half_window):
     big, small = np.maximum(a, b), np.minimum(a, b)
     sigma = np.maximum(as_float_array(sigma), 1e-12)
     w = as_float_array(half_window)
-    fraction = _below(w - c, big, small, sigma) - _below(-w - c, big, small, sigma)
+    kinds = _image_kinds(big, small, sigma)
+    fraction = _below(w - c, big, small, sigma, kinds) - _below(-w - c, big, small, sigma, kinds)
     return np.clip(np.nan_to_num(fraction, nan=0.0), 0.0, 1.0)
 
 
