@@ -9,7 +9,7 @@ from pvlib.location import Location
 from scipy.special import erf
 
 from heliostep.errors import InputError
-from heliostep.results.light import light_figures, light_notes, light_timeseries
+from heliostep.results.light import LightIntegrals, light_figures, light_notes, light_timeseries
 from heliostep.scenario import validate_scenario
 from heliostep.solar.tracking import panel_angle_reference
 
@@ -143,6 +143,26 @@ def test_secondary_stepping_changes_the_light_by_its_first_order_term(distance):
     if distance == 0.0:
         cosine = change[1]["light_stepping_first_order_cosine_J"]
         assert cosine == pytest.approx(change[1]["light_stepping_first_order_J"], rel=1e-3)
+
+
+def test_without_the_first_order_terms_every_other_light_figure_is_the_same_bit_for_bit():
+    # a sweep's case leaves out the two attitudes of the first-order terms (its table does not hold them)
+    scenario = _scenario(2.4)
+    trace, metadata, _ = _trace(scenario, offset=np.radians(0.006))
+    figures = {}
+    for first_order in (True, False):
+        integrals = LightIntegrals(metadata, scenario, first_order=first_order)
+        for start in range(0, len(trace), 700):  # in blocks, as a run feeds them
+            integrals(trace.iloc[start : start + 700])
+        figures[first_order] = integrals.figures()
+    left_out = {"light_stepping_first_order_J", "light_stepping_first_order_cosine_J", "light_stepping_mean_error_rad"}
+    assert figures[True].keys() == figures[False].keys()
+    for key in left_out:
+        assert figures[False][key] is None and figures[True][key] != 0.0
+    for key in figures[True].keys() - left_out - {"light_notes"}:
+        assert figures[False][key] == figures[True][key], key
+    assert figures[True]["light_energy_J"] != figures[True]["light_energy_reference_J"]  # the offset counts
+    assert any("not computed" in note for note in figures[False]["light_notes"])
 
 
 def test_secondary_stepping_error_moves_light_along_the_tube():

@@ -31,9 +31,7 @@ def _share_by_quadrature(centre: float, a: float, b: float, sigma: float, w: flo
         return min(1.0, max(0.0, (a + b - abs(x)) / (2 * b))) / (2 * a)
 
     breaks = sorted({-a - b, -a + b, a - b, a + b})
-    return sum(
-        quad(lambda x: density(x) * window(x), lo, hi, epsabs=1e-13)[0] for lo, hi in zip(breaks, breaks[1:])
-    )
+    return sum(quad(lambda x: density(x) * window(x), lo, hi, epsabs=1e-13)[0] for lo, hi in zip(breaks, breaks[1:]))
 
 
 #: rows of every kind: (centre, a, b, sigma) [m]: two boxes, one box (b negligible), the Gaussian alone

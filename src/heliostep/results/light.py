@@ -198,18 +198,23 @@ def _grid_slice(grid: dict, start: int, stop: int) -> dict:
 
 
 def _light_rows(
-    trace: pd.DataFrame, metadata: Mapping, scenario, weather, origin: float, window_grid: dict | None = None
+    trace: pd.DataFrame,
+    metadata: Mapping,
+    scenario,
+    weather,
+    origin: float,
+    window_grid: dict | None = None,
+    first_order: bool = True,
 ) -> dict:
     """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
     one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
     points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
-    trace gives. ``window_grid``: :func:`sun_grid` at the points k = 0, 1, ... already computed
-    (used where it covers the block's points, else they are computed)."""
+    trace gives. ``window_grid``: :func:`sun_grid` at the points k = 0, 1, ... already computed (used
+    where it covers the block's points); ``first_order``: with the stepping's first-order columns."""
     conf = scenario.optics
     distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
     h = scenario.plant.to_plant().tube_height
     seconds = trace["time"].to_numpy(dtype=float)
-
     first, last = _grid_span(seconds, origin)
     if window_grid is not None and last < len(window_grid["time"]):
         points = _grid_slice(window_grid, first, last + 1)
@@ -248,7 +253,7 @@ def _light_rows(
                 f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"],
             }
         )
-    if driven["actual"] is not None:
+    if driven["actual"] is not None and first_order:
         light_of = lambda p, q: attitude_light(sun, dni, up, p, q, distance, h, conf)  # noqa: E731
         out.update(_first_order_stepping(light_of, attitudes["reference"], axis, out, driven))
     return out
@@ -285,10 +290,12 @@ class LightIntegrals:
     (each block a frame with :func:`light_timeseries`'s columns): trapezoids carried across the
     blocks by the previous block's last row, the intercept's weighted sums, the largest misses.
     It holds one block's rows (``max_block_rows``, the largest block) and nothing that grows with
-    the trace. ``weather``: see :func:`light_timeseries`."""
+    the trace. ``weather``: see :func:`light_timeseries`. ``first_order=False``: without the
+    stepping's first-order terms (their figures None; two attitudes' light fewer at every row)."""
 
-    def __init__(self, metadata: Mapping, scenario, weather=None):
+    def __init__(self, metadata: Mapping, scenario, weather=None, first_order: bool = True):
         self.metadata, self.scenario = metadata, scenario
+        self.first_order = first_order
         self._weather = _weather(scenario, weather)
         self._origin: float | None = None
         self._previous: dict | None = None  # the last row so far: time and power of each attitude
@@ -319,7 +326,9 @@ class LightIntegrals:
         if self._origin is None:
             self._origin = float(seconds[0])
             self._window_grid = self._whole_window_grid(self._origin)
-        series = _light_rows(block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid)
+        series = _light_rows(
+            block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid, self.first_order
+        )
         powers = {key[len("power_") : -len("_W")]: value for key, value in series.items() if key.startswith("power_")}
         if "stepping_first_order_W" in series:
             powers["first_order"] = series["stepping_first_order_W"]
@@ -374,10 +383,14 @@ class LightIntegrals:
             figures["light_lost_stepping_J"] = reference - actual
             figures["light_lost_stepping_fraction"] = (reference - actual) / reference if reference > 0 else 0.0
             figures["light_stepping_change_J"] = actual - reference
-            figures["light_stepping_first_order_J"] = energy.get("first_order", 0.0)
-            figures["light_stepping_first_order_cosine_J"] = energy.get("first_order_cosine", 0.0)
-            weighted = energy.get("error_weighted", 0.0)
-            figures["light_stepping_mean_error_rad"] = weighted / reference if reference > 0 else None
+            if self.first_order:
+                figures["light_stepping_first_order_J"] = energy.get("first_order", 0.0)
+                figures["light_stepping_first_order_cosine_J"] = energy.get("first_order_cosine", 0.0)
+                weighted = energy.get("error_weighted", 0.0)
+                figures["light_stepping_mean_error_rad"] = weighted / reference if reference > 0 else None
+            else:  # not computed (a sweep's case)
+                figures["light_stepping_first_order_J"] = figures["light_stepping_first_order_cosine_J"] = None
+                figures["light_stepping_mean_error_rad"] = None
             figures["light_lost_J"] = ideal - actual
             figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
             figures["mean_intercept"] = self._weighted / self._weight if self._weight > 0 else None
@@ -399,7 +412,13 @@ def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
     """What the light figures mean, and which are not meaningful (``light_notes`` in summary.json)."""
     notes = []
     reference = figures["light_energy_reference_J"]
-    if "light_stepping_change_J" in figures and axis == "secondary":
+    if "light_stepping_change_J" in figures and axis == "secondary" and figures["light_stepping_first_order_J"] is None:
+        notes.append(
+            f"light_stepping_change_J = {figures['light_stepping_change_J']:.3g} J (actual - reference) is not a"
+            " loss: the secondary's stepping error moves the image along the tube; its first-order terms were not"
+            " computed (light_first_order off)"
+        )
+    elif "light_stepping_change_J" in figures and axis == "secondary":
         change, first = figures["light_stepping_change_J"], figures["light_stepping_first_order_J"]
         cosine, mean = figures["light_stepping_first_order_cosine_J"], figures["light_stepping_mean_error_rad"]
         mean_text = "none: no light" if mean is None else f"{mean:.3g} rad"

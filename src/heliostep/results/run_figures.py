@@ -72,7 +72,8 @@ class RunFigures:
     master's ``monitor``; None: ``metadata['solution_figures']`` are used), the output rows (frames
     with at least ``columns``, in time order, blocks of any size) to the call. ``weather`` is the
     scenario's weather file already read (None: read when needed, or clear sky); ``window``
-    (start, duration [s]) says whether the summary says ``night``.
+    (start, duration [s]) says whether the summary says ``night``; ``light_first_order``: the
+    light's first-order stepping terms computed (:class:`~heliostep.results.light.LightIntegrals`).
 
     The output rows are evaluated in chunks of ``block_rows`` rows counted from the first row,
     whatever blocks they come in. ``max_rows_held`` is the most output rows held at once (under
@@ -88,6 +89,7 @@ class RunFigures:
         block_rows: int = ROW_GROUP_ROWS,
         solution: SolutionRecorder | None = None,
         window: tuple[pd.Timestamp, float] | None = None,
+        light_first_order: bool = True,
     ):
         if block_rows < 1:
             raise ValueError(f"block_rows must be at least 1, not {block_rows}")
@@ -98,7 +100,7 @@ class RunFigures:
         self.window = window
         sequencer, schedule = drive_from_metadata(metadata["drive"])
         self.output = OutputRows(self.columns, metadata.get("roles", {}), sequencer, schedule)
-        self.light = LightIntegrals(metadata, scenario, weather)
+        self.light = LightIntegrals(metadata, scenario, weather, first_order=light_first_order)
         self.stow = StowMoveFigures(metadata, sequencer, schedule)
         self._ratio = np.inf
         self._held: list[pd.DataFrame] = []
@@ -119,6 +121,7 @@ class RunFigures:
         scenario,
         weather=None,
         block_rows: int = ROW_GROUP_ROWS,
+        light_first_order: bool = True,
     ) -> RunFigures:
         """The figures of a run about to simulate: the master's ``master_columns``, the output rows'
         ``columns`` (those of the figures, :func:`~heliostep.results.trace.figure_columns`)."""
@@ -131,7 +134,8 @@ class RunFigures:
             span=(0.0, inputs.duration),  # the envelopes' bins span the window
         )
         present = _present(TraceAssembler(inputs, dict(roles)).columns(master_columns), columns)
-        return cls(present, metadata, scenario, weather, block_rows, solution, (inputs.window_start, inputs.duration))
+        window = (inputs.window_start, inputs.duration)
+        return cls(present, metadata, scenario, weather, block_rows, solution, window, light_first_order)
 
     def __call__(self, block: pd.DataFrame) -> None:
         if not len(block):

@@ -92,6 +92,7 @@ def run_scenario(
     fmu_paths: Mapping[str, Path] | None = None,
     supervise: bool = False,
     watchdog: float = DEFAULT_WATCHDOG,
+    light_first_order: bool = True,
 ) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
 
@@ -112,20 +113,21 @@ def run_scenario(
     chunks of ``row_group_rows`` rows, so held and streamed runs with the same ``row_group_rows``
     give the same figures bit for bit.
 
-    With ``keep_trace=False`` (a sweep's cases) no trace is kept: the rows go to the figures as
-    they come (:class:`~heliostep.results.run_figures.FigureStream`), nothing is written, and the
-    figures are those the run would give with its trace kept, bit for bit. The result then has
-    no trace and draws no plots; an interrupted run's summary is not corrected for the step in
-    progress at the cut (the sweep tables keep the figures as simulated).
+    With ``keep_trace=False`` (a sweep's cases) no trace is kept: the rows go to the figures as they
+    come (:class:`~heliostep.results.run_figures.FigureStream`), nothing is written or plotted, and the
+    figures are those with the trace kept, bit for bit (an interrupted run's not corrected at the cut).
 
     ``supervise`` (``heliostep run``'s default): simulate in a child process (:mod:`heliostep.run.supervised`,
     which asks ``should_stop`` every 50 ms and passes it on); an FMU that crashes, exits or hangs
     (no FMI call begun for ``watchdog`` s) fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
+
+    ``light_first_order=False`` (sweep cases): the light's first-order stepping terms left out (None;
+    two attitudes' light fewer per row), every other figure the same bit for bit.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, overrides)
     prepared = _prepare(scenario, fmu_paths, clock.perf_counter(), should_stop, keep_trace)
-    figures = _run_figures(prepared, row_group_rows)
+    figures = _run_figures(prepared, row_group_rows, light_first_order)
     sink, temporary = _row_sink(prepared, figures, keep_trace, stream, trace_dir, row_group_rows)
     try:
         supervision = (watchdog,) if supervise else None
@@ -140,7 +142,7 @@ def run_scenario(
     return run
 
 
-def _run_figures(prepared: _PreparedRun, row_group_rows: int) -> RunFigures:
+def _run_figures(prepared: _PreparedRun, row_group_rows: int, light_first_order: bool = True) -> RunFigures:
     """The run's one figure accumulator, fed while simulating."""
     return RunFigures.of_run(
         prepared.columns,
@@ -151,6 +153,7 @@ def _run_figures(prepared: _PreparedRun, row_group_rows: int) -> RunFigures:
         prepared.scenario,
         prepared.weather,
         row_group_rows,
+        light_first_order=light_first_order,
     )
 
 
