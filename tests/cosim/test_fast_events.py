@@ -11,25 +11,13 @@ import pytest
 
 import heliostep.cosim.fast_events as fast_events
 import heliostep.cosim.master as master
+from drive_system import DRIVE_CONNECTIONS, STEP_INDICES, STEP_TIMES, current_inputs
 from heliostep.cosim.fmi import read_fmu
-from heliostep.cosim.master import Connection, CoSimulation, PiecewiseConstant
+from heliostep.cosim.master import CoSimulation, PiecewiseConstant
 from heliostep.drive.sequencer import Sequencer
 from heliostep.run import run_scenario
 from heliostep.scenario import load_scenario
 from third_party_fmu import build_mini_fmu
-
-DRIVE_CONNECTIONS = [
-    Connection("motor.tau", "mechanics.tau"),
-    Connection("mechanics.theta", "motor.theta"),
-    Connection("mechanics.omega", "motor.omega"),
-]
-STEP_TIMES = np.array([0.05, 0.15, 0.25, 0.35, 0.45])
-STEP_INDICES = np.array([0, 1, 2, 3, 2, 1])  # forward three steps, back two
-
-
-@pytest.fixture(scope="module")
-def drive(fmu_paths):
-    return {"motor": read_fmu(fmu_paths["StepperMotor"]), "mechanics": read_fmu(fmu_paths["PanelMechanics"])}
 
 
 @pytest.fixture(scope="module")
@@ -49,12 +37,7 @@ def _same_bits(a, b):
 
 
 def _drive_system(drive):
-    i_a, i_b = Sequencer().reference_currents(STEP_INDICES)
-    inputs = [
-        PiecewiseConstant("i_a_ref", "motor.i_a_ref", STEP_TIMES, i_a),
-        PiecewiseConstant("i_b_ref", "motor.i_b_ref", STEP_TIMES, i_b),
-    ]
-    return CoSimulation(drive, DRIVE_CONNECTIONS, inputs)
+    return CoSimulation(drive, DRIVE_CONNECTIONS, current_inputs())
 
 
 def _both_ways(monkeypatch, simulate):

@@ -12,25 +12,12 @@ import pandas as pd
 import pytest
 
 import heliostep.cosim.master as master
-from heliostep.cosim import Connection, CoSimulation, PiecewiseConstant, SimulationError, read_fmu
+from drive_system import DRIVE_CONNECTIONS, STEP_TIMES, current_inputs
+from heliostep.cosim import Connection, CoSimulation, SimulationError, read_fmu
 from heliostep.cosim.fmi import FMIError
 from heliostep.cosim.kernel import kernels_dir, library_path
 from heliostep.cosim.master import SolverOptions
-from heliostep.drive.sequencer import Sequencer
 from third_party_fmu import build_mini_fmu
-
-DRIVE_CONNECTIONS = [
-    Connection("motor.tau", "mechanics.tau"),
-    Connection("mechanics.theta", "motor.theta"),
-    Connection("mechanics.omega", "motor.omega"),
-]
-STEP_TIMES = np.array([0.05, 0.15, 0.25, 0.35, 0.45])
-STEP_INDICES = np.array([0, 1, 2, 3, 2, 1])
-
-
-@pytest.fixture(scope="module")
-def drive(fmu_paths):
-    return {"motor": read_fmu(fmu_paths["StepperMotor"]), "mechanics": read_fmu(fmu_paths["PanelMechanics"])}
 
 
 @pytest.fixture(scope="module")
@@ -39,19 +26,11 @@ def mini(tmp_path_factory):
     return {name: read_fmu(build_mini_fmu(name, out)) for name in ("PassThrough", "Switch", "Gain", "Lag")}
 
 
-def _inputs():
-    i_a, i_b = Sequencer().reference_currents(STEP_INDICES)
-    return [
-        PiecewiseConstant("i_a_ref", "motor.i_a_ref", STEP_TIMES, i_a),
-        PiecewiseConstant("i_b_ref", "motor.i_b_ref", STEP_TIMES, i_b),
-    ]
-
-
 def _run(drive, monkeypatch, compiled: bool, interpolate: bool = False, monitor=None):
     monkeypatch.setattr(master, "COMPILED_RHS", compiled)
     monkeypatch.setattr(master, "INTERPOLATE_OUTPUTS", interpolate)
     grid = np.round(np.arange(0.0, 0.6 + 1e-9, 1e-3), 12)
-    return CoSimulation(drive, DRIVE_CONNECTIONS, _inputs()).simulate(
+    return CoSimulation(drive, DRIVE_CONNECTIONS, current_inputs()).simulate(
         0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=monitor
     )
 
@@ -177,7 +156,9 @@ def test_a_loop_beside_the_drive_costs_the_same_evaluations_compiled_as_in_pytho
     runs, seconds = {}, {}
     for compiled in (True, False):
         monkeypatch.setattr(master, "COMPILED_RHS", compiled)
-        system = CoSimulation(fmus, connections, _inputs(), parameters={"lag": {"T": 0.5}, "g": {"k": 0.5, "b": 1.0}})
+        system = CoSimulation(
+            fmus, connections, current_inputs(), parameters={"lag": {"T": 0.5}, "g": {"k": 0.5, "b": 1.0}}
+        )
         began = clock.perf_counter()
         runs[compiled] = system.simulate(0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=lambda rows: None)
         seconds[compiled] = clock.perf_counter() - began
@@ -272,7 +253,7 @@ def test_an_output_time_a_rounding_error_before_an_internal_step_is_recorded(dri
     monkeypatch.setattr(master, "COMPILED_RHS", compiled)
     monkeypatch.setattr(master, "INTERPOLATE_OUTPUTS", True)
     seen = []
-    system = CoSimulation(drive, DRIVE_CONNECTIONS, _inputs())
+    system = CoSimulation(drive, DRIVE_CONNECTIONS, current_inputs())
     system.simulate(
         0.0, 0.6, np.array([0.0, 0.6]), SolverOptions(rtol=1e-6), monitor=lambda block: seen.append(block[:, 0].copy())
     )

@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 from fmpy import simulate_fmu
 
+from drive_system import DRIVE_CONNECTIONS, STEP_INDICES, STEP_TIMES, current_inputs
 from heliostep.cosim.fmi import read_fmu
 from heliostep.cosim.master import (
     Connection,
@@ -15,27 +16,6 @@ from heliostep.cosim.master import (
 )
 from heliostep.drive.sequencer import Sequencer
 from heliostep.errors import InputError
-
-DRIVE_CONNECTIONS = [
-    Connection("motor.tau", "mechanics.tau"),
-    Connection("mechanics.theta", "motor.theta"),
-    Connection("mechanics.omega", "motor.omega"),
-]
-STEP_TIMES = np.array([0.05, 0.15, 0.25, 0.35, 0.45])
-STEP_INDICES = np.array([0, 1, 2, 3, 2, 1])  # forward three steps, back two
-
-
-@pytest.fixture(scope="module")
-def drive(fmu_paths):
-    return {"motor": read_fmu(fmu_paths["StepperMotor"]), "mechanics": read_fmu(fmu_paths["PanelMechanics"])}
-
-
-def _current_inputs(prefix="motor"):
-    i_a, i_b = Sequencer().reference_currents(STEP_INDICES)
-    return [
-        PiecewiseConstant("i_a_ref", f"{prefix}.i_a_ref", STEP_TIMES, i_a),
-        PiecewiseConstant("i_b_ref", f"{prefix}.i_b_ref", STEP_TIMES, i_b),
-    ]
 
 
 def _fmpy_input(stop_time):
@@ -53,7 +33,7 @@ def _last_per_time(frame: pd.DataFrame) -> pd.DataFrame:
 
 def test_cosimulation_equals_monolithic_drive_system(drive, fmu_paths):
     stop, grid = 0.6, np.round(np.arange(0, 0.6 + 1e-9, 1e-3), 12)
-    result = CoSimulation(drive, DRIVE_CONNECTIONS, _current_inputs()).simulate(
+    result = CoSimulation(drive, DRIVE_CONNECTIONS, current_inputs()).simulate(
         0.0, stop, grid, SolverOptions(rtol=1e-8)
     )
     mono = simulate_fmu(
@@ -84,7 +64,7 @@ def test_cosimulation_equals_monolithic_drive_system(drive, fmu_paths):
 
 
 def test_steps_get_rows_just_before_and_just_after(drive):
-    result = CoSimulation(drive, DRIVE_CONNECTIONS, _current_inputs()).simulate(0.0, 0.3, np.array([0.0, 0.3]))
+    result = CoSimulation(drive, DRIVE_CONNECTIONS, current_inputs()).simulate(0.0, 0.3, np.array([0.0, 0.3]))
     trace = result.trace
     for t, (before, after) in zip(STEP_TIMES[:2], [(0, 1), (1, 2)]):
         rows = trace[trace["time"] == t]
@@ -97,7 +77,7 @@ def test_steps_get_rows_just_before_and_just_after(drive):
 
 
 def test_propagation_follows_direct_feedthrough(drive):
-    system = CoSimulation(drive, list(reversed(DRIVE_CONNECTIONS)), _current_inputs())
+    system = CoSimulation(drive, list(reversed(DRIVE_CONNECTIONS)), current_inputs())
     order = [(c.source, c.target) for c in system.order]
     # motor.tau depends directly on motor.theta, so theta must be passed on before tau is read
     assert order.index(("mechanics.theta", "motor.theta")) < order.index(("motor.tau", "mechanics.tau"))
