@@ -40,6 +40,7 @@ from multiprocessing.connection import Connection
 import numpy as np
 
 from heliostep.cosim import watch
+from heliostep.cosim.allocator import restore_dynamic_heap
 from heliostep.cosim.figures import FigureSpec, FigureTotals, KernelFigures
 from heliostep.cosim.kernel import Kernel
 from heliostep.cosim.master import CoSimulation, SimulationError
@@ -176,6 +177,7 @@ def serve(connection: Connection, record: str, request: Request | None = None, t
             signal.signal(number, signal.SIG_IGN)
     if tmpdir is not None:
         os.environ["TMPDIR"] = tempfile.tempdir = tmpdir
+    restore_dynamic_heap()  # a Dask worker's MALLOC_TRIM_THRESHOLD_, inherited: see heliostep.cosim.allocator
     supervisor = os.getppid()
     die_with_supervisor(supervisor)
     watch.attach(record)
