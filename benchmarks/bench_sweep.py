@@ -10,7 +10,10 @@ With ``--full-day`` it also runs sunrise-to-sunset cases of ``scenarios/sweeps/y
 day (172), on the smallest cluster of ``--workers``
 (one worker per core left free: a case's time is then one core's, not shared), and estimates that
 sweep (365 x 14 cases) from the mean time per case of the spread days
-(the days' lengths and step counts vary over the year; the longest day alone overstates it), and prints
+(the days' lengths and step counts vary over the year; the longest day alone overstates it) times the
+workers' CPU time per wall second (a supervised case keeps two cores busy: the child simulating and the
+worker computing the figures from its rows; the CPU is counted with psutil, a dependency of distributed,
+children and a fork server's children included), and prints
 it also as one line for scripts: ``year-field: <h> core-hours, <h> h on 2 workers`` (ideal scaling).
 
 The clusters are started and their workers warmed up (heliostep's case modules and pvlib imported) before the
@@ -70,11 +73,29 @@ def write_sweep(
     return path
 
 
+def worker_cpu_seconds() -> float:
+    """CPU time [s] of this Dask worker process and of every process it started: the children it has
+    reaped, and each live child (a fork server) with the children that one has reaped. Run on the worker."""
+    import psutil  # a dependency of distributed
+
+    own = psutil.Process()
+    times = own.cpu_times()
+    total = times.user + times.system + times.children_user + times.children_system
+    for child in own.children():
+        try:
+            t = child.cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        total += t.user + t.system + t.children_user + t.children_system
+    return total
+
+
 def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> tuple[float, float, object]:
     """(validation time [s], median execution wall time [s], last outcome) of a sweep.
 
     Runs it ``repeat`` times, each into a fresh results table, on one local cluster of
-    ``n_workers`` started (and warmed up) before the clock.
+    ``n_workers`` started (and warmed up) before the clock. ``timed_sweep.cpu_seconds``: the workers' CPU
+    time over the last run, their simulation children's included [s].
     """
     validations, walls = [], []
     with (
@@ -97,8 +118,10 @@ def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> t
             started = clock.perf_counter()
             cases = expand_cases(load_sweep(sweep))
             validated = clock.perf_counter()
+            cpu_before = sum(client.run(worker_cpu_seconds).values())
             outcome = execute_cases(cases, folder / f"results-{n_workers}-{attempt}.parquet", client=client)
             walls.append(clock.perf_counter() - validated)
+            timed_sweep.cpu_seconds = sum(client.run(worker_cpu_seconds).values()) - cpu_before
             validations.append(validated - started)
             if outcome.failed:
                 raise SystemExit(f"{outcome.failed} case(s) failed: {outcome.table['error'].dropna().tolist()}")
@@ -185,18 +208,27 @@ def full_day(folder: Path, n_workers: int) -> None:
     spread = table["day_of_year"].isin(YEAR_SAMPLE_DAYS)
     per_mirror = table.loc[spread & ~primary, "wall_time_s"].mean()
     per_primary = table.loc[spread & primary, "wall_time_s"].mean()
-    core_seconds = 365 * 13 * per_mirror + 365 * per_primary
+    wall_seconds = 365 * 13 * per_mirror + 365 * per_primary
+    # a supervised case runs on two cores at once (the child simulates, the worker computes the figures
+    # from its rows): its CPU time, not its wall time, is what a full cluster pays per case
+    cpu_ratio = timed_sweep.cpu_seconds / table["wall_time_s"].sum()
+    core_seconds = wall_seconds * cpu_ratio
+    print(
+        f"the workers' CPU time {timed_sweep.cpu_seconds:.1f} s over the cases' {table['wall_time_s'].sum():.1f} s "
+        f"of wall time: x{cpu_ratio:.2f} (the simulating child beside the worker)"
+    )
     print(
         f"year-field.yaml = {YEAR_FIELD_CASES} cases: {core_seconds / 3600:.1f} core-hours from the spread "
-        f"days' means ({per_mirror:.2f} s a mirror case, {per_primary:.2f} s a primary case); ideal scaling:"
+        f"days' means ({per_mirror:.2f} s a mirror case, {per_primary:.2f} s a primary case, wall, x{cpu_ratio:.2f}"
+        f" for the CPU); ideal scaling:"
     )
     for size in CLUSTER_SIZES:
         print(f"  {size:3d} workers: {duration_text(core_seconds / size)}")
     # the one line a script reads (issue #26): the year-field estimate, in core-hours and on 2 workers
     print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
-    longest = table.loc[table["day_of_year"] == LONGEST_DAY, "wall_time_s"].max()
+    longest = table.loc[table["day_of_year"] == LONGEST_DAY, "wall_time_s"].max() * cpu_ratio
     print(
-        f"  (were every case as slow as the longest day's slowest, {longest:.2f} s: "
+        f"  (were every case as slow as the longest day's slowest, {longest:.2f} s of CPU: "
         f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)"
     )
 

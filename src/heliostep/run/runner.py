@@ -26,6 +26,7 @@ import numpy as np
 
 from heliostep._version import __version__
 from heliostep.cosim import Connection, CoSimulation, FMUInfo, SimulationError, SolverOptions
+from heliostep.cosim.allocator import restore_dynamic_heap
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import InputError
 from heliostep.results.light import load_weather
@@ -167,6 +168,7 @@ def _prepare(
     """The run checked and set up: its estimate against the budget, FMUs, roles, weather, drive
     inputs (:class:`~heliostep.drive.sequencer.PreparationStopped` on a stop request), the coupled system."""
     check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, keep_trace))  # before any work
+    restore_dynamic_heap()  # in a Dask worker (its MALLOC_TRIM_THRESHOLD_): heliostep.cosim.allocator
     fmu_paths = dict(fmu_paths) if fmu_paths is not None else resolve_fmus(scenario)
     infos = read_fmus(scenario, fmu_paths)
     roles = present_roles(scenario, infos)

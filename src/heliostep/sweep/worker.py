@@ -20,7 +20,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from heliostep.cosim.allocator import restore_dynamic_heap
 from heliostep.cosim.fmi import read_fmu
 from heliostep.drive.inputs import prepare_inputs, reference_times
 from heliostep.errors import HeliostepError
@@ -179,7 +178,6 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
         (:data:`RUN_COLUMNS`; ``wall_time_s`` [s], ``finished_at`` UTC ISO time).
     """
     started = clock.perf_counter()
-    restore_dynamic_heap()  # Dask's MALLOC_TRIM_THRESHOLD_ made a day case 3.7x slower (heliostep.cosim.allocator)
     row = {**case.columns, **dict.fromkeys(FIGURE_COLUMNS), "status": "ok", "error_type": None, "error": None}
     scenario = None
     try:
