@@ -3,7 +3,7 @@
 A process that runs several threads (a Dask worker) cannot fork its supervised children safely
 (a fork copies one thread, and any lock another one held), and a new interpreter for each costs
 about half a second of imports. The fork server is a helper process started once (lazily, by
-exec: ``python -m heliostep.run.fork_server <fd>``) per supervising process, with
+exec: ``python -c "...fork_server.main..." <fd>``) per supervising process, with
 :mod:`heliostep.cosim.child` (numpy, the master, the kernel module) imported; it runs one thread
 and forks one simulation child per request, in a few milliseconds.
 
@@ -57,6 +57,9 @@ AVAILABLE = hasattr(os, "fork") and hasattr(socket, "AF_UNIX") and hasattr(socke
 #: Seconds the server may take to answer a request with its child's pid (its own start included:
 #: an interpreter and its imports) before it counts as broken.
 READY_LIMIT = 60.0
+
+#: The server's command (not ``-m``: this module is imported with its package before it would run).
+_MAIN = "import sys; from heliostep.run.fork_server import main; sys.exit(main(sys.argv))"
 
 _WAKE = 1.0  # [s] the server's longest wait: it also looks whether its parent is still there
 
@@ -132,7 +135,7 @@ class _Client:
 
     def _start(self, key: tuple) -> None:
         ours, server_end = socket.socketpair()
-        command = [sys.executable, "-m", "heliostep.run.fork_server", str(server_end.fileno())]
+        command = [sys.executable, "-c", _MAIN, str(server_end.fileno())]
         try:
             self.process = subprocess.Popen(command, pass_fds=[server_end.fileno()], stdin=subprocess.DEVNULL)
         except OSError:
