@@ -293,3 +293,18 @@ def test_a_run_from_a_thread_is_forked_by_the_fork_server_the_same_bit_for_bit(f
     np.testing.assert_array_equal(inside.trace.to_numpy(), again.trace.to_numpy())
     fork_server.close()  # ends it (its control socket closed), as at this process's exit
     assert server.returncode == -signal.SIGKILL and fork_server._CLIENT.process is None
+
+
+def test_a_fork_server_that_cannot_start_leaves_the_child_executed(fmu_paths, monkeypatch):
+    import heliostep.run.supervised as supervised
+    from heliostep.paths import scenarios_dir
+    from heliostep.run import fork_server
+
+    monkeypatch.setattr(supervised, "START", "server")
+    monkeypatch.setattr(fork_server, "_CLIENT", fork_server._Client())  # a client of its own, no server yet
+    monkeypatch.setattr(fork_server, "_MAIN", "import sys; sys.exit(3)")  # a server that dies at once
+    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=20",)
+    inside = run_scenario(scenario, overrides, supervise=False)
+    executed = run_scenario(scenario, overrides, supervise=True)
+    assert fork_server._CLIENT.broken and fork_server._CLIENT.process is None  # tried twice, then given up
+    np.testing.assert_array_equal(inside.trace.to_numpy(), executed.trace.to_numpy())
