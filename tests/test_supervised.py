@@ -269,8 +269,8 @@ def _run_in_thread(scenario: Path, overrides: tuple[str, ...]):
 
 def test_a_run_from_a_thread_is_forked_by_the_fork_server_the_same_bit_for_bit(fmu_paths, monkeypatch):
     import heliostep.run.supervised as supervised
+    from heliostep.cosim import fork_server
     from heliostep.paths import scenarios_dir
-    from heliostep.run import fork_server
 
     monkeypatch.setattr(supervised, "START", "auto")
     scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=60",)
@@ -297,8 +297,8 @@ def test_a_run_from_a_thread_is_forked_by_the_fork_server_the_same_bit_for_bit(f
 
 def test_a_fork_server_that_cannot_start_leaves_the_child_executed(fmu_paths, monkeypatch):
     import heliostep.run.supervised as supervised
+    from heliostep.cosim import fork_server
     from heliostep.paths import scenarios_dir
-    from heliostep.run import fork_server
 
     monkeypatch.setattr(supervised, "START", "server")
     monkeypatch.setattr(fork_server, "_CLIENT", fork_server._Client())  # a client of its own, no server yet

@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions
+from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions, fork_server
 from heliostep.cosim import master as master_module
 from heliostep.cosim.child import Request, serve
 from heliostep.cosim.figures import FigureSpec
@@ -52,7 +52,6 @@ from heliostep.cosim.kernel import library_path
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.watch import LAYOUT, RECORD_BYTES, STOP_OFFSET, called_function
 from heliostep.errors import HeliostepError, InputError
-from heliostep.run import fork_server
 
 __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_supervised"]
 
@@ -61,7 +60,7 @@ __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_
 DEFAULT_WATCHDOG = 60.0
 
 #: How the child is started: ``"fork"`` (nothing to import again, about a millisecond),
-#: ``"server"`` (forked by this process's fork server, :mod:`heliostep.run.fork_server`: a
+#: ``"server"`` (forked by this process's fork server, :mod:`heliostep.cosim.fork_server`: a
 #: single-threaded helper with the child's modules imported, started once, lazily; a few
 #: milliseconds per child), ``"exec"`` (a new interpreter, ``python -m heliostep.cosim.child``:
 #: about half a second of imports) or ``"auto"``: fork where the OS can and this process runs one

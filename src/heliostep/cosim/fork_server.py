@@ -59,7 +59,7 @@ AVAILABLE = hasattr(os, "fork") and hasattr(socket, "AF_UNIX") and hasattr(socke
 READY_LIMIT = 60.0
 
 #: The server's command (not ``-m``: this module is imported with its package before it would run).
-_MAIN = "import sys; from heliostep.run.fork_server import main; sys.exit(main(sys.argv))"
+_MAIN = "import sys; from heliostep.cosim.fork_server import main; sys.exit(main(sys.argv))"
 
 _WAKE = 1.0  # [s] the server's longest wait: it also looks whether its parent is still there
 
