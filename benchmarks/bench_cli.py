@@ -15,7 +15,8 @@ figures drawn by default (on two cores, while the records are written, wherever 
 on two (``HELIOSTEP_PARALLEL_PLOTS=1``: the same) and one after the other (``=0``),
 the references (with ``--baseline``, another checkout's ``src`` run the same way, side by side, and
 the ratios to it), the variants of the supervised child's start (``--no-supervise``; a
-child started as a new interpreter, ``HELIOSTEP_SUPERVISED_START=exec``, against the default fork)
+child started as a new interpreter, ``HELIOSTEP_SUPERVISED_START=exec``, or forked by the fork server,
+``=server`` (its own start included: one run per process), against the default fork)
 and, unless ``--no-breakdown``, where one run's time goes: the process started once more with
 ``--breakdown`` (this file as its own child), which times the stages of the run by wrapping their
 functions (the command's imports, the scenario read, the FMUs resolved and read, the drive inputs
@@ -91,6 +92,7 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
             "no-plots, baseline": ([*run, "--out", str(out / "baseline-no-plots"), "--no-plots"], old),
         }
     exec_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "exec"}
+    server_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "server"}  # one run: the server's start too
     serial_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "0"}
     forked_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "1"}
     return {
@@ -100,6 +102,7 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
         "no-plots": ([*run, "--out", str(out / "no-plots"), "--no-plots"], None),
         "no-plots --no-supervise": ([*run, "--out", str(out / "unsupervised"), "--no-plots", "--no-supervise"], None),
         "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
+        "no-plots, child fork server": ([*run, "--out", str(out / "server"), "--no-plots"], server_env),
         "python -c pass": ([sys.executable, "-c", "pass"], None),
         "import pvlib": ([sys.executable, "-c", "import pvlib"], None),
         **extra,

@@ -89,7 +89,8 @@ FAULTS = {  # fault code: (how the message says the process ended, reason)
 
 @pytest.mark.parametrize(
     "fault, start",
-    [*((fault, "fork") for fault in sorted(FAULTS)), (1, "exec")],  # exec: the path without fork
+    # exec: the path without fork; server: forked by the fork server (a Dask worker's path)
+    [*((fault, "fork") for fault in sorted(FAULTS)), (1, "exec"), (1, "server"), (5, "server")],
 )
 def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so_far(
     fault, start, faulty_fmu, complete_trace, tmp_path, fmu_paths
@@ -153,7 +154,7 @@ def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(faulty_fmu, comp
     assert sorted(p.name for p in private.iterdir()) == []
 
 
-@pytest.mark.parametrize("start", ["fork", "exec"])
+@pytest.mark.parametrize("start", ["fork", "server", "exec"])
 def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_bit(
     start, fmu_paths, tmp_path, monkeypatch
 ):
@@ -222,7 +223,7 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux's /proc to find the child")
-@pytest.mark.parametrize("start", ["fork", "exec"])
+@pytest.mark.parametrize("start", ["fork", "server", "exec"])
 def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faulty_fmu, tmp_path, fmu_paths):
     out, private = tmp_path / "out", tmp_path / "tmp"
     process = _start(_scenario(tmp_path, faulty_fmu, 5, t_fault=20.0), out, private, start=start)  # watchdog 60 s
@@ -230,6 +231,10 @@ def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faul
     children = _children(process.pid)
     assert len(children) == 1, children
     child = children[0]
+    if start == "server":  # the supervisor's child is the fork server, the simulation its child
+        server, children = child, _children(child)
+        assert len(children) == 1, children
+        child = children[0]
     assert _alive(child)
     process.kill()  # SIGKILL: the supervisor cannot clean up, nor kill its child itself
     process.communicate(timeout=30)
@@ -237,3 +242,69 @@ def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faul
     while _alive(child):  # the child, looping in native code, is ended by the kernel (or its watcher)
         assert time.monotonic() < deadline, f"the hung child {child} outlived its supervisor"
         time.sleep(0.05)
+    while start == "server" and _alive(server):  # the fork server too, its control socket closed by the kernel
+        assert time.monotonic() < deadline, f"the fork server {server} outlived its supervisor"
+        time.sleep(0.05)
+
+
+def _run_in_thread(scenario: Path, overrides: tuple[str, ...]):
+    """``run_scenario(..., supervise=True)`` from a thread of its own: this process runs two threads,
+    so the child is not forked from it (``auto``: the fork server, as in a Dask worker)."""
+    import threading
+
+    import heliostep.run.supervised as supervised
+
+    methods, results = [], []
+
+    def run() -> None:
+        methods.append(supervised._start_method())
+        results.append(run_scenario(scenario, overrides, supervise=True))
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    thread.join()
+    assert len(results) == 1
+    return methods[0], results[0]
+
+
+def test_a_run_from_a_thread_is_forked_by_the_fork_server_the_same_bit_for_bit(fmu_paths, monkeypatch):
+    import heliostep.run.supervised as supervised
+    from heliostep.cosim import fork_server
+    from heliostep.paths import scenarios_dir
+
+    monkeypatch.setattr(supervised, "START", "auto")
+    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=60",)
+    inside = run_scenario(scenario, overrides, supervise=False)
+    method, served = _run_in_thread(scenario, overrides)
+    assert method == "server"
+    server = fork_server._CLIENT.process
+    assert server is not None and server.poll() is None  # it served the run, and waits for the next
+    for column in inside.trace.columns:
+        np.testing.assert_array_equal(inside.trace[column].to_numpy(), served.trace[column].to_numpy())
+    assert json.dumps(inside.summary, sort_keys=True, default=str) == json.dumps(
+        served.summary, sort_keys=True, default=str
+    )
+    # the server killed: the next run starts another one, and gives the same rows again
+    server.kill()
+    server.wait()
+    method, again = _run_in_thread(scenario, overrides)
+    assert method == "server" and fork_server._CLIENT.process is not server
+    assert fork_server._CLIENT.process.poll() is None and not fork_server._CLIENT.broken
+    np.testing.assert_array_equal(inside.trace.to_numpy(), again.trace.to_numpy())
+    fork_server.close()  # ends it (its control socket closed), as at this process's exit
+    assert server.returncode == -signal.SIGKILL and fork_server._CLIENT.process is None
+
+
+def test_a_fork_server_that_cannot_start_leaves_the_child_executed(fmu_paths, monkeypatch):
+    import heliostep.run.supervised as supervised
+    from heliostep.cosim import fork_server
+    from heliostep.paths import scenarios_dir
+
+    monkeypatch.setattr(supervised, "START", "server")
+    monkeypatch.setattr(fork_server, "_CLIENT", fork_server._Client())  # a client of its own, no server yet
+    monkeypatch.setattr(fork_server, "_MAIN", "import sys; sys.exit(3)")  # a server that dies at once
+    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=20",)
+    inside = run_scenario(scenario, overrides, supervise=False)
+    executed = run_scenario(scenario, overrides, supervise=True)
+    assert fork_server._CLIENT.broken and fork_server._CLIENT.process is None  # tried twice, then given up
+    np.testing.assert_array_equal(inside.trace.to_numpy(), executed.trace.to_numpy())

@@ -57,6 +57,7 @@ __all__ = [
     "Request",
     "die_with_supervisor",
     "main",
+    "run",
     "serve",
 ]
 
@@ -157,11 +158,16 @@ class _FiguresToSupervisor:
 
 
 def main(argv: list[str]) -> int:
-    """Serve one request read from the socket ``argv[1]`` (a file descriptor), noting FMU calls in ``argv[2]``.
+    """Serve one request read from the socket ``argv[1]`` (a file descriptor), noting FMU calls in ``argv[2]``."""
+    return run(Connection(int(argv[1])), argv[2])
+
+
+def run(connection: Connection, record: str, tmpdir: str | None = None) -> int:
+    """Serve one request read from ``connection`` (:func:`serve`; also the fork server's children).
     A supervisor gone (its end of the socket closed: e.g. a Dask worker closed with its cluster) ends
     the run with one line on stderr and exit status 1: there is no one left to stream to."""
     try:
-        return serve(Connection(int(argv[1])), argv[2])
+        return serve(connection, record, None, tmpdir)
     except (BrokenPipeError, ConnectionResetError, EOFError) as exc:
         why = getattr(exc, "strerror", None) or "connection closed"
         print(f"heliostep: a supervised run ends: its supervisor is gone ({why})", file=sys.stderr)

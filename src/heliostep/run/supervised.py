@@ -1,8 +1,9 @@
 """Supervised simulation: the master runs in a child process, so an FMU cannot take the run down.
 
 :func:`simulate_supervised` is :meth:`CoSimulation.simulate <heliostep.cosim.master.CoSimulation.simulate>`
-with the same arguments and results, but the simulation runs in a child process (forked, or a
-new interpreter: :data:`START`; :mod:`heliostep.cosim.child`) that streams its rows back over a
+with the same arguments and results, but the simulation runs in a child process (forked, forked by a
+fork server, or a new interpreter: :data:`START`, ``$HELIOSTEP_SUPERVISED_START`` ``fork``,
+``server``, ``exec`` or ``auto``; :mod:`heliostep.cosim.child`) that streams its rows back over a
 socket: the supervisor
 (this process) feeds them to the run's row sink and monitor as they come, exactly as the master
 would in-process, so the figures and the trace are the same bit for bit.
@@ -43,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions
+from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions, fork_server
 from heliostep.cosim import master as master_module
 from heliostep.cosim.child import Request, serve
 from heliostep.cosim.figures import FigureSpec
@@ -58,18 +59,23 @@ __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_
 #: declares the FMU hung (a model evaluation takes microseconds to milliseconds).
 DEFAULT_WATCHDOG = 60.0
 
-#: How the child is started: ``"fork"`` (nothing to import again, about a millisecond), ``"exec"``
-#: (a new interpreter, ``python -m heliostep.cosim.child``: about a second of imports) or
-#: ``"auto"``: fork where the OS can and this process runs one thread only (a fork copies one
-#: thread, and any lock another one held: a Dask worker's threads), else exec.
-#: ``$HELIOSTEP_SUPERVISED_START`` chooses.
+#: How the child is started: ``"fork"`` (nothing to import again, about a millisecond),
+#: ``"server"`` (forked by this process's fork server, :mod:`heliostep.cosim.fork_server`: a
+#: single-threaded helper with the child's modules imported, started once, lazily; a few
+#: milliseconds per child), ``"exec"`` (a new interpreter, ``python -m heliostep.cosim.child``:
+#: about half a second of imports) or ``"auto"``: fork where the OS can and this process runs one
+#: thread only (a fork copies one thread, and any lock another one held: a Dask worker's threads),
+#: else the fork server where the OS has one (AF_UNIX sockets passing descriptors, fork), else exec.
+#: A fork server that cannot be started (twice) leaves exec. ``$HELIOSTEP_SUPERVISED_START`` chooses.
 START = os.environ.get("HELIOSTEP_SUPERVISED_START") or "auto"
 
 
 def _start_method() -> str:
     if START != "auto":
         return START
-    return "fork" if hasattr(os, "fork") and threading.active_count() == 1 else "exec"
+    if hasattr(os, "fork") and threading.active_count() == 1:
+        return "fork"
+    return "server" if fork_server.AVAILABLE else "exec"
 
 
 #: Seconds a child has to stop by itself once asked, before it is killed.
@@ -171,9 +177,15 @@ class _Supervisor:
         for end in (ours, theirs):  # room for a few blocks of solver steps: neither side waits on the other
             for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):
                 end.setsockopt(socket.SOL_SOCKET, option, SOCKET_BUFFER)
-        self.forked = _start_method() == "fork"
+        method = _start_method()
+        self.forked = method == "fork"
         try:
-            self.process = _fork(request, ours, theirs, folder) if self.forked else _execute(theirs, folder)
+            process: _Forked | fork_server.Served | subprocess.Popen | None = None
+            if self.forked:
+                process = _fork(request, ours, theirs, folder)
+            elif method == "server":  # None: no fork server could start
+                process = fork_server.spawn(theirs, str(folder / "calls"), str(folder / "tmp"))
+            self.process = process if process is not None else _execute(theirs, folder)
         finally:
             theirs.close()
         self.connection = Connection(ours.detach())
