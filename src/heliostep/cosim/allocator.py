@@ -16,7 +16,6 @@ of freed heap. It only acts where the variable is set and the C library has ``ma
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import os
 
 __all__ = ["MMAP_THRESHOLD", "TRIM_THRESHOLD", "restore_dynamic_heap"]
@@ -27,17 +26,20 @@ MMAP_THRESHOLD = 32 << 20
 TRIM_THRESHOLD = 2 * MMAP_THRESHOLD
 
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # <malloc.h>
+_restored = False  # set once per process (a forked child inherits the heap's settings)
 
 
 def restore_dynamic_heap() -> bool:
     """Raise glibc's mmap and trim thresholds (:data:`MMAP_THRESHOLD`, :data:`TRIM_THRESHOLD`) when
-    ``MALLOC_TRIM_THRESHOLD_`` is set in this process's environment; True if they were set."""
-    if "MALLOC_TRIM_THRESHOLD_" not in os.environ:
-        return False
+    ``MALLOC_TRIM_THRESHOLD_`` is set in this process's environment; True if they are set (once per
+    process: every later call only says so)."""
+    global _restored
+    if _restored or "MALLOC_TRIM_THRESHOLD_" not in os.environ:
+        return _restored
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
+        mallopt = ctypes.CDLL(None).mallopt  # the C library the interpreter runs on
     except (OSError, AttributeError):  # not glibc (musl, macOS): nothing to undo
         return False
     mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
-    return bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+    _restored = bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+    return _restored
