@@ -408,30 +408,35 @@ def _sign(cosine_term: float, mean_error: float | None) -> str:
     return "+" if cosine_term / mean_error > 0 else "-"
 
 
+def _stepping_note(figures: Mapping) -> str:
+    """What a secondary's ``light_stepping_change_J`` means, with its first-order terms where computed."""
+    change, first = figures["light_stepping_change_J"], figures["light_stepping_first_order_J"]
+    if first is None:
+        return (
+            f"light_stepping_change_J = {change:.3g} J (actual - reference) is not a"
+            " loss: the secondary's stepping error moves the image along the tube; its first-order terms were not"
+            " computed (light_first_order off)"
+        )
+    cosine, mean = figures["light_stepping_first_order_cosine_J"], figures["light_stepping_mean_error_rad"]
+    mean_text = "none: no light" if mean is None else f"{mean:.3g} rad"
+    return (
+        f"light_stepping_change_J = {change:.3g} J (actual - reference; light_lost_stepping_J is its negative)"
+        " is not a loss: the secondary's stepping error moves the image along the tube (no cost where the"
+        " tube runs on past it) and changes the light to first order,"
+        f" light_stepping_first_order_J = {first:.3g} J,"
+        f" of which the cosine's {cosine:.3g} J (the rest the intercept's, where the image is off the tube's"
+        f" axis); its sign is that of the power-weighted mean error ({mean_text}) times that of the"
+        f" cosine's slope d cos / d theta ({_sign(cosine, mean)}), the reference (the secondary's own two-axis"
+        " law, each image aimed at its own cross-section) being no optimum"
+    )
+
+
 def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
     """What the light figures mean, and which are not meaningful (``light_notes`` in summary.json)."""
     notes = []
     reference = figures["light_energy_reference_J"]
-    if "light_stepping_change_J" in figures and axis == "secondary" and figures["light_stepping_first_order_J"] is None:
-        notes.append(
-            f"light_stepping_change_J = {figures['light_stepping_change_J']:.3g} J (actual - reference) is not a"
-            " loss: the secondary's stepping error moves the image along the tube; its first-order terms were not"
-            " computed (light_first_order off)"
-        )
-    elif "light_stepping_change_J" in figures and axis == "secondary":
-        change, first = figures["light_stepping_change_J"], figures["light_stepping_first_order_J"]
-        cosine, mean = figures["light_stepping_first_order_cosine_J"], figures["light_stepping_mean_error_rad"]
-        mean_text = "none: no light" if mean is None else f"{mean:.3g} rad"
-        notes.append(
-            f"light_stepping_change_J = {change:.3g} J (actual - reference; light_lost_stepping_J is its negative)"
-            " is not a loss: the secondary's stepping error moves the image along the tube (no cost where the"
-            " tube runs on past it) and changes the light to first order,"
-            f" light_stepping_first_order_J = {first:.3g} J,"
-            f" of which the cosine's {cosine:.3g} J (the rest the intercept's, where the image is off the tube's"
-            f" axis); its sign is that of the power-weighted mean error ({mean_text}) times that of the"
-            f" cosine's slope d cos / d theta ({_sign(cosine, mean)}), the reference (the secondary's own two-axis"
-            " law, each image aimed at its own cross-section) being no optimum"
-        )
+    if "light_stepping_change_J" in figures and axis == "secondary":
+        notes.append(_stepping_note(figures))
     if distance == 0.0 and axis == "secondary":
         notes.append("light_lost_shared_primary_J is exactly 0: the central mirror's primary is the shared one")
     if axis == "primary":

@@ -196,14 +196,14 @@ def _image_kinds(a, b, sigma):
     return point, ~point & (b <= 1e-4 * np.maximum(a, sigma))
 
 
-def _below(z, a, b, sigma, kinds=None):
+def _below(z, a, b, sigma, kinds):
     """P(U(-a, a) + U(-b, b) + N(0, sigma^2) <= z), a >= b >= 0, sigma > 0.
 
-    Each row takes one closed form (:func:`_image_kinds`; ``kinds``: that function's result,
-    computed once by a caller evaluating several z's) and only that one is evaluated: the rows
-    of a kind are computed by the same operations on the same values as over the whole array,
-    so the result is the same bit for bit as evaluating every form and choosing."""
-    point, single = _image_kinds(a, b, sigma) if kinds is None else kinds
+    Each row takes one closed form (``kinds``: :func:`_image_kinds` of a, b, sigma, computed once
+    for the z's of one image) and only that one is evaluated: the rows of a kind are computed by
+    the same operations on the same values as over the whole array, so the result is the same bit
+    for bit as evaluating every form and choosing."""
+    point, single = kinds
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         if not (point.any() or single.any()):  # the usual case: every row a double box
             return _double_box(z, a, b, sigma)
