@@ -90,12 +90,12 @@ def worker_cpu_seconds() -> float:
     return total
 
 
-def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> tuple[float, float, object]:
-    """(validation time [s], median execution wall time [s], last outcome) of a sweep.
+def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> tuple[float, float, object, float]:
+    """(validation time [s], median execution wall time [s], last outcome, the workers' CPU time over the
+    last run, their simulation children's included [s]) of a sweep.
 
     Runs it ``repeat`` times, each into a fresh results table, on one local cluster of
-    ``n_workers`` started (and warmed up) before the clock. ``timed_sweep.cpu_seconds``: the workers' CPU
-    time over the last run, their simulation children's included [s].
+    ``n_workers`` started (and warmed up) before the clock.
     """
     validations, walls = [], []
     with (
@@ -121,11 +121,11 @@ def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> t
             cpu_before = sum(client.run(worker_cpu_seconds).values())
             outcome = execute_cases(cases, folder / f"results-{n_workers}-{attempt}.parquet", client=client)
             walls.append(clock.perf_counter() - validated)
-            timed_sweep.cpu_seconds = sum(client.run(worker_cpu_seconds).values()) - cpu_before
+            cpu_seconds = sum(client.run(worker_cpu_seconds).values()) - cpu_before
             validations.append(validated - started)
             if outcome.failed:
                 raise SystemExit(f"{outcome.failed} case(s) failed: {outcome.table['error'].dropna().tolist()}")
-    return statistics.median(validations), statistics.median(walls), outcome
+    return statistics.median(validations), statistics.median(walls), outcome, cpu_seconds
 
 
 def duration_text(seconds: float) -> str:
@@ -152,7 +152,7 @@ def main(argv: list[str] | None = None) -> None:
         )
         rates, per_case = {}, {}
         for n_workers in args.workers:
-            validation, wall, outcome = timed_sweep(sweep, folder, n_workers, args.repeat)
+            validation, wall, outcome, _ = timed_sweep(sweep, folder, n_workers, args.repeat)
             rates[n_workers] = n_cases / wall * 60.0
             per_case[n_workers] = wall / n_cases
             in_case = outcome.table["wall_time_s"]
@@ -189,7 +189,7 @@ def full_day(folder: Path, n_workers: int) -> None:
         overrides,
         shared_primary=True,
     )
-    _, wall, outcome = timed_sweep(days, folder / "days", n_workers)
+    _, wall, outcome, cpu_seconds = timed_sweep(days, folder / "days", n_workers)
     table = outcome.table
     primary = table["role"] == "shared-primary"
     print(
@@ -211,10 +211,10 @@ def full_day(folder: Path, n_workers: int) -> None:
     wall_seconds = 365 * 13 * per_mirror + 365 * per_primary
     # a supervised case runs on two cores at once (the child simulates, the worker computes the figures
     # from its rows): its CPU time, not its wall time, is what a full cluster pays per case
-    cpu_ratio = timed_sweep.cpu_seconds / table["wall_time_s"].sum()
+    cpu_ratio = cpu_seconds / table["wall_time_s"].sum()
     core_seconds = wall_seconds * cpu_ratio
     print(
-        f"the workers' CPU time {timed_sweep.cpu_seconds:.1f} s over the cases' {table['wall_time_s'].sum():.1f} s "
+        f"the workers' CPU time {cpu_seconds:.1f} s over the cases' {table['wall_time_s'].sum():.1f} s "
         f"of wall time: x{cpu_ratio:.2f} (the simulating child beside the worker)"
     )
     print(
