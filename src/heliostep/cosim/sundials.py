@@ -45,6 +45,7 @@ def _bind(library: ctypes.CDLL, name: str, restype, *argtypes):
 SUN_COMM_NULL = 0  # SUNComm is an int without MPI
 SUNContext_Create = _bind(sundials_core, "SUNContext_Create", c_int, c_int, POINTER(c_void_p))
 SUNContext_PushErrHandler = _bind(sundials_core, "SUNContext_PushErrHandler", c_int, c_void_p, ERROR_HANDLER, c_void_p)
+SUNContext_ClearErrHandlers = _bind(sundials_core, "SUNContext_ClearErrHandlers", c_int, c_void_p)
 N_VNew_Serial = _bind(sundials_nvecserial, "N_VNew_Serial", c_void_p, c_int64, c_void_p)
 N_VGetArrayPointer = _bind(sundials_nvecserial, "N_VGetArrayPointer", c_void_p, c_void_p)
 # dense Jacobian and linear solver
