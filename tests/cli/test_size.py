@@ -154,6 +154,36 @@ def test_energy_per_year_light_change_and_the_band_per_candidate(sized):
         assert worst["holding_torque_Nm"] == pytest.approx(_held(motor, row["current_A"], 23.0), rel=0.03)
 
 
+def test_the_days_again_at_the_worst_corner_lower_the_current_as_the_loop_gain_says(sized):
+    """The band's days: each day co-simulated once more at the ranges' worst corner (24 V, K = 23 V/A,
+    B_m = 8e-4), beside the nominal days. The commanded steps follow the sun, not the drive: the same. The
+    chopper's loop holds K I / (K + R) of the reference at rest ([paper] eq. 7, averaged), so with the
+    holding current's copper loss dominating a 60 s window the electrical energy scales by the square of
+    that ratio between K = 23 and the catalogue's K = 100 V/A, computed here from R alone."""
+    _, out = sized
+    sheet = json.loads((out / "sizing.json").read_text())
+    html_text = (out / "sizing.html").read_text()
+    assert "days at the worst corner: steps lost [steps]" in html_text
+    for entry in sheet["candidates"]:
+        motor = {"small": SMALL, "large": LARGE}[entry["name"]]
+        row = entry["currents"][0]
+        nominal, worst = row["simulation"], row["band"]["simulation_worst_corner"]
+        assert worst["parameters"] == {
+            "parameters.motor.V_supply": 24.0,
+            "parameters.motor.K_current": 23.0,
+            "parameters.mechanics.B_m": 8e-4,
+        }
+        assert worst["days_simulated"] == nominal["days_simulated"] == [21]
+        assert worst["steps_commanded"] == nominal["steps_commanded"] > 0
+        assert worst["steps_lost"] == worst["missed_steps"] == 0
+        resistance = motor["resistance"]
+        held = (23.0 / (23.0 + resistance)) / (100.0 / (100.0 + resistance))
+        energy = worst["per_day"]["21"]["electrical_energy_J"] / nominal["per_day"]["21"]["electrical_energy_J"]
+        assert energy == pytest.approx(held**2, abs=5e-4)  # 0.9815 (0.28 ohm), 0.9520 (0.75 ohm)
+        assert energy < 1.0 - 0.01  # the corner reached the FMU: the loss fell by more than the tolerance
+        assert f"{entry['name']}@{row['current_A']:g}A/day21/worst-corner" in sheet["finished_cases"]
+
+
 def test_one_candidate_passes_and_the_other_fails_for_a_named_reason(sized):
     status, out = sized
     assert status == 0
@@ -341,7 +371,12 @@ def test_an_interrupted_sizing_keeps_the_cases_it_finished_and_names_the_rest(tm
     written = json.loads((tmp_path / "out" / "sizing.json").read_text())
     assert written["complete"] is False and sheet["complete"] is False
     assert written["finished_cases"] == ["small@3A/day21"] == finished
-    assert written["unfinished_cases"] == ["small@3A/day22"]
+    # the nominal days first, then the same days again at the ranges' worst corner (the band's)
+    assert written["unfinished_cases"] == [
+        "small@3A/day22",
+        "small@3A/day21/worst-corner",
+        "small@3A/day22/worst-corner",
+    ]
     row = written["candidates"][0]["currents"][0]
     assert row["verdict"] == "incomplete"
     assert row["simulation"]["days_simulated"] == [21] and row["simulation"]["days_unfinished"] == [22]

@@ -19,7 +19,9 @@ SIZE_DESCRIPTION = (
     "inertia torque of the fastest move), the margin to slip while tracking and at idle current, and the "
     "scenario's window co-simulated on each day with the candidate's motor (steps missed and lost, worst "
     "tracking error, drive energy). A candidate passes when both margins reach the safety factor and no step "
-    "is missed or lost. Writes sizing.json and sizing.html (self-contained) into --out.\n\n"
+    "is missed or lost. Each day is co-simulated once more at the worst corner of the drive physics' ranges "
+    "(data/parameter_ranges.yaml: the lowest bus and loop gain, the highest rotor damping), shown in the band "
+    "beside the verdict (--no-band-days: not). Writes sizing.json and sizing.html (self-contained) into --out.\n\n"
     "Days: --days DOY ..., or --days all (every day of the year, meant for --scheduler); else the days that "
     "matter, found over the scenario's year: the sun's fastest days (the peaks of the year's curve of the ideal "
     "panel angle's largest rate within the window) and, with wind.weather_file, the year's windiest days (the "
@@ -66,6 +68,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key (as for run)"
     )
+    parser.add_argument(
+        "--no-band-days",
+        action="store_true",
+        help="do not co-simulate the days again at the drive physics' worst corner (the band's steps and error)",
+    )
     parser.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario>-sizing)")
     parser.add_argument("--scheduler", default=None, metavar="ADDR", help="Dask scheduler (tcp://HOST:PORT)")
     parser.set_defaults(func=main)
@@ -97,6 +104,7 @@ def main(args: argparse.Namespace) -> int:
         safety_factor=args.safety_factor,
         curve_rates=args.curve_rates,
         overrides=args.set,
+        band_days=not args.no_band_days,
     )
     out = args.out if args.out is not None else Path("out") / f"{plan.scenario.name}-sizing"
     catalogue = str(args.catalogue or shipped_catalogue_path())

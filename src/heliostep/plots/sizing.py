@@ -280,6 +280,11 @@ def _band_table(sheet: Mapping[str, Any]) -> str:
             "corner": ", ".join(
                 f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()
             ),
+            **{
+                f"worst_{key}": value
+                for key, value in (row["band"].get("simulation_worst_corner") or {}).items()
+                if key in ("missed_steps", "steps_lost", "max_tracking_error_deg")
+            },
         }
         for c in sheet["candidates"]
         for row in c["currents"]
@@ -295,6 +300,9 @@ def _band_table(sheet: Mapping[str, Any]) -> str:
         ("idle margin, least [1]", "idle_margin_min"),
         ("idle margin, largest [1]", "idle_margin_max"),
         ("stow margin at the worst corner [1]", "stow_margin_worst_corner"),
+        ("days at the worst corner: steps lost [steps]", "worst_steps_lost"),
+        ("days at the worst corner: steps missed [steps]", "worst_missed_steps"),
+        ("days at the worst corner: worst tracking error [deg]", "worst_max_tracking_error_deg"),
         ("corner of the least tracking margin [key=value]", "corner"),
         ("keys not in the margins [key]", "keys_not_in_the_margins"),
     )
@@ -371,7 +379,8 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         _stow_table(sheet),
         "<h2>Uncertainty band of the drive physics</h2>",
         "<p>The margins at every corner of the bands' parameter ranges (data/parameter_ranges.yaml); the "
-        "speed-torque curve co-simulated again at the worst corner (the lowest bus and loop gain).</p>",
+        "speed-torque curve and the days co-simulated again at the worst corner (the lowest bus and loop gain, "
+        "the highest rotor damping). The verdict is on the nominal figures; these are beside it.</p>",
         _band_table(sheet),
         "<h2>Speed-torque curves</h2>",
         _image(speed_torque_png(sheet), "speed-torque curves"),

@@ -46,7 +46,7 @@ from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sweep.band import load_ranges
-from heliostep.sweep.sizing_band import drive_at, worst_corner
+from heliostep.sweep.sizing_band import corner_overrides, drive_at, worst_corner
 from heliostep.sweep.sizing_days import select_days
 from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sweep.sizing_stow import stow_angles, stow_step_rates
@@ -162,10 +162,13 @@ def plan_sizing(
     safety_factor: float = DEFAULT_SAFETY_FACTOR,
     curve_rates: Sequence[float] = DEFAULT_CURVE_RATES,
     overrides: Sequence[str] = (),
+    band_days: bool = True,
 ) -> SizingPlan:
     """Every case of the sizing, each case's scenario validated (an :class:`InputError` before any run).
     ``days``: days of the year, ``"all"``, or empty for the selection of :mod:`heliostep.sweep.sizing_days`;
-    ``overrides``: ``--set``-style items applied to the scenario first."""
+    ``overrides``: ``--set``-style items applied to the scenario first; ``band_days``: every day co-simulated
+    once more with the drive physics' ranges at their worst corner (after all the nominal cases), for the
+    band's steps missed and lost and tracking error."""
     path = resolve_scenario_path(scenario_path)
     raw = read_yaml_file(path, "scenario")
     if not isinstance(raw, dict):
@@ -196,11 +199,14 @@ def plan_sizing(
     plan.day_selection = selection
     plan.ranges = load_ranges()
     year = scenario.window.date.year
-    for candidate in plan.candidates:
-        for current in candidate.currents:
-            for day in plan.days:
-                overrides = _case_overrides(scenario, candidate, current, _date_of(year, day), plan.wind_moment)
-                plan.cases.append(SizingCase(candidate.name, current, day, overrides))
+    corner = corner_overrides(worst_corner(plan.ranges), list(scenario.fmus)) if band_days and plan.ranges else ()
+    for at_corner in (False, True) if corner else (False,):
+        for candidate in plan.candidates:
+            for current in candidate.currents:
+                for day in plan.days:
+                    overrides = _case_overrides(scenario, candidate, current, _date_of(year, day), plan.wind_moment)
+                    overrides += corner if at_corner else ()  # after the candidate's own bus and loop gain
+                    plan.cases.append(SizingCase(candidate.name, current, day, overrides, at_corner))
     for case in plan.cases:  # every case's scenario valid before anything runs
         case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
     plan.fmu_paths = resolve_fmus(scenario)

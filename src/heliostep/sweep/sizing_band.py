@@ -22,7 +22,7 @@ from heliostep.run.load_budget import LoadBudget, static_step_limit
 from heliostep.scenario.catalogue import MotorDrive
 from heliostep.sweep.band import ParameterRange
 
-__all__ = ["DRIVE_FIELDS", "corners", "drive_at", "margin_band", "worst_corner"]
+__all__ = ["DRIVE_FIELDS", "corner_overrides", "corners", "drive_at", "margin_band", "worst_corner"]
 
 #: Motor FMU parameters (``StepperMotor``'s names) -> the MotorDrive field they set.
 DRIVE_FIELDS = {"V_supply": "bus_voltage", "K_current": "current_gain"}
@@ -55,6 +55,18 @@ def worst_corner(ranges: Sequence[ParameterRange]) -> dict[str, float]:
     """The corner at which every key is at the end that lowers the deliverable torque (:data:`WORST_END`);
     a key not listed there at its low end."""
     return {r.key: (r.high if WORST_END.get(r.key.rsplit(".", 1)[-1]) == "high" else r.low) for r in ranges}
+
+
+def corner_overrides(corner: dict[str, float], instances: Sequence[str]) -> tuple[str, ...]:
+    """A corner's values as ``--set`` items for the days co-simulated again at it: the FMU parameters
+    (``parameters.<instance>.<name>``) of the scenario's ``instances``; a key of another instance, or a
+    scenario key (the current, which each case sets itself), is left out."""
+    items = []
+    for key, value in corner.items():
+        parts = key.split(".")
+        if len(parts) == 3 and parts[0] == "parameters" and parts[1] in instances:
+            items.append(f"{key}={value!r}")
+    return tuple(items)
 
 
 def margin_band(

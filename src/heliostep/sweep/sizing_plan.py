@@ -18,16 +18,21 @@ __all__ = ["SizingCase", "SizingPlan", "case_scenario"]
 
 @dataclass(frozen=True)
 class SizingCase:
-    """One simulation: a candidate at a current on a day, as ``--set``-style overrides of the scenario."""
+    """One simulation: a candidate at a current on a day, as ``--set``-style overrides of the scenario;
+    ``at_worst_corner``: the day again with the drive physics' ranges at their worst corner (the band's
+    days, :func:`heliostep.sweep.sizing_band.corner_overrides`)."""
 
     candidate: str
     current: float  # [A]
     day_of_year: int
     overrides: tuple[str, ...]
+    at_worst_corner: bool = False
 
     @property
     def key(self) -> str:
-        return f"{self.candidate}@{self.current:g}A/day{self.day_of_year}"
+        return f"{self.candidate}@{self.current:g}A/day{self.day_of_year}" + (
+            "/worst-corner" if self.at_worst_corner else ""
+        )
 
 
 @dataclass

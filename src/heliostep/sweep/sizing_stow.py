@@ -49,7 +49,7 @@ def stow_angles(plan: SizingPlan) -> np.ndarray | None:
     low = high = float(np.radians(wind.stow_angle))
     first = plan.cases[0].candidate
     for case in plan.cases:
-        if case.candidate == first and case.current == plan.cases[0].current:
+        if case.candidate == first and case.current == plan.cases[0].current and not case.at_worst_corner:
             scenario = case_scenario(plan.raw, case.overrides, plan.scenario.source, plan.folder)
             panel = prepare_inputs(scenario).panel_angle_ref
             low, high = min(low, float(np.min(panel))), max(high, float(np.max(panel)))

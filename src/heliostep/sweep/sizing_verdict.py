@@ -16,7 +16,7 @@ from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit, wind_moment_at
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate
-from heliostep.sweep.sizing_band import drive_at, margin_band, worst_corner
+from heliostep.sweep.sizing_band import corner_overrides, drive_at, margin_band, worst_corner
 from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
 from heliostep.sweep.sizing_stow import stow_angles, stow_margin
 
@@ -42,7 +42,7 @@ def _budgets(plan: SizingPlan, candidate: MotorCandidate) -> dict[int, LoadBudge
     the day's wind over time at each reference instant (its stow moves in the reference)."""
     budgets = {}
     for case in plan.cases:
-        if case.candidate == candidate.name and case.day_of_year not in budgets:
+        if case.candidate == candidate.name and not case.at_worst_corner and case.day_of_year not in budgets:
             scenario = case_scenario(plan.raw, case.overrides, plan.scenario.source, plan.folder)
             inputs = prepare_inputs(scenario)
             wind = wind_moment_at(inputs) if plan.wind_moment is None else plan.wind_moment
@@ -50,9 +50,15 @@ def _budgets(plan: SizingPlan, candidate: MotorCandidate) -> dict[int, LoadBudge
     return budgets
 
 
-def _simulated(plan: SizingPlan, candidate: MotorCandidate, current: float, results: Mapping[str, dict]) -> dict:
-    """The co-simulated days of one candidate and current, summed up."""
-    days = [case for case in plan.cases if case.candidate == candidate.name and case.current == current]
+def _simulated(
+    plan: SizingPlan, candidate: MotorCandidate, current: float, results: Mapping[str, dict], at_worst_corner=False
+) -> dict:
+    """The co-simulated days of one candidate and current, summed up (``at_worst_corner``: the band's days)."""
+    days = [
+        case
+        for case in plan.cases
+        if case.candidate == candidate.name and case.current == current and case.at_worst_corner == at_worst_corner
+    ]
     finished = [(case, results[case.key]) for case in days if case.key in results]
     ok = [(case, record) for case, record in finished if record.get("complete")]
     failed = [(case.day_of_year, record.get("error", "")) for case, record in finished if not record.get("complete")]
@@ -159,6 +165,8 @@ def _judge_current(
         row["band"] = margin_band(drive, current, budget, plan.ranges, sequencer, motor)
         worst_stow = _worst_corner_stow(plan, candidate, current, stow[1], worst_curve, motor)
         row["band"]["stow_margin_worst_corner"] = worst_stow
+        if any(case.at_worst_corner for case in plan.cases):
+            row["band"]["simulation_worst_corner"] = _band_days(plan, candidate, current, results)
     row["reasons"] = _reasons(plan, row, budget, day)
     if row["simulation"]["days_unfinished"]:
         row["verdict"] = "incomplete"
@@ -166,6 +174,30 @@ def _judge_current(
     else:
         row["verdict"] = "fail" if row["reasons"] else "pass"
     return row
+
+
+#: The band's figures of the days co-simulated at the worst corner (:func:`_band_days`).
+BAND_DAY_FIGURES = (
+    "days_simulated",
+    "days_unfinished",
+    "days_failed",
+    "steps_commanded",
+    "missed_steps",
+    "steps_lost",
+    "max_tracking_error_deg",
+    "drive_energy_per_day_J",
+    "per_day",
+)
+
+
+def _band_days(plan: SizingPlan, candidate: MotorCandidate, current: float, results: Mapping[str, dict]) -> dict:
+    """The days co-simulated again at the ranges' worst corner: their steps missed and lost, worst tracking
+    error and energy, with the corner's values (shown beside the nominal days; not in the verdict)."""
+    simulated = _simulated(plan, candidate, current, results, at_worst_corner=True)
+    corner = worst_corner(plan.ranges)
+    applied = corner_overrides(corner, list(plan.scenario.fmus))
+    parameters = {key: value for key, value in corner.items() if f"{key}={value!r}" in applied}
+    return {"parameters": parameters, **{key: simulated[key] for key in BAND_DAY_FIGURES}}
 
 
 def _worst_corner_stow(
