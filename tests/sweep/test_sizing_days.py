@@ -22,7 +22,7 @@ import pytest
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
 from heliostep.scenario import load_scenario
-from heliostep.sweep.sizing_days import PEAK_SEPARATION_DAYS, select_days
+from heliostep.sweep.sizing_days import PEAK_SEPARATION_DAYS, panel_angle_range, select_days
 
 CENTRAL = scenarios_dir() / "jan21-central.yaml"  # 40 N, 14.25 E, Europe/Rome; 10:00 + 300 s; secondary, d = 0
 
@@ -51,6 +51,34 @@ def _secondary_rate(days: np.ndarray) -> np.ndarray:
     rate = np.degrees(np.abs(angles[1] - angles[0]) / 2.0)
     out = pd.Series(rate).groupby(np.concatenate(owner)).max()
     return out.reindex(days).to_numpy()
+
+
+def _secondary_angles(step: float) -> np.ndarray:
+    """The central mirror's secondary angle q [rad] every ``step`` s over 10:00 .. 10:05 local of each day
+    of 2025 (both ends included): pvlib's SPA, n = (S + z) / |S + z|, q = -asin(n_y)."""
+    stamps = []
+    for day in range(1, 366):
+        date = dt.date(2025, 1, 1) + dt.timedelta(days=day - 1)
+        start = pd.Timestamp(dt.datetime.combine(date, dt.time(10, 0))).tz_localize("Europe/Rome")
+        stamps.append(start + pd.to_timedelta(np.arange(0.0, 300.0 + step / 2, step), unit="s"))
+    sun = pvlib.solarposition.get_solarposition(stamps[0].append(stamps[1:]), 40.0, 14.25, method="nrel_numpy")
+    elevation = np.radians(sun["apparent_elevation"].to_numpy())
+    azimuth = np.radians(sun["azimuth"].to_numpy())
+    s = np.stack([np.cos(elevation) * np.sin(azimuth), np.cos(elevation) * np.cos(azimuth), np.sin(elevation)])
+    n = s + np.array([[0.0], [0.0], [1.0]])
+    return -np.arcsin(n[1] / np.linalg.norm(n, axis=0))
+
+
+def test_the_years_panel_angles_are_every_days_window():
+    """The angles a stow may start from: the ideal secondary angle's least and largest over the year's
+    windows (the sun always up at 10:00 at 40 N), against the independent angle on a 5 s grid."""
+    angles = _secondary_angles(5.0)
+    low, high = panel_angle_range(load_scenario(CENTRAL))
+    assert low == pytest.approx(angles.min(), abs=1e-5) and high == pytest.approx(angles.max(), abs=1e-5)
+    # wider than 21 January's window alone (27.3 .. 27.5 deg): a stow in late December starts 2.35 deg
+    # farther from the stow angle (0 deg), at 29.85 deg, where g = s / (r cos^2) and the step rate are higher
+    january = angles.reshape(365, -1)[20]
+    assert high > january.max() + math.radians(2.0) and low < january.min()
 
 
 def test_the_suns_fastest_days_are_found_over_the_year():

@@ -12,6 +12,7 @@ from heliostep.paths import scenarios_dir
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import load_catalogue
 from heliostep.sweep.sizing import plan_sizing
+from heliostep.sweep.sizing_days import panel_angle_range
 from heliostep.sweep.sizing_verdict import judge
 
 SCENARIO = scenarios_dir() / "jan21-central.yaml"
@@ -42,6 +43,11 @@ def test_a_weak_curve_fails_the_stow_margin_and_the_sheet_names_it(fmu_paths):
     # the load at the reported angle: the flat plate's moment at 40 m/s x 1.52 (Hoerner's normal force at
     # Joessel's centre of pressure, the 0.3 m x 1.5 m mirror, ISA sea-level air), through g = s / (r cos^2)
     low, high = stow["angles_travelled_deg"]
+    # from the stow angle (0) to the year's farthest tracking angle, not day 21's alone (29.7 deg in late
+    # December against 27.3: tests/sweep/test_sizing_days.py::test_the_years_panel_angles_are_every_days_window)
+    year = panel_angle_range(plan.scenario)
+    assert (low, high) == pytest.approx((min(0.0, math.degrees(year[0])), math.degrees(year[1])))
+    assert high > 27.5 + 2.0
     alpha = math.radians(abs(stow["panel_angle_deg"]))
     assert low <= stow["panel_angle_deg"] <= high and alpha > 0.0
     c_m = (0.5 - 0.195 - 0.305 * math.sin(alpha)) / (0.222 + 0.283 / math.sin(alpha))

@@ -46,6 +46,7 @@ __all__ = [
     "DaySelection",
     "day_windows",
     "fastest_days",
+    "panel_angle_range",
     "panel_rates",
     "rate_grid_step",
     "select_days",
@@ -120,9 +121,10 @@ def rate_grid_step(duration: float) -> float:
     return float(np.clip(duration / 20.0, 10.0, 120.0))
 
 
-def panel_rates(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp, pd.Timestamp] | None]) -> np.ndarray:
-    """The largest rate of the ideal panel angle within each day's window [rad/s] (NaN: no window,
-    or the sun never up at two neighbouring grid points); one SPA call for every day's grid."""
+def _ideal_angles(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp, pd.Timestamp] | None]):
+    """The ideal panel angle [rad] on every day's window grid (:func:`rate_grid_step`, both ends included),
+    in one SPA call: (owner day index, seconds from the first stamp, apparent elevation [deg], angle), or
+    None when no day has a window."""
     stamps, owners = [], []
     for day, window in enumerate(windows):
         if window is None:
@@ -133,11 +135,9 @@ def panel_rates(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp, pd.Tim
         offsets = np.append(offsets, duration)
         stamps.append(start + pd.to_timedelta(offsets, unit="s"))
         owners.append(np.full(offsets.size, day))
-    rates = np.full(len(windows), np.nan)
     if not stamps:
-        return rates
+        return None
     index = stamps[0].append(stamps[1:]) if len(stamps) > 1 else stamps[0]
-    owner = np.concatenate(owners)
     site, plant, mirror = scenario.site.to_site(), scenario.plant.to_plant(), scenario.mirror
     sun = solar_position(index, site.latitude, site.longitude, site.altitude)
     elevation = sun["apparent_elevation"].to_numpy()
@@ -146,11 +146,34 @@ def panel_rates(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp, pd.Tim
     )
     angle = np.asarray(secondary if mirror.axis == "secondary" else primary, dtype=float)
     seconds = (index - index[0]).total_seconds().to_numpy()
+    return np.concatenate(owners), seconds, elevation, angle
+
+
+def panel_rates(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp, pd.Timestamp] | None]) -> np.ndarray:
+    """The largest rate of the ideal panel angle within each day's window [rad/s] (NaN: no window,
+    or the sun never up at two neighbouring grid points); one SPA call for every day's grid."""
+    rates = np.full(len(windows), np.nan)
+    grid = _ideal_angles(scenario, windows)
+    if grid is None:
+        return rates
+    owner, seconds, elevation, angle = grid
     pair = (owner[1:] == owner[:-1]) & (elevation[1:] > 0.0) & (elevation[:-1] > 0.0)
     rate = np.abs(np.diff(angle)) / np.diff(seconds)
     found = owner[1:][pair]
     np.fmax.at(rates, found, rate[pair])  # NaN where no pair: fmax keeps the number
     return rates
+
+
+def panel_angle_range(scenario: Scenario) -> tuple[float, float] | None:
+    """The least and largest ideal panel angle [rad] within the scenario's window over the 365 days of its
+    year, the sun up (the grid of :func:`panel_rates`, both ends of each window on it); None when the sun is
+    never up in the window. The angles a stow move may start from on any day (:mod:`heliostep.sweep.sizing_stow`)."""
+    grid = _ideal_angles(scenario, day_windows(scenario))
+    if grid is None:
+        return None
+    _, _, elevation, angle = grid
+    up = angle[elevation > 0.0]
+    return (float(np.min(up)), float(np.max(up))) if up.size else None
 
 
 def fastest_days(rates: np.ndarray, count: int = FASTEST_DAY_COUNT, separation: int = PEAK_SEPARATION_DAYS):

@@ -3,7 +3,7 @@
 The stow and return moves (:mod:`heliostep.drive.stow`) slew the panel at ``wind.slew_rate`` between the
 tracking angles and ``wind.stow_angle``, in a wind at the stow threshold ``wind.stow_speed``. At each
 panel angle theta_p they travel (:func:`stow_angles`: from the stow angle to the farthest tracking angle
-of the days simulated, :data:`ANGLE_POINTS` points), the rotor steps at f = g omega_slew / phi, and the
+of the year, :data:`ANGLE_POINTS` points), the rotor steps at f = g omega_slew / phi, and the
 load on the shaft is :func:`heliostep.run.load_budget.stow_load`'s (wind at the threshold, friction, the
 move's inertia torque). The torque the motor delivers there is
 
@@ -31,6 +31,7 @@ from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.load_budget import stow_load
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate, MotorDrive
+from heliostep.sweep.sizing_days import panel_angle_range
 from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
 
 __all__ = ["ANGLE_POINTS", "stow_angles", "stow_margin", "stow_step_rates"]
@@ -41,12 +42,17 @@ ANGLE_POINTS = 181
 
 def stow_angles(plan: SizingPlan) -> np.ndarray | None:
     """The panel angles a stow or return move travels [rad]: from ``wind.stow_angle`` to the farthest
-    tracking reference angle of the days simulated (each day's reference, the first candidate's cases);
-    None when the scenario never stows."""
+    tracking angle of the year: the ideal panel angle within the window on each of its 365 days
+    (:func:`heliostep.sweep.sizing_days.panel_angle_range`, the sun up), and the tracking reference of the
+    days simulated (each day's reference, the first candidate's cases); None when the scenario never
+    stows. A wind may call for a stow on any day, not only on those simulated."""
     wind = plan.scenario.wind
     if wind.stow_speed is None or not plan.cases:
         return None
     low = high = float(np.radians(wind.stow_angle))
+    year = panel_angle_range(plan.scenario)
+    if year is not None:
+        low, high = min(low, year[0]), max(high, year[1])
     first = plan.cases[0].candidate
     for case in plan.cases:
         if case.candidate == first and case.current == plan.cases[0].current and not case.at_worst_corner:
