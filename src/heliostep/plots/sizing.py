@@ -352,6 +352,13 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"{html.escape('; '.join(item['reasons']) or '–')}</li>"
         for item in sheet.get("smaller_ones_fail_because", [])
     )
+    beside = "".join(  # the band's days: not in the verdict, shown next to it
+        f"<li>{html.escape(c['name'])} at {row['current_A']:g} A: {html.escape(warning)}</li>"
+        for c in sheet.get("candidates", [])
+        for row in c.get("currents", [])
+        for warning in ((row.get("band") or {}).get("simulation_worst_corner") or {}).get("warnings", [])
+    )
+    beside = f"<p>Beside the verdict (the uncertainty band):</p><ul>{beside}</ul>" if beside else ""
     status = (
         ""
         if sheet.get("complete", True)
@@ -369,6 +376,7 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"{html.escape(', '.join(map(str, sheet['days'])))}.</p>",
         status,
         f"<p>{verdict}</p>",
+        beside,
         f"<h2>Why each smaller one fails</h2><ul>{smaller or '<li>none smaller</li>'}</ul>",
         "<h2>Verdicts</h2>",
         _verdict_table(sheet),

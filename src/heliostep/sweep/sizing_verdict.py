@@ -197,7 +197,18 @@ def _band_days(plan: SizingPlan, candidate: MotorCandidate, current: float, resu
     corner = worst_corner(plan.ranges)
     applied = corner_overrides(corner, list(plan.scenario.fmus))
     parameters = {key: value for key, value in corner.items() if f"{key}={value!r}" in applied}
-    return {"parameters": parameters, **{key: simulated[key] for key in BAND_DAY_FIGURES}}
+    warnings = []  # what the sheet puts beside the verdict
+    if simulated["steps_lost"] or simulated["missed_steps"]:
+        warnings.append(
+            f"at the ranges' worst corner {simulated['steps_lost']} steps lost and {simulated['missed_steps']} "
+            f"missed in the days {simulated['days_simulated']}"
+        )
+    warnings += [f"at the ranges' worst corner day {day} failed: {error}" for day, error in simulated["days_failed"]]
+    return {
+        "parameters": parameters,
+        **{key: simulated[key] for key in BAND_DAY_FIGURES},
+        "warnings": warnings,
+    }
 
 
 def _worst_corner_stow(
