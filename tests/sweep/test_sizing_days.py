@@ -194,3 +194,18 @@ def test_with_a_weather_file_only_the_days_it_covers_are_taken(tmp_path):
     assert selection.chosen[0].wind_speed_m_s == pytest.approx(13.0 + 5.0 / 60.0)
     with pytest.raises(InputError, match=r"w\.epw has no wind speed within the window on day\(s\) \[172\]"):
         select_days(scenario, [21, 172])
+
+
+def test_the_years_windows_are_kept_per_window_and_site():
+    """day_windows keeps the 365 windows of a (window, site) pair: asked again, the same; another site or
+    window, its own (a sunrise-to-sunset window's 365 SPA searches take seconds)."""
+    from heliostep.sweep.sizing_days import _year_windows, day_windows
+
+    scenario = load_scenario(CENTRAL)
+    assert day_windows(scenario) == day_windows(scenario) == _year_windows(scenario)
+    # the same clock times in a zone without summer time: from the last Sunday of March an hour apart
+    standard = load_scenario(CENTRAL, ["site.timezone=Etc/GMT-1"])
+    rome, gmt1 = day_windows(scenario), day_windows(standard)
+    assert rome[0][0] == gmt1[0][0] and (gmt1[171][0] - rome[171][0]).total_seconds() == 3600.0
+    later = load_scenario(CENTRAL, ["window.start=11:00"])
+    assert (day_windows(later)[0][0] - rome[0][0]).total_seconds() == 3600.0

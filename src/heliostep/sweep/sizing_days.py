@@ -103,9 +103,25 @@ def _date_of(year: int, day_of_year: int) -> dt.date:
     return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
 
+#: :func:`day_windows` of the last few (window, site) pairs: a sunrise-to-sunset window's 365 days take
+#: 365 SPA sunrise and sunset searches, about 3 s, and a sizing asks for them twice (its days, its stow angles).
+_WINDOWS_CACHE: dict[tuple[str, str], list] = {}
+_WINDOWS_CACHE_SIZE = 4
+
+
 def day_windows(scenario: Scenario) -> list[tuple[pd.Timestamp, pd.Timestamp] | None]:
     """The scenario's window on each day 1..365 of its year (None where it does not exist that day:
-    no sunrise, a clock time skipped by a daylight-saving change)."""
+    no sunrise, a clock time skipped by a daylight-saving change). They depend on its window and site
+    alone (:meth:`heliostep.scenario.Scenario.window_bounds`): kept for the same pair."""
+    key = (scenario.window.model_dump_json(), scenario.site.model_dump_json())
+    if key not in _WINDOWS_CACHE:
+        if len(_WINDOWS_CACHE) >= _WINDOWS_CACHE_SIZE:
+            _WINDOWS_CACHE.pop(next(iter(_WINDOWS_CACHE)))
+        _WINDOWS_CACHE[key] = _year_windows(scenario)
+    return list(_WINDOWS_CACHE[key])
+
+
+def _year_windows(scenario: Scenario) -> list[tuple[pd.Timestamp, pd.Timestamp] | None]:
     year, windows = scenario.window.date.year, []
     for day in range(1, DAYS_IN_YEAR + 1):
         window = scenario.window.model_copy(update={"date": _date_of(year, day)})
