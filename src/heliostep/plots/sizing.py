@@ -339,6 +339,18 @@ def _wind_text(wind: Mapping[str, Any]) -> str:
     return f"{wind['moment_Nm']:.4g} N.m on the panel axis ({html.escape(wind['source'])})"
 
 
+def _beside_the_verdict(sheet: Mapping[str, Any]) -> str:
+    """The band's days' warnings (steps lost or missed, a failed day at the worst corner): not in the verdict,
+    listed next to it; empty without any."""
+    items = "".join(
+        f"<li>{html.escape(c['name'])} at {row['current_A']:g} A: {html.escape(warning)}</li>"
+        for c in sheet.get("candidates", [])
+        for row in c.get("currents", [])
+        for warning in ((row.get("band") or {}).get("simulation_worst_corner") or {}).get("warnings", [])
+    )
+    return f"<p>Beside the verdict (the uncertainty band):</p><ul>{items}</ul>" if items else ""
+
+
 def sizing_html(sheet: Mapping[str, Any]) -> str:
     """The sizing sheet as one HTML page (everything embedded)."""
     best = sheet.get("smallest_passing")
@@ -352,13 +364,6 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"{html.escape('; '.join(item['reasons']) or '–')}</li>"
         for item in sheet.get("smaller_ones_fail_because", [])
     )
-    beside = "".join(  # the band's days: not in the verdict, shown next to it
-        f"<li>{html.escape(c['name'])} at {row['current_A']:g} A: {html.escape(warning)}</li>"
-        for c in sheet.get("candidates", [])
-        for row in c.get("currents", [])
-        for warning in ((row.get("band") or {}).get("simulation_worst_corner") or {}).get("warnings", [])
-    )
-    beside = f"<p>Beside the verdict (the uncertainty band):</p><ul>{beside}</ul>" if beside else ""
     status = (
         ""
         if sheet.get("complete", True)
@@ -376,7 +381,7 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
         f"{html.escape(', '.join(map(str, sheet['days'])))}.</p>",
         status,
         f"<p>{verdict}</p>",
-        beside,
+        _beside_the_verdict(sheet),
         f"<h2>Why each smaller one fails</h2><ul>{smaller or '<li>none smaller</li>'}</ul>",
         "<h2>Verdicts</h2>",
         _verdict_table(sheet),
