@@ -280,9 +280,10 @@ def _band_table(sheet: Mapping[str, Any]) -> str:
             "corner": ", ".join(
                 f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()
             ),
-            **{
-                f"worst_{key}": value
-                for key, value in (row["band"].get("simulation_worst_corner") or {}).items()
+            **{  # none where a day at the corner was not simulated: its sums would read as a clean 0
+                f"worst_{key}": None if worst.get("days_unfinished") else value
+                for worst in [row["band"].get("simulation_worst_corner") or {}]
+                for key, value in worst.items()
                 if key in ("missed_steps", "steps_lost", "max_tracking_error_deg")
             },
         }

@@ -198,20 +198,31 @@ def plan_sizing(
     )
     plan.day_selection = selection
     plan.ranges = load_ranges()
-    year = scenario.window.date.year
+    plan.cases = _plan_cases(plan, band_days)
+    for case in plan.cases:  # every case's scenario valid before anything runs
+        case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
+    plan.fmu_paths = resolve_fmus(scenario)
+    plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
+    return plan
+
+
+def _plan_cases(plan: SizingPlan, band_days: bool) -> list[SizingCase]:
+    """Every candidate, current and day; with ``band_days`` the same again at the ranges' worst corner, after
+    all the nominal ones (none where the ranges name no parameter of the scenario's motor: they would be
+    the nominal days again)."""
+    scenario, year, cases = plan.scenario, plan.scenario.window.date.year, []
     corner = corner_overrides(worst_corner(plan.ranges), list(scenario.fmus)) if band_days and plan.ranges else ()
+    motor = _instance(scenario, "torque", "motor")
+    if not any(item.startswith(f"parameters.{motor}.") for item in corner):
+        corner = ()
     for at_corner in (False, True) if corner else (False,):
         for candidate in plan.candidates:
             for current in candidate.currents:
                 for day in plan.days:
                     overrides = _case_overrides(scenario, candidate, current, _date_of(year, day), plan.wind_moment)
                     overrides += corner if at_corner else ()  # after the candidate's own bus and loop gain
-                    plan.cases.append(SizingCase(candidate.name, current, day, overrides, at_corner))
-    for case in plan.cases:  # every case's scenario valid before anything runs
-        case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
-    plan.fmu_paths = resolve_fmus(scenario)
-    plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
-    return plan
+                    cases.append(SizingCase(candidate.name, current, day, overrides, at_corner))
+    return cases
 
 
 def run_sizing_case(
@@ -344,6 +355,6 @@ def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool
     each candidate's speed-torque curve, nominal and at the ranges' worst corner."""
     if not curves:
         return judge(plan, results, {}, {})
-    worst = _curves(plan, worst=True) if plan.ranges else {}
-    angles = stow_angles(plan)
+    angles = stow_angles(plan)  # the worst corner's curve too is co-simulated at the stow rate, not interpolated
+    worst = _curves(plan, worst=True, angles=angles) if plan.ranges else {}
     return judge(plan, results, _curves(plan, angles=angles), worst, angles)

@@ -168,9 +168,16 @@ def _judge_current(
         if any(case.at_worst_corner for case in plan.cases):
             row["band"]["simulation_worst_corner"] = _band_days(plan, candidate, current, results)
     row["reasons"] = _reasons(plan, row, budget, day)
+    unfinished = (row.get("band") or {}).get("simulation_worst_corner", {}).get("days_unfinished", [])
     if row["simulation"]["days_unfinished"]:
         row["verdict"] = "incomplete"
         row["reasons"].append(f"days not simulated (interrupted): {row['simulation']['days_unfinished']}")
+    elif stow[0] is None and plan.scenario.wind.stow_speed is not None:  # an interrupted sizing draws no curve
+        row["verdict"] = "incomplete"
+        row["reasons"].append("stow margin not judged (interrupted: no speed-torque curve co-simulated)")
+    elif unfinished:
+        row["verdict"] = "incomplete"
+        row["reasons"].append(f"days at the ranges' worst corner not simulated (interrupted): {unfinished}")
     else:
         row["verdict"] = "fail" if row["reasons"] else "pass"
     return row
@@ -204,6 +211,8 @@ def _band_days(plan: SizingPlan, candidate: MotorCandidate, current: float, resu
             f"missed in the days {simulated['days_simulated']}"
         )
     warnings += [f"at the ranges' worst corner day {day} failed: {error}" for day, error in simulated["days_failed"]]
+    if simulated["days_unfinished"]:
+        warnings.append(f"at the ranges' worst corner days not simulated (interrupted): {simulated['days_unfinished']}")
     return {
         "parameters": parameters,
         **{key: simulated[key] for key in BAND_DAY_FIGURES},
