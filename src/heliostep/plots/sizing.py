@@ -270,6 +270,14 @@ def _curve_table(sheet: Mapping[str, Any]) -> str:
     return _keyed_table(columns, records)
 
 
+def _worst_corner_cells(band: Mapping[str, Any]) -> dict[str, Any]:
+    """The band table's cells of the days at the worst corner; none where a day there was not simulated
+    (its sums would read as a clean 0)."""
+    worst = band.get("simulation_worst_corner") or {}
+    keys = ("missed_steps", "steps_lost", "max_tracking_error_deg")
+    return {f"worst_{key}": None if worst.get("days_unfinished") else worst.get(key) for key in keys if key in worst}
+
+
 def _band_table(sheet: Mapping[str, Any]) -> str:
     records = [
         {
@@ -280,12 +288,7 @@ def _band_table(sheet: Mapping[str, Any]) -> str:
             "corner": ", ".join(
                 f"{k.rsplit('.', 1)[-1]}={v:g}" for k, v in row["band"]["least_tracking_corner"].items()
             ),
-            **{  # none where a day at the corner was not simulated: its sums would read as a clean 0
-                f"worst_{key}": None if worst.get("days_unfinished") else value
-                for worst in [row["band"].get("simulation_worst_corner") or {}]
-                for key, value in worst.items()
-                if key in ("missed_steps", "steps_lost", "max_tracking_error_deg")
-            },
+            **_worst_corner_cells(row["band"]),
         }
         for c in sheet["candidates"]
         for row in c["currents"]

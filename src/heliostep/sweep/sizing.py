@@ -46,7 +46,7 @@ from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sweep.band import load_ranges
-from heliostep.sweep.sizing_band import corner_overrides, drive_at, worst_corner
+from heliostep.sweep.sizing_band import corner_parameters, drive_at, worst_corner
 from heliostep.sweep.sizing_days import select_days
 from heliostep.sweep.sizing_plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sweep.sizing_stow import stow_angles, stow_step_rates
@@ -198,7 +198,8 @@ def plan_sizing(
     )
     plan.day_selection = selection
     plan.ranges = load_ranges()
-    plan.cases = _plan_cases(plan, band_days)
+    plan.corner = _band_corner(plan) if band_days else {}
+    plan.cases = _plan_cases(plan)
     for case in plan.cases:  # every case's scenario valid before anything runs
         case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
     plan.fmu_paths = resolve_fmus(scenario)
@@ -206,15 +207,19 @@ def plan_sizing(
     return plan
 
 
-def _plan_cases(plan: SizingPlan, band_days: bool) -> list[SizingCase]:
-    """Every candidate, current and day; with ``band_days`` the same again at the ranges' worst corner, after
-    all the nominal ones (none where the ranges name no parameter of the scenario's motor: they would be
-    the nominal days again)."""
+def _band_corner(plan: SizingPlan) -> dict[str, float]:
+    """The worst corner's values the band's days set on the scenario's FMUs; none where the ranges name no
+    parameter of its motor (those days would be the nominal ones again)."""
+    corner = corner_parameters(worst_corner(plan.ranges), list(plan.scenario.fmus))
+    motor = _instance(plan.scenario, "torque", "motor")
+    return corner if any(key.startswith(f"parameters.{motor}.") for key in corner) else {}
+
+
+def _plan_cases(plan: SizingPlan) -> list[SizingCase]:
+    """Every candidate, current and day; with a band corner (:attr:`SizingPlan.corner`) the same again at
+    it, after all the nominal ones."""
     scenario, year, cases = plan.scenario, plan.scenario.window.date.year, []
-    corner = corner_overrides(worst_corner(plan.ranges), list(scenario.fmus)) if band_days and plan.ranges else ()
-    motor = _instance(scenario, "torque", "motor")
-    if not any(item.startswith(f"parameters.{motor}.") for item in corner):
-        corner = ()
+    corner = tuple(f"{key}={value!r}" for key, value in plan.corner.items())
     for at_corner in (False, True) if corner else (False,):
         for candidate in plan.candidates:
             for current in candidate.currents:

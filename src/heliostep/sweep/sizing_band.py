@@ -22,7 +22,7 @@ from heliostep.run.load_budget import LoadBudget, static_step_limit
 from heliostep.scenario.catalogue import MotorDrive
 from heliostep.sweep.band import ParameterRange
 
-__all__ = ["DRIVE_FIELDS", "corner_overrides", "corners", "drive_at", "margin_band", "worst_corner"]
+__all__ = ["DRIVE_FIELDS", "corner_parameters", "corners", "drive_at", "margin_band", "worst_corner"]
 
 #: Motor FMU parameters (``StepperMotor``'s names) -> the MotorDrive field they set.
 DRIVE_FIELDS = {"V_supply": "bus_voltage", "K_current": "current_gain"}
@@ -57,16 +57,15 @@ def worst_corner(ranges: Sequence[ParameterRange]) -> dict[str, float]:
     return {r.key: (r.high if WORST_END.get(r.key.rsplit(".", 1)[-1]) == "high" else r.low) for r in ranges}
 
 
-def corner_overrides(corner: dict[str, float], instances: Sequence[str]) -> tuple[str, ...]:
-    """A corner's values as ``--set`` items for the days co-simulated again at it: the FMU parameters
-    (``parameters.<instance>.<name>``) of the scenario's ``instances``; a key of another instance, or a
-    scenario key (the current, which each case sets itself), is left out."""
-    items = []
-    for key, value in corner.items():
-        parts = key.split(".")
-        if len(parts) == 3 and parts[0] == "parameters" and parts[1] in instances:
-            items.append(f"{key}={value!r}")
-    return tuple(items)
+def corner_parameters(corner: dict[str, float], instances: Sequence[str]) -> dict[str, float]:
+    """The FMU parameters (``parameters.<instance>.<name>``) of a corner that the scenario's ``instances``
+    have: what the days co-simulated again at it set; a key of another instance, or a scenario key (the
+    current, which each case sets itself), is left out."""
+    return {
+        key: value
+        for key, value in corner.items()
+        if len(parts := key.split(".")) == 3 and parts[0] == "parameters" and parts[1] in instances
+    }
 
 
 def margin_band(

@@ -20,7 +20,7 @@ __all__ = ["SizingCase", "SizingPlan", "case_scenario"]
 class SizingCase:
     """One simulation: a candidate at a current on a day, as ``--set``-style overrides of the scenario;
     ``at_worst_corner``: the day again with the drive physics' ranges at their worst corner (the band's
-    days, :func:`heliostep.sweep.sizing_band.corner_overrides`)."""
+    days, :attr:`SizingPlan.corner`)."""
 
     candidate: str
     current: float  # [A]
@@ -53,6 +53,7 @@ class SizingPlan:
     fmu_paths: dict[str, Path] = field(default_factory=dict)  # instance -> FMU, resolved once for every case
     day_selection: DaySelection | None = None  # the days and why each (heliostep.sweep.sizing_days)
     ranges: tuple[ParameterRange, ...] = ()  # the drive physics' ranges (heliostep.sweep.sizing_band)
+    corner: dict[str, float] = field(default_factory=dict)  # the worst corner's values the band's days set
 
 
 def case_scenario(raw: dict, overrides: Sequence[str], source: str, folder: Path) -> Scenario:

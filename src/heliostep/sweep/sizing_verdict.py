@@ -16,7 +16,7 @@ from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit, wind_moment_at
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate
-from heliostep.sweep.sizing_band import corner_overrides, drive_at, margin_band, worst_corner
+from heliostep.sweep.sizing_band import drive_at, margin_band, worst_corner
 from heliostep.sweep.sizing_plan import SizingPlan, case_scenario
 from heliostep.sweep.sizing_stow import stow_angles, stow_margin
 
@@ -165,7 +165,7 @@ def _judge_current(
         row["band"] = margin_band(drive, current, budget, plan.ranges, sequencer, motor)
         worst_stow = _worst_corner_stow(plan, candidate, current, stow[1], worst_curve, motor)
         row["band"]["stow_margin_worst_corner"] = worst_stow
-        if any(case.at_worst_corner for case in plan.cases):
+        if plan.corner:
             row["band"]["simulation_worst_corner"] = _band_days(plan, candidate, current, results)
     row["reasons"] = _reasons(plan, row, budget, day)
     unfinished = (row.get("band") or {}).get("simulation_worst_corner", {}).get("days_unfinished", [])
@@ -201,9 +201,6 @@ def _band_days(plan: SizingPlan, candidate: MotorCandidate, current: float, resu
     """The days co-simulated again at the ranges' worst corner: their steps missed and lost, worst tracking
     error and energy, with the corner's values (shown beside the nominal days; not in the verdict)."""
     simulated = _simulated(plan, candidate, current, results, at_worst_corner=True)
-    corner = worst_corner(plan.ranges)
-    applied = corner_overrides(corner, list(plan.scenario.fmus))
-    parameters = {key: value for key, value in corner.items() if f"{key}={value!r}" in applied}
     warnings = []  # what the sheet puts beside the verdict
     if simulated["steps_lost"] or simulated["missed_steps"]:
         warnings.append(
@@ -214,7 +211,7 @@ def _band_days(plan: SizingPlan, candidate: MotorCandidate, current: float, resu
     if simulated["days_unfinished"]:
         warnings.append(f"at the ranges' worst corner days not simulated (interrupted): {simulated['days_unfinished']}")
     return {
-        "parameters": parameters,
+        "parameters": plan.corner,
         **{key: simulated[key] for key in BAND_DAY_FIGURES},
         "warnings": warnings,
     }
