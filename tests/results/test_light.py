@@ -285,3 +285,68 @@ def test_a_mirror_that_gets_no_light_has_figures_and_notes():
     # with no reference light at all there is no mean error to weight: the note says so
     dark = {**figures, "light_energy_reference_J": 0.0, "light_stepping_mean_error_rad": None}
     assert any("none: no light" in note for note in light_notes(dark, "secondary", -3.6))
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_its_curvature(monkeypatch):
+    """The ideal and shared attitudes' image (intercept, misses) is computed at the sun grid's points
+    and interpolated onto the rows (issue #26: two of four attitudes' 64 normal-CDF evaluations per row
+    saved). Linear interpolation over dt = SUN_GRID_S errs by at most dt^2/8 |gamma''|; gamma'' is
+    estimated here from the rows' own images (second differences on the 1 s rows). Across sunrise the
+    rows between a grid point below the horizon and one above take their own image, bit for bit."""
+    from heliostep.results import light
+    from heliostep.results.mirror_power import receiver_image
+
+    scenario = validate_scenario(
+        {
+            "name": "light-grid",
+            "site": {"latitude": 40.0, "longitude": 14.25, "altitude": 0.0, "timezone": "Europe/Rome"},
+            "window": {"date": "2025-01-21", "start": "07:15", "duration": 3600},  # sunrise at 07:21 CET
+            "plant": {"orientation": "NS", "tube_height": 3.0},
+            "mirror": {"distance": 2.4, "axis": "secondary"},
+        }
+    )
+    start = pd.Timestamp("2025-01-21 07:15", tz="Europe/Rome")
+    seconds = np.arange(0.0, 3601.0, 1.0)
+    site, plant = scenario.site.to_site(), scenario.plant.to_plant()
+    times = start + pd.to_timedelta(seconds, unit="s")
+    ref = panel_angle_reference(times, site, plant, 2.4, axis="secondary").to_numpy()
+    trace = pd.DataFrame({"time": seconds, "panel_angle_ref": ref, PANEL_COLUMN: ref + np.radians(0.006)})
+    metadata = {"window_start": start.isoformat(), "timezone": "Europe/Rome", "roles": {"panel_angle": PANEL_COLUMN}}
+
+    gridded = light_timeseries(trace, metadata, scenario)
+    figures = light_figures(trace, metadata, scenario)
+    own = lambda points, grid_attitude, rows, d, h, conf: receiver_image(*rows[1:], d, h, conf)  # noqa: E731
+    monkeypatch.setattr(light, "interpolated_image", own)
+    exact = light_timeseries(trace, metadata, scenario)
+    exact_figures = light_figures(trace, metadata, scenario)
+
+    up = exact["power_ideal_W"].to_numpy() > 0
+    assert 0.05 < np.mean(~up) < 0.5  # the window opens with the sun below the horizon
+    points = np.arange(0.0, 3601.0, light.SUN_GRID_S)  # the grid from the first row, at t = 0
+    below = light.sun_grid(points, metadata, scenario, None)["elevation"] <= 0
+    beside = seconds < points[np.flatnonzero(below)[-1] + 1]  # rows with a grid point below the horizon
+    assert np.any(beside & up)
+    inside = ~beside
+    for attitude in ("ideal", "shared"):
+        gamma = exact[f"intercept_{attitude}"].to_numpy()
+        # |gamma''| dt^2 from the second differences of the rows' own image at the grid points
+        curvature = np.max(np.abs(np.diff(gamma[inside][:: int(light.SUN_GRID_S)], 2)))
+        bound = curvature / 8
+        error = np.abs(gridded[f"intercept_{attitude}"].to_numpy() - gamma)
+        assert 0 < np.max(error[inside]) <= 1.5 * bound + 1e-15, attitude
+        assert bound < 1e-6  # what the bound is worth: far below the intercept's stepping changes
+        power = exact[f"power_{attitude}_W"].to_numpy()  # proportional to gamma: errs by P / gamma times its error
+        per_gamma = np.max(np.divide(power, gamma, out=np.zeros_like(power), where=gamma > 0))
+        assert np.max(np.abs(gridded[f"power_{attitude}_W"].to_numpy() - power)) <= 1.5 * bound * per_gamma + 1e-12
+    # the rows after sunrise, the grid point before them below the horizon: their own image
+    for key in ("intercept_ideal", "transverse_miss_ideal_m", "power_shared_W"):
+        assert np.array_equal(gridded[key].to_numpy()[beside], exact[key].to_numpy()[beside]), key
+    # the reference and the actual attitudes are the rows' own: the same bit for bit
+    for key in ("power_reference_W", "power_actual_W", "intercept_actual"):
+        assert np.array_equal(gridded[key].to_numpy(), exact[key].to_numpy()), key
+    # the energies within the sun grid's interpolation noise (INTERPOLATION_NOISE of the energy, 1e-6)
+    noise = light.INTERPOLATION_NOISE * exact_figures["light_energy_ideal_J"]
+    for key in ("light_energy_ideal_J", "light_lost_J", "light_lost_shared_primary_J", "light_lost_reference_law_J"):
+        assert figures[key] == pytest.approx(exact_figures[key], abs=noise), key
+    assert figures["light_energy_J"] == exact_figures["light_energy_J"]  # the actual's: the rows' own

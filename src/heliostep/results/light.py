@@ -11,12 +11,8 @@ Three attitudes of the mirror are compared over the run's window:
 - **actual**: as *reference*, with the driven axis at the trace's panel angle (role
   ``panel_angle``).
 
-Power on the tube (absorbed) at each row (:func:`heliostep.results.mirror_power.attitude_light`):
-P = DNI * A * cos(theta_i) * (1 - s_r) * rho * tau * alpha * gamma * f_end, with s_r the share of the
-mirror in the receiver's own shadow, gamma the intercept of the finite mirror's image by the receiver
-(:func:`heliostep.solar.intercept.intercept`, closed form) and f_end the share of the light that lands
-on the tube's length (the end effect, with ``optics.tube_ends``). One mirror: no neighbours to shade
-or block it (those are the field's: :mod:`heliostep.results.field_light`).
+Power on the tube (absorbed) at each row: P = DNI A cos(theta_i) (1 - s_r) rho tau alpha gamma f_end
+(:mod:`heliostep.results.mirror_power`); one mirror, unshaded (the field's: :mod:`heliostep.results.field_light`).
 Energies are trapezoidal integrals over the trace's rows. What separates the ideal from the actual
 light, in three parts that add up to E_ideal - E_actual:
 
@@ -36,12 +32,12 @@ light, in three parts that add up to E_ideal - E_actual:
   (each mirror's image aimed at its own cross-section) is not the cosine optimum either.
 The sun's vector and the DNI are evaluated on a :data:`SUN_GRID_S` grid from the trace's first
 row and interpolated linearly onto the rows (the sun moves 0.25 deg/min: the interpolation error
-is < 1e-5 rad).
+is < 1e-5 rad). So is the image on the receiver of the ideal and shared attitudes, functions of the
+sun alone (:mod:`heliostep.results.sun_grid_image`); the reference and actual attitudes take their own.
 
 The figures are accumulated block by block (:class:`LightIntegrals`: running trapezoids, sums and
-maxima; the grid points of the whole window computed at the first block, :func:`sun_grid`), so
-a streamed trace is read one row group at a time;
-:func:`light_figures` of a whole trace is the same accumulator fed the trace as one block.
+maxima; the window's grid points computed at the first block, :func:`sun_grid`), so a streamed trace
+is read one row group at a time; :func:`light_figures` of a whole trace is one block.
 """
 
 from __future__ import annotations
@@ -54,6 +50,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.results.mirror_power import attitude_light
+from heliostep.results.sun_grid_image import interpolated_image
 from heliostep.solar import irradiance
 from heliostep.solar.field import sharing_errors
 from heliostep.solar.sun import solar_position, sun_vector
@@ -225,24 +222,13 @@ def _light_rows(
     sun /= np.linalg.norm(sun, axis=0)
     up = np.interp(seconds, grid_s, points["elevation"]) > 0.0
     dni = np.interp(seconds, grid_s, points["dni"])
-
-    ideal_p, ideal_q = (np.interp(seconds, grid_s, points[key]) for key in ("ideal_primary", "ideal_secondary"))
-    shared_p = ideal_p - np.interp(seconds, grid_s, points["sharing"])
-    panel_column = metadata.get("roles", {}).get("panel_angle")
-    driven = {
-        "reference": trace["panel_angle_ref"].to_numpy(dtype=float),
-        "actual": trace[panel_column].to_numpy(dtype=float) if panel_column in trace else None,
-    }
-    attitudes = {"ideal": (ideal_p, ideal_q)}
-    if axis == "secondary":  # the ideal with the primary shared: what sharing it costs
-        attitudes["shared"] = (shared_p, ideal_q)
-    for name, angle in driven.items():
-        if angle is not None:
-            attitudes[name] = (shared_p, angle) if axis == "secondary" else (angle, ideal_q)
-
+    attitudes, on_grid, driven = _attitudes(trace, metadata, axis, points, seconds)
     out = {"time": seconds, "dni": dni}
     for name, (primary, secondary) in attitudes.items():
-        light = attitude_light(sun, dni, up, primary, secondary, distance, h, conf)
+        image = None
+        if name in on_grid:  # a sun-alone attitude: its image from the sun grid
+            image = interpolated_image(points, on_grid[name], (seconds, sun, primary, secondary), distance, h, conf)
+        light = attitude_light(sun, dni, up, primary, secondary, distance, h, conf, image=image)
         out.update(
             {
                 f"power_{name}_W": light["power_W"],
@@ -257,6 +243,30 @@ def _light_rows(
         light_of = lambda p, q: attitude_light(sun, dni, up, p, q, distance, h, conf)  # noqa: E731
         out.update(_first_order_stepping(light_of, attitudes["reference"], axis, out, driven))
     return out
+
+
+def _attitudes(trace: pd.DataFrame, metadata: Mapping, axis: str, points: dict, seconds: np.ndarray):
+    """The attitudes (primary, secondary) [rad] at the rows whose light :func:`_light_rows` reports:
+    ``ideal``, ``shared`` (the ideal with the primary shared; secondary axis), ``reference`` and
+    ``actual`` (the driven angle from the trace, where it has it); and the sun-alone attitudes
+    (ideal, shared) at the grid ``points``; the driven angles (``reference``, ``actual`` or None)."""
+    grid_s = points["time"]
+    ideal_p, ideal_q = (np.interp(seconds, grid_s, points[key]) for key in ("ideal_primary", "ideal_secondary"))
+    shared_p = ideal_p - np.interp(seconds, grid_s, points["sharing"])
+    panel_column = metadata.get("roles", {}).get("panel_angle")
+    driven = {
+        "reference": trace["panel_angle_ref"].to_numpy(dtype=float),
+        "actual": trace[panel_column].to_numpy(dtype=float) if panel_column in trace else None,
+    }
+    attitudes = {"ideal": (ideal_p, ideal_q)}
+    on_grid = {"ideal": (points["ideal_primary"], points["ideal_secondary"])}
+    if axis == "secondary":  # the ideal with the primary shared: what sharing it costs
+        attitudes["shared"] = (shared_p, ideal_q)
+        on_grid["shared"] = (points["ideal_primary"] - points["sharing"], points["ideal_secondary"])
+    for name, angle in driven.items():
+        if angle is not None:
+            attitudes[name] = (shared_p, angle) if axis == "secondary" else (angle, ideal_q)
+    return attitudes, on_grid, driven
 
 
 def _first_order_stepping(light_of, reference, axis: str, out: dict, driven: dict) -> dict:

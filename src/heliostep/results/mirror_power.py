@@ -22,11 +22,15 @@ from heliostep.solar import optics
 from heliostep.solar.intercept import intercept
 from heliostep.solar.receiver_shadow import receiver_shadow_fraction, receiver_width
 
-__all__ = ["attitude_light"]
+__all__ = ["IMAGE_KEYS", "attitude_light", "receiver_image"]
+
+
+#: What :func:`attitude_light` takes from its ``image`` argument instead of computing it.
+IMAGE_KEYS = ("intercept", "transverse_miss_m", "longitudinal_miss_m")
 
 
 def attitude_light(
-    sun, dni, up, primary, secondary, distance: float, tube_height: float, conf, receiver_shadow: bool = True
+    sun, dni, up, primary, secondary, distance: float, tube_height: float, conf, receiver_shadow=True, image=None
 ) -> dict:
     """Power on the tube of a mirror at one attitude, at each instant.
 
@@ -44,6 +48,9 @@ def attitude_light(
     receiver_shadow : bool, default True
         The receiver's own shadow on the mirror (False: a caller that unites it with the neighbours'
         shadows itself, :func:`heliostep.solar.shading.row_losses`).
+    image : dict of arrays (n,), optional
+        :func:`receiver_image`'s :data:`IMAGE_KEYS` computed elsewhere (from the sun grid,
+        :mod:`heliostep.results.sun_grid_image`); None: computed here.
 
     Returns
     -------
@@ -57,11 +64,9 @@ def attitude_light(
     chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
     normal = optics.mirror_normal(primary, secondary)
     cosine = optics.cosine_factor(*sun, *normal)
-    ray = optics.reflect(*sun, *normal)
-    receiver = conf.receiver()
-    # the finite mirror's image on the receiver (tube or secondary)
-    caught = intercept(sun, primary, secondary, ray, distance, tube_height, receiver, conf.mirror())
-    gamma, transverse, longitudinal = (caught[k] for k in ("intercept", "transverse_miss_m", "longitudinal_miss_m"))
+    if image is None:
+        image = receiver_image(sun, primary, secondary, distance, tube_height, conf)
+    gamma, transverse, longitudinal = (image[key] for key in IMAGE_KEYS)
     on_tube = (
         np.ones_like(gamma)
         if conf.tube_ends is None
@@ -69,7 +74,9 @@ def attitude_light(
         else optics.end_fraction(longitudinal, conf.mirror_length, 0.0, *conf.tube_ends)
     )
     shadow = (
-        _own_shadow(sun, normal, distance, tube_height, conf, receiver) if receiver_shadow else np.zeros_like(gamma)
+        _own_shadow(sun, normal, distance, tube_height, conf, conf.receiver())
+        if receiver_shadow
+        else np.zeros_like(gamma)
     )
     power = np.where(up, dni * conf.aperture_area * cosine * (1.0 - shadow) * chain * gamma * on_tube, 0.0)
     return {
@@ -81,6 +88,16 @@ def attitude_light(
         "transverse_miss_m": transverse,
         "longitudinal_miss_m": longitudinal,
     }
+
+
+def receiver_image(sun, primary, secondary, distance: float, tube_height: float, conf) -> dict:
+    """The finite mirror's image on the receiver (tube or secondary) at each instant:
+    :data:`IMAGE_KEYS` of :func:`heliostep.solar.intercept.intercept` (the arguments as
+    :func:`attitude_light`'s)."""
+    normal = optics.mirror_normal(primary, secondary)
+    ray = optics.reflect(*sun, *normal)
+    caught = intercept(sun, primary, secondary, ray, distance, tube_height, conf.receiver(), conf.mirror())
+    return {key: caught[key] for key in IMAGE_KEYS}
 
 
 def _own_shadow(sun, normal, distance: float, tube_height: float, conf, receiver: dict) -> np.ndarray:
