@@ -288,14 +288,31 @@ def test_a_mirror_that_gets_no_light_has_figures_and_notes():
 
 
 @pytest.mark.filterwarnings("ignore::Warning")
-def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_its_curvature(monkeypatch):
+@pytest.mark.parametrize(
+    "optics",
+    [
+        {},  # a bare tube running on past the mirror
+        # a secondary concentrator (its acceptance near the central ray's 38.7 deg from the vertical)
+        # and the tube's start 0.4 m past the mirror's centre: the end fraction from the interpolated miss
+        {
+            "secondary": {"aperture_width": 0.2, "acceptance_half_angle": 40.0, "reflectivity": 0.9},
+            "tube_ends": [-0.4, 50.0],
+        },
+    ],
+    ids=["bare-tube", "secondary-and-tube-end"],
+)
+def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_its_curvature(monkeypatch, optics):
     """The ideal and shared attitudes' image (intercept, misses) is computed at the sun grid's points
     and interpolated onto the rows (issue #26: two of four attitudes' 64 normal-CDF evaluations per row
-    saved). Linear interpolation over dt = SUN_GRID_S errs by at most dt^2/8 |gamma''|; gamma'' is
-    estimated here from the rows' own images (second differences on the 1 s rows). Across sunrise the
-    rows between a grid point below the horizon and one above take their own image, bit for bit."""
+    saved). Linear interpolation over dt = SUN_GRID_S errs by at most dt^2/8 |f''| for each interpolated
+    f (the intercept, the longitudinal miss); f'' is estimated here from the rows' own images (second
+    differences at the grid's spacing). The end fraction, the rows' own function of the interpolated
+    miss, errs by at most the miss's error over the mirror's length (the share of the length past the
+    end). Across sunrise the rows between a grid point below the horizon and one above take their own
+    image, bit for bit."""
     from heliostep.results import light
     from heliostep.results.mirror_power import receiver_image
+    from heliostep.solar import optics as optics_module
 
     scenario = validate_scenario(
         {
@@ -304,6 +321,7 @@ def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_
             "window": {"date": "2025-01-21", "start": "07:15", "duration": 3600},  # sunrise at 07:21 CET
             "plant": {"orientation": "NS", "tube_height": 3.0},
             "mirror": {"distance": 2.4, "axis": "secondary"},
+            "optics": optics,
         }
     )
     start = pd.Timestamp("2025-01-21 07:15", tz="Europe/Rome")
@@ -328,17 +346,42 @@ def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_
     beside = seconds < points[np.flatnonzero(below)[-1] + 1]  # rows with a grid point below the horizon
     assert np.any(beside & up)
     inside = ~beside
-    for attitude in ("ideal", "shared"):
-        gamma = exact[f"intercept_{attitude}"].to_numpy()
-        # |gamma''| dt^2 from the second differences of the rows' own image at the grid points
-        curvature = np.max(np.abs(np.diff(gamma[inside][:: int(light.SUN_GRID_S)], 2)))
-        bound = curvature / 8
-        error = np.abs(gridded[f"intercept_{attitude}"].to_numpy() - gamma)
-        assert 0 < np.max(error[inside]) <= 1.5 * bound + 1e-15, attitude
-        assert bound < 1e-6  # what the bound is worth: far below the intercept's stepping changes
-        power = exact[f"power_{attitude}_W"].to_numpy()  # proportional to gamma: errs by P / gamma times its error
-        per_gamma = np.max(np.divide(power, gamma, out=np.zeros_like(power), where=gamma > 0))
-        assert np.max(np.abs(gridded[f"power_{attitude}_W"].to_numpy() - power)) <= 1.5 * bound * per_gamma + 1e-12
+    # the truth at every row: the sun grid's values (each a function of its time alone) at the rows' own times
+    truth = light.sun_grid(seconds, metadata, scenario, None)
+    true_attitudes = {
+        "ideal": (truth["ideal_primary"], truth["ideal_secondary"]),
+        "shared": (truth["ideal_primary"] - truth["sharing"], truth["ideal_secondary"]),
+    }
+    length, ends = scenario.optics.mirror_length, optics.get("tube_ends")
+    for attitude, (primary, secondary) in true_attitudes.items():
+        true_image = receiver_image(truth["sun"], primary, secondary, 2.4, 3.0, scenario.optics)
+        bounds = {}
+        for key, column in (
+            ("intercept", f"intercept_{attitude}"),
+            ("longitudinal_miss_m", f"longitudinal_miss_{attitude}_m"),
+            ("transverse_miss_m", f"transverse_miss_{attitude}_m"),
+        ):
+            true = true_image[key][inside]
+            # |f''| dt^2 / 8 from the truth's second differences at the grid's spacing
+            bounds[key] = np.max(np.abs(np.diff(true[:: int(light.SUN_GRID_S)], 2))) / 8
+            error = np.max(np.abs(gridded[column].to_numpy()[inside] - true))
+            assert error <= 1.5 * bounds[key] + 1e-12, (attitude, key)  # 1e-12: a picometre, rounding
+        assert 0 < bounds["intercept"] < 1e-6  # what the bound is worth: far below the stepping's changes
+        if ends is not None:  # the share of the mirror's length past the tube's start: d f_end / d miss <= 1 / length
+            true_end = optics_module.end_fraction(true_image["longitudinal_miss_m"], length, 0.0, *ends)[inside]
+            assert np.min(true_end) < 0.99  # the tube's start cuts some of the light in the window
+            end_error = np.abs(gridded[f"end_fraction_{attitude}"].to_numpy()[inside] - true_end)
+            assert np.max(end_error) <= 1.5 * bounds["longitudinal_miss_m"] / length + 1e-12
+        # against the rows' own image: P is proportional to gamma f_end, so it moves by P / gamma times
+        # gamma's change plus P / f_end times f_end's
+        own_gamma, own_end = (exact[f"{key}_{attitude}"].to_numpy() for key in ("intercept", "end_fraction"))
+        power = exact[f"power_{attitude}_W"].to_numpy()
+        d_gamma = np.max(np.abs(gridded[f"intercept_{attitude}"].to_numpy() - own_gamma))
+        d_end = np.max(np.abs(gridded[f"end_fraction_{attitude}"].to_numpy() - own_end))
+        per_gamma = np.max(np.divide(power, own_gamma, out=np.zeros_like(power), where=own_gamma > 0))
+        per_end = np.max(np.divide(power, own_end, out=np.zeros_like(power), where=own_end > 0))
+        power_change = np.max(np.abs(gridded[f"power_{attitude}_W"].to_numpy() - power))
+        assert 0 < power_change <= 1.5 * (d_gamma * per_gamma + d_end * per_end) + 1e-12
     # the rows after sunrise, the grid point before them below the horizon: their own image
     for key in ("intercept_ideal", "transverse_miss_ideal_m", "power_shared_W"):
         assert np.array_equal(gridded[key].to_numpy()[beside], exact[key].to_numpy()[beside]), key
