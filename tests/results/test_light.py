@@ -287,7 +287,6 @@ def test_a_mirror_that_gets_no_light_has_figures_and_notes():
     assert any("none: no light" in note for note in light_notes(dark, "secondary", -3.6))
 
 
-@pytest.mark.filterwarnings("ignore::Warning")
 @pytest.mark.parametrize(
     "optics",
     [
@@ -305,11 +304,11 @@ def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_
     """The ideal and shared attitudes' image (intercept, misses) is computed at the sun grid's points
     and interpolated onto the rows (issue #26: two of four attitudes' 64 normal-CDF evaluations per row
     saved). Linear interpolation over dt = SUN_GRID_S errs by at most dt^2/8 |f''| for each interpolated
-    f (the intercept, the longitudinal miss); f'' is estimated here from the rows' own images (second
-    differences at the grid's spacing). The end fraction, the rows' own function of the interpolated
-    miss, errs by at most the miss's error over the mirror's length (the share of the length past the
-    end). Across sunrise the rows between a grid point below the horizon and one above take their own
-    image, bit for bit."""
+    f (the intercept, the misses) against the truth, the image of the exact attitude at every row; f'' is
+    estimated from the truth's second differences at the grid's spacing. The end fraction, the rows' own
+    function of the interpolated miss, errs by at most the miss's error over the mirror's length (the
+    share of the length past the end). Across sunrise the rows between a grid point below the horizon
+    and one above take their own image, bit for bit."""
     from heliostep.results import light
     from heliostep.results.mirror_power import receiver_image
     from heliostep.solar import optics as optics_module

@@ -64,8 +64,9 @@ def attitude_light(
     chain = optics.optical_chain(conf.reflectivity, conf.transmittance, conf.absorptance)
     normal = optics.mirror_normal(primary, secondary)
     cosine = optics.cosine_factor(*sun, *normal)
+    receiver = conf.receiver()
     if image is None:
-        image = receiver_image(sun, primary, secondary, distance, tube_height, conf)
+        image = _image(sun, primary, secondary, normal, distance, tube_height, receiver, conf)
     gamma, transverse, longitudinal = (image[key] for key in IMAGE_KEYS)
     on_tube = (
         np.ones_like(gamma)
@@ -74,9 +75,7 @@ def attitude_light(
         else optics.end_fraction(longitudinal, conf.mirror_length, 0.0, *conf.tube_ends)
     )
     shadow = (
-        _own_shadow(sun, normal, distance, tube_height, conf, conf.receiver())
-        if receiver_shadow
-        else np.zeros_like(gamma)
+        _own_shadow(sun, normal, distance, tube_height, conf, receiver) if receiver_shadow else np.zeros_like(gamma)
     )
     power = np.where(up, dni * conf.aperture_area * cosine * (1.0 - shadow) * chain * gamma * on_tube, 0.0)
     return {
@@ -95,8 +94,13 @@ def receiver_image(sun, primary, secondary, distance: float, tube_height: float,
     :data:`IMAGE_KEYS` of :func:`heliostep.solar.intercept.intercept` (the arguments as
     :func:`attitude_light`'s)."""
     normal = optics.mirror_normal(primary, secondary)
+    return _image(sun, primary, secondary, normal, distance, tube_height, conf.receiver(), conf)
+
+
+def _image(sun, primary, secondary, normal, distance: float, tube_height: float, receiver: dict, conf) -> dict:
+    """:func:`receiver_image` with the mirror's normal and ``conf.receiver()`` already computed."""
     ray = optics.reflect(*sun, *normal)
-    caught = intercept(sun, primary, secondary, ray, distance, tube_height, conf.receiver(), conf.mirror())
+    caught = intercept(sun, primary, secondary, ray, distance, tube_height, receiver, conf.mirror())
     return {key: caught[key] for key in IMAGE_KEYS}
 
 

@@ -53,9 +53,9 @@ def interpolated_image(
     at_points = receiver_image(points["sun"], grid_primary, grid_secondary, distance, tube_height, conf)
     image = {key: np.interp(seconds, grid_s, at_points[key]) for key in IMAGE_KEYS}
     up = points["elevation"] > 0.0
-    last = len(grid_s) - 1
-    before = np.clip(np.searchsorted(grid_s, seconds, side="right") - 1, 0, max(last - 1, 0))
-    own = ~(up[before] & up[np.minimum(before + 1, last)])
+    # the grid point at or before each row (the grid brackets the rows with two points or more)
+    before = np.clip(np.searchsorted(grid_s, seconds, side="right") - 1, 0, len(grid_s) - 2)
+    own = ~(up[before] & up[before + 1])
     if own.any():
         exact = receiver_image(sun[:, own], primary[own], secondary[own], distance, tube_height, conf)
         for key in IMAGE_KEYS:
