@@ -72,6 +72,14 @@ def figures(trace: pd.DataFrame, metadata: Mapping) -> dict:
         error = np.degrees(trace["panel_angle_error"].to_numpy())
         result["max_tracking_error_deg"] = float(np.abs(error).max())
         result["rms_tracking_error_deg"] = _time_rms(error, time)
+        # the error's integral over the rows (trapezoid), to the end and to each step's time reached: the
+        # step's own row (the first at its time) counted, the rows after it not
+        running = np.concatenate([[0.0], np.cumsum(np.diff(time) * (error[:-1] + error[1:]) / 2.0)])
+        reached = [t for t in schedule.times if t <= time[-1]]
+        result["error_integral_deg_s"] = float(running[-1])
+        result["error_integral_at_steps_deg_s"] = [
+            float(running[np.searchsorted(time, t, side="left")]) for t in reached
+        ]
     result["peak_torque_Nm"] = _peak(trace, *(c for c in [roles.get("torque")] if c))
     result["peak_phase_current_A"] = _peak(trace, *(roles[r] for r in ("current_a", "current_b") if r in roles))
     power = roles.get("power")

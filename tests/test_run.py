@@ -208,8 +208,12 @@ def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch,
         "electrical_energy_J",
         "final_lag_steps",
         "end_time_s",
+        "error_integral_deg_s",
     ):
         assert streamed[key] == pytest.approx(expected[key], rel=1e-9), key
+    assert streamed["error_integral_at_steps_deg_s"] == pytest.approx(
+        expected["error_integral_at_steps_deg_s"], rel=1e-9, abs=1e-12
+    )
     for key in ("missed_steps", "steps_executed", "missed_step_times_s", "steps_lost", "solution_rows"):
         assert streamed[key] == expected[key], key
     for got, want in zip(streamed["step_outcomes"], expected["step_outcomes"], strict=True):

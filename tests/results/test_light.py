@@ -10,6 +10,7 @@ from scipy.special import erf
 
 from heliostep.errors import InputError
 from heliostep.results.light import LightIntegrals, light_figures, light_notes, light_timeseries
+from heliostep.results.light_notes import INTERPOLATION_NOISE
 from heliostep.scenario import validate_scenario
 from heliostep.solar.tracking import panel_angle_reference
 
@@ -388,7 +389,7 @@ def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_
     for key in ("power_reference_W", "power_actual_W", "intercept_actual"):
         assert np.array_equal(gridded[key].to_numpy(), exact[key].to_numpy()), key
     # the energies within the sun grid's interpolation noise (INTERPOLATION_NOISE of the energy, 1e-6)
-    noise = light.INTERPOLATION_NOISE * exact_figures["light_energy_ideal_J"]
+    noise = INTERPOLATION_NOISE * exact_figures["light_energy_ideal_J"]
     for key in ("light_energy_ideal_J", "light_lost_J", "light_lost_shared_primary_J", "light_lost_reference_law_J"):
         assert figures[key] == pytest.approx(exact_figures[key], abs=noise), key
     assert figures["light_energy_J"] == exact_figures["light_energy_J"]  # the actual's: the rows' own

@@ -70,7 +70,8 @@ class FigureTotals:
     peaks, the energy [J], the error [deg] (max, integral of e^2, sum of e^2), the outcomes of the
     steps judged (rows of missed, settling [s] or NaN, move [increments]), the envelope
     (least, largest, worst magnitude, its (time, value)), the rows around the peak
-    (its time [s] and signed torque)."""
+    (its time [s] and signed torque), the error's integral [deg s] and its values at the steps' times
+    (:meth:`heliostep.results.solution.SolutionRecorder.figures`' ``error_integral_*``)."""
 
     count: int
     unordered: int
@@ -95,6 +96,8 @@ class FigureTotals:
     peak: float
     peak_time: float
     peak_value: float
+    error_int: float
+    error_marks: np.ndarray
 
 
 _LONGS = ("torque", "power", "panel", "rotor", "n_currents")
@@ -148,6 +151,7 @@ _FIELDS: list[tuple[str, Any]] = (
         )
     ]
     + [(name, ctypes.c_void_p) for name in ("last", "held_t", "held_x")]
+    + [("error_int", ctypes.c_double), ("error_marks", ctypes.c_void_p), ("marked", ctypes.c_long)]
 )
 
 
@@ -190,6 +194,7 @@ class KernelFigures:
             "window": np.zeros((spec.max_rows, n_plot)),
             "trail": np.zeros((spec.max_rows, n_plot)),
             "last": np.full(width, np.nan),
+            "error_marks": np.full(max(len(spec.step_times), 1), np.nan),
         }
         for name, array in arrays.items():
             setattr(s, name, array.ctypes.data)
@@ -252,6 +257,8 @@ class KernelFigures:
             float(s.peak),
             float(s.peak_time),
             float(s.peak_value),
+            float(s.error_int),
+            a["error_marks"][: int(s.marked)].copy(),
         )
 
     def close(self) -> None:

@@ -49,6 +49,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from heliostep.results.light_notes import light_notes
+from heliostep.results.light_rows import RowMarks, corrections
 from heliostep.results.mirror_power import attitude_light
 from heliostep.results.sun_grid_image import interpolated_image
 from heliostep.solar import irradiance
@@ -61,11 +63,6 @@ SUN_GRID_S = 10.0
 #: Step of the central difference of the cosine in the driven angle [rad]: its error is
 #: eps^2/6 of the third derivative (< 1e-12), its rounding 1e-16 / eps (1e-10), both far below the figure.
 COSINE_STEP = 1e-6
-#: Relative size of the rows' interpolation error in an energy: linear interpolation of the sun and
-#: the ideal angles on the SUN_GRID_S grid errs by at most (omega dt)^2 / 8 = 7e-8 rad (omega =
-#: 7.27e-5 rad/s, the Earth's rotation), the cosine by that relative to it times tan(theta_i) <~ 1;
-#: a figure comparing interpolated with exact angles below 1e-6 of the energy (a factor 10) is noise.
-INTERPOLATION_NOISE = 1e-6
 
 
 def _row_times(trace: pd.DataFrame, metadata: Mapping) -> pd.DatetimeIndex:
@@ -143,8 +140,8 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario, weather=N
         ``intercept_<a>``, ``cosine_<a>``, ``end_fraction_<a>`` [-], ``transverse_miss_<a>_m`` and
         ``longitudinal_miss_<a>_m`` [m] (:func:`attitude_light`); with the actual panel, the
         stepping's first-order terms ``driven_error_rad`` [rad], ``cosine_slope_reference``
-        [1/rad], ``stepping_first_order_W`` and ``stepping_first_order_cosine_W`` [W]
-        (:func:`_first_order_stepping`).
+        [1/rad], ``stepping_first_order_W`` and ``stepping_first_order_cosine_W`` [W] and their slopes in
+        the angle [W/rad] (:func:`_first_order_stepping`).
     """
     seconds = trace["time"].to_numpy(dtype=float)
     return pd.DataFrame(
@@ -274,7 +271,8 @@ def _first_order_stepping(light_of, reference, axis: str, out: dict, driven: dic
     in the driven angle at the reference attitude: ``driven_error_rad`` (actual - reference)
     [rad], ``cosine_slope_reference`` (d cos / d theta) [1/rad], ``stepping_first_order_W`` =
     (dP_ref / d theta) * error (the cosine, the intercept and the end fraction together) and its
-    cosine part ``stepping_first_order_cosine_W`` = P_ref (d cos / d theta) / cos * error [W].
+    cosine part ``stepping_first_order_cosine_W`` = P_ref (d cos / d theta) / cos * error [W], and their
+    slopes ``power_slope_reference_W_per_rad`` and ``cosine_power_slope_reference_W_per_rad`` [W/rad].
     ``light_of(primary, secondary)``: :func:`attitude_light` of the row's sun and DNI."""
     primary, secondary = reference
     step = np.array(COSINE_STEP)
@@ -290,6 +288,8 @@ def _first_order_stepping(light_of, reference, axis: str, out: dict, driven: dic
     return {
         "driven_error_rad": error,
         "cosine_slope_reference": slope,
+        "power_slope_reference_W_per_rad": power_slope,
+        "cosine_power_slope_reference_W_per_rad": out["power_reference_W"] * ratio,
         "stepping_first_order_W": power_slope * error,
         "stepping_first_order_cosine_W": out["power_reference_W"] * ratio * error,
     }
@@ -316,6 +316,8 @@ class LightIntegrals:
         self.rows = 0
         self.max_block_rows = 0
         self._window_grid: dict | None = None  # sun_grid over the whole window, from the first row
+        # the rows' side of the solution's correction between the rows (heliostep.results.light_rows)
+        self._marks = RowMarks(self.metadata.get("drive", {}).get("step_times", []))
 
     def _whole_window_grid(self, origin: float) -> dict | None:
         """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
@@ -346,12 +348,15 @@ class LightIntegrals:
             # the error weighted by the power in time (rows cluster at the steps: a sum over rows is biased)
             powers["error_weighted"] = series["power_reference_W"] * series["driven_error_rad"]
         spans = self.metadata.get("drive", {}).get("stowed_spans_s")
+        stowed = None
         if spans and "power_actual_W" in series:  # the light while stowed (off tracking, heliostep.drive.stow)
             stowed = np.zeros(len(seconds), dtype=bool)
             for a, b in spans:
                 stowed |= (seconds >= a) & (seconds <= b)
             powers["stowed_ideal"] = np.where(stowed, series["power_ideal_W"], 0.0)
             powers["stowed_actual"] = np.where(stowed, series["power_actual_W"], 0.0)
+        if "power_actual_W" in series:
+            self._mark_rows(block, seconds, series, stowed)
         for name, power in powers.items():
             time = seconds
             if self._previous is not None:
@@ -372,9 +377,41 @@ class LightIntegrals:
         self.rows += len(block)
         self.max_block_rows = max(self.max_block_rows, len(block))
 
-    def figures(self) -> dict:
-        """The figures of the rows taken (see :func:`light_figures`)."""
-        energy = self._energy
+    def _mark_rows(self, block: pd.DataFrame, seconds: np.ndarray, series: dict, stowed: np.ndarray | None) -> None:
+        """The rows' error integral and the powers' slopes at the first row and at each step's time
+        (:class:`~heliostep.results.light_rows.RowMarks`)."""
+        panel = self.metadata.get("roles", {}).get("panel_angle")
+        reference = block["panel_angle_ref"].to_numpy(dtype=float)
+        error = block[panel].to_numpy(dtype=float) - reference
+        origin = 0.0 if self._origin is None else self._origin  # set by the block's first row
+
+        def slopes(marked: np.ndarray) -> dict:
+            turned = []
+            for sign in (1.0, -1.0):  # the actual attitude's power, turned about its driven angle
+                rows = block.iloc[marked].copy()
+                rows[panel] = rows[panel].to_numpy(dtype=float) + sign * COSINE_STEP
+                turned.append(
+                    _light_rows(rows, self.metadata, self.scenario, self._weather, origin, self._window_grid, False)
+                )
+            actual = (turned[0]["power_actual_W"] - turned[1]["power_actual_W"]) / (2.0 * COSINE_STEP)
+            out = {"actual": actual}
+            if "power_slope_reference_W_per_rad" in series:
+                out["first_order"] = series["power_slope_reference_W_per_rad"][marked]
+                out["first_order_cosine"] = series["cosine_power_slope_reference_W_per_rad"][marked]
+                out["error_weighted"] = series["power_reference_W"][marked]
+            if stowed is not None:
+                out["stowed_actual"] = np.where(stowed[marked], actual, 0.0)
+            return out
+
+        self._marks(seconds, error, reference, slopes)
+
+    def figures(self, solution: Mapping | None = None) -> dict:
+        """The figures of the rows taken (see :func:`light_figures`), the powers that depend on the driven
+        angle corrected between the rows with ``solution``'s error integrals (default: the metadata's
+        ``solution_figures``; :mod:`heliostep.results.light_rows`)."""
+        solution = solution if solution is not None else self.metadata.get("solution_figures")
+        fixes = corrections(self._marks, solution)
+        energy = {name: value + fixes.get(name, 0.0) for name, value in self._energy.items()}
         ideal, reference = energy.get("ideal", 0.0), energy.get("reference", 0.0)
         shared = energy.get("shared", ideal)  # a driven primary shares nothing
         figures: dict[str, Any] = {
@@ -409,59 +446,6 @@ class LightIntegrals:
         figures["dni_source"] = str(self.scenario.optics.weather_file or "clear sky (Ineichen-Perez, pvlib)")
         figures["light_notes"] = light_notes(figures, self.scenario.mirror.axis, self.scenario.mirror.mirror_distance)
         return figures
-
-
-def _sign(cosine_term: float, mean_error: float | None) -> str:
-    """The sign of the cosine's mean slope, from its first-order term and the mean error."""
-    if not mean_error or not cosine_term:
-        return "0"
-    return "+" if cosine_term / mean_error > 0 else "-"
-
-
-def _stepping_note(figures: Mapping) -> str:
-    """What a secondary's ``light_stepping_change_J`` means, with its first-order terms where computed."""
-    change, first = figures["light_stepping_change_J"], figures["light_stepping_first_order_J"]
-    if first is None:
-        return (
-            f"light_stepping_change_J = {change:.3g} J (actual - reference) is not a"
-            " loss: the secondary's stepping error moves the image along the tube; its first-order terms were not"
-            " computed (light_first_order off)"
-        )
-    cosine, mean = figures["light_stepping_first_order_cosine_J"], figures["light_stepping_mean_error_rad"]
-    mean_text = "none: no light" if mean is None else f"{mean:.3g} rad"
-    return (
-        f"light_stepping_change_J = {change:.3g} J (actual - reference; light_lost_stepping_J is its negative)"
-        " is not a loss: the secondary's stepping error moves the image along the tube (no cost where the"
-        " tube runs on past it) and changes the light to first order,"
-        f" light_stepping_first_order_J = {first:.3g} J,"
-        f" of which the cosine's {cosine:.3g} J (the rest the intercept's, where the image is off the tube's"
-        f" axis); its sign is that of the power-weighted mean error ({mean_text}) times that of the"
-        f" cosine's slope d cos / d theta ({_sign(cosine, mean)}), the reference (the secondary's own two-axis"
-        " law, each image aimed at its own cross-section) being no optimum"
-    )
-
-
-def light_notes(figures: Mapping, axis: str, distance: float) -> list[str]:
-    """What the light figures mean, and which are not meaningful (``light_notes`` in summary.json)."""
-    notes = []
-    reference = figures["light_energy_reference_J"]
-    if "light_stepping_change_J" in figures and axis == "secondary":
-        notes.append(_stepping_note(figures))
-    if distance == 0.0 and axis == "secondary":
-        notes.append("light_lost_shared_primary_J is exactly 0: the central mirror's primary is the shared one")
-    if axis == "primary":
-        notes.append("light_lost_shared_primary_J is 0: a driven primary shares nothing")
-    notes.append(
-        "one mirror: the receiver's own shadow on it is counted; shading and blocking by neighbouring mirrors"
-        " are not (heliostep field-light and heliostep end-loss have them)"
-    )
-    law = figures["light_lost_reference_law_J"]
-    if reference > 0 and abs(law) < INTERPOLATION_NOISE * reference:
-        notes.append(
-            f"light_lost_reference_law_J = {law:.3g} J is below the sun grid's interpolation noise"
-            f" ({INTERPOLATION_NOISE:g} of the energy): not meaningful"
-        )
-    return notes
 
 
 def _energy(power: np.ndarray, time: np.ndarray) -> float:

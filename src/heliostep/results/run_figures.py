@@ -183,7 +183,7 @@ class RunFigures:
         solution = self.solution_figures()
         summary = build_summary(solution, self.output, "solution" if solution else "output rows")
         if self.rows > 1:  # light on the tube: ideal tracking, the stepped reference, the actual panel
-            light = self.light.figures()
+            light = self.light.figures(solution)  # corrected between the rows by the solution's error integrals
             tradeoffs = tradeoff_figures_at(self._ratio, self.metadata, self.scenario, {**summary.figures(), **light})
             summary = _replace(summary, light=light, tradeoffs=tradeoffs, wind=self._wind_figures(solution))
         if interrupted:

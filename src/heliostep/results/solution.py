@@ -211,6 +211,8 @@ class SolutionRecorder:
         self._last_time_repeated = False  # the last row's time equals the one before it
         self._error_max = 0.0
         self._error_sq_int = self._error_sq_sum = 0.0  # integral of e^2 (linear pieces), sum of e^2
+        self._error_int = 0.0  # integral of e (trapezoid) [deg s], and its values at the steps' times
+        self._error_marks: list[float] = []
         self._energy = 0.0
         self._peak_torque = self._peak_current = 0.0
         self._last_error: float | None = None
@@ -281,6 +283,7 @@ class SolutionRecorder:
             totals.error_sq_sum,
         )
         self._last_error = totals.last_error
+        self._error_int, self._error_marks = totals.error_int, totals.error_marks.tolist()
         self.steps = _JudgedInKernel(self.sequencer, self.schedule, totals)  # type: ignore[assignment]
         window = self.peak_window
         if window is not None and len(totals.window):
@@ -359,6 +362,18 @@ class SolutionRecorder:
         e0, e1 = e[:-1], e[1:]
         self._error_sq_int += float(np.sum(np.diff(t) * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0))
         self._last_error = float(error[-1])
+        self._take_error_integral(time, np.diff(t) * (e0 + e1) / 2.0, len(e) > len(error))
+
+    def _take_error_integral(self, time: np.ndarray, areas: np.ndarray, continued: bool) -> None:
+        """The error's running integral (a running sum, one row after the other, as the kernel's) at
+        each row, and its value at the first row at or after each step's time not yet marked."""
+        running = np.cumsum(np.concatenate([[self._error_int], areas]))
+        at_rows = running[1:] if continued else running
+        self._error_int = float(at_rows[-1])
+        steps = np.asarray(self.schedule.times, dtype=float)[len(self._error_marks) :]
+        steps = steps[steps <= time[-1]]
+        if len(steps):
+            self._error_marks.extend(at_rows[np.searchsorted(time, steps, side="left")].tolist())
 
     def figures(self) -> dict:
         """The figures of every row shown, as stored in ``metadata['solution_figures']`` (the
@@ -376,6 +391,9 @@ class SolutionRecorder:
             span = end - start
             rms = float(np.sqrt(self._error_sq_int / span if span > 0 else self._error_sq_sum / self.count))
             result.update(dataclasses.asdict(Tracking(self._error_max, rms)))
+            # what the light's integrals over the output rows are corrected with (results.light_rows)
+            result["error_integral_deg_s"] = self._error_int
+            result["error_integral_at_steps_deg_s"] = list(self._error_marks)
         result.update(
             dataclasses.asdict(
                 Peaks(self._peak_torque if self._torque else None, self._peak_current if self._currents else None)

@@ -116,6 +116,12 @@ typedef struct {
     double peak_torque, peak_current, energy, error_max, error_sq_int, error_sq_sum, last_error;
     double *last;             /* the last row (row width) */
     double *held_t, *held_x;  /* the rotor's rows of the open step (malloc'd; hs_figures_free) */
+    /* the tracking error's integral over the rows [deg s] (trapezoid, with the error's sums), and its
+     * value at the first row at or after each step's time: error_marks[0, marked), of n_steps (set by the
+     * caller: the light's correction for the rows between the output rows, heliostep/results/light_rows.py) */
+    double error_int;
+    double *error_marks;
+    long marked;
 } hs_figures;
 
 typedef struct {
