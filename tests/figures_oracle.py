@@ -80,6 +80,19 @@ def figures(trace: pd.DataFrame, metadata: Mapping) -> dict:
         result["error_integral_at_steps_deg_s"] = [
             float(running[np.searchsorted(time, t, side="left")]) for t in reached
         ]
+        # per interval (the rows from a step's time on, to the next step's), the first row of the largest
+        # and of the least error: its time, error and panel angle
+        interval = np.searchsorted(np.asarray(schedule.times, dtype=float), time, side="right")
+        extremes = []
+        for j in range(len(reached) + 1):
+            rows = np.flatnonzero((interval == j) & ~np.isnan(error))
+            if not len(rows):
+                extremes.append([None] * 6)
+                continue
+            high, low = rows[np.argmax(error[rows])], rows[np.argmin(error[rows])]
+            panel = trace[roles["panel_angle"]].to_numpy()
+            extremes.append([float(v) for k in (high, low) for v in (time[k], error[k], panel[k])])
+        result["error_extremes_deg"] = extremes
     result["peak_torque_Nm"] = _peak(trace, *(c for c in [roles.get("torque")] if c))
     result["peak_phase_current_A"] = _peak(trace, *(roles[r] for r in ("current_a", "current_b") if r in roles))
     power = roles.get("power")

@@ -6,6 +6,7 @@ file is read once per run."""
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from heliostep.paths import scenarios_dir
@@ -88,9 +89,21 @@ def test_run_light_figures_are_the_integrals_of_the_whole_series(runs):
     whole = light_figures(held.trace, held.metadata, held.scenario)
     assert summary["light_energy_J"] == pytest.approx(whole["light_energy_J"], rel=1e-12)
     weight = series["power_ideal_W"].to_numpy()
-    assert summary["mean_intercept"] == pytest.approx(np.average(series["intercept_actual"], weights=weight), rel=1e-12)
+    weighted = np.trapezoid(weight * series["intercept_actual"].to_numpy(), time)  # in time, not over the rows
+    assert summary["mean_intercept"] == pytest.approx(weighted / np.trapezoid(weight, time), rel=1e-12)
     lit = weight > 0
-    assert summary["max_transverse_miss_m"] == np.nanmax(np.abs(series["transverse_miss_actual_m"][lit]))
+    # the largest miss: of the rows', and of the solution's rows at its extreme errors per step (the swing)
+    swing = [r for row in held.metadata["solution_figures"]["error_extremes_deg"] for r in (row[:3], row[3:])]
+    times, panel = [r[0] for r in swing], [r[2] for r in swing]
+    column = held.metadata["roles"]["panel_angle"]
+    at_swing = light_timeseries(
+        pd.DataFrame({"time": times, "panel_angle_ref": panel, column: panel}).sort_values("time"),
+        held.metadata,
+        held.scenario,
+    )
+    misses = [np.abs(s["transverse_miss_actual_m"][s["power_ideal_W"] > 0]) for s in (series[lit], at_swing)]
+    assert summary["max_transverse_miss_m"] == pytest.approx(max(m.max() for m in misses), rel=1e-12)
+    assert summary["max_transverse_miss_m"] >= np.nanmax(np.abs(series["transverse_miss_actual_m"][lit]))
     # a check of the scale: P ~ DNI A cos rho tau alpha gamma over the 20 s window, A = 0.3 m x 1.5 m,
     # rho tau alpha = 0.646, gamma about 0.24 (the flat mirror over the 70 mm tube, ray traced in
     # tests/solar/test_raytrace.py), cos about 0.9

@@ -70,8 +70,9 @@ class FigureTotals:
     peaks, the energy [J], the error [deg] (max, integral of e^2, sum of e^2), the outcomes of the
     steps judged (rows of missed, settling [s] or NaN, move [increments]), the envelope
     (least, largest, worst magnitude, its (time, value)), the rows around the peak
-    (its time [s] and signed torque), the error's integral [deg s] and its values at the steps' times
-    (:meth:`heliostep.results.solution.SolutionRecorder.figures`' ``error_integral_*``)."""
+    (its time [s] and signed torque), the error's integral [deg s] and its values at the steps' times, the
+    rows of its extremes per interval between them (t, e, panel of the largest, then of the least [s, deg, rad];
+    the intervals reached) (:meth:`heliostep.results.solution.SolutionRecorder.figures`' ``error_*``)."""
 
     count: int
     unordered: int
@@ -98,6 +99,7 @@ class FigureTotals:
     peak_value: float
     error_int: float
     error_marks: np.ndarray
+    extremes: np.ndarray
 
 
 _LONGS = ("torque", "power", "panel", "rotor", "n_currents")
@@ -152,6 +154,7 @@ _FIELDS: list[tuple[str, Any]] = (
     ]
     + [(name, ctypes.c_void_p) for name in ("last", "held_t", "held_x")]
     + [("error_int", ctypes.c_double), ("error_marks", ctypes.c_void_p), ("marked", ctypes.c_long)]
+    + [("extremes", ctypes.c_void_p)]
 )
 
 
@@ -195,6 +198,7 @@ class KernelFigures:
             "trail": np.zeros((spec.max_rows, n_plot)),
             "last": np.full(width, np.nan),
             "error_marks": np.full(max(len(spec.step_times), 1), np.nan),
+            "extremes": np.full((len(spec.step_times) + 1, 6), np.nan),
         }
         for name, array in arrays.items():
             setattr(s, name, array.ctypes.data)
@@ -259,6 +263,7 @@ class KernelFigures:
             float(s.peak_value),
             float(s.error_int),
             a["error_marks"][: int(s.marked)].copy(),
+            a["extremes"][: int(s.marked) + 1].copy(),
         )
 
     def close(self) -> None:

@@ -50,7 +50,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.results.light_notes import light_notes
-from heliostep.results.light_rows import RowMarks, corrections
+from heliostep.results.light_rows import RowMarks, corrections, swing_rows
 from heliostep.results.mirror_power import attitude_light
 from heliostep.results.sun_grid_image import interpolated_image
 from heliostep.solar import irradiance
@@ -199,12 +199,14 @@ def _light_rows(
     origin: float,
     window_grid: dict | None = None,
     first_order: bool = True,
+    only: str | None = None,
 ) -> dict:
     """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
     one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
     points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
     trace gives. ``window_grid``: :func:`sun_grid` at the points k = 0, 1, ... already computed (used
-    where it covers the block's points); ``first_order``: with the stepping's first-order columns."""
+    where it covers the block's points); ``first_order``: with the stepping's first-order columns; ``only``:
+    that attitude's columns alone (and ``time``, ``dni``)."""
     conf = scenario.optics
     distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
     h = scenario.plant.to_plant().tube_height
@@ -222,6 +224,8 @@ def _light_rows(
     attitudes, on_grid, driven = _attitudes(trace, metadata, axis, points, seconds)
     out = {"time": seconds, "dni": dni}
     for name, (primary, secondary) in attitudes.items():
+        if only is not None and name != only:  # one attitude's columns (the light's slopes at a few rows)
+            continue
         image = None
         if name in on_grid:  # a sun-alone attitude: its image from the sun grid
             image = interpolated_image(points, on_grid[name], (seconds, sun, primary, secondary), distance, h, conf)
@@ -236,7 +240,7 @@ def _light_rows(
                 f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"],
             }
         )
-    if driven["actual"] is not None and first_order:
+    if driven["actual"] is not None and first_order and only is None:
         light_of = lambda p, q: attitude_light(sun, dni, up, p, q, distance, h, conf)  # noqa: E731
         out.update(_first_order_stepping(light_of, attitudes["reference"], axis, out, driven))
     return out
@@ -310,7 +314,6 @@ class LightIntegrals:
         self._origin: float | None = None
         self._previous: dict | None = None  # the last row so far: time and power of each attitude
         self._energy: dict[str, float] = {}
-        self._weighted = self._weight = 0.0  # sums of P_ideal * intercept_actual and of P_ideal
         self._max_miss = {"transverse": np.nan, "longitudinal": np.nan}
         self._lit = 0
         self.rows = 0
@@ -347,6 +350,8 @@ class LightIntegrals:
             powers["first_order_cosine"] = series["stepping_first_order_cosine_W"]
             # the error weighted by the power in time (rows cluster at the steps: a sum over rows is biased)
             powers["error_weighted"] = series["power_reference_W"] * series["driven_error_rad"]
+        if "intercept_actual" in series:  # the actual intercept weighted by the ideal power in time
+            powers["intercept_weighted"] = series["power_ideal_W"] * series["intercept_actual"]
         spans = self.metadata.get("drive", {}).get("stowed_spans_s")
         stowed = None
         if spans and "power_actual_W" in series:  # the light while stowed (off tracking, heliostep.drive.stow)
@@ -366,8 +371,6 @@ class LightIntegrals:
         self._previous = {"time": float(seconds[-1]), **{n: float(p[-1]) for n, p in powers.items()}}
         if "power_actual_W" in series:
             weight = series["power_ideal_W"]
-            self._weighted += float(np.sum(weight * series["intercept_actual"]))
-            self._weight += float(np.sum(weight))
             lit = weight > 0
             self._lit += int(np.count_nonzero(lit))
             for key in self._max_miss:
@@ -386,14 +389,12 @@ class LightIntegrals:
         origin = 0.0 if self._origin is None else self._origin  # set by the block's first row
 
         def slopes(marked: np.ndarray) -> dict:
-            turned = []
-            for sign in (1.0, -1.0):  # the actual attitude's power, turned about its driven angle
-                rows = block.iloc[marked].copy()
-                rows[panel] = rows[panel].to_numpy(dtype=float) + sign * COSINE_STEP
-                turned.append(
-                    _light_rows(rows, self.metadata, self.scenario, self._weather, origin, self._window_grid, False)
-                )
-            actual = (turned[0]["power_actual_W"] - turned[1]["power_actual_W"]) / (2.0 * COSINE_STEP)
+            rows = block.iloc[np.repeat(marked, 2)].copy()  # each row turned by + and - COSINE_STEP, in time order
+            turn = np.tile([COSINE_STEP, -COSINE_STEP], len(marked))
+            rows[panel] = rows[panel].to_numpy(dtype=float) + turn
+            args = (self.metadata, self.scenario, self._weather, origin, self._window_grid, False)
+            power = _light_rows(rows, *args, only="actual")["power_actual_W"]
+            actual = (power[0::2] - power[1::2]) / (2.0 * COSINE_STEP)  # the actual attitude's slope in its angle
             out = {"actual": actual}
             if "power_slope_reference_W_per_rad" in series:
                 out["first_order"] = series["power_slope_reference_W_per_rad"][marked]
@@ -404,6 +405,18 @@ class LightIntegrals:
             return out
 
         self._marks(seconds, error, reference, slopes)
+
+    def _swing_misses(self, solution: Mapping | None) -> dict[str, float]:
+        """The actual attitude's largest misses (lit) at the solution's swing (:func:`.light_rows.swing_rows`)."""
+        rows = swing_rows(solution, self.metadata.get("roles", {}).get("panel_angle"))
+        if rows is None:
+            return {}
+        origin = 0.0 if self._origin is None else self._origin
+        series = _light_rows(rows, self.metadata, self.scenario, self._weather, origin, self._window_grid, False)
+        lit = series["power_ideal_W"] > 0  # lit as the rows are: by the ideal attitude
+        if not lit.any():
+            return {}
+        return {key: float(np.abs(series[f"{key}_miss_actual_m"][lit]).max()) for key in self._max_miss}
 
     def figures(self, solution: Mapping | None = None) -> dict:
         """The figures of the rows taken (see :func:`light_figures`), the powers that depend on the driven
@@ -440,9 +453,11 @@ class LightIntegrals:
                 figures["light_stepping_mean_error_rad"] = None
             figures["light_lost_J"] = ideal - actual
             figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
-            figures["mean_intercept"] = self._weighted / self._weight if self._weight > 0 else None
+            intercepted = energy.get("intercept_weighted", 0.0)
+            figures["mean_intercept"] = intercepted / ideal if ideal > 0 else None
+            swing = self._swing_misses(solution)  # the rows' largest misses, or larger ones at the swing
             for key, value in self._max_miss.items():
-                figures[f"max_{key}_miss_m"] = value if self._lit else None
+                figures[f"max_{key}_miss_m"] = float(np.fmax(value, swing.get(key, np.nan))) if self._lit else None
         figures["dni_source"] = str(self.scenario.optics.weather_file or "clear sky (Ineichen-Perez, pvlib)")
         figures["light_notes"] = light_notes(figures, self.scenario.mirror.axis, self.scenario.mirror.mirror_distance)
         return figures
@@ -474,7 +489,7 @@ def light_figures(trace: pd.DataFrame, metadata: Mapping, scenario, weather=None
         ``light_stepping_first_order_cosine_J`` [J], the driven axis' error averaged over the
         window weighted by the reference power, ``light_stepping_mean_error_rad`` [rad];
         ``light_lost_J`` and ``light_lost_fraction`` (ideal - actual, and of the ideal);
-        ``mean_intercept`` (actual, weighted by the ideal power over the rows);
+        ``mean_intercept`` (actual, weighted by the ideal power in time: a ratio of trapezoids);
         ``max_transverse_miss_m``, ``max_longitudinal_miss_m`` (actual, while the sun is up);
         ``dni_source`` and ``light_notes`` (:func:`light_notes`: the figures' meaning, and which
         are noise). (:class:`LightIntegrals` fed the whole trace as one block.)

@@ -34,8 +34,9 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
+import pandas as pd
 
-__all__ = ["RowMarks", "corrections"]
+__all__ = ["RowMarks", "corrections", "swing_rows"]
 
 
 class RowMarks:
@@ -133,3 +134,19 @@ def corrections(rows: RowMarks, solution: Mapping | None) -> dict[str, float]:
         # interval, errs by -h d(slope) d(error) / 6, d(error) = -d(theta_ref) while the panel is held
         out[name] = float(np.dot(slope, missed) + np.dot(_rates(slope, times), curvature[: len(slope)]) / 6.0)
     return out
+
+
+def swing_rows(solution: Mapping | None, panel: str | None) -> pd.DataFrame | None:
+    """Rows at the solution's extremes of the tracking error in each interval between steps
+    (``error_extremes_deg``: the panel's swing, which the output rows may step over): ``time`` [s] and the
+    ``panel`` column [rad] (``panel_angle_ref`` set to it: only the actual attitude is asked of them), in
+    time order; None without them (a stored run from before them, no panel)."""
+    extremes = None if solution is None else solution.get("error_extremes_deg")
+    if not extremes or panel is None:
+        return None
+    rows = np.array([[np.nan if v is None else v for v in row] for row in extremes], dtype=float).reshape(-1, 3)
+    rows = rows[np.isfinite(rows[:, [0, 2]]).all(axis=1)]
+    if not len(rows):
+        return None
+    rows = rows[np.argsort(rows[:, 0], kind="stable")]
+    return pd.DataFrame({"time": rows[:, 0], "panel_angle_ref": rows[:, 2], panel: rows[:, 2]})

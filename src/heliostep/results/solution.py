@@ -42,6 +42,7 @@ __all__ = [
     "ENVELOPE_BINS",
     "PEAK_WINDOW_HALF_WIDTH",
     "Envelope",
+    "ErrorTrack",
     "PeakWindow",
     "SolutionPlotData",
     "SolutionRecorder",
@@ -166,6 +167,58 @@ class Envelope:
                     self.worst[j], self.worst_at[j] = magnitude[k], (time[k], values[k])
 
 
+class ErrorTrack:
+    """The tracking error e [deg] over the solution's rows, for the light between the output rows
+    (:mod:`heliostep.results.light_rows`): its running integral (trapezoid, a running sum one row after the
+    other, as the kernel's) to the last row and at the first row at or after each of ``step_times`` [s], and
+    per interval between those marks (the first row, each step) the rows of its largest and least value
+    (t, e, panel [s, deg, rad], the first of equal ones)."""
+
+    def __init__(self, step_times: Sequence[float] | np.ndarray):
+        self.step_times = np.asarray(step_times, dtype=float)
+        self.integral = 0.0
+        self.marks: list[float] = []
+        self.extremes = np.full((len(self.step_times) + 1, 6), np.nan)
+
+    def __call__(self, time: np.ndarray, areas: np.ndarray, continued: bool, error: np.ndarray, panel: np.ndarray):
+        """The block's rows: their times, the trapezoid's areas since the row before (``continued``: from the
+        previous block's last row, one area per row; else one fewer), the error and the panel angle."""
+        running = np.cumsum(np.concatenate([[self.integral], areas]))
+        at_rows = running[1:] if continued else running
+        self.integral = float(at_rows[-1])
+        steps = self.step_times[len(self.marks) :]
+        steps = steps[steps <= time[-1]]
+        if len(steps):
+            self.marks.extend(at_rows[np.searchsorted(time, steps, side="left")].tolist())
+        interval = np.searchsorted(self.step_times, time, side="right")  # a row's: the steps at or before it
+        starts = np.flatnonzero(np.r_[True, interval[1:] != interval[:-1]])
+        for start, stop in zip(starts, np.r_[starts[1:], len(time)], strict=True):
+            part = error[start:stop]
+            if np.isnan(part).all():
+                continue
+            held = self.extremes[interval[start]]
+            k, m = start + int(np.nanargmax(part)), start + int(np.nanargmin(part))
+            if np.isnan(held[1]) or error[k] > held[1]:
+                held[0], held[1], held[2] = time[k], error[k], panel[k]
+            if np.isnan(held[4]) or error[m] < held[4]:
+                held[3], held[4], held[5] = time[m], error[m], panel[m]
+
+    def take_totals(self, totals: Any) -> None:
+        """The kernel's (:class:`heliostep.cosim.figures.FigureTotals`), in place of rows."""
+        self.integral, self.marks = totals.error_int, totals.error_marks.tolist()
+        self.extremes[: len(totals.extremes)] = totals.extremes
+
+    def figures(self) -> dict:
+        """``error_integral_deg_s``, ``error_integral_at_steps_deg_s`` and ``error_extremes_deg`` (per interval
+        reached: [t, e, panel] of the largest, then of the least error; None where no row) of ``solution_figures``."""
+        reached = self.extremes[: len(self.marks) + 1]
+        return {
+            "error_integral_deg_s": self.integral,
+            "error_integral_at_steps_deg_s": list(self.marks),
+            "error_extremes_deg": [[None if np.isnan(v) else float(v) for v in row] for row in reached],
+        }
+
+
 class SolutionRecorder:
     """The master's ``monitor``: the figures of every row it is shown (each solver step, event and
     output row), computed as the rows come, in memory that does not grow with the run.
@@ -211,8 +264,7 @@ class SolutionRecorder:
         self._last_time_repeated = False  # the last row's time equals the one before it
         self._error_max = 0.0
         self._error_sq_int = self._error_sq_sum = 0.0  # integral of e^2 (linear pieces), sum of e^2
-        self._error_int = 0.0  # integral of e (trapezoid) [deg s], and its values at the steps' times
-        self._error_marks: list[float] = []
+        self._error_track = ErrorTrack(schedule.times)  # for the light between the output rows
         self._energy = 0.0
         self._peak_torque = self._peak_current = 0.0
         self._last_error: float | None = None
@@ -283,7 +335,7 @@ class SolutionRecorder:
             totals.error_sq_sum,
         )
         self._last_error = totals.last_error
-        self._error_int, self._error_marks = totals.error_int, totals.error_marks.tolist()
+        self._error_track.take_totals(totals)
         self.steps = _JudgedInKernel(self.sequencer, self.schedule, totals)  # type: ignore[assignment]
         window = self.peak_window
         if window is not None and len(totals.window):
@@ -362,18 +414,8 @@ class SolutionRecorder:
         e0, e1 = e[:-1], e[1:]
         self._error_sq_int += float(np.sum(np.diff(t) * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0))
         self._last_error = float(error[-1])
-        self._take_error_integral(time, np.diff(t) * (e0 + e1) / 2.0, len(e) > len(error))
-
-    def _take_error_integral(self, time: np.ndarray, areas: np.ndarray, continued: bool) -> None:
-        """The error's running integral (a running sum, one row after the other, as the kernel's) at
-        each row, and its value at the first row at or after each step's time not yet marked."""
-        running = np.cumsum(np.concatenate([[self._error_int], areas]))
-        at_rows = running[1:] if continued else running
-        self._error_int = float(at_rows[-1])
-        steps = np.asarray(self.schedule.times, dtype=float)[len(self._error_marks) :]
-        steps = steps[steps <= time[-1]]
-        if len(steps):
-            self._error_marks.extend(at_rows[np.searchsorted(time, steps, side="left")].tolist())
+        panel = data[:, self._panel] if self._panel is not None else np.full(len(time), np.nan)
+        self._error_track(time, np.diff(t) * (e0 + e1) / 2.0, len(e) > len(error), error, panel)
 
     def figures(self) -> dict:
         """The figures of every row shown, as stored in ``metadata['solution_figures']`` (the
@@ -391,9 +433,7 @@ class SolutionRecorder:
             span = end - start
             rms = float(np.sqrt(self._error_sq_int / span if span > 0 else self._error_sq_sum / self.count))
             result.update(dataclasses.asdict(Tracking(self._error_max, rms)))
-            # what the light's integrals over the output rows are corrected with (results.light_rows)
-            result["error_integral_deg_s"] = self._error_int
-            result["error_integral_at_steps_deg_s"] = list(self._error_marks)
+            result.update(self._error_track.figures())
         result.update(
             dataclasses.asdict(
                 Peaks(self._peak_torque if self._torque else None, self._peak_current if self._currents else None)

@@ -462,6 +462,11 @@ int hs_figures_row(hs_figures *f, const double *row, long width) {
         }
         f->last_error = e;
         while (f->marked < f->n_steps && t >= f->step_times[f->marked]) f->error_marks[f->marked++] = f->error_int;
+        if (!isnan(e)) {
+            double *x = f->extremes + 6 * f->marked;
+            if (isnan(x[1]) || e > x[1]) x[0] = t, x[1] = e, x[2] = row[f->panel];
+            if (isnan(x[4]) || e < x[4]) x[3] = t, x[4] = e, x[5] = row[f->panel];
+        }
     }
     if (f->rotor >= 0 && judge_row(f, t, row[f->rotor])) return -1;
     if (f->n_enveloped) envelope_row(f, row);
@@ -627,7 +632,7 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_figures, peak_torque), FIELD(hs_figures, peak_current), FIELD(hs_figures, energy),
     FIELD(hs_figures, error_max), FIELD(hs_figures, error_sq_int), FIELD(hs_figures, error_sq_sum),
     FIELD(hs_figures, last_error), FIELD(hs_figures, last), FIELD(hs_figures, held_t), FIELD(hs_figures, held_x),
-    FIELD(hs_figures, error_int), FIELD(hs_figures, error_marks), FIELD(hs_figures, marked),
+    FIELD(hs_figures, error_int), FIELD(hs_figures, error_marks), FIELD(hs_figures, marked), FIELD(hs_figures, extremes),
     CODE(F_SET_TIME), CODE(F_SET_STATES), CODE(F_GET_REAL), CODE(F_SET_REAL), CODE(F_GET_DERIVATIVES),
     CODE(F_GET_EVENT_INDICATORS), CODE(F_GET_INTEGER), CODE(F_GET_BOOLEAN),
     CODE(ADVANCE_REACHED), CODE(ADVANCE_ROOT), CODE(ADVANCE_FULL), CODE(ADVANCE_MAX_STEPS),

@@ -122,6 +122,10 @@ typedef struct {
     double error_int;
     double *error_marks;
     long marked;
+    /* per interval between the marks (the first row, the steps; n_steps + 1 of them, the row's interval the
+     * steps marked by it): the rows of the error's largest and least value, (t, e, panel) each [s, deg, rad]
+     * (set by the caller to NaN: the light's misses at the panel's swing, heliostep/results/light_rows.py) */
+    double *extremes;
 } hs_figures;
 
 typedef struct {
