@@ -93,6 +93,13 @@ def figures(trace: pd.DataFrame, metadata: Mapping) -> dict:
             panel = trace[roles["panel_angle"]].to_numpy()
             extremes.append([float(v) for k in (high, low) for v in (time[k], error[k], panel[k])])
         result["error_extremes_deg"] = extremes
+        # the integral of e^2 over linear pieces, to the end and to each step's time reached
+        e0, e1 = error[:-1], error[1:]
+        squares = np.concatenate([[0.0], np.cumsum(np.diff(time) * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0)])
+        result["error_sq_integral_deg2_s"] = float(squares[-1])
+        result["error_sq_integral_at_steps_deg2_s"] = [
+            float(squares[np.searchsorted(time, t, side="left")]) for t in reached
+        ]
     result["peak_torque_Nm"] = _peak(trace, *(c for c in [roles.get("torque")] if c))
     result["peak_phase_current_A"] = _peak(trace, *(roles[r] for r in ("current_a", "current_b") if r in roles))
     power = roles.get("power")

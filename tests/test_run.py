@@ -215,6 +215,10 @@ def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch,
         expected["error_integral_at_steps_deg_s"], rel=1e-9, abs=1e-12
     )
     assert streamed["error_extremes_deg"] == expected["error_extremes_deg"]  # the same rows chosen
+    assert streamed["error_sq_integral_deg2_s"] == pytest.approx(expected["error_sq_integral_deg2_s"], rel=1e-9)
+    assert streamed["error_sq_integral_at_steps_deg2_s"] == pytest.approx(
+        expected["error_sq_integral_at_steps_deg2_s"], rel=1e-9, abs=1e-15
+    )
     for key in ("missed_steps", "steps_executed", "missed_step_times_s", "steps_lost", "solution_rows"):
         assert streamed[key] == expected[key], key
     for got, want in zip(streamed["step_outcomes"], expected["step_outcomes"], strict=True):

@@ -105,13 +105,13 @@ def central_runs(fmu_paths):
 
 
 def test_the_stepping_light_does_not_move_with_the_output_grid(central_runs):
-    """The paper's case on its own grid (detail rows every 0.5 ms for 50 ms after each step: within 1.2e-4 of
-    a 0.2 ms grid's stepping change, docs/light.md) and on a 30 s grid: the stepping's figures agree. On the
-    coarse grid the rows' own trapezoid made the change 29 times the fine grid's (-1.55e-2 against
-    -5.4e-4 J)."""
+    """The paper's case on its own grid (detail rows every 0.5 ms for 50 ms after each step: within 2e-4 of
+    a 0.2 ms grid's stepping change, docs/light.md) and on a 30 s grid: the stepping's figures agree (the
+    change within 3 %, its second-order part from the solution's integral of e^2 too). On the coarse grid the
+    rows' own trapezoid made the change 29 times the fine grid's (-1.55e-2 against -5.4e-4 J)."""
     fine, coarse = (run.summary for run in central_runs)
     assert coarse["rows"] < fine["rows"] / 50
-    assert coarse["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], rel=0.15)
+    assert coarse["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], rel=0.05)
     assert coarse["light_stepping_first_order_J"] == pytest.approx(fine["light_stepping_first_order_J"], rel=0.06)
     assert coarse["light_stepping_first_order_cosine_J"] == pytest.approx(
         fine["light_stepping_first_order_cosine_J"], rel=0.03
@@ -121,8 +121,9 @@ def test_the_stepping_light_does_not_move_with_the_output_grid(central_runs):
 
 def test_a_day_hour_on_its_own_30_s_grid_has_the_fine_grid_stepping_light(fmu_paths):
     """jan21-day's first hour on its shipped grid (30 s, 5 ms detail for 10 ms) against 0.1 s with the paper
-    case's fine detail: the stepping's change within 2e-9 of the energy (it was 2.7e-5 of it: 0.73 J against
-    -9e-5 J)."""
+    case's fine detail: the stepping's change within 5e-9 of the energy (3.6e-9 measured; it was 2.7e-5 of it:
+    0.73 J against -9e-5 J; the first-order terms alone left 1.3e-9 here, the second-order ones, which the
+    paper's case and a driven primary need, 3.6e-9 at this low sun)."""
     hour = ("window.end=null", "window.duration=3600")
     path = scenarios_dir() / "jan21-day.yaml"
     shipped = run_scenario(path, hour, keep_trace=False).summary
@@ -130,7 +131,7 @@ def test_a_day_hour_on_its_own_30_s_grid_has_the_fine_grid_stepping_light(fmu_pa
         path, (*hour, "output.interval=0.1", "output.step_detail=0.05", "output.step_interval=0.0005"), keep_trace=False
     ).summary
     energy = fine["light_energy_J"]
-    assert shipped["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], abs=2e-9 * energy)
+    assert shipped["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], abs=5e-9 * energy)
     assert abs(fine["light_stepping_change_J"]) < 1e-8 * energy  # the stepping changes the light by nothing
     # the largest misses at the swing (0.72 mm from the 30 s rows against 0.92 mm before), the mean intercept
     for key in ("max_longitudinal_miss_m", "max_transverse_miss_m"):
@@ -148,3 +149,16 @@ def test_the_largest_misses_and_the_mean_intercept_do_not_move_with_the_output_g
         assert coarse[key] == pytest.approx(fine[key], rel=1e-4), key
     assert fine["max_longitudinal_miss_m"] > 1.5 * fine["max_transverse_miss_m"] > 0  # a secondary's error: along
     assert coarse["mean_intercept"] == pytest.approx(fine["mean_intercept"], rel=1e-5)
+
+
+def test_a_driven_primary_stepping_light_is_second_order_and_does_not_move_with_the_grid(fmu_paths):
+    """A driven primary's error moves the image across the tube: its change is second order in the error
+    (-6.9e-2 J against a first-order term of +1.1e-3 J), the power's curvature in the angle over the swing and
+    over the held stretches. On 30 s rows it agrees with its own grid within 2e-3 (1.4e-4 measured; the
+    first-order correction alone left it 36 % off, the rows alone more)."""
+    path = scenarios_dir() / "jan21-central.yaml"
+    fine = run_scenario(path, ("mirror.axis=primary",), keep_trace=False).summary
+    coarse = run_scenario(path, ("mirror.axis=primary", *COARSE), keep_trace=False).summary
+    assert abs(fine["light_stepping_change_J"]) > 30 * abs(fine["light_stepping_first_order_J"])
+    assert coarse["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], rel=2e-3)
+    assert coarse["light_stepping_first_order_J"] == pytest.approx(fine["light_stepping_first_order_J"], rel=0.01)

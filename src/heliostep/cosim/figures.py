@@ -72,7 +72,8 @@ class FigureTotals:
     (least, largest, worst magnitude, its (time, value)), the rows around the peak
     (its time [s] and signed torque), the error's integral [deg s] and its values at the steps' times, the
     rows of its extremes per interval between them (t, e, panel of the largest, then of the least [s, deg, rad];
-    the intervals reached) (:meth:`heliostep.results.solution.SolutionRecorder.figures`' ``error_*``)."""
+    the intervals reached), and the integral of e^2 [deg^2 s] (one row after the other) to the end and at the
+    steps' times (:meth:`heliostep.results.solution.SolutionRecorder.figures`' ``error_*``)."""
 
     count: int
     unordered: int
@@ -100,6 +101,7 @@ class FigureTotals:
     error_int: float
     error_marks: np.ndarray
     extremes: np.ndarray
+    error_sq_marks: np.ndarray
 
 
 _LONGS = ("torque", "power", "panel", "rotor", "n_currents")
@@ -154,7 +156,7 @@ _FIELDS: list[tuple[str, Any]] = (
     ]
     + [(name, ctypes.c_void_p) for name in ("last", "held_t", "held_x")]
     + [("error_int", ctypes.c_double), ("error_marks", ctypes.c_void_p), ("marked", ctypes.c_long)]
-    + [("extremes", ctypes.c_void_p)]
+    + [("extremes", ctypes.c_void_p), ("error_sq_marks", ctypes.c_void_p)]
 )
 
 
@@ -199,6 +201,7 @@ class KernelFigures:
             "last": np.full(width, np.nan),
             "error_marks": np.full(max(len(spec.step_times), 1), np.nan),
             "extremes": np.full((len(spec.step_times) + 1, 6), np.nan),
+            "error_sq_marks": np.full(max(len(spec.step_times), 1), np.nan),
         }
         for name, array in arrays.items():
             setattr(s, name, array.ctypes.data)
@@ -264,6 +267,7 @@ class KernelFigures:
             float(s.error_int),
             a["error_marks"][: int(s.marked)].copy(),
             a["extremes"][: int(s.marked) + 1].copy(),
+            a["error_sq_marks"][: int(s.marked)].copy(),
         )
 
     def close(self) -> None:

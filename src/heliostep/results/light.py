@@ -389,19 +389,20 @@ class LightIntegrals:
         origin = 0.0 if self._origin is None else self._origin  # set by the block's first row
 
         def slopes(marked: np.ndarray) -> dict:
-            rows = block.iloc[np.repeat(marked, 2)].copy()  # each row turned by + and - COSINE_STEP, in time order
-            turn = np.tile([COSINE_STEP, -COSINE_STEP], len(marked))
-            rows[panel] = rows[panel].to_numpy(dtype=float) + turn
+            rows = block.iloc[np.repeat(marked, 3)].copy()  # each row turned by +, 0 and - COSINE_STEP, in order
+            rows[panel] = rows[panel].to_numpy(dtype=float) + np.tile([COSINE_STEP, 0.0, -COSINE_STEP], len(marked))
             args = (self.metadata, self.scenario, self._weather, origin, self._window_grid, False)
             power = _light_rows(rows, *args, only="actual")["power_actual_W"]
-            actual = (power[0::2] - power[1::2]) / (2.0 * COSINE_STEP)  # the actual attitude's slope in its angle
-            out = {"actual": actual}
+            up, at, down = power[0::3], power[1::3], power[2::3]
+            actual = (up - down) / (2.0 * COSINE_STEP)  # the actual attitude's slope in its angle, its curvature
+            out = {"actual": actual, "actual''": (up - 2.0 * at + down) / COSINE_STEP**2}
             if "power_slope_reference_W_per_rad" in series:
                 out["first_order"] = series["power_slope_reference_W_per_rad"][marked]
                 out["first_order_cosine"] = series["cosine_power_slope_reference_W_per_rad"][marked]
                 out["error_weighted"] = series["power_reference_W"][marked]
             if stowed is not None:
                 out["stowed_actual"] = np.where(stowed[marked], actual, 0.0)
+                out["stowed_actual''"] = np.where(stowed[marked], out["actual''"], 0.0)
             return out
 
         self._marks(seconds, error, reference, slopes)

@@ -9,24 +9,24 @@ next row, seconds later, and the actual attitude's energy moves with the output 
 with 10 ms of detail (``tests/results/test_light_rows.py``).
 
 The solution does follow it: the master's monitor sees every internal solver step and integrates the
-tracking error e = theta_actual - theta_reference over them
-(:meth:`heliostep.results.solution.SolutionRecorder.figures`: ``error_integral_deg_s`` to the end and
-``error_integral_at_steps_deg_s`` at each step's time). Between two marks (the first row, each step's
-time, the end) the rows' trapezoid of e misses D = (its integral over the solution) - (its trapezoid
-over the rows). Each power that depends on the driven angle is corrected to first order in that
-difference, with its slope in the angle at the interval's first row:
+tracking error e = theta_actual - theta_reference and its square over them
+(:meth:`heliostep.results.solution.SolutionRecorder.figures`: ``error_integral_deg_s``,
+``error_sq_integral_deg2_s`` to the end and at each step's time). Between two marks (the first row, each
+step's time, the end) the rows' trapezoids miss D1 = (the integral of e over the solution) - (its trapezoid
+over the rows) and D2, the same of e^2. The difference of the actual and the reference power is, about the
+reference, g = S e + (C / 2) e^2 (S = dP/dtheta, C = d2P/dtheta2 there), so each power that depends on the
+driven angle is corrected by
 
-    E += sum over the intervals of (dP / d theta) * D
+    E += sum over the intervals of S D1 + (C / 2) D2 + r sum(h^2 d(theta_ref)) / 6
 
-(the actual attitude's power, by a central difference of :data:`~heliostep.results.light.COSINE_STEP`
-at the actual attitude; the first-order terms' own slopes; the reference power for the power-weighted
-mean error). The rest is second order: (1/2) d2P/d theta2 times the integral of the angle's
-departure from the rows' line squared, under a step angle (2.4e-4 rad on the panel) times that
-departure: about 1e-4 of the correction. The slope's change over the swing's tens of
-milliseconds (the sun moves 2e-6 rad in 30 ms) is smaller still. A step's time is a row of both
-(the master records both sides of every event) so the intervals are the same for both; an end
-where the solution and the rows stop at different times (an interrupted run) leaves its last
-interval uncorrected.
+S and C by central differences of :data:`~heliostep.results.light.COSINE_STEP` at the actual attitude of the
+interval's first row, S taken back to the reference (S - C e there); the last term the trapezoid's error on
+S e where both are linear in a row's interval (-h dS de / 6, de = -d(theta_ref) while the panel is held, r the
+rate of S from mark to mark). The first-order terms take S D1 and their own slopes (they are linear in e);
+the mean error the reference power. What is left is third order in the error and the slope's drift over
+the swing's milliseconds. A step's time is a row of both (the master records both sides of every event),
+so the intervals are the same for both; an end where the solution and the rows stop at different times (an
+interrupted run) leaves its last interval uncorrected.
 """
 
 from __future__ import annotations
@@ -41,18 +41,20 @@ __all__ = ["RowMarks", "corrections", "swing_rows"]
 
 class RowMarks:
     """The rows' side of the correction, accumulated block by block, at the first row and at the first row at
-    or after each step's time (``step_times`` [s]; the marks), and at the last row: the trapezoid of the
-    driven angle's error e [rad s] over the rows, the sum over the rows' intervals of h^2 times the
-    reference's change [rad s^2] (the curvature term, :func:`corrections`), and at the marks the slopes
-    [W/rad] of each power (``slopes(rows)``: name -> slope at the rows of the block given by their indices)."""
+    or after each step's time (``step_times`` [s]; the marks), and at the last row: the trapezoids of the
+    driven angle's error e [rad s] and of e^2 [rad^2 s] over the rows, the sum over the rows' intervals of h^2
+    times the reference's change [rad s^2], e at the marks, and there the slopes [W/rad] of each power
+    (``slopes(rows)``: name -> slope at the rows of the block given by their indices; a name ending in
+    ``"''"``: the second derivative [W/rad^2] of the power named before it)."""
 
     def __init__(self, step_times: Sequence[float]):
         self.step_times = np.asarray(step_times, dtype=float)
-        self.integral = 0.0  # of e [rad s], to the last row
-        self.curvature = 0.0  # sum of h^2 d(theta_ref) [rad s^2], to the last row
-        self.marks: list[float] = []  # the integral at the first row, then at each step's time
+        self.integral = self.square = self.curvature = 0.0  # to the last row
+        self.marks: list[float] = []  # the integral of e at the first row, then at each step's time
+        self.square_marks: list[float] = []
         self.curvature_marks: list[float] = []
         self.mark_times: list[float] = []
+        self.mark_errors: list[float] = []
         self.slopes: dict[str, list[float]] = {}
         self.end_time: float | None = None
         self._previous: tuple[float, float, float] | None = None  # the last row's (time, error, reference)
@@ -73,9 +75,16 @@ class RowMarks:
                 np.concatenate([[v], a]) for v, a in ((before_t, seconds), (before_e, error), (before_ref, reference))
             )
         h = np.diff(time)
-        running = np.cumsum(np.concatenate([[self.integral], h * (e[:-1] + e[1:]) / 2.0]))
-        bent = np.cumsum(np.concatenate([[self.curvature], h * h * np.diff(ref)]))
-        at_rows, bent_at_rows = (running[1:], bent[1:]) if self._previous is not None else (running, bent)
+        sums = [
+            np.cumsum(np.concatenate([[start], terms]))
+            for start, terms in (
+                (self.integral, h * (e[:-1] + e[1:]) / 2.0),
+                (self.square, h * (e[:-1] ** 2 + e[1:] ** 2) / 2.0),  # what the rows' trapezoid of a power takes
+                (self.curvature, h * h * np.diff(ref)),
+            )
+        ]
+        if self._previous is not None:
+            sums = [values[1:] for values in sums]
         marked = np.empty(0, dtype=int)
         if not self.marks:  # the first row opens the first interval
             marked = np.array([0])
@@ -84,12 +93,13 @@ class RowMarks:
         if len(steps):
             marked = np.concatenate([marked, np.searchsorted(seconds, steps, side="left")])
         if len(marked):
-            self.marks.extend(at_rows[marked].tolist())
-            self.curvature_marks.extend(bent_at_rows[marked].tolist())
+            for kept, values in zip((self.marks, self.square_marks, self.curvature_marks), sums, strict=True):
+                kept.extend(values[marked].tolist())
             self.mark_times.extend(seconds[marked].tolist())
+            self.mark_errors.extend(error[marked].tolist())
             for name, slope in slopes(marked).items():
                 self.slopes.setdefault(name, []).extend(np.asarray(slope, dtype=float).tolist())
-        self.integral, self.curvature = float(at_rows[-1]), float(bent_at_rows[-1])
+        self.integral, self.square, self.curvature = (float(values[-1]) for values in sums)
         self.end_time = float(seconds[-1])
         self._previous = (float(seconds[-1]), float(error[-1]), float(reference[-1]))
 
@@ -107,32 +117,49 @@ def _rates(slope: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 def corrections(rows: RowMarks, solution: Mapping | None) -> dict[str, float]:
     """Each power's correction [J] (the module's docstring) from the rows' marks and, for the part between the
-    rows, the solution's figures (``error_integral_deg_s``, ``error_integral_at_steps_deg_s``, ``end_time_s``;
-    without them, a stored run from before them, the curvature term alone)."""
+    rows, the solution's figures (``error_integral_*``, ``error_sq_integral_*``, ``end_time_s``; without them, a
+    stored run from before them, the curvature term alone)."""
     if not rows.marks:
         return {}
     count = len(rows.marks)
-    exact = None
+    exact = exact_sq = None
     if solution is not None and "error_integral_at_steps_deg_s" in solution:
         exact = np.radians(np.concatenate([[0.0], np.asarray(solution["error_integral_at_steps_deg_s"], dtype=float)]))
         count = min(len(exact), count)  # the first row and the steps both have reached
         exact = exact[:count]
-    approximate, bent = np.asarray(rows.marks[:count]), np.asarray(rows.curvature_marks[:count])
-    times = np.asarray(rows.mark_times[:count])
+        if "error_sq_integral_at_steps_deg2_s" in solution:
+            marks = np.asarray(solution["error_sq_integral_at_steps_deg2_s"], dtype=float)
+            exact_sq = (np.radians(1.0) ** 2 * np.concatenate([[0.0], marks]))[:count]
+    approximate, square = np.asarray(rows.marks[:count]), np.asarray(rows.square_marks[:count])
+    bent, times = np.asarray(rows.curvature_marks[:count]), np.asarray(rows.mark_times[:count])
     end = rows.end_time if exact is None else solution.get("end_time_s")  # type: ignore[union-attr]
     if end is not None and rows.end_time is not None and abs(end - rows.end_time) <= 1e-9 * max(1.0, abs(end)):
-        approximate, bent = np.append(approximate, rows.integral), np.append(bent, rows.curvature)
-        times = np.append(times, rows.end_time)
+        approximate, square = np.append(approximate, rows.integral), np.append(square, rows.square)
+        bent, times = np.append(bent, rows.curvature), np.append(times, rows.end_time)
         if exact is not None:
             exact = np.append(exact, np.radians(solution["error_integral_deg_s"]))  # type: ignore[index]
-    missed = np.zeros(len(approximate) - 1) if exact is None else np.diff(exact) - np.diff(approximate)  # D [rad s]
+        if exact_sq is not None:
+            exact_sq = np.append(exact_sq, np.radians(1.0) ** 2 * solution["error_sq_integral_deg2_s"])  # type: ignore[index]
+    intervals = len(approximate) - 1
+    missed = np.zeros(intervals) if exact is None else np.diff(exact) - np.diff(approximate)  # D1 [rad s]
+    missed_sq = np.zeros(intervals) if exact_sq is None else np.diff(exact_sq) - np.diff(square)  # D2 [rad^2 s]
     curvature = np.diff(bent)  # sum of h^2 d(theta_ref) per interval [rad s^2]
+    error = np.asarray(rows.mark_errors[:intervals])
     out = {}
     for name, values in rows.slopes.items():
-        slope = np.asarray(values[: len(missed)])
+        if name.endswith("''"):
+            continue
+        slope = np.asarray(values[:intervals])
+        second = rows.slopes.get(name + "''")
+        if second is not None:  # a power of the actual attitude: about the reference, S = dP - C e, and C D2 / 2
+            curved = np.asarray(second[:intervals])
+            slope = slope - curved * error
+            extra = float(np.dot(curved, missed_sq)) / 2.0
+        else:
+            extra = 0.0
         # the rows' line through a held angle: the trapezoid of (slope x error), both linear in a row's
         # interval, errs by -h d(slope) d(error) / 6, d(error) = -d(theta_ref) while the panel is held
-        out[name] = float(np.dot(slope, missed) + np.dot(_rates(slope, times), curvature[: len(slope)]) / 6.0)
+        out[name] = float(np.dot(slope, missed) + np.dot(_rates(slope, times), curvature[:intervals]) / 6.0) + extra
     return out
 
 

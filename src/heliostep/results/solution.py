@@ -169,8 +169,9 @@ class Envelope:
 
 class ErrorTrack:
     """The tracking error e [deg] over the solution's rows, for the light between the output rows
-    (:mod:`heliostep.results.light_rows`): its running integral (trapezoid, a running sum one row after the
-    other, as the kernel's) to the last row and at the first row at or after each of ``step_times`` [s], and
+    (:mod:`heliostep.results.light_rows`): its running integral and that of e^2 (linear pieces; running sums one
+    row after the other, as the kernel's) to the last row and at the first row at or after each of ``step_times``
+    [s], and
     per interval between those marks (the first row, each step) the rows of its largest and least value
     (t, e, panel [s, deg, rad], the first of equal ones)."""
 
@@ -179,17 +180,33 @@ class ErrorTrack:
         self.integral = 0.0
         self.marks: list[float] = []
         self.extremes = np.full((len(self.step_times) + 1, 6), np.nan)
+        self.square = 0.0  # the integral of e^2 [deg^2 s], one row after the other (as the kernel's), and at the marks
+        self.square_marks: list[float] = []
 
-    def __call__(self, time: np.ndarray, areas: np.ndarray, continued: bool, error: np.ndarray, panel: np.ndarray):
-        """The block's rows: their times, the trapezoid's areas since the row before (``continued``: from the
-        previous block's last row, one area per row; else one fewer), the error and the panel angle."""
+    def __call__(
+        self,
+        time: np.ndarray,
+        areas: np.ndarray,
+        square_areas: np.ndarray,
+        continued: bool,
+        error: np.ndarray,
+        panel: np.ndarray,
+    ):
+        """The block's rows: their times, the trapezoid's areas of e and of e^2 (linear pieces) since the row before
+        (``continued``: from the previous block's last row, one area per row; else one fewer), the error and the
+        panel angle."""
         running = np.cumsum(np.concatenate([[self.integral], areas]))
         at_rows = running[1:] if continued else running
         self.integral = float(at_rows[-1])
+        squares = np.cumsum(np.concatenate([[self.square], square_areas]))
+        squares_at_rows = squares[1:] if continued else squares
+        self.square = float(squares_at_rows[-1])
         steps = self.step_times[len(self.marks) :]
         steps = steps[steps <= time[-1]]
         if len(steps):
-            self.marks.extend(at_rows[np.searchsorted(time, steps, side="left")].tolist())
+            where = np.searchsorted(time, steps, side="left")
+            self.marks.extend(at_rows[where].tolist())
+            self.square_marks.extend(squares_at_rows[where].tolist())
         interval = np.searchsorted(self.step_times, time, side="right")  # a row's: the steps at or before it
         starts = np.flatnonzero(np.r_[True, interval[1:] != interval[:-1]])
         for start, stop in zip(starts, np.r_[starts[1:], len(time)], strict=True):
@@ -207,6 +224,7 @@ class ErrorTrack:
         """The kernel's (:class:`heliostep.cosim.figures.FigureTotals`), in place of rows."""
         self.integral, self.marks = totals.error_int, totals.error_marks.tolist()
         self.extremes[: len(totals.extremes)] = totals.extremes
+        self.square, self.square_marks = totals.error_sq_int, totals.error_sq_marks.tolist()
 
     def figures(self) -> dict:
         """``error_integral_deg_s``, ``error_integral_at_steps_deg_s`` and ``error_extremes_deg`` (per interval
@@ -216,6 +234,8 @@ class ErrorTrack:
             "error_integral_deg_s": self.integral,
             "error_integral_at_steps_deg_s": list(self.marks),
             "error_extremes_deg": [[None if np.isnan(v) else float(v) for v in row] for row in reached],
+            "error_sq_integral_deg2_s": self.square,
+            "error_sq_integral_at_steps_deg2_s": list(self.square_marks),
         }
 
 
@@ -412,10 +432,11 @@ class SolutionRecorder:
         else:
             e, t = error, time
         e0, e1 = e[:-1], e[1:]
-        self._error_sq_int += float(np.sum(np.diff(t) * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0))
+        square_areas = np.diff(t) * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0
+        self._error_sq_int += float(np.sum(square_areas))
         self._last_error = float(error[-1])
         panel = data[:, self._panel] if self._panel is not None else np.full(len(time), np.nan)
-        self._error_track(time, np.diff(t) * (e0 + e1) / 2.0, len(e) > len(error), error, panel)
+        self._error_track(time, np.diff(t) * (e0 + e1) / 2.0, square_areas, len(e) > len(error), error, panel)
 
     def figures(self) -> dict:
         """The figures of every row shown, as stored in ``metadata['solution_figures']`` (the

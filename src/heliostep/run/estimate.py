@@ -48,9 +48,9 @@ STEP_BYTES = 400.0
 #: Disk per trace value [bytes]: Parquet (uncompressed float64; zstd makes about half), CSV (measured 16.7).
 PARQUET_BYTES_PER_VALUE = 8.0
 CSV_BYTES_PER_VALUE = 20.0
-#: Disk of ``metadata.json`` per step (the step schedule, the step outcomes, the error's integral at the step and
-#: its extremes for the light: measured 449 on ``jan21-day``, 2026-12-03) and of the figures [bytes].
-METADATA_BYTES_PER_STEP = 480.0
+#: Disk of ``metadata.json`` per step (the step schedule, the step outcomes, the error's integrals at the step and
+#: its extremes for the light: measured 476 on ``jan21-day``, 2026-12-03) and of the figures [bytes].
+METADATA_BYTES_PER_STEP = 520.0
 FIGURE_BYTES = 1e6
 
 

@@ -461,7 +461,10 @@ int hs_figures_row(hs_figures *f, const double *row, long width) {
             f->error_int += (t - f->last[0]) * (f->last_error + e) / 2.0;
         }
         f->last_error = e;
-        while (f->marked < f->n_steps && t >= f->step_times[f->marked]) f->error_marks[f->marked++] = f->error_int;
+        while (f->marked < f->n_steps && t >= f->step_times[f->marked]) {
+            f->error_sq_marks[f->marked] = f->error_sq_int;
+            f->error_marks[f->marked++] = f->error_int;
+        }
         if (!isnan(e)) {
             double *x = f->extremes + 6 * f->marked;
             if (isnan(x[1]) || e > x[1]) x[0] = t, x[1] = e, x[2] = row[f->panel];
@@ -633,6 +636,7 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_figures, error_max), FIELD(hs_figures, error_sq_int), FIELD(hs_figures, error_sq_sum),
     FIELD(hs_figures, last_error), FIELD(hs_figures, last), FIELD(hs_figures, held_t), FIELD(hs_figures, held_x),
     FIELD(hs_figures, error_int), FIELD(hs_figures, error_marks), FIELD(hs_figures, marked), FIELD(hs_figures, extremes),
+    FIELD(hs_figures, error_sq_marks),
     CODE(F_SET_TIME), CODE(F_SET_STATES), CODE(F_GET_REAL), CODE(F_SET_REAL), CODE(F_GET_DERIVATIVES),
     CODE(F_GET_EVENT_INDICATORS), CODE(F_GET_INTEGER), CODE(F_GET_BOOLEAN),
     CODE(ADVANCE_REACHED), CODE(ADVANCE_ROOT), CODE(ADVANCE_FULL), CODE(ADVANCE_MAX_STEPS),

@@ -126,6 +126,8 @@ typedef struct {
      * steps marked by it): the rows of the error's largest and least value, (t, e, panel) each [s, deg, rad]
      * (set by the caller to NaN: the light's misses at the panel's swing, heliostep/results/light_rows.py) */
     double *extremes;
+    /* the integral of e^2 [deg^2 s] (error_sq_int) at each mark: error_sq_marks[0, marked) */
+    double *error_sq_marks;
 } hs_figures;
 
 typedef struct {
