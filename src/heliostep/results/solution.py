@@ -170,10 +170,9 @@ class Envelope:
 class ErrorTrack:
     """The tracking error e [deg] over the solution's rows, for the light between the output rows
     (:mod:`heliostep.results.light_rows`): its running integral and that of e^2 (linear pieces; running sums one
-    row after the other, as the kernel's) to the last row and at the first row at or after each of ``step_times``
-    [s], and
-    per interval between those marks (the first row, each step) the rows of its largest and least value
-    (t, e, panel [s, deg, rad], the first of equal ones)."""
+    row after the other, as the kernel's) to the last row and at the first row at or after each of
+    ``step_times`` [s], and per interval between those marks (the first row, each step) the rows of its
+    largest and least value (t, e, panel [s, deg, rad], the first of equal ones)."""
 
     def __init__(self, step_times: Sequence[float] | np.ndarray):
         self.step_times = np.asarray(step_times, dtype=float)
@@ -227,8 +226,9 @@ class ErrorTrack:
         self.square, self.square_marks = totals.error_sq_int, totals.error_sq_marks.tolist()
 
     def figures(self) -> dict:
-        """``error_integral_deg_s``, ``error_integral_at_steps_deg_s`` and ``error_extremes_deg`` (per interval
-        reached: [t, e, panel] of the largest, then of the least error; None where no row) of ``solution_figures``."""
+        """``error_integral_deg_s`` and ``error_sq_integral_deg2_s`` with their values ``..._at_steps_...`` at the
+        steps reached, and ``error_extremes_deg`` (per interval reached: [t, e, panel] of the largest, then of the
+        least error; None where no row) of ``solution_figures``."""
         reached = self.extremes[: len(self.marks) + 1]
         return {
             "error_integral_deg_s": self.integral,
