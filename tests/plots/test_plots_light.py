@@ -67,3 +67,27 @@ def test_the_powers_axis_is_zoomed_and_the_differences_have_panels_of_their_own(
     assert 0 < hi - lo < 10 * np.abs(change).max()  # scaled to the change itself (mW), not to the powers (kW)
     without_actual = light_figure(series.drop(columns=["power_actual_W"]), METADATA)
     assert len([ax for ax in without_actual.axes if ax.get_ylabel()]) == 2
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_the_legends_give_the_run_s_figures_not_the_rows_trapezoids(fmu_paths):
+    """On a 30 s grid the rows' trapezoid of the stepping's change is 29 times the run's figure (which takes the
+    panel's swing between the rows from the solution): the legend gives the figure, as summary.json does."""
+    from heliostep.paths import scenarios_dir
+    from heliostep.plots.light import _energy_text
+    from heliostep.run import run_scenario
+
+    coarse = ("output.interval=30", "output.step_detail=0.01", "output.step_interval=0.005")
+    run = run_scenario(scenarios_dir() / "jan21-central.yaml", coarse)
+    series = light_timeseries(run.trace, run.metadata, run.scenario)
+    time = series["time"].to_numpy()
+    change = (series["power_actual_W"] - series["power_reference_W"]).to_numpy()
+    legend = [
+        t.get_text() for t in light_figure(series, run.metadata, "", run.summary).axes[2].get_legend().get_texts()
+    ]
+    figure = run.summary["light_stepping_change_J"]
+    assert legend[0].endswith(f": {figure:.3g} J")
+    assert abs(np.trapezoid(change, time)) > 10 * abs(figure)  # what the rows alone would have said
+    assert _energy_text(change, time) not in legend[0]
+    top = [t.get_text() for t in light_figure(series, run.metadata).axes[0].get_legend().get_texts()]
+    assert top[0].endswith(_energy_text(series["power_ideal_W"].to_numpy(), time))  # without figures: the rows'

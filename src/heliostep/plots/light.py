@@ -7,7 +7,8 @@ where curves that differ by parts in 10^7, as the central mirror's do, draw as o
 differences get panels of their own [W]: what sharing the primary loses (ideal - shared) with the
 reference law's part (shared - reference), and the stepping's change (actual - reference,
 signed: a first-order term, not a loss) with its first-order estimate. The legends give each
-energy [kJ, or J below 1 kJ].
+energy [kJ, or J below 1 kJ]: the run's figures (``summary.json``'s, which take the panel's swing between the
+rows from the solution, :mod:`heliostep.results.light_rows`) where given, else the rows' trapezoids.
 :func:`plot_light_run` computes the series from a run and writes ``POWER_FILE``.
 """
 
@@ -35,13 +36,27 @@ _MAX_BUCKETS = 2000
 _LEFT = 1.05
 
 
-def _energy_text(power: np.ndarray, time: np.ndarray) -> str:
-    """The energy of a power series, in kJ (or J below 1 kJ)."""
-    energy = float(np.trapezoid(power, time)) if len(time) > 1 else 0.0
+#: The run's figure of each curve's energy (its label's start), for the legends.
+FIGURE_OF = {
+    "ideal two-axis tracking": "light_energy_ideal_J",
+    "reference (the drive's law), shared primary": "light_energy_reference_J",
+    "actual panel (co-simulated)": "light_energy_J",
+    "shared primary (ideal - shared)": "light_lost_shared_primary_J",
+    "reference law (shared - reference)": "light_lost_reference_law_J",
+    "stepping change (actual - reference): not a loss": "light_stepping_change_J",
+    "its first-order term": "light_stepping_first_order_J",
+}
+
+
+def _energy_text(power: np.ndarray, time: np.ndarray, figure: float | None = None) -> str:
+    """The energy of a power series (``figure`` [J] where given, else its trapezoid), in kJ (or J below 1 kJ)."""
+    energy = figure if figure is not None else float(np.trapezoid(power, time)) if len(time) > 1 else 0.0
     return f"{energy / 1e3:,.1f} kJ" if abs(energy) >= 1e3 else f"{energy:.3g} J"
 
 
-def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title: str = "") -> Path | None:
+def plot_light(
+    series: pd.DataFrame, path: str | Path, metadata: Mapping, title: str = "", figures: Mapping | None = None
+) -> Path | None:
     """Power on the tube over the window (:func:`light_figure`), written to ``path``.
 
     Parameters
@@ -56,13 +71,15 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
         ``window_start`` and ``timezone`` for a clock-time axis (else seconds).
     title : str, default ""
         Appended to the figure's title (e.g. the scenario's name).
+    figures : Mapping, optional
+        The run's light figures (``summary.json``), for the legends' energies (:data:`FIGURE_OF`).
 
     Returns
     -------
     Path or None
         None when the series has fewer than two rows.
     """
-    fig = light_figure(series, metadata, title)
+    fig = light_figure(series, metadata, title, figures)
     if fig is None:
         return None
     path = Path(path)
@@ -70,7 +87,9 @@ def plot_light(series: pd.DataFrame, path: str | Path, metadata: Mapping, title:
     return path
 
 
-def light_figure(series: pd.DataFrame, metadata: Mapping, title: str = "") -> Figure | None:
+def light_figure(
+    series: pd.DataFrame, metadata: Mapping, title: str = "", figures: Mapping | None = None
+) -> Figure | None:
     """The figure of :func:`plot_light`: the powers [kW] on an axis zoomed to them; below, the
     shared primary's loss and the reference law's part [W]; with the actual panel, a third panel
     of the stepping's change and its first-order term [W]. None for fewer than two rows."""
@@ -83,18 +102,19 @@ def light_figure(series: pd.DataFrame, metadata: Mapping, title: str = "") -> Fi
     actual = series["power_actual_W"].to_numpy() if "power_actual_W" in series else None
     rows = 2 if actual is None else 3
     fig, axes = fixed_axes((9.0, 3.0 + 2.0 * rows), rows, _LEFT, height_ratios=(2,) + (1,) * (rows - 1))
-    _draw_power(axes[0], clock, time, ideal, reference, actual, title)
+    given = dict(figures or {})
+    _draw_power(axes[0], clock, time, ideal, reference, actual, title, given)
     sharing = [
         (ideal - shared, "shared primary (ideal - shared)", "C1", "-"),
         (shared - reference, "reference law (shared - reference)", "C2", ":"),
     ]
-    _draw_differences(axes[1], clock, time, sharing, "power lost [W]")
+    _draw_differences(axes[1], clock, time, sharing, "power lost [W]", given)
     if actual is not None:
         stepping = [(actual - reference, "stepping change (actual - reference): not a loss", "C0", "-")]
         if "stepping_first_order_W" in series:
             first = series["stepping_first_order_W"].to_numpy()
             stepping.append((first, "its first-order term", "k", "--"))
-        _draw_differences(axes[2], clock, time, stepping, "power change [W]")
+        _draw_differences(axes[2], clock, time, stepping, "power change [W]", given)
     for ax in axes:
         ax.grid(True, alpha=0.3)
     clock.format_axis(axes[-1])
@@ -109,6 +129,7 @@ def _draw_power(
     reference: np.ndarray,
     actual: np.ndarray | None,
     title: str,
+    given: Mapping,
 ) -> None:
     """The upper panel: the powers [kW] with their energies, the axis zoomed to them (autoscaled)."""
     lines = [
@@ -125,14 +146,14 @@ def _draw_power(
             style,
             color=color,
             linewidth=width,
-            label=f"{label}: {_energy_text(values, time)}",
+            label=f"{label}: {_energy_text(values, time, given.get(FIGURE_OF[label]))}",
         )
     top.set_ylabel("power on the tube [kW]")
     top.legend(loc="best", fontsize="small")
     top.set_title(f"Light absorbed by the tube{title}", fontsize="medium")  # (a long scenario name fits)
 
 
-def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, ylabel: str) -> None:
+def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, ylabel: str, given: Mapping) -> None:
     """A panel of power differences [W] (values, label, colour, style), each with its energy."""
     for values, label, color, style in curves:
         keep = thin(time, values, max_buckets=_MAX_BUCKETS)
@@ -142,16 +163,19 @@ def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, ylabel:
             style,
             color=color,
             linewidth=1.0,
-            label=f"{label}: {_energy_text(values, time)}",
+            label=f"{label}: {_energy_text(values, time, given.get(FIGURE_OF[label]))}",
         )
     ax.axhline(0.0, color="0.5", linewidth=0.8)
     ax.set_ylabel(ylabel)
     ax.legend(loc="best", fontsize="small")
 
 
-def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path, weather=None) -> list[Path]:
+def plot_light_run(
+    trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path, weather=None, figures: Mapping | None = None
+) -> list[Path]:
     """Write ``POWER_FILE`` for a run (its trace, metadata and scenario; ``weather``, its weather
-    file already read, see :func:`heliostep.results.light.light_timeseries`) into ``out_dir``.
+    file already read, see :func:`heliostep.results.light.light_timeseries`; ``figures``, its light figures for
+    the legends) into ``out_dir``.
 
     Returns
     -------
@@ -165,5 +189,5 @@ def plot_light_run(trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: st
     title = (
         f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, {mirror.axis} driven)"
     )
-    path = plot_light(series, Path(out_dir) / POWER_FILE, metadata, title)
+    path = plot_light(series, Path(out_dir) / POWER_FILE, metadata, title, figures)
     return [] if path is None else [path]

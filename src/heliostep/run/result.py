@@ -208,7 +208,7 @@ class RunResult:
             def child_share() -> list[Path]:
                 drawn = figures(CHILD_FIGURES)
                 light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
-                return drawn + plot_light_run(light, self.metadata, self.scenario, staging, self.weather)
+                return drawn + plot_light_run(light, self.metadata, self.scenario, staging, self.weather, self.summary)
 
             theirs, ours = in_parallel(child_share, lambda: figures(OWN_FIGURES))
             order = [*FIGURE_FILES, POWER_FILE]
