@@ -80,6 +80,46 @@ def test_the_corrected_trapezoid_is_the_integral_of_a_stepped_ringing_angle():
     assert corrected == pytest.approx(truth, abs=3e-5 * abs(rows_only - truth))
 
 
+def test_the_second_order_part_is_the_integral_of_a_stepped_ringing_angle_too():
+    """A power curved in the angle, g = S(t) e + (C / 2) e^2 (a driven primary's image crossing the tube): the
+    slope given at the actual attitude (S + C e), its curvature C, and the solution's integrals of e and e^2
+    exact; the corrected trapezoid is the quadrature's integral, the rows' own far off."""
+    curvature = -4e4  # [W/rad^2]: the e^2 part comparable to the e part at e ~ 1e-4 rad
+    rows = np.sort(np.concatenate([[0.0, 30.0, END], STEPS, STEPS, STEPS + 0.005]))
+    error, reference = _error(rows), RATE * rows - STEP / 2
+
+    def power(t, e):
+        return _slope(t) * e + curvature / 2 * e**2
+
+    marks = RowMarks(STEPS)
+    for block in (slice(0, 4), slice(4, 7), slice(7, None)):
+        t, e = rows[block], error[block]
+        marks(
+            t,
+            e,
+            reference[block],
+            lambda marked, t=t, e=e: {
+                "power": _slope(t[marked]) + curvature * e[marked],
+                "power''": np.full(len(marked), curvature),
+            },
+        )
+    degrees = np.degrees
+    solution = {
+        "error_integral_at_steps_deg_s": [degrees(_integral(_error, 0.0, t)) for t in STEPS],
+        "error_integral_deg_s": degrees(_integral(_error, 0.0, END)),
+        "error_sq_integral_at_steps_deg2_s": [
+            degrees(1.0) ** 2 * _integral(lambda x: _error(x) ** 2, 0.0, t) for t in STEPS
+        ],
+        "error_sq_integral_deg2_s": degrees(1.0) ** 2 * _integral(lambda x: _error(x) ** 2, 0.0, END),
+        "end_time_s": END,
+    }
+    truth = _integral(lambda t: power(t, _error(t)), 0.0, END)
+    rows_only = np.trapezoid(power(rows, error), rows)
+    corrected = rows_only + corrections(marks, solution)["power"]
+    assert abs(rows_only - truth) > 2 * abs(truth)  # 3.3 times the integral
+    assert corrected == pytest.approx(truth, abs=3e-5 * abs(rows_only - truth))  # measured 1.3e-5
+
+
 def test_the_curvature_term_makes_the_trapezoid_of_a_held_angle_exact():
     """The panel held (no step, no ring: e = -(reference), linear) and the slope linear in time: the rows'
     trapezoid of their product errs by -h d(slope) d(e) / 6 a row interval, which the curvature term
