@@ -319,8 +319,7 @@ class LightIntegrals:
         self.rows = 0
         self.max_block_rows = 0
         self._window_grid: dict | None = None  # sun_grid over the whole window, from the first row
-        # the rows' side of the solution's correction between the rows (heliostep.results.light_rows)
-        self._marks = RowMarks(self.metadata.get("drive", {}).get("step_times", []))
+        self._marks = RowMarks(self.metadata.get("drive", {}).get("step_times", []))  # the rows' side (light_rows)
 
     def _whole_window_grid(self, origin: float) -> dict | None:
         """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
@@ -381,18 +380,15 @@ class LightIntegrals:
         self.max_block_rows = max(self.max_block_rows, len(block))
 
     def _mark_rows(self, block: pd.DataFrame, seconds: np.ndarray, series: dict, stowed: np.ndarray | None) -> None:
-        """The rows' error integral and the powers' slopes at the first row and at each step's time
-        (:class:`~heliostep.results.light_rows.RowMarks`)."""
+        """The rows' integrals, and the powers' slopes at the marks (:class:`.light_rows.RowMarks`)."""
         panel = self.metadata.get("roles", {}).get("panel_angle")
         reference = block["panel_angle_ref"].to_numpy(dtype=float)
         error = block[panel].to_numpy(dtype=float) - reference
-        origin = 0.0 if self._origin is None else self._origin  # set by the block's first row
 
         def slopes(marked: np.ndarray) -> dict:
             rows = block.iloc[np.repeat(marked, 3)].copy()  # each row turned by +, 0 and - COSINE_STEP, in order
             rows[panel] = rows[panel].to_numpy(dtype=float) + np.tile([COSINE_STEP, 0.0, -COSINE_STEP], len(marked))
-            args = (self.metadata, self.scenario, self._weather, origin, self._window_grid, False)
-            power = _light_rows(rows, *args, only="actual")["power_actual_W"]
+            power = self._light_at(rows, only="actual")["power_actual_W"]
             up, at, down = power[0::3], power[1::3], power[2::3]
             actual = (up - down) / (2.0 * COSINE_STEP)  # the actual attitude's slope in its angle, its curvature
             out = {"actual": actual, "actual''": (up - 2.0 * at + down) / COSINE_STEP**2}
@@ -407,13 +403,17 @@ class LightIntegrals:
 
         self._marks(seconds, error, reference, slopes)
 
+    def _light_at(self, rows: pd.DataFrame, only: str | None = None) -> dict:
+        """:func:`_light_rows` of a few rows besides the trace's (turned, the swing's), on the window's sun grid."""
+        origin = 0.0 if self._origin is None else self._origin
+        return _light_rows(rows, self.metadata, self.scenario, self._weather, origin, self._window_grid, False, only)
+
     def _swing_misses(self, solution: Mapping | None) -> dict[str, float]:
         """The actual attitude's largest misses (lit) at the solution's swing (:func:`.light_rows.swing_rows`)."""
         rows = swing_rows(solution, self.metadata.get("roles", {}).get("panel_angle"))
         if rows is None:
             return {}
-        origin = 0.0 if self._origin is None else self._origin
-        series = _light_rows(rows, self.metadata, self.scenario, self._weather, origin, self._window_grid, False)
+        series = self._light_at(rows)
         lit = series["power_ideal_W"] > 0  # lit as the rows are: by the ideal attitude
         if not lit.any():
             return {}
