@@ -83,14 +83,13 @@ def figures(trace: pd.DataFrame, metadata: Mapping) -> dict:
         # per interval (the rows from a step's time on, to the next step's), the first row of the largest
         # and of the least error: its time, error and panel angle
         interval = np.searchsorted(np.asarray(schedule.times, dtype=float), time, side="right")
-        extremes = []
+        extremes, panel = [], trace[roles["panel_angle"]].to_numpy()
         for j in range(len(reached) + 1):
             rows = np.flatnonzero((interval == j) & ~np.isnan(error))
             if not len(rows):
                 extremes.append([None] * 6)
                 continue
             high, low = rows[np.argmax(error[rows])], rows[np.argmin(error[rows])]
-            panel = trace[roles["panel_angle"]].to_numpy()
             extremes.append([float(v) for k in (high, low) for v in (time[k], error[k], panel[k])])
         result["error_extremes_deg"] = extremes
         # the integral of e^2 over linear pieces, to the end and to each step's time reached

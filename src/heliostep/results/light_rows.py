@@ -88,7 +88,7 @@ class RowMarks:
         marked = np.empty(0, dtype=int)
         if not self.marks:  # the first row opens the first interval
             marked = np.array([0])
-        steps = self.step_times[max(len(self.marks) - 1, 0) :] if self.marks else self.step_times
+        steps = self.step_times[len(self.marks) - 1 :] if self.marks else self.step_times  # those not yet marked
         steps = steps[steps <= seconds[-1]]
         if len(steps):
             marked = np.concatenate([marked, np.searchsorted(seconds, steps, side="left")])
