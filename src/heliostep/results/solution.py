@@ -283,8 +283,9 @@ class SolutionRecorder:
         self._last: np.ndarray | None = None
         self._last_time_repeated = False  # the last row's time equals the one before it
         self._error_max = 0.0
-        self._error_sq_int = self._error_sq_sum = 0.0  # integral of e^2 (linear pieces), sum of e^2
-        self._error_track = ErrorTrack(schedule.times)  # for the light between the output rows
+        self._error_sq_sum = 0.0  # sum of e^2
+        # the error's integrals (of e^2, linear pieces, for the rms; of e, for the light between the output rows)
+        self._error_track = ErrorTrack(schedule.times)
         self._energy = 0.0
         self._peak_torque = self._peak_current = 0.0
         self._last_error: float | None = None
@@ -349,11 +350,7 @@ class SolutionRecorder:
         self._first, self._last = first, totals.last.copy()
         self._last_time_repeated = totals.last_time_repeated
         self._peak_torque, self._peak_current, self._energy = totals.peak_torque, totals.peak_current, totals.energy
-        self._error_max, self._error_sq_int, self._error_sq_sum = (
-            totals.error_max,
-            totals.error_sq_int,
-            totals.error_sq_sum,
-        )
+        self._error_max, self._error_sq_sum = totals.error_max, totals.error_sq_sum
         self._last_error = totals.last_error
         self._error_track.take_totals(totals)
         self.steps = _JudgedInKernel(self.sequencer, self.schedule, totals)  # type: ignore[assignment]
@@ -433,7 +430,6 @@ class SolutionRecorder:
             e, t = error, time
         e0, e1 = e[:-1], e[1:]
         square_areas = np.diff(t) * (e0 * e0 + e0 * e1 + e1 * e1) / 3.0
-        self._error_sq_int += float(np.sum(square_areas))
         self._last_error = float(error[-1])
         panel = data[:, self._panel] if self._panel is not None else np.full(len(time), np.nan)
         self._error_track(time, np.diff(t) * (e0 + e1) / 2.0, square_areas, len(e) > len(error), error, panel)
@@ -452,7 +448,8 @@ class SolutionRecorder:
         start, end = float(first[0]), float(last[0])
         if self._tracking:
             span = end - start
-            rms = float(np.sqrt(self._error_sq_int / span if span > 0 else self._error_sq_sum / self.count))
+            square = self._error_track.square  # the integral of e^2 [deg^2 s]
+            rms = float(np.sqrt(square / span if span > 0 else self._error_sq_sum / self.count))
             result.update(dataclasses.asdict(Tracking(self._error_max, rms)))
             result.update(self._error_track.figures())
         result.update(
