@@ -15,6 +15,8 @@ workers' CPU time per wall second (a supervised case keeps two cores busy: the c
 worker computing the figures from its rows; the CPU is counted with psutil, a dependency of distributed,
 children and a fork server's children included), and prints
 it also as one line for scripts: ``year-field: <h> core-hours, <h> h on 2 workers`` (ideal scaling).
+``--baseline-set KEY=VALUE`` first estimates the same with that override on top of year-field.yaml's (e.g.
+``output.step_detail=0.05``, the fine grid after each step that it no longer keeps), in the same run.
 
 The clusters are started and their workers warmed up (heliostep's case modules and pvlib imported) before the
 clock starts; the FMUs are built before. Timed: validation, shipping the FMUs, the
@@ -22,7 +24,7 @@ runs and writing the results table.
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_sweep.py [--full-day] [--workers 1 2]
+    .venv/bin/python benchmarks/bench_sweep.py [--full-day [--baseline-set KEY=VALUE]] [--workers 1 2]
 """
 
 from __future__ import annotations
@@ -138,6 +140,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="cluster sizes to time")
     parser.add_argument("--repeat", type=int, default=3, help="timings per cluster size (median shown)")
     parser.add_argument("--full-day", action="store_true", help="also time one sunrise-to-sunset case")
+    parser.add_argument(
+        "--baseline-set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="with --full-day, first estimate year-field.yaml with this override on top (repeatable; e.g. "
+        "output.step_detail=0.05, the fine grid it dropped), then as shipped: the two side by side",
+    )
     args = parser.parse_args(argv)
     for variant in ("StepperMotor", "PanelMechanics"):
         ensure_fmu(variant)
@@ -176,12 +186,28 @@ def main(argv: list[str] | None = None) -> None:
             print(f"  {size:3d} workers: {duration_text(YEAR_CASES * one_case / size)}")
 
         if args.full_day:
-            full_day(folder, min(args.workers))
+            shipped = yaml.safe_load(YEAR_FIELD.read_text())["overrides"]
+            if args.baseline_set:
+                changed = dict(item.split("=", 1) for item in args.baseline_set)
+                label = ", ".join(f"{key}={value}" for key, value in changed.items())
+                baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **yaml_values(changed)}, label)
+            core_seconds = full_day(folder, min(args.workers), shipped, "as shipped")
+            # the one line a script reads (issue #26): the year-field estimate, in core-hours and on 2 workers
+            print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
+            if args.baseline_set:
+                ratio = core_seconds / baseline
+                print(f"  baseline ({label}): {baseline / 3600:.2f} core-hours; shipped / baseline {ratio:.2f}")
 
 
-def full_day(folder: Path, n_workers: int) -> None:
-    """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml (see the module docstring)."""
-    overrides = yaml.safe_load(YEAR_FIELD.read_text())["overrides"]
+def yaml_values(items: dict[str, str]) -> dict:
+    """``KEY=VALUE`` strings' values read as YAML (numbers, null), as ``--set`` reads them."""
+    return {key: yaml.safe_load(value) for key, value in items.items()}
+
+
+def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> float:
+    """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml with ``overrides`` (its
+    own, or changed): the core-seconds of the whole sweep (see the module docstring)."""
+    folder.mkdir(parents=True, exist_ok=True)
     days = write_sweep(
         folder,
         "days",
@@ -193,7 +219,7 @@ def full_day(folder: Path, n_workers: int) -> None:
     table = outcome.table
     primary = table["role"] == "shared-primary"
     print(
-        f"\nsunrise-to-sunset cases of year-field.yaml (days {YEAR_SAMPLE_DAYS} and {LONGEST_DAY} x "
+        f"\nsunrise-to-sunset cases of year-field.yaml, {label} (days {YEAR_SAMPLE_DAYS} and {LONGEST_DAY} x "
         f"mirrors {YEAR_MIRRORS} and the shared primary: {len(table)} cases, {wall:.1f} s on {n_workers} "
         f"worker(s)); mean time of a case on its worker:"
     )
@@ -224,13 +250,12 @@ def full_day(folder: Path, n_workers: int) -> None:
     )
     for size in CLUSTER_SIZES:
         print(f"  {size:3d} workers: {duration_text(core_seconds / size)}")
-    # the one line a script reads (issue #26): the year-field estimate, in core-hours and on 2 workers
-    print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
     longest = table.loc[table["day_of_year"] == LONGEST_DAY, "wall_time_s"].max() * cpu_ratio
     print(
         f"  (were every case as slow as the longest day's slowest, {longest:.2f} s of CPU: "
         f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)"
     )
+    return core_seconds
 
 
 if __name__ == "__main__":

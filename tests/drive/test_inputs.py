@@ -62,6 +62,17 @@ def test_output_grid_is_regular_plus_fine_after_steps():
     np.testing.assert_allclose(grid, np.unique(expected))
 
 
+def test_no_step_detail_is_the_regular_grid_alone_and_a_negative_one_is_refused():
+    np.testing.assert_array_equal(output_grid(10.0, 1.0, np.array([2.5]), 0.0, 0.002), np.arange(0, 11.0))
+    window = {**PAPER_CASE["window"], "duration": 10}
+    scenario = validate_scenario({**PAPER_CASE, "window": window, "output": {"interval": 1.0, "step_detail": 0}})
+    inputs = prepare_inputs(scenario)
+    assert len(inputs.schedule.times) > 0  # steps in the window, none with a fine grid after it
+    np.testing.assert_array_equal(inputs.output_times, np.arange(0, 11.0))
+    with pytest.raises(InputError, match="step_detail"):
+        validate_scenario({**PAPER_CASE, "window": window, "output": {"step_detail": -0.01}})
+
+
 def test_wind_signal_only_where_there_is_an_input_for_it():
     without_input = {role: target for role, target in ROLES.items() if role != "wind_moment"}
     calm = prepare_inputs(validate_scenario({**PAPER_CASE, "window": {**PAPER_CASE["window"], "duration": 10}}))

@@ -144,6 +144,41 @@ def test_year_field_example_is_the_full_year_times_13_mirrors():
     assert {axis.name: len(axis.values) for axis in spec.axes} == {"day_of_year": 365, "mirror": 13}
 
 
+def test_the_year_field_grid_gives_the_figures_of_the_fine_grid(fmu_paths):
+    """year-field.yaml's cases keep no fine grid after the steps (``output.step_detail: 0``): their figures
+    come from every solver step, and the light's between the rows from the solution's error integrals. 20
+    minutes of its longest day (21 June, mirror 0, 53 steps), as a sweep case runs them, against the same
+    with the base's 50 ms at 0.5 ms after each step (5 times the rows). Bounds stated in docs/sweep.md:
+    the counts, the largest error, the peak current and the last angle the same; the sums over the rows
+    (energies, rms, light) within 1e-6, the light's stepping change within 1e-3 (measured: 9.3e-5; the whole
+    day 1.6e-4), the peak torque and the settling times within 1e-4 (the whole day: 5.4e-5, 9.8e-6), the
+    peak torque's under the rtol's own 8e-5 (docs/performance.md)."""
+    from heliostep.sweep.worker import summary_figures
+
+    overrides = yaml.safe_load(YEAR_FIELD.read_text())["overrides"]
+    assert overrides["output.step_detail"] == 0
+    case = tuple(f"{key}={value}" for key, value in overrides.items() if not key.startswith("window."))
+    case += ("window.date=2025-06-21", "window.start=11:00", "window.duration=1200")
+    case += ("mirror.distance=null", "mirror.index=0")
+    runs = {
+        grid: run_scenario(BASE, case + extra, keep_trace=False, light_first_order=False)
+        for grid, extra in (("year-field", ()), ("fine", ("output.step_detail=0.05",)))
+    }
+    assert runs["fine"].summary["rows"] > 4 * runs["year-field"].summary["rows"]
+    ours, fine = (summary_figures(runs[grid].summary) for grid in ("year-field", "fine"))
+    assert ours["steps_commanded"] == fine["steps_commanded"] > 50
+    exact = ("steps_executed", "missed_steps", "steps_lost", "settling_not_settled", "duration_s")
+    exact += ("max_tracking_error_deg", "peak_phase_current_A", "final_panel_angle_deg", "max_transverse_miss_m")
+    bounds = {"light_lost_stepping_J": 1e-3, "peak_torque_Nm": 1e-4, "settling_time_max_s": 1e-4}
+    bounds["settling_time_mean_s"] = 1e-4
+    for key, value in fine.items():
+        if key in exact:
+            assert ours[key] == value, key
+        elif isinstance(value, float):
+            assert ours[key] == pytest.approx(value, rel=bounds.get(key, 1e-6), abs=0.0), key
+    assert fine["light_lost_stepping_J"] != 0.0 and fine["light_lost_J"] > 1.0  # light and its change counted
+
+
 # --------------------------------------------------------------------------- running
 def test_sweep_on_two_workers_equals_runs_one_by_one(client, tmp_path):
     results = tmp_path / "results.parquet"

@@ -391,7 +391,9 @@ class OutputConfig(Section):
     """``output``: time grid of the trace."""
 
     interval: Real = Field(0.01, gt=0.0, description="[s], spacing of the regular grid")
-    step_detail: Real = Field(0.05, gt=0.0, description="[s] after each step kept on the fine grid")
+    step_detail: Real = Field(
+        0.05, ge=0.0, description="[s] after each step kept on the fine grid (0: none, the row at the step only)"
+    )
     step_interval: Real = Field(0.0005, gt=0.0, description="[s], spacing of the fine grid")
 
 
