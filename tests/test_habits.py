@@ -2,8 +2,8 @@
 
 * ruff lints and formats ``src``, ``tests`` and ``benchmarks`` (configuration: ``[tool.ruff]`` in
   pyproject.toml);
-* mypy type-checks :mod:`heliostep.cosim`, :mod:`heliostep.results` and :mod:`heliostep.run`, and so
-  whatever they import (``[tool.mypy]``);
+* mypy type-checks the whole of ``src/heliostep`` (``[tool.mypy]``; until 2026-12-03 only
+  :mod:`heliostep.cosim`, :mod:`heliostep.results`, :mod:`heliostep.run` and what they import);
 * the size limits hold in ``src/heliostep``: no module over 500 lines unless its docstring has a
   line starting with "Why this module is long:", no class over 300 lines, no function over 60.
 """
@@ -54,14 +54,8 @@ def test_ruff_format_leaves_the_tree_as_it_is():
     assert result.returncode == 0, _report(result)
 
 
-def _mypy_targets() -> list[str]:
-    run = PACKAGE / "run.py"
-    run_target = run if run.is_file() else PACKAGE / "run"  # a module or, once split, a package
-    return [str(path.relative_to(PROJECT)) for path in (PACKAGE / "cosim", PACKAGE / "results", run_target)]
-
-
-def test_mypy_passes_on_cosim_results_and_run():
-    result = _tool("mypy", *_mypy_targets())
+def test_mypy_passes_on_the_whole_package():
+    result = _tool("mypy", str(PACKAGE.relative_to(PROJECT)))
     assert result.returncode == 0, _report(result)
 
 

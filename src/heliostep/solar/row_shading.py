@@ -83,8 +83,9 @@ def tracking_normals(elevation, azimuth, mirror_distances, tube_height, plant_az
     sun = np.stack(sun_vector(elevation[:, 0], azimuth[:, 0], plant_azimuth), axis=-1)
     beta = as_float_array(single_axis_tilt(elevation, azimuth, distances[None, :], tube_height, plant_azimuth))
     normal_single = np.stack([np.cos(beta), np.zeros_like(beta), np.sin(beta)], axis=-1)  # [paper], eq. 1
+    sun_x, sun_y, sun_z = (c[:, None] for c in sun.T)
     normal_two = np.stack(
-        np.broadcast_arrays(*two_axis_normal(*(c[:, None] for c in sun.T), distances[None, :], tube_height)), axis=-1
+        np.broadcast_arrays(*two_axis_normal(sun_x, sun_y, sun_z, distances[None, :], tube_height)), axis=-1
     )  # [paper], eqs. 3-6
     return sun, normal_single, normal_two
 

@@ -22,7 +22,7 @@ import time as clock
 import uuid
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -100,7 +100,7 @@ def run_figures(result) -> dict[str, float]:
     return figures
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: Any) -> TypeGuard[float]:
     return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
 
 
@@ -133,9 +133,9 @@ def _shipped_samples(
     payloads: dict[str, FmuPayload] = {}
     sha_of: dict[str, str] = {}
     for instance, path in fmu_paths.items():
-        data = Path(path).read_bytes()
-        sha = hashlib.sha256(data).hexdigest()
-        payloads[sha] = FmuPayload(name=Path(path).name, sha256=sha, data=data)
+        fmu_bytes = Path(path).read_bytes()
+        sha = hashlib.sha256(fmu_bytes).hexdigest()
+        payloads[sha] = FmuPayload(name=Path(path).name, sha256=sha, data=fmu_bytes)
         sha_of[instance] = sha
     samples = []
     for index in range(design.samples):

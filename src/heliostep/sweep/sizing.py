@@ -129,12 +129,13 @@ def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict
     instance = _instance(scenario, "wind_moment", "mechanics")
     info = read_fmu(fmu_paths[instance])
     given = scenario.parameters.get(instance, {})
-    values = {}
+    values: dict[str, float] = {}
     for name in ("T_c", "M_c", "J_p"):
+        start = info.variables[name].start if name in info.variables else None
         if name in given:
             values[name] = float(given[name])
-        elif name in info.variables and isinstance(info.variables[name].start, float):
-            values[name] = float(info.variables[name].start)
+        elif isinstance(start, float):
+            values[name] = start
         else:
             values[name] = 0.0
     return values

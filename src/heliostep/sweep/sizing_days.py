@@ -122,7 +122,8 @@ def day_windows(scenario: Scenario) -> list[tuple[pd.Timestamp, pd.Timestamp] | 
 
 
 def _year_windows(scenario: Scenario) -> list[tuple[pd.Timestamp, pd.Timestamp] | None]:
-    year, windows = scenario.window.date.year, []
+    year = scenario.window.date.year
+    windows: list[tuple[pd.Timestamp, pd.Timestamp] | None] = []
     for day in range(1, DAYS_IN_YEAR + 1):
         window = scenario.window.model_copy(update={"date": _date_of(year, day)})
         try:

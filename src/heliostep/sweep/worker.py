@@ -141,7 +141,7 @@ def load_figures(scenario: Scenario, local: Mapping[str, Path], held: float | No
 
 def _holding_torque(scenario: Scenario, motor: str | None, motor_fmu: Path | None) -> float | None:
     """k_e x I [N.m]: the torque constant of the ``motor`` instance (parameter or FMU default) times the current."""
-    k_e = scenario.parameters.get(motor, {}).get("k_e")
+    k_e = scenario.parameters.get(motor or "", {}).get("k_e")
     if k_e is None and motor_fmu is not None:
         variable = read_fmu(motor_fmu).variables.get("k_e")
         k_e = None if variable is None else variable.start
