@@ -274,6 +274,48 @@ def test_outputs_on_the_states_alone_are_read_without_the_new_input_and_stay_rig
             np.testing.assert_allclose(inst.get_derivatives()[order], [dtheta_p, domega_p], rtol=1e-9)
 
 
+@pytest.mark.parametrize(
+    ("name", "rest"), [("PanelMechanics", 1), ("PanelMechanicsKarnopp", 3), ("PanelMechanicsSmallAngle", 1)]
+)
+def test_the_rest_after_the_state_part_is_the_full_evaluation_bit_for_bit(fmu_paths, name, rest):
+    """After the state part (the angle read first, as the master does), the C layer computes only the
+    rest (model_rest: der(omega_p), and the Karnopp model's stick-slip variables) from the state part's
+    values; a second instance, never asked for the state part, evaluates everything at once
+    (model_eval). Every derivative and output is the same bit for bit, at 200 random states and inputs
+    (the panel swinging and at rest, the rotor above and below the friction's regularisation speed)."""
+    header = __import__("zipfile").ZipFile(fmu_paths[name]).read("sources/model.h").decode()
+    assert f"#define N_REST {rest}\n" in header
+    info = read_fmu(fmu_paths[name])
+    outputs = list(info.outputs)
+    rng = np.random.default_rng(7)
+    with (
+        ModelExchangeInstance(info, "state part first", {}) as first,
+        ModelExchangeInstance(info, "all at once", {}) as whole,
+    ):
+        for inst in (first, whole):
+            inst.setup_experiment(0.0)
+            inst.enter_initialization_mode()
+            inst.exit_initialization_mode()
+            inst.enter_continuous_time_mode()
+        angle = first.reader(["theta"])
+        set_inputs = {inst: inst.writer(["tau", "m_ext"]) for inst in (first, whole)}
+        read_all = {inst: inst.reader(outputs) for inst in (first, whole)}
+        order = [info.states.index(s) for s in ("theta_p", "omega_p")]
+        for k in range(200):
+            x = np.zeros(len(info.states))
+            x[order] = rng.uniform(-1.0, 1.0), rng.uniform(-0.02, 0.02) * (k % 2) * 10.0 ** -rng.integers(0, 4)
+            inputs = [rng.uniform(-3.0, 3.0), rng.uniform(-200.0, 200.0)]
+            for inst in (first, whole):
+                inst.set_time(1e-3 * k)
+                inst.set_states(x)
+            angle()  # the state part, before the new inputs
+            for inst in (first, whole):
+                set_inputs[inst](inputs)
+            derivatives = first.get_derivatives().tobytes(), whole.get_derivatives().tobytes()
+            assert derivatives[0] == derivatives[1], k
+            assert read_all[first]().tobytes() == read_all[whole]().tobytes(), k
+
+
 def _step_input(names, values, stop_time):
     dtype = [("time", float)] + [(n, float) for n in names]
     return np.array([(0.0, *values), (stop_time, *values)], dtype=dtype)

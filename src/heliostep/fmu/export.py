@@ -12,7 +12,9 @@ Steps, the same for every model:
    the equation balances, ``|F_i| + sum_k |dF_i/dk_k| |k_k|`` over the known values with the
    unknowns at zero, computed only when a residual exceeds the absolute bound). ``model_solve``
    is the same with a converging iteration first (see :data:`POLISH_OPTIONS`);
-   ``model_start(p) -> x0`` gives the start values of the states bound to parameters.
+   ``model_start(p) -> x0`` gives the start values of the states bound to parameters. For an
+   explicit model, ``model_state_part`` computes only the variables that depend on no input, and
+   ``model_rest`` the others from its values (:func:`state_part`, :func:`rest_evaluation`).
 2. CasADi generates C for all of them (``equations.c``/``equations.h``).
 3. ``model.h`` describes the model to the FMI layer written once for all models
    (``heliostep/c/fmi2_model_exchange.c``, or ``fmi3_model_exchange.c`` beside it for FMI 3.0:
@@ -77,15 +79,12 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
     """
     import casadi as ca
 
-    sym = model.symbols
-    stack = lambda variables: ca.vertcat(*[sym[v.name] for v in variables])  # noqa: E731
-    x, u, p = stack(model.states), stack(model.inputs), stack(model.parameters)
-    unknowns = ca.vertcat(stack(model.derivatives), stack(model.algebraics))
+    unknowns, (x, u, p) = _unknowns_and_known(model)
     known = ca.vertcat(model.time, x, u, p)
+    residual_fn = residual_function(model)
     n_unknowns = unknowns.numel()
     guess = ca.MX.sym("guess", n_unknowns + len(model.calculated_parameters))
 
-    residual_fn = ca.Function("residual", [unknowns, known], [model.residual])
     # The size of what each equation balances, in its own units, so that its residual is judged
     # relative to its own terms rather than by one absolute 1e-6: |F_i| + sum_k |dF_i/dk_k| |k_k|
     # over the known values, with the unknowns at zero (never inflated by a wrong solution).
@@ -119,6 +118,23 @@ def equation_functions(model: FlatModel) -> tuple[ca.Function, ca.Function, ca.F
             f"{model.source_file}: start values of {model.name} depend on non-parameters: {start.free_mx()}"
         )
     return evaluate, converge, scale, start
+
+
+def _unknowns_and_known(model: FlatModel) -> tuple[ca.MX, tuple[ca.MX, ca.MX, ca.MX]]:
+    """The model's unknowns (derivatives, then algebraic variables) and its states, inputs and parameters."""
+    import casadi as ca
+
+    stack = lambda variables: ca.vertcat(*[model.symbols[v.name] for v in variables])  # noqa: E731
+    unknowns = ca.vertcat(stack(model.derivatives), stack(model.algebraics))
+    return unknowns, (stack(model.states), stack(model.inputs), stack(model.parameters))
+
+
+def residual_function(model: FlatModel) -> ca.Function:
+    """``residual(unknowns, known)``: the model's implicit residual F, known = (t, x, u, p)."""
+    import casadi as ca
+
+    unknowns, (x, u, p) = _unknowns_and_known(model)
+    return ca.Function("residual", [unknowns, ca.vertcat(model.time, x, u, p)], [model.residual])
 
 
 def sequential_solution(residual: ca.SX, unknowns: ca.SX) -> list[ca.SX] | None:
@@ -220,6 +236,56 @@ def state_part(evaluate: ca.Function) -> tuple[ca.Function | None, list[int]]:
     ), indices
 
 
+def rest_evaluation(model: FlatModel, part_indices: list[int]) -> tuple[ca.Function | None, list[int], list[int]]:
+    """``model_rest(t, x, u, p, part) -> (computed, residual)``: the computed variables that
+    ``model_state_part`` leaves out, from its values.
+
+    The C layer evaluates the state part for an output that depends on the states alone (the
+    master reads a mechanics model's angle before it sets the new torque); a full ``model_eval``
+    at the same state would compute that part again (its cos, tan and tanh). Here the part's
+    unknowns are the inputs ``part`` (in :func:`state_part`'s order) and only the equations left
+    are sorted (:func:`sequential_solution`), so each computed variable is the same expression
+    of the same values as in ``model_eval``: the same bits. ``residual``: those equations'
+    residuals at the solution, which the C layer checks as it checks ``model_eval``'s. Returns
+    the function, the computed variables it gives and the equations it solves (their indices in
+    F), or (None, [], []) when there is no state part, nothing is left, or the rest does not sort.
+    """
+    import casadi as ca
+
+    n_unknowns = len(model.derivatives) + len(model.algebraics)
+    given = [j for j in part_indices if j < n_unknowns]  # the part's unknowns (not its calculated parameters)
+    rest = [i for i in range(n_unknowns) if i not in part_indices]
+    if not given or not rest:
+        return None, [], []
+    sizes = [model.time.numel(), len(model.states), len(model.inputs), len(model.parameters)]
+    t, x, u, p = (ca.SX.sym(name, size) for name, size in zip("txup", sizes))
+    part = ca.SX.sym("part", len(part_indices))
+    unknowns = ca.SX.sym("unknowns", n_unknowns)
+    residual = residual_function(model).expand()(unknowns, ca.vertcat(t, x, u, p))
+    residual = ca.substitute(
+        residual,
+        ca.vertcat(*[unknowns[j] for j in given]),
+        ca.vertcat(*[part[part_indices.index(j)] for j in given]),
+    )
+    wanted = ca.vertcat(*[unknowns[i] for i in rest])
+    equations = [i for i in range(n_unknowns) if ca.depends_on(residual[i], wanted)]
+    if len(equations) != len(rest):
+        return None, [], []
+    system = ca.vertcat(*[residual[i] for i in equations])
+    solution = sequential_solution(system, wanted)
+    if solution is None:
+        return None, [], []
+    solved = ca.vertcat(*solution)
+    function = ca.Function(
+        "model_rest",
+        [t, x, u, p, part],
+        [solved, ca.substitute(system, wanted, solved)],
+        ["t", "x", "u", "p", "part"],
+        ["computed", "residual"],
+    )
+    return function, rest, equations
+
+
 def _c_double(value: float | None) -> str:
     return repr(float(value or 0.0))
 
@@ -229,10 +295,19 @@ def _c_array(ctype: str, name: str, values: list[str]) -> str:
     return f"static const {ctype} {name}[{max(len(values), 1)}] = {{{body}}};\n"
 
 
-def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool, state_part_indices: list[int]) -> str:
+def model_header(
+    model: FlatModel,
+    layout: Layout,
+    guid: str,
+    explicit: bool,
+    state_part_indices: list[int],
+    rest: tuple[list[int], list[int]] = ([], []),
+) -> str:
     """The per-model ``model.h`` read by the FMI layer (``explicit``: ``model_eval`` needs no
     Newton iteration, see :func:`explicit_evaluation`; ``state_part_indices``: the computed
-    variables ``model_state_part`` computes, see :func:`state_part`)."""
+    variables ``model_state_part`` computes, see :func:`state_part`; ``rest``: the computed
+    variables and the equations of ``model_rest``, see :func:`rest_evaluation`)."""
+    rest_indices, rest_equations = rest
     starts = []
     for v in layout.variables:
         starts.append(_c_double(v.start) if v.kind in ("parameter", "state", "input") else "0.0")
@@ -252,6 +327,9 @@ def model_header(model: FlatModel, layout: Layout, guid: str, explicit: bool, st
         f"#define N_STATE_PART {len(state_part_indices)}\n"
         + _c_array("int", "STATE_PART_INDEX", [str(i) for i in state_part_indices])
         + _c_array("char", "IN_STATE_PART", ["1" if i in state_part_indices else "0" for i in range(n_computed)])
+        + f"#define N_REST {len(rest_indices)}\n"
+        + _c_array("int", "REST_INDEX", [str(i) for i in rest_indices])
+        + _c_array("int", "REST_EQUATION", [str(i) for i in rest_equations])
         + _c_array("double", "START_VALUES", starts)
         + _c_array("char", "STATE_START_CALCULATED", ["1" if v.start is None else "0" for v in model.states])
         + _c_array("double", "STATE_NOMINALS", [_c_double(v.nominal or 1.0) for v in model.states])
@@ -340,13 +418,17 @@ def export_fmu(
     layout = Layout.of(model)
     evaluate, converge, scale, start = equation_functions(model)
     partial, partial_indices = state_part(evaluate)
+    rest, rest_indices, rest_equations = rest_evaluation(model, partial_indices) if partial else (None, [], [])
 
     generator = ca.CodeGenerator("equations.c", {"with_header": True, "casadi_real": "double"})
-    for function in (evaluate, converge, scale, start, partial):
+    for function in (evaluate, converge, scale, start, partial, rest):
         if function is not None:
             generator.add(function)
     generator.generate(str(sources) + "/")
-    (sources / "model.h").write_text(model_header(model, layout, guid, evaluate.is_a("SXFunction"), partial_indices))
+    header = model_header(
+        model, layout, guid, evaluate.is_a("SXFunction"), partial_indices, (rest_indices, rest_equations)
+    )
+    (sources / "model.h").write_text(header)
     layer = resources.files("heliostep.fmu") / "c" / layer_name
     (sources / layer_name).write_bytes(layer.read_bytes())
     (sources / LAYER_CORE).write_bytes((resources.files("heliostep.fmu") / "c" / LAYER_CORE).read_bytes())

@@ -87,7 +87,7 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn) {
-    casadi_int sz_arg, sz_res, sz_iw, sz_w, n_arg, n_res, n_iw, n_w;
+    casadi_int sz_arg, sz_res, sz_iw, sz_w;
     Instance *inst;
     (void)fmuResourceLocation;
     (void)visible;
@@ -113,19 +113,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     inst->logging_on = loggingOn;
     inst->state = Instantiated;
     inst->instance_name = (char *)allocate(functions, strlen(instanceName) + 1, 1);
-    model_start_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-    for (int f = 0; f < 4; f++) {
-#if N_STATE_PART
-        (f == 0 ? model_eval_work : f == 1 ? model_solve_work : f == 2 ? model_scale_work : model_state_part_work)(
-            &n_arg, &n_res, &n_iw, &n_w);
-#else
-        (f == 0 ? model_eval_work : f == 1 ? model_solve_work : model_scale_work)(&n_arg, &n_res, &n_iw, &n_w);
-#endif
-        if (sz_arg < n_arg) sz_arg = n_arg;
-        if (sz_res < n_res) sz_res = n_res;
-        if (sz_iw < n_iw) sz_iw = n_iw;
-        if (sz_w < n_w) sz_w = n_w;
-    }
+    work_sizes(&sz_arg, &sz_res, &sz_iw, &sz_w);
     inst->arg = (const casadi_real **)allocate(functions, (size_t)sz_arg + 1, sizeof(casadi_real *));
     inst->res = (casadi_real **)allocate(functions, (size_t)sz_res + 1, sizeof(casadi_real *));
     inst->iw = (casadi_int *)allocate(functions, (size_t)sz_iw + 1, sizeof(casadi_int));

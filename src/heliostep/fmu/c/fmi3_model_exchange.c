@@ -87,7 +87,7 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
                                           fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage) {
-    casadi_int sz_arg, sz_res, sz_iw, sz_w, n_arg, n_res, n_iw, n_w;
+    casadi_int sz_arg, sz_res, sz_iw, sz_w;
     Instance *inst;
     (void)resourcePath;
     (void)visible;
@@ -108,19 +108,7 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
     inst->logging_on = loggingOn;
     inst->state = Instantiated;
     inst->instance_name = (char *)calloc(strlen(instanceName) + 1, 1);
-    model_start_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
-    for (int f = 0; f < 4; f++) {
-#if N_STATE_PART
-        (f == 0 ? model_eval_work : f == 1 ? model_solve_work : f == 2 ? model_scale_work : model_state_part_work)(
-            &n_arg, &n_res, &n_iw, &n_w);
-#else
-        (f == 0 ? model_eval_work : f == 1 ? model_solve_work : model_scale_work)(&n_arg, &n_res, &n_iw, &n_w);
-#endif
-        if (sz_arg < n_arg) sz_arg = n_arg;
-        if (sz_res < n_res) sz_res = n_res;
-        if (sz_iw < n_iw) sz_iw = n_iw;
-        if (sz_w < n_w) sz_w = n_w;
-    }
+    work_sizes(&sz_arg, &sz_res, &sz_iw, &sz_w);
     inst->arg = (const casadi_real **)calloc((size_t)sz_arg + 1, sizeof(casadi_real *));
     inst->res = (casadi_real **)calloc((size_t)sz_res + 1, sizeof(casadi_real *));
     inst->iw = (casadi_int *)calloc((size_t)sz_iw + 1, sizeof(casadi_int));

@@ -193,10 +193,50 @@ static void compute_state_starts(Instance *inst) {
     }
 }
 
+/* The computed variables outside the state part from its values (model_rest, see
+ * heliostep/fmu/export.py rest_evaluation: the same expressions of the same values as model_eval's,
+ * so the same bits), when the state part is up to date, e.g. after the master read a mechanics
+ * model's angle and then set its torque. Its equations' residuals are checked as eval_equations
+ * checks model_eval's. Returns 1 when done; 0 leaves it to the full evaluation (no rest, the state
+ * part not valid, initializing, or a residual or value not trusted: the full one reports it). */
+static int update_rest(Instance *inst) {
+#if N_REST
+    double part[N_STATE_PART], rest[N_REST], residual[N_REST];
+    if (!inst->state_part_valid || (inst->state & (Instantiated | InitializationMode))) return 0;
+    for (int j = 0; j < N_STATE_PART; j++) part[j] = inst->r[OFF_C + STATE_PART_INDEX[j]];
+    inst->arg[0] = &inst->time;
+    inst->arg[1] = inst->r + OFF_X;
+    inst->arg[2] = inst->r + OFF_U;
+    inst->arg[3] = inst->r;
+    inst->arg[4] = part;
+    inst->res[0] = rest;
+    inst->res[1] = residual;
+    if (model_rest(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
+    int scaled = 0;
+    for (int k = 0; k < N_REST; k++) {
+        if (!isfinite(rest[k])) return 0;
+        if (fabs(residual[k]) <= RESIDUAL_ATOL) continue;
+        if (!scaled) {
+            inst->res[0] = inst->scale;
+            if (model_scale(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
+            scaled = 1;
+        }
+        if (!(fabs(residual[k]) <= RESIDUAL_RTOL * fabs(inst->scale[REST_EQUATION[k]]) + RESIDUAL_ATOL)) return 0;
+    }
+    for (int k = 0; k < N_REST; k++) inst->r[OFF_C + REST_INDEX[k]] = rest[k];
+    inst->computed_valid = 1;
+    return 1;
+#else
+    (void)inst;
+    return 0;
+#endif
+}
+
 /* Brings the computed variables up to date; logs and returns STATUS_ERROR if that fails. */
 static Status update(Instance *inst, const char *function) {
     static const double zeros[N_COMPUTED + 1] = {0};
     if (inst->computed_valid) return STATUS_OK;
+    if (update_rest(inst)) return STATUS_OK;
     if (inst->state & (Instantiated | InitializationMode)) compute_state_starts(inst);
     /* the previous solution is the Newton iteration's guess (an explicit model_eval needs none) */
     if (!EXPLICIT_EVAL) memcpy(inst->guess, inst->r + OFF_C, sizeof(double) * N_COMPUTED);
@@ -215,6 +255,28 @@ static Status update(Instance *inst, const char *function) {
     memcpy(inst->r + OFF_C, inst->computed, sizeof(double) * N_COMPUTED);
     inst->computed_valid = inst->state_part_valid = 1;
     return STATUS_OK;
+}
+
+/* The largest work sizes of the generated functions (CasADi's *_work), for the instance's buffers. */
+static void work_sizes(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+    casadi_int n_arg, n_res, n_iw, n_w;
+    int (*const sizes[])(casadi_int *, casadi_int *, casadi_int *, casadi_int *) = {
+        model_eval_work, model_solve_work, model_scale_work,
+#if N_STATE_PART
+        model_state_part_work,
+#endif
+#if N_REST
+        model_rest_work,
+#endif
+    };
+    model_start_work(sz_arg, sz_res, sz_iw, sz_w);
+    for (size_t f = 0; f < sizeof(sizes) / sizeof(sizes[0]); f++) {
+        sizes[f](&n_arg, &n_res, &n_iw, &n_w);
+        if (*sz_arg < n_arg) *sz_arg = n_arg;
+        if (*sz_res < n_res) *sz_res = n_res;
+        if (*sz_iw < n_iw) *sz_iw = n_iw;
+        if (*sz_w < n_w) *sz_w = n_w;
+    }
 }
 
 /* Brings the computed variables that depend on no input up to date (model_state_part, the
