@@ -244,8 +244,10 @@ def rest_evaluation(model: FlatModel, part_indices: list[int]) -> tuple[ca.Funct
     master reads a mechanics model's angle before it sets the new torque); a full ``model_eval``
     at the same state would compute that part again (its cos, tan and tanh). Here the part's
     unknowns are the inputs ``part`` (in :func:`state_part`'s order) and only the equations left
-    are sorted (:func:`sequential_solution`), so each computed variable is the same expression
-    of the same values as in ``model_eval``: the same bits. ``residual``: those equations'
+    are sorted (:func:`sequential_solution`), so each computed variable is the expression that
+    ``model_eval`` builds, with the part's values where it has their expressions: the same bits
+    (shown for the shipped models, ``tests/fmu/test_fmu_export.py``; the same equations solved in
+    any case, so at worst a rounding apart). ``residual``: those equations'
     residuals at the solution, which the C layer checks as it checks ``model_eval``'s. Returns
     the function, the computed variables it gives and the equations it solves (their indices in
     F), or (None, [], []) when there is no state part, nothing is left, or the rest does not sort.

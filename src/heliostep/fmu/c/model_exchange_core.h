@@ -194,8 +194,8 @@ static void compute_state_starts(Instance *inst) {
 }
 
 /* The computed variables outside the state part from its values (model_rest, see
- * heliostep/fmu/export.py rest_evaluation: the same expressions of the same values as model_eval's,
- * so the same bits), when the state part is up to date, e.g. after the master read a mechanics
+ * heliostep/fmu/export.py rest_evaluation: model_eval's expressions with the part's values in them,
+ * the same bits for the shipped models), when the state part is up to date, e.g. after the master read a mechanics
  * model's angle and then set its torque. Its equations' residuals are checked as eval_equations
  * checks model_eval's. Returns 1 when done; 0 leaves it to the full evaluation (no rest, the state
  * part not valid, initializing, or a residual or value not trusted: the full one reports it). */
