@@ -41,6 +41,7 @@ import yaml
 from distributed import Client, LocalCluster
 
 from heliostep.fmu.build import ensure_fmu
+from heliostep.scenario.yaml_io import parse_yaml_value, read_yaml_file
 from heliostep.sweep import execute_cases, expand_cases, load_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -186,22 +187,18 @@ def main(argv: list[str] | None = None) -> None:
             print(f"  {size:3d} workers: {duration_text(YEAR_CASES * one_case / size)}")
 
         if args.full_day:
-            shipped = yaml.safe_load(YEAR_FIELD.read_text())["overrides"]
+            shipped = read_yaml_file(YEAR_FIELD, "sweep")["overrides"]
             if args.baseline_set:
                 changed = dict(item.split("=", 1) for item in args.baseline_set)
                 label = ", ".join(f"{key}={value}" for key, value in changed.items())
-                baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **yaml_values(changed)}, label)
+                values = {key: parse_yaml_value(value) for key, value in changed.items()}  # as --set reads them
+                baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **values}, label)
             core_seconds = full_day(folder, min(args.workers), shipped, "as shipped")
             # the one line a script reads (issue #26): the year-field estimate, in core-hours and on 2 workers
             print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
             if args.baseline_set:
                 ratio = core_seconds / baseline
                 print(f"  baseline ({label}): {baseline / 3600:.2f} core-hours; shipped / baseline {ratio:.2f}")
-
-
-def yaml_values(items: dict[str, str]) -> dict:
-    """``KEY=VALUE`` strings' values read as YAML (numbers, null), as ``--set`` reads them."""
-    return {key: yaml.safe_load(value) for key, value in items.items()}
 
 
 def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> float:

@@ -129,6 +129,15 @@ def _unknowns_and_known(model: FlatModel) -> tuple[ca.MX, tuple[ca.MX, ca.MX, ca
     return unknowns, (stack(model.states), stack(model.inputs), stack(model.parameters))
 
 
+def _sx_known(model: FlatModel) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    """SX symbols of the known values t, x, u, p, sized as the model's (the explicit functions' inputs)."""
+    import casadi as ca
+
+    sizes = [model.time.numel(), len(model.states), len(model.inputs), len(model.parameters)]
+    t, x, u, p = (ca.SX.sym(name, size) for name, size in zip("txup", sizes))
+    return t, x, u, p
+
+
 def residual_function(model: FlatModel) -> ca.Function:
     """``residual(unknowns, known)``: the model's implicit residual F, known = (t, x, u, p)."""
     import casadi as ca
@@ -181,8 +190,7 @@ def explicit_evaluation(model: FlatModel, residual_fn: ca.Function, calculated: 
     """
     import casadi as ca
 
-    sizes = [v.numel() for v in (model.time,)] + [len(model.states), len(model.inputs), len(model.parameters)]
-    t, x, u, p = (ca.SX.sym(name, size) for name, size in zip("txup", sizes))
+    t, x, u, p = _sx_known(model)
     n_unknowns = len(model.derivatives) + len(model.algebraics)
     guess = ca.SX.sym("guess", n_unknowns + len(model.calculated_parameters))
     known = ca.vertcat(t, x, u, p)
@@ -259,8 +267,7 @@ def rest_evaluation(model: FlatModel, part_indices: list[int]) -> tuple[ca.Funct
     rest = [i for i in range(n_unknowns) if i not in part_indices]
     if not given or not rest:
         return None, [], []
-    sizes = [model.time.numel(), len(model.states), len(model.inputs), len(model.parameters)]
-    t, x, u, p = (ca.SX.sym(name, size) for name, size in zip("txup", sizes))
+    t, x, u, p = _sx_known(model)
     part = ca.SX.sym("part", len(part_indices))
     unknowns = ca.SX.sym("unknowns", n_unknowns)
     residual = residual_function(model).expand()(unknowns, ca.vertcat(t, x, u, p))

@@ -156,30 +156,43 @@ static void flush_tiny(double *values, int n) {
     }
 }
 
-static int eval_equations(Instance *inst, EquationFunction equations, const double *guess, int newton) {
-    if (newton) { /* only the Newton step's QR factorisation needs it */
-        flush_tiny(inst->r + OFF_X, N_STATES + N_INPUTS);
-        flush_tiny(inst->guess, N_COMPUTED);
-    }
+/* The generated functions' first arguments: t, x, u, p (p: the parameters at the start of r). */
+static void set_known_arguments(Instance *inst) {
     inst->arg[0] = &inst->time;
     inst->arg[1] = inst->r + OFF_X;
     inst->arg[2] = inst->r + OFF_U;
     inst->arg[3] = inst->r;
-    inst->arg[4] = guess;
-    inst->res[0] = inst->computed;
-    inst->res[1] = inst->residual;
-    if (equations(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
-    int scaled = 0; /* the scale is computed only for a residual the absolute bound does not pass */
-    for (int i = 0; i < N_UNKNOWNS; i++) {
-        if (fabs(inst->residual[i]) <= RESIDUAL_ATOL) continue;
+}
+
+/* Whether residual[k], of equation equation[k] (NULL: of equation k), k < n, is trusted (see
+ * RESIDUAL_RTOL): the scale (model_scale, at the known arguments set) is computed only for a
+ * residual the absolute bound does not pass. */
+static int residuals_trusted(Instance *inst, const double *residual, int n, const int *equation) {
+    int scaled = 0;
+    for (int k = 0; k < n; k++) {
+        if (fabs(residual[k]) <= RESIDUAL_ATOL) continue;
         if (!scaled) {
             inst->res[0] = inst->scale;
             if (model_scale(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
             scaled = 1;
         }
-        if (!(fabs(inst->residual[i]) <= RESIDUAL_RTOL * fabs(inst->scale[i]) + RESIDUAL_ATOL)) return 0;
+        if (!(fabs(residual[k]) <= RESIDUAL_RTOL * fabs(inst->scale[equation ? equation[k] : k]) + RESIDUAL_ATOL))
+            return 0;
     }
     return 1;
+}
+
+static int eval_equations(Instance *inst, EquationFunction equations, const double *guess, int newton) {
+    if (newton) { /* only the Newton step's QR factorisation needs it */
+        flush_tiny(inst->r + OFF_X, N_STATES + N_INPUTS);
+        flush_tiny(inst->guess, N_COMPUTED);
+    }
+    set_known_arguments(inst);
+    inst->arg[4] = guess;
+    inst->res[0] = inst->computed;
+    inst->res[1] = inst->residual;
+    if (equations(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
+    return residuals_trusted(inst, inst->residual, N_UNKNOWNS, NULL);
 }
 
 /* Calculated start values of the states (those bound to parameters). */
@@ -195,34 +208,24 @@ static void compute_state_starts(Instance *inst) {
 
 /* The computed variables outside the state part from its values (model_rest, see
  * heliostep/fmu/export.py rest_evaluation: model_eval's expressions with the part's values in them,
- * the same bits for the shipped models), when the state part is up to date, e.g. after the master read a mechanics
- * model's angle and then set its torque. Its equations' residuals are checked as eval_equations
- * checks model_eval's. Returns 1 when done; 0 leaves it to the full evaluation (no rest, the state
+ * the same bits for the shipped models), when the state part is up to date, e.g. after the master
+ * read a mechanics model's angle and then set its torque. Its equations' residuals are checked as
+ * model_eval's are (residuals_trusted). Returns 1 when done; 0 leaves it to the full evaluation (no rest, the state
  * part not valid, initializing, or a residual or value not trusted: the full one reports it). */
 static int update_rest(Instance *inst) {
 #if N_REST
     double part[N_STATE_PART], rest[N_REST], residual[N_REST];
     if (!inst->state_part_valid || (inst->state & (Instantiated | InitializationMode))) return 0;
     for (int j = 0; j < N_STATE_PART; j++) part[j] = inst->r[OFF_C + STATE_PART_INDEX[j]];
-    inst->arg[0] = &inst->time;
-    inst->arg[1] = inst->r + OFF_X;
-    inst->arg[2] = inst->r + OFF_U;
-    inst->arg[3] = inst->r;
+    set_known_arguments(inst);
     inst->arg[4] = part;
     inst->res[0] = rest;
     inst->res[1] = residual;
     if (model_rest(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
-    int scaled = 0;
     for (int k = 0; k < N_REST; k++) {
         if (!isfinite(rest[k])) return 0;
-        if (fabs(residual[k]) <= RESIDUAL_ATOL) continue;
-        if (!scaled) {
-            inst->res[0] = inst->scale;
-            if (model_scale(inst->arg, inst->res, inst->iw, inst->w, 0)) return 0;
-            scaled = 1;
-        }
-        if (!(fabs(residual[k]) <= RESIDUAL_RTOL * fabs(inst->scale[REST_EQUATION[k]]) + RESIDUAL_ATOL)) return 0;
     }
+    if (!residuals_trusted(inst, residual, N_REST, REST_EQUATION)) return 0;
     for (int k = 0; k < N_REST; k++) inst->r[OFF_C + REST_INDEX[k]] = rest[k];
     inst->computed_valid = 1;
     return 1;
@@ -287,10 +290,7 @@ static Status update_state_part(Instance *inst, const char *function) {
     double part[N_STATE_PART];
     if (inst->computed_valid || inst->state_part_valid) return STATUS_OK;
     if (inst->state & (Instantiated | InitializationMode)) return update(inst, function);
-    inst->arg[0] = &inst->time;
-    inst->arg[1] = inst->r + OFF_X;
-    inst->arg[2] = inst->r + OFF_U;
-    inst->arg[3] = inst->r;
+    set_known_arguments(inst);
     inst->res[0] = part;
     if (model_state_part(inst->arg, inst->res, inst->iw, inst->w, 0)) return update(inst, function);
     for (int j = 0; j < N_STATE_PART; j++) {
