@@ -5,7 +5,12 @@
 Each repeat runs, side by side and alternating, a fresh ``heliostep run SCENARIO --out <tmp>`` (with
 plots), the same with ``--no-plots``, and two references that say how loaded the machine is:
 ``python -c pass`` (the interpreter alone) and ``python -c "import pvlib"`` (issue #26: 0.7 s on a
-quiet machine). A first run of each variant is not counted (it builds the FMUs and the kernel into
+quiet machine), and one that says what no change to heliostep can take off a run: the third-party modules
+a ``--no-plots`` run imports, imported alone (:data:`LIBRARIES`). The command is timed as installed
+(``heliostep.cli.console_main``, which leaves without Python's teardown: ``heliostep.cli.leave``) and once
+more ending with the whole teardown (``sys.exit(main())``). Bytecode is as a user's second run has it
+(written by the warm-up, into a folder of the benchmark's: ``PYTHONPYCACHEPREFIX``). A first run of each
+variant is not counted (it builds the FMUs and the kernel into
 ``$HELIOSTEP_FMUS`` if they are not there). The line a script reads is the medians' line::
 
     run: <s> s, no-plots <s> s
@@ -42,7 +47,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "jan21-central.yaml"
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+#: the installed command's entry point (``[project.scripts]``)
+HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
+#: the same ending with Python's whole teardown (``sys.exit``), as the command did before ``heliostep.cli.leave``
+HELIOSTEP_TEARDOWN = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+#: the third-party modules a ``--no-plots`` run imports (``tests/cli/test_run_imports.py`` checks what it does
+#: not), imported alone and left as the command leaves: what no change to heliostep can take off the run
+LIBRARIES = "numpy, pandas, scipy.interpolate, scipy.special, pydantic, yaml, pyarrow.parquet, fmpy.fmi2"
 
 #: A stage that holds others (the records written while a forked child draws the plots, whose ``_draw`` is
 #: timed in that child, so not here): shown, not added to the stages' sum.
@@ -87,9 +98,12 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
     extra = {}
     if baseline is not None:
         old = {**os.environ, "PYTHONPATH": str(baseline)}
+        # its entry point: console_main where it has one, else as the command was before it
+        entry = "import sys; from heliostep import cli; getattr(cli, 'console_main', lambda: sys.exit(cli.main()))()"
+        old_run = [sys.executable, "-c", entry, "run", str(scenario)]
         extra = {
-            "run, baseline": ([*run, "--out", str(out / "baseline-plots")], old),
-            "no-plots, baseline": ([*run, "--out", str(out / "baseline-no-plots"), "--no-plots"], old),
+            "run, baseline": ([*old_run, "--out", str(out / "baseline-plots")], old),
+            "no-plots, baseline": ([*old_run, "--out", str(out / "baseline-no-plots"), "--no-plots"], old),
         }
     exec_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "exec"}
     server_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "server"}  # one run: the server's start too
@@ -103,7 +117,12 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
         "no-plots --no-supervise": ([*run, "--out", str(out / "unsupervised"), "--no-plots", "--no-supervise"], None),
         "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
         "no-plots, child fork server": ([*run, "--out", str(out / "server"), "--no-plots"], server_env),
+        "no-plots, full teardown": (
+            [*HELIOSTEP_TEARDOWN[:3], "run", str(scenario), "--out", str(out / "teardown"), "--no-plots"],
+            None,
+        ),
         "python -c pass": ([sys.executable, "-c", "pass"], None),
+        "the run's libraries alone": ([sys.executable, "-c", f"import os, {LIBRARIES}; os._exit(0)"], None),
         "import pvlib": ([sys.executable, "-c", "import pvlib"], None),
         **extra,
     }
@@ -183,6 +202,11 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory(prefix="heliostep-bench-cli-") as folder:
         out = Path(folder)
+        # bytecode as a user's second run has it: the first run writes it (a machine that sets
+        # PYTHONDONTWRITEBYTECODE, as this sandbox does, would compile heliostep's 100 modules in every run:
+        # 0.1 s), here into a folder of this benchmark's, not the source tree
+        os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+        os.environ["PYTHONPYCACHEPREFIX"] = str(out / "bytecode")
         timed = variants(args.scenario, out, args.baseline)
         for command, env in timed.values():  # warm-up: FMUs, kernel, caches; page cache
             run_once(command, env)
@@ -206,7 +230,13 @@ def main() -> int:
             f"{median['run, plots forked'] - median['no-plots']:.3f} s, one after the other: "
             f"{median['run, plots serial'] - median['no-plots']:.3f} s); the child's start as a new interpreter "
             f"adds {median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
-            f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s"
+            f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s; leaving without Python's teardown "
+            f"saves {median['no-plots, full teardown'] - median['no-plots']:.3f} s"
+        )
+        alone = median["the run's libraries alone"]
+        print(
+            f"  the run's libraries imported alone ({LIBRARIES}): {alone:.3f} s, "
+            f"{alone / median['no-plots']:.2f} of the no-plots run"
         )
         if args.baseline is not None:
             print(

@@ -43,7 +43,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "jan21-central.yaml"
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 
 
 def measure(hours: float, out: Path, csv: bool, plots: bool) -> dict:

@@ -9,8 +9,9 @@ from pathlib import Path
 
 from heliostep.paths import scenarios_dir
 
-#: The command line of ``heliostep`` run by this interpreter (the venv's, whatever is on PATH).
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+#: The command line of ``heliostep`` as installed (its entry point, ``heliostep.cli.console_main``), run by this
+#: interpreter (the venv's, whatever is on PATH).
+HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 
 
 def popen_heliostep(

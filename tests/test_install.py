@@ -43,7 +43,7 @@ def installed(tmp_path_factory) -> Path:
 def _run(installed: Path, cwd: Path, *args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     environment = {k: v for k, v in os.environ.items() if k not in ("HELIOSTEP_MODELS", "PYTHONPATH")}
     environment.update(PYTHONPATH=str(installed), **(env or {}))
-    code = "import sys; from heliostep.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "from heliostep.cli import console_main; console_main()"
     return subprocess.run(
         [sys.executable, "-c", code, *args], cwd=cwd, env=environment, capture_output=True, text=True, timeout=300
     )
@@ -56,6 +56,9 @@ def test_installed_package_carries_models_and_scenarios(installed):
     assert (data / "scenarios" / "jan21-central.reference.parquet").is_file()
     assert (data / "motors.yaml").is_file()  # heliostep size's motor catalogue (issue 23)
     assert (installed / "heliostep" / "fmu" / "c" / "fmi2_model_exchange.c").is_file()
+    # the installed command is console_main: main, then leave (no interpreter teardown; tests/cli/test_leave.py)
+    (entry_points,) = installed.glob("heliostep-*.dist-info/entry_points.txt")
+    assert "heliostep = heliostep.cli:console_main" in entry_points.read_text().splitlines()
 
 
 def test_shipped_scenario_runs_from_another_directory(installed, tmp_path, fmu_paths):

@@ -28,7 +28,7 @@ from heliostep.results.trace_io import read_trace
 from heliostep.run import run_scenario
 from third_party_fmu import build_mini_fmu
 
-CLI = "import sys; from heliostep.cli import main; sys.exit(main(sys.argv[1:]))"
+CLI = "from heliostep.cli import console_main; console_main()"
 T_FAULT = 200.0  # [s] of the 300 s window: well after the first rows are handed over
 NOT_OURS = "notes.txt"
 

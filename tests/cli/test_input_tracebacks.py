@@ -14,7 +14,7 @@ from heliostep.cli import main
 from heliostep.paths import scenarios_dir
 
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 
 
 def _one_line_error(capsys) -> str:

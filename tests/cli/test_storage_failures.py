@@ -22,7 +22,7 @@ import pytest
 
 from heliostep.results.trace_io import read_trace
 
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 
 
 def _run(args: list[str], tmp: Path, limit: int | None = None) -> subprocess.CompletedProcess:

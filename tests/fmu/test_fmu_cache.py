@@ -23,7 +23,7 @@ from heliostep.errors import InputError
 from heliostep.fmu.build import build_fmu, digest_path, ensure_fmu
 from heliostep.paths import models_dir, scenarios_dir
 
-CLI = "import sys; from heliostep.cli import main; sys.exit(main(sys.argv[1:]))"
+CLI = "from heliostep.cli import console_main; console_main()"
 SMALL_MODEL = "PanelMechanicsSmallAngle"
 
 

@@ -57,10 +57,36 @@ def test_csv_layout_is_metadata_lines_then_header(tmp_path):
     assert path.read_text().splitlines() == [
         "# complete: true",
         "time,x",
-        "0.0,0.5",
-        "1.0,0.5",
-        "1.0,2.0",
+        "0,0.5",
+        "1,0.5",
+        "1,2",
     ]
+
+
+def test_csv_values_are_the_shortest_text_that_reads_back_the_same_double(tmp_path):
+    """Each value written as the shortest decimal that parses to the same double (Python's repr is that
+    text, up to its ``.0`` and exponent spelling), NaN as an empty field, names quoted only where needed."""
+    rng = np.random.default_rng(7)
+    special = [0.0, -0.0, 5e-324, 2.2250738585072014e-308, 1e-100, -1e-7, 1e-6, 0.1, 1 / 3, 1e20, 1.5e300, np.inf]
+    values = np.concatenate(
+        [special, -np.array(special), rng.standard_normal(200) * 10.0 ** rng.integers(-12, 12, 200)]
+    )
+    path = tmp_path / "t.csv"
+    frame = pd.DataFrame({"time": np.arange(len(values), dtype=float), 'a,"b"': values})
+    frame.loc[3, 'a,"b"'] = np.nan
+    write_trace(frame, path)
+    lines = path.read_text().splitlines()
+    assert lines[0] == 'time,"a,""b"""'
+    fields = [line.split(",")[1] for line in lines[1:]]
+    for text, value in zip(fields, frame['a,"b"']):
+        if np.isnan(value):
+            assert text == ""
+            continue
+        assert float(text) == value and np.signbit(float(text)) == np.signbit(value)
+        digits = lambda t: len(t.lower().split("e")[0].replace("-", "").replace(".", "").strip("0"))  # noqa: E731
+        assert digits(text) <= max(digits(repr(value)), 1), (text, repr(value))  # no longer than repr's digits
+    table, _ = read_trace(path)
+    np.testing.assert_array_equal(table['a,"b"'].to_numpy(), frame['a,"b"'].to_numpy())  # bit for bit
 
 
 def test_hand_written_csv_is_read(tmp_path):

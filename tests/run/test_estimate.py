@@ -21,7 +21,7 @@ from heliostep.run import HELD_TRACE_MAX_DURATION, run_scenario
 from heliostep.run.estimate import estimate_run
 from heliostep.scenario import load_scenario
 
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 SHORT_SCENARIOS = [
     "jan21-central",
     "jan21-paper-literal",

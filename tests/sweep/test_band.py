@@ -27,7 +27,7 @@ from heliostep.scenario import load_scenario
 from heliostep.sweep.band import RANGES_FILE, band_design, load_ranges
 from heliostep.sweep.band_run import band_record, run_band, run_figures
 
-HELIOSTEP = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
 SHORT = ["window.duration=30", "output.interval=0.5"]
 #: Inside the shipped ranges (24-48 V, 23-45 V/A): the middle of each.
