@@ -107,11 +107,12 @@ def leave(status: int) -> NoReturn:
 
     When a command returns, its work is done: its files are written and closed, its child processes
     have ended and its temporary folders are removed (each on every path, by the code that made them).
-    What Python's exit does then is free the loaded libraries' objects one by one: 0.3 s after a
-    ``heliostep run`` on the 2-core machine of ``benchmarks/bench_cli.py``, a fifth of a ``--no-plots``
-    run. So, as mypy ends its command (``mypy.util.hard_exit``), the process leaves at once
-    (:func:`os._exit`) after what an exit must still do: the exit handlers run (:mod:`atexit`: the
-    libraries' own clean-ups and :mod:`weakref` finalizers) and stdout and stderr are flushed.
+    What Python's exit does then is free the loaded libraries' objects one by one: 0.16-0.40 s after a
+    ``heliostep run`` on the 2-core machine of ``benchmarks/bench_cli.py`` (its ``no-plots, full
+    teardown``), up to a fifth of a ``--no-plots`` run. So, as mypy ends its command
+    (``mypy.util.hard_exit``), the process leaves at once (:func:`os._exit`) after what an exit must
+    still do: the exit handlers run (:mod:`atexit`: the libraries' own clean-ups and :mod:`weakref`
+    finalizers) and stdout and stderr are flushed.
     The normal exit (:func:`sys.exit`) is kept where it does more: another thread is running (Python
     waits for it), this Python has no ``atexit._run_exitfuncs``, or a standard stream cannot be
     flushed (a closed pipe: Python reports it as usual).

@@ -158,7 +158,7 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
     else:
         with open(path, "wb") as fh:
             _write_csv_head(fh, meta, list(table.columns))
-            _write_csv_rows(fh, list(table.columns), [table[c].to_numpy() for c in table.columns])
+            _write_csv_rows(fh, [table[c].to_numpy() for c in table.columns])
     return path
 
 
@@ -170,16 +170,16 @@ def _write_csv_head(fh: BinaryIO, meta: Mapping[str, object], names: list[str]) 
     fh.write(lines.encode("utf-8"))
 
 
-def _write_csv_rows(fh: BinaryIO, names: list[str], columns: list[np.ndarray]) -> None:
+def _write_csv_rows(fh: BinaryIO, columns: list[np.ndarray]) -> None:
     """Rows of float64 columns as CSV lines, by Arrow's CSV writer: each value in the shortest form that
     reads back to the same double (``0.1``, ``0``, ``-0``, ``1e-100``, ``inf``), NaN as an empty field.
-    (pandas' ``to_csv`` writes the same values, ``0.0`` for ``0``, in eight times the time: a day's trace
-    took seconds.)"""
+    (pandas' ``to_csv`` writes the same values, ``0.0`` for ``0``, in about ten times the time: 0.20 s
+    against 0.02 s for ``jan21-day``'s trace.)"""
     import pyarrow as pa
     import pyarrow.csv as pa_csv
 
     arrays = [pa.array(values, type=pa.float64(), from_pandas=True) for values in columns]  # NaN: null, empty
-    table = pa.Table.from_arrays(arrays, names=[f"c{i}" for i in range(len(names))])  # (names: in the head)
+    table = pa.Table.from_arrays(arrays, names=[f"c{i}" for i in range(len(columns))])  # (names: in the head)
     pa_csv.write_csv(table, fh, pa_csv.WriteOptions(include_header=False, quoting_style="none"))
 
 
@@ -218,7 +218,7 @@ def copy_trace_to_csv(
     with open(csv_path, "wb") as fh:
         _write_csv_head(fh, meta, names)
         for batch in source.iter_batches(batch_size=batch_rows):
-            _write_csv_rows(fh, names, [batch.column(i).to_numpy(zero_copy_only=False) for i in range(len(names))])
+            _write_csv_rows(fh, [batch.column(i).to_numpy(zero_copy_only=False) for i in range(len(names))])
     return csv_path
 
 
