@@ -118,7 +118,7 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
         "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
         "no-plots, child fork server": ([*run, "--out", str(out / "server"), "--no-plots"], server_env),
         "no-plots, full teardown": (
-            [*HELIOSTEP_TEARDOWN[:3], "run", str(scenario), "--out", str(out / "teardown"), "--no-plots"],
+            [*HELIOSTEP_TEARDOWN, "run", str(scenario), "--out", str(out / "teardown"), "--no-plots"],
             None,
         ),
         "python -c pass": ([sys.executable, "-c", "pass"], None),

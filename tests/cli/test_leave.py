@@ -18,6 +18,7 @@ import textwrap
 import pyarrow.parquet as pq
 
 from heliostep.paths import scenarios_dir
+from heliostep_process import HELIOSTEP
 
 
 def run_program(body: str, tmp_path, **kwargs) -> subprocess.CompletedProcess:
@@ -89,7 +90,7 @@ def test_output_that_cannot_be_written_is_not_a_success(tmp_path):
 
 
 def test_the_installed_command_leaves_with_its_report_and_files_whole(tmp_path):
-    command = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()", "run"]
+    command = [*HELIOSTEP, "run"]
     scenario = str(scenarios_dir() / "jan21-central.yaml")
     out = tmp_path / "run"
     done = subprocess.run(
