@@ -1,6 +1,7 @@
-"""Tests of heliostep.run.forked (work in a forked child beside this process) and of a run's figures drawn
-on two cores (and, by ``RunResult.write``, while the records are written): the same PNGs, byte for byte, as
-drawn one after the other. Real forks, real signals."""
+"""Tests of heliostep.run.forked (work in a forked child beside this process; a helper forked before its work)
+and of a run's figures drawn on two cores (and, by ``RunResult.write``, while the records are written, also by
+the command line's drawer): the same PNGs, byte for byte, as drawn one after the other. Real forks, real
+signals."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ import pytest
 from heliostep.paths import scenarios_dir
 from heliostep.results.run_files import FIGURE_FILES, POWER_FILE
 from heliostep.run import forked
-from heliostep.run.forked import can_fork, in_parallel
+from heliostep.run.forked import Helper, can_fork, in_parallel
 from heliostep.run.result import CHILD_FIGURES, OWN_FIGURES
 
 
@@ -75,6 +76,88 @@ def test_without_forking_both_run_here_one_after_the_other(monkeypatch):
     assert (theirs, ours, order) == (os.getpid(), 7, ["child", "here"])
 
 
+def _who_am_i(payload: bytes) -> tuple[int, int, int]:
+    return os.getpid(), os.getpgid(0), len(payload)
+
+
+def _wait_for(path: Path) -> None:
+    deadline = time.monotonic() + 20.0
+    while not path.exists():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{path} never appeared")
+        time.sleep(0.01)
+
+
+def _sleeping_grandchild(pid_file: Path) -> None:
+    pid = os.fork()
+    if pid == 0:
+        time.sleep(60.0)
+        os._exit(0)
+    pid_file.write_text(str(pid))
+    time.sleep(60.0)
+
+
+def _gone(pid: int) -> bool:
+    """No such process, or a zombie only (killed; reaped by whoever adopted it)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return True
+    return state in ("Z", "X")
+
+
+def test_a_helper_prepares_while_this_side_goes_on_then_runs_the_call_in_its_own_process_group(forking, tmp_path):
+    submitted = tmp_path / "submitted"
+    helper = Helper.start(lambda: _wait_for(submitted))  # prepares until this side has submitted: never waited for
+    assert helper is not None
+    with helper:
+        big = b"x" * 5_000_000  # far more than a pipe holds: it goes through the spool file
+        helper.submit(_who_am_i, (big,), tmp_path / "job.pickle")
+        submitted.touch()
+        pid, group, size = helper.result()
+    assert pid == helper.pid != os.getpid() and group == helper.pid != os.getpgid(0) and size == len(big)
+    assert not (tmp_path / "job.pickle").exists()  # the child removed the spool
+    with pytest.raises(ProcessLookupError):  # reaped
+        os.kill(helper.pid, 0)
+
+
+def test_a_failed_preparation_is_the_calls_exception_and_a_helper_asked_nothing_leaves_by_itself(forking, tmp_path):
+    def broken():
+        raise ImportError("no module named 'matplotlib'")
+
+    helper = Helper.start(broken)
+    with helper, pytest.raises(ImportError, match="matplotlib") as raised:
+        helper.submit(_who_am_i, (b"",), tmp_path / "job.pickle")
+        helper.result()
+    assert any("in the child process" in note for note in raised.value.__notes__)
+    idle = Helper.start(lambda: None)
+    os.close(idle._job)  # this side closes the pipe without a call (as when it dies)
+    idle._job = -1
+    _, status = os.waitpid(idle.pid, 0)
+    idle._reaped = True
+    assert os.waitstatus_to_exitcode(status) == 0
+    idle.close()
+
+
+def test_closing_a_helper_kills_it_and_what_it_forked_and_reaps_it(forking, tmp_path):
+    pid_file = tmp_path / "grandchild.pid"
+    helper = Helper.start(lambda: None)
+    helper.submit(_sleeping_grandchild, (pid_file,), tmp_path / "job.pickle")
+    _wait_for(pid_file)
+    while not pid_file.read_text():
+        time.sleep(0.01)
+    started = time.monotonic()
+    helper.close()
+    assert time.monotonic() - started < 30.0  # not the 60 s sleep
+    with pytest.raises(ProcessLookupError):
+        os.kill(helper.pid, 0)
+    grandchild = int(pid_file.read_text())
+    deadline = time.monotonic() + 10.0
+    while not _gone(grandchild) and time.monotonic() < deadline:  # its group was killed with it
+        time.sleep(0.01)
+    assert _gone(grandchild)
+
+
 #: In a fresh interpreter (one thread: it forks as a run does): a run's figures drawn on two cores, then in one.
 DRAW_BOTH_WAYS = """
 import json, os, sys
@@ -88,9 +171,13 @@ forks = can_fork()
 parallel = [str(path) for path in result.plot(out / "parallel")]
 files = result.write(out / "written")  # drawn by a forked child while the records are written
 written = [str(files[name]) for name in sorted(files, key=list(files).index) if name.endswith(".png")]
+from heliostep.run.drawing import start_drawer
+with start_drawer() as drawer:  # the command line's: forked before, the plotting modules imported meanwhile
+    files = result.write(out / "drawer", drawer=drawer)
+drawer_pngs = [str(files[name]) for name in files if name.endswith(".png")]
 os.environ["HELIOSTEP_PARALLEL_PLOTS"] = "0"
 serial = [str(path) for path in result.plot(out / "serial")]
-print(json.dumps({"forks": forks, "parallel": parallel, "written": written, "serial": serial}))
+print(json.dumps({"forks": forks, "parallel": parallel, "written": written, "drawer": drawer_pngs, "serial": serial}))
 """
 
 
@@ -103,11 +190,14 @@ def test_the_figures_drawn_on_two_cores_are_those_drawn_in_one_process_byte_for_
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert report["forks"] is True
-    parallel, written, serial = [[Path(name) for name in report[key]] for key in ("parallel", "written", "serial")]
+    parallel, written, drawer, serial = [
+        [Path(name) for name in report[key]] for key in ("parallel", "written", "drawer", "serial")
+    ]
     assert [path.name for path in parallel] == [path.name for path in serial] == [*FIGURE_FILES, POWER_FILE]
-    assert sorted(path.name for path in written) == sorted(path.name for path in serial)
+    every = sorted([*FIGURE_FILES, POWER_FILE])
+    assert sorted(path.name for path in written) == sorted(path.name for path in drawer) == every
     for drawn, alone in zip(parallel, serial):
         assert drawn.read_bytes() == alone.read_bytes(), drawn.name
         assert drawn.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    for drawn in written:  # a run's write(): drawn while its records were written, the same PNGs
+    for drawn in [*written, *drawer]:  # a run's write(): drawn while its records were written, the same PNGs
         assert drawn.read_bytes() == (serial[0].parent / drawn.name).read_bytes(), drawn.name

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +18,9 @@ from heliostep.results.rescue import rescue_folder
 from heliostep.results.run_folder import owned_folder
 from heliostep.results.trace_io import TraceWriteError
 from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
+from heliostep.run.drawing import start_drawer
 from heliostep.run.estimate import check_budget, estimate_run
+from heliostep.run.forked import Helper
 from heliostep.run.result import run_file_names
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION
 from heliostep.run.supervised import DEFAULT_WATCHDOG
@@ -134,8 +138,23 @@ def _run_command(args: argparse.Namespace) -> int:
         fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
         band = prepare_band(args, scenario, fmu_paths)  # --band's design and keys checked before any run
         # the folder's lock, for the run's life; a folder made here and left empty by bad input is removed
-        with owned_folder(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False)):
-            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band)
+        with (
+            owned_folder(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False)),
+            _figure_drawer(plots=not args.no_plots) as drawer,
+        ):
+            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band, drawer)
+
+
+@contextlib.contextmanager
+def _figure_drawer(plots: bool) -> Iterator[Helper | None]:
+    """The figures' drawer (:func:`~heliostep.run.drawing.start_drawer`: a child importing the plotting
+    modules while the run simulates), killed and reaped on leaving; None without plots or a fork."""
+    drawer = start_drawer() if plots else None
+    try:
+        yield drawer
+    finally:
+        if drawer is not None:
+            drawer.close()
 
 
 def _budget_overrides(args: argparse.Namespace) -> list[str]:
@@ -144,8 +163,10 @@ def _budget_overrides(args: argparse.Namespace) -> list[str]:
     return [f"{key}={value!r}" for key, value in given if value is not None]
 
 
-def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None) -> int:
-    """The run simulated and written into ``out_dir`` (whose lock is held), then its --band: the exit status."""
+def _run_in_folder(
+    args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None, drawer: Helper | None = None
+) -> int:
+    """The run simulated and written into ``out_dir`` (whose lock is held; figures by ``drawer``), then its --band."""
     if stop.is_set():
         print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
         return stop.exit_status
@@ -183,7 +204,8 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         print(_report(result, out_dir), flush=True)
 
     try:
-        result.write(out_dir, plots=not args.no_plots, csv=csv, should_stop=stop.is_set, before_figures=report)
+        plots = not args.no_plots
+        result.write(out_dir, plots=plots, csv=csv, should_stop=stop.is_set, before_figures=report, drawer=drawer)
     except (OSError, TraceWriteError) as exc:  # a full disk, a file-size limit: a run failure, rescued
         print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
         _rescue_into_a_fresh_folder(result, out_dir)

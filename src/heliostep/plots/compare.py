@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from heliostep.plots.png import save_png
 from heliostep.plots.thinning import thin
 from heliostep.results.compare import ComparisonResult, SignalEvaluation, SignalResult, evaluate_signal
 from heliostep.results.signal_map import signal_units
@@ -193,7 +194,7 @@ def plot_signal(
     path = Path(path)
     fig = signal_figure(evaluation, reference, actual, unit, time_unit)
     try:
-        fig.savefig(path, dpi=90)
+        save_png(fig, path, 90)
     finally:
         plt.close(fig)
     return path
@@ -233,7 +234,7 @@ def write_report(
         fig = signal_figure(ev, (tr, yr), (ta, ya), units.get(name), time_unit, column)
         buffer = io.BytesIO()
         try:
-            fig.savefig(buffer, format="png", dpi=90)
+            save_png(fig, buffer, 90)
         finally:
             plt.close(fig)
         pngs[name] = (file, buffer.getvalue())

@@ -13,6 +13,8 @@ from pathlib import Path
 import pandas as pd
 from matplotlib.figure import Figure
 
+from heliostep.plots.png import save_png
+
 __all__ = ["END_LOSS_FILE", "plot_end_loss_year"]
 
 #: PNG of the year's end-loss gain.
@@ -79,5 +81,5 @@ def plot_end_loss_year(days: pd.DataFrame, path: str | Path, title: str = "") ->
     for ax in (top, bottom):
         ax.grid(True, alpha=0.3)
     path = Path(path)
-    fig.savefig(path, dpi=_DPI)
+    save_png(fig, path, _DPI)
     return path

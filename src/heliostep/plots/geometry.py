@@ -14,6 +14,8 @@ import matplotlib.dates as mdates
 import pandas as pd
 from matplotlib.figure import Figure
 
+from heliostep.plots.png import save_png
+
 __all__ = [
     "plot_end_loss",
     "plot_panel_angle_reference",
@@ -26,7 +28,7 @@ _LINESTYLES = ("-", "--", ":", "-.")
 
 def _save(fig: Figure, path) -> Path:
     path = Path(path)
-    fig.savefig(path, dpi=120)
+    save_png(fig, path, 120)
     return path
 
 

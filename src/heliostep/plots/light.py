@@ -22,7 +22,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from heliostep.plots.layout import fixed_axes
-from heliostep.plots.run import PNG_OPTIONS, _Clock
+from heliostep.plots.png import save_png
+from heliostep.plots.run import _Clock
 from heliostep.plots.thinning import thin
 from heliostep.results.light import light_timeseries
 from heliostep.results.run_files import POWER_FILE  # (named where matplotlib is not imported)
@@ -83,7 +84,7 @@ def plot_light(
     if fig is None:
         return None
     path = Path(path)
-    fig.savefig(path, dpi=_DPI, pil_kwargs=PNG_OPTIONS)
+    save_png(fig, path, _DPI)
     return path
 
 

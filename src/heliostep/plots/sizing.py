@@ -16,6 +16,8 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
+from heliostep.plots.png import save_png
+
 __all__ = ["margins_png", "sizing_html", "speed_torque_png"]
 
 _DPI = 110
@@ -23,7 +25,7 @@ _DPI = 110
 
 def _png(figure: Figure) -> bytes:
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=_DPI, bbox_inches="tight")
+    save_png(figure, buffer, _DPI, bbox_inches="tight")
     return buffer.getvalue()
 
 

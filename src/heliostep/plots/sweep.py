@@ -33,6 +33,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from heliostep.plots.png import save_png
 from heliostep.solar import N_FIELD_MIRRORS
 
 __all__ = [
@@ -152,7 +153,7 @@ def plot_heatmap(table: pd.DataFrame, column: str, path: str | Path, label: str,
     if fig is None:
         return None
     path = Path(path)
-    fig.savefig(path, dpi=_DPI)
+    save_png(fig, path, _DPI)
     return path
 
 

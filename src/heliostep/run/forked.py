@@ -14,6 +14,9 @@ any lock another one held: a Dask worker's threads) or with ``HELIOSTEP_PARALLEL
 pieces run here one after the other (:func:`can_fork`). A busy machine forks all the same: the child
 imports nothing (a run's plotting modules are imported before the fork), so its share costs the
 CPU it would cost here.
+
+:class:`Helper` is a child forked before its work exists: it prepares (a run's plotting modules
+imported, 0.3 s) while this process simulates, then runs the one call this process sends it.
 """
 
 from __future__ import annotations
@@ -25,9 +28,10 @@ import sys
 import threading
 import traceback
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
-__all__ = ["can_fork", "in_parallel"]
+__all__ = ["Helper", "can_fork", "in_parallel"]
 
 
 def can_fork() -> bool:
@@ -73,6 +77,132 @@ def in_parallel(in_child: Callable[[], Any], here: Callable[[], Any]) -> tuple[A
     if not succeeded:
         raise value
     return value, own
+
+
+class Helper:
+    """A child forked now that prepares (``prepare()``, e.g. imports) while this process goes on, then
+    runs the one call this process sends it (:meth:`submit`) and sends back its outcome (:meth:`result`).
+
+    Call order: :meth:`start` (None where :func:`can_fork` says no), then at most one :meth:`submit`
+    and its :meth:`result`, and :meth:`close` in every case (a context manager: on leaving the block).
+
+    - The call (a function pickled by name, and its arguments) is pickled into a file, ``spool``, and
+      only the file's name goes through the pipe: :meth:`submit` never waits for a child that is
+      still preparing, however large the arguments. A ``prepare()`` that failed is the call's
+      exception, raised by :meth:`result` as :func:`in_parallel` raises the child's.
+    - The child leads a process group of its own: a terminal's Ctrl+C reaches this process only,
+      which decides; :meth:`close` kills the whole group (the child and what it forked itself) and
+      reaps the child. Its signal handlers are the default ones (a signal sent to it ends it).
+    - The child leaves when this process closes the pipe without a call, and after its call, always
+      with ``os._exit`` (no exit handler or finalizer of this process runs twice).
+    """
+
+    def __init__(self, pid: int, job: int, reply: int):
+        self.pid, self._job, self._reply = pid, job, reply
+        self._reaped = False
+
+    @classmethod
+    def start(cls, prepare: Callable[[], None]) -> Helper | None:
+        """The child forked, ``prepare()`` running in it; None (nothing forked) where it cannot fork."""
+        if not can_fork():
+            return None
+        job_read, job_write = os.pipe()
+        reply_read, reply_write = os.pipe()
+        sys.stdout.flush()  # nothing buffered here may be written twice
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:  # the child
+            status = 1
+            try:
+                os.setpgid(0, 0)
+                os.close(job_write)
+                os.close(reply_read)
+                status = _help(prepare, job_read, reply_write)
+            finally:
+                os._exit(status)
+        try:
+            os.setpgid(pid, pid)  # (also here: the group exists before close() may kill it)
+        except (PermissionError, ProcessLookupError):
+            pass  # the child did it first, or has already ended
+        os.close(job_read)
+        os.close(reply_write)
+        return cls(pid, job_write, reply_read)
+
+    def submit(self, function: Callable[..., Any], arguments: tuple, spool: Path) -> None:
+        """``function(*arguments)`` sent to the child, pickled into the file ``spool`` (removed by the child)."""
+        with open(spool, "wb") as file:
+            pickle.dump((function, arguments), file, protocol=pickle.HIGHEST_PROTOCOL)
+        os.write(self._job, os.fsencode(spool) + b"\n")
+        os.close(self._job)
+        self._job = -1
+
+    def result(self) -> Any:
+        """The call's value, or its exception raised here as itself; a child that died without a word
+        (killed) is a RuntimeError. Waits for the child; on any exception here, :meth:`close`."""
+        try:
+            with os.fdopen(self._reply, "rb") as pipe:
+                self._reply = -1
+                payload = pipe.read()
+            _, wait_status = os.waitpid(self.pid, 0)
+            self._reaped = True
+        except BaseException:
+            self.close()
+            raise
+        if not payload:
+            raise RuntimeError(f"the helper process drawing the figures died ({_said(wait_status)})")
+        succeeded, value = pickle.loads(payload)
+        if not succeeded:
+            raise value
+        return value
+
+    def close(self) -> None:
+        """The child's process group killed and the child reaped (unless done), the pipes closed."""
+        if not self._reaped:
+            try:
+                os.killpg(self.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+            try:
+                os.waitpid(self.pid, 0)
+            except ChildProcessError:
+                pass
+            self._reaped = True
+        for name in ("_job", "_reply"):
+            if getattr(self, name) >= 0:
+                os.close(getattr(self, name))
+                setattr(self, name, -1)
+
+    def __enter__(self) -> Helper:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+def _help(prepare: Callable[[], None], job: int, reply: int) -> int:
+    """The helper child's part: ``prepare()``, then the call named in ``job`` (nothing: status 0)."""
+    for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(number, signal.SIG_DFL)
+    try:
+        prepare()
+        prepared: BaseException | None = None
+    except BaseException as exc:  # reported as the call's outcome
+        prepared = exc
+    with os.fdopen(job, "rb") as pipe:
+        line = pipe.readline()
+    if not line.endswith(b"\n"):
+        return 0  # closed without a call: nothing asked
+    spool = Path(os.fsdecode(line[:-1]))
+
+    def call() -> Any:
+        if prepared is not None:
+            raise prepared
+        with open(spool, "rb") as file:
+            function, arguments = pickle.load(file)
+        spool.unlink(missing_ok=True)
+        return function(*arguments)
+
+    return _serve(call, reply)
 
 
 def _serve(work: Callable[[], Any], writable: int) -> int:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import itertools
 import os
 import shutil
-import tempfile
 import weakref
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -36,16 +35,11 @@ from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, su
 from heliostep.results.solution import SolutionPlotData
 from heliostep.results.trace import trace_metadata
 from heliostep.results.trace_io import iter_trace_blocks, read_trace
-from heliostep.run.forked import can_fork, in_parallel
+from heliostep.run.drawing import CHILD_FIGURES, OWN_FIGURES, FigureJob, draw_figure_names, draw_figures
+from heliostep.run.forked import Helper, can_fork, in_parallel
 from heliostep.scenario import Scenario
 
 __all__ = ["CHILD_FIGURES", "OWN_FIGURES", "RunFailed", "RunResult", "run_file_names"]
-
-#: The figures a forked child draws (with the power on the tube) while the run's process draws
-#: :data:`OWN_FIGURES`: about half the drawing each (CPU seconds per figure, the paper's case:
-#: Figs. 8, 9, 14 0.2; 11, 12 0.35; 13 0.4; 10 0.65; the power on the tube 0.85, its light computed again).
-CHILD_FIGURES = ("fig09_rotor_angle_ref.png", "fig13_panel_tracking.png", "fig14_torque_zoom.png")
-OWN_FIGURES = tuple(name for name in FIGURE_FILES if name not in CHILD_FIGURES)
 
 
 @dataclass
@@ -189,38 +183,23 @@ class RunResult:
                 shutil.rmtree(staging, ignore_errors=True)
 
     def _draw(self, out_dir: Path) -> list[Path]:
-        """The figures drawn into ``out_dir`` (each renamed into place there), on two cores: a forked
-        child draws :data:`CHILD_FIGURES` and the power on the tube while this process draws the rest
-        (:func:`~heliostep.run.forked.in_parallel`; one after the other where it cannot fork). The plotting
-        modules are imported here, after the results are written and reported, and the child inherits
-        them: matplotlib is imported once, not once in each process."""
-        from heliostep.plots.light import plot_light_run
-        from heliostep.plots.run import plot_run
+        """The figures drawn into ``out_dir`` (each renamed into place there), on two cores
+        (:func:`~heliostep.run.drawing.draw_figures`)."""
+        return draw_figures(self._figure_job(), out_dir)
 
-        staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
-        try:
-            source = self.held_trace if self.held_trace is not None else self._streamed_file()  # a file: read by column
-            metadata = self.trace_metadata()
-
-            def figures(only: tuple[str, ...]) -> list[Path]:
-                return plot_run(source, staging, metadata, self.solution_plot, only=only)
-
-            def child_share() -> list[Path]:
-                drawn = figures(CHILD_FIGURES)
-                light = self.trace_columns(["panel_angle_ref", self.metadata.get("roles", {}).get("panel_angle", "")])
-                return drawn + plot_light_run(light, self.metadata, self.scenario, staging, self.weather, self.summary)
-
-            theirs, ours = in_parallel(child_share, lambda: figures(OWN_FIGURES))
-            order = [*FIGURE_FILES, POWER_FILE]
-            drawn = sorted([*theirs, *ours], key=lambda path: order.index(Path(path).name))
-            written = []
-            for path in drawn:
-                target = out_dir / Path(path).name
-                os.replace(path, target)
-                written.append(target)
-            return written
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
+    def _figure_job(self) -> FigureJob:
+        """What the figures are drawn from (a streamed trace: its file, read by column)."""
+        panel_angle = self.metadata.get("roles", {}).get("panel_angle", "")
+        return FigureJob(
+            source=self.held_trace if self.held_trace is not None else self._streamed_file(),
+            trace_metadata=self.trace_metadata(),
+            solution_plot=self.solution_plot,
+            light=self.trace_columns(["panel_angle_ref", panel_angle]),
+            metadata=self.metadata,
+            scenario=self.scenario,
+            weather=self.weather,
+            summary=self.summary,
+        )
 
     def trace_metadata(self) -> dict[str, str]:
         return trace_metadata(
@@ -244,6 +223,7 @@ class RunResult:
         csv: bool = True,
         should_stop: Callable[[], bool] | None = None,
         before_figures: Callable[[], None] | None = None,
+        drawer: Helper | None = None,
     ) -> dict[str, Path]:
         """Write trace (Parquet, and CSV unless ``csv=False``), summary.json, metadata.json and
         plots into ``out_dir`` (a run that kept no trace: summary.json and metadata.json). The
@@ -264,20 +244,26 @@ class RunResult:
         (:func:`~heliostep.run.forked.can_fork`): the child imports the plotting modules and draws
         (on two cores, :meth:`_draw`) while this process writes; its PNGs are swapped in after the
         records, as they are when drawn after them. A streamed trace (a file this process moves
-        while writing) is drawn after the records are in place.
+        while writing) is drawn after the records are in place. ``drawer``, when given (the command
+        line's, :func:`~heliostep.run.drawing.start_drawer`: forked before the simulation, the plotting
+        modules imported meanwhile), draws them instead of a child forked here; it is not closed here.
         """
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         with hold_folder(out_dir):
             check_foreign(out_dir, run_file_names(plots, csv))
             drawing = plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop())
-            if drawing and self.held_trace is not None and can_fork():
-                return self._write_while_drawing(out_dir, csv, should_stop, before_figures)
+            if drawing and self.held_trace is not None and (drawer is not None or can_fork()):
+                return self._write_while_drawing(out_dir, csv, should_stop, before_figures, drawer)
             written = self._write_records(out_dir, csv, before_figures)
             if drawing and not (should_stop and should_stop()):
                 staging = staging_folder(out_dir)  # then the figures, added to them
                 try:
-                    drawn = [path.name for path in self._draw(staging)]
+                    if drawer is not None:
+                        drawer.submit(draw_figure_names, (self._figure_job(), staging), _spool(staging))
+                        drawn = drawer.result()
+                    else:
+                        drawn = [path.name for path in self._draw(staging)]
                     written.update(swap_in(out_dir, staging, drawn, keep=written))
                 finally:
                     shutil.rmtree(staging, ignore_errors=True)
@@ -297,11 +283,11 @@ class RunResult:
         return written
 
     def _write_while_drawing(
-        self, out_dir: Path, csv: bool, should_stop: Callable[[], bool] | None, before_figures
+        self, out_dir: Path, csv: bool, should_stop: Callable[[], bool] | None, before_figures, drawer: Helper | None
     ) -> dict[str, Path]:
-        """:meth:`write` with the figures drawn into a staging folder by a forked child while this
-        process writes the records; the child killed (no figure) when the writing fails or a stop
-        is asked for meanwhile."""
+        """:meth:`write` with the figures drawn into a staging folder by a forked child (or by
+        ``drawer``) while this process writes the records; the child (the drawer) killed, no figure,
+        when the writing fails or a stop is asked for meanwhile."""
         staging = staging_folder(out_dir)
 
         def records() -> dict[str, Path]:
@@ -312,8 +298,17 @@ class RunResult:
 
         try:
             try:
-                drawn, written = in_parallel(lambda: [path.name for path in self._draw(staging)], records)
-            except _FiguresSkipped as skipped:  # (the child killed and reaped by in_parallel)
+                if drawer is not None:
+                    drawer.submit(draw_figure_names, (self._figure_job(), staging), _spool(staging))
+                    try:
+                        written = records()
+                    except BaseException:
+                        drawer.close()
+                        raise
+                    drawn = drawer.result()
+                else:
+                    drawn, written = in_parallel(lambda: [path.name for path in self._draw(staging)], records)
+            except _FiguresSkipped as skipped:  # (the child killed and reaped)
                 return skipped.written
             return {**written, **swap_in(out_dir, staging, drawn, keep=written)}
         finally:
@@ -372,6 +367,11 @@ class RunResult:
         for name, text in record_texts(self.figures, self.status, self.metadata).items():
             written += write_text_parts(folder, name, text)
         return written
+
+
+def _spool(staging: Path) -> Path:
+    """Where the figures' job is pickled for the drawer (in the staging folder: removed with it)."""
+    return staging / (TMP_PREFIX + "figure-job.pickle")
 
 
 class _FiguresSkipped(Exception):
