@@ -55,9 +55,9 @@ HELIOSTEP_TEARDOWN = [sys.executable, "-c", "import sys; from heliostep.cli impo
 #: not), imported alone and left as the command leaves: what no change to heliostep can take off the run
 LIBRARIES = "numpy, pandas, scipy.interpolate, scipy.special, pydantic, yaml, pyarrow.parquet, fmpy.fmi2"
 
-#: A stage that holds others (the records written while a forked child draws the plots, whose ``_draw`` is
-#: timed in that child, so not here): shown, not added to the stages' sum.
-WHILE_DRAWING = "records written, plots drawn meanwhile by a forked child (the whole)"
+#: A stage that holds others (the records written while the drawer, forked before the simulation, draws the
+#: plots, whose ``draw_figures`` runs in the drawer, so is not timed here): shown, not added to the stages' sum.
+WHILE_DRAWING = "records written, plots drawn meanwhile by the drawer (the whole)"
 #: (label, module, attribute) of the functions the breakdown times: leaves of the run's call tree,
 #: so no time is counted twice; patched where they are looked up.
 STAGES = (
@@ -73,7 +73,8 @@ STAGES = (
     ("simulation (supervised child, rows fed to the figures)", "heliostep.run.runner", "_co_simulate"),
     ("figures after the simulation (light, summary)", "heliostep.results.run_figures.RunFigures", "summary"),
     ("trace and records written", "heliostep.run.result.RunResult", "_write_staged"),
-    ("plots drawn", "heliostep.run.result.RunResult", "_draw"),
+    ("plots drawn (no drawer)", "heliostep.run.result.RunResult", "_draw"),
+    ("drawer forked (it imports the plotting modules meanwhile)", "heliostep.cli.run", "start_drawer"),
     (WHILE_DRAWING, "heliostep.run.result.RunResult", "_write_while_drawing"),
 )
 
