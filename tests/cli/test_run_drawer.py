@@ -14,6 +14,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from heliostep.paths import scenarios_dir
 from heliostep.results.run_files import FIGURE_FILES, POWER_FILE
 
@@ -35,20 +37,29 @@ PPID = (
 )
 
 
-def _run(out: Path, parallel: str) -> dict:
-    args = ["run", str(scenarios_dir() / "jan21-central.yaml"), "--out", str(out), "--set", "window.duration=10"]
+def _run(out: Path, parallel: str, window: list[str]) -> dict:
+    args = ["run", str(scenarios_dir() / "jan21-central.yaml"), "--out", str(out), "--no-csv", *window]
     env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": parallel}
     done = subprocess.run([sys.executable, "-c", PPID + RUN_AND_REPORT, *args], capture_output=True, text=True, env=env)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def test_the_drawer_draws_the_figures_and_is_gone_when_the_command_returns(tmp_path):
-    drawn = _run(tmp_path / "drawer", "1")
+#: A window whose trace is held in memory (drawn while the records are written), and one over an hour, whose
+#: trace is streamed to its file (drawn from the file after the records are in place).
+WINDOWS = {
+    "held": ["--set", "window.duration=10"],
+    "streamed": ["--set", "window.duration=3700", "--set", "output.interval=60", "--set", "output.step_detail=0"],
+}
+
+
+@pytest.mark.parametrize("window", sorted(WINDOWS))
+def test_the_drawer_draws_the_figures_and_is_gone_when_the_command_returns(tmp_path, window):
+    drawn = _run(tmp_path / "drawer", "1", WINDOWS[window])
     assert drawn["status"] == 0
     assert "matplotlib" not in drawn["modules"]  # the drawer drew them: this process never imported matplotlib
     assert drawn["children"] == []  # the drawer (and the child it forked) killed and reaped: none left
-    alone = _run(tmp_path / "alone", "0")  # no fork: drawn here, one after the other
+    alone = _run(tmp_path / "alone", "0", WINDOWS[window])  # no fork: drawn here, one after the other
     assert "matplotlib" in alone["modules"] and alone["children"] == []
     for name in [*FIGURE_FILES, POWER_FILE]:
         png = (tmp_path / "drawer" / name).read_bytes()

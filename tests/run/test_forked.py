@@ -111,8 +111,10 @@ def test_a_helper_prepares_while_this_side_goes_on_then_runs_the_call_in_its_own
     helper = Helper.start(lambda: _wait_for(submitted))  # prepares until this side has submitted: never waited for
     assert helper is not None
     with helper:
+        assert helper.alive()  # preparing: there to be sent its call
         big = b"x" * 5_000_000  # far more than a pipe holds: it goes through the spool file
         helper.submit(_who_am_i, (big,), tmp_path / "job.pickle")
+        assert not helper.alive()  # sent one: no second
         submitted.touch()
         pid, group, size = helper.result()
     assert pid == helper.pid != os.getpid() and group == helper.pid != os.getpgid(0) and size == len(big)
@@ -171,10 +173,17 @@ forks = can_fork()
 parallel = [str(path) for path in result.plot(out / "parallel")]
 files = result.write(out / "written")  # drawn by a forked child while the records are written
 written = [str(files[name]) for name in sorted(files, key=list(files).index) if name.endswith(".png")]
+import signal
 from heliostep.run.drawing import start_drawer
 with start_drawer() as drawer:  # the command line's: forked before, the plotting modules imported meanwhile
     files = result.write(out / "drawer", drawer=drawer)
 drawer_pngs = [str(files[name]) for name in files if name.endswith(".png")]
+with start_drawer() as drawer:  # one that ended before it was needed (killed): drawn as without it
+    os.kill(drawer.pid, signal.SIGKILL)
+    os.waitid(os.P_PID, drawer.pid, os.WEXITED | os.WNOWAIT)  # (ended, left for alive() to reap)
+    alive = drawer.alive()
+    files = result.write(out / "killed", drawer=drawer)
+drawer_pngs += [str(files[name]) for name in files if name.endswith(".png")] if not alive else ["alive?"]
 os.environ["HELIOSTEP_PARALLEL_PLOTS"] = "0"
 serial = [str(path) for path in result.plot(out / "serial")]
 print(json.dumps({"forks": forks, "parallel": parallel, "written": written, "drawer": drawer_pngs, "serial": serial}))
@@ -195,7 +204,7 @@ def test_the_figures_drawn_on_two_cores_are_those_drawn_in_one_process_byte_for_
     ]
     assert [path.name for path in parallel] == [path.name for path in serial] == [*FIGURE_FILES, POWER_FILE]
     every = sorted([*FIGURE_FILES, POWER_FILE])
-    assert sorted(path.name for path in written) == sorted(path.name for path in drawer) == every
+    assert sorted(path.name for path in written) == every and sorted(path.name for path in drawer) == sorted(2 * every)
     for drawn, alone in zip(parallel, serial):
         assert drawn.read_bytes() == alone.read_bytes(), drawn.name
         assert drawn.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -84,7 +84,8 @@ class Helper:
     runs the one call this process sends it (:meth:`submit`) and sends back its outcome (:meth:`result`).
 
     Call order: :meth:`start` (None where :func:`can_fork` says no), then at most one :meth:`submit`
-    and its :meth:`result`, and :meth:`close` in every case (a context manager: on leaving the block).
+    (where :meth:`alive`) and its :meth:`result`, and :meth:`close` in every case (a context manager: on
+    leaving the block).
 
     - The call (a function pickled by name, and its arguments) is pickled into a file, ``spool``, and
       only the file's name goes through the pipe: :meth:`submit` never waits for a child that is
@@ -128,13 +129,31 @@ class Helper:
         os.close(reply_write)
         return cls(pid, job_write, reply_read)
 
+    def alive(self) -> bool:
+        """Whether the child is there to be sent its call: not ended (killed, crashed), not sent one yet."""
+        if self._reaped or self._job < 0:
+            return False
+        try:
+            pid, _ = os.waitpid(self.pid, os.WNOHANG)
+        except ChildProcessError:
+            pid = self.pid
+        if pid == 0:
+            return True
+        self._reaped = True  # ended: reaped just now
+        return False
+
     def submit(self, function: Callable[..., Any], arguments: tuple, spool: Path) -> None:
-        """``function(*arguments)`` sent to the child, pickled into the file ``spool`` (removed by the child)."""
+        """``function(*arguments)`` sent to the child, pickled into the file ``spool`` (removed by the child).
+        A child that ended meanwhile is :meth:`result`'s RuntimeError."""
         with open(spool, "wb") as file:
             pickle.dump((function, arguments), file, protocol=pickle.HIGHEST_PROTOCOL)
-        os.write(self._job, os.fsencode(spool) + b"\n")
-        os.close(self._job)
-        self._job = -1
+        try:
+            os.write(self._job, os.fsencode(spool) + b"\n")
+        except BrokenPipeError:
+            pass  # the child has ended: result() finds its pipe closed and says so
+        finally:
+            os.close(self._job)
+            self._job = -1
 
     def result(self) -> Any:
         """The call's value, or its exception raised here as itself; a child that died without a word

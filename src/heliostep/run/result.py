@@ -246,10 +246,13 @@ class RunResult:
         records, as they are when drawn after them. A streamed trace (a file this process moves
         while writing) is drawn after the records are in place. ``drawer``, when given (the command
         line's, :func:`~heliostep.run.drawing.start_drawer`: forked before the simulation, the plotting
-        modules imported meanwhile), draws them instead of a child forked here; it is not closed here.
+        modules imported meanwhile), draws them instead of a child forked here (where it has ended, they are
+        drawn as without it); it is not closed here.
         """
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
+        if drawer is not None and not drawer.alive():  # ended (killed, crashed): the figures drawn as without one
+            drawer = None
         with hold_folder(out_dir):
             check_foreign(out_dir, run_file_names(plots, csv))
             drawing = plots and self.trace_kept and self.trace_rows and not (should_stop and should_stop())
