@@ -195,6 +195,26 @@ def _run_in_folder(
         print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
         return 1
     _warn(result)
+    failure_status = _write_results(args, result, out_dir, stop, status, drawer)
+    if failure_status is not None:
+        return failure_status
+    if band is not None:  # the band runs after a complete nominal run only
+        status = run_band_after(args, band, result, out_dir, fmu_paths, stop, status)
+    if stop.is_set() and status == 0:
+        print(
+            f"heliostep run: stopped by {stop.name} while writing; the results are complete, "
+            f"the figures may be missing",
+            file=sys.stderr,
+        )
+        status = stop.exit_status
+    return status
+
+
+def _write_results(
+    args: argparse.Namespace, result: RunResult, out_dir: Path, stop, status: int, drawer: Helper | None
+) -> int | None:
+    """The run's results written into ``out_dir``, its figures by ``drawer`` (then done with: not kept through a
+    --band): None, or the exit status when they could not be written (rescued into a fresh folder)."""
     csv = args.csv
     if csv is None:
         duration = result.inputs.duration if result.inputs is not None else 0.0
@@ -213,16 +233,10 @@ def _run_in_folder(
     except ForcedStop:  # a second signal while writing: the stream cut short is not left in --out
         _discard_stream(result, out_dir)
         raise
-    if band is not None:  # the band runs after a complete nominal run only
-        status = run_band_after(args, band, result, out_dir, fmu_paths, stop, status)
-    if stop.is_set() and status == 0:
-        print(
-            f"heliostep run: stopped by {stop.name} while writing; the results are complete, "
-            f"the figures may be missing",
-            file=sys.stderr,
-        )
-        status = stop.exit_status
-    return status
+    finally:
+        if drawer is not None:
+            drawer.close()
+    return None
 
 
 def _warn(result: RunResult) -> None:
