@@ -2,12 +2,14 @@
 (:func:`draw_figures`) and the helper process that imports the plotting modules while the run
 simulates (:func:`start_drawer`).
 
-Importing the plotting modules (matplotlib, its 3-D toolkit that it imports itself, PIL) takes about
-0.3 s, as long as drawing a run's 8 figures on two cores. A drawer forked before the simulation
+Importing the plotting modules (matplotlib, its 3-D toolkit that it imports itself, PIL) takes 0.2 s after
+the command's own modules (``benchmarks/bench_plots.py``), a third of drawing a run's 8 figures one after the
+other. A drawer forked before the simulation
 (:class:`~heliostep.run.forked.Helper`) imports them meanwhile, on the other core; when the results are
 written it is sent the :class:`FigureJob` and draws (forking once more for the second core), while
 this process writes the records. The figures are the same PNGs, byte for byte, as drawn here
-(``tests/run/test_forked.py``).
+(``tests/run/test_forked.py``). A drawer that has ended before it is needed, or a job that does not pickle,
+leaves the figures to be drawn as without one.
 """
 
 from __future__ import annotations
@@ -30,8 +32,8 @@ from heliostep.scenario import Scenario
 __all__ = ["CHILD_FIGURES", "OWN_FIGURES", "FigureJob", "draw_figure_names", "draw_figures", "start_drawer"]
 
 #: The figures a forked child draws (with the power on the tube) while the drawing process draws
-#: :data:`OWN_FIGURES`: about half the drawing each (CPU seconds per figure, the paper's case:
-#: Figs. 8, 9, 14 0.2; 11, 12 0.35; 13 0.4; 10 0.65; the power on the tube 0.85, its light computed again).
+#: :data:`OWN_FIGURES`: about half the drawing each (seconds per figure, the paper's case, ``bench_plots.py``:
+#: Figs. 8, 9 0.04; 14 0.05; 11, 12 0.07; 13 0.08; 10 0.12; the power on the tube 0.17, its light computed again).
 CHILD_FIGURES = ("fig09_rotor_angle_ref.png", "fig13_panel_tracking.png", "fig14_torque_zoom.png")
 OWN_FIGURES = tuple(name for name in FIGURE_FILES if name not in CHILD_FIGURES)
 

@@ -16,7 +16,7 @@ imports nothing (a run's plotting modules are imported before the fork), so its 
 CPU it would cost here.
 
 :class:`Helper` is a child forked before its work exists: it prepares (a run's plotting modules
-imported, 0.3 s) while this process simulates, then runs the one call this process sends it.
+imported, 0.2 s) while this process simulates, then runs the one call this process sends it.
 """
 
 from __future__ import annotations

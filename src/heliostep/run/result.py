@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import pickle
 import shutil
 import weakref
 from collections.abc import Callable, Iterable
@@ -262,8 +263,7 @@ class RunResult:
             if drawing and not (should_stop and should_stop()):
                 staging = staging_folder(out_dir)  # then the figures, added to them
                 try:
-                    if drawer is not None:
-                        drawer.submit(draw_figure_names, (self._figure_job(), staging), _spool(staging))
+                    if drawer is not None and _submitted(drawer, self._figure_job(), staging):
                         drawn = drawer.result()
                     else:
                         drawn = [path.name for path in self._draw(staging)]
@@ -301,8 +301,7 @@ class RunResult:
 
         try:
             try:
-                if drawer is not None:
-                    drawer.submit(draw_figure_names, (self._figure_job(), staging), _spool(staging))
+                if drawer is not None and _submitted(drawer, self._figure_job(), staging):
                     try:
                         written = records()
                     except BaseException:
@@ -372,9 +371,18 @@ class RunResult:
         return written
 
 
-def _spool(staging: Path) -> Path:
-    """Where the figures' job is pickled for the drawer (in the staging folder: removed with it)."""
-    return staging / (TMP_PREFIX + "figure-job.pickle")
+def _submitted(drawer: Helper, job: FigureJob, staging: Path) -> bool:
+    """Whether ``job`` was sent to ``drawer`` (to draw into ``staging``), pickled into a file in the staging
+    folder; a part of it that does not pickle (a user's object in the metadata, say) is no error: the drawer
+    is closed and the figures are drawn as without one (False)."""
+    spool = staging / (TMP_PREFIX + "figure-job.pickle")
+    try:
+        drawer.submit(draw_figure_names, (job, staging), spool)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        drawer.close()
+        spool.unlink(missing_ok=True)
+        return False
+    return True
 
 
 class _FiguresSkipped(Exception):
