@@ -51,16 +51,12 @@ def in_parallel(in_child: Callable[[], Any], here: Callable[[], Any]) -> tuple[A
     if not can_fork():
         return in_child(), here()
     readable, writable = os.pipe()
-    sys.stdout.flush()  # nothing buffered here may be written twice
-    sys.stderr.flush()
-    pid = os.fork()
-    if pid == 0:  # the child
-        status = 1
-        try:
-            os.close(readable)
-            status = _serve(in_child, writable)
-        finally:
-            os._exit(status)
+
+    def child() -> int:
+        os.close(readable)
+        return _serve(in_child, writable)
+
+    pid = _fork(child)
     os.close(writable)
     try:
         own = here()
@@ -71,12 +67,7 @@ def in_parallel(in_child: Callable[[], Any], here: Callable[[], Any]) -> tuple[A
     except BaseException:
         _end(pid, readable)
         raise
-    if not payload:
-        raise RuntimeError(f"the child process drawing a share of the figures died ({_said(wait_status)})")
-    succeeded, value = pickle.loads(payload)
-    if not succeeded:
-        raise value
-    return value, own
+    return _outcome(payload, wait_status, "the child process drawing a share of the figures"), own
 
 
 class Helper:
@@ -109,18 +100,14 @@ class Helper:
             return None
         job_read, job_write = os.pipe()
         reply_read, reply_write = os.pipe()
-        sys.stdout.flush()  # nothing buffered here may be written twice
-        sys.stderr.flush()
-        pid = os.fork()
-        if pid == 0:  # the child
-            status = 1
-            try:
-                os.setpgid(0, 0)
-                os.close(job_write)
-                os.close(reply_read)
-                status = _help(prepare, job_read, reply_write)
-            finally:
-                os._exit(status)
+
+        def child() -> int:
+            os.setpgid(0, 0)
+            os.close(job_write)
+            os.close(reply_read)
+            return _help(prepare, job_read, reply_write)
+
+        pid = _fork(child)
         try:
             os.setpgid(pid, pid)  # (also here: the group exists before close() may kill it)
         except (PermissionError, ProcessLookupError):
@@ -167,24 +154,12 @@ class Helper:
         except BaseException:
             self.close()
             raise
-        if not payload:
-            raise RuntimeError(f"the helper process drawing the figures died ({_said(wait_status)})")
-        succeeded, value = pickle.loads(payload)
-        if not succeeded:
-            raise value
-        return value
+        return _outcome(payload, wait_status, "the helper process drawing the figures")
 
     def close(self) -> None:
         """The child's process group killed and the child reaped (unless done), the pipes closed."""
         if not self._reaped:
-            try:
-                os.killpg(self.pid, signal.SIGKILL)
-            except (ProcessLookupError, PermissionError):
-                pass
-            try:
-                os.waitpid(self.pid, 0)
-            except ChildProcessError:
-                pass
+            _kill_and_reap(self.pid, group=True)
             self._reaped = True
         for name in ("_job", "_reply"):
             if getattr(self, name) >= 0:
@@ -241,16 +216,50 @@ def _serve(work: Callable[[], Any], writable: int) -> int:
     return 0 if outcome[0] else 1
 
 
-def _end(pid: int, readable: int) -> None:
-    """The child killed and reaped, the pipe closed (this process's work failed or was stopped)."""
+def _fork(child: Callable[[], int]) -> int:
+    """A child forked to run ``child()`` and leave with its exit status (``os._exit``: nothing of this
+    process's runs twice there, exit handlers, finalizers or buffered output); its pid."""
+    sys.stdout.flush()  # nothing buffered here may be written twice
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # the child
+        status = 1
+        try:
+            status = child()
+        finally:
+            os._exit(status)
+    return pid
+
+
+def _outcome(payload: bytes, wait_status: int, who: str) -> Any:
+    """What :func:`_serve` sent (``payload``): the value, or the exception raised here as itself; nothing
+    (``who`` died without a word: killed) is a RuntimeError naming how it ended."""
+    if not payload:
+        raise RuntimeError(f"{who} died ({_said(wait_status)})")
+    succeeded, value = pickle.loads(payload)
+    if not succeeded:
+        raise value
+    return value
+
+
+def _kill_and_reap(pid: int, group: bool = False) -> None:
+    """The child ``pid`` (with ``group``, its whole process group) killed and reaped."""
     try:
-        os.kill(pid, signal.SIGKILL)
-    except ProcessLookupError:
+        if group:
+            os.killpg(pid, signal.SIGKILL)
+        else:
+            os.kill(pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
         pass
     try:
         os.waitpid(pid, 0)
     except ChildProcessError:
         pass
+
+
+def _end(pid: int, readable: int) -> None:
+    """The child killed and reaped, the pipe closed (this process's work failed or was stopped)."""
+    _kill_and_reap(pid)
     if readable >= 0:
         os.close(readable)
 
