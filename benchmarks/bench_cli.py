@@ -6,11 +6,14 @@ Each repeat runs, side by side and alternating, a fresh ``heliostep run SCENARIO
 plots), the same with ``--no-plots``, and two references that say how loaded the machine is:
 ``python -c pass`` (the interpreter alone) and ``python -c "import pvlib"`` (issue #26: 0.7 s on a
 quiet machine), and one that says what no change to heliostep can take off a run: the third-party modules
-a ``--no-plots`` run imports, imported alone (:data:`LIBRARIES`). The command is timed as installed
-(``heliostep.cli.console_main``, which leaves without Python's teardown: ``heliostep.cli.leave``) and once
-more ending with the whole teardown (``sys.exit(main())``). Bytecode is as a user's second run has it
-(written by the warm-up, into a folder of the benchmark's: ``PYTHONPYCACHEPREFIX``). A first run of each
-variant is not counted (it builds the FMUs and the kernel into
+a ``--no-plots`` run imports, imported alone (:data:`LIBRARIES`, with the garbage collector off, as the command
+imports them). The command is timed as installed (``heliostep.cli.console_main``: its command's modules
+imported without the garbage collector and frozen after, ``heliostep.collector``; it leaves without Python's
+teardown, ``heliostep.cli.leave``), once more ending with the whole teardown
+(``sys.exit(main(freeze_imports=True))``), and once with the collector on while it imports (``leave(main())``,
+with plots and without). Bytecode is as a user's
+second run has it (written by the warm-up, into a folder of the benchmark's: ``PYTHONPYCACHEPREFIX``). A first
+run of each variant is not counted (it builds the FMUs and the kernel into
 ``$HELIOSTEP_FMUS`` if they are not there). The line a script reads is the medians' line::
 
     run: <s> s, no-plots <s> s
@@ -50,9 +53,17 @@ SCENARIO = ROOT / "scenarios" / "jan21-central.yaml"
 #: the installed command's entry point (``[project.scripts]``)
 HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 #: the same ending with Python's whole teardown (``sys.exit``), as the command did before ``heliostep.cli.leave``
-HELIOSTEP_TEARDOWN = [sys.executable, "-c", "import sys; from heliostep.cli import main; sys.exit(main())"]
+HELIOSTEP_TEARDOWN = [
+    sys.executable,
+    "-c",
+    "import sys; from heliostep.cli import main; sys.exit(main(freeze_imports=True))",
+]
+#: the installed command but with the garbage collector on while its modules are imported, as before
+#: ``heliostep.collector.imports_frozen``
+HELIOSTEP_COLLECTING = [sys.executable, "-c", "from heliostep.cli import leave, main; leave(main())"]
 #: the third-party modules a ``--no-plots`` run imports (``tests/cli/test_run_imports.py`` checks what it does
-#: not), imported alone and left as the command leaves: what no change to heliostep can take off the run
+#: not), imported alone with the garbage collector off (as the command imports them) and left as the command
+#: leaves: what no change to heliostep can take off the run
 LIBRARIES = "numpy, pandas, scipy.interpolate, scipy.special, pydantic, yaml, pyarrow.parquet, fmpy.fmi2"
 
 #: A stage that holds others (the records written while the drawer, forked before the simulation, draws the
@@ -118,12 +129,20 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
         "no-plots --no-supervise": ([*run, "--out", str(out / "unsupervised"), "--no-plots", "--no-supervise"], None),
         "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
         "no-plots, child fork server": ([*run, "--out", str(out / "server"), "--no-plots"], server_env),
+        "run, collector on": ([*HELIOSTEP_COLLECTING, "run", str(scenario), "--out", str(out / "collecting")], None),
+        "no-plots, collector on": (
+            [*HELIOSTEP_COLLECTING, "run", str(scenario), "--out", str(out / "collecting-no-plots"), "--no-plots"],
+            None,
+        ),
         "no-plots, full teardown": (
             [*HELIOSTEP_TEARDOWN, "run", str(scenario), "--out", str(out / "teardown"), "--no-plots"],
             None,
         ),
         "python -c pass": ([sys.executable, "-c", "pass"], None),
-        "the run's libraries alone": ([sys.executable, "-c", f"import os, {LIBRARIES}; os._exit(0)"], None),
+        "the run's libraries alone": (
+            [sys.executable, "-c", f"import gc; gc.disable(); import os, {LIBRARIES}; os._exit(0)"],
+            None,
+        ),
         "import pvlib": ([sys.executable, "-c", "import pvlib"], None),
         **extra,
     }
@@ -152,8 +171,11 @@ def breakdown_child(argv: list[str]) -> None:
     """Run ``heliostep`` with ``argv`` in this process, its stages timed; print one line per stage."""
     import importlib
 
+    from heliostep.collector import imports_frozen
+
     started = time.perf_counter()
-    import heliostep.cli.run  # noqa: F401  (the command's modules: what make_parser imports)
+    with imports_frozen():  # as console_main imports them
+        import heliostep.cli.run  # noqa: F401  (the command's modules: what make_parser imports)
 
     spent = {"imports of the command's modules": time.perf_counter() - started}
 
@@ -232,7 +254,9 @@ def main() -> int:
             f"{median['run, plots serial'] - median['no-plots']:.3f} s); the child's start as a new interpreter "
             f"adds {median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
             f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s; leaving without Python's teardown "
-            f"saves {median['no-plots, full teardown'] - median['no-plots']:.3f} s"
+            f"saves {median['no-plots, full teardown'] - median['no-plots']:.3f} s; the imports frozen save "
+            f"{median['run, collector on'] - median['run']:.3f} s with plots, "
+            f"{median['no-plots, collector on'] - median['no-plots']:.3f} s without"
         )
         alone = median["the run's libraries alone"]
         print(

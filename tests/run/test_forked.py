@@ -141,6 +141,37 @@ def test_a_failed_preparation_is_the_calls_exception_and_a_helper_asked_nothing_
     idle.close()
 
 
+#: what a helper's preparation saw and made (set in the child, read there by _collector_state)
+_PREPARED: dict = {}
+
+
+def _prepare_objects() -> None:
+    import gc
+
+    _PREPARED["collector on"] = gc.isenabled()
+    _PREPARED["made"] = [[index] for index in range(30_000)]  # 30 001 containers the collector tracks
+
+
+def _collector_state() -> tuple[bool, bool, int]:
+    import gc
+
+    return _PREPARED["collector on"], gc.isenabled(), gc.get_freeze_count()
+
+
+def test_a_helper_prepares_without_the_collector_and_freezes_what_it_made(forking, tmp_path):
+    import gc
+
+    assert gc.isenabled()
+    helper = Helper.start(_prepare_objects)
+    assert helper is not None
+    with helper:
+        helper.submit(_collector_state, (), tmp_path / "job.pickle")
+        on_while_preparing, on_after, frozen = helper.result()
+    assert not on_while_preparing and on_after  # off while it imports, on again for its call
+    assert frozen >= 30_001  # what it prepared (and all it inherited) is never scanned again
+    assert gc.isenabled() and gc.get_freeze_count() == 0  # this process's collector untouched
+
+
 def test_closing_a_helper_kills_it_and_what_it_forked_and_reaps_it(forking, tmp_path):
     pid_file = tmp_path / "grandchild.pid"
     helper = Helper.start(lambda: None)

@@ -8,13 +8,15 @@ returning an exit status). This module only assembles them and turns a
 input); a KeyboardInterrupt that reaches it becomes one line and exit status 130, and a stop
 signal (SIGINT, SIGTERM, SIGHUP) from the very start, while the commands' modules are imported,
 one line and 128 + its number (:func:`~heliostep.cli.signals.signals_end_the_command`).
-The installed command is :func:`console_main`: :func:`main`, then :func:`leave` with its status.
+The installed command is :func:`console_main`: :func:`main` (its command's modules imported without
+the garbage collector, then frozen: :mod:`heliostep.collector`), then :func:`leave` with its status.
 """
 
 from __future__ import annotations
 
 import argparse
 import atexit
+import contextlib
 import importlib
 import os
 import sys
@@ -23,6 +25,7 @@ from typing import NoReturn
 
 from heliostep._version import __version__
 from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command
+from heliostep.collector import imports_frozen
 from heliostep.errors import HeliostepError, RunFailure
 
 #: The commands and the modules that provide them, in the order ``--help`` lists them.
@@ -59,13 +62,20 @@ def make_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, freeze_imports: bool = False) -> int:
+    """The command ``argv`` names (default ``sys.argv[1:]``) run; its exit status.
+
+    With ``freeze_imports`` (the installed command, :func:`console_main`), the command's modules are
+    imported with the garbage collector off and their objects frozen after
+    (:func:`heliostep.collector.imports_frozen`); called from Python, the caller's collector is left as it is.
+    """
     # first thing: a stop signal while the commands' modules are imported (half a second and
     # more) is one line and 128 + its number, never a traceback
     command = "heliostep"
     try:
         with signals_end_the_command() as starting:
-            parser = make_parser(argv)
+            with imports_frozen() if freeze_imports else contextlib.nullcontext():
+                parser = make_parser(argv)
             args = parser.parse_args(argv)
             if not getattr(args, "func", None):
                 parser.print_help()
@@ -98,8 +108,9 @@ def _run(command: str, args: argparse.Namespace) -> int:
 
 
 def console_main() -> NoReturn:
-    """The installed ``heliostep`` command (``[project.scripts]``): :func:`main`, then :func:`leave`."""
-    leave(main())
+    """The installed ``heliostep`` command (``[project.scripts]``): :func:`main` with its imports frozen, then
+    :func:`leave`."""
+    leave(main(freeze_imports=True))
 
 
 def leave(status: int) -> NoReturn:

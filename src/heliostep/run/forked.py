@@ -31,6 +31,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from heliostep.collector import imports_frozen
+
 __all__ = ["Helper", "can_fork", "in_parallel"]
 
 
@@ -87,6 +89,9 @@ class Helper:
       reaps the child. Its signal handlers are the default ones (a signal sent to it ends it).
     - The child leaves when this process closes the pipe without a call, and after its call, always
       with ``os._exit`` (no exit handler or finalizer of this process runs twice).
+    - ``prepare()`` runs without the garbage collector, and what is alive after it is frozen
+      (:func:`heliostep.collector.imports_frozen`): a drawer's first full collection used to come when its
+      job had arrived, 70 ms on the figures' critical path.
     """
 
     def __init__(self, pid: int, job: int, reply: int):
@@ -178,7 +183,8 @@ def _help(prepare: Callable[[], None], job: int, reply: int) -> int:
     for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(number, signal.SIG_DFL)
     try:
-        prepare()
+        with imports_frozen():  # what it imports is this child's for its life: never scanned again
+            prepare()
         prepared: BaseException | None = None
     except BaseException as exc:  # reported as the call's outcome
         prepared = exc
