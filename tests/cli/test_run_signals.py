@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import glob
 import json
+import select
 import signal
 import subprocess
 import time
@@ -141,7 +142,9 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
         tmp_path / "tmp",
     )
     assert process.stdout is not None
-    first_line = process.stdout.readline()  # blocks until the records are reported
+    readable, _, _ = select.select([process.stdout], [], [], 60.0)  # the records reported, or the pipe closed
+    assert readable, "the command reported nothing within 60 s"
+    first_line = process.stdout.readline()  # the report is printed and flushed whole: its first line is there
     assert first_line.startswith("jan21-central: complete -> "), (first_line, process.communicate())
     deadline = time.monotonic() + 60.0
     while not _staged_figures(out):  # the drawer has begun (its staging folder)
