@@ -308,3 +308,50 @@ def test_a_fork_server_that_cannot_start_leaves_the_child_executed(fmu_paths, mo
     executed = run_scenario(scenario, overrides, supervise=True)
     assert fork_server._CLIENT.broken and fork_server._CLIENT.process is None  # tried twice, then given up
     np.testing.assert_array_equal(inside.trace.to_numpy(), executed.trace.to_numpy())
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux's /proc to find the child")
+def test_the_writers_warm_up_runs_once_while_the_child_simulates_and_its_failure_loses_nothing(
+    fmu_paths, monkeypatch, caplog
+):
+    """The supervisor's ``meanwhile`` (the trace writers' warm-up, ``heliostep.run.runner``): called
+    once, with the simulating child alive; one that raises is logged as a warning and the run's trace
+    and figures are those of the run in process, bit for bit. A run that keeps no trace warms nothing."""
+    import heliostep.run.runner as runner
+    import heliostep.run.supervised as supervised
+    from heliostep.paths import scenarios_dir
+
+    monkeypatch.setattr(supervised, "START", "fork")
+    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=20",)
+    inside = run_scenario(scenario, overrides, supervise=False)
+    before, calls = set(_children(os.getpid())), []
+
+    def broken_warm_up() -> None:
+        calls.append(set(_children(os.getpid())) - before)
+        raise RuntimeError("warm-up broken")
+
+    monkeypatch.setattr(runner, "warm_up_writers", broken_warm_up)
+    with caplog.at_level("WARNING", logger="heliostep.run.supervised"):
+        supervised_run = run_scenario(scenario, overrides, supervise=True)
+    assert len(calls) == 1 and len(calls[0]) == 1, calls  # one call, the forked child running
+    assert "failed while the child simulated; the run goes on" in caplog.text and "warm-up broken" in caplog.text
+    assert supervised_run.complete is True
+    np.testing.assert_array_equal(inside.trace.to_numpy(), supervised_run.trace.to_numpy())
+    assert json.dumps(inside.summary, sort_keys=True, default=str) == json.dumps(
+        supervised_run.summary, sort_keys=True, default=str
+    )
+    figures_only = run_scenario(scenario, overrides, supervise=True, keep_trace=False)
+    assert len(calls) == 1 and figures_only.summary["peak_torque_Nm"] == inside.summary["peak_torque_Nm"]
+
+
+def test_the_writers_warm_up_imports_and_writes_in_memory_only(tmp_path):
+    """In a fresh process: before it, no ``pyarrow.parquet``; after it, imported, and no file written."""
+    code = (
+        "import sys; from heliostep.results.trace_io import warm_up_writers\n"
+        "assert 'pyarrow.parquet' not in sys.modules and 'pyarrow.csv' not in sys.modules\n"
+        "warm_up_writers()\n"
+        "assert 'pyarrow.parquet' in sys.modules and 'pyarrow.csv' in sys.modules\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert list(tmp_path.iterdir()) == []

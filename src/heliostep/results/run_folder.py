@@ -35,6 +35,7 @@ import signal
 import socket
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -229,18 +230,45 @@ def _write_manifest(folder: Path, files: Iterable[str], state: str) -> None:
     os.replace(tmp, path)
 
 
+#: The signals a swap holds back (those that stop a command, :mod:`heliostep.cli.signals`).
+HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
 @contextmanager
 def _stop_signals_blocked() -> Iterator[None]:
-    """SIGINT, SIGTERM and SIGHUP held back within the block (delivered on leaving it)."""
-    if not hasattr(signal, "pthread_sigmask"):  # not on Windows
-        yield
-        return
-    held = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    """SIGINT, SIGTERM and SIGHUP held back within the block (delivered on leaving it).
+
+    Masking them (``pthread_sigmask``) holds back only what is sent to this thread: a signal sent
+    to the process (``kill``, Ctrl+C) then goes to a thread that does not mask it (OpenBLAS's,
+    Arrow's, a helper thread), and Python runs its handler in the main thread at once, inside the
+    block. So in the main thread the Python handlers are also replaced, within the block, by one
+    that only notes the signal; on leaving, the handlers are put back and each signal noted is
+    raised again, once (as the mask delivers a pending signal once). A signal ignored, or handled
+    outside Python, keeps its disposition (and only the mask holds it back).
+    """
+    noted: list[int] = []
+
+    def note(signum, frame):
+        if signum not in noted:
+            noted.append(signum)
+
+    replaced = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in HELD_SIGNALS:
+            current = signal.getsignal(sig)
+            if callable(current) or current == signal.SIG_DFL:
+                replaced[sig] = signal.signal(sig, note)
+    masked = hasattr(signal, "pthread_sigmask")  # (not on Windows)
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, HELD_SIGNALS) if masked else set()
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a pending signal's handler: note()
+        for sig, handler in replaced.items():
+            signal.signal(sig, handler)  # (handles what is pending first: noted too)
+        for signum in noted:
+            signal.raise_signal(signum)  # to the handlers that were there before
 
 
 def swap_in(folder: str | Path, staging: Path, names: Iterable[str], keep: Iterable[str] = ()) -> dict[str, Path]:

@@ -13,7 +13,7 @@ import numpy as np
 from heliostep.errors import InputError, RunFailure
 from heliostep.results.trace_format import TIME, check_parquet_keys, check_time, clean_metadata, trace_format
 
-__all__ = ["TRACE_ENCODING", "TraceWriteError", "TraceWriter"]
+__all__ = ["PARQUET_OPTIONS", "TRACE_ENCODING", "TraceWriteError", "TraceWriter"]
 
 
 class TraceWriteError(RunFailure):
@@ -51,6 +51,9 @@ class _ByteCounter(io.RawIOBase):
 
 #: How a trace's float64 columns are encoded in Parquet (pyarrow.parquet.ParquetWriter options).
 TRACE_ENCODING = {"use_dictionary": False, "column_encoding": "BYTE_STREAM_SPLIT"}
+#: Every option a trace's ParquetWriter is given: its encoding, zstd, and no serialized Arrow schema
+#: (see :class:`TraceWriter`).
+PARQUET_OPTIONS = {"compression": "zstd", "store_schema": False, **TRACE_ENCODING}
 
 
 class TraceWriter:
@@ -90,11 +93,10 @@ class TraceWriter:
         # float64 split into its 8 byte planes (BYTE_STREAM_SPLIT), then zstd; against Parquet's
         # default dictionary encoding, which the continuous columns overflow, the row groups are
         # written 3-4x faster and take 40 % less space (benchmarks/bench_trace_io.py)
-        options = {"compression": "zstd", "store_schema": False, **TRACE_ENCODING}
-        self._writer = pq.ParquetWriter(self.path, self._schema, **options)
+        self._writer = pq.ParquetWriter(self.path, self._schema, **PARQUET_OPTIONS)
         # the same row groups written nowhere: its footer is the one for the groups written so far
         self._shadow_sink = _ByteCounter()
-        self._shadow = pq.ParquetWriter(self._shadow_sink, self._schema, **options) if keep_on_failure else None
+        self._shadow = pq.ParquetWriter(self._shadow_sink, self._schema, **PARQUET_OPTIONS) if keep_on_failure else None
         self._pa = pa
 
     @property

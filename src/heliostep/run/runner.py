@@ -35,7 +35,7 @@ from heliostep.results.row_sinks import HeldTrace, RowSink
 from heliostep.results.run_figures import FigureStream, RunFigures
 from heliostep.results.run_summary import RunMetadata, RunStatus
 from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
-from heliostep.results.trace_io import ROW_GROUP_ROWS
+from heliostep.results.trace_io import ROW_GROUP_ROWS, warm_up_writers
 from heliostep.results.trace_stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
 from heliostep.run.estimate import check_budget, estimate_run
@@ -274,8 +274,9 @@ def _co_simulate(
     inputs = prepared.inputs
     bar = _progress_bar(inputs.duration) if progress else None
     simulate = prepared.system.simulate
-    if supervision is not None:
-        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=supervision[0])
+    if supervision is not None:  # a kept trace's writers warmed up while the child simulates (a fresh process)
+        meanwhile = warm_up_writers if sink.trace_kept else None
+        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=supervision[0], meanwhile=meanwhile)
     try:
         result = simulate(
             0.0,

@@ -25,6 +25,7 @@ the call record) are in a folder of the supervisor's, removed on every path.
 
 from __future__ import annotations
 
+import logging
 import mmap
 import os
 import pickle
@@ -54,6 +55,8 @@ from heliostep.cosim.watch import LAYOUT, RECORD_BYTES, STOP_OFFSET, called_func
 from heliostep.errors import HeliostepError, InputError
 
 __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_supervised"]
+
+logger = logging.getLogger(__name__)
 
 #: Seconds without a new FMI call (and without a message from the child) before the supervisor
 #: declares the FMU hung (a model evaluation takes microseconds to milliseconds).
@@ -194,10 +197,22 @@ class _Supervisor:
         self.ended = False  # the child's end of the socket is closed
         self.started = False  # the child has its request: from now on the watchdog runs
 
-    def run(self, should_stop: Callable[[], bool] | None) -> tuple[str, object]:
-        """Serve the child until it reports its outcome or fails; returns (kind, payload)."""
+    def run(
+        self, should_stop: Callable[[], bool] | None, meanwhile: Callable[[], None] | None = None
+    ) -> tuple[str, object]:
+        """Serve the child until it reports its outcome or fails; returns (kind, payload).
+
+        ``meanwhile()`` is called once, when the child has its request and before any of its
+        messages is served (the child simulates meanwhile; its messages wait in the socket). An
+        exception from it is logged as a warning, and the run goes on: the rows are not lost for it.
+        """
         if not self.forked:  # a forked child has it already
             self.connection.send_bytes(pickle.dumps(self.request, protocol=pickle.HIGHEST_PROTOCOL))
+        if meanwhile is not None:
+            try:
+                meanwhile()
+            except Exception:
+                logger.warning("%r failed while the child simulated; the run goes on", meanwhile, exc_info=True)
         calls, progressed, stop_asked = -1, clock.monotonic(), None
         while self.outcome is None:
             received = self._receive()  # for at most about _POLL
@@ -320,10 +335,15 @@ def simulate_supervised(
     sink: Callable[[np.ndarray], None] | None = None,
     sink_rows: int = 4096,
     watchdog: float = DEFAULT_WATCHDOG,
+    meanwhile: Callable[[], None] | None = None,
 ) -> MasterResult:
     """``system.simulate(...)`` in a supervised child process (see the module docstring).
 
-    ``watchdog`` [s]: how long no FMI call may begin before the FMU counts as hung.
+    ``watchdog`` [s]: how long no FMI call may begin before the FMU counts as hung. ``meanwhile``:
+    work of the caller's own done in this process while the child starts simulating (called once,
+    before the first of the child's rows is served; an exception from it is logged as a warning
+    and does not end the run), e.g. the trace writers' first-use costs
+    (:func:`heliostep.results.trace_io.warm_up_writers`).
     """
     if not watchdog > 0:
         raise InputError(f"watchdog: {watchdog!r} s; expected a positive number of seconds")
@@ -351,7 +371,7 @@ def simulate_supervised(
     supervisor = None
     try:
         supervisor = _Supervisor(request, folder, callbacks, watchdog)
-        kind, payload = supervisor.run(should_stop)
+        kind, payload = supervisor.run(should_stop, meanwhile)
     finally:
         if supervisor is not None:
             supervisor.close()
