@@ -157,6 +157,27 @@ def _one_run(out: Path) -> set[str]:
     return set(manifest["files"])
 
 
+def test_a_second_ctrl_c_between_the_simulation_and_the_writing_leaves_no_temporary(tmp_path, fmu_paths, monkeypatch):
+    """The second stop signal can land anywhere, e.g. while the stop is reported, after the streamed
+    trace is finished and before the writing's own ``try`` (there the stream,
+    ``.heliostep-tmp-*-trace.parquet``, was left beside the old run): raised there, the old run
+    stays whole and nothing temporary is left."""
+    import heliostep.cli.run as cli_run
+    from heliostep.cli.signals import ForcedStop
+
+    out = tmp_path / "out"
+    assert main(["run", SCENARIO, "--out", str(out), *SHORT, "--no-plots"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def second_signal(result):  # (where the stop is reported and its warnings printed)
+        assert list(out.glob(".heliostep-tmp-*-trace.parquet"))  # the stream (over an hour), finished
+        raise ForcedStop(signal.SIGINT)
+
+    monkeypatch.setattr(cli_run, "_warn", second_signal)
+    assert main(["run", SCENARIO, "--out", str(out), "--set", "window.duration=3700", "--no-plots"]) == 130
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # the old run, whole; nothing beside it
+
+
 @pytest.mark.parametrize("gap", [0.0, 0.2])
 def test_a_double_ctrl_c_while_a_rerun_writes_leaves_one_run_never_old_beside_new(gap, tmp_path, fmu_paths):
     out = tmp_path / "out"

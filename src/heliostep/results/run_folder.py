@@ -5,7 +5,8 @@ its results swapped in at once.
   holder's pid and command written in it) for as long as the block runs; a second run into the
   same folder is an :class:`~heliostep.errors.InputError` naming the holder. The kernel drops an
   ``flock`` when its process dies, so the lock of a killed run is taken over by the next one.
-  Once held, the temporary files and folders of dead runs (``.heliostep-tmp-*``) are removed.
+  Once held, the temporary files and folders of dead runs (``.heliostep-tmp-*``) are removed;
+  when a stop (a second Ctrl+C) leaves the block, so are the command's own.
 * The manifest (``.heliostep-manifest.json``) lists the files heliostep wrote into the folder,
   the names of what was actually written (:func:`swap_in` writes it); a later run removes or
   replaces only those. :func:`check_foreign` refuses, before simulating, a folder holding a file
@@ -146,7 +147,15 @@ def _read_record(fd: int) -> dict:
 @contextmanager
 def hold_folder(folder: str | Path, command: str | None = None) -> Iterator[FolderLock]:
     """Hold ``folder``'s lock within the block (again within it: the same lock); on taking it,
-    remove what dead runs left there (:func:`remove_leftovers`)."""
+    remove what dead runs left there (:func:`remove_leftovers`).
+
+    A block left by a stop that asks for no more writing (a ``BaseException`` that is not an
+    ``Exception``: a second Ctrl+C's ``ForcedStop``, ``KeyboardInterrupt``, ``SystemExit``) also
+    removes every temporary file and folder (``.heliostep-tmp-*``) in ``folder`` before the lock
+    goes: with the lock held since the dead runs' were removed, they are all this command's, and a
+    stop can come between any two bytecodes, e.g. after a staging folder is made and before the
+    ``try`` that removes it. A block left by an error keeps them (a streamed trace that nowhere else
+    could take holds computed rows)."""
     folder = Path(folder)
     key = os.path.realpath(folder)
     if key in _HELD:
@@ -157,9 +166,29 @@ def hold_folder(folder: str | Path, command: str | None = None) -> Iterator[Fold
     try:
         remove_leftovers(folder)
         yield lock
+    except BaseException as exc:
+        if not isinstance(exc, Exception):
+            _remove_temporaries(folder)
+        raise
     finally:
         _HELD.pop(key, None)
         lock.release()
+
+
+def _remove_temporaries(folder: Path) -> None:
+    """Every ``.heliostep-tmp-*`` file and folder in ``folder`` removed (errors ignored: the stop goes on)."""
+    try:
+        entries = [entry for entry in Path(folder).iterdir() if entry.name.startswith(TMP_PREFIX)]
+    except OSError:
+        return
+    for entry in entries:
+        try:
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+        except OSError:
+            pass
 
 
 def remove_leftovers(folder: Path) -> list[Path]:

@@ -170,7 +170,40 @@ def _dask_client(
         ) as cluster,
         Client(cluster) as local,
     ):
-        yield local
+        try:
+            yield local
+        finally:
+            _close_quietly(local, cluster)
+
+
+def _close_quietly(client, cluster) -> None:
+    """Close heliostep's own local cluster with distributed's messages silenced, in its workers and here.
+
+    While a cluster closes, its processes can report the closing itself: a worker whose heartbeat finds
+    the scheduler gone logs the failure with its traceback (``distributed.worker``, at ERROR), e.g. after
+    a Ctrl+C that stopped a band mid-sample. Those are the shutdown's, not the user's; a failed case is
+    reported by heliostep. The workers are told first (:func:`_silence_distributed_logs`, errors
+    ignored: a worker that is gone says nothing), then the client and the cluster are closed with this
+    process's own handlers silenced the same way (the ``with`` around them then finds them closed).
+    """
+    from distributed.utils import silence_logging_cmgr
+
+    try:
+        client.run(_silence_distributed_logs, on_error="ignore")
+    except Exception:  # noqa: BLE001 - a cluster already broken: closing it is all that is left
+        pass
+    with silence_logging_cmgr(logging.CRITICAL):
+        client.close()
+        cluster.close()
+
+
+def _silence_distributed_logs() -> bool:
+    """Run on a worker of heliostep's own local cluster just before it closes: distributed's stream handlers
+    (where its loggers' records end) pass only CRITICAL records from then on."""
+    for handler in logging.getLogger("distributed").handlers:
+        if isinstance(handler, logging.StreamHandler):
+            handler.setLevel(logging.CRITICAL)
+    return True
 
 
 def _progress_bar(total: int, enabled: bool):
