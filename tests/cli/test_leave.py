@@ -111,3 +111,54 @@ def test_the_installed_command_leaves_with_its_report_and_files_whole(tmp_path):
         timeout=600,
     )
     assert bad.returncode == 2 and "window.duration" in bad.stderr
+
+
+#: The installed command's path (:func:`heliostep.cli.console_main`) on 10 s of the paper's case, with an exit
+#: handler that signals the process while the exit handlers run (the FMUs' unpack folders are removed there),
+#: ``SIGNALS`` times; ``LEAVING``: the handlers kept for the exit, as the installed command keeps them.
+SIGNALLED_EXIT = """
+import atexit, os, pathlib, signal
+from heliostep.cli import main
+folder = pathlib.Path(sys.argv[1])
+
+def clean_up():  # registered first: runs last, after heliostep's own exit handlers
+    for _ in range(SIGNALS):
+        os.kill(os.getpid(), signal.SIGINT)
+        sum(range(10**5))  # (the handler runs between two bytecodes here)
+    (folder / "cleaned").write_text("the clean-up went on")
+
+atexit.register(clean_up)
+status = main(
+    ["run", SCENARIO, "--out", str(folder / "run"), "--no-plots", "--set", "window.duration=10"],
+    freeze_imports=True,
+    leaving=LEAVING,
+)
+leave(status)
+"""
+
+
+def _signalled_exit(tmp_path, signals: int, leaving: bool) -> subprocess.CompletedProcess:
+    scenario = repr(str(scenarios_dir() / "jan21-central.yaml"))
+    body = SIGNALLED_EXIT.replace("SCENARIO", scenario).replace("SIGNALS", str(signals))
+    return run_program(body.replace("LEAVING", str(leaving)), tmp_path, capture_output=True, text=True)
+
+
+def test_a_signal_while_the_command_leaves_lets_the_clean_up_finish_and_keeps_its_status(tmp_path, fmu_paths):
+    done = _signalled_exit(tmp_path, signals=1, leaving=True)
+    assert done.returncode == 0 and "Traceback" not in done.stderr and "ignored" not in done.stderr, done.stderr
+    assert (tmp_path / "cleaned").read_text() == "the clean-up went on"
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["complete"] is True
+
+
+def test_a_second_signal_while_the_command_leaves_ends_it_at_once(tmp_path, fmu_paths):
+    done = _signalled_exit(tmp_path, signals=2, leaving=True)
+    assert done.returncode == 130 and "Traceback" not in done.stderr, done.stderr
+    assert not (tmp_path / "cleaned").exists()  # ended at the second, as asked
+
+
+def test_without_the_handlers_kept_for_the_exit_the_signal_is_a_traceback_in_the_clean_up(tmp_path, fmu_paths):
+    """The control (``main`` called from Python restores the caller's handlers: Python's own, here): the
+    signal raises KeyboardInterrupt inside the exit handler, which Python prints and drops."""
+    done = _signalled_exit(tmp_path, signals=1, leaving=False)
+    assert "Exception ignored in atexit callback" in done.stderr and "KeyboardInterrupt" in done.stderr, done.stderr
+    assert not (tmp_path / "cleaned").exists()

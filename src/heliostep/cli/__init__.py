@@ -62,18 +62,22 @@ def make_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None, *, freeze_imports: bool = False) -> int:
+def main(argv: list[str] | None = None, *, freeze_imports: bool = False, leaving: bool = False) -> int:
     """The command ``argv`` names (default ``sys.argv[1:]``) run; its exit status.
 
     With ``freeze_imports`` (the installed command, :func:`console_main`), the command's modules are
     imported with the garbage collector off and their objects frozen after
     (:func:`heliostep.collector.imports_frozen`); called from Python, the caller's collector is left as it is.
+    With ``leaving`` (the installed command, which then leaves the process), the stop-signal handlers stay
+    for the exit: a signal there no longer cuts the exit handlers' clean-up short
+    (:func:`~heliostep.cli.signals.signals_end_the_command`); called from Python, the caller's handlers are
+    restored.
     """
     # first thing: a stop signal while the commands' modules are imported (half a second and
     # more) is one line and 128 + its number, never a traceback
     command = "heliostep"
     try:
-        with signals_end_the_command() as starting:
+        with signals_end_the_command(keep_for_exit=leaving) as starting:
             with imports_frozen() if freeze_imports else contextlib.nullcontext():
                 parser = make_parser(argv)
             args = parser.parse_args(argv)
@@ -108,9 +112,9 @@ def _run(command: str, args: argparse.Namespace) -> int:
 
 
 def console_main() -> NoReturn:
-    """The installed ``heliostep`` command (``[project.scripts]``): :func:`main` with its imports frozen, then
-    :func:`leave`."""
-    leave(main(freeze_imports=True))
+    """The installed ``heliostep`` command (``[project.scripts]``): :func:`main` with its imports frozen and
+    its stop-signal handlers kept for the exit, then :func:`leave`."""
+    leave(main(freeze_imports=True, leaving=True))
 
 
 def leave(status: int) -> NoReturn:
