@@ -1,6 +1,7 @@
 """``heliostep.results.run_folder``'s swap holds the stop signals back, also those the kernel
 delivers to another thread of the process (the race behind a double Ctrl+C that left a folder's
-manifest at ``swapping``: tests/run/test_owned_folder.py)."""
+manifest at ``swapping``: tests/run/test_owned_folder.py), and a stop leaving a held folder removes
+the command's temporary files."""
 
 from __future__ import annotations
 
