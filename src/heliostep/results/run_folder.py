@@ -168,25 +168,38 @@ def hold_folder(folder: str | Path, command: str | None = None) -> Iterator[Fold
         yield lock
     except BaseException as exc:
         if not isinstance(exc, Exception):
-            _remove_temporaries(folder)
+            _remove_all_temporaries(folder)
         raise
     finally:
         _HELD.pop(key, None)
         lock.release()
 
 
-def _remove_temporaries(folder: Path) -> None:
+def _temporaries(folder: Path, spare: tuple[str, ...] = ()) -> list[Path]:
+    """The temporary files and folders (``.heliostep-tmp-*``) in ``folder``, but those named ``spare*``."""
+    return [
+        entry
+        for entry in Path(folder).iterdir()
+        if entry.name.startswith(TMP_PREFIX) and not (spare and entry.name.startswith(spare))
+    ]
+
+
+def _remove_temporary(entry: Path) -> None:
+    if entry.is_dir() and not entry.is_symlink():
+        shutil.rmtree(entry, ignore_errors=True)
+    else:
+        entry.unlink(missing_ok=True)
+
+
+def _remove_all_temporaries(folder: Path) -> None:
     """Every ``.heliostep-tmp-*`` file and folder in ``folder`` removed (errors ignored: the stop goes on)."""
     try:
-        entries = [entry for entry in Path(folder).iterdir() if entry.name.startswith(TMP_PREFIX)]
+        entries = _temporaries(folder)
     except OSError:
         return
     for entry in entries:
         try:
-            if entry.is_dir() and not entry.is_symlink():
-                shutil.rmtree(entry, ignore_errors=True)
-            else:
-                entry.unlink(missing_ok=True)
+            _remove_temporary(entry)
         except OSError:
             pass
 
@@ -194,18 +207,9 @@ def _remove_temporaries(folder: Path) -> None:
 def remove_leftovers(folder: Path) -> list[Path]:
     """Remove the temporary files and folders (``.heliostep-tmp-*``) in ``folder`` not of this
     process: with the lock held, they are those of runs that died."""
-    removed = []
-    mine = f"{TMP_PREFIX}{os.getpid()}-"
-    for entry in Path(folder).iterdir():
-        if not entry.name.startswith(TMP_PREFIX) or entry.name.startswith(mine):
-            continue
-        if entry.name.startswith(STAGING_PREFIX + f"{os.getpid()}-"):
-            continue
-        if entry.is_dir() and not entry.is_symlink():
-            shutil.rmtree(entry, ignore_errors=True)
-        else:
-            entry.unlink(missing_ok=True)
-        removed.append(entry)
+    removed = _temporaries(folder, spare=(f"{TMP_PREFIX}{os.getpid()}-", f"{STAGING_PREFIX}{os.getpid()}-"))
+    for entry in removed:
+        _remove_temporary(entry)
     return removed
 
 
