@@ -7,7 +7,8 @@ plots), the same with ``--no-plots``, and two references that say how loaded the
 ``python -c pass`` (the interpreter alone) and ``python -c "import pvlib"`` (issue #26: 0.7 s on a
 quiet machine), and one that says what no change to heliostep can take off a run: the third-party modules
 a ``--no-plots`` run imports, imported alone (:data:`LIBRARIES`, with the garbage collector off, as the command
-imports them). The command is timed as installed (``heliostep.cli.console_main``: its command's modules
+imports them), and the same but pandas (:data:`LIBRARIES_BUT_PANDAS`: what pandas' import adds to a run). The
+command is timed as installed (``heliostep.cli.console_main``: its command's modules
 imported without the garbage collector and frozen after, ``heliostep.collector``; it leaves without Python's
 teardown, ``heliostep.cli.leave``), once more ending with the whole teardown
 (``sys.exit(main(freeze_imports=True))``), and once with the collector on while it imports (``leave(main())``,
@@ -65,6 +66,9 @@ HELIOSTEP_COLLECTING = [sys.executable, "-c", "from heliostep.cli import leave, 
 #: not), imported alone with the garbage collector off (as the command imports them) and left as the command
 #: leaves: what no change to heliostep can take off the run
 LIBRARIES = "numpy, pandas, scipy.interpolate, scipy.special, pydantic, yaml, pyarrow.parquet, fmpy.fmi2"
+#: the same but pandas (none of the others imports it): what pandas' import adds to every run. A run path
+#: that kept its trace as numpy and Arrow columns, and its times as numpy datetimes, would not pay it
+LIBRARIES_BUT_PANDAS = ", ".join(name for name in LIBRARIES.split(", ") if name != "pandas")
 
 #: A stage that holds others (the records written while the drawer, forked before the simulation, draws the
 #: plots, whose ``draw_figures`` runs in the drawer, so is not timed here): shown, not added to the stages' sum.
@@ -141,6 +145,15 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
         "python -c pass": ([sys.executable, "-c", "pass"], None),
         "the run's libraries alone": (
             [sys.executable, "-c", f"import gc; gc.disable(); import os, {LIBRARIES}; os._exit(0)"],
+            None,
+        ),
+        "the run's libraries but pandas": (
+            [
+                sys.executable,
+                "-c",
+                f"import gc; gc.disable(); import os, sys, {LIBRARIES_BUT_PANDAS}; "
+                "assert 'pandas' not in sys.modules; os._exit(0)",
+            ],
             None,
         ),
         "import pvlib": ([sys.executable, "-c", "import pvlib"], None),
@@ -259,9 +272,11 @@ def main() -> int:
             f"{median['no-plots, collector on'] - median['no-plots']:.3f} s without"
         )
         alone = median["the run's libraries alone"]
+        no_pandas = median["the run's libraries but pandas"]
         print(
             f"  the run's libraries imported alone ({LIBRARIES}): {alone:.3f} s, "
-            f"{alone / median['no-plots']:.2f} of the no-plots run"
+            f"{alone / median['no-plots']:.2f} of the no-plots run; without pandas "
+            f"{no_pandas:.3f} s: pandas adds {alone - no_pandas:.3f} s to every run"
         )
         if args.baseline is not None:
             print(
