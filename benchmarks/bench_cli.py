@@ -5,7 +5,7 @@
 Each repeat runs, side by side and alternating, a fresh ``heliostep run SCENARIO --out <tmp>`` (with
 plots), the same with ``--no-plots``, and two references that say how loaded the machine is:
 ``python -c pass`` (the interpreter alone) and ``python -c "import pvlib"`` (issue #26: 0.7 s on a
-quiet machine), and one that says what no change to heliostep can take off a run: the third-party modules
+quiet machine), and one that says what heliostep's own code cannot take off a run: the third-party modules
 a ``--no-plots`` run imports, imported alone (:data:`LIBRARIES`, with the garbage collector off, as the command
 imports them), and the same but pandas (:data:`LIBRARIES_BUT_PANDAS`: what pandas' import adds to a run). The
 command is timed as installed (``heliostep.cli.console_main``: its command's modules
@@ -64,7 +64,7 @@ HELIOSTEP_TEARDOWN = [
 HELIOSTEP_COLLECTING = [sys.executable, "-c", "from heliostep.cli import leave, main; leave(main())"]
 #: the third-party modules a ``--no-plots`` run imports (``tests/cli/test_run_imports.py`` checks what it does
 #: not), imported alone with the garbage collector off (as the command imports them) and left as the command
-#: leaves: what no change to heliostep can take off the run
+#: leaves: what no change to heliostep's code can take off the run (pandas aside: :data:`LIBRARIES_BUT_PANDAS`)
 LIBRARIES = "numpy, pandas, scipy.interpolate, scipy.special, pydantic, yaml, pyarrow.parquet, fmpy.fmi2"
 #: the same but pandas (none of the others imports it): what pandas' import adds to every run. A run path
 #: that kept its trace as numpy and Arrow columns, and its times as numpy datetimes, would not pay it
