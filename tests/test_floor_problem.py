@@ -4,8 +4,9 @@ Every speed figure of issue #26 is a ratio to that floor: a plain C right-hand s
 the models, on the same CVODE. If the models or the runner's parameters change and the floor does not, the
 ratio compares two different problems (it did once: the floor left out the detent torque and took 11 %
 fewer internal steps). So the paper's five minutes must end at the same panel angle to within the solver's
-tolerance, with RHS counts within 1 % (the integration itself is the same; the two paths differ only in
-where CVODE is stopped), and every parameter the floor reads must be one the FMUs declare.
+tolerance, with RHS counts within 4 % (the integration itself is the same; the two paths differ in where CVODE
+is stopped and in the last bits of their arithmetic, which moved CVODE's step choices by up to 2.2 %), and every
+parameter the floor reads must be one the FMUs declare.
 """
 
 from __future__ import annotations
@@ -42,7 +43,11 @@ def test_the_floor_ends_the_papers_case_where_heliostep_does_with_the_same_work(
     moved = panel - float(run.trace["mechanics.theta_p"].iloc[0])
     assert abs(moved) > 3e-3  # 16 steps: 3.3 mrad of panel travel, against which the two agree to 1e-9 rad
     assert floor_panel == pytest.approx(panel, rel=0, abs=1e-8)  # measured 3.9e-10 rad
-    assert floor_rhs == pytest.approx(rhs, rel=0.01)
+    # the counts are CVODE's step choices, which follow the last bits of two differently written right-hand sides
+    # (and of the libm code the CPU selects): within 1 % on the machines of earlier rounds (heliostep's 17 918 RHS,
+    # docs/performance.md), 2.2 % apart on an AMD EPYC (18 213 against 17 811); the floor without the detent
+    # torque was 11 % off
+    assert floor_rhs == pytest.approx(rhs, rel=0.04)
 
 
 def test_the_floor_reads_only_parameters_the_fmus_declare(floor, fmu_paths):

@@ -56,13 +56,13 @@ def _energy_text(power: np.ndarray, time: np.ndarray, figure: float | None = Non
 
 
 def plot_light(
-    series: pd.DataFrame, path: str | Path, metadata: Mapping, title: str = "", figures: Mapping | None = None
+    series: Mapping | pd.DataFrame, path: str | Path, metadata: Mapping, title: str = "", figures: Mapping | None = None
 ) -> Path | None:
     """Power on the tube over the window (:func:`light_figure`), written to ``path``.
 
     Parameters
     ----------
-    series : pandas.DataFrame
+    series : pandas.DataFrame or Mapping of arrays
         :func:`heliostep.results.light.light_timeseries`: ``time`` [s], ``power_ideal_W``,
         ``power_reference_W`` and (optionally) ``power_shared_W``, ``power_actual_W`` and
         ``stepping_first_order_W`` [W].
@@ -89,18 +89,19 @@ def plot_light(
 
 
 def light_figure(
-    series: pd.DataFrame, metadata: Mapping, title: str = "", figures: Mapping | None = None
+    series: Mapping | pd.DataFrame, metadata: Mapping, title: str = "", figures: Mapping | None = None
 ) -> Figure | None:
     """The figure of :func:`plot_light`: the powers [kW] on an axis zoomed to them; below, the
     shared primary's loss and the reference law's part [W]; with the actual panel, a third panel
-    of the stepping's change and its first-order term [W]. None for fewer than two rows."""
-    if len(series) < 2:
+    of the stepping's change and its first-order term [W]. None for fewer than two rows. ``series``:
+    :func:`~heliostep.results.light.light_timeseries`' frame, or its columns as arrays."""
+    time = np.asarray(series["time"], dtype=float)
+    if len(time) < 2:
         return None
-    time = series["time"].to_numpy(dtype=float)
     clock = _Clock(metadata, time)
-    ideal, reference = series["power_ideal_W"].to_numpy(), series["power_reference_W"].to_numpy()
-    shared = series["power_shared_W"].to_numpy() if "power_shared_W" in series else ideal
-    actual = series["power_actual_W"].to_numpy() if "power_actual_W" in series else None
+    ideal, reference = (np.asarray(series[key], dtype=float) for key in ("power_ideal_W", "power_reference_W"))
+    shared = np.asarray(series["power_shared_W"], dtype=float) if "power_shared_W" in series else ideal
+    actual = np.asarray(series["power_actual_W"], dtype=float) if "power_actual_W" in series else None
     rows = 2 if actual is None else 3
     fig, axes = fixed_axes((9.0, 3.0 + 2.0 * rows), rows, _LEFT, height_ratios=(2,) + (1,) * (rows - 1))
     given = dict(figures or {})
@@ -113,7 +114,7 @@ def light_figure(
     if actual is not None:
         stepping = [(actual - reference, "stepping change (actual - reference): not a loss", "C0", "-")]
         if "stepping_first_order_W" in series:
-            first = series["stepping_first_order_W"].to_numpy()
+            first = np.asarray(series["stepping_first_order_W"], dtype=float)
             stepping.append((first, "its first-order term", "k", "--"))
         _draw_differences(axes[2], clock, time, stepping, "power change [W]", given)
     for ax in axes:
@@ -172,11 +173,19 @@ def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, ylabel:
 
 
 def plot_light_run(
-    trace: pd.DataFrame, metadata: Mapping, scenario, out_dir: str | Path, weather=None, figures: Mapping | None = None
+    trace: pd.DataFrame,
+    metadata: Mapping,
+    scenario,
+    out_dir: str | Path,
+    weather=None,
+    figures: Mapping | None = None,
+    series: Mapping | None = None,
 ) -> list[Path]:
     """Write ``POWER_FILE`` for a run (its trace, metadata and scenario; ``weather``, its weather
     file already read, see :func:`heliostep.results.light.light_timeseries`; ``figures``, its light figures for
-    the legends) into ``out_dir``.
+    the legends) into ``out_dir``. ``series``: the run's light at the trace's rows already computed (its
+    figures' :data:`~heliostep.results.light_rows.PLOT_COLUMNS`, ``RunResult.light_rows``), drawn when its times
+    are the trace's; otherwise the light is computed from the trace.
 
     Returns
     -------
@@ -185,7 +194,8 @@ def plot_light_run(
     """
     if len(trace) < 2:
         return []
-    series = light_timeseries(trace, metadata, scenario, weather)
+    if series is None or not np.array_equal(np.asarray(series["time"]), trace["time"].to_numpy(dtype=float)):
+        series = light_timeseries(trace, metadata, scenario, weather)
     mirror = scenario.mirror
     title = (
         f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, {mirror.axis} driven)"

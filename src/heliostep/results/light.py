@@ -42,7 +42,7 @@ is read one row group at a time; :func:`light_figures` of a whole trace is one b
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -67,18 +67,15 @@ COSINE_STEP = 1e-6
 
 def _row_times(trace: pd.DataFrame, metadata: Mapping) -> pd.DatetimeIndex:
     start = pd.Timestamp(metadata["window_start"])
-    if start.tzinfo is None:
-        start = start.tz_localize(metadata.get("timezone", "UTC"))
+    start = start if start.tzinfo is not None else start.tz_localize(metadata.get("timezone", "UTC"))
     return start + pd.to_timedelta(trace["time"].to_numpy(), unit="s")
 
 
 def _weather_path(scenario):
-    path = scenario.optics.weather_file
+    path, folder = scenario.optics.weather_file, getattr(scenario, "folder", None)
     if path is None:
         return None
-    path = Path(path)
-    folder = getattr(scenario, "folder", None)
-    return path if path.is_absolute() or folder is None else Path(folder) / path
+    return Path(path) if Path(path).is_absolute() or folder is None else Path(folder) / path
 
 
 def read_weather_file(scenario) -> irradiance.WeatherFile | None:
@@ -111,8 +108,7 @@ def load_weather(scenario) -> irradiance.WeatherFile | None:
 
 
 def _weather(scenario, weather):
-    """The DNI source of the light figures: ``weather`` when given (already read), else the
-    scenario's file (read now) or None (clear sky)."""
+    """The light figures' DNI source: ``weather`` (already read), else the scenario's file (read now) or None."""
     return weather if weather is not None else _weather_path(scenario)
 
 
@@ -305,7 +301,8 @@ class LightIntegrals:
     blocks by the previous block's last row, the intercept's weighted sums, the largest misses.
     It holds one block's rows (``max_block_rows``, the largest block) and nothing that grows with
     the trace. ``weather``: see :func:`light_timeseries`. ``first_order=False``: without the
-    stepping's first-order terms (their figures None; two attitudes' light fewer at every row)."""
+    stepping's first-order terms (their figures None; two attitudes' light fewer at every row). ``on_rows``, if
+    set, is given each block's columns as :func:`light_timeseries` has them (:class:`.light_rows.KeptRows`)."""
 
     def __init__(self, metadata: Mapping, scenario, weather=None, first_order: bool = True):
         self.metadata, self.scenario = metadata, scenario
@@ -320,6 +317,7 @@ class LightIntegrals:
         self.max_block_rows = 0
         self._window_grid: dict | None = None  # sun_grid over the whole window, from the first row
         self._marks = RowMarks(self.metadata.get("drive", {}).get("step_times", []))  # the rows' side (light_rows)
+        self.on_rows: Callable[[dict], None] | None = None
 
     def _whole_window_grid(self, origin: float) -> dict | None:
         """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
@@ -343,6 +341,8 @@ class LightIntegrals:
         series = _light_rows(
             block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid, self.first_order
         )
+        if self.on_rows is not None:
+            self.on_rows(series)
         powers = {key[len("power_") : -len("_W")]: value for key, value in series.items() if key.startswith("power_")}
         if "stepping_first_order_W" in series:
             powers["first_order"] = series["stepping_first_order_W"]

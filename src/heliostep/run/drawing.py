@@ -50,6 +50,7 @@ class FigureJob:
     scenario: Scenario
     weather: object
     summary: dict
+    light_rows: dict | None = None  # the figures' light at the rows of ``light`` (None: computed again)
 
 
 def draw_figures(job: FigureJob, out_dir: Path) -> list[Path]:
@@ -69,7 +70,9 @@ def draw_figures(job: FigureJob, out_dir: Path) -> list[Path]:
 
         def child_share() -> list[Path]:
             drawn = figures(CHILD_FIGURES)
-            return drawn + plot_light_run(job.light, job.metadata, job.scenario, staging, job.weather, job.summary)
+            return drawn + plot_light_run(
+                job.light, job.metadata, job.scenario, staging, job.weather, job.summary, series=job.light_rows
+            )
 
         theirs, ours = in_parallel(child_share, lambda: figures(OWN_FIGURES))
         order = [*FIGURE_FILES, POWER_FILE]

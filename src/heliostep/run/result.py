@@ -89,6 +89,9 @@ class RunResult:
     trace_kept: bool = True  # False: run_scenario(..., keep_trace=False), figures only
     solution_plot: SolutionPlotData | None = field(default=None, repr=False)  # drawn from every solver step
     unwritten_trace: pd.DataFrame | None = field(default=None, repr=False)  # rows after trace_file's end
+    #: the figures' light at every row of a held trace (``heliostep.results.light_rows.PLOT_COLUMNS``): what the power
+    #: on the tube is drawn from; None: computed again from the trace when drawn
+    light_rows: dict | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not self.trace_kept:
@@ -196,6 +199,7 @@ class RunResult:
             trace_metadata=self.trace_metadata(),
             solution_plot=self.solution_plot,
             light=self.trace_columns(["panel_angle_ref", panel_angle]),
+            light_rows=self.light_rows,
             metadata=self.metadata,
             scenario=self.scenario,
             weather=self.weather,

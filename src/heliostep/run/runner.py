@@ -239,6 +239,7 @@ def _row_sink(
     if not keep_trace:
         return FigureStream(columns, assembler, figures), None
     if not (prepared.inputs.duration > HELD_TRACE_MAX_DURATION if stream is None else stream):
+        figures.keep_light_rows()  # the power on the tube drawn from the figures' light (the trace is held too)
         return HeldTrace(columns, assembler, figures), None
     temporary = (
         None if trace_dir is not None else Path(tempfile.mkdtemp(prefix=f"heliostep-trace-{prepared.scenario.name}-"))
@@ -357,6 +358,7 @@ def _simulate_and_summarize(
         trace_kept=sink.trace_kept,
         solution_plot=figures.solution.plot_data() if figures.solution is not None else None,
         unwritten_trace=getattr(sink, "unwritten_trace", None),  # rows a full disk kept out of the stream
+        light_rows=figures.light_rows(),
     )
 
 
