@@ -33,7 +33,8 @@ __all__ = ["CHILD_FIGURES", "OWN_FIGURES", "FigureJob", "draw_figure_names", "dr
 
 #: The figures a forked child draws (with the power on the tube) while the drawing process draws
 #: :data:`OWN_FIGURES`: about half the drawing each (seconds per figure, the paper's case, ``bench_plots.py``:
-#: Figs. 8, 9 0.04; 14 0.05; 11, 12 0.07; 13 0.08; 10 0.12; the power on the tube 0.17, its light computed again).
+#: Figs. 8, 9 0.04; 14 0.05; 11, 12 0.07; 13 0.08; 10 0.12; the power on the tube 0.17 with its light computed
+#: again, 0.82x that from a held run's kept light, ``RunResult.light_rows``).
 CHILD_FIGURES = ("fig09_rotor_angle_ref.png", "fig13_panel_tracking.png", "fig14_torque_zoom.png")
 OWN_FIGURES = tuple(name for name in FIGURE_FILES if name not in CHILD_FIGURES)
 
