@@ -168,7 +168,7 @@ class PreparationStopped(Exception):
     """A stop request (SIGINT, SIGTERM, SIGHUP) came while the inputs were prepared: nothing was computed."""
 
 
-#: Steps scheduled between two looks at the stop request (about 50 ms).
+#: Steps scheduled between two looks at the stop request (few enough that a stop is seen at once).
 STOP_CHECK_STEPS = 1024
 
 

@@ -321,8 +321,7 @@ class LightIntegrals:
 
     def _whole_window_grid(self, origin: float) -> dict | None:
         """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
-        window's end, computed once (per block it cost pvlib's fixed overheads each time: about
-        10 ms a block); None when the first row is at or past the window's end. A block past it
+        window's end, computed once (per block it would pay pvlib's fixed overheads each time); None when the first row is at or past the window's end. A block past it
         computes its own points."""
         start, end = self.scenario.window_bounds()
         duration = (end - start).total_seconds()

@@ -21,7 +21,7 @@ with m0 the central ray's miss, L its slant distance (:func:`heliostep.solar.opt
 and S the sun. The width term is the flat mirror's projected width (u.e) less the focusing of a
 curved one (it vanishes at L = f (u.e) / k: in the cross-section, the tangential focus f cos(theta_i));
 the length term is the two-axis mirror's shear across the tube, v.e = sin q (r_x cos p - r_z sin p)
-/ rho (the issue's sin q sin p at d = 0). Over the mirror's area s and t are uniform (a uniform
+/ rho (sin q sin p at d = 0). Over the mirror's area s and t are uniform (a uniform
 image of half-widths A = |u.e - L k / f| w / 2 and B = |v.e| l / 2). The angular term gathers
 
 - the sun's disc, a pillbox of half-angle 4.65 mrad: reflection maps it to a disc about r, whose

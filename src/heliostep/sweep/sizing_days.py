@@ -104,7 +104,7 @@ def _date_of(year: int, day_of_year: int) -> dt.date:
 
 
 #: :func:`day_windows` of the last few (window, site) pairs: a sunrise-to-sunset window's 365 days take
-#: 365 SPA sunrise and sunset searches, about 3 s, and a sizing asks for them twice (its days, its stow angles).
+#: 365 SPA sunrise and sunset searches, and a sizing asks for them twice (its days, its stow angles).
 _WINDOWS_CACHE: dict[tuple[str, str], list] = {}
 _WINDOWS_CACHE_SIZE = 4
 
