@@ -2,37 +2,9 @@
 
     .venv/bin/python benchmarks/bench_cli.py [scenario.yaml] [--repeat 5] [--no-breakdown] [--baseline SRC]
 
-Each repeat runs, side by side and alternating, a fresh ``heliostep run SCENARIO --out <tmp>`` (with
-plots), the same with ``--no-plots``, and two references that say how loaded the machine is:
-``python -c pass`` (the interpreter alone) and ``python -c "import pvlib"`` (issue #26: 0.7 s on a
-quiet machine), and one that says what heliostep's own code cannot take off a run: the third-party modules
-a ``--no-plots`` run imports, imported alone (:data:`LIBRARIES`, with the garbage collector off, as the command
-imports them), and the same but pandas (:data:`LIBRARIES_BUT_PANDAS`: what pandas' import adds to a run). The
-command is timed as installed (``heliostep.cli.console_main``: its command's modules
-imported without the garbage collector and frozen after, ``heliostep.collector``; it leaves without Python's
-teardown, ``heliostep.cli.leave``), once more ending with the whole teardown
-(``sys.exit(main(freeze_imports=True))``), and once with the collector on while it imports (``leave(main())``,
-with plots and without). Bytecode is as a user's
-second run has it (written by the warm-up, into a folder of the benchmark's: ``PYTHONPYCACHEPREFIX``). A first
-run of each variant is not counted (it builds the FMUs and the kernel into
-``$HELIOSTEP_FMUS`` if they are not there). The line a script reads is the medians' line::
-
-    run: <s> s, no-plots <s> s
-
-followed by each variant's median wall and CPU time (user + system, the child processes' included), the
-figures drawn by default (on two cores, while the records are written, wherever a child can be forked), always
-on two (``HELIOSTEP_PARALLEL_PLOTS=1``: the same) and one after the other (``=0``),
-the references (with ``--baseline``, another checkout's ``src`` run the same way, side by side, and
-the ratios to it), the variants of the supervised child's start (``--no-supervise``; a
-child started as a new interpreter, ``HELIOSTEP_SUPERVISED_START=exec``, or forked by the fork server,
-``=server`` (its own start included: one run per process), against the default fork)
-and, unless ``--no-breakdown``, where one run's time goes: the process started once more with
-``--breakdown`` (this file as its own child), which times the stages of the run by wrapping their
-functions (the command's imports, the scenario read, the FMUs resolved and read, the drive inputs
-with the sun, the coupled system, the simulation in its supervised child, the figures, the files
-written, the plots) and the imports by package (``python -X importtime``, self times summed per
-top-level package). The wall times under load are several times a quiet machine's: compare the
-figures with the references of the same run.
+Median wall and CPU time (the children's included) of the variants, alternating; bytecode as a user's second run
+has it; the first run of each not counted. Then one run's stages timed inside the process and its imports by
+package (``-X importtime``). First line: ``run: <s> s, no-plots <s> s``.
 """
 
 from __future__ import annotations
@@ -53,28 +25,14 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "jan21-central.yaml"
 #: the installed command's entry point (``[project.scripts]``)
 HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
-#: the same ending with Python's whole teardown (``sys.exit``), as the command did before ``heliostep.cli.leave``
-HELIOSTEP_TEARDOWN = [
-    sys.executable,
-    "-c",
-    "import sys; from heliostep.cli import main; sys.exit(main(freeze_imports=True))",
-]
-#: the installed command but with the garbage collector on while its modules are imported, as before
-#: ``heliostep.collector.imports_frozen``
-HELIOSTEP_COLLECTING = [sys.executable, "-c", "from heliostep.cli import leave, main; leave(main())"]
 #: the third-party modules a ``--no-plots`` run imports (``tests/cli/test_run_imports.py`` checks what it does
-#: not), imported alone with the garbage collector off (as the command imports them) and left as the command
-#: leaves: what no change to heliostep's code can take off the run (pandas aside: :data:`LIBRARIES_BUT_PANDAS`)
+#: not), imported alone: what no change to heliostep's own code takes off a run
 LIBRARIES = "numpy, pandas, scipy.interpolate, scipy.special, pydantic, yaml, pyarrow.parquet, fmpy.fmi2"
-#: the same but pandas (none of the others imports it): what pandas' import adds to every run. A run path
-#: that kept its trace as numpy and Arrow columns, and its times as numpy datetimes, would not pay it
+#: the same but pandas (none of the others imports it): what pandas' import adds to every run
 LIBRARIES_BUT_PANDAS = ", ".join(name for name in LIBRARIES.split(", ") if name != "pandas")
 
-#: A stage that holds others (the records written while the drawer, forked before the simulation, draws the
-#: plots, whose ``draw_figures`` runs in the drawer, so is not timed here): shown, not added to the stages' sum.
-WHILE_DRAWING = "records written, plots drawn meanwhile by the drawer (the whole)"
-#: (label, module, attribute) of the functions the breakdown times: leaves of the run's call tree,
-#: so no time is counted twice; patched where they are looked up.
+#: (label, module, attribute) of the functions the breakdown times: leaves of the run's call tree, so no time is
+#: counted twice, patched where they are looked up (a function another tree does not have is left out).
 STAGES = (
     ("scenario read and checked", "heliostep.cli.run", "load_scenario"),
     ("estimate and budget", "heliostep.cli.run", "estimate_run"),
@@ -87,10 +45,8 @@ STAGES = (
     ("figure accumulator set up", "heliostep.run.runner", "_run_figures"),
     ("simulation (supervised child, rows fed to the figures)", "heliostep.run.runner", "_co_simulate"),
     ("figures after the simulation (light, summary)", "heliostep.results.run_figures.RunFigures", "summary"),
-    ("trace and records written", "heliostep.run.result.RunResult", "_write_staged"),
-    ("plots drawn (no drawer)", "heliostep.run.result.RunResult", "_draw"),
-    ("drawer forked (it imports the plotting modules meanwhile)", "heliostep.cli.run", "start_drawer"),
-    (WHILE_DRAWING, "heliostep.run.result.RunResult", "_write_while_drawing"),
+    ("trace and records written", "heliostep.run.result", "write_run_records"),
+    ("plots drawn", "heliostep.run.result.RunResult", "_draw"),
 )
 
 
@@ -114,46 +70,19 @@ def variants(scenario: Path, out: Path, baseline: Path | None = None) -> dict[st
     extra = {}
     if baseline is not None:
         old = {**os.environ, "PYTHONPATH": str(baseline)}
-        # its entry point: console_main where it has one, else as the command was before it
-        entry = "import sys; from heliostep import cli; getattr(cli, 'console_main', lambda: sys.exit(cli.main()))()"
-        old_run = [sys.executable, "-c", entry, "run", str(scenario)]
+        old_run = [*HELIOSTEP, "run", str(scenario)]
         extra = {
             "run, baseline": ([*old_run, "--out", str(out / "baseline-plots")], old),
             "no-plots, baseline": ([*old_run, "--out", str(out / "baseline-no-plots"), "--no-plots"], old),
         }
-    exec_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "exec"}
-    server_env = {**os.environ, "HELIOSTEP_SUPERVISED_START": "server"}  # one run: the server's start too
-    serial_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "0"}
-    forked_env = {**os.environ, "HELIOSTEP_PARALLEL_PLOTS": "1"}
     return {
         "run": ([*run, "--out", str(out / "plots")], None),
-        "run, plots forked": ([*run, "--out", str(out / "forked")], forked_env),
-        "run, plots serial": ([*run, "--out", str(out / "serial")], serial_env),
         "no-plots": ([*run, "--out", str(out / "no-plots"), "--no-plots"], None),
         "no-plots --no-supervise": ([*run, "--out", str(out / "unsupervised"), "--no-plots", "--no-supervise"], None),
-        "no-plots, child exec": ([*run, "--out", str(out / "exec"), "--no-plots"], exec_env),
-        "no-plots, child fork server": ([*run, "--out", str(out / "server"), "--no-plots"], server_env),
-        "run, collector on": ([*HELIOSTEP_COLLECTING, "run", str(scenario), "--out", str(out / "collecting")], None),
-        "no-plots, collector on": (
-            [*HELIOSTEP_COLLECTING, "run", str(scenario), "--out", str(out / "collecting-no-plots"), "--no-plots"],
-            None,
-        ),
-        "no-plots, full teardown": (
-            [*HELIOSTEP_TEARDOWN, "run", str(scenario), "--out", str(out / "teardown"), "--no-plots"],
-            None,
-        ),
         "python -c pass": ([sys.executable, "-c", "pass"], None),
-        "the run's libraries alone": (
-            [sys.executable, "-c", f"import gc; gc.disable(); import os, {LIBRARIES}; os._exit(0)"],
-            None,
-        ),
+        "the run's libraries alone": ([sys.executable, "-c", f"import {LIBRARIES}"], None),
         "the run's libraries but pandas": (
-            [
-                sys.executable,
-                "-c",
-                f"import gc; gc.disable(); import os, sys, {LIBRARIES_BUT_PANDAS}; "
-                "assert 'pandas' not in sys.modules; os._exit(0)",
-            ],
+            [sys.executable, "-c", f"import sys, {LIBRARIES_BUT_PANDAS}; assert 'pandas' not in sys.modules"],
             None,
         ),
         "import pvlib": ([sys.executable, "-c", "import pvlib"], None),
@@ -184,11 +113,8 @@ def breakdown_child(argv: list[str]) -> None:
     """Run ``heliostep`` with ``argv`` in this process, its stages timed; print one line per stage."""
     import importlib
 
-    from heliostep.collector import imports_frozen
-
     started = time.perf_counter()
-    with imports_frozen():  # as console_main imports them
-        import heliostep.cli.run  # noqa: F401  (the command's modules: what make_parser imports)
+    import heliostep.cli.run  # noqa: F401  (the command's modules: what make_parser imports)
 
     spent = {"imports of the command's modules": time.perf_counter() - started}
 
@@ -207,19 +133,20 @@ def breakdown_child(argv: list[str]) -> None:
         path = module_name.split(".")
         try:
             owner = importlib.import_module(module_name)
-        except ModuleNotFoundError:  # a class: module.Class
-            owner = getattr(importlib.import_module(".".join(path[:-1])), path[-1])
-        setattr(owner, attribute, timed(label, getattr(owner, attribute)))
+        except ModuleNotFoundError:  # a class: module.Class, or a module this tree does not have
+            try:
+                owner = getattr(importlib.import_module(".".join(path[:-1])), path[-1])
+            except (ModuleNotFoundError, AttributeError):
+                continue
+        if hasattr(owner, attribute):
+            setattr(owner, attribute, timed(label, getattr(owner, attribute)))
     from heliostep.cli import main
 
     status = main(argv)
     total = time.perf_counter() - started
     for label, seconds in spent.items():
         print(f"{seconds:8.3f} s  {label}")
-    leaves = sum(seconds for label, seconds in spent.items() if label != WHILE_DRAWING)
-    # in WHILE_DRAWING: the records written (a leaf, counted) and the wait for the child's plots
-    waited = spent[WHILE_DRAWING] - spent.get("trace and records written", 0.0) if WHILE_DRAWING in spent else 0.0
-    print(f"{total - leaves - waited:8.3f} s  other (parsing, folder lock, manifest, report)")
+    print(f"{total - sum(spent.values()):8.3f} s  other (parsing, folder lock, manifest, report)")
     print(f"{total:8.3f} s  in the process after the interpreter's start (exit status {status})")
 
 
@@ -238,9 +165,7 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory(prefix="heliostep-bench-cli-") as folder:
         out = Path(folder)
-        # bytecode as a user's second run has it: the first run writes it (a machine that sets
-        # PYTHONDONTWRITEBYTECODE, as this sandbox does, would compile heliostep's 100 modules in every run:
-        # 0.1 s), here into a folder of this benchmark's, not the source tree
+        # bytecode as a user's second run has it: the warm-up writes it, into a folder of this benchmark's
         os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
         os.environ["PYTHONPYCACHEPREFIX"] = str(out / "bytecode")
         timed = variants(args.scenario, out, args.baseline)
@@ -262,14 +187,8 @@ def main() -> int:
                 f"({', '.join(f'{v:.2f}' for v in values)})"
             )
         print(
-            f"  plots add {median['run'] - median['no-plots']:.3f} s (on two cores: "
-            f"{median['run, plots forked'] - median['no-plots']:.3f} s, one after the other: "
-            f"{median['run, plots serial'] - median['no-plots']:.3f} s); the child's start as a new interpreter "
-            f"adds {median['no-plots, child exec'] - median['no-plots']:.3f} s; supervision costs "
-            f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s; leaving without Python's teardown "
-            f"saves {median['no-plots, full teardown'] - median['no-plots']:.3f} s; the imports frozen save "
-            f"{median['run, collector on'] - median['run']:.3f} s with plots, "
-            f"{median['no-plots, collector on'] - median['no-plots']:.3f} s without"
+            f"  plots add {median['run'] - median['no-plots']:.3f} s; supervision costs "
+            f"{median['no-plots'] - median['no-plots --no-supervise']:.3f} s"
         )
         alone = median["the run's libraries alone"]
         no_pandas = median["the run's libraries but pandas"]
@@ -285,7 +204,7 @@ def main() -> int:
             )
         print(
             f"  load: {os.getloadavg()[0]:.2f} (1 min), {os.cpu_count()} cores; import pvlib "
-            f"{median['import pvlib']:.3f} s here, 0.7 s in issue #26 (quiet)"
+            f"{median['import pvlib']:.3f} s here"
         )
         if args.no_breakdown:
             return 0

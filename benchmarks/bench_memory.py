@@ -2,32 +2,10 @@
 
     .venv/bin/python benchmarks/bench_memory.py [--hours 0.25 1 4 16] [--max-rss-mb N] [--csv] [--plots]
 
-Each window is a fresh ``heliostep run`` subprocess on the paper's case (scenarios/jan21-central.yaml)
-with ``window.duration`` set to the given hours and a 10 s output grid (the fine grid after every
-step is kept), without figures unless ``--plots``. Reported per window: wall time, trace rows, solver-step rows the
-summary recorded, trace.parquet size, and the subprocess's peak RSS (``ru_maxrss`` from
-``wait4``). The growth of peak RSS per simulated hour is the figure that decides how long a window
-fits in memory. With ``--max-rss-mb`` the exit status is 1 when a window's peak exceeds it.
-
-Measured (2026-11-23, paper's case, 10 s grid): before the streaming figures the summary kept every
-solver row and peak RSS grew 58 MB per simulated hour (236 MB at 0.25 h, 280 MB at 1 h). With the
-streaming :class:`~heliostep.results.summary.SolutionRecorder` it grew 7.6 MB per hour (228 MB at
-0.25 h, 268 MB at 4 h, 327 MB at 16 h, 592 MB at 48 h; commit c7d460a, 2026-12-01): the master's
-output rows and the trace built from them, and the figures computed from the trace.
-
-Measured (2026-12-01) with the trace streamed to Parquet row groups for windows over 1 h (the master
-holds at most 4 096 rows, the stream one row group of 16 384): while simulating, peak RSS is 210 MB at
-0.25 h, 218 MB at 1 h, 233 MB at 4 h, 236 MB at 16 h, 247 MB at 48 h (0.3 MB/h past 4 h: the window's
-inputs). The process's peak: 226, 237, 252, 291, 432 MB, 4.3 MB per simulated hour (508 B per trace
-row), all of it after the simulation: ``summarize`` and ``light_figures`` evaluate whole columns.
-
-Measured (2026-12-01) with the figures after the simulation evaluated in chunks of 16 384 rows, the
-streamed trace read back one row group at a time (:class:`heliostep.results.run_figures.RunFigures`),
-at 0.25, 1, 4, 16, 48, 96 h: the process's peak 223, 232, 256, 272, 275, 293 MB (0.7 MB per simulated
-hour over 0.25-96 h, 0.26 MB/h past 16 h), while simulating 207, 213, 237, 246, 254, 272 MB; the same
-commit's parent: 227, 231, 253, 304, 451 MB and 681 MB at 96 h (4.8 MB/h). Wall time at 96 h: 15.2 s
-against 13.8 s (the trace read back, and each row group also encoded by the writer that keeps a
-failed stream readable).
+Per window (the paper's case with ``window.duration`` set, a 10 s output grid), a fresh ``heliostep run``
+subprocess: wall time, trace rows, solver-step rows, ``trace.parquet``'s size, the peak RSS while simulating
+and in all (``ru_maxrss`` from ``wait4``), and the growth per simulated hour. With ``--max-rss-mb`` the exit
+status is 1 when a window's peak exceeds it.
 """
 
 from __future__ import annotations

@@ -1,30 +1,15 @@
-"""Benchmark of ``heliostep sweep`` on dask.distributed (prints figures; not a test).
+"""``heliostep sweep`` on dask.distributed (prints figures; not a test).
 
-Runs (3 times, the median shown) a fixed set of 8 cases of the paper's 5-minute window (days 21, 111, 172, 264 x
-mirrors 0 and 12) on a local cluster of 1 and of 2 single-threaded worker processes,
-and prints the cases per minute, the scaling factor, and the wall time of the full
-year (365 days) x 13 mirrors on N workers estimated from the measured time per case.
-With ``--full-day`` it also runs sunrise-to-sunset cases of ``scenarios/sweeps/year-field.yaml``
-(its overrides and its shared primary) on 6 days spread over the year (1, 62, 123, 184, 245,
-306) x mirrors 0, 3, 6, 9 and 12 (the field's ends, its centre and between), plus the longest
-day (172), on the smallest cluster of ``--workers``
-(one worker per core left free: a case's time is then one core's, not shared), and estimates that
-sweep (365 x 14 cases) from the mean time per case of the spread days
-(the days' lengths and step counts vary over the year; the longest day alone overstates it) times the
-workers' CPU time per wall second (a supervised case keeps two cores busy: the child simulating and the
-worker computing the figures from its rows; the CPU is counted with psutil, a dependency of distributed,
-children and a fork server's children included), and prints
-it also as one line for scripts: ``year-field: <h> core-hours, <h> h on 2 workers`` (ideal scaling).
-``--baseline-set KEY=VALUE`` first estimates the same with that override on top of year-field.yaml's (e.g.
-``output.step_detail=0.05``, the fine grid after each step that it no longer keeps), in the same run.
+    .venv/bin/python benchmarks/bench_sweep.py [--full-day [--baseline-set KEY=VALUE]] [--workers 1 2] [--repeat 3]
 
-The clusters are started and their workers warmed up (heliostep's case modules and pvlib imported) before the
-clock starts; the FMUs are built before. Timed: validation, shipping the FMUs, the
-runs and writing the results table.
-
-Usage::
-
-    .venv/bin/python benchmarks/bench_sweep.py [--full-day [--baseline-set KEY=VALUE]] [--workers 1 2]
+8 cases of the paper's 5-minute window (days 21, 111, 172, 264 x mirrors 0 and 12) on local clusters of 1 and 2
+single-threaded workers (median of ``--repeat``): cases per minute, the scaling, the year x 13 mirrors estimated.
+With ``--full-day``, sunrise-to-sunset cases of ``scenarios/sweeps/year-field.yaml`` on days 1, 62, 123, 184, 245,
+306 x mirrors 0, 3, 6, 9, 12 and the shared primary, plus day 172, on the smallest cluster of ``--workers``, and
+the whole sweep (365 x 14 cases) estimated from their mean CPU time per case (the workers' and their children's,
+counted with psutil): ``year-field: <h> core-hours, <h> h on 2 workers``. ``--baseline-set KEY=VALUE`` first
+estimates the same with that override on top, in the same run. Clusters are started and warmed up, and the FMUs
+built, before the clock starts.
 """
 
 from __future__ import annotations
@@ -194,7 +179,7 @@ def main(argv: list[str] | None = None) -> None:
                 values = {key: parse_yaml_value(value) for key, value in changed.items()}  # as --set reads them
                 baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **values}, label)
             core_seconds = full_day(folder, min(args.workers), shipped, "as shipped")
-            # the one line a script reads (issue #26): the year-field estimate, in core-hours and on 2 workers
+            # the one line a script reads: the year-field estimate, in core-hours and on 2 workers
             print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
             if args.baseline_set:
                 ratio = core_seconds / baseline

@@ -29,12 +29,13 @@ def main(argv: list[str] | None = None) -> None:
     import pyarrow.parquet as pq
 
     from heliostep.results.trace_io import TRACE_ENCODING
-    from heliostep.run import run_scenario
+    from heliostep.run import RunOptions, run_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args(argv)
-    trace = run_scenario(ROOT / "scenarios" / "jan21-central.yaml", YEAR_FIELD_CASE, stream=False).trace
+    scenario = ROOT / "scenarios" / "jan21-central.yaml"
+    trace = run_scenario(scenario, RunOptions(stream=False), overrides=YEAR_FIELD_CASE).trace
     table = pa.Table.from_pandas(trace.iloc[: ROW_GROUP * GROUPS], preserve_index=False)
     print(
         f"{table.num_rows} rows x {table.num_columns} float64 columns of a year-field case (21 January), "

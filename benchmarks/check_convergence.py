@@ -75,7 +75,7 @@ def main() -> int:
     for name, overrides in variants.items():
         started = time.perf_counter()
         try:
-            runs[name] = run_scenario(path, [*args.overrides, *overrides]).summary
+            runs[name] = run_scenario(path, overrides=[*args.overrides, *overrides]).summary
             print(
                 f"{name}: {time.perf_counter() - started:.1f} s wall, {runs[name]['rows']} trace rows "
                 f"({', '.join(overrides) or 'as the scenario is'})",

@@ -1,5 +1,5 @@
 """What the driver's two parameters do to the figures a motor is sized by: the chopper's bus voltage and its
-current-loop gain (issue #21, the driver as a driver).
+current-loop gain.
 
     .venv/bin/python benchmarks/driver_sensitivity.py
 
@@ -30,7 +30,7 @@ def bus_voltage_table() -> None:
         f"{'V_supply [V]':>12} {'peak torque [N m]':>18} {'max error [deg]':>16} {'settling [ms]':>14} {'RHS/step':>9}"
     )
     for bus in (3.1, 24.0, 48.0):
-        run = run_scenario(SCENARIOS / "jan21-central.yaml", [f"parameters.motor.V_supply={bus}"])
+        run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=[f"parameters.motor.V_supply={bus}"])
         summary, statistics = run.summary, run.metadata["statistics"]
         per_step = statistics["rhs"] / max(summary["steps_executed"], 1)
         print(
@@ -44,7 +44,7 @@ def ring_decay_table() -> None:
     print(f"{'K_current [V/A]':>15} {'bandwidth K/(2 pi L) [kHz]':>27} {'peak [N m]':>11} {'below 5 % after [s]':>20}")
     for gain in (25.0, 100.0, 400.0, 1000.0, 2600.0):
         overrides = ["window.duration=40", "output.step_detail=8", f"parameters.motor.K_current={gain}"]
-        trace = run_scenario(SCENARIOS / "jan21-paper-literal.yaml", overrides).trace
+        trace = run_scenario(SCENARIOS / "jan21-paper-literal.yaml", overrides=overrides).trace
         time, torque, step = (trace[c].to_numpy() for c in ("time", "motor.tau", "step_index"))
         first = np.flatnonzero(np.diff(step) != 0)[0] + 1
         after = (time > time[first]) & (time < time[first] + 8.0)

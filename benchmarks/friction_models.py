@@ -1,6 +1,5 @@
 """The two friction models of the panel mechanics side by side: the tanh-smoothed Coulomb friction of
-``PanelMechanics`` (the default) and Karnopp's stick-slip friction of ``PanelMechanicsKarnopp`` (issue #21,
-"friction that sticks").
+``PanelMechanics`` (the default) and Karnopp's stick-slip friction of ``PanelMechanicsKarnopp``.
 
     .venv/bin/python benchmarks/friction_models.py
 
@@ -14,7 +13,7 @@ of them a day: a few minutes).
 from __future__ import annotations
 
 from heliostep.paths import scenarios_dir
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 
 SCENARIOS = ("jan21-central", "jan21-48v", "jan21-ideal-current", "jan21-weak-motor", "jan21-day")
 MODELS = {"tanh": (), "Karnopp": ("fmus.mechanics=PanelMechanicsKarnopp",)}
@@ -27,7 +26,7 @@ def main() -> None:
     )
     for name in SCENARIOS:
         for label, overrides in MODELS.items():
-            run = run_scenario(scenarios_dir() / f"{name}.yaml", overrides, keep_trace=False)
+            run = run_scenario(scenarios_dir() / f"{name}.yaml", RunOptions(keep_trace=False), overrides=overrides)
             summary, rhs = run.summary, run.metadata["statistics"]["rhs"]
             settling = summary["settling_time_s"]["max"]
             settling_ms = f"{1e3 * settling:13.1f}" if settling is not None else f"{'-':>13}"

@@ -1,29 +1,23 @@
 """What sets the solver's work per motor step (prints figures; not a test).
 
-    .venv/bin/python benchmarks/solver_cost.py
+    .venv/bin/python benchmarks/solver_cost.py [--integrators [--rtol 1e-6] [--atol X]]
 
-On the paper's 5-minute case (scenarios/jan21-central.yaml, 16 motor steps), with the compiled
-kernel, per motor step:
-
-1. CVODE's own counters (read through SUNDIALS' C API before every restart and at the end):
-   internal steps, RHS evaluations (the master's count, difference-quotient Jacobians
-   included), error-test failures, Newton convergence failures, Jacobian evaluations;
-2. where the internal steps fall after the step that started their interval (rows of kind
-   "solver step" only, not output rows);
-3. the same counters for variants that each remove one suspect: a lower maximum BDF order, a
-   smooth chopper (``V_supply tanh(K_current (i_ref - i) / V_supply)``: same gain and limit,
-   no corner; generated into a temporary models folder), wider friction regularisation, no
-   Coulomb friction, a looser tolerance. Each line also prints the peak torque, to show how
-   far the variant is from the shipped physics.
+Per motor step of the paper's case: CVODE's counters (internal steps, RHS evaluations, error-test and Newton
+failures, Jacobians), where the internal steps fall after the step, and the same for variants that each remove
+one suspect (BDF order, a smooth chopper, wider friction regularisation, no Coulomb friction, rtol). With
+``--integrators``: one full step and 0.2 s of its ring in an independent numpy model of the drive (eqs. 7-10 of
+the paper, not the FMUs) under scipy's BDF, Radau and LSODA at a scenario's tolerances.
 """
 
 from __future__ import annotations
 
+import argparse
 import collections
 import ctypes
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -91,7 +85,7 @@ def measure(overrides=(), max_order=None):
     from heliostep.run import run_scenario
 
     with Probe(max_order) as probe:
-        run = run_scenario(SCENARIO, tuple(overrides))
+        run = run_scenario(SCENARIO, overrides=tuple(overrides))
         gc.collect()  # (the counters are read when the run closes its integrator)
     return run, probe.totals, np.concatenate(probe.step_times or [np.zeros(0)])
 
@@ -124,7 +118,68 @@ def smooth_chopper_models(folder: Path) -> Path:
     return folder
 
 
+# models/StepperMotor.mo and models/PanelMechanics.mo (Tables 2 and 3 of the paper, docs/physics.md)
+L, R, K_E, N_C, V_SUPPLY, K_CURRENT = 1.8e-3, 0.1, 0.5, 50.0, 3.1, 100.0
+J_P, J_M, B, T_C, M_C, W_S, R_PINION, S_LEVER = 3.37, 1.4e-4, 0.0, 0.08, 3.3e-3, 1e-2, 2.5e-3, 0.3
+CURRENT = 5.5  # [A] the paper's case (scenarios/jan21-central.yaml)
+THETA_P0 = 0.48  # [rad] the panel near 27.5 deg, as at 10:00 on 21 January
+
+
+def rhs(_t, y, i_a_ref, i_b_ref):
+    """der of (i_a, i_b, theta_p, omega_p), and the torque [N.m]."""
+    i_a, i_b, theta_p, omega_p = y
+    theta = S_LEVER / R_PINION * (np.tan(theta_p) - np.tan(THETA_P0))  # eqs 12-14
+    g = S_LEVER / (R_PINION * np.cos(theta_p) ** 2)  # eq 15
+    omega = g * omega_p
+    v_a = np.clip(K_CURRENT * (i_a_ref - i_a), -V_SUPPLY, V_SUPPLY)
+    v_b = np.clip(K_CURRENT * (i_b_ref - i_b), -V_SUPPLY, V_SUPPLY)
+    di_a = (v_a - R * i_a + K_E * omega * np.sin(N_C * theta)) / L  # eq 7
+    di_b = (v_b - R * i_b + K_E * omega * np.cos(N_C * theta)) / L  # eq 8
+    torque = -K_E * i_a * np.sin(N_C * theta) - K_E * i_b * np.cos(N_C * theta)  # eq 9
+    friction = (T_C + M_C * R_PINION * np.cos(theta_p) ** 2 / S_LEVER) * np.tanh(omega / W_S)
+    domega_p = (g * (torque - friction) - B * omega_p - J_M * g * 2 * g * np.tan(theta_p) * omega_p**2) / (
+        J_P + J_M * g**2
+    )  # eq 10, the exact (Lagrangian) form
+    return np.array([di_a, di_b, omega_p, domega_p]), torque
+
+
+def ring_integrators(rtol: float, atol: float | None) -> None:
+    """One step and its ring in the numpy model under scipy's integrators: steps, RHS, Jacobians, peak torque."""
+    from scipy.integrate import solve_ivp
+
+    atol = rtol if atol is None else atol
+    held = K_CURRENT * CURRENT / (K_CURRENT + R)  # the loop's holding current, L di/dt = 0
+    y0 = np.array([held, 0.0, THETA_P0, 0.0])
+    print(f"one full step (phase A -> B, {CURRENT} A) and 0.2 s of ring and creep, rtol {rtol:g}, atol {atol:g}:")
+    for method in ("BDF", "Radau", "LSODA"):
+        started = time.perf_counter()
+        solution = solve_ivp(
+            lambda t, y: rhs(t, y, 0.0, CURRENT)[0], (0.0, 0.2), y0, method=method, rtol=rtol, atol=atol
+        )
+        wall = time.perf_counter() - started
+        if not solution.success:
+            print(f"  {method:6s} failed: {solution.message}")
+            continue
+        torque = np.array([rhs(t, y, 0.0, CURRENT)[1] for t, y in zip(solution.t, solution.y.T)])
+        theta = S_LEVER / R_PINION * (np.tan(solution.y[2]) - np.tan(THETA_P0))
+        ring = solution.t[(solution.t > 5e-3) & (solution.t < 50e-3)]
+        print(
+            f"  {method:6s} {len(solution.t) - 1:6d} steps ({len(ring):5d} of them 5-50 ms after the step) "
+            f"{solution.nfev:7d} RHS {solution.njev:4d} Jacobians  peak torque {np.abs(torque).max():.4f} N.m  "
+            f"rotor moved {theta[-1] / (np.pi / (2 * N_C)):+.4f} steps  ({wall:.1f} s)"
+        )
+    print("  CVODE (BDF) in heliostep: this script without --integrators")
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--integrators", action="store_true", help="the numpy model under scipy's integrators")
+    parser.add_argument("--rtol", type=float, default=1e-6)
+    parser.add_argument("--atol", type=float, default=None, help="default: rtol x nominal 1, as a scenario")
+    args = parser.parse_args()
+    if args.integrators:
+        ring_integrators(args.rtol, args.atol)
+        return
     from heliostep.fmu.build import build_all
 
     build_all()
