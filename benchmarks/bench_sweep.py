@@ -63,7 +63,7 @@ def write_sweep(
 
 def worker_cpu_seconds() -> float:
     """CPU time [s] of this Dask worker process and of every process it started: the children it has
-    reaped, and each live child (a fork server) with the children that one has reaped. Run on the worker."""
+    reaped, and each live child (the forkserver context's server) with the children it has reaped. Run on the worker."""
     import psutil  # a dependency of distributed
 
     own = psutil.Process()
