@@ -321,8 +321,8 @@ class LightIntegrals:
 
     def _whole_window_grid(self, origin: float) -> dict | None:
         """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
-        window's end, computed once (per block it would pay pvlib's fixed overheads each time); None when the first row is at or past the window's end. A block past it
-        computes its own points."""
+        window's end, computed once (per block it would pay pvlib's fixed overheads each time); None
+        when the first row is at or past the window's end. A block past it computes its own points."""
         start, end = self.scenario.window_bounds()
         duration = (end - start).total_seconds()
         if not duration > origin:
