@@ -14,8 +14,9 @@ its wind is measured *at* the stamp (both: "at the time indicated"). pvlib keeps
 hour's *start*; :func:`read_weather` undoes both and indexes every record by the end of its hour.
 
 How heliostep uses the hourly energy: each hour's mean DNI is placed at the middle of its hour
-(stamp - 30 min) and interpolated linearly between the middles. Interpolating it at the stamp would move the whole day's light by 30 minutes (later for TMY3, earlier for EPW
-as pvlib indexes it). Mid-interval linear interpolation, rather than a step held over each hour:
+(stamp - 30 min) and interpolated linearly between the middles. Interpolating it at the stamp
+would move the whole day's light by 30 minutes (later for TMY3, earlier for EPW as pvlib indexes
+it). Mid-interval linear interpolation, rather than a step held over each hour:
 
 - it keeps the day's energy and its centroid in time exactly: the interpolant is a sum of hat
   functions of area ``mean x 1 h`` centred on the hours' middles, so its integral is the sum of
