@@ -30,7 +30,8 @@ EDGES_MS = (0, 1, 2, 5, 10, 20, 50, 100, 1000, np.inf)
 
 class Probe:
     """CVODE's counters summed over the run's restarts, optionally a maximum order; the solver
-    step rows' times."""
+    step rows' times. Events go through the master's Python path, which restarts CVODE from
+    Python (the counters are read there; the event in one kernel call restarts it in C)."""
 
     def __init__(self, max_order: int | None = None):
         self.max_order, self.totals, self.step_times = max_order, collections.Counter(), []
@@ -38,6 +39,7 @@ class Probe:
     def __enter__(self):
         from fmpy.sundials.libraries import sundials_cvode
 
+        import heliostep.cosim.fast_events as fast_events
         import heliostep.cosim.integrator as integrator
         import heliostep.cosim.master as master
 
@@ -70,12 +72,16 @@ class Probe:
             return take_rows(self_run, rows, kinds)
 
         solver.__init__, solver.reset, solver.close, run._take_rows = new_init, new_reset, new_close, new_take_rows
+        self._events = (fast_events, fast_events.compiled_events)
+        fast_events.compiled_events = lambda *args: None
         self._classes = (solver, run)
         return self
 
     def __exit__(self, *exc):
         solver, run = self._classes
         solver.__init__, solver.reset, solver.close, run._take_rows = self._saved
+        module, compiled_events = self._events
+        module.compiled_events = compiled_events
 
 
 def measure(overrides=(), max_order=None):
