@@ -111,18 +111,14 @@ fmi2Status fmi2Reset(fmi2Component instance) {
 
 fmi2Status fmi2GetReal(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     BEGIN_FUNCTION(GetReal, READABLE)
-    RETURN_OK_IF(nvr == 0);
-    CALL(NOT_NULL(vr));
-    CALL(NOT_NULL(value));
+    CHECK_VALUES(vr, value, nvr);
     CALL(get_reals(inst, function, vr, nvr, value));
     END_FUNCTION()
 }
 
 fmi2Status fmi2SetReal(fmi2Component instance, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
     BEGIN_FUNCTION(SetReal, WRITABLE)
-    RETURN_OK_IF(nvr == 0);
-    CALL(NOT_NULL(vr));
-    CALL(NOT_NULL(value));
+    CHECK_VALUES(vr, value, nvr);
     CALL(set_reals(inst, function, vr, nvr, value));
     END_FUNCTION()
 }
@@ -232,18 +228,14 @@ fmi2Status fmi2SetTime(fmi2Component instance, fmi2Real time) {
 
 fmi2Status fmi2SetContinuousStates(fmi2Component instance, const fmi2Real x[], size_t nx) {
     BEGIN_FUNCTION(SetContinuousStates, EventMode | ContinuousTimeMode)
-    CALL(SIZE_IS(nx, N_STATES));
-    RETURN_OK_IF(nx == 0);
-    CALL(failing(inst, NOT_NULL(x)));
+    CHECK_ARRAY(x, nx, N_STATES, FAILING);
     CALL(set_continuous_states(inst, function, x, nx));
     END_FUNCTION()
 }
 
 fmi2Status fmi2GetDerivatives(fmi2Component instance, fmi2Real derivatives[], size_t nx) {
     BEGIN_FUNCTION(GetDerivatives, READABLE)
-    CALL(SIZE_IS(nx, N_STATES));
-    RETURN_OK_IF(nx == 0);
-    CALL(failing(inst, NOT_NULL(derivatives)));
+    CHECK_ARRAY(derivatives, nx, N_STATES, FAILING);
     CALL(get_derivatives(inst, function, derivatives, nx));
     END_FUNCTION()
 }
@@ -257,14 +249,14 @@ fmi2Status fmi2GetEventIndicators(fmi2Component instance, fmi2Real eventIndicato
 
 fmi2Status fmi2GetContinuousStates(fmi2Component instance, fmi2Real x[], size_t nx) {
     BEGIN_FUNCTION(GetContinuousStates, READABLE)
-    CHECK_ARRAY(x, nx, N_STATES);
+    CHECK_ARRAY(x, nx, N_STATES, REFUSING);
     get_continuous_states(inst, x, nx);
     END_FUNCTION()
 }
 
 fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component instance, fmi2Real x_nominal[], size_t nx) {
     BEGIN_FUNCTION(GetNominalsOfContinuousStates, ANY_STATE)
-    CHECK_ARRAY(x_nominal, nx, N_STATES);
+    CHECK_ARRAY(x_nominal, nx, N_STATES, REFUSING);
     memcpy(x_nominal, STATE_NOMINALS, sizeof(double) * nx);
     END_FUNCTION()
 }

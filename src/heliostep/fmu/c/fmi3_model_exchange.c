@@ -148,9 +148,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
                           fmi3Float64 values[], size_t nValues) {
     BEGIN_FUNCTION(GetFloat64, READABLE)
     CALL(SIZE_IS(nValues, nValueReferences));
-    RETURN_OK_IF(nValueReferences == 0);
-    CALL(NOT_NULL(valueReferences));
-    CALL(NOT_NULL(values));
+    CHECK_VALUES(valueReferences, values, nValueReferences);
     CALL(get_reals(inst, function, valueReferences, nValueReferences, values));
     END_FUNCTION()
 }
@@ -159,9 +157,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
                           const fmi3Float64 values[], size_t nValues) {
     BEGIN_FUNCTION(SetFloat64, WRITABLE)
     CALL(SIZE_IS(nValues, nValueReferences));
-    RETURN_OK_IF(nValueReferences == 0);
-    CALL(NOT_NULL(valueReferences));
-    CALL(NOT_NULL(values));
+    CHECK_VALUES(valueReferences, values, nValueReferences);
     CALL(set_reals(inst, function, valueReferences, nValueReferences, values));
     END_FUNCTION()
 }
@@ -393,9 +389,7 @@ fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
 fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
                                    size_t nContinuousStates) {
     BEGIN_FUNCTION(SetContinuousStates, EventMode | ContinuousTimeMode)
-    CALL(SIZE_IS(nContinuousStates, N_STATES));
-    RETURN_OK_IF(nContinuousStates == 0);
-    CALL(failing(inst, NOT_NULL(continuousStates)));
+    CHECK_ARRAY(continuousStates, nContinuousStates, N_STATES, FAILING);
     CALL(set_continuous_states(inst, function, continuousStates, nContinuousStates));
     END_FUNCTION()
 }
@@ -403,9 +397,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 cont
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
                                              size_t nContinuousStates) {
     BEGIN_FUNCTION(GetContinuousStateDerivatives, READABLE)
-    CALL(SIZE_IS(nContinuousStates, N_STATES));
-    RETURN_OK_IF(nContinuousStates == 0);
-    CALL(failing(inst, NOT_NULL(derivatives)));
+    CHECK_ARRAY(derivatives, nContinuousStates, N_STATES, FAILING);
     CALL(get_derivatives(inst, function, derivatives, nContinuousStates));
     END_FUNCTION()
 }
@@ -419,14 +411,14 @@ fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndica
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[], size_t nContinuousStates) {
     BEGIN_FUNCTION(GetContinuousStates, READABLE)
-    CHECK_ARRAY(continuousStates, nContinuousStates, N_STATES);
+    CHECK_ARRAY(continuousStates, nContinuousStates, N_STATES, REFUSING);
     get_continuous_states(inst, continuousStates, nContinuousStates);
     END_FUNCTION()
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[], size_t nContinuousStates) {
     BEGIN_FUNCTION(GetNominalsOfContinuousStates, ANY_STATE)
-    CHECK_ARRAY(nominals, nContinuousStates, N_STATES);
+    CHECK_ARRAY(nominals, nContinuousStates, N_STATES, REFUSING);
     memcpy(nominals, STATE_NOMINALS, sizeof(double) * nContinuousStates);
     END_FUNCTION()
 }

@@ -205,11 +205,19 @@ static int invalid_vr(Instance *inst, const char *function, ValueReference vr) {
 #define SIZE_IS(argument, expected) size_is(inst, function, #argument, (argument), (expected))
 #define FINITE(argument) \
     (isfinite(argument) ? STATUS_OK : REFUSE(inst, "%s: %s = %g is not finite", function, #argument, (argument)))
-/* An array of n values, n == expected: none asked for ends the call, a missing one is refused. */
-#define CHECK_ARRAY(array, n, expected) \
-    CALL(SIZE_IS(n, expected));         \
-    RETURN_OK_IF((n) == 0);             \
-    CALL(NOT_NULL(array))
+/* n value references and n values: none asked for ends the call, a missing array is refused. */
+#define CHECK_VALUES(references, values, n) \
+    RETURN_OK_IF((n) == 0);                 \
+    CALL(NOT_NULL(references));             \
+    CALL(NOT_NULL(values))
+/* An array of n values, n == expected: none asked for ends the call; a missing one is refused,
+ * or puts the instance in the error state where ON_NULL is FAILING. */
+#define REFUSING(check) (check)
+#define FAILING(check) failing(inst, (check))
+#define CHECK_ARRAY(array, n, expected, ON_NULL) \
+    CALL(SIZE_IS(n, expected));                  \
+    RETURN_OK_IF((n) == 0);                      \
+    CALL(ON_NULL(NOT_NULL(array)))
 
 /* ---------------------------------------------------------------- evaluation */
 
