@@ -154,33 +154,23 @@ fmi2Status fmi2FreeFMUstate(fmi2Component instance, fmi2FMUstate *FMUstate) {
     UNSUPPORTED(FreeFMUstate)
 }
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component instance, fmi2FMUstate FMUstate, size_t *size) {
-    (void)FMUstate;
-    (void)size;
+    (void)FMUstate; (void)size;
     UNSUPPORTED(SerializedFMUstateSize)
 }
 fmi2Status fmi2SerializeFMUstate(fmi2Component instance, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
-    (void)FMUstate;
-    (void)serializedState;
-    (void)size;
+    (void)FMUstate; (void)serializedState; (void)size;
     UNSUPPORTED(SerializeFMUstate)
 }
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component instance, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
-    (void)serializedState;
-    (void)size;
-    (void)FMUstate;
+    (void)serializedState; (void)size; (void)FMUstate;
     UNSUPPORTED(DeSerializeFMUstate)
 }
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component instance, const fmi2ValueReference vUnknown_ref[],
                                         size_t nUnknown, const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
+    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
     UNSUPPORTED(GetDirectionalDerivative)
 }
 
