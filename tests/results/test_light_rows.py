@@ -12,6 +12,7 @@ import pytest
 from scipy.integrate import quad
 
 from heliostep.paths import scenarios_dir
+from heliostep.results.light import light_timeseries
 from heliostep.results.light_rows import RowMarks, corrections
 from heliostep.run import run_scenario
 
@@ -202,3 +203,25 @@ def test_a_driven_primary_stepping_light_is_second_order_and_does_not_move_with_
     assert abs(fine["light_stepping_change_J"]) > 30 * abs(fine["light_stepping_first_order_J"])
     assert coarse["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], rel=2e-3)
     assert coarse["light_stepping_first_order_J"] == pytest.approx(fine["light_stepping_first_order_J"], rel=0.01)
+
+
+def test_the_light_of_a_held_run_s_rows_integrates_to_its_summary_figure(fmu_paths):
+    """The power on the tube at a held run's rows (what its figure draws, computed from the trace in four
+    chunks of 200 rows): its trapezoid is the summary's light energy, which corrects it between the rows by
+    parts in 10^8."""
+    held = run_scenario(scenarios_dir() / "jan21-central.yaml", overrides=("window.duration=40",), row_group_rows=200)
+    trace = held.trace_columns(["panel_angle_ref", held.metadata["roles"]["panel_angle"]])
+    assert len(trace) > 600 and held.figures is not None  # more rows than three chunks
+    light = light_timeseries(trace, held.metadata, held.scenario, held.weather)
+    assert "power_actual_W" in light and "stepping_first_order_W" in light
+    energy = np.trapezoid(light["power_actual_W"], light["time"])
+    assert energy > 1000.0 and energy == pytest.approx(held.summary["light_energy_J"], rel=1e-6)
+
+
+def test_a_streamed_run_and_a_run_without_trace_have_the_same_light_figures(fmu_paths):
+    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=5",)
+    streamed = run_scenario(scenario, overrides=overrides, stream=True)
+    figures_only = run_scenario(scenario, overrides=overrides, keep_trace=False)
+    assert streamed.held_trace is None
+    light = [key for key in streamed.summary if key.startswith("light_")]
+    assert len(light) > 8 and [streamed.summary[key] for key in light] == [figures_only.summary[key] for key in light]
