@@ -25,7 +25,7 @@ import pytest
 
 from heliostep.cosim.child import MAX_ROWS_LOST
 from heliostep.results.trace_io import read_trace
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 from third_party_fmu import build_mini_fmu
 
 CLI = "from heliostep.cli import console_main; console_main()"
@@ -69,7 +69,7 @@ def complete_trace(faulty_fmu, tmp_path_factory) -> pd.DataFrame:
     """The same scenario without a fault, simulated in-process (unsupervised): the rows a faulty
     run's trace must hold, up to where it stopped."""
     folder = tmp_path_factory.mktemp("complete")
-    return run_scenario(_scenario(folder, faulty_fmu, 0), supervise=False).trace
+    return run_scenario(_scenario(folder, faulty_fmu, 0), RunOptions(supervise=False)).trace
 
 
 def _rows_computed(complete: pd.DataFrame, fault_at: float) -> int:
@@ -164,8 +164,8 @@ def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_
     monkeypatch.setattr(supervised, "START", start)
     scenario = scenarios_dir() / "jan21-central.yaml"
     overrides = ("window.duration=60",)
-    inside = run_scenario(scenario, overrides, supervise=False)
-    supervised = run_scenario(scenario, overrides, supervise=True)
+    inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
+    supervised = run_scenario(scenario, RunOptions(supervise=True), overrides=overrides)
     assert list(inside.trace.columns) == list(supervised.trace.columns) and len(inside.trace) > 500
     for column in inside.trace.columns:
         np.testing.assert_array_equal(inside.trace[column].to_numpy(), supervised.trace[column].to_numpy())
@@ -258,7 +258,7 @@ def _run_in_thread(scenario: Path, overrides: tuple[str, ...]):
 
     def run() -> None:
         methods.append(supervised._start_method())
-        results.append(run_scenario(scenario, overrides, supervise=True))
+        results.append(run_scenario(scenario, RunOptions(supervise=True), overrides=overrides))
 
     thread = threading.Thread(target=run)
     thread.start()
@@ -274,7 +274,7 @@ def test_a_run_from_a_thread_is_forked_by_the_fork_server_the_same_bit_for_bit(f
 
     monkeypatch.setattr(supervised, "START", "auto")
     scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=60",)
-    inside = run_scenario(scenario, overrides, supervise=False)
+    inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
     method, served = _run_in_thread(scenario, overrides)
     assert method == "server"
     server = fork_server._CLIENT.process
@@ -304,7 +304,7 @@ def test_a_fork_server_that_cannot_start_leaves_the_child_executed(fmu_paths, mo
     monkeypatch.setattr(fork_server, "_CLIENT", fork_server._Client())  # a client of its own, no server yet
     monkeypatch.setattr(fork_server, "_MAIN", "import sys; sys.exit(3)")  # a server that dies at once
     scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=20",)
-    inside = run_scenario(scenario, overrides, supervise=False)
-    executed = run_scenario(scenario, overrides, supervise=True)
+    inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
+    executed = run_scenario(scenario, RunOptions(supervise=True), overrides=overrides)
     assert fork_server._CLIENT.broken and fork_server._CLIENT.process is None  # tried twice, then given up
     np.testing.assert_array_equal(inside.trace.to_numpy(), executed.trace.to_numpy())

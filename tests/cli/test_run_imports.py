@@ -10,7 +10,6 @@ test's own: empty for the first run (pvlib computes every grid: the reference), 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 

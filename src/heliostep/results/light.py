@@ -42,7 +42,7 @@ is read one row group at a time; :func:`light_figures` of a whole trace is one b
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 

@@ -38,6 +38,7 @@ import pandas as pd
 
 __all__ = ["RowMarks", "corrections", "swing_rows"]
 
+
 class RowMarks:
     """The rows' side of the correction, accumulated block by block, at the first row and at the first row at
     or after each step's time (``step_times`` [s]; the marks), and at the last row: the trapezoids of the

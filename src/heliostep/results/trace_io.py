@@ -85,7 +85,7 @@ from heliostep.results.trace_format import (
     trace_format,
 )
 from heliostep.results.trace_modelica import MAT_SUFFIX, read_modelica_mat
-from heliostep.results.trace_writer import PARQUET_OPTIONS, TRACE_ENCODING, TraceWriteError, TraceWriter
+from heliostep.results.trace_writer import TRACE_ENCODING, TraceWriteError, TraceWriter
 
 # pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
 _EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
