@@ -248,7 +248,7 @@ def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faul
 
 
 def _run_in_thread(scenario: Path, overrides: tuple[str, ...]):
-    """``run_scenario(..., supervise=True)`` from a thread of its own: this process runs two threads,
+    """``run_scenario(..., RunOptions(supervise=True))`` from a thread of its own: this process runs two threads,
     so the child is not forked from it (``auto``: the fork server, as in a Dask worker)."""
     import threading
 

@@ -206,13 +206,13 @@ import resource, sys
 from pathlib import Path
 from heliostep.paths import scenarios_dir
 from heliostep.errors import RunFailure
-from heliostep.run import RunFailed, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 
 out, limit = Path(sys.argv[1]), int(sys.argv[2])
 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))  # no file may grow past it
 try:
-    run_scenario(scenarios_dir() / "jan21-central.yaml", ["window.duration=600"], stream=True, trace_dir=out,
-                 row_group_rows=256)
+    run_scenario(scenarios_dir() / "jan21-central.yaml", RunOptions(stream=True, trace_dir=out, row_group_rows=256),
+                 overrides=["window.duration=600"])
 except RunFailed as failed:
     result = failed.result
     print(result.trace_file, len(result.unwritten_trace))

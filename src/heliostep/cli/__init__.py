@@ -40,7 +40,7 @@ COMMAND_MODULES = tuple(COMMANDS.values())
 
 def make_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The parser of the command ``argv`` names, importing only that command's module (a command's
-    modules take up to a second to import: pvlib, Dask, matplotlib); every command's when ``argv``
+    modules are heavy to import: pvlib, Dask, matplotlib); every command's when ``argv``
     names none (``--help``, a mistyped command: argparse then lists them all)."""
     parser = argparse.ArgumentParser(
         prog="heliostep",
