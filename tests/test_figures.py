@@ -22,7 +22,7 @@ FIGURES = (
 
 
 def _run(name, *overrides):
-    return run_scenario(scenarios_dir() / f"{name}.yaml", overrides)
+    return run_scenario(scenarios_dir() / f"{name}.yaml", overrides=overrides)
 
 
 @pytest.fixture(scope="module")

@@ -56,7 +56,7 @@ def test_installed_package_carries_models_and_scenarios(installed):
     assert (data / "scenarios" / "jan21-central.reference.parquet").is_file()
     assert (data / "motors.yaml").is_file()  # heliostep size's motor catalogue (issue 23)
     assert (installed / "heliostep" / "fmu" / "c" / "fmi2_model_exchange.c").is_file()
-    # the installed command is console_main: main, then leave (no interpreter teardown; tests/cli/test_leave.py)
+    # the installed command is console_main: main, its status the exit status (tests/cli/test_installed_command.py)
     (entry_points,) = installed.glob("heliostep-*.dist-info/entry_points.txt")
     assert "heliostep = heliostep.cli:console_main" in entry_points.read_text().splitlines()
 

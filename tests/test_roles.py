@@ -24,8 +24,8 @@ RENAMED = (
 
 
 def test_renamed_instances_give_the_same_figures():
-    default = run_scenario(SCENARIO, SHORT)
-    renamed = run_scenario(SCENARIO, SHORT + RENAMED)
+    default = run_scenario(SCENARIO, overrides=SHORT)
+    renamed = run_scenario(SCENARIO, overrides=SHORT + RENAMED)
     assert set(renamed.scenario.fmus) == {"coil", "panel"}
     assert "coil.tau" in renamed.trace and "motor.tau" not in renamed.trace
     assert default.summary["steps_commanded"] >= 3  # the window has steps to judge
@@ -42,14 +42,14 @@ def test_renamed_instances_without_roles_name_the_missing_roles():
     with pytest.raises(
         InputError, match=r"roles\.current_a_ref: the default 'motor\.i_a_ref' uses FMU instance 'motor'"
     ):
-        run_scenario(SCENARIO, SHORT + RENAMED[:-1])
+        run_scenario(SCENARIO, overrides=SHORT + RENAMED[:-1])
 
 
 def test_a_role_naming_a_missing_variable_is_an_input_error():
     with pytest.raises(InputError, match=r"roles\.torque: .*has no variable 'torque'"):
-        run_scenario(SCENARIO, SHORT + ("roles.torque=motor.torque",))
+        run_scenario(SCENARIO, overrides=SHORT + ("roles.torque=motor.torque",))
     with pytest.raises(InputError, match=r"roles\.torque: motor\.i_a_ref has causality 'input', expected 'output'"):
-        run_scenario(SCENARIO, SHORT + ("roles.torque=motor.i_a_ref",))
+        run_scenario(SCENARIO, overrides=SHORT + ("roles.torque=motor.i_a_ref",))
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +81,7 @@ def test_a_vendor_motor_with_other_names_and_only_fmus_set_names_the_roles_to_sp
     # issue #24: a vendor motor FMU and only fmus.motor set: an input error naming each required role, the
     # default variable it looked for and the FMU's inputs, not a KeyError
     with pytest.raises(InputError) as error:
-        run_scenario(vendor_scenario, SHORT + ("fmus.motor=VendorMotor",))
+        run_scenario(vendor_scenario, overrides=SHORT + ("fmus.motor=VendorMotor",))
     message = str(error.value)
     assert "roles.current_a_ref: the default 'motor.i_a_ref' names no variable of VendorMotor.fmu" in message
     assert "roles.current_b_ref" in message and "its inputs: iaRef, ibRef" in message and "connections" in message
@@ -94,7 +94,7 @@ def test_a_vendor_motor_is_refused_with_its_variables_and_a_block_that_fits_whic
     import yaml
 
     with pytest.raises(InputError) as error:
-        run_scenario(vendor_scenario, SHORT + ("fmus.motor=VendorMotor",))
+        run_scenario(vendor_scenario, overrides=SHORT + ("fmus.motor=VendorMotor",))
     message = str(error.value)
     assert "connections[0] source 'motor.tau': VendorMotor.fmu (instance 'motor') has no variable 'tau'" in message
     assert (
@@ -116,8 +116,8 @@ def test_a_vendor_motor_is_refused_with_its_variables_and_a_block_that_fits_whic
     pasted = vendor_scenario.with_name("vendor-fitted.yaml")
     text = vendor_scenario.read_text().replace("motor: StepperMotor,", "motor: VendorMotor,")
     pasted.write_text(text + "\n" + block + "\n")
-    fitted = run_scenario(pasted, SHORT)
-    default = run_scenario(SCENARIO, SHORT)
+    fitted = run_scenario(pasted, overrides=SHORT)
+    default = run_scenario(SCENARIO, overrides=SHORT)
     assert "motor.tauEl" in fitted.trace and default.summary["steps_commanded"] >= 3
     for key, value in default.summary.items():
         if key != "rows":

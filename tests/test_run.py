@@ -79,7 +79,7 @@ def test_paper_case_tracking_error_is_half_a_panel_step(paper_run):
 
 
 def test_reach_trigger_doubles_the_error_to_one_panel_step(fmu_paths):
-    run = run_scenario(SCENARIOS / "jan21-central.yaml", ["sequencer.trigger=reach", "window.duration=60"])
+    run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["sequencer.trigger=reach", "window.duration=60"])
     panel_step = np.degrees(_panel_step(run.trace["panel_angle_ref"].mean()))
     assert 0.95 * panel_step < run.summary["max_tracking_error_deg"] < 1.1 * panel_step
 
@@ -136,7 +136,7 @@ def test_run_command_writes_trace_summary_metadata_and_plots(tmp_path, fmu_paths
 
 def test_the_figures_are_reported_before_the_plots_are_drawn(tmp_path, fmu_paths):
     """issue #26: the command line prints a run's figures once trace and records are written, then draws."""
-    run = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=30"])
+    run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["window.duration=30"])
     seen = {}
 
     def before_figures():
@@ -149,14 +149,16 @@ def test_the_figures_are_reported_before_the_plots_are_drawn(tmp_path, fmu_paths
 
 
 def test_variant_swap_is_one_set(fmu_paths):
-    run = run_scenario(SCENARIOS / "jan21-central.yaml", ["fmus.motor=StepperMotorIdealCurrent", "window.duration=30"])
+    run = run_scenario(
+        SCENARIOS / "jan21-central.yaml", overrides=["fmus.motor=StepperMotorIdealCurrent", "window.duration=30"]
+    )
     assert run.metadata["fmus"]["motor"]["path"].endswith("StepperMotorIdealCurrent.fmu")
     # the lagged currents reach their references exactly (no proportional-loop offset)
     assert run.summary["peak_phase_current_A"] == pytest.approx(RATED_CURRENT, rel=1e-6)
 
 
 def test_weak_motor_misses_steps_and_says_so(fmu_paths):
-    run = run_scenario(SCENARIOS / "jan21-weak-motor.yaml", ["window.duration=60"])
+    run = run_scenario(SCENARIOS / "jan21-weak-motor.yaml", overrides=["window.duration=60"])
     summary, outcomes = run.summary, run.metadata["solution_figures"]["step_outcomes"]
     assert summary["steps_commanded"] == len(outcomes) >= 3
     # at every step the wind pushes the 2 A rotor back by one electrical period (4 full steps):
@@ -191,7 +193,7 @@ def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch,
             return None  # (those are held to this recorder by tests/results/test_kernel_figures.py)
 
     monkeypatch.setattr(figures_module, "SolutionRecorder", Keeping)
-    run = run_scenario(SCENARIOS / scenario, ["window.duration=60"])
+    run = run_scenario(SCENARIOS / scenario, overrides=["window.duration=60"])
     recorder = recorders[0]
     import pandas as pd
 
@@ -273,7 +275,7 @@ def test_failure_mid_run_writes_the_trace_so_far_marked_incomplete(tmp_path, fmu
     assert 9 < trace["time"].max() < 300  # it failed at the first step, at about 9.4 s
     assert json.loads((tmp_path / "summary.json").read_text())["complete"] is False
     with pytest.raises(RunFailed) as failure:
-        run_scenario(SCENARIOS / "jan21-central.yaml", ["solver.max_num_steps=40"])
+        run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["solver.max_num_steps=40"])
     assert not failure.value.result.complete and len(failure.value.result.trace) > 0
 
 
@@ -354,7 +356,7 @@ def test_write_failure_says_where_the_result_could_not_go(tmp_path, fmu_paths, c
 def test_interrupted_write_leaves_no_file_claiming_completeness(tmp_path, fmu_paths, monkeypatch):
     import heliostep.results.run_files as run_module
 
-    run = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=2"])
+    run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["window.duration=2"])
     real = run_module.write_trace
 
     def killed_midway(df, path, metadata=None):
@@ -411,7 +413,7 @@ def test_night_window_warns_and_says_so_in_the_summary(tmp_path, fmu_paths, caps
 def test_interrupted_summary_does_not_count_the_step_in_progress(fmu_paths):
     from heliostep.results.summary import summary_at_cut, trace_summary
 
-    run = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=20"])
+    run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["window.duration=20"])
     steps = run.inputs.schedule.times
     cut = steps[0] + 0.001  # 1 ms into the first step: the rotor is on its way
     trace = run.trace[run.trace["time"] <= cut].reset_index(drop=True)
@@ -432,7 +434,7 @@ def test_an_extra_fmu_that_terminates_early_makes_the_run_incomplete_and_says_so
 
     counter = build_mini_fmu("Counter", tmp_path)
     with pytest.raises(RunFailed) as failed:
-        run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=20", f"fmus.counter={counter}"])
+        run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["window.duration=20", f"fmus.counter={counter}"])
     result = failed.value.result
     assert not result.complete and result.reason == "terminated"
     assert result.time_reached == pytest.approx(9.0)

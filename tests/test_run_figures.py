@@ -11,7 +11,7 @@ import pytest
 
 from heliostep.paths import scenarios_dir
 from heliostep.results.light import LightIntegrals, light_figures, light_timeseries
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 from weather_files import write_epw
 
 SCENARIOS = scenarios_dir()
@@ -22,9 +22,13 @@ GROUP = 23  # rows per row group (and per figure chunk)
 @pytest.fixture(scope="module")
 def runs(fmu_paths, tmp_path_factory):
     folder = tmp_path_factory.mktemp("figures")
-    held = run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=False, row_group_rows=GROUP)
+    held = run_scenario(
+        SCENARIOS / "jan21-central.yaml", RunOptions(stream=False, row_group_rows=GROUP), overrides=WINDOW
+    )
     streamed = run_scenario(
-        SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=folder, row_group_rows=GROUP
+        SCENARIOS / "jan21-central.yaml",
+        RunOptions(stream=True, trace_dir=folder, row_group_rows=GROUP),
+        overrides=WINDOW,
     )
     return held, streamed
 
@@ -47,7 +51,9 @@ def test_a_run_without_trace_gives_the_same_figures_and_writes_only_its_summary(
 
     held, _ = runs
     monkeypatch.setattr(run_module, "SINK_ROWS", 7)
-    bare = run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, row_group_rows=GROUP, keep_trace=False)
+    bare = run_scenario(
+        SCENARIOS / "jan21-central.yaml", RunOptions(row_group_rows=GROUP, keep_trace=False), overrides=WINDOW
+    )
     assert bare.summary == held.summary
     assert bare.metadata["solution_figures"] == held.metadata["solution_figures"]
     assert bare.metadata["statistics"]["figure_rows_held_max"] <= GROUP - 1 + 7
@@ -175,7 +181,7 @@ def test_weather_file_is_read_once_per_run(fmu_paths, tmp_path, monkeypatch):
         return original(*args, **kwargs)
 
     monkeypatch.setattr(irradiance, "read_weather", counting)
-    run = run_scenario(SCENARIOS / "jan21-central.yaml", [*WINDOW, f"optics.weather_file={path}"])
+    run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=[*WINDOW, f"optics.weather_file={path}"])
     assert [str(p) for p in reads] == [str(path)]
     # the file's DNI was used: the EPW row of hour 10 (400 W/m^2) is the mean of 09:00-10:00, placed
     # at 09:30, that of hour 11 (440) at 10:30, so over 10:00-10:00:20 DNI = 420 + 40 W/m^2 * t / 3600 s

@@ -9,7 +9,7 @@ import pytest
 
 from figures_oracle import summary_at_cut_before, trace_summary_before
 from heliostep.paths import scenarios_dir
-from heliostep.run import RunFailed, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 
 SCENARIOS = scenarios_dir()
 WINDOW = ["window.duration=20"]
@@ -35,7 +35,9 @@ def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, mo
 
     monkeypatch.setattr(runner, "SINK_ROWS", 5)
     asked = []
-    run_scenario(SCENARIOS / scenario, WINDOWS[scenario], should_stop=lambda: asked.append(1) and False)
+    run_scenario(
+        SCENARIOS / scenario, RunOptions(should_stop=lambda: asked.append(1) and False), overrides=WINDOWS[scenario]
+    )
     stops_after = int(fraction * len(asked))  # stopped part-way: at a step, while settling, idle
     calls = []
 
@@ -46,11 +48,10 @@ def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, mo
     with pytest.raises(RunFailed) as failed:
         run_scenario(
             SCENARIOS / scenario,
-            WINDOWS[scenario],
-            stream=stream,
-            trace_dir=tmp_path if stream else None,
-            row_group_rows=23,
-            should_stop=should_stop,
+            RunOptions(
+                stream=stream, trace_dir=tmp_path if stream else None, row_group_rows=23, should_stop=should_stop
+            ),
+            overrides=WINDOWS[scenario],
         )
     run = failed.value.result
     assert run.reason == "interrupted" and run.trace_rows > 0
@@ -59,7 +60,7 @@ def test_interrupted_summary_is_that_of_the_trace_so_far(fmu_paths, tmp_path, mo
 
 def test_failed_run_summary_is_that_of_the_trace_so_far(fmu_paths):
     with pytest.raises(RunFailed) as failed:
-        run_scenario(SCENARIOS / "jan21-central.yaml", ["solver.max_num_steps=40"])
+        run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["solver.max_num_steps=40"])
     run = failed.value.result
     assert run.reason == "failed"
     # the solution went on past the last output row: the steps lost are the output rows'
@@ -70,6 +71,8 @@ def test_failed_run_summary_is_that_of_the_trace_so_far(fmu_paths):
 @pytest.mark.parametrize("stream", [False, True])
 def test_complete_run_summary_is_that_of_the_trace(fmu_paths, tmp_path, stream):
     run = run_scenario(
-        SCENARIOS / "jan21-weak-motor.yaml", WINDOW, stream=stream, trace_dir=tmp_path, row_group_rows=23
+        SCENARIOS / "jan21-weak-motor.yaml",
+        RunOptions(stream=stream, trace_dir=tmp_path, row_group_rows=23),
+        overrides=WINDOW,
     )
     _assert_summary_is_the_traces(run)

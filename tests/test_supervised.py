@@ -25,7 +25,7 @@ import pytest
 
 from heliostep.cosim.child import MAX_ROWS_LOST
 from heliostep.results.trace_io import read_trace
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 from third_party_fmu import build_mini_fmu
 
 CLI = "from heliostep.cli import console_main; console_main()"
@@ -69,7 +69,7 @@ def complete_trace(faulty_fmu, tmp_path_factory) -> pd.DataFrame:
     """The same scenario without a fault, simulated in-process (unsupervised): the rows a faulty
     run's trace must hold, up to where it stopped."""
     folder = tmp_path_factory.mktemp("complete")
-    return run_scenario(_scenario(folder, faulty_fmu, 0), supervise=False).trace
+    return run_scenario(_scenario(folder, faulty_fmu, 0), RunOptions(supervise=False)).trace
 
 
 def _rows_computed(complete: pd.DataFrame, fault_at: float) -> int:
@@ -164,8 +164,8 @@ def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_
     monkeypatch.setattr(supervised, "START", start)
     scenario = scenarios_dir() / "jan21-central.yaml"
     overrides = ("window.duration=60",)
-    inside = run_scenario(scenario, overrides, supervise=False)
-    supervised = run_scenario(scenario, overrides, supervise=True)
+    inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
+    supervised = run_scenario(scenario, RunOptions(supervise=True), overrides=overrides)
     assert list(inside.trace.columns) == list(supervised.trace.columns) and len(inside.trace) > 500
     for column in inside.trace.columns:
         np.testing.assert_array_equal(inside.trace[column].to_numpy(), supervised.trace[column].to_numpy())
@@ -248,7 +248,7 @@ def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faul
 
 
 def _run_in_thread(scenario: Path, overrides: tuple[str, ...]):
-    """``run_scenario(..., supervise=True)`` from a thread of its own: this process runs two threads,
+    """``run_scenario(..., RunOptions(supervise=True))`` from a thread of its own: this process runs two threads,
     so the child is not forked from it (``auto``: the fork server, as in a Dask worker)."""
     import threading
 
@@ -258,7 +258,7 @@ def _run_in_thread(scenario: Path, overrides: tuple[str, ...]):
 
     def run() -> None:
         methods.append(supervised._start_method())
-        results.append(run_scenario(scenario, overrides, supervise=True))
+        results.append(run_scenario(scenario, RunOptions(supervise=True), overrides=overrides))
 
     thread = threading.Thread(target=run)
     thread.start()
@@ -274,7 +274,7 @@ def test_a_run_from_a_thread_is_forked_by_the_fork_server_the_same_bit_for_bit(f
 
     monkeypatch.setattr(supervised, "START", "auto")
     scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=60",)
-    inside = run_scenario(scenario, overrides, supervise=False)
+    inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
     method, served = _run_in_thread(scenario, overrides)
     assert method == "server"
     server = fork_server._CLIENT.process
@@ -304,54 +304,7 @@ def test_a_fork_server_that_cannot_start_leaves_the_child_executed(fmu_paths, mo
     monkeypatch.setattr(fork_server, "_CLIENT", fork_server._Client())  # a client of its own, no server yet
     monkeypatch.setattr(fork_server, "_MAIN", "import sys; sys.exit(3)")  # a server that dies at once
     scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=20",)
-    inside = run_scenario(scenario, overrides, supervise=False)
-    executed = run_scenario(scenario, overrides, supervise=True)
+    inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
+    executed = run_scenario(scenario, RunOptions(supervise=True), overrides=overrides)
     assert fork_server._CLIENT.broken and fork_server._CLIENT.process is None  # tried twice, then given up
     np.testing.assert_array_equal(inside.trace.to_numpy(), executed.trace.to_numpy())
-
-
-@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux's /proc to find the child")
-def test_the_writers_warm_up_runs_once_while_the_child_simulates_and_its_failure_loses_nothing(
-    fmu_paths, monkeypatch, caplog
-):
-    """The supervisor's ``meanwhile`` (the trace writers' warm-up, ``heliostep.run.runner``): called
-    once, with the simulating child alive; one that raises is logged as a warning and the run's trace
-    and figures are those of the run in process, bit for bit. A run that keeps no trace warms nothing."""
-    import heliostep.run.runner as runner
-    import heliostep.run.supervised as supervised
-    from heliostep.paths import scenarios_dir
-
-    monkeypatch.setattr(supervised, "START", "fork")
-    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=20",)
-    inside = run_scenario(scenario, overrides, supervise=False)
-    before, calls = set(_children(os.getpid())), []
-
-    def broken_warm_up() -> None:
-        calls.append(set(_children(os.getpid())) - before)
-        raise RuntimeError("warm-up broken")
-
-    monkeypatch.setattr(runner, "warm_up_writers", broken_warm_up)
-    with caplog.at_level("WARNING", logger="heliostep.run.supervised"):
-        supervised_run = run_scenario(scenario, overrides, supervise=True)
-    assert len(calls) == 1 and len(calls[0]) == 1, calls  # one call, the forked child running
-    assert "failed while the child simulated; the run goes on" in caplog.text and "warm-up broken" in caplog.text
-    assert supervised_run.complete is True
-    np.testing.assert_array_equal(inside.trace.to_numpy(), supervised_run.trace.to_numpy())
-    assert json.dumps(inside.summary, sort_keys=True, default=str) == json.dumps(
-        supervised_run.summary, sort_keys=True, default=str
-    )
-    figures_only = run_scenario(scenario, overrides, supervise=True, keep_trace=False)
-    assert len(calls) == 1 and figures_only.summary["peak_torque_Nm"] == inside.summary["peak_torque_Nm"]
-
-
-def test_the_writers_warm_up_imports_and_writes_in_memory_only(tmp_path):
-    """In a fresh process: before it, no ``pyarrow.parquet``; after it, imported, and no file written."""
-    code = (
-        "import sys; from heliostep.results.trace_io import warm_up_writers\n"
-        "assert 'pyarrow.parquet' not in sys.modules and 'pyarrow.csv' not in sys.modules\n"
-        "warm_up_writers()\n"
-        "assert 'pyarrow.parquet' in sys.modules and 'pyarrow.csv' in sys.modules\n"
-    )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path)
-    assert result.returncode == 0, result.stderr[-3000:]
-    assert list(tmp_path.iterdir()) == []

@@ -16,7 +16,7 @@ from heliostep.drive.sequencer import Sequencer
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
 from heliostep.results.trace_io import copy_trace_to_csv, read_trace
-from heliostep.run import RunFailed, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 
 SCENARIOS = scenarios_dir()
 WINDOW = ["window.duration=20"]  # 2 steps of the paper's case: about 300 rows
@@ -24,7 +24,7 @@ WINDOW = ["window.duration=20"]  # 2 steps of the paper's case: about 300 rows
 
 @pytest.fixture(scope="module")
 def held(fmu_paths):
-    return run_scenario(SCENARIOS / "jan21-central.yaml", WINDOW, stream=False)
+    return run_scenario(SCENARIOS / "jan21-central.yaml", RunOptions(stream=False), overrides=WINDOW)
 
 
 def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_path, monkeypatch):
@@ -33,7 +33,9 @@ def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_p
     monkeypatch.setattr(run_module, "SINK_ROWS", 5)  # the master's blocks: 5 rows, cut anywhere
     rows_per_group = 23
     streamed = run_scenario(
-        SCENARIOS / "jan21-central.yaml", WINDOW, stream=True, trace_dir=tmp_path, row_group_rows=rows_per_group
+        SCENARIOS / "jan21-central.yaml",
+        RunOptions(stream=True, trace_dir=tmp_path, row_group_rows=rows_per_group),
+        overrides=WINDOW,
     )
     assert streamed.held_trace is None and streamed.trace_file.parent == tmp_path
     n = len(held.trace)
@@ -143,11 +145,8 @@ def test_interrupted_stream_is_written_marked_and_claims_nothing_while_written(f
     with pytest.raises(RunFailed) as failed:
         run_scenario(
             SCENARIOS / "jan21-central.yaml",
-            WINDOW,
-            stream=True,
-            trace_dir=tmp_path,
-            row_group_rows=10,
-            should_stop=should_stop,
+            RunOptions(stream=True, trace_dir=tmp_path, row_group_rows=10, should_stop=should_stop),
+            overrides=WINDOW,
         )
     run = failed.value.result
     assert run.reason == "interrupted" and len(seen) == 3
@@ -207,13 +206,13 @@ import resource, sys
 from pathlib import Path
 from heliostep.paths import scenarios_dir
 from heliostep.errors import RunFailure
-from heliostep.run import RunFailed, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 
 out, limit = Path(sys.argv[1]), int(sys.argv[2])
 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))  # no file may grow past it
 try:
-    run_scenario(scenarios_dir() / "jan21-central.yaml", ["window.duration=600"], stream=True, trace_dir=out,
-                 row_group_rows=256)
+    run_scenario(scenarios_dir() / "jan21-central.yaml", RunOptions(stream=True, trace_dir=out, row_group_rows=256),
+                 overrides=["window.duration=600"])
 except RunFailed as failed:
     result = failed.result
     print(result.trace_file, len(result.unwritten_trace))
@@ -244,7 +243,7 @@ def test_a_write_failing_mid_stream_keeps_the_row_groups_written(fmu_paths, tmp_
     assert process.returncode == 1, process.stderr
     stream, unwritten = process.stdout.splitlines()[0].split()
     assert "write failed" in process.stdout and "File too large" in process.stdout
-    held = run_scenario(SCENARIOS / "jan21-central.yaml", ["window.duration=600"], stream=False)
+    held = run_scenario(SCENARIOS / "jan21-central.yaml", RunOptions(stream=False), overrides=["window.duration=600"])
     trace, meta = read_trace(stream)
     n = len(trace)
     assert 0 < n < len(held.trace) and n % 256 == 0  # whole row groups, and not all of them

@@ -1,7 +1,7 @@
 """heliostep: co-simulation of the stepper drives of solar-tracking mirrors.
 
-The one public entry point is :func:`run_scenario` (returning a :class:`RunResult`), re-exported
-here from :mod:`heliostep.run`. The packages follow the data flow, one stage each:
+The one public entry point is :func:`run_scenario` (taking :class:`RunOptions`, returning a
+:class:`RunResult`), re-exported here from :mod:`heliostep.run`. The packages follow the data flow, one stage each:
 :mod:`~heliostep.scenario` → :mod:`~heliostep.solar` / :mod:`~heliostep.drive` →
 :mod:`~heliostep.cosim` (with FMUs from :mod:`~heliostep.fmu`) → :mod:`~heliostep.results` →
 :mod:`~heliostep.plots`; :mod:`~heliostep.sweep` runs many scenarios, :mod:`~heliostep.cli` is
@@ -10,12 +10,12 @@ the command line. The layer contracts in ``pyproject.toml`` (import-linter) keep
 
 from heliostep._version import __version__
 
-__all__ = ["RunFailed", "RunResult", "__version__", "run_scenario"]
+__all__ = ["RunFailed", "RunOptions", "RunResult", "__version__", "run_scenario"]
 
 
 def __getattr__(name: str):
     # PEP 562: `import heliostep` stays light; the entry point is imported on first use.
-    if name in ("run_scenario", "RunResult", "RunFailed"):
+    if name in ("run_scenario", "RunOptions", "RunResult", "RunFailed"):
         from heliostep import run
 
         return getattr(run, name)

@@ -10,7 +10,6 @@ test's own: empty for the first run (pvlib computes every grid: the reference), 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 
@@ -24,8 +23,11 @@ NEVER = ("matplotlib", "dask", "distributed", "casadi", "pymoca")
 PVLIB_ONLY = ("pvlib", "h5py", "scipy.integrate", "urllib.request")
 
 RUN_AND_REPORT = (
-    "import json, sys\n"
+    "import json, pathlib, sys\n"
     "from heliostep.cli import main\n"
+    "from heliostep.solar import sun_cache\n"
+    "folder = pathlib.Path(sys.argv.pop(1))\n"
+    "sun_cache.cache_folder = lambda: folder\n"  # a sun cache of the test's own (the FMUs stay where built)
     "status = main(sys.argv[1:])\n"
     "print(json.dumps({'status': status, 'modules': sorted(sys.modules)}))\n"
 )
@@ -42,8 +44,7 @@ def run(out, sun_cache) -> tuple[dict, dict]:
         "--set",
         "window.duration=10",
     ]
-    env = {**os.environ, "HELIOSTEP_SUN_CACHE": str(sun_cache)}
-    done = subprocess.run([sys.executable, "-c", RUN_AND_REPORT, *args], capture_output=True, text=True, env=env)
+    done = subprocess.run([sys.executable, "-c", RUN_AND_REPORT, str(sun_cache), *args], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout.strip().splitlines()[-1])
     summary = json.loads((out / "summary.json").read_text())

@@ -132,10 +132,9 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
     at once, the figures' staging folder and every temporary file removed, no traceback.
 
     The signal waits for the command's report (its first line on stdout, printed once the trace and
-    records are in place) and then for the figures' staging folder (the drawer drawing): a first
+    records are in place) and then for the figures' staging folder (the figures being drawn): a first
     signal while the records are still being written skips the figures by itself, and on a fast
-    machine the command has then ended before a second signal 50 ms later (seen in CI). After the
-    report the command only waits for the drawer (0.3-0.4 s of drawing)."""
+    machine the command has then ended before a second signal 50 ms later."""
     out = tmp_path / "run"
     process = popen_heliostep(
         ["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--set", "window.duration=120"],
@@ -147,7 +146,7 @@ def test_second_signal_while_writing_exits_at_once_and_leaves_no_temporary_file(
     first_line = process.stdout.readline()  # the report is printed and flushed whole: its first line is there
     assert first_line.startswith("jan21-central: complete -> "), (first_line, process.communicate())
     deadline = time.monotonic() + 60.0
-    while not _staged_figures(out):  # the drawer has begun (its staging folder)
+    while not _staged_figures(out):  # the drawing has begun (its staging folder)
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, "no figures were drawn"
         time.sleep(0.005)

@@ -101,12 +101,12 @@ def test_a_file_size_limit_fails_the_run_and_the_rescue_holds_every_row(scenario
 CHILD = """
 import resource, signal, sys
 from pathlib import Path
-from heliostep.run import RunFailed, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 limit = int(sys.argv[1])
 resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 try:
-    run_scenario("jan21-day", stream=True, row_group_rows=500, trace_dir=sys.argv[2])
+    run_scenario("jan21-day", RunOptions(stream=True, row_group_rows=500, trace_dir=sys.argv[2]))
     sys.exit("the run did not fail")
 except RunFailed as failed:
     result = failed.result

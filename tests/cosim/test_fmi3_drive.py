@@ -16,8 +16,8 @@ FMI3 = ["fmus.motor=StepperMotor-fmi3", "fmus.mechanics=PanelMechanics-fmi3"]
 
 def test_the_fmi3_drive_gives_the_fmi2_drives_run(fmu_paths):
     scenario = scenarios_dir() / "jan21-central.yaml"
-    fmi2 = run_scenario(scenario, WINDOW)
-    fmi3 = run_scenario(scenario, [*WINDOW, *FMI3])
+    fmi2 = run_scenario(scenario, overrides=WINDOW)
+    fmi3 = run_scenario(scenario, overrides=[*WINDOW, *FMI3])
     assert fmi3.metadata["fmus"]["motor"]["path"].endswith("StepperMotor-fmi3.fmu")
     assert fmi2.summary["steps_commanded"] == fmi3.summary["steps_commanded"] >= 2
     for column in ("motor.tau", "motor.i_a", "motor.i_b", "mechanics.theta", "mechanics.theta_p"):

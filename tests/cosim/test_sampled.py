@@ -20,7 +20,7 @@ import lag_reference
 from heliostep.cosim import Connection, CoSimulation, SolverOptions, read_fmu
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 from third_party_fmu import build_mini_fmu
 
 T_LAG = 0.5
@@ -118,7 +118,7 @@ def test_a_scenario_runs_a_cs_fmu_at_its_communication_interval(fmus, supervise)
         "connections=[[motor.tau, mechanics.tau], [mechanics.theta, motor.theta], [mechanics.omega, motor.omega],"
         " [ramp.s, lag.u]]",
     )
-    result = run_scenario(scenarios_dir() / "jan21-central.yaml", overrides, supervise=supervise)
+    result = run_scenario(scenarios_dir() / "jan21-central.yaml", RunOptions(supervise=supervise), overrides=overrides)
     assert result.complete
     # lag.y drives nothing but is traced (held); at the points, the lag of the sampled ramp (first principles)
     assert result.metadata["statistics"]["sampled_components"]["lag"]["steps"] == 80

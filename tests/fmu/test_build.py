@@ -1,7 +1,9 @@
 """heliostep.fmu.build and heliostep.fmu.modelica: building FMUs from models/, cached, deterministic."""
 
 import hashlib
+import re
 import shutil
+from importlib import resources
 
 import pytest
 from fmpy import read_model_description
@@ -143,3 +145,15 @@ def test_cli_reports_a_failed_build_as_a_run_failure_with_exit_status_1(tmp_path
     status = main(["build-fmus", "--model", "StepperMotor", "--out", str(tmp_path / "out"), "--force"])
     assert status == 1
     assert capsys.readouterr().err == "heliostep build-fmus: error: gcc failed: no space left on device\n"
+
+
+@pytest.mark.parametrize("layer", ["fmi2_model_exchange.c", "fmi3_model_exchange.c"])
+def test_every_entry_point_of_a_layer_runs_between_begin_and_end_function(layer):
+    """Each fmiXStatus entry point checks the state and its arguments in BEGIN_FUNCTION and leaves
+    through END_FUNCTION (UNSUPPORTED holds both), so every error takes the one way out."""
+    source = (resources.files("heliostep.fmu") / "c" / layer).read_text()
+    bodies = re.findall(r"^fmi[23]Status fmi[23]\w+\(.*?\n\}", source, re.S | re.M)
+    assert len(bodies) > 20
+    for body in bodies:
+        assert "BEGIN_FUNCTION(" in body and "END_FUNCTION()" in body or "UNSUPPORTED(" in body, body
+        assert "return" not in body, body

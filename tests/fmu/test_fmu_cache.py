@@ -1,4 +1,4 @@
-"""The FMU cache (issue 22, item 12): used read-only, verified before use, repaired, cleared of
+"""The FMU cache: used read-only, verified before use, repaired, cleared of
 killed builds, keyed by build so versions coexist; ``regress`` stopped by SIGTERM leaves no
 temporary folder. Real builds (pymoca, CasADi, gcc), real processes and signals."""
 

@@ -41,7 +41,7 @@ def source_only_gain(folder, broken: bool = False):
 def test_a_source_only_fmu_is_compiled_on_first_use_and_runs_as_first_principles_say(tmp_path):
     gain = source_only_gain(tmp_path / "vendor")
     # u unconnected (start 0): y = k u + b = b and s = integral of y = b t; b = 2 over a 5 s window
-    result = run_scenario(CENTRAL, ("window.duration=5", f"fmus.gain={gain}", "parameters.gain.b=2.0"))
+    result = run_scenario(CENTRAL, overrides=("window.duration=5", f"fmus.gain={gain}", "parameters.gain.b=2.0"))
     assert result.trace["gain.y"].to_numpy() == pytest.approx(2.0)
     assert result.trace["gain.s"].iloc[-1] == pytest.approx(2.0 * 5.0, rel=1e-6)
     used = result.metadata["fmus"]["gain"]["path"]
@@ -66,7 +66,7 @@ def test_the_second_use_finds_the_compiled_copy_in_the_cache(tmp_path):
 def test_sources_that_do_not_compile_are_an_input_error_naming_the_fmu_and_the_first_error(tmp_path):
     gain = source_only_gain(tmp_path / "vendor", broken=True)
     with pytest.raises(InputError) as error:
-        run_scenario(CENTRAL, ("window.duration=5", f"fmus.gain={gain}"))
+        run_scenario(CENTRAL, overrides=("window.duration=5", f"fmus.gain={gain}"))
     message = str(error.value)
     assert "fmus.gain" in message and str(gain) in message and "does not compile" in message
     assert "gain.c" in message and "error: expected ';'" in message and "\n" not in message

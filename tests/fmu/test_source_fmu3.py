@@ -38,7 +38,7 @@ def test_a_source_only_fmi3_fmu_is_compiled_on_first_use_and_runs_as_first_princ
         "connections=[[motor.tau, mechanics.tau], [mechanics.theta, motor.theta], [mechanics.omega, motor.omega],"
         " [one.y, lag.u]]",
     )
-    result = run_scenario(CENTRAL, overrides)
+    result = run_scenario(CENTRAL, overrides=overrides)
     assert result.complete
     used = result.metadata["fmus"]["lag"]["path"]
     assert "/sources/" in used and used.endswith("Lag3.fmu")  # the compiled copy in the cache, not the file given

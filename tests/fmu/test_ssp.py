@@ -60,7 +60,7 @@ def test_a_scenario_with_the_ssp_as_its_system_gives_the_same_run(exported):
     read_back = load_scenario(scenario, SHORT[:1])
     assert set(read_back.fmus) == {"motor", "mechanics"} and read_back.parameters == {"motor": {"R": 0.9}}
     assert read_back.connection_pairs() == load_scenario(CENTRAL).connection_pairs()
-    original = run_scenario(CENTRAL, SHORT)
+    original = run_scenario(CENTRAL, overrides=SHORT)
     again = run_scenario(read_back)
     assert original.summary["steps_commanded"] >= 3
     for key, value in original.summary.items():

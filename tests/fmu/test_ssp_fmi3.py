@@ -68,7 +68,7 @@ def test_an_ssp_with_an_fmi3_component_is_valid_and_read_back_gives_the_same_co_
     assert read_back.parameters["lag"] == {"T": T_LAG} and ["ramp.s", "lag.u"] in map(
         list, read_back.connection_pairs()
     )
-    original = run_scenario(CENTRAL, (*system, *run))
+    original = run_scenario(CENTRAL, overrides=(*system, *run))
     again = run_scenario(read_back)
     assert again.metadata["statistics"]["sampled_components"]["lag"] == {"interval_s": H, "steps": 60}
     for key, value in original.summary.items():

@@ -78,7 +78,7 @@ def test_the_legends_give_the_run_s_figures_not_the_rows_trapezoids(fmu_paths):
     from heliostep.run import run_scenario
 
     coarse = ("output.interval=30", "output.step_detail=0.01", "output.step_interval=0.005")
-    run = run_scenario(scenarios_dir() / "jan21-central.yaml", coarse)
+    run = run_scenario(scenarios_dir() / "jan21-central.yaml", overrides=coarse)
     series = light_timeseries(run.trace, run.metadata, run.scenario)
     time = series["time"].to_numpy()
     change = (series["power_actual_W"] - series["power_reference_W"]).to_numpy()

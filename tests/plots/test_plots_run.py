@@ -228,7 +228,7 @@ def solved(request, fmu_paths):
     from heliostep.run import run_scenario
 
     name, overrides = request.param
-    run = run_scenario(scenarios_dir() / f"{name}.yaml", overrides)
+    run = run_scenario(scenarios_dir() / f"{name}.yaml", overrides=overrides)
     source = run.held_trace if run.held_trace is not None else run.trace_file
     return run, dict(run_plots.run_figures(source, run.trace_metadata(), run.solution_plot))
 

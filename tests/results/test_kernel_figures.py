@@ -40,7 +40,7 @@ EPS = np.finfo(float).eps
 
 def _run(name: str, overrides: tuple[str, ...], in_kernel: bool, monkeypatch):
     monkeypatch.setattr(master, "KERNEL_FIGURES", in_kernel)
-    return run_scenario(SCENARIOS / f"{name}.yaml", overrides)
+    return run_scenario(SCENARIOS / f"{name}.yaml", overrides=overrides)
 
 
 def test_every_shipped_scenario_is_in_the_test():

@@ -12,8 +12,9 @@ import pytest
 from scipy.integrate import quad
 
 from heliostep.paths import scenarios_dir
+from heliostep.results.light import light_timeseries
 from heliostep.results.light_rows import RowMarks, corrections
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 
 #: an output grid of 30 s with 10 ms of detail after each step at 5 ms: the panel is still swinging at
 #: its last detail row (tests/test_figures.py's coarse grid)
@@ -141,7 +142,9 @@ def test_the_curvature_term_makes_the_trapezoid_of_a_held_angle_exact():
 @pytest.fixture(scope="module")
 def central_runs(fmu_paths):
     path = scenarios_dir() / "jan21-central.yaml"
-    return run_scenario(path, keep_trace=False), run_scenario(path, COARSE, keep_trace=False)
+    return run_scenario(path, RunOptions(keep_trace=False)), run_scenario(
+        path, RunOptions(keep_trace=False), overrides=COARSE
+    )
 
 
 def test_the_stepping_light_does_not_move_with_the_output_grid(central_runs):
@@ -166,9 +169,11 @@ def test_a_day_hour_on_its_own_30_s_grid_has_the_fine_grid_stepping_light(fmu_pa
     paper's case and a driven primary need, 3.6e-9 at this low sun)."""
     hour = ("window.end=null", "window.duration=3600")
     path = scenarios_dir() / "jan21-day.yaml"
-    shipped = run_scenario(path, hour, keep_trace=False).summary
+    shipped = run_scenario(path, RunOptions(keep_trace=False), overrides=hour).summary
     fine = run_scenario(
-        path, (*hour, "output.interval=0.1", "output.step_detail=0.05", "output.step_interval=0.0005"), keep_trace=False
+        path,
+        RunOptions(keep_trace=False),
+        overrides=(*hour, "output.interval=0.1", "output.step_detail=0.05", "output.step_interval=0.0005"),
     ).summary
     energy = fine["light_energy_J"]
     assert shipped["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], abs=5e-9 * energy)
@@ -197,8 +202,32 @@ def test_a_driven_primary_stepping_light_is_second_order_and_does_not_move_with_
     over the held stretches. On 30 s rows it agrees with its own grid within 2e-3 (1.4e-4 measured; the
     first-order correction alone left it 36 % off, the rows alone more)."""
     path = scenarios_dir() / "jan21-central.yaml"
-    fine = run_scenario(path, ("mirror.axis=primary",), keep_trace=False).summary
-    coarse = run_scenario(path, ("mirror.axis=primary", *COARSE), keep_trace=False).summary
+    fine = run_scenario(path, RunOptions(keep_trace=False), overrides=("mirror.axis=primary",)).summary
+    coarse = run_scenario(path, RunOptions(keep_trace=False), overrides=("mirror.axis=primary", *COARSE)).summary
     assert abs(fine["light_stepping_change_J"]) > 30 * abs(fine["light_stepping_first_order_J"])
     assert coarse["light_stepping_change_J"] == pytest.approx(fine["light_stepping_change_J"], rel=2e-3)
     assert coarse["light_stepping_first_order_J"] == pytest.approx(fine["light_stepping_first_order_J"], rel=0.01)
+
+
+def test_the_light_of_a_held_run_s_rows_integrates_to_its_summary_figure(fmu_paths):
+    """The power on the tube at a held run's rows (what its figure draws, computed from the trace in four
+    chunks of 200 rows): its trapezoid is the summary's light energy, which corrects it between the rows by
+    parts in 10^8."""
+    held = run_scenario(
+        scenarios_dir() / "jan21-central.yaml", RunOptions(row_group_rows=200), overrides=("window.duration=40",)
+    )
+    trace = held.trace_columns(["panel_angle_ref", held.metadata["roles"]["panel_angle"]])
+    assert len(trace) > 600 and held.figures is not None  # more rows than three chunks
+    light = light_timeseries(trace, held.metadata, held.scenario, held.weather)
+    assert "power_actual_W" in light and "stepping_first_order_W" in light
+    energy = np.trapezoid(light["power_actual_W"], light["time"])
+    assert energy > 1000.0 and energy == pytest.approx(held.summary["light_energy_J"], rel=1e-6)
+
+
+def test_a_streamed_run_and_a_run_without_trace_have_the_same_light_figures(fmu_paths):
+    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=5",)
+    streamed = run_scenario(scenario, RunOptions(stream=True), overrides=overrides)
+    figures_only = run_scenario(scenario, RunOptions(keep_trace=False), overrides=overrides)
+    assert streamed.held_trace is None
+    light = [key for key in streamed.summary if key.startswith("light_")]
+    assert len(light) > 8 and [streamed.summary[key] for key in light] == [figures_only.summary[key] for key in light]

@@ -24,7 +24,7 @@ IDLE = (
 
 
 def _run(*overrides):
-    return run_scenario(scenarios_dir() / "jan21-central.yaml", overrides)
+    return run_scenario(scenarios_dir() / "jan21-central.yaml", overrides=overrides)
 
 
 def _static_torque_peak(i_a, i_b):

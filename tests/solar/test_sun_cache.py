@@ -27,7 +27,6 @@ TIMES = pd.date_range("2025-01-21 10:00", periods=301, freq="1s", tz=SITE.timezo
 def cache(tmp_path, monkeypatch):
     """A cache folder of the test's own (the FMU cache's ``sun-grids``); the entries written there."""
     monkeypatch.setenv("HELIOSTEP_FMUS", str(tmp_path))
-    monkeypatch.delenv("HELIOSTEP_SUN_CACHE", raising=False)
     return tmp_path / "sun-grids"
 
 
@@ -74,21 +73,13 @@ def test_a_sun_position_read_back_is_pvlibs_bit_for_bit_and_each_changed_input_i
             assert not np.array_equal(found[column].to_numpy(), expected[column].to_numpy()), name
 
 
-def test_a_damaged_entry_is_computed_again_and_the_cache_can_be_turned_off(cache, monkeypatch):
+def test_a_damaged_entry_is_computed_again(cache):
     expected = pvlib_position(TIMES, SITE.latitude, SITE.longitude, SITE.altitude)
     solar_position(TIMES, SITE.latitude, SITE.longitude, SITE.altitude)
     (entry,) = cache.glob("*.npz")
     entry.write_bytes(entry.read_bytes()[:100])  # cut short (a disk that failed, a foreign file)
     assert_bits_equal(solar_position(TIMES, SITE.latitude, SITE.longitude, SITE.altitude), expected)
     assert entry.stat().st_size > 100  # written again whole
-
-    monkeypatch.setenv("HELIOSTEP_SUN_CACHE", "off")
-    other = TIMES + pd.Timedelta(1, "h")
-    assert_bits_equal(
-        solar_position(other, SITE.latitude, SITE.longitude, SITE.altitude),
-        pvlib_position(other, SITE.latitude, SITE.longitude, SITE.altitude),
-    )
-    assert len(entries(cache)) == 1  # nothing written with the cache off
 
 
 def test_the_clear_sky_and_the_sun_events_read_back_are_pvlibs(cache):

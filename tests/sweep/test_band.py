@@ -22,7 +22,7 @@ from distributed import Client, LocalCluster
 from heliostep import cli
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
-from heliostep.run import resolve_fmus, run_scenario
+from heliostep.run import RunOptions, resolve_fmus, run_scenario
 from heliostep.scenario import load_scenario
 from heliostep.sweep.band import RANGES_FILE, band_design, load_ranges
 from heliostep.sweep.band_run import band_record, run_band, run_figures
@@ -131,7 +131,7 @@ def test_band_extremes_bracket_the_nominal_run(client, fmu_paths, tmp_path):
     design = band_design(scenario, load_ranges(ranges), 3, fmu_paths=paths, ranges_file=ranges)
     strata = np.floor((design.values[:, 0] - 24.0) / 24.0 * 3).astype(int)
     assert design.nominal["parameters.motor.V_supply"] == 36.0 and sorted(strata) == [0, 1, 2]
-    nominal = run_figures(run_scenario(scenario, keep_trace=False, fmu_paths=paths))
+    nominal = run_figures(run_scenario(scenario, RunOptions(keep_trace=False, fmu_paths=paths)))
     outcome = run_band(scenario, design, paths, client=client)
     record = band_record(nominal, outcome)
     assert record["complete"] and record["failed"] == [] and "note" not in record
@@ -172,7 +172,7 @@ def test_a_failed_sample_is_reported_never_dropped(client, fmu_paths, tmp_path):
     seen = []
     outcome = run_band(scenario, design, paths, client=client, on_sample=seen.append)
     assert sorted(result["index"] for result in seen) == [0, 1]
-    record = band_record(run_figures(run_scenario(scenario, keep_trace=False, fmu_paths=paths)), outcome)
+    record = band_record(run_figures(run_scenario(scenario, RunOptions(keep_trace=False, fmu_paths=paths))), outcome)
     assert record["failed"] == [negative] and not record["complete"]
     failed = record["sample_results"][negative]
     assert failed["status"] == "failed" and failed["error"] and failed["figures"] is None

@@ -23,7 +23,7 @@ from heliostep import cli
 from heliostep.errors import InputError
 from heliostep.paths import fmus_dir, scenarios_dir
 from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE, plot_sweep
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 from heliostep.sweep import expand_cases, load_sweep, read_results, run_sweep
 
 BASE = scenarios_dir() / "jan21-central.yaml"
@@ -162,7 +162,7 @@ def test_the_year_field_grid_gives_the_figures_of_the_fine_grid(fmu_paths):
     case += ("window.date=2025-06-21", "window.start=11:00", "window.duration=1200")
     case += ("mirror.distance=null", "mirror.index=0")
     runs = {
-        grid: run_scenario(BASE, case + extra, keep_trace=False, light_first_order=False)
+        grid: run_scenario(BASE, RunOptions(keep_trace=False, light_first_order=False), overrides=case + extra)
         for grid, extra in (("year-field", ()), ("fine", ("output.step_detail=0.05",)))
     }
     assert runs["fine"].summary["rows"] > 4 * runs["year-field"].summary["rows"]
@@ -196,7 +196,7 @@ def test_sweep_on_two_workers_equals_runs_one_by_one(client, tmp_path):
             "mirror.distance=null",
             f"mirror.index={row.mirror_index}",
         )
-        summary = run_scenario(BASE, overrides).summary
+        summary = run_scenario(BASE, overrides=overrides).summary
         for key in PLAIN_FIGURES:
             assert same(getattr(row, key), summary[key]), key
         settling = summary["settling_time_s"]

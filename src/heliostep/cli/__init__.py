@@ -8,24 +8,19 @@ returning an exit status). This module only assembles them and turns a
 input); a KeyboardInterrupt that reaches it becomes one line and exit status 130, and a stop
 signal (SIGINT, SIGTERM, SIGHUP) from the very start, while the commands' modules are imported,
 one line and 128 + its number (:func:`~heliostep.cli.signals.signals_end_the_command`).
-The installed command is :func:`console_main`: :func:`main` (its command's modules imported without
-the garbage collector, then frozen: :mod:`heliostep.collector`), then :func:`leave` with its status.
+The installed command is :func:`console_main`: :func:`main`, its status the process's exit status.
 """
 
 from __future__ import annotations
 
 import argparse
-import atexit
-import contextlib
+import gc
 import importlib
-import os
 import sys
-import threading
 from typing import NoReturn
 
 from heliostep._version import __version__
 from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command
-from heliostep.collector import imports_frozen
 from heliostep.errors import HeliostepError, RunFailure
 
 #: The commands and the modules that provide them, in the order ``--help`` lists them.
@@ -46,7 +41,7 @@ COMMAND_MODULES = tuple(COMMANDS.values())
 
 def make_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The parser of the command ``argv`` names, importing only that command's module (a command's
-    modules take up to a second to import: pvlib, Dask, matplotlib); every command's when ``argv``
+    modules are heavy to import: pvlib, Dask, matplotlib); every command's when ``argv``
     names none (``--help``, a mistyped command: argparse then lists them all)."""
     parser = argparse.ArgumentParser(
         prog="heliostep",
@@ -62,24 +57,14 @@ def make_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None, *, freeze_imports: bool = False, leaving: bool = False) -> int:
-    """The command ``argv`` names (default ``sys.argv[1:]``) run; its exit status.
-
-    With ``freeze_imports`` (the installed command, :func:`console_main`), the command's modules are
-    imported with the garbage collector off and their objects frozen after
-    (:func:`heliostep.collector.imports_frozen`); called from Python, the caller's collector is left as it is.
-    With ``leaving`` (the installed command, which then leaves the process), the stop-signal handlers stay
-    for the exit: a signal there no longer cuts the exit handlers' clean-up short
-    (:func:`~heliostep.cli.signals.signals_end_the_command`); called from Python, the caller's handlers are
-    restored.
-    """
-    # first thing: a stop signal while the commands' modules are imported (half a second and
-    # more) is one line and 128 + its number, never a traceback
+def main(argv: list[str] | None = None) -> int:
+    """The command ``argv`` names (default ``sys.argv[1:]``) run; its exit status."""
+    # first thing: a stop signal while the commands' modules are imported is one line and 128 + its
+    # number, never a traceback
     command = "heliostep"
     try:
-        with signals_end_the_command(keep_for_exit=leaving) as starting:
-            with imports_frozen() if freeze_imports else contextlib.nullcontext():
-                parser = make_parser(argv)
+        with signals_end_the_command() as starting:
+            parser = make_parser(argv)
             args = parser.parse_args(argv)
             if not getattr(args, "func", None):
                 parser.print_help()
@@ -112,36 +97,13 @@ def _run(command: str, args: argparse.Namespace) -> int:
 
 
 def console_main() -> NoReturn:
-    """The installed ``heliostep`` command (``[project.scripts]``): :func:`main` with its imports frozen and
-    its stop-signal handlers kept for the exit, then :func:`leave`."""
-    leave(main(freeze_imports=True, leaving=True))
+    """The installed ``heliostep`` command (``[project.scripts]``): :func:`main`, then its exit status.
 
-
-def leave(status: int) -> NoReturn:
-    """End the process with ``status`` [exit status], without the interpreter's teardown where nothing needs it.
-
-    When a command returns, its work is done: its files are written and closed, its child processes
-    have ended and its temporary folders are removed (each on every path, by the code that made them).
-    What Python's exit does then is free the loaded libraries' objects one by one: 0.16-0.40 s after a
-    ``heliostep run`` on the 2-core machine of ``benchmarks/bench_cli.py`` (its ``no-plots, full
-    teardown``), up to a fifth of a ``--no-plots`` run. So, as mypy ends its command
-    (``mypy.util.hard_exit``), the process leaves at once (:func:`os._exit`) after what an exit must
-    still do: the exit handlers run (:mod:`atexit`: the libraries' own clean-ups and :mod:`weakref`
-    finalizers) and stdout and stderr are flushed.
-    The normal exit (:func:`sys.exit`) is kept where it does more: another thread is running (Python
-    waits for it), this Python has no ``atexit._run_exitfuncs``, or a standard stream cannot be
-    flushed (a closed pipe: Python reports it as usual).
-    """
-    run_exit_handlers = getattr(atexit, "_run_exitfuncs", None)
-    if threading.active_count() == 1 and run_exit_handlers is not None:
-        run_exit_handlers()  # runs each handler once and clears them: the normal exit below runs none twice
-        try:
-            for stream in (sys.stdout, sys.stderr):
-                if stream is not None:
-                    stream.flush()
-        except (OSError, ValueError):
-            sys.exit(status)
-        os._exit(status)
+    What is alive when the command has returned is frozen (:func:`gc.freeze`) before the interpreter exits:
+    its finalization then frees those objects as usual but its full garbage collections no longer
+    traverse every object of the imported libraries, which made up most of the exit's time."""
+    status = main()
+    gc.freeze()
     sys.exit(status)
 
 

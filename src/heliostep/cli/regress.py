@@ -20,7 +20,7 @@ from heliostep.results.regress import (
     tolerances_path,
 )
 from heliostep.results.verdicts import SuiteVerdict, github_annotations, junit_xml
-from heliostep.run import RunFailed, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 
 
 def regress_one(
@@ -39,7 +39,8 @@ def regress_one(
             f"create it with: heliostep regress --update {scenario}"
         )
     try:
-        run = run_scenario(scenario, should_stop=should_stop, supervise=True)  # a crashing FMU fails this one only
+        # supervised: a crashing FMU fails this one only
+        run = run_scenario(scenario, RunOptions(should_stop=should_stop, supervise=True))
     except RunFailed as failed:
         return Outcome(scenario, None, f"the run failed: {failed}"), {}
     metadata = run.trace_metadata()

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -15,13 +13,11 @@ from heliostep.cli.signals import ForcedStop, stop_requests
 from heliostep.drive.sequencer import PreparationStopped
 from heliostep.results.outputs import TMP_PREFIX, check_out_name
 from heliostep.results.rescue import rescue_folder
+from heliostep.results.run_files import run_file_names
 from heliostep.results.run_folder import owned_folder
 from heliostep.results.trace_io import TraceWriteError
-from heliostep.run import RunFailed, RunResult, resolve_fmus, run_scenario
-from heliostep.run.drawing import start_drawer
+from heliostep.run import RunFailed, RunOptions, RunResult, resolve_fmus, run_scenario
 from heliostep.run.estimate import check_budget, estimate_run
-from heliostep.run.forked import Helper
-from heliostep.run.result import run_file_names
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION
 from heliostep.run.supervised import DEFAULT_WATCHDOG
 from heliostep.scenario import load_scenario
@@ -138,23 +134,8 @@ def _run_command(args: argparse.Namespace) -> int:
         fmu_paths = resolve_fmus(scenario)  # bad input found before --out is touched; resolved once per run
         band = prepare_band(args, scenario, fmu_paths)  # --band's design and keys checked before any run
         # the folder's lock, for the run's life; a folder made here and left empty by bad input is removed
-        with (
-            owned_folder(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False)),
-            _figure_drawer(plots=not args.no_plots) as drawer,
-        ):
-            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band, drawer)
-
-
-@contextlib.contextmanager
-def _figure_drawer(plots: bool) -> Iterator[Helper | None]:
-    """The figures' drawer (:func:`~heliostep.run.drawing.start_drawer`: a child importing the plotting
-    modules while the run simulates), killed and reaped on leaving; None without plots or a fork."""
-    drawer = start_drawer() if plots else None
-    try:
-        yield drawer
-    finally:
-        if drawer is not None:
-            drawer.close()
+        with owned_folder(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False)):
+            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band)
 
 
 def _budget_overrides(args: argparse.Namespace) -> list[str]:
@@ -163,18 +144,21 @@ def _budget_overrides(args: argparse.Namespace) -> list[str]:
     return [f"{key}={value!r}" for key, value in given if value is not None]
 
 
-def _run_in_folder(
-    args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None, drawer: Helper | None = None
-) -> int:
-    """The run simulated and written into ``out_dir`` (whose lock is held; figures by ``drawer``), then its --band."""
+def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None) -> int:
+    """The run simulated and written into ``out_dir`` (whose lock is held), then its --band."""
     if stop.is_set():
         print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
         return stop.exit_status
     try:  # a long window streams its trace into out_dir while simulating (bounded memory)
-        supervision = {"supervise": args.supervise, "watchdog": args.watchdog}
-        result = run_scenario(
-            scenario, progress=True, should_stop=stop.is_set, trace_dir=out_dir, fmu_paths=fmu_paths, **supervision
+        options = RunOptions(
+            progress=True,
+            should_stop=stop.is_set,
+            trace_dir=out_dir,
+            fmu_paths=fmu_paths,
+            supervise=args.supervise,
+            watchdog=args.watchdog,
         )
+        result = run_scenario(scenario, options)
         status = 0
     except PreparationStopped:
         print(f"heliostep run: stopped by {stop.name} while preparing the inputs (nothing computed)", file=sys.stderr)
@@ -195,7 +179,7 @@ def _run_in_folder(
         print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
         return 1
     _warn(result)
-    failure_status = _write_results(args, result, out_dir, stop, status, drawer)
+    failure_status = _write_results(args, result, out_dir, stop, status)
     if failure_status is not None:
         return failure_status
     if band is not None:  # the band runs after a complete nominal run only
@@ -210,11 +194,9 @@ def _run_in_folder(
     return status
 
 
-def _write_results(
-    args: argparse.Namespace, result: RunResult, out_dir: Path, stop, status: int, drawer: Helper | None
-) -> int | None:
-    """The run's results written into ``out_dir``, its figures by ``drawer`` (then done with: not kept through a
-    --band): None, or the exit status when they could not be written (rescued into a fresh folder)."""
+def _write_results(args: argparse.Namespace, result: RunResult, out_dir: Path, stop, status: int) -> int | None:
+    """The run's results written into ``out_dir`` (records, then the figures reported, then the plots drawn):
+    None, or the exit status when they could not be written (rescued into a fresh folder)."""
     csv = args.csv
     if csv is None:
         duration = result.inputs.duration if result.inputs is not None else 0.0
@@ -225,7 +207,7 @@ def _write_results(
 
     try:
         plots = not args.no_plots
-        result.write(out_dir, plots=plots, csv=csv, should_stop=stop.is_set, before_figures=report, drawer=drawer)
+        result.write(out_dir, plots=plots, csv=csv, should_stop=stop.is_set, before_figures=report)
     except (OSError, TraceWriteError) as exc:  # a full disk, a file-size limit: a run failure, rescued
         print(f"heliostep run: error: could not write the results to {out_dir}: {exc}", file=sys.stderr)
         _rescue_into_a_fresh_folder(result, out_dir)
@@ -233,9 +215,6 @@ def _write_results(
     except ForcedStop:  # a second signal while writing: the stream cut short is not left in --out
         _discard_stream(result, out_dir)
         raise
-    finally:
-        if drawer is not None:
-            drawer.close()
     return None
 
 

@@ -103,31 +103,19 @@ def _after_hangup(signum: int) -> None:
 class StartingUp:
     """What a stop signal does within :func:`signals_end_the_command`: while ``at_once`` (the
     modules being imported: nothing written yet, and an exception raised there may be swallowed
-    by an import's own ``except``), one line and ``os._exit``; then :class:`StopSignal`; once
-    ``exiting`` (the command has returned, the handlers kept for the exit), nothing for the first
-    (the exit handlers' clean-up goes on) and ``os._exit`` at once for a second."""
+    by an import's own ``except``), one line and ``os._exit``; then :class:`StopSignal`."""
 
     def __init__(self) -> None:
         self.at_once = True
-        self.exiting = False
-        self.signals_while_exiting = 0
         self.command = "heliostep"
 
 
 @contextmanager
-def signals_end_the_command(keep_for_exit: bool = False) -> Iterator[StartingUp]:
+def signals_end_the_command() -> Iterator[StartingUp]:
     """Within the block, a stop signal ends the command: at once with one line while
     ``StartingUp.at_once``, else by raising :class:`StopSignal` (a ``BaseException``). The
     previous handlers are restored on leaving; ignored signals stay ignored; outside the main
-    thread nothing is installed.
-
-    ``keep_for_exit`` (the installed command, which leaves the process right after): the handlers
-    stay on leaving, for the exit. The command has returned then and its status is decided; what is
-    left is the exit handlers' clean-up (:mod:`atexit`: the FMUs' unpack folders removed), which a
-    signal would cut short with a traceback ("Exception ignored in atexit callback", seen when the
-    second of a double Ctrl+C came as a quick command was leaving). So the first signal there is
-    taken and nothing done (the clean-up goes on, the command's status stays); a second ends the
-    process at once (``os._exit``, 128 + its number)."""
+    thread nothing is installed."""
     state = StartingUp()
     if threading.current_thread() is not threading.main_thread():
         yield state
@@ -135,11 +123,6 @@ def signals_end_the_command(keep_for_exit: bool = False) -> Iterator[StartingUp]
 
     def handler(signum, frame):
         _after_hangup(signum)
-        if state.exiting:
-            state.signals_while_exiting += 1
-            if state.signals_while_exiting > 1:
-                os._exit(exit_status(signum))
-            return
         if state.at_once:
             try:
                 sys.stderr.write(f"{state.command}: stopped by {signal.Signals(signum).name} while starting\n")
@@ -157,11 +140,8 @@ def signals_end_the_command(keep_for_exit: bool = False) -> Iterator[StartingUp]
         with _raised_again_after_callbacks(StopSignal):
             yield state
     finally:
-        if keep_for_exit:
-            state.exiting = True  # (before the handlers could be restored: no gap for a signal)
-        else:
-            for sig, old in previous.items():
-                signal.signal(sig, old)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 @contextmanager

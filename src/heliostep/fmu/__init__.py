@@ -2,8 +2,8 @@
 
 :mod:`~heliostep.fmu.modelica` (pymoca front end), :mod:`~heliostep.fmu.export` (CasADi code
 generation, modelDescription, gcc, zip), ``c/fmi2_model_exchange.c`` and
-``c/fmi3_model_exchange.c`` (the FMI C layers written once for every model, sharing
-``c/model_exchange_core.h``), :mod:`~heliostep.fmu.build` (the content-keyed cache) and
+``c/fmi3_model_exchange.c`` (each FMI version's signatures, compiled with every model, around the
+entry points' bodies in ``c/model_exchange_core.h``), :mod:`~heliostep.fmu.build` (the content-keyed cache) and
 :mod:`~heliostep.fmu.reference` (variant name or path). Imports nothing of heliostep but
 :mod:`heliostep.errors`, :mod:`heliostep.paths` and :mod:`heliostep.toolchain`.
 """

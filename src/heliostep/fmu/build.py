@@ -68,7 +68,7 @@ def build_key(model_name: str, models: Path, fmi_version: int = 2) -> str:
     _check_version(fmi_version)
     digest = hashlib.sha256()
     digest.update(model_name.encode())
-    if fmi_version != 2:  # the FMI 2.0 key stays what it was before FMI 3.0 came
+    if fmi_version != 2:  # FMI 2.0 keys carry no version, so its cached FMUs keep their keys and GUIDs
         digest.update(f"fmi{fmi_version}\0".encode())
     for path in model_files(models):
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")

@@ -17,9 +17,9 @@ Steps, the same for every model:
    ``model_rest`` the others from its values (:func:`state_part`, :func:`rest_evaluation`).
 2. CasADi generates C for all of them (``equations.c``/``equations.h``).
 3. ``model.h`` describes the model to the FMI layer written once for all models
-   (``heliostep/c/fmi2_model_exchange.c``, or ``fmi3_model_exchange.c`` beside it for FMI 3.0:
-   the same evaluation core with the FMI 3.0 API): sizes, start values, names. Both versions
-   compile the very same generated equations.
+   (``c/fmi2_model_exchange.c`` or ``c/fmi3_model_exchange.c``: each version's signatures around
+   the bodies in ``c/model_exchange_core.h``): sizes, start values, names. Both versions compile
+   the very same generated equations.
 4. ``modelDescription.xml``: causality, variability, initial, start values, units (with SI
    base units), descriptions and a ``ModelStructure`` whose dependencies come from CasADi's
    Jacobian sparsity of ``model_eval``.
@@ -60,7 +60,7 @@ FMI2_PLATFORM = "linux64"
 #: and its binaries folder (FMI 2.0: ``linux64``; FMI 3.0, its platform tuple: ``x86_64-linux``).
 FMI_LAYERS = {2: FMI_LAYER, 3: "fmi3_model_exchange.c"}
 PLATFORMS = {2: FMI2_PLATFORM, 3: "x86_64-linux"}
-#: The evaluation core both layers include (state and argument checks, the equations' evaluation).
+#: What both layers include: the state machine, the checks, the evaluation and the entry points' bodies.
 LAYER_CORE = "model_exchange_core.h"
 
 

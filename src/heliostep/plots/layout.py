@@ -1,7 +1,7 @@
 """A fixed layout for the figures of ``heliostep run``: margins in inches, no layout engine.
 
 matplotlib's constrained layout measures every text of a figure (a full pass of tick labels,
-titles and legends without drawing) before the real draw, about 45 % of a run figure's
+titles and legends without drawing) before the real draw, a large part of a run figure's
 ``savefig``. The run's figures are always the same few shapes, so :func:`fixed_axes` places their
 axes by margins given in inches instead: wide enough for the widest tick labels and axis labels
 of the shipped scenarios' figures (``tests/plots/test_plots_layout.py`` draws them and checks

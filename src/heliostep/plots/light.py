@@ -179,13 +179,10 @@ def plot_light_run(
     out_dir: str | Path,
     weather=None,
     figures: Mapping | None = None,
-    series: Mapping | None = None,
 ) -> list[Path]:
     """Write ``POWER_FILE`` for a run (its trace, metadata and scenario; ``weather``, its weather
     file already read, see :func:`heliostep.results.light.light_timeseries`; ``figures``, its light figures for
-    the legends) into ``out_dir``. ``series``: the run's light at the trace's rows already computed (its
-    figures' :data:`~heliostep.results.light_rows.PLOT_COLUMNS`, ``RunResult.light_rows``), drawn when its times
-    are the trace's; otherwise the light is computed from the trace.
+    the legends) into ``out_dir``.
 
     Returns
     -------
@@ -194,8 +191,7 @@ def plot_light_run(
     """
     if len(trace) < 2:
         return []
-    if series is None or not np.array_equal(np.asarray(series["time"]), trace["time"].to_numpy(dtype=float)):
-        series = light_timeseries(trace, metadata, scenario, weather)
+    series = light_timeseries(trace, metadata, scenario, weather)
     mirror = scenario.mirror
     title = (
         f" ({scenario.name}, {scenario.window.date}, mirror at d = {mirror.mirror_distance:g} m, {mirror.axis} driven)"

@@ -4,9 +4,8 @@ matplotlib's Agg backend renders each glyph through FreeType with the hinting th
 selects; by default that runs the font's own TrueType bytecode (FreeType's interpreter,
 ``TT_RunIns``). Without hinting (``"no_hinting"``, the setting matplotlib's own image tests use)
 the glyphs keep their outlines' shapes, anti-aliased; the figures' lines, axes and layout are
-unchanged, and a run's 8 figures take 0.89x the time (``benchmarks/bench_plots.py``: 0.635 s
-against 0.711 s one after the other, matplotlib 3.11). zlib's level 1 gives the same pixels in
-about a third of the default level's time, files about 15 % larger. Both apply only while a
+unchanged, and they are drawn faster (``benchmarks/bench_plots.py``). zlib's level 1 gives the same
+pixels in less time than the default level, in slightly larger files. Both apply only while a
 figure is written (:func:`save_png`): the caller's ``rcParams`` are left as they were.
 """
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import logging
 import zoneinfo
-from collections.abc import Callable, Collection, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import matplotlib.dates as mdates
@@ -415,7 +415,7 @@ _FIGURES: tuple[tuple[str, Callable], ...] = tuple(
 
 # --------------------------------------------------------------------------- public
 def run_figures(
-    trace: pd.DataFrame | str | Path, metadata: Mapping | None, solution: SolutionPlotData | None = None, only=None
+    trace: pd.DataFrame | str | Path, metadata: Mapping | None, solution: SolutionPlotData | None = None
 ) -> Iterator[tuple[str, Figure | None]]:
     """The figures of :func:`plot_run`, one at a time: (file name, :class:`~matplotlib.figure.Figure`
     or None when skipped), for reading back what is drawn (same arguments as :func:`plot_run`)."""
@@ -436,8 +436,6 @@ def run_figures(
         parts.append(f"{clock.start:%Y-%m-%d}")
     context = f" ({', '.join(parts)})" if parts else ""
     for file_name, draw in _FIGURES:
-        if only is not None and file_name not in only:
-            continue
         figure = draw(columns, clock, context, solution)
         columns.release()
         yield file_name, figure
@@ -448,7 +446,6 @@ def plot_run(
     out_dir,
     metadata: Mapping,
     solution: SolutionPlotData | None = None,
-    only: Collection[str] | None = None,
 ) -> list[Path]:
     """Write the paper's Figs. 8-14 for one run as PNGs.
 
@@ -476,8 +473,6 @@ def plot_run(
         max over the solver steps in each bin, the largest magnitude marked), with the output
         rows' line over windows up to :data:`LINE_WITH_ENVELOPE_MAX_SPAN`. Without it (a stored
         trace) they draw the trace's rows.
-    only : collection of str, optional
-        The file names (of :data:`FIGURE_FILES`) to draw, the others not built; default all.
 
     Returns
     -------
@@ -485,7 +480,7 @@ def plot_run(
         The PNGs written, in figure order (names in :data:`FIGURE_FILES`): a figure
         whose columns are missing is skipped, and so is Fig. 14 without steps.
     """
-    figures = run_figures(trace, metadata, solution, only)
+    figures = run_figures(trace, metadata, solution)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []

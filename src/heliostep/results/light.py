@@ -42,7 +42,7 @@ is read one row group at a time; :func:`light_figures` of a whole trace is one b
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -301,8 +301,7 @@ class LightIntegrals:
     blocks by the previous block's last row, the intercept's weighted sums, the largest misses.
     It holds one block's rows (``max_block_rows``, the largest block) and nothing that grows with
     the trace. ``weather``: see :func:`light_timeseries`. ``first_order=False``: without the
-    stepping's first-order terms (their figures None; two attitudes' light fewer at every row). ``on_rows``, if
-    set, is given each block's columns as :func:`light_timeseries` has them (:class:`.light_rows.KeptRows`)."""
+    stepping's first-order terms (their figures None; two attitudes' light fewer at every row)."""
 
     def __init__(self, metadata: Mapping, scenario, weather=None, first_order: bool = True):
         self.metadata, self.scenario = metadata, scenario
@@ -317,7 +316,6 @@ class LightIntegrals:
         self.max_block_rows = 0
         self._window_grid: dict | None = None  # sun_grid over the whole window, from the first row
         self._marks = RowMarks(self.metadata.get("drive", {}).get("step_times", []))  # the rows' side (light_rows)
-        self.on_rows: Callable[[dict], None] | None = None
 
     def _whole_window_grid(self, origin: float) -> dict | None:
         """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
@@ -340,8 +338,6 @@ class LightIntegrals:
         series = _light_rows(
             block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid, self.first_order
         )
-        if self.on_rows is not None:
-            self.on_rows(series)
         powers = {key[len("power_") : -len("_W")]: value for key, value in series.items() if key.startswith("power_")}
         if "stepping_first_order_W" in series:
             powers["first_order"] = series["stepping_first_order_W"]

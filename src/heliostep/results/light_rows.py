@@ -36,37 +36,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["PLOT_COLUMNS", "KeptRows", "RowMarks", "corrections", "swing_rows"]
-
-#: The columns of :func:`~heliostep.results.light.light_timeseries` that the power on the tube's figure draws
-#: (:func:`heliostep.plots.light.light_figure`): what a held run's :class:`KeptRows` keeps of its light.
-PLOT_COLUMNS = (
-    "time",
-    "power_ideal_W",
-    "power_shared_W",
-    "power_reference_W",
-    "power_actual_W",
-    "stepping_first_order_W",
-)
-
-
-class KeptRows:
-    """Every row's :data:`PLOT_COLUMNS` of the light's blocks (a
-    :class:`~heliostep.results.light.LightIntegrals`' ``on_rows``), so that a run's power on the tube is drawn
-    without computing its light again: memory that grows with the trace, for a run whose trace is held anyway."""
-
-    def __init__(self) -> None:
-        self._blocks: list[dict[str, np.ndarray]] = []
-
-    def __call__(self, series: Mapping) -> None:
-        self._blocks.append({key: np.array(series[key], dtype=float) for key in PLOT_COLUMNS if key in series})
-
-    def rows(self) -> dict[str, np.ndarray] | None:
-        """Those of :data:`PLOT_COLUMNS` the blocks have, over every row in order (the values of
-        :func:`~heliostep.results.light.light_timeseries` of those rows, bit for bit); None: no row yet."""
-        if not self._blocks:
-            return None
-        return {key: np.concatenate([block[key] for block in self._blocks]) for key in self._blocks[0]}
+__all__ = ["RowMarks", "corrections", "swing_rows"]
 
 
 class RowMarks:

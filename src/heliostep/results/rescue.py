@@ -8,10 +8,12 @@ temporary folder, then ``/dev/shm``, a memory file system on Linux, when the dis
 ``trace.parquet``, or ``trace-part-000.parquet``, ``trace-part-001.parquet``, ... in time order,
 each a whole trace file with the run's metadata. :func:`write_text_parts` does the same for a
 record (``metadata.json``, or ``metadata.json.part-000``, ... to be joined by ``cat``).
+:func:`write_rescue` writes a run's every computed row and its records so.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 import tempfile
 from collections.abc import Iterable, Mapping
@@ -20,9 +22,10 @@ from pathlib import Path
 import pandas as pd
 
 from heliostep.results.outputs import write_text_atomic
-from heliostep.results.trace_io import write_trace
+from heliostep.results.run_files import RunRecords, record_texts
+from heliostep.results.trace_io import iter_trace_blocks, write_trace
 
-__all__ = ["file_size_limit", "rescue_folder", "write_text_parts", "write_trace_parts"]
+__all__ = ["file_size_limit", "rescue_folder", "write_rescue", "write_text_parts", "write_trace_parts"]
 
 #: Room kept in each part for the Parquet footer and metadata besides the rows [bytes].
 _FOOTER_ROOM = 64 * 1024
@@ -111,3 +114,24 @@ def write_text_parts(folder: Path, name: str, text: str, limit: int | None = Non
         path.write_bytes(data[start : start + size])
         paths.append(path)
     return paths
+
+
+def write_rescue(folder: Path, run: RunRecords) -> list[Path]:
+    """Every computed row of ``run`` and its records into ``folder`` (no figures), each file under the
+    process's file-size limit (the trace in parts if need be)."""
+    written = []
+    if run.trace_kept:
+        blocks: Iterable[pd.DataFrame]
+        if run.held_trace is not None:
+            held, step = run.held_trace, 65536
+            blocks = (held.iloc[i : i + step] for i in range(0, max(len(held), 1), step))
+        elif run.trace_file is not None:
+            blocks = iter_trace_blocks(run.trace_file)
+            if run.unwritten_trace is not None:
+                blocks = itertools.chain(blocks, [run.unwritten_trace])
+        else:
+            raise RuntimeError("a run that holds no trace in memory has a trace file")
+        written += write_trace_parts(folder, blocks, run.trace_metadata())
+    for name, text in record_texts(run.figures, run.status, run.metadata).items():
+        written += write_text_parts(folder, name, text)
+    return written

@@ -25,7 +25,6 @@ import pandas as pd
 
 from heliostep.drive.inputs import DriveInputs
 from heliostep.results.light import LightIntegrals
-from heliostep.results.light_rows import KeptRows
 from heliostep.results.run_summary import RunStatus, RunSummary, night
 from heliostep.results.solution import SolutionRecorder
 from heliostep.results.stow import StowMoveFigures
@@ -165,20 +164,6 @@ class RunFigures:
         self.stow(chunk)
         self._ratio = min(self._ratio, smallest_drive_ratio(chunk["panel_angle_ref"], self.scenario))
         self.chunks += 1
-
-    def keep_light_rows(self) -> None:
-        """Keep the light's rows for the power on the tube's figure (a held trace's run,
-        :class:`~heliostep.results.light_rows.KeptRows`)."""
-        if self.light.on_rows is None:
-            self.light.on_rows = KeptRows()
-
-    def light_rows(self) -> dict[str, np.ndarray] | None:
-        """The light's kept rows (:meth:`~heliostep.results.light_rows.KeptRows.rows`) once every held row
-        is evaluated; None: not kept, or no row."""
-        if self._held:
-            self._evaluate(final=True)
-        kept = self.light.on_rows
-        return kept.rows() if isinstance(kept, KeptRows) else None
 
     def solution_figures(self) -> dict | None:
         """The figures of every solver step (None: none was shown), for ``metadata['solution_figures']``."""

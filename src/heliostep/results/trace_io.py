@@ -85,7 +85,7 @@ from heliostep.results.trace_format import (
     trace_format,
 )
 from heliostep.results.trace_modelica import MAT_SUFFIX, read_modelica_mat
-from heliostep.results.trace_writer import PARQUET_OPTIONS, TRACE_ENCODING, TraceWriteError, TraceWriter
+from heliostep.results.trace_writer import TRACE_ENCODING, TraceWriteError, TraceWriter
 
 # pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
 _EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
@@ -104,7 +104,6 @@ __all__ = [
     "write_trace",
     "check_time",
     "is_complete",
-    "warm_up_writers",
 ]
 
 
@@ -173,34 +172,14 @@ def _write_csv_head(fh: BinaryIO, meta: Mapping[str, object], names: list[str]) 
 
 def _write_csv_rows(fh: BinaryIO, columns: list[np.ndarray]) -> None:
     """Rows of float64 columns as CSV lines, by Arrow's CSV writer: each value in the shortest form that
-    reads back to the same double (``0.1``, ``0``, ``-0``, ``1e-100``, ``inf``), NaN as an empty field.
-    (pandas' ``to_csv`` writes the same values, ``0.0`` for ``0``, in about ten times the time: 0.20 s
-    against 0.02 s for ``jan21-day``'s trace.)"""
+    reads back to the same double (``0.1``, ``0``, ``-0``, ``1e-100``, ``inf``), NaN as an empty field
+    (pandas' ``to_csv`` writes the same values, ``0.0`` for ``0``, many times slower)."""
     import pyarrow as pa
     import pyarrow.csv as pa_csv
 
     arrays = [pa.array(values, type=pa.float64(), from_pandas=True) for values in columns]  # NaN: null, empty
     table = pa.Table.from_arrays(arrays, names=[f"c{i}" for i in range(len(columns))])  # (names: in the head)
     pa_csv.write_csv(table, fh, pa_csv.WriteOptions(include_header=False, quoting_style="none"))
-
-
-def warm_up_writers() -> None:
-    """Pay the trace writers' first-use costs now, writing two rows of two columns into memory, as
-    Parquet (:class:`TraceWriter`'s options) and as CSV (:func:`_write_csv_rows`); no file is written.
-
-    In a fresh process the first trace written pays for ``pyarrow.parquet``'s import and Arrow's
-    first CSV write (about 10 and 14 ms here); a caller with idle time before it writes (the
-    supervisor while its child simulates, :func:`heliostep.run.supervised.simulate_supervised`'s
-    ``meanwhile``) pays them then. The files written later are the same bytes either way.
-    """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    columns = [np.zeros(2), np.ones(2)]
-    _write_csv_rows(io.BytesIO(), columns)
-    table = pa.Table.from_arrays([pa.array(c, type=pa.float64()) for c in columns], names=[TIME, "x"])
-    with pq.ParquetWriter(pa.BufferOutputStream(), table.schema, **PARQUET_OPTIONS) as writer:
-        writer.write_table(table)
 
 
 def read_trace_metadata(path: str | Path) -> dict[str, str]:

@@ -92,7 +92,7 @@ class TraceWriter:
         # metadata from the footer's key-value metadata, which close() writes. Encoding: each
         # float64 split into its 8 byte planes (BYTE_STREAM_SPLIT), then zstd; against Parquet's
         # default dictionary encoding, which the continuous columns overflow, the row groups are
-        # written 3-4x faster and take 40 % less space (benchmarks/bench_trace_io.py)
+        # written faster and take less space (benchmarks/bench_trace_io.py)
         self._writer = pq.ParquetWriter(self.path, self._schema, **PARQUET_OPTIONS)
         # the same row groups written nowhere: its footer is the one for the groups written so far
         self._shadow_sink = _ByteCounter()

@@ -1,13 +1,15 @@
 """Running a scenario: ``run_scenario``, heliostep's one public entry point (re-exported as
-``heliostep.run_scenario``).
+``heliostep.run_scenario``), with its :class:`RunOptions`.
 
 :mod:`~heliostep.run.runner` orchestrates a run (set up, simulate once, summarize);
 :mod:`~heliostep.run.fmus` resolves and reads the scenario's FMUs; :mod:`~heliostep.run.bindings`
 binds the scenario's roles, parameters and drive signals onto them; :mod:`~heliostep.run.result`
-is the outcome (:class:`RunResult`, written through :mod:`heliostep.results.run_files`).
+is the outcome (:class:`RunResult`, written through :mod:`heliostep.results.run_files`, its figures drawn
+by :mod:`heliostep.plots.drawing`).
 """
 
 from heliostep.run.fmus import resolve_fmus
+from heliostep.run.options import RunOptions
 from heliostep.run.result import RunFailed, RunResult
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION, SINK_ROWS, VERSIONED_PACKAGES, run_scenario
 
@@ -16,6 +18,7 @@ __all__ = [
     "SINK_ROWS",
     "VERSIONED_PACKAGES",
     "RunFailed",
+    "RunOptions",
     "RunResult",
     "resolve_fmus",
     "run_scenario",

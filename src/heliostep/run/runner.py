@@ -17,7 +17,7 @@ import shutil
 import sys
 import tempfile
 import time as clock
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import metadata as package_metadata
 from pathlib import Path
@@ -35,13 +35,13 @@ from heliostep.results.row_sinks import HeldTrace, RowSink
 from heliostep.results.run_figures import FigureStream, RunFigures
 from heliostep.results.run_summary import RunMetadata, RunStatus
 from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
-from heliostep.results.trace_io import ROW_GROUP_ROWS, warm_up_writers
 from heliostep.results.trace_stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
+from heliostep.run.options import RunOptions
 from heliostep.run.result import RunFailed, RunResult
-from heliostep.run.supervised import DEFAULT_WATCHDOG, simulate_supervised
+from heliostep.run.supervised import simulate_supervised
 from heliostep.scenario import Scenario, load_scenario
 
 __all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario"]
@@ -82,57 +82,40 @@ class _PreparedRun:
 
 
 def run_scenario(
-    scenario: Scenario | str | Path,
-    overrides: tuple[str, ...] = (),
-    progress: bool = False,
-    should_stop: Callable[[], bool] | None = None,
-    trace_dir: str | Path | None = None,
-    stream: bool | None = None,
-    row_group_rows: int = ROW_GROUP_ROWS,
-    keep_trace: bool = True,
-    fmu_paths: Mapping[str, Path] | None = None,
-    supervise: bool = False,
-    watchdog: float = DEFAULT_WATCHDOG,
-    light_first_order: bool = True,
+    scenario: Scenario | str | Path, options: RunOptions | None = None, *, overrides: Sequence[str] = ()
 ) -> RunResult:
-    """Run a scenario (an object or a YAML path with ``--set``-style overrides).
+    """Run a scenario.
 
-    Raises :class:`~heliostep.run.result.RunFailed` (carrying the incomplete
-    :class:`~heliostep.run.result.RunResult`) when the simulation fails part-way, and
-    :class:`~heliostep.errors.InputError` for bad input. ``should_stop`` is asked between solver
-    calls; when it returns True the run stops there and :class:`RunFailed` carries the trace so
-    far with ``reason == "interrupted"``. ``fmu_paths``: the scenario's FMUs already resolved
-    (:func:`~heliostep.run.fmus.resolve_fmus`); resolved here when not given.
+    Parameters
+    ----------
+    scenario : Scenario, str or Path
+        The scenario, or its YAML file (with ``overrides``, ``--set``-style ``KEY=VALUE`` strings).
+    options : RunOptions, optional
+        How to run it (:class:`~heliostep.run.options.RunOptions`; default: the trace held, in this process).
 
-    A window longer than :data:`HELD_TRACE_MAX_DURATION` (or any window with ``stream=True``)
-    streams its trace while simulating to a Parquet file of ``row_group_rows`` rows per row
-    group, under a temporary name in ``trace_dir`` (the output folder; :meth:`RunResult.write`
-    renames it into place) or, without one, in a temporary folder removed with the result. The
-    file's metadata says ``complete`` (or why not) once the run has ended, also when it failed
-    or was interrupted. With ``stream=False`` the trace is held in memory whatever the window.
-    The figures (summary, light, holding) are computed while simulating, the output rows in
-    chunks of ``row_group_rows`` rows, so held and streamed runs with the same ``row_group_rows``
-    give the same figures bit for bit.
+    Returns
+    -------
+    RunResult
+        The trace (held, or streamed to a Parquet file for windows over :data:`HELD_TRACE_MAX_DURATION`),
+        the figures (computed while simulating) and the metadata.
 
-    With ``keep_trace=False`` (a sweep's cases) no trace is kept: the rows go to the figures as they
-    come (:class:`~heliostep.results.run_figures.FigureStream`), nothing is written or plotted, and the
-    figures are those with the trace kept, bit for bit (an interrupted run's not corrected at the cut).
-
-    ``supervise`` (``heliostep run``'s default): simulate in a child process (:mod:`heliostep.run.supervised`,
-    which asks ``should_stop`` every 50 ms and passes it on); an FMU that crashes, exits or hangs
-    (no FMI call begun for ``watchdog`` s) fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
-
-    ``light_first_order=False`` (sweep cases): the light's first-order stepping terms left out (None;
-    two attitudes' light fewer per row), every other figure the same bit for bit.
+    Raises
+    ------
+    RunFailed
+        The simulation failed or was interrupted part-way; it carries the incomplete
+        :class:`~heliostep.run.result.RunResult` (the trace so far; a streamed trace file's metadata says
+        how the run ended).
+    InputError
+        Bad input.
     """
+    options = options if options is not None else RunOptions()
     if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario, overrides)
-    prepared = _prepare(scenario, fmu_paths, clock.perf_counter(), should_stop, keep_trace)
-    figures = _run_figures(prepared, row_group_rows, light_first_order)
-    sink, temporary = _row_sink(prepared, figures, keep_trace, stream, trace_dir, row_group_rows)
+        scenario = load_scenario(scenario, tuple(overrides))
+    prepared = _prepare(scenario, options.fmu_paths, clock.perf_counter(), options.should_stop, options.keep_trace)
+    figures = _run_figures(prepared, options.row_group_rows, options.light_first_order)
+    sink, temporary = _row_sink(prepared, figures, options)
     try:
-        supervision = (watchdog,) if supervise else None
-        run = _simulate_and_summarize(prepared, figures, sink, temporary, progress, should_stop, supervision)
+        run = _simulate_and_summarize(prepared, figures, sink, temporary, options)
     except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
         sink.abort()
         if temporary is not None:
@@ -225,28 +208,21 @@ def _metadata(
     )
 
 
-def _row_sink(
-    prepared: _PreparedRun,
-    figures: RunFigures,
-    keep_trace: bool,
-    stream: bool | None,
-    trace_dir: str | Path | None,
-    row_group_rows: int,
-) -> tuple[RowSink, Path | None]:
+def _row_sink(prepared: _PreparedRun, figures: RunFigures, options: RunOptions) -> tuple[RowSink, Path | None]:
     """Where the master's rows go (all feed ``figures``): not kept, held, or streamed to a file
-    (with the temporary folder made for it, without ``trace_dir``)."""
+    (with the temporary folder made for it, without ``options.trace_dir``)."""
     columns, assembler = prepared.columns, TraceAssembler(prepared.inputs, prepared.roles)
-    if not keep_trace:
+    if not options.keep_trace:
         return FigureStream(columns, assembler, figures), None
+    stream, trace_dir = options.stream, options.trace_dir
     if not (prepared.inputs.duration > HELD_TRACE_MAX_DURATION if stream is None else stream):
-        figures.keep_light_rows()  # the power on the tube drawn from the figures' light (the trace is held too)
         return HeldTrace(columns, assembler, figures), None
     temporary = (
         None if trace_dir is not None else Path(tempfile.mkdtemp(prefix=f"heliostep-trace-{prepared.scenario.name}-"))
     )
     folder = Path(trace_dir) if trace_dir is not None else Path(temporary or ".")
     path = folder / f"{TMP_PREFIX}{os.getpid()}-{clock.time_ns():x}-trace.parquet"
-    return TraceStream(path, columns, assembler, row_group_rows, figures), temporary
+    return TraceStream(path, columns, assembler, options.row_group_rows, figures), temporary
 
 
 def _ended_status(result, duration: float) -> RunStatus:
@@ -262,22 +238,14 @@ def _ended_status(result, duration: float) -> RunStatus:
     return RunStatus(True)
 
 
-def _co_simulate(
-    prepared: _PreparedRun,
-    figures: RunFigures,
-    sink: RowSink,
-    progress: bool,
-    should_stop: Callable[[], bool] | None,
-    supervision: tuple[float] | None = None,
-):
+def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, options: RunOptions):
     """The co-simulation, its rows to ``figures`` and ``sink``: (status, the master's empty
-    trace frame, its statistics); in a supervised child process with ``supervision`` (the watchdog [s])."""
+    trace frame, its statistics); in a supervised child process with ``options.supervise``."""
     inputs = prepared.inputs
-    bar = _progress_bar(inputs.duration) if progress else None
+    bar = _progress_bar(inputs.duration) if options.progress else None
     simulate = prepared.system.simulate
-    if supervision is not None:  # a kept trace's writers warmed up while the child simulates (a fresh process)
-        meanwhile = warm_up_writers if sink.trace_kept else None
-        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=supervision[0], meanwhile=meanwhile)
+    if options.supervise:
+        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=options.watchdog)
     try:
         result = simulate(
             0.0,
@@ -285,7 +253,7 @@ def _co_simulate(
             inputs.output_times,
             prepared.solver,
             progress=bar.update_to if bar else None,
-            should_stop=should_stop,
+            should_stop=options.should_stop,
             monitor=figures.solution,  # every solver step, for the figures
             sink=sink,
             sink_rows=SINK_ROWS,
@@ -304,17 +272,11 @@ def _co_simulate(
 
 
 def _simulate_and_summarize(
-    prepared: _PreparedRun,
-    figures: RunFigures,
-    sink: RowSink,
-    temporary: Path | None,
-    progress: bool,
-    should_stop: Callable[[], bool] | None,
-    supervision: tuple[float] | None = None,
+    prepared: _PreparedRun, figures: RunFigures, sink: RowSink, temporary: Path | None, options: RunOptions
 ) -> RunResult:
     """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
     scenario, meta = prepared.scenario, prepared.meta
-    status, raw, statistics = _co_simulate(prepared, figures, sink, progress, should_stop, supervision)
+    status, raw, statistics = _co_simulate(prepared, figures, sink, options)
     status = sink.finish(status)  # the last rows kept (a streamed trace that cannot be written fails the run)
     meta["statistics"] = {
         **statistics,
@@ -358,7 +320,6 @@ def _simulate_and_summarize(
         trace_kept=sink.trace_kept,
         solution_plot=figures.solution.plot_data() if figures.solution is not None else None,
         unwritten_trace=getattr(sink, "unwritten_trace", None),  # rows a full disk kept out of the stream
-        light_rows=figures.light_rows(),
     )
 
 

@@ -1,12 +1,12 @@
 """pvlib's sun grids kept by content, so that a run seen before does not import pvlib at all.
 
 ``import pvlib`` imports every pvlib module (its ``__init__`` lists them: scipy.integrate, h5py,
-requests, ...), about 0.2 s on a quiet machine on top of what a run imports anyway, for a few
-milliseconds of SPA. :func:`cached_frame` keeps what a pvlib function returned for a grid of times
-in a file named by the SHA-256 of everything the values depend on, and gives it back on the next
-call with the same inputs. The values are always pvlib's own (SPA, Ineichen), computed by pvlib on
-the first call; the file holds their float64 bits, so a value read back is the computed one bit for
-bit (``tests/solar/test_sun_cache.py``); instants (sunrise, transit, sunset) as int64 nanoseconds.
+requests, ...), far more than the little SPA a run needs. :func:`cached_frame` keeps what a pvlib
+function returned for a grid of times in a file named by the SHA-256 of everything the values depend on,
+and gives it back on the next call with the same inputs. The values are always pvlib's own (SPA,
+Ineichen), computed by pvlib on the first call; the file holds their float64 bits, so a value read back
+is the computed one bit for bit (``tests/solar/test_sun_cache.py``); instants (sunrise, transit, sunset)
+as int64 nanoseconds.
 
 The key (:func:`cache_key`) is the hash of: the kind of grid (``"solar_position"``,
 ``"clear_sky_dni"``, ``"sun_events"``) and :data:`CACHE_FORMAT`; pvlib's version (read from its installed metadata,
@@ -19,10 +19,9 @@ first (last used: a hit renews it) beyond :data:`MAX_ENTRIES`; a grid of more th
 :data:`MAX_ENTRY_BYTES` is not kept (a long window's grids cost little beside its simulation).
 A file that cannot be read back whole (another process writing it, a damaged disk) is a miss.
 
-The folder is ``sun-grids`` in the FMU cache (:func:`heliostep.paths.fmus_dir`, ``$HELIOSTEP_FMUS``);
-``HELIOSTEP_SUN_CACHE`` names another folder, or ``off`` turns the cache off (every call computes). Writes are atomic (a
-temporary file renamed into place), so concurrent runs (a sweep's workers) only ever see whole
-entries. The cache never fails a run: an unusable folder is a miss and an entry not written.
+The folder is ``sun-grids`` in the FMU cache (:func:`heliostep.paths.fmus_dir`, ``$HELIOSTEP_FMUS``).
+Writes are atomic (a temporary file renamed into place), so concurrent runs (a sweep's workers) only
+ever see whole entries. The cache never fails a run: an unusable folder is a miss and an entry not written.
 """
 
 from __future__ import annotations
@@ -57,13 +56,9 @@ MAX_ENTRIES = 256
 MAX_ENTRY_BYTES = 2 << 20
 
 
-def cache_folder() -> Path | None:
-    """The folder of the entries: ``$HELIOSTEP_SUN_CACHE`` when it names one, else ``sun-grids`` in the
-    FMU cache; None (no cache) when it is ``off`` (or ``0``, ``no``, ``false``)."""
-    configured = os.environ.get("HELIOSTEP_SUN_CACHE", "").strip()
-    if configured.lower() in ("off", "0", "no", "false"):
-        return None
-    return Path(configured) if configured else fmus_dir() / "sun-grids"
+def cache_folder() -> Path:
+    """The folder of the entries: ``sun-grids`` in the FMU cache."""
+    return fmus_dir() / "sun-grids"
 
 
 @functools.lru_cache(maxsize=1)
@@ -107,10 +102,7 @@ def cached_frame(
     ``parameters`` must hold every other input the values depend on (floats, strings, arrays).
     The frame given back is indexed by ``times`` itself, its columns in ``compute()``'s order.
     """
-    folder = cache_folder()
-    if folder is None:
-        return compute()
-    path = folder / f"{cache_key(kind, times, parameters)}.npz"
+    path = cache_folder() / f"{cache_key(kind, times, parameters)}.npz"
     found = _read(path, len(times))
     if found is not None:
         return pd.DataFrame(found, index=times)  # (the columns' arrays as read: no copy, no conversion)

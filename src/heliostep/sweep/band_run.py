@@ -28,7 +28,7 @@ import numpy as np
 
 from heliostep.errors import InputError
 from heliostep.results.outputs import write_text_atomic
-from heliostep.run import RunFailed, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 from heliostep.run.estimate import estimate_run
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION
 from heliostep.scenario import Scenario, validate_scenario
@@ -116,7 +116,7 @@ def run_band_sample(index: int, data: dict, source: str, folder: str, payloads: 
             instance: None if sha is None else str(_local_fmu(payloads[sha])) for instance, sha in data["fmus"].items()
         }
         scenario = validate_scenario(data, source=source, folder=Path(folder))
-        run = run_scenario(scenario, keep_trace=False, supervise=True)
+        run = run_scenario(scenario, RunOptions(keep_trace=False, supervise=True))
         result["figures"] = run_figures(run)
     except RunFailed as exc:
         result.update(status="failed", error=_error_text(exc))

@@ -39,7 +39,7 @@ import numpy as np
 from heliostep.cosim import read_fmu
 from heliostep.drive.wind import air_density, panel_wind_moment
 from heliostep.errors import InputError
-from heliostep.run import RunFailed, resolve_fmus, run_scenario
+from heliostep.run import RunFailed, RunOptions, resolve_fmus, run_scenario
 from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
 from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
 from heliostep.scenario.catalogue import MotorCandidate
@@ -248,7 +248,7 @@ def run_sizing_case(
         fmu_paths = {instance: _local_fmu(payload) for instance, payload in shipped.items()}
     started = clock.perf_counter()
     try:
-        result = run_scenario(scenario, keep_trace=False, should_stop=should_stop, fmu_paths=fmu_paths)
+        result = run_scenario(scenario, RunOptions(keep_trace=False, should_stop=should_stop, fmu_paths=fmu_paths))
     except RunFailed as failed:
         if failed.result.reason == "interrupted":
             return {"interrupted": True}

@@ -23,7 +23,7 @@ import pandas as pd
 from heliostep.cosim.fmi import read_fmu
 from heliostep.drive.inputs import prepare_inputs, reference_times
 from heliostep.errors import HeliostepError
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 from heliostep.run.load_budget import load_budget, mechanics_values, step_limit_of_holding, wind_moment_at
 from heliostep.scenario import (
     Scenario,
@@ -187,7 +187,7 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
         data["fmus"] = {**dropped, **{instance: str(path) for instance, path in local.items()}}
         scenario = validate_scenario(data, source=case.source, folder=case.folder)
         # supervised (a crashing or hanging FMU fails this case only, named); the table needs the figures only
-        result = run_scenario(scenario, keep_trace=False, supervise=True, light_first_order=False)
+        result = run_scenario(scenario, RunOptions(keep_trace=False, supervise=True, light_first_order=False))
         row.update(summary_figures(result.summary))
         motor = scenario.roles.instance_of("torque")
         row["holding_torque_Nm"] = _holding_torque(scenario, motor, local.get(motor) if motor else None)
