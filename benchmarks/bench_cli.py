@@ -44,7 +44,7 @@ STAGES = (
     ("metadata (package versions)", "heliostep.run.runner", "_metadata"),
     ("figure accumulator set up", "heliostep.run.runner", "_run_figures"),
     ("simulation (supervised child, rows fed to the figures)", "heliostep.run.runner", "_co_simulate"),
-    ("figures after the simulation (light, summary)", "heliostep.results.run_figures.RunFigures", "summary"),
+    ("figures after the simulation (light, summary)", "heliostep.results.figures.run_figures.RunFigures", "summary"),
     ("trace and records written", "heliostep.run.result", "write_run_records"),
     ("plots drawn", "heliostep.run.result.RunResult", "_draw"),
 )

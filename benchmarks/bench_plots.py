@@ -23,7 +23,7 @@ from heliostep.paths import scenarios_dir
 from heliostep.plots import png
 from heliostep.plots.light import light_figure
 from heliostep.plots.run import _DPI, run_figures
-from heliostep.results.light import light_timeseries
+from heliostep.results.light.on_tube import light_timeseries
 from heliostep.run import run_scenario
 
 SETTINGS = ("no_hinting", "default", "auto")

@@ -6,7 +6,7 @@ Simulates a case of ``scenarios/sweeps/year-field.yaml`` once (``jan21-central.y
 sunrise to sunset on a 1 s grid: the trace a sweep case streams; held in memory), then writes its first
 131 072 rows as 8 row groups of 16 384 rows (the row group of a streamed trace) to memory with
 several ParquetWriter settings, best of ``--repeat``, and reads each back: write time, read time,
-size. The first line is the trace's setting (:data:`heliostep.results.trace_io.TRACE_ENCODING`,
+size. The first line is the trace's setting (:data:`heliostep.results.trace.files.TRACE_ENCODING`,
 zstd); the others are what it was chosen against, Parquet's default dictionary encoding first.
 """
 
@@ -28,7 +28,7 @@ def main(argv: list[str] | None = None) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from heliostep.results.trace_io import TRACE_ENCODING
+    from heliostep.results.trace.files import TRACE_ENCODING
     from heliostep.run import RunOptions, run_scenario
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -32,8 +32,8 @@ def _largest_difference(a, b, signal: str) -> float:
 
 
 def main() -> int:
-    from heliostep.results.compare import load_tolerances
-    from heliostep.results.regress import reference_signals, shipped_scenarios, tolerances_path
+    from heliostep.results.compare.regress import reference_signals, shipped_scenarios, tolerances_path
+    from heliostep.results.compare.traces import load_tolerances
     from heliostep.scenario import load_scenario
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -1,7 +1,7 @@
 """The figures' definitions evaluated on rows held in a frame, all at once: the oracle that the
-streaming figures (:class:`heliostep.results.solution.SolutionRecorder`, the run's one pass) are
+streaming figures (:class:`heliostep.results.figures.solution.SolutionRecorder`, the run's one pass) are
 checked against. Written apart from them on purpose (the batch functions that were
-``heliostep.results.summary.figures``, ``step_outcomes`` and ``solution_figures``)."""
+``heliostep.results.figures.summary.figures``, ``step_outcomes`` and ``solution_figures``)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from heliostep.results.steps import SETTLING_BAND, judged_steps, lost_steps, step_outcome
-from heliostep.results.trace import drive_from_metadata
+from heliostep.results.figures.steps import SETTLING_BAND, judged_steps, lost_steps, step_outcome
+from heliostep.results.trace.frame import drive_from_metadata
 
 
 def _time_rms(values: np.ndarray, time: np.ndarray) -> float:
@@ -29,7 +29,7 @@ def _peak(trace: pd.DataFrame, *columns: str) -> float | None:
 
 
 def step_outcomes(trace: pd.DataFrame, rotor_column: str, sequencer, schedule, settling_band: float = SETTLING_BAND):
-    """Per commanded step: its :class:`~heliostep.results.steps.StepOutcome`."""
+    """Per commanded step: its :class:`~heliostep.results.figures.steps.StepOutcome`."""
     time = trace["time"].to_numpy()
     rotor = trace[rotor_column].to_numpy()
     end = time[-1]
@@ -157,8 +157,8 @@ def _old_step_fields(outcomes, commanded: int) -> dict:
 
 def trace_summary_before(trace: pd.DataFrame, metadata: Mapping) -> dict:
     """``TraceSummary(...).summary()`` of the trace as one block, with the metadata's solution figures."""
-    from heliostep.results.solution import SolutionRecorder
-    from heliostep.results.steps import StepOutcome
+    from heliostep.results.figures.solution import SolutionRecorder
+    from heliostep.results.figures.steps import StepOutcome
 
     roles = metadata.get("roles", {})
     sequencer, schedule = drive_from_metadata(metadata["drive"])

@@ -44,7 +44,7 @@ def test_every_import_in_a_documented_python_example_resolves(doc):
 def test_compare_python_api_example_runs_on_the_shipped_reference_and_a_vendor_named_copy(tmp_path, monkeypatch):
     import xml.etree.ElementTree as ET
 
-    from heliostep.results.trace_io import read_trace, write_trace
+    from heliostep.results.trace.files import read_trace, write_trace
 
     (example,) = [b for b in _blocks(PROJECT / "docs" / "compare.md") if "compare_matched" in b]
     reference = PROJECT / "scenarios" / "jan21-central.reference.parquet"

@@ -52,7 +52,7 @@ def test_figures_are_converged_in_the_solver_tolerance(central):
 
 
 def test_stored_run_recomputes_the_same_summary(central, tmp_path):
-    from heliostep.results.summary import summarize_files
+    from heliostep.results.figures.summary import summarize_files
 
     central.write(tmp_path, plots=False)
     again = summarize_files(tmp_path)

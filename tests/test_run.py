@@ -10,7 +10,7 @@ import pytest
 
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
-from heliostep.results.trace_io import read_trace
+from heliostep.results.trace.files import read_trace
 from heliostep.run import RunFailed, run_scenario
 
 SCENARIOS = scenarios_dir()
@@ -172,10 +172,10 @@ def test_weak_motor_misses_steps_and_says_so(fmu_paths):
 def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch, scenario):
     """The recorder's running figures (memory bounded by one step interval) are those that the
     definitions give on all the rows it was shown, kept and assembled as a trace."""
-    import heliostep.results.run_figures as figures_module
+    import heliostep.results.figures.run_figures as figures_module
     from figures_oracle import solution_figures
-    from heliostep.results.summary import SolutionRecorder
-    from heliostep.results.trace import assemble_trace
+    from heliostep.results.figures.summary import SolutionRecorder
+    from heliostep.results.trace.frame import assemble_trace
 
     recorders = []
 
@@ -328,7 +328,7 @@ def test_out_folder_that_cannot_be_written_is_refused(tmp_path, fmu_paths, capsy
 
 
 def test_write_failure_says_where_the_result_could_not_go(tmp_path, fmu_paths, capsys, monkeypatch):
-    import heliostep.results.run_files as run_module
+    import heliostep.results.output.run_files as run_module
 
     out = tmp_path / "out"
     real = run_module.write_trace
@@ -354,7 +354,7 @@ def test_write_failure_says_where_the_result_could_not_go(tmp_path, fmu_paths, c
 
 
 def test_interrupted_write_leaves_no_file_claiming_completeness(tmp_path, fmu_paths, monkeypatch):
-    import heliostep.results.run_files as run_module
+    import heliostep.results.output.run_files as run_module
 
     run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["window.duration=2"])
     real = run_module.write_trace
@@ -411,7 +411,7 @@ def test_night_window_warns_and_says_so_in_the_summary(tmp_path, fmu_paths, caps
 
 
 def test_interrupted_summary_does_not_count_the_step_in_progress(fmu_paths):
-    from heliostep.results.summary import summary_at_cut, trace_summary
+    from heliostep.results.figures.summary import summary_at_cut, trace_summary
 
     run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=["window.duration=20"])
     steps = run.inputs.schedule.times

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from heliostep.paths import scenarios_dir
-from heliostep.results.light import LightIntegrals, light_figures, light_timeseries
+from heliostep.results.light.on_tube import LightIntegrals, light_figures, light_timeseries
 from heliostep.run import RunOptions, run_scenario
 from weather_files import write_epw
 
@@ -88,7 +88,7 @@ def test_run_light_figures_are_the_integrals_of_the_whole_series(runs):
     ):
         assert summary[key] == pytest.approx(np.trapezoid(series[f"power_{name}_W"].to_numpy(), time), rel=1e-12)
     # the actual attitude's: the rows' trapezoid corrected between the rows by the solution
-    # (heliostep.results.light_rows; tests/results/test_light_rows.py): here by under 1e-9 of it,
+    # (heliostep.results.light.rows; tests/results/test_light_rows.py): here by under 1e-9 of it,
     # and the whole trace taken as one block gives the same to rounding
     actual = np.trapezoid(series["power_actual_W"].to_numpy(), time)
     assert summary["light_energy_J"] == pytest.approx(actual, rel=1e-9)
@@ -120,8 +120,8 @@ def test_run_light_figures_are_the_integrals_of_the_whole_series(runs):
 @pytest.mark.parametrize("chunk", [7, 64, 100_000])
 def test_figures_in_other_chunks_agree_to_rounding(runs, chunk):
     """Chunks of other sizes (7 rows; 64; the whole trace in one) change the figures by rounding only."""
-    from heliostep.results.run_figures import run_figures
-    from heliostep.results.trace import figure_columns
+    from heliostep.results.figures.run_figures import run_figures
+    from heliostep.results.trace.frame import figure_columns
 
     held, _ = runs
     figures = run_figures(

@@ -24,7 +24,7 @@ import pandas as pd
 import pytest
 
 from heliostep.cosim.child import MAX_ROWS_LOST
-from heliostep.results.trace_io import read_trace
+from heliostep.results.trace.files import read_trace
 from heliostep.run import RunOptions, run_scenario
 from third_party_fmu import build_mini_fmu
 

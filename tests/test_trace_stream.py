@@ -15,7 +15,7 @@ from heliostep.cosim.master import Connection, CoSimulation, PiecewiseConstant, 
 from heliostep.drive.sequencer import Sequencer
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
-from heliostep.results.trace_io import copy_trace_to_csv, read_trace
+from heliostep.results.trace.files import copy_trace_to_csv, read_trace
 from heliostep.run import RunFailed, RunOptions, run_scenario
 
 SCENARIOS = scenarios_dir()
@@ -78,7 +78,7 @@ def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_p
 
 @pytest.mark.parametrize("block", [1, 2, 3, 7])
 def test_trace_assembled_block_by_block_equals_the_whole(held, block):
-    from heliostep.results.trace import TraceAssembler
+    from heliostep.results.trace.frame import TraceAssembler
 
     derived = ["panel_angle_ref", "rotor_angle_ref", "step_index", "rotor_angle_cmd", "panel_angle_error"]
     master = held.trace.drop(columns=derived)

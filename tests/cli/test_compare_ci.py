@@ -14,7 +14,7 @@ import numpy as np
 
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
-from heliostep.results.trace_io import read_trace, write_trace
+from heliostep.results.trace.files import read_trace, write_trace
 
 REFERENCE = scenarios_dir() / "jan21-central.reference.parquet"
 TOLERANCES = scenarios_dir() / "regress-tolerances.yaml"

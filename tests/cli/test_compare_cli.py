@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from heliostep.cli import main
-from heliostep.results.trace_io import write_trace
+from heliostep.results.trace.files import write_trace
 
 T = np.linspace(0.0, 10.0, 1001)
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from heliostep.paths import scenarios_dir
-from heliostep.results.trace_io import read_trace
+from heliostep.results.trace.files import read_trace
 from heliostep_process import popen_heliostep
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from heliostep.paths import scenarios_dir
-from heliostep.results.run_folder import LOCK_NAME, MANIFEST_NAME
+from heliostep.results.output.folder import LOCK_NAME, MANIFEST_NAME
 from heliostep_process import popen_heliostep
 
 SCENARIO = str(scenarios_dir() / "jan21-central.yaml")
@@ -41,7 +41,7 @@ def _hold(folder: Path):
     """A process other than the test's holding ``folder``'s lock until killed (as a running command does)."""
     folder.mkdir(parents=True, exist_ok=True)
     code = (
-        "import sys, time; from heliostep.results.run_folder import hold_folder\n"
+        "import sys, time; from heliostep.results.output.folder import hold_folder\n"
         f"with hold_folder({str(folder)!r}, 'heliostep holder-of-the-test'):\n"
         "    print('held', flush=True); time.sleep(600)\n"
     )

@@ -351,8 +351,8 @@ def test_bad_options_are_exit_2(tmp_path, capsys, option, named):
 
 
 def test_an_interrupted_sizing_keeps_the_cases_it_finished_and_names_the_rest(tmp_path, fmu_paths):
-    from heliostep.sweep.sizing import plan_sizing
-    from heliostep.sweep.sizing_sheet import size
+    from heliostep.sizing.sheet import size
+    from heliostep.sizing.size import plan_sizing
 
     catalogue = _catalogue(tmp_path, {"small": SMALL})
     plan = plan_sizing(
@@ -417,7 +417,8 @@ def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
 def test_the_command_line_defaults_are_the_sizings():
     # cli.size spells its defaults out so that no command's start imports the sizing; they must agree
     from heliostep.cli import size as command
-    from heliostep.sweep import sizing, sizing_days
+    from heliostep.sizing import days as sizing_days
+    from heliostep.sizing import size as sizing
 
     assert command.ALL_DAYS == sizing_days.ALL_DAYS
     assert command.DEFAULT_SAFETY_FACTOR == sizing.DEFAULT_SAFETY_FACTOR

@@ -20,7 +20,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from heliostep.results.trace_io import read_trace
+from heliostep.results.trace.files import read_trace
 
 HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from heliostep.paths import scenarios_dir
-from heliostep.results.compare import compare_traces
-from heliostep.results.tolerance import load_tolerances
+from heliostep.results.compare.tolerance import load_tolerances
+from heliostep.results.compare.traces import compare_traces
 from heliostep.run import run_scenario
 
 WINDOW = ["window.duration=60"]  # two steps of the paper's case

@@ -216,7 +216,7 @@ def test_a_pythonfmu_fmi2_cs_lag_runs_sampled_and_its_refused_step_ends_the_run_
 def test_a_crash_inside_the_third_party_fmu_fails_a_supervised_run_named_with_its_trace_so_far(fmus, tmp_path, capsys):
     from heliostep.cli import main
     from heliostep.paths import scenarios_dir
-    from heliostep.results.trace_io import read_trace
+    from heliostep.results.trace.files import read_trace
 
     # past t_fail the lag's derivatives raise and PythonFMU3's C++ layer dies of it (SIGSEGV): the
     # supervised run (the master in a child process) says where, keeps the trace so far and exits 1

@@ -15,8 +15,8 @@ import pandas as pd
 import pytest
 
 from heliostep.plots.compare import failure_window, signal_figure, write_report
-from heliostep.results.compare import Tolerance, compare_matched, evaluate_signal
-from heliostep.results.signal_map import match_signals
+from heliostep.results.compare.signal_map import match_signals
+from heliostep.results.compare.traces import Tolerance, compare_matched, evaluate_signal
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 T = np.linspace(0.0, 300.0, 30001)  # 10 ms samples over 300 s

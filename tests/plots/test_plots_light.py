@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from heliostep.plots.light import POWER_FILE, light_figure, plot_light, plot_light_run
-from heliostep.results.light import light_timeseries
+from heliostep.results.light.on_tube import light_timeseries
 from heliostep.scenario import validate_scenario
 from heliostep.solar.tracking import panel_angle_reference
 

@@ -309,7 +309,7 @@ def _nothing_clipped_or_overlapping(name, fig):
 
 def test_the_fixed_layout_clips_nothing_and_panels_do_not_overlap(solved):
     from heliostep.plots.light import light_figure
-    from heliostep.results.light import light_timeseries
+    from heliostep.results.light.on_tube import light_timeseries
 
     run, figures = solved
     assert len([fig for fig in figures.values() if fig is not None]) == 7

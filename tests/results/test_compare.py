@@ -1,4 +1,4 @@
-"""Tests of heliostep.results.compare: the tolerance-tube comparison.
+"""Tests of heliostep.results.compare.traces: the tolerance-tube comparison.
 
 Expected numbers come from the definition of the tube (worked out by hand in the
 comments) or from an independent brute-force evaluation, never from the code.
@@ -12,7 +12,7 @@ import pytest
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
 from heliostep.errors import InputError
-from heliostep.results.compare import (
+from heliostep.results.compare.traces import (
     ComparisonResult,
     Tolerance,
     ToleranceSet,

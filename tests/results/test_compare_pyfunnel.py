@@ -22,7 +22,7 @@ import pandas as pd
 import pyfunnel
 import pytest
 
-from heliostep.results.compare import Tolerance, evaluate_signal
+from heliostep.results.compare.traces import Tolerance, evaluate_signal
 
 T = np.linspace(0.0, 10.0, 201)
 

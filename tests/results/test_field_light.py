@@ -1,4 +1,4 @@
-"""Tests of heliostep.results.field_light and ``heliostep field-light``: every mirror's light on the tube per
+"""Tests of heliostep.results.light.field and ``heliostep field-light``: every mirror's light on the tube per
 day with the shared primary, against ray geometry written here (pvlib SPA and clear sky for the sun)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from scipy.special import erf
 from heliostep import cli
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
-from heliostep.results.field_light import field_light_days
+from heliostep.results.light.field import field_light_days
 from heliostep.scenario import load_scenario
 
 BASE = scenarios_dir() / "jan21-central.yaml"  # 40 N, 14.25 E, h = 3 m, 70 mm tube, mirrors 0.6 m apart
@@ -155,7 +155,7 @@ def test_field_shading_and_blocking_match_the_ray_tracer():
     # Every field mirror's unhidden share, ideal and with the shared primary (the neighbours share it too),
     # against the ray tracer (tests/mirror_tracer.py: 40 000 points, standard error <= 0.0025) on a section of
     # 7 contiguous mirrors along each of the 13 rows; the band: tests/solar/test_shading.py's two-axis one
-    from heliostep.results.field_light import field_light_instants
+    from heliostep.results.light.field import field_light_instants
     from mirror_tracer import layout, trace
 
     scenario = load_scenario(BASE)
@@ -183,7 +183,7 @@ def test_the_field_never_collects_more_than_the_beam_its_aperture_sees():
     # At every 30 min of the 21st of each month, the 13 mirrors' collected beam per pitch along the row,
     # DNI sum_i cos_i (1 - lost_i) w l, is at most the beam entering the slab bounding their corners:
     # through its top (S_z x its width) and its sun-facing side (|S_x| x its height), l along the row
-    from heliostep.results.field_light import field_light_instants
+    from heliostep.results.light.field import field_light_instants
     from mirror_tracer import rectangle
 
     scenario = load_scenario(BASE)

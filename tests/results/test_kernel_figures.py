@@ -1,5 +1,5 @@
 """The figures accumulated in the compiled kernel (heliostep.cosim.figures, kernel.c hs_figures_row) against
-the Python recorder fed every solution row (heliostep.results.solution.SolutionRecorder, the definition):
+the Python recorder fed every solution row (heliostep.results.figures.solution.SolutionRecorder, the definition):
 every shipped scenario, on windows cut short where a scenario is long, a slip case among them.
 
 Every figure is the same bit for bit but two sums over all rows, the electrical energy and the tracking

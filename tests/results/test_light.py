@@ -1,4 +1,4 @@
-"""Tests of heliostep.results.light: energy on the tube against an independent computation."""
+"""Tests of heliostep.results.light.on_tube: energy on the tube against an independent computation."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pvlib.location import Location
 from scipy.special import erf
 
 from heliostep.errors import InputError
-from heliostep.results.light import LightIntegrals, light_figures, light_notes, light_timeseries
-from heliostep.results.light_notes import INTERPOLATION_NOISE
+from heliostep.results.light.notes import INTERPOLATION_NOISE
+from heliostep.results.light.on_tube import LightIntegrals, light_figures, light_notes, light_timeseries
 from heliostep.scenario import validate_scenario
 from heliostep.solar.tracking import panel_angle_reference
 
@@ -310,8 +310,8 @@ def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_
     function of the interpolated miss, errs by at most the miss's error over the mirror's length (the
     share of the length past the end). Across sunrise the rows between a grid point below the horizon
     and one above take their own image, bit for bit."""
-    from heliostep.results import light
-    from heliostep.results.mirror_power import receiver_image
+    from heliostep.results.light import on_tube as light
+    from heliostep.results.light.mirror_power import receiver_image
     from heliostep.solar import optics as optics_module
 
     scenario = validate_scenario(

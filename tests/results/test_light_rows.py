@@ -1,4 +1,4 @@
-"""The light's integrals between the output rows (heliostep.results.light_rows): the rows' trapezoid of a
+"""The light's integrals between the output rows (heliostep.results.light.rows): the rows' trapezoid of a
 power that depends on the driven angle, corrected with the solution's integral of the tracking error.
 
 Checked against an integral computed in the test (scipy's adaptive quadrature of a stepped and ringing
@@ -12,8 +12,8 @@ import pytest
 from scipy.integrate import quad
 
 from heliostep.paths import scenarios_dir
-from heliostep.results.light import light_timeseries
-from heliostep.results.light_rows import RowMarks, corrections
+from heliostep.results.light.on_tube import light_timeseries
+from heliostep.results.light.rows import RowMarks, corrections
 from heliostep.run import RunOptions, run_scenario
 
 #: an output grid of 30 s with 10 ms of detail after each step at 5 ms: the panel is still swinging at

@@ -1,4 +1,4 @@
-"""heliostep.results.regress: the shipped scenarios against their reference traces (this is the CI regression)."""
+"""heliostep.results.compare.regress: the shipped scenarios against their reference traces (the CI regression)."""
 
 import shutil
 
@@ -7,7 +7,7 @@ import pytest
 
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
-from heliostep.results.regress import reference_path, shipped_scenarios
+from heliostep.results.compare.regress import reference_path, shipped_scenarios
 
 
 def test_every_shipped_scenario_matches_its_reference(fmu_paths, capsys):

@@ -1,4 +1,4 @@
-"""``heliostep.results.run_folder``'s swap holds the stop signals back, also those the kernel
+"""``heliostep.results.output.folder``'s swap holds the stop signals back, also those the kernel
 delivers to another thread of the process (the race behind a double Ctrl+C that left a folder's
 manifest at ``swapping``: tests/run/test_owned_folder.py), and a stop leaving a held folder removes
 the command's temporary files."""
@@ -12,7 +12,7 @@ import pytest
 
 PROGRAM = r"""
 import os, signal, threading, time
-from heliostep.results.run_folder import _stop_signals_blocked
+from heliostep.results.output.folder import _stop_signals_blocked
 
 events = []
 
@@ -56,7 +56,7 @@ def test_a_stop_leaving_a_held_folder_removes_its_temporaries_an_error_keeps_the
     block so removes every ``.heliostep-tmp-*`` entry. An error keeps them (a stream that nowhere
     else could take holds computed rows); the user's files stay either way."""
     from heliostep.cli.signals import ForcedStop
-    from heliostep.results.run_folder import LOCK_NAME, hold_folder, staging_folder
+    from heliostep.results.output.folder import LOCK_NAME, hold_folder, staging_folder
 
     def made_in_the_block(folder, exc):
         with pytest.raises(type(exc)), hold_folder(folder):

@@ -1,11 +1,11 @@
-"""heliostep.results.signal_map: which actual signal each reference signal is compared with, and how."""
+"""heliostep.results.compare.signal_map: which actual signal each reference signal is compared with, and how."""
 
 from __future__ import annotations
 
 import pytest
 
 from heliostep.errors import InputError
-from heliostep.results.signal_map import (
+from heliostep.results.compare.signal_map import (
     SignalMatch,
     load_signal_map,
     match_signals,

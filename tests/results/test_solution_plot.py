@@ -1,4 +1,4 @@
-"""heliostep.results.solution's plot data: the solver-step rows held around the peak |torque| and
+"""heliostep.results.figures.solution's plot data: the solver-step rows held around the peak |torque| and
 the per-bin envelopes, checked against the whole series computed here by brute force (no code of
 the recorder's), whatever the blocks the rows come in; their memory stays bounded."""
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from heliostep.results.solution import PEAK_WINDOW_HALF_WIDTH, PeakWindow, SolutionRecorder
-from heliostep.results.trace import drive_from_metadata
+from heliostep.results.figures.solution import PEAK_WINDOW_HALF_WIDTH, PeakWindow, SolutionRecorder
+from heliostep.results.trace.frame import drive_from_metadata
 from heliostep.scenario import RolesConfig
 
 STEP = np.pi / 100

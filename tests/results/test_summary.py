@@ -1,11 +1,11 @@
-"""heliostep.results.summary: the run's figures from a trace built by hand, with known answers."""
+"""heliostep.results.figures.summary: the run's figures from a trace built by hand, with known answers."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from figures_oracle import figures
-from heliostep.results.summary import summarize
+from heliostep.results.figures.summary import summarize
 from heliostep.scenario import RolesConfig
 
 STEP = np.pi / 100
@@ -104,8 +104,8 @@ def test_lost_steps_are_net_of_the_elastic_lag_held_from_the_start():
 
 def _streamed(trace, metadata, block):
     """The SolutionRecorder's figures of the rows of ``trace`` (reference: the trace's own)."""
-    from heliostep.results.summary import SolutionRecorder
-    from heliostep.results.trace import drive_from_metadata
+    from heliostep.results.figures.summary import SolutionRecorder
+    from heliostep.results.trace.frame import drive_from_metadata
 
     sequencer, schedule = drive_from_metadata(metadata["drive"])
     columns = ["time", "mechanics.theta", "motor.tau", "motor.i_a", "motor.i_b", "motor.power", "mechanics.theta_p"]

@@ -1,4 +1,4 @@
-"""Tests of heliostep.results.trace_io: the trace file format."""
+"""Tests of heliostep.results.trace.files: the trace file format."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from heliostep.errors import InputError
-from heliostep.results.trace_io import is_complete, read_trace, write_trace
+from heliostep.results.trace.files import is_complete, read_trace, write_trace
 
 
 def _trace() -> pd.DataFrame:

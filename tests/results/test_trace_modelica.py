@@ -10,8 +10,8 @@ from scipy.io import savemat
 
 from heliostep.cli import main
 from heliostep.errors import InputError
-from heliostep.results.trace_io import read_trace, write_trace
-from heliostep.results.trace_modelica import unit_of_description
+from heliostep.results.trace.files import read_trace, write_trace
+from heliostep.results.trace.modelica import unit_of_description
 
 TIME = np.array([0.0, 0.25, 0.5, 0.5, 0.75, 1.0])  # an event at 0.5 s: two rows
 TAU = np.array([0.0, 0.1, 0.2, 1.7, 1.3, 1.25])

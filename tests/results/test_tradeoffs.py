@@ -9,7 +9,7 @@ import pytest
 from scipy.optimize import brentq
 
 from heliostep.paths import scenarios_dir
-from heliostep.results.tradeoffs import holding_torque
+from heliostep.results.figures.tradeoffs import holding_torque
 from heliostep.run import run_scenario
 from physics_reference import MOTOR_LOSSES, RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
 

@@ -18,8 +18,8 @@ import pytest
 
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
-from heliostep.results.run_folder import LOCK_NAME, MANIFEST_NAME
-from heliostep.results.trace_io import read_trace
+from heliostep.results.output.folder import LOCK_NAME, MANIFEST_NAME
+from heliostep.results.trace.files import read_trace
 from heliostep_process import five_day_scenario, popen_heliostep
 
 SCENARIO = str(scenarios_dir() / "jan21-central.yaml")

@@ -16,22 +16,22 @@ import time
 from pathlib import Path
 
 from heliostep.errors import InputError
-from heliostep.results.compare import (
-    ToleranceSet,
-    compare_matched,
-    format_matches,
-    format_table,
-    load_tolerances,
-)
-from heliostep.results.signal_map import (
+from heliostep.results.compare.signal_map import (
     SignalMatch,
     load_signal_map,
     match_signals,
     parse_map_options,
     signal_units,
 )
-from heliostep.results.trace_io import is_complete, read_trace
-from heliostep.results.verdicts import SuiteVerdict, github_annotations, junit_xml
+from heliostep.results.compare.traces import (
+    ToleranceSet,
+    compare_matched,
+    format_matches,
+    format_table,
+    load_tolerances,
+)
+from heliostep.results.compare.verdicts import SuiteVerdict, github_annotations, junit_xml
+from heliostep.results.trace.files import is_complete, read_trace
 
 __all__ = ["register", "run", "format_table"]
 

@@ -25,8 +25,8 @@ import datetime as dt
 from pathlib import Path
 
 from heliostep.errors import InputError
-from heliostep.results.outputs import check_out_name
-from heliostep.results.run_folder import owned_folder, write_swapped
+from heliostep.results.output.files import check_out_name
+from heliostep.results.output.folder import owned_folder, write_swapped
 from heliostep.scenario.model import FIRST_YEAR, LAST_YEAR, window_date_problem
 from heliostep.solar import field_distances
 from heliostep.solar.endloss import end_loss_days, largest_shift

@@ -5,7 +5,7 @@ writes to ``--out`` (default ``out/<scenario name>-field-light``):
 
 * ``field_light_days.csv``: per day and mirror, the energy on the tube with ideal two-axis
   tracking and with the primary shared with the central mirror (mounted exact at each day's
-  solar noon), and the light lost (:func:`heliostep.results.field_light.field_light_days`);
+  solar noon), and the light lost (:func:`heliostep.results.light.field.field_light_days`);
 * ``heatmap_light_lost_year.png`` [MJ per day] and ``heatmap_light_lost_fraction_year.png``
   [%]: day of year x mirror;
 
@@ -18,9 +18,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from heliostep.results.field_light import field_light_days
-from heliostep.results.outputs import check_out_name
-from heliostep.results.run_folder import owned_folder, write_swapped
+from heliostep.results.light.field import field_light_days
+from heliostep.results.output.files import check_out_name
+from heliostep.results.output.folder import owned_folder, write_swapped
 from heliostep.scenario import load_scenario
 
 

@@ -30,8 +30,8 @@ import pandas as pd
 
 from heliostep import solar as geometry
 from heliostep.errors import InputError
-from heliostep.results.outputs import check_out_name
-from heliostep.results.run_folder import owned_folder, write_swapped
+from heliostep.results.output.files import check_out_name
+from heliostep.results.output.folder import owned_folder, write_swapped
 from heliostep.scenario.model import window_date_problem
 
 DEFAULT_DATES = ("2025-12-21", "2025-01-21", "2025-03-21", "2025-06-21")

@@ -11,15 +11,15 @@ from pathlib import Path
 from heliostep.cli.compare import add_annotations_option, annotations_wanted, check_output_dir, check_output_file
 from heliostep.cli.signals import stop_requests
 from heliostep.errors import InputError
-from heliostep.results.compare import format_table, load_tolerances
-from heliostep.results.regress import (
+from heliostep.results.compare.regress import (
     Outcome,
     check_against_reference,
     reference_path,
     shipped_scenarios,
     tolerances_path,
 )
-from heliostep.results.verdicts import SuiteVerdict, github_annotations, junit_xml
+from heliostep.results.compare.traces import format_table, load_tolerances
+from heliostep.results.compare.verdicts import SuiteVerdict, github_annotations, junit_xml
 from heliostep.run import RunFailed, RunOptions, run_scenario
 
 

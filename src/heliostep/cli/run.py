@@ -11,11 +11,11 @@ import numpy as np
 from heliostep.cli.band import add_band_options, prepare_band, run_band_after
 from heliostep.cli.signals import ForcedStop, stop_requests
 from heliostep.drive.sequencer import PreparationStopped
-from heliostep.results.outputs import TMP_PREFIX, check_out_name
-from heliostep.results.rescue import rescue_folder
-from heliostep.results.run_files import run_file_names
-from heliostep.results.run_folder import owned_folder
-from heliostep.results.trace_io import TraceWriteError
+from heliostep.results.output.files import TMP_PREFIX, check_out_name
+from heliostep.results.output.folder import owned_folder
+from heliostep.results.output.rescue import rescue_folder
+from heliostep.results.output.run_files import run_file_names
+from heliostep.results.trace.files import TraceWriteError
 from heliostep.run import RunFailed, RunOptions, RunResult, resolve_fmus, run_scenario
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION

@@ -1,4 +1,4 @@
-"""``heliostep size``: choose a motor and a current for a scenario's drive (:mod:`heliostep.sweep.sizing`)."""
+"""``heliostep size``: choose a motor and a current for a scenario's drive (:mod:`heliostep.sizing.size`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 from heliostep.cli.signals import stop_requests
 
-#: The defaults of heliostep.sweep.sizing (imported when the command runs: every command's start stays short).
+#: The defaults of heliostep.sizing.size (imported when the command runs: every command's start stays short).
 ALL_DAYS = "all"
 DEFAULT_SAFETY_FACTOR = 2.0
 DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
@@ -92,8 +92,8 @@ def _days(values: list[str]) -> list[int] | str:
 
 def main(args: argparse.Namespace) -> int:
     from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
-    from heliostep.sweep.sizing import plan_sizing
-    from heliostep.sweep.sizing_sheet import size
+    from heliostep.sizing.sheet import size
+    from heliostep.sizing.size import plan_sizing
 
     candidates = load_catalogue(args.catalogue, args.candidate)
     plan = plan_sizing(

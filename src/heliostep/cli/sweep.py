@@ -24,8 +24,8 @@ import pandas as pd
 
 from heliostep.cli.signals import exit_status, stop_requests
 from heliostep.errors import HeliostepError, InputError
-from heliostep.results.outputs import check_out_name
-from heliostep.results.run_folder import claim, owned_folder, write_swapped
+from heliostep.results.output.files import check_out_name
+from heliostep.results.output.folder import claim, owned_folder, write_swapped
 from heliostep.sweep import (
     SweepOutcome,
     execute_cases,

@@ -6,7 +6,7 @@ around the peak); :class:`KernelFigures` holds kernel.h's ``hs_figures`` for one
 updates it at each row it records (every internal CVODE step and every output time), the master
 passes it the rows it records itself (both sides of every event): so the internal steps' rows are
 no longer handed to Python. :meth:`KernelFigures.totals` reads the result back
-(:class:`FigureTotals`) for :class:`heliostep.results.solution.SolutionRecorder`, whose own
+(:class:`FigureTotals`) for :class:`heliostep.results.figures.solution.SolutionRecorder`, whose own
 Python code on blocks of rows is the definition it follows (the same operations on each value; the
 sums over rows taken one row after the other, so they differ from numpy's pairwise sums in
 rounding only).
@@ -73,7 +73,7 @@ class FigureTotals:
     (its time [s] and signed torque), the error's integral [deg s] and its values at the steps' times, the
     rows of its extremes per interval between them (t, e, panel of the largest, then of the least [s, deg, rad];
     the intervals reached), and the integral of e^2 [deg^2 s] (one row after the other) to the end and at the
-    steps' times (:meth:`heliostep.results.solution.SolutionRecorder.figures`' ``error_*``)."""
+    steps' times (:meth:`heliostep.results.figures.solution.SolutionRecorder.figures`' ``error_*``)."""
 
     count: int
     unordered: int

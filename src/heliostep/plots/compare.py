@@ -34,10 +34,10 @@ from matplotlib.figure import Figure
 
 from heliostep.plots.png import save_png
 from heliostep.plots.thinning import thin
-from heliostep.results.compare import ComparisonResult, SignalEvaluation, SignalResult, evaluate_signal
-from heliostep.results.signal_map import signal_units
-from heliostep.results.trace_io import TIME
-from heliostep.results.verdicts import failure_message
+from heliostep.results.compare.signal_map import signal_units
+from heliostep.results.compare.traces import ComparisonResult, SignalEvaluation, SignalResult, evaluate_signal
+from heliostep.results.compare.verdicts import failure_message
+from heliostep.results.trace.files import TIME
 
 __all__ = ["failure_window", "plot_signal", "png_name", "signal_figure", "write_report"]
 

@@ -14,8 +14,8 @@ import pandas as pd
 
 from heliostep.plots.light import plot_light_run
 from heliostep.plots.run import plot_run
-from heliostep.results.outputs import TMP_PREFIX
-from heliostep.results.solution import SolutionPlotData
+from heliostep.results.figures.solution import SolutionPlotData
+from heliostep.results.output.files import TMP_PREFIX
 
 __all__ = ["DrawnRun", "draw_run_figures"]
 

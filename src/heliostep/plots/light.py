@@ -1,6 +1,6 @@
 """Plot of one run's light on the tube: power over the window, ideal tracking against the drive.
 
-:func:`plot_light` draws :func:`heliostep.results.light.light_timeseries`'s power on the tube
+:func:`plot_light` draws :func:`heliostep.results.light.on_tube.light_timeseries`'s power on the tube
 (absorbed, [kW]) for ideal two-axis tracking, for the reference (the driven axis on the drive's
 law, the primary shared) and for the actual panel, on an axis zoomed to the powers (not from 0,
 where curves that differ by parts in 10^7, as the central mirror's do, draw as one line). The
@@ -8,7 +8,7 @@ differences get panels of their own [W]: what sharing the primary loses (ideal -
 reference law's part (shared - reference), and the stepping's change (actual - reference,
 signed: a first-order term, not a loss) with its first-order estimate. The legends give each
 energy [kJ, or J below 1 kJ]: the run's figures (``summary.json``'s, which take the panel's swing between the
-rows from the solution, :mod:`heliostep.results.light_rows`) where given, else the rows' trapezoids.
+rows from the solution, :mod:`heliostep.results.light.rows`) where given, else the rows' trapezoids.
 :func:`plot_light_run` computes the series from a run and writes ``POWER_FILE``.
 """
 
@@ -25,8 +25,8 @@ from heliostep.plots.layout import fixed_axes
 from heliostep.plots.png import save_png
 from heliostep.plots.run import _Clock
 from heliostep.plots.thinning import thin
-from heliostep.results.light import light_timeseries
-from heliostep.results.run_files import POWER_FILE  # (named where matplotlib is not imported)
+from heliostep.results.light.on_tube import light_timeseries
+from heliostep.results.output.run_files import POWER_FILE  # (named where matplotlib is not imported)
 
 __all__ = ["POWER_FILE", "light_figure", "plot_light", "plot_light_run"]
 
@@ -63,7 +63,7 @@ def plot_light(
     Parameters
     ----------
     series : pandas.DataFrame or Mapping of arrays
-        :func:`heliostep.results.light.light_timeseries`: ``time`` [s], ``power_ideal_W``,
+        :func:`heliostep.results.light.on_tube.light_timeseries`: ``time`` [s], ``power_ideal_W``,
         ``power_reference_W`` and (optionally) ``power_shared_W``, ``power_actual_W`` and
         ``stepping_first_order_W`` [W].
     path : str or Path
@@ -94,7 +94,7 @@ def light_figure(
     """The figure of :func:`plot_light`: the powers [kW] on an axis zoomed to them; below, the
     shared primary's loss and the reference law's part [W]; with the actual panel, a third panel
     of the stepping's change and its first-order term [W]. None for fewer than two rows. ``series``:
-    :func:`~heliostep.results.light.light_timeseries`' frame, or its columns as arrays."""
+    :func:`~heliostep.results.light.on_tube.light_timeseries`' frame, or its columns as arrays."""
     time = np.asarray(series["time"], dtype=float)
     if len(time) < 2:
         return None
@@ -181,7 +181,7 @@ def plot_light_run(
     figures: Mapping | None = None,
 ) -> list[Path]:
     """Write ``POWER_FILE`` for a run (its trace, metadata and scenario; ``weather``, its weather
-    file already read, see :func:`heliostep.results.light.light_timeseries`; ``figures``, its light figures for
+    file already read, see :func:`heliostep.results.light.on_tube.light_timeseries`; ``figures``, its light figures for
     the legends) into ``out_dir``.
 
     Returns

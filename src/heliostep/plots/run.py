@@ -30,8 +30,10 @@ from heliostep.errors import InputError
 from heliostep.plots.layout import fixed_axes
 from heliostep.plots.png import save_png
 from heliostep.plots.thinning import thin
-from heliostep.results.run_files import FIGURE_FILES  # (PNG per figure, in the order drawn: named without matplotlib)
-from heliostep.results.solution import SolutionPlotData
+from heliostep.results.figures.solution import SolutionPlotData
+from heliostep.results.output.run_files import (
+    FIGURE_FILES,  # (PNG per figure, in the order drawn: named without matplotlib)
+)
 from heliostep.scenario import RolesConfig
 
 __all__ = [

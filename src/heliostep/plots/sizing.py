@@ -1,7 +1,7 @@
 """The sizing sheet (``heliostep size``) as one self-contained HTML page: tables with units, plots
 embedded as base64 PNG, readable offline (no script, no external file).
 
-:func:`sizing_html` takes the sheet (:func:`heliostep.sweep.sizing_verdict.judge`'s mapping, with the
+:func:`sizing_html` takes the sheet (:func:`heliostep.sizing.verdict.judge`'s mapping, with the
 run's header keys) and returns the page. Figures are :class:`matplotlib.figure.Figure` (no pyplot).
 """
 

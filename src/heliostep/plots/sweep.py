@@ -11,7 +11,7 @@
 * no torque verdict. The figure that was drawn here, ``torque_requirement.png`` (the paper's rule,
   2 x the simulated peak torque against the holding torque k_e x I), is no longer written: the
   peak is the torque the motor produces to swing its load into the next detent, not the
-  requirement. The requirement is ``heliostep size``'s (:mod:`heliostep.sweep.sizing`): the load
+  requirement. The requirement is ``heliostep size``'s (:mod:`heliostep.sizing.size`): the load
   budget at each day's worst instant (wind through the transmission, friction, inertia) against
   the torque the motor can deliver, with the safety factor on the load (docs/sizing.md). The name
   stays owned by the sweep's folder (:data:`TORQUE_FILE`), so a figure an earlier version wrote is

@@ -6,7 +6,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from heliostep.results.trace_io import ROW_GROUP_ROWS
+from heliostep.results.trace.files import ROW_GROUP_ROWS
 from heliostep.run.supervised import DEFAULT_WATCHDOG
 
 __all__ = ["RunOptions"]

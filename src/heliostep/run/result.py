@@ -1,7 +1,7 @@
 """The outcome of a run: :class:`RunResult` (trace, figures, metadata, status) and :class:`RunFailed`.
 
-The output folder is written by :mod:`heliostep.results` (:func:`~heliostep.results.run_files.write_run_records`,
-:func:`~heliostep.results.rescue.write_rescue`) and the figures drawn by
+The output folder is written by :mod:`heliostep.results` (:func:`~heliostep.results.output.run_files.write_run_records`,
+:func:`~heliostep.results.output.rescue.write_rescue`) and the figures drawn by
 :func:`heliostep.plots.drawing.draw_run_figures`; :meth:`RunResult.write` and :meth:`RunResult.plot` call them.
 """
 
@@ -17,14 +17,14 @@ import pandas as pd
 
 from heliostep.drive.inputs import DriveInputs
 from heliostep.errors import InputError, RunFailure
-from heliostep.results.rescue import write_rescue
-from heliostep.results.run_figures import present_columns
-from heliostep.results.run_files import run_file_names, write_run_records
-from heliostep.results.run_folder import check_foreign, hold_folder, manifest_files, write_swapped
-from heliostep.results.run_summary import RunMetadata, RunStatus, RunSummary, summary_record
-from heliostep.results.solution import SolutionPlotData
-from heliostep.results.trace import trace_metadata
-from heliostep.results.trace_io import read_trace
+from heliostep.results.figures.run_figures import present_columns
+from heliostep.results.figures.run_summary import RunMetadata, RunStatus, RunSummary, summary_record
+from heliostep.results.figures.solution import SolutionPlotData
+from heliostep.results.output.folder import check_foreign, hold_folder, manifest_files, write_swapped
+from heliostep.results.output.rescue import write_rescue
+from heliostep.results.output.run_files import run_file_names, write_run_records
+from heliostep.results.trace.files import read_trace
+from heliostep.results.trace.frame import trace_metadata
 from heliostep.scenario import Scenario
 
 __all__ = ["RunFailed", "RunResult", "run_file_names"]
@@ -45,7 +45,7 @@ class RunResult:
     output folder's ``trace.parquet``; a file in a temporary folder of the run's own is removed
     with the result.
 
-    ``figures`` is the run's :class:`~heliostep.results.run_summary.RunSummary` (None without a
+    ``figures`` is the run's :class:`~heliostep.results.figures.run_summary.RunSummary` (None without a
     trace row) and ``summary`` the same as a dict (``summary.json`` after the status). The
     summary of an interrupted run does not judge the step in progress at the cut: when the
     last step before the cut looks missed or unsettled there, the step figures (steps commanded,
@@ -57,7 +57,7 @@ class RunResult:
     and :meth:`write` give them after the file's rows, :meth:`write_rescue` saves them all.
 
     ``solution_plot`` is what the plots draw from every solver step (the rows around the peak
-    |torque|, the per-bin envelopes; :class:`~heliostep.results.solution.SolutionPlotData`), not in
+    |torque|, the per-bin envelopes; :class:`~heliostep.results.figures.solution.SolutionPlotData`), not in
     ``summary.json``; None for a result made without the master's monitor.
     """
 
@@ -198,9 +198,9 @@ class RunResult:
         trace's metadata, summary.json and metadata.json all say ``complete`` (and, when not,
         ``reason`` and the time reached). Returns name -> path.
 
-        The folder's lock is held meanwhile (:func:`~heliostep.results.run_folder.hold_folder`:
+        The folder's lock is held meanwhile (:func:`~heliostep.results.output.folder.hold_folder`:
         another run writing there is an InputError). The trace and records are written into a staging
-        folder, then swapped in (:func:`~heliostep.results.run_files.write_run_records`): the earlier
+        folder, then swapped in (:func:`~heliostep.results.output.run_files.write_run_records`): the earlier
         run's files (those its manifest lists) are removed and the new ones renamed into place, signals
         held back, so no interrupt leaves old and new files side by side; a file heliostep did not write
         is never removed or replaced. ``before_figures()``, when given, is called then (the command line
@@ -220,7 +220,8 @@ class RunResult:
 
     def write_rescue(self, folder: Path) -> list[Path]:
         """Every computed row and the records into ``folder`` (no figures), each file under the
-        process's file-size limit (:func:`heliostep.results.rescue.write_rescue`: the trace in parts if need be)."""
+        process's file-size limit (:func:`heliostep.results.output.rescue.write_rescue`: the trace in parts if
+        need be)."""
         return write_rescue(folder, self)
 
 

@@ -2,8 +2,8 @@
 
 scenario → FMUs (:mod:`~heliostep.run.fmus`) and bindings (:mod:`~heliostep.run.bindings`) →
 drive inputs (:mod:`heliostep.drive`) → master (:mod:`heliostep.cosim`), whose rows go, in the one
-pass, to the run's figures (:class:`~heliostep.results.run_figures.RunFigures`) and to its row
-sink (:mod:`heliostep.results.row_sinks`: the trace held, streamed to Parquet, or not kept) →
+pass, to the run's figures (:class:`~heliostep.results.figures.run_figures.RunFigures`) and to its row
+sink (:mod:`heliostep.results.trace.sinks`: the trace held, streamed to Parquet, or not kept) →
 :class:`~heliostep.run.result.RunResult`. A run that fails or is interrupted part-way still
 returns (and writes) the trace so far, marked incomplete. The command line is :mod:`heliostep.cli.run`.
 """
@@ -29,13 +29,13 @@ from heliostep.cosim import Connection, CoSimulation, FMUInfo, SimulationError, 
 from heliostep.cosim.allocator import restore_dynamic_heap
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import InputError
-from heliostep.results.light import load_weather
-from heliostep.results.outputs import TMP_PREFIX
-from heliostep.results.row_sinks import HeldTrace, RowSink
-from heliostep.results.run_figures import FigureStream, RunFigures
-from heliostep.results.run_summary import RunMetadata, RunStatus
-from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
-from heliostep.results.trace_stream import TraceStream
+from heliostep.results.figures.run_figures import FigureStream, RunFigures
+from heliostep.results.figures.run_summary import RunMetadata, RunStatus
+from heliostep.results.light.on_tube import load_weather
+from heliostep.results.output.files import TMP_PREFIX
+from heliostep.results.trace.frame import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
+from heliostep.results.trace.sinks import HeldTrace, RowSink
+from heliostep.results.trace.stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
@@ -51,7 +51,7 @@ VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pa
 
 #: Windows up to this long [s] keep their trace in memory (``RunResult.trace``, about 15,000 rows
 #: per simulated hour on the paper's case at a 10 s grid, ~2.5 MB). Longer windows stream the trace
-#: to Parquet row groups while simulating (:class:`~heliostep.results.trace_stream.TraceStream`)
+#: to Parquet row groups while simulating (:class:`~heliostep.results.trace.stream.TraceStream`)
 #: and read it back from the file when asked, so the run's memory does not grow with the window.
 HELD_TRACE_MAX_DURATION = 3600.0
 

@@ -343,7 +343,7 @@ def simulate_supervised(
     work of the caller's own done in this process while the child starts simulating (called once,
     before the first of the child's rows is served; an exception from it is logged as a warning
     and does not end the run), e.g. the trace writers' first-use costs
-    (:func:`heliostep.results.trace_io.warm_up_writers`).
+    (:func:`heliostep.results.trace.files.warm_up_writers`).
     """
     if not watchdog > 0:
         raise InputError(f"watchdog: {watchdog!r} s; expected a positive number of seconds")

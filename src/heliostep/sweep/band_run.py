@@ -27,7 +27,7 @@ from typing import Any, TypeGuard
 import numpy as np
 
 from heliostep.errors import InputError
-from heliostep.results.outputs import write_text_atomic
+from heliostep.results.output.files import write_text_atomic
 from heliostep.run import RunFailed, RunOptions, run_scenario
 from heliostep.run.estimate import estimate_run
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION

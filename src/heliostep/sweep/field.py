@@ -13,7 +13,7 @@ sharing: the difference between its own primary motion and the central one's
 mirror's secondary drive and one for the shared primary drive, and reports each
 mirror's primary sharing error beside its secondary tracking error, and its light on the tube
 with the shared primary (intercept, energy, the energy ideal tracking would give and the part
-the shared primary loses; :mod:`heliostep.results.light`).
+the shared primary loses; :mod:`heliostep.results.light.on_tube`).
 :func:`heliostep.sweep.worker.primary_sharing_error` is the per-case figure, computed for every case of
 any sweep (columns ``primary_sharing_error_max_deg`` and
 ``primary_sharing_error_signed_deg``).

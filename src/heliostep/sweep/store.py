@@ -46,7 +46,8 @@ FIGURE_COLUMNS = {
     "holding_torque_Nm": "float64",
     "primary_sharing_error_max_deg": "float64",
     "primary_sharing_error_signed_deg": "float64",
-    # light on the tube (heliostep.results.light) and the drive's trade-offs (heliostep.results.tradeoffs)
+    # light on the tube (heliostep.results.light.on_tube) and the drive's trade-offs
+    # (heliostep.results.figures.tradeoffs)
     "light_energy_J": "float64",
     "light_energy_ideal_J": "float64",
     "light_energy_reference_J": "float64",

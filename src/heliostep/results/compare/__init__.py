@@ -1,0 +1,2 @@
+"""A trace against a reference: tolerance tubes (`tolerance`, `tube`, `traces`), signal mapping, CI verdicts
+and regression."""

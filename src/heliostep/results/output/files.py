@@ -1,0 +1,84 @@
+"""Writing a run's output folder safely.
+
+* every file goes to a temporary name in the same folder first and is renamed into place
+  (:func:`atomic_path`), so no file is ever cut short under its final name: a run killed while
+  writing leaves the previous file (or none) and a ``.heliostep-tmp-*`` file at most;
+* :func:`check_out_dir` finds an unusable output folder before anything is computed (an empty
+  name too: it would mean the current folder).
+
+Which files of a folder are heliostep's, its lock and the swap of a new run's files:
+:mod:`heliostep.results.output.folder`.
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from heliostep.errors import InputError
+
+__all__ = ["TMP_PREFIX", "atomic_path", "check_out_dir", "check_out_name", "write_text_atomic"]
+
+TMP_PREFIX = ".heliostep-tmp-"
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` (same suffix); on success rename it to ``path``.
+
+    On an exception the temporary file is removed and ``path`` is left as it was.
+    """
+    path = Path(path)
+    tmp = path.with_name(f"{TMP_PREFIX}{uuid.uuid4().hex[:12]}-{path.name}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    path = Path(path)
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    return path
+
+
+def check_out_name(text: str) -> Path:
+    """``--out`` as given: an empty text (which ``Path`` would read as the current folder) is refused."""
+    if not text.strip():
+        raise InputError('--out: empty; name the output folder (e.g. "." for the current one)')
+    return Path(text)
+
+
+def check_out_dir(out_dir: str | Path) -> Path:
+    """Create ``out_dir`` if needed and prove it writable (a probe file), or raise InputError."""
+    out_dir = check_out_name(str(out_dir)) if isinstance(out_dir, str) else Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"--out {out_dir}: exists and is not a folder")
+    for parent in out_dir.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(f"--out {out_dir}: {parent} is a file, not a folder")
+            break
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out_dir}: cannot create the output folder: {exc.strerror or exc}") from None
+    probe = out_dir / f"{TMP_PREFIX}probe-{os.getpid()}"
+    try:
+        with open(probe, "w") as fh:
+            fh.write("probe")
+        probe.unlink()
+    except OSError as exc:
+        raise InputError(f"--out {out_dir}: the output folder is not writable: {exc.strerror or exc}") from None
+    return out_dir

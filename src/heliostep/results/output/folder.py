@@ -1,0 +1,367 @@
+"""A run owns its output folder: a lock for the run's life, a manifest of the files it wrote, and
+its results swapped in at once.
+
+* :func:`hold_folder` takes the folder's lock (``.heliostep-lock``: an ``flock`` on it, the
+  holder's pid and command written in it) for as long as the block runs; a second run into the
+  same folder is an :class:`~heliostep.errors.InputError` naming the holder. The kernel drops an
+  ``flock`` when its process dies, so the lock of a killed run is taken over by the next one.
+  Once held, the temporary files and folders of dead runs (``.heliostep-tmp-*``) are removed;
+  when a stop (a second Ctrl+C) leaves the block, so are the command's own.
+* The manifest (``.heliostep-manifest.json``) lists the files heliostep wrote into the folder,
+  the names of what was actually written (:func:`swap_in` writes it); a later run removes or
+  replaces only those. :func:`check_foreign` refuses, before simulating, a folder holding a file
+  of a name the run may write that no manifest lists (the user's own ``summary.json``).
+* :func:`staging_folder` is where a run's files are written first (inside the folder, so the
+  swap is renames); :func:`swap_in` then removes the earlier run's files and renames the new ones
+  into place with SIGINT, SIGTERM and SIGHUP blocked (they are delivered once it is done), the
+  records (``metadata.json``, ``summary.json``) last. No signal can leave the old run's files
+  beside the new ones; the manifest written first, listing both, lets a run after a SIGKILL in
+  the middle of it remove them all.
+
+Every command that writes a folder (``run``, ``regress``, ``sweep``, ``geometry``, ``end-loss``,
+``field-light``) owns it so: :func:`owned_folder` (the folder checked and made, its lock held for
+the command's life, the files it may write checked against the manifest) and
+:func:`write_swapped` (files written into a staging folder by a callable, then swapped in); a
+file a command updates in place as it goes (a sweep's ``results.parquet``, resumable) is listed
+in the manifest first (:func:`claim`).
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import signal
+import socket
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from heliostep.errors import HeliostepError, InputError
+from heliostep.results.output.files import TMP_PREFIX, check_out_dir
+
+__all__ = [
+    "LOCK_NAME",
+    "MANIFEST_NAME",
+    "FolderLock",
+    "check_foreign",
+    "claim",
+    "hold_folder",
+    "manifest_files",
+    "owned_folder",
+    "remove_leftovers",
+    "staging_folder",
+    "swap_in",
+    "write_swapped",
+]
+
+LOCK_NAME = ".heliostep-lock"
+MANIFEST_NAME = ".heliostep-manifest.json"
+STAGING_PREFIX = TMP_PREFIX + "staging-"
+
+#: Files written last into place and removed first: they say whether the run is complete.
+RECORDS = ("metadata.json", "summary.json")
+
+_HELD: dict[str, FolderLock] = {}  # folder (resolved) -> the lock this process holds on it
+
+
+def _command_line() -> str:
+    return " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])[:300] if sys.argv else "python"
+
+
+class FolderLock:
+    """The lock of one output folder, held by this process (:func:`hold_folder`)."""
+
+    def __init__(self, folder: Path, command: str | None = None):
+        self.folder = Path(folder)
+        self.path = self.folder / LOCK_NAME
+        self.command = command or _command_line()
+        self.fd: int | None = None
+        self.took_over: dict | None = None  # the record of a dead holder whose lock was taken over
+
+    def acquire(self) -> FolderLock:
+        import fcntl
+
+        while True:
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise InputError(f"--out {self.folder}: cannot create its lock {self.path}: {exc.strerror}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                holder = _read_record(fd)
+                os.close(fd)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise InputError(f"--out {self.folder}: cannot lock {self.path}: {exc.strerror}") from None
+                pid, command, since = (holder.get(k, "?") for k in ("pid", "command", "started"))
+                raise InputError(
+                    f"--out {self.folder}: the folder is in use by another heliostep run "
+                    f"(pid {pid}: {command}, since {since}); wait for it to end or choose another --out"
+                ) from None
+            if not _same_file(fd, self.path):  # unlinked by its holder's release meanwhile: lock anew
+                os.close(fd)
+                continue
+            previous = _read_record(fd)
+            if previous:
+                self.took_over = previous
+            record = {"pid": os.getpid(), "command": self.command, "host": socket.gethostname()}
+            record["started"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, (json.dumps(record) + "\n").encode(), 0)
+            self.fd = fd
+            return self
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        try:
+            if _same_file(self.fd, self.path):
+                self.path.unlink()
+        except OSError:
+            pass
+        os.close(self.fd)
+        self.fd = None
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        return os.stat(path).st_ino == os.fstat(fd).st_ino
+    except FileNotFoundError:
+        return False
+
+
+def _read_record(fd: int) -> dict:
+    try:
+        record = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+    except (OSError, ValueError):
+        return {}
+    return record if isinstance(record, dict) else {}
+
+
+@contextmanager
+def hold_folder(folder: str | Path, command: str | None = None) -> Iterator[FolderLock]:
+    """Hold ``folder``'s lock within the block (again within it: the same lock); on taking it,
+    remove what dead runs left there (:func:`remove_leftovers`).
+
+    A block left by a stop that asks for no more writing (a ``BaseException`` that is not an
+    ``Exception``: a second Ctrl+C's ``ForcedStop``, ``KeyboardInterrupt``, ``SystemExit``) also
+    removes every temporary file and folder (``.heliostep-tmp-*``) in ``folder`` before the lock
+    goes: with the lock held since the dead runs' were removed, they are all this command's, and a
+    stop can come between any two bytecodes, e.g. after a staging folder is made and before the
+    ``try`` that removes it. A block left by an error keeps them (a streamed trace that nowhere else
+    could take holds computed rows)."""
+    folder = Path(folder)
+    key = os.path.realpath(folder)
+    if key in _HELD:
+        yield _HELD[key]
+        return
+    lock = FolderLock(folder, command).acquire()
+    _HELD[key] = lock
+    try:
+        remove_leftovers(folder)
+        yield lock
+    except BaseException as exc:
+        if not isinstance(exc, Exception):
+            _remove_all_temporaries(folder)
+        raise
+    finally:
+        _HELD.pop(key, None)
+        lock.release()
+
+
+def _temporaries(folder: Path, spare: tuple[str, ...] = ()) -> list[Path]:
+    """The temporary files and folders (``.heliostep-tmp-*``) in ``folder``, but those named ``spare*``."""
+    return [
+        entry
+        for entry in Path(folder).iterdir()
+        if entry.name.startswith(TMP_PREFIX) and not (spare and entry.name.startswith(spare))
+    ]
+
+
+def _remove_temporary(entry: Path) -> None:
+    if entry.is_dir() and not entry.is_symlink():
+        shutil.rmtree(entry, ignore_errors=True)
+    else:
+        entry.unlink(missing_ok=True)
+
+
+def _remove_all_temporaries(folder: Path) -> None:
+    """Every ``.heliostep-tmp-*`` file and folder in ``folder`` removed (errors ignored: the stop goes on)."""
+    try:
+        entries = _temporaries(folder)
+    except OSError:
+        return
+    for entry in entries:
+        try:
+            _remove_temporary(entry)
+        except OSError:
+            pass
+
+
+def remove_leftovers(folder: Path) -> list[Path]:
+    """Remove the temporary files and folders (``.heliostep-tmp-*``) in ``folder`` not of this
+    process: with the lock held, they are those of runs that died."""
+    removed = _temporaries(folder, spare=(f"{TMP_PREFIX}{os.getpid()}-", f"{STAGING_PREFIX}{os.getpid()}-"))
+    for entry in removed:
+        _remove_temporary(entry)
+    return removed
+
+
+def manifest_files(folder: str | Path) -> set[str]:
+    """The files the manifest in ``folder`` lists (none without one). Only plain names in the
+    folder are taken (never a path out of it)."""
+    path = Path(folder) / MANIFEST_NAME
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return set()
+    except (OSError, ValueError) as exc:
+        raise InputError(
+            f"{path}: heliostep's manifest cannot be read ({exc}); remove it to reuse the folder"
+        ) from None
+    names = record.get("files", []) if isinstance(record, dict) else []
+    return {n for n in names if isinstance(n, str) and _plain_name(n)}
+
+
+def _plain_name(name: str) -> bool:
+    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\0" not in name
+
+
+def check_foreign(folder: str | Path, names: Iterable[str]) -> None:
+    """Refuse (InputError) a folder holding a file named like one of ``names`` (those a run may
+    write) that its manifest does not list: heliostep did not write it and will not replace it."""
+    folder = Path(folder)
+    own = manifest_files(folder)
+    foreign = sorted(n for n in set(names) if n not in own and os.path.lexists(folder / n))
+    if foreign:
+        raise InputError(
+            f"--out {folder}: {', '.join(foreign)} {'is' if len(foreign) == 1 else 'are'} not listed in "
+            f"{MANIFEST_NAME} (heliostep did not write {'it' if len(foreign) == 1 else 'them'} and "
+            f"replaces only its own files); move {'it' if len(foreign) == 1 else 'them'} away or choose another --out"
+        )
+
+
+def staging_folder(folder: str | Path) -> Path:
+    """A new empty folder inside ``folder`` where a run's files are written before :func:`swap_in`."""
+    return Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=folder))
+
+
+def _write_manifest(folder: Path, files: Iterable[str], state: str) -> None:
+    path = folder / MANIFEST_NAME
+    tmp = folder / f"{TMP_PREFIX}{os.getpid()}-manifest.json"
+    record = {"files": sorted(set(files)), "state": state, "pid": os.getpid()}
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(json.dumps(record, indent=1) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+#: The signals a swap holds back (those that stop a command, :mod:`heliostep.cli.signals`).
+HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextmanager
+def _stop_signals_blocked() -> Iterator[None]:
+    """SIGINT, SIGTERM and SIGHUP held back within the block (delivered on leaving it).
+
+    Masking them (``pthread_sigmask``) holds back only what is sent to this thread: a signal sent
+    to the process (``kill``, Ctrl+C) then goes to a thread that does not mask it (OpenBLAS's,
+    Arrow's, a helper thread), and Python runs its handler in the main thread at once, inside the
+    block. So in the main thread the Python handlers are also replaced, within the block, by one
+    that only notes the signal; on leaving, the handlers are put back and each signal noted is
+    raised again, once (as the mask delivers a pending signal once). A signal ignored, or handled
+    outside Python, keeps its disposition (and only the mask holds it back).
+    """
+    noted: list[int] = []
+
+    def note(signum, frame):
+        if signum not in noted:
+            noted.append(signum)
+
+    replaced = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in HELD_SIGNALS:
+            current = signal.getsignal(sig)
+            if callable(current) or current == signal.SIG_DFL:
+                replaced[sig] = signal.signal(sig, note)
+    masked = hasattr(signal, "pthread_sigmask")  # (not on Windows)
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, HELD_SIGNALS) if masked else set()
+    try:
+        yield
+    finally:
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a pending signal's handler: note()
+        for sig, handler in replaced.items():
+            signal.signal(sig, handler)  # (handles what is pending first: noted too)
+        for signum in noted:
+            signal.raise_signal(signum)  # to the handlers that were there before
+
+
+def swap_in(folder: str | Path, staging: Path, names: Iterable[str], keep: Iterable[str] = ()) -> dict[str, Path]:
+    """Replace the earlier run's files in ``folder`` (its manifest's, but those in ``keep``) by
+    ``names`` from ``staging``: the old records removed first, the new ones renamed last, then
+    the manifest of what is there now; ``staging`` is removed. Returns name -> path in ``folder``."""
+    folder, names, keep = Path(folder), list(dict.fromkeys(names)), set(keep)
+    old = manifest_files(folder) - keep
+    check_foreign(folder, names)
+    order = sorted(names, key=lambda n: (n in RECORDS, RECORDS.index(n) if n in RECORDS else 0))
+    with _stop_signals_blocked():
+        _write_manifest(folder, old | keep | set(names), "swapping")  # a SIGKILL from here: all of them are ours
+        for name in [n for n in RECORDS if n in old] + sorted(old - set(RECORDS) - set(names)):
+            (folder / name).unlink(missing_ok=True)  # the old records first: nothing claims the old run
+        for name in order:
+            os.replace(staging / name, folder / name)
+        _write_manifest(folder, keep | set(names), "complete")
+    shutil.rmtree(staging, ignore_errors=True)
+    return {name: folder / name for name in names}
+
+
+def claim(folder: str | Path, names: Iterable[str]) -> None:
+    """List ``names`` in ``folder``'s manifest before heliostep writes them in place (a file a
+    command updates as it goes, never swapped: a sweep's ``results.parquet``)."""
+    folder = Path(folder)
+    _write_manifest(folder, manifest_files(folder) | set(names), "complete")
+
+
+@contextmanager
+def owned_folder(folder: str | Path, names: Iterable[str], command: str | None = None) -> Iterator[Path]:
+    """``folder`` made if needed and proved writable, its lock held within the block
+    (:func:`hold_folder`), and refused when it holds a file named like one of ``names`` (those the
+    command may write) that its manifest does not list (:func:`check_foreign`). A folder this
+    made is removed again when the block ends in a :class:`~heliostep.errors.HeliostepError`
+    with the folder empty (bad input found while setting up)."""
+    folder = Path(folder)
+    existed = folder.exists()
+    check_out_dir(folder)
+    try:
+        with hold_folder(folder, command):
+            check_foreign(folder, names)
+            yield folder
+    except HeliostepError:
+        if not existed:
+            try:
+                folder.rmdir()
+            except OSError:  # not empty: something was written
+                pass
+        raise
+
+
+def write_swapped(
+    folder: str | Path, write: Callable[[Path], Iterable[Path | None]], keep: Iterable[str] = ()
+) -> dict[str, Path]:
+    """The files ``write(staging)`` writes into a staging folder in ``folder`` (it returns their
+    paths; None for one not written) swapped into ``folder`` (:func:`swap_in`: the earlier run's
+    files but those in ``keep`` removed, signals held back meanwhile). Returns name -> path."""
+    staging = staging_folder(folder)
+    try:
+        names = [Path(path).name for path in write(staging) if path is not None]
+        return swap_in(folder, staging, names, keep)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)

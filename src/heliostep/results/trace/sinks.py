@@ -1,0 +1,109 @@
+"""Where a run's rows go while simulating: the :class:`RowSink` protocol and the held trace.
+
+The master hands its trace rows to a sink in blocks (``CoSimulation.simulate(..., sink=...)``).
+Each sink assembles them (:class:`~heliostep.results.trace.frame.TraceAssembler`), keeps them its own
+way and hands the assembled rows to the run's figures
+(:class:`~heliostep.results.figures.run_figures.RunFigures`) in the same pass:
+
+- :class:`HeldTrace`: kept in memory (short windows);
+- :class:`~heliostep.results.trace.stream.TraceStream`: written to Parquet row groups (long windows);
+- :class:`~heliostep.results.figures.run_figures.FigureStream`: not kept (a sweep's cases).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+import pandas as pd
+
+from heliostep.results.figures.run_summary import RunStatus
+from heliostep.results.trace.frame import TraceAssembler, master_block
+
+__all__ = ["HeldTrace", "RowSink"]
+
+
+class RowSink(Protocol):
+    """A run's row sink: the master's row blocks in, the trace kept (or not) and the figures fed."""
+
+    rows: int  # rows received
+    last_time: float | None  # [s] time of the last row received
+    columns: list[str]  # the assembled trace's columns
+    trace_kept: bool  # False: the run keeps no trace (figures only)
+
+    def __call__(self, block: np.ndarray) -> None:
+        """Take a block of the master's rows (rows x the master's columns)."""
+
+    def finish(self, status: RunStatus) -> RunStatus:
+        """The rows still held go out; the run's status, failed if they could not be kept."""
+
+    def close(self, metadata: Mapping[str, str]) -> Path | None:
+        """The run has ended (``metadata``: the trace's, saying how): the trace is final; the
+        trace file, if streamed."""
+
+    def abort(self) -> None:
+        """The run ended without a result: whatever was kept goes."""
+
+    @property
+    def held_trace(self) -> pd.DataFrame | None:
+        """The trace in memory, if held."""
+
+    @property
+    def trace_file(self) -> Path | None:
+        """The trace file, if streamed (final once closed)."""
+
+
+class HeldTrace:
+    """Row sink of a run whose trace is held in memory: the blocks assembled as they come, fed to
+    ``figures`` and kept; :attr:`held_trace` is their concatenation (the same rows as assembling
+    the master's whole trace at once)."""
+
+    trace_kept = True
+    trace_file = None
+
+    def __init__(
+        self,
+        master_columns: list[str],
+        assembler: TraceAssembler,
+        figures: Callable[[pd.DataFrame], None] | None = None,
+    ) -> None:
+        self.master_columns = list(master_columns)
+        self.assembler = assembler
+        self.columns = assembler.columns(self.master_columns)
+        self.figures = figures
+        self._blocks: list[pd.DataFrame] = []
+        self._trace: pd.DataFrame | None = None
+        self.rows = 0
+        self.last_time: float | None = None
+
+    def __call__(self, block: np.ndarray) -> None:
+        block = master_block(block, self.master_columns, "the trace held in memory")
+        if not len(block):
+            return
+        frame = self.assembler(pd.DataFrame(block, columns=self.master_columns))
+        if self.figures is not None:
+            self.figures(frame)
+        self._blocks.append(frame)
+        self.rows += len(frame)
+        self.last_time = float(block[-1, 0])
+
+    def finish(self, status: RunStatus) -> RunStatus:
+        return status
+
+    def close(self, metadata: Mapping[str, str]) -> None:
+        if self._blocks:
+            self._trace = pd.concat(self._blocks, ignore_index=True) if len(self._blocks) > 1 else self._blocks[0]
+        else:
+            self._trace = self.assembler(
+                pd.DataFrame(np.zeros((0, len(self.master_columns))), columns=self.master_columns)
+            )
+        self._blocks = []
+
+    def abort(self) -> None:
+        self._blocks, self._trace = [], None
+
+    @property
+    def held_trace(self) -> pd.DataFrame | None:
+        return self._trace

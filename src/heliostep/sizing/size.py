@@ -1,0 +1,366 @@
+"""``heliostep size``: every candidate drive and current against a scenario's load, and the verdict.
+
+For a scenario and a motor catalogue (:mod:`heliostep.scenario.catalogue`), each candidate at each of
+its currents is judged on:
+
+* the **load budget** at the worst instant of the window (:mod:`heliostep.run.load_budget`): the design
+  wind moment reflected through the transmission, friction and the inertia torque of the fastest move;
+* the **margin to slip while tracking**: the largest static load the motor steps against from rest
+  (:func:`~heliostep.run.load_budget.static_step_limit`) over the load budget;
+* the **margin at idle current**: the holding torque at the idle current over the wind's share;
+* the **margin while stowing** (:mod:`heliostep.sizing.stow`): a stow move's load (wind at the stow
+  threshold, friction, the move's inertia torque) against the pull-out torque at its step rate;
+* the **co-simulated days** (:mod:`heliostep.sizing.days`: the sun's fastest days and, with a weather
+  file, the year's windiest, found over the year; or ``days``, or all 365): the scenario's window on each day with
+  the candidate's motor, the current and the design wind moment, run through
+  :func:`~heliostep.run.run_scenario` (locally, or on Dask with a scheduler): steps missed and lost,
+  the worst tracking error, the drive's energy.
+
+It passes when the three margins reach the safety factor (default :data:`DEFAULT_SAFETY_FACTOR`, the
+paper's 2, on the load) and no simulated step was missed or lost; the sheet names every reason a
+candidate fails. The speed-torque curve of each candidate (:mod:`heliostep.run.speed_torque`) is drawn
+beside it. The files (``sizing.json``, ``sizing.html``) are :mod:`heliostep.sizing.sheet`'s.
+"""
+
+from __future__ import annotations
+
+import copy
+import datetime as dt
+import hashlib
+import math
+import os
+import sys
+import time as clock
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from heliostep.cosim import read_fmu
+from heliostep.drive.wind import air_density, panel_wind_moment
+from heliostep.errors import InputError
+from heliostep.run import RunFailed, RunOptions, resolve_fmus, run_scenario
+from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
+from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
+from heliostep.scenario.catalogue import MotorCandidate
+from heliostep.scenario.keys import apply_overrides
+from heliostep.scenario.yaml_io import read_yaml_file
+from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
+from heliostep.sizing.days import select_days
+from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario
+from heliostep.sizing.stow import stow_angles, stow_step_rates
+from heliostep.sizing.verdict import judge
+from heliostep.sweep.band import load_ranges
+from heliostep.sweep.worker import FmuPayload, _local_fmu
+
+__all__ = [
+    "DEFAULT_CURVE_RATES",
+    "DEFAULT_SAFETY_FACTOR",
+    "SizingCase",
+    "SizingPlan",
+    "design_gust_moment",
+    "judge_candidates",
+    "plan_sizing",
+    "run_sizing_case",
+    "run_sizing_cases",
+]
+
+#: The paper's margin, here on the load (the paper put it on the motor's transient peak).
+DEFAULT_SAFETY_FACTOR = 2.0
+#: Step rates of each candidate's speed-torque curve on the sheet [full steps/s].
+DEFAULT_CURVE_RATES = (5.0, 500.0, 1000.0, 2000.0, 3000.0)
+
+
+def design_gust_moment(scenario: Scenario, gust_speed: float) -> float:
+    """The largest moment on the panel axis [N.m] a design gust of ``gust_speed`` [m/s] puts on the
+    scenario's mirror, at the panel's worst angle to the wind: max over theta_p of
+    |C_M(theta_p)| 1/2 rho v^2 A c (:func:`heliostep.drive.wind.panel_wind_moment`: its cited moment
+    coefficient; A the mirror's aperture, c its width across the axis; rho the site's air density at
+    ``wind.air_temperature``, ISA's without one). A design gust is a peak speed: no gust factor."""
+    angles = np.radians(np.linspace(0.0, 90.0, 9001))  # C_M's peak lies inside (25.5 deg): found to 0.01 deg
+    density = air_density(scenario.site.altitude, scenario.wind.air_temperature)
+    optics = scenario.optics
+    moments = panel_wind_moment(gust_speed, angles, optics.aperture_area, optics.mirror_width, density, 1.0)
+    return float(np.max(np.abs(moments)))
+
+
+def _speed_source(scenario: Scenario) -> str:
+    wind = scenario.wind
+    if wind.weather_file is not None:
+        return f"wind.weather_file {wind.weather_file}"
+    return "wind.speed" if wind.speed is not None else "wind.profile"
+
+
+def _date_of(year: int, day_of_year: int) -> dt.date:
+    return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
+
+
+def _instance(scenario: Scenario, role: str, default: str) -> str:
+    target = scenario.resolved_roles().get(role)
+    return target.partition(".")[0] if target else default
+
+
+def _case_overrides(
+    scenario: Scenario, candidate: MotorCandidate, current: float, day: dt.date, wind: float | None
+) -> tuple[str, ...]:
+    """A case's ``--set`` items; ``wind``: the design moment [N.m], which replaces the scenario's wind
+    speed source (if any), or None: the scenario's wind over time as it is."""
+    motor, mechanics = _instance(scenario, "torque", "motor"), _instance(scenario, "wind_moment", "mechanics")
+    drive = candidate.drive()
+    values = [f"parameters.{motor}.{name}={value!r}" for name, value in drive.motor_parameters().items()]
+    return (
+        *values,
+        f"parameters.{mechanics}.J_m={drive.rotor_inertia!r}",
+        f"sequencer.current={current!r}",
+        f"sequencer.step_angle={candidate.step_angle!r}",
+        f"window.date={day.isoformat()}",
+        *(() if wind is None else _design_wind(scenario, wind)),
+    )
+
+
+def _design_wind(scenario: Scenario, wind: float) -> tuple[str, ...]:
+    """The design moment as the case's wind: the constant ``wind.moment``, the speed sources off."""
+    sources = [key for key in ("speed", "weather_file", "profile") if getattr(scenario.wind, key) is not None]
+    return (*(f"wind.{key}=null" for key in sources), f"wind.moment={wind!r}")
+
+
+def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, float]:
+    """The mechanics FMU's T_c, M_c, J_p: its defaults with the scenario's values over them."""
+    instance = _instance(scenario, "wind_moment", "mechanics")
+    info = read_fmu(fmu_paths[instance])
+    given = scenario.parameters.get(instance, {})
+    values: dict[str, float] = {}
+    for name in ("T_c", "M_c", "J_p"):
+        start = info.variables[name].start if name in info.variables else None
+        if name in given:
+            values[name] = float(given[name])
+        elif isinstance(start, float):
+            values[name] = start
+        else:
+            values[name] = 0.0
+    return values
+
+
+def _check_options(design_gust, days, safety_factor: float, curve_rates: Sequence[float]) -> None:
+    """The options' values, InputError naming the option."""
+    if design_gust is not None and not (math.isfinite(design_gust) and design_gust >= 0):
+        raise InputError(f"--design-gust {design_gust!r}: expected a wind speed >= 0 [m/s]")
+    if not (math.isfinite(safety_factor) and safety_factor > 0):
+        raise InputError(f"--safety-factor {safety_factor!r}: expected > 0")
+    if any(not (math.isfinite(rate) and rate > 0) for rate in curve_rates):
+        raise InputError(f"--curve-rates {list(curve_rates)}: expected step rates > 0 [full steps/s]")
+    bad_days = [] if isinstance(days, str) else [day for day in days if not 1 <= day <= 365]
+    if bad_days:
+        raise InputError(f"--days {bad_days[0]!r}: expected a day of the year, 1..365")
+
+
+def plan_sizing(
+    scenario_path: str | Path,
+    candidates: Sequence[MotorCandidate],
+    *,
+    design_gust: float | None = None,
+    days: Sequence[int] | str = (),
+    safety_factor: float = DEFAULT_SAFETY_FACTOR,
+    curve_rates: Sequence[float] = DEFAULT_CURVE_RATES,
+    overrides: Sequence[str] = (),
+    band_days: bool = True,
+) -> SizingPlan:
+    """Every case of the sizing, each case's scenario validated (an :class:`InputError` before any run).
+    ``days``: days of the year, ``"all"``, or empty for the selection of :mod:`heliostep.sizing.days`;
+    ``overrides``: ``--set``-style items applied to the scenario first; ``band_days``: every day co-simulated
+    once more with the drive physics' ranges at their worst corner (after all the nominal cases), for the
+    band's steps missed and lost and tracking error."""
+    path = resolve_scenario_path(scenario_path)
+    raw = read_yaml_file(path, "scenario")
+    if not isinstance(raw, dict):
+        raise InputError(f"{path}: the top level must be a mapping of keys (name, site, window, ...)")
+    raw = apply_overrides(raw, overrides, str(path))
+    scenario = validate_scenario(copy.deepcopy(raw), source=str(path), folder=path.absolute().parent)
+    _check_options(design_gust, days, safety_factor, curve_rates)
+    wind: float | None
+    if design_gust is not None:
+        wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
+    elif scenario.wind.has_speed:
+        wind, source = None, f"{scenario.source}: the wind over time ({_speed_source(scenario)}), each day's own"
+    else:
+        wind, source = scenario.wind.moment, f"{scenario.source}: wind.moment"
+    selection = select_days(scenario, days)
+    rates = tuple(sorted(float(rate) for rate in curve_rates))
+    plan = SizingPlan(
+        scenario,
+        raw,
+        path.absolute().parent,
+        list(candidates),
+        selection.days,
+        None if wind is None else float(wind),
+        source,
+        safety_factor,
+        rates,
+    )
+    plan.day_selection = selection
+    plan.ranges = load_ranges()
+    plan.corner = _band_corner(plan) if band_days else {}
+    plan.cases = _plan_cases(plan)
+    for case in plan.cases:  # every case's scenario valid before anything runs
+        case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
+    plan.fmu_paths = resolve_fmus(scenario)
+    plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
+    return plan
+
+
+def _band_corner(plan: SizingPlan) -> dict[str, float]:
+    """The worst corner's values the band's days set on the scenario's FMUs; none where the ranges name no
+    parameter of its motor (those days would be the nominal ones again)."""
+    corner = corner_parameters(worst_corner(plan.ranges), list(plan.scenario.fmus))
+    motor = _instance(plan.scenario, "torque", "motor")
+    return corner if any(key.startswith(f"parameters.{motor}.") for key in corner) else {}
+
+
+def _plan_cases(plan: SizingPlan) -> list[SizingCase]:
+    """Every candidate, current and day; with a band corner (:attr:`SizingPlan.corner`) the same again at
+    it, after all the nominal ones."""
+    scenario, year, cases = plan.scenario, plan.scenario.window.date.year, []
+    corner = tuple(f"{key}={value!r}" for key, value in plan.corner.items())
+    for at_corner in (False, True) if corner else (False,):
+        for candidate in plan.candidates:
+            for current in candidate.currents:
+                for day in plan.days:
+                    overrides = _case_overrides(scenario, candidate, current, _date_of(year, day), plan.wind_moment)
+                    overrides += corner if at_corner else ()  # after the candidate's own bus and loop gain
+                    cases.append(SizingCase(candidate.name, current, day, overrides, at_corner))
+    return cases
+
+
+def run_sizing_case(
+    raw: dict,
+    overrides: Sequence[str],
+    source: str,
+    folder: str,
+    should_stop: Callable[[], bool] | None = None,
+    fmu_paths: Mapping[str, Path] | None = None,
+    shipped: Mapping[str, FmuPayload] | None = None,
+) -> dict:
+    """One case (on a Dask worker or here): its figures, or why it failed; ``"interrupted": True``
+    when ``should_stop`` stopped it (not a finished case). ``fmu_paths``: the FMUs resolved once;
+    ``shipped``: their bytes, sent to a worker that may have neither the models nor the cache."""
+    scenario = case_scenario(raw, overrides, source, Path(folder))
+    if shipped is not None:
+        fmu_paths = {instance: _local_fmu(payload) for instance, payload in shipped.items()}
+    started = clock.perf_counter()
+    try:
+        result = run_scenario(scenario, RunOptions(keep_trace=False, should_stop=should_stop, fmu_paths=fmu_paths))
+    except RunFailed as failed:
+        if failed.result.reason == "interrupted":
+            return {"interrupted": True}
+        return {"complete": False, "error": str(failed)[:500], "wall_time_s": clock.perf_counter() - started}
+    figures = dict(result.summary or {})
+    keep = (
+        "max_tracking_error_deg",
+        "steps_commanded",
+        "missed_steps",
+        "steps_lost",
+        "electrical_energy_J",
+        "drive_energy_per_day_J",
+        "drive_power_mean_W",
+        "peak_torque_Nm",
+        "light_energy_ideal_J",
+        "light_energy_J",
+        "light_lost_J",
+        "light_lost_stowed_J",
+        "stowed_time_s",
+    )
+    record = {key: figures.get(key) for key in keep}
+    record.update(complete=True, wall_time_s=clock.perf_counter() - started)
+    return record
+
+
+def run_sizing_cases(
+    plan: SizingPlan,
+    *,
+    scheduler: str | None = None,
+    progress: bool = False,
+    should_stop: Callable[[], bool] | None = None,
+    on_case: Callable[[str, dict], None] | None = None,
+) -> dict[str, dict]:
+    """Run the plan's cases (on Dask with ``scheduler``, else here, one after another); case key ->
+    its record. Stopped part-way, it returns the cases finished so far. ``on_case(key, record)`` is
+    called as each case finishes."""
+    from tqdm import tqdm
+
+    results: dict[str, dict] = {}
+    quiet = not progress or not sys.stderr.isatty() or bool(os.environ.get("CI"))  # as the sweep's bar
+    bar = tqdm(total=len(plan.cases), desc="sizing cases", unit="case", disable=quiet, mininterval=0.5, file=sys.stderr)
+    source, folder = plan.scenario.source, str(plan.folder)
+    try:
+        if scheduler:
+            _run_on_dask(plan, scheduler, results, bar, should_stop, on_case)
+            return results
+        for case in plan.cases:
+            if should_stop is not None and should_stop():
+                break
+            record = run_sizing_case(plan.raw, case.overrides, source, folder, should_stop, plan.fmu_paths)
+            if record.get("interrupted"):
+                break
+            results[case.key] = record
+            bar.update(1)
+            if on_case is not None:
+                on_case(case.key, record)
+    finally:
+        bar.close()
+    return results
+
+
+def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_stop, on_case) -> None:
+    """The cases on the scheduler's workers, collected as they finish; the rest cancelled on a stop."""
+    from distributed import as_completed
+
+    from heliostep.sweep.cluster import _dask_client
+
+    source, folder = plan.scenario.source, str(plan.folder)
+    payloads = {}
+    for instance, path in plan.fmu_paths.items():
+        data = Path(path).read_bytes()
+        payloads[instance] = FmuPayload(name=Path(path).name, sha256=hashlib.sha256(data).hexdigest(), data=data)
+    with _dask_client(scheduler=scheduler) as client:
+        [shipped] = client.scatter([payloads], broadcast=True)
+        futures = {
+            client.submit(
+                run_sizing_case, plan.raw, case.overrides, source, folder, None, None, shipped, pure=False
+            ): case
+            for case in plan.cases
+        }
+        for future in as_completed(list(futures)):
+            if should_stop is not None and should_stop():
+                client.cancel(list(futures))
+                break
+            key = futures[future].key
+            results[key] = future.result()
+            bar.update(1)
+            if on_case is not None:
+                on_case(key, results[key])
+
+
+def _curves(plan: SizingPlan, worst: bool = False, angles: np.ndarray | None = None) -> dict[str, SpeedTorqueCurve]:
+    """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated); ``worst``: at
+    the ranges' worst corner (:func:`heliostep.sizing.band.worst_corner`); ``angles``: a stow move's
+    panel angles [rad], whose highest step rate joins the curve's rates (the stow margin's point)."""
+    mode, microsteps = plan.scenario.sequencer.mode, plan.scenario.sequencer.microsteps
+    motor = _instance(plan.scenario, "torque", "motor")
+    corner = worst_corner(plan.ranges) if worst else {}
+    curves = {}
+    for c in plan.candidates:
+        stow_rates = stow_step_rates(plan, c, angles)
+        rates = sorted({*plan.curve_rates, *([float(np.max(stow_rates))] if len(stow_rates) else [])})
+        drive = drive_at(c.drive(), corner, motor)
+        curves[c.name] = speed_torque_curve(drive, c.currents[-1], rates, mode=mode, microsteps=microsteps)
+    return curves
+
+
+def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool = True) -> dict:
+    """The sizing sheet's content: per candidate and current, the figures and the verdict; with ``curves``
+    each candidate's speed-torque curve, nominal and at the ranges' worst corner."""
+    if not curves:
+        return judge(plan, results, {}, {})
+    angles = stow_angles(plan)  # the worst corner's curve too is co-simulated at the stow rate, not interpolated
+    worst = _curves(plan, worst=True, angles=angles) if plan.ranges else {}
+    return judge(plan, results, _curves(plan, angles=angles), worst, angles)
