@@ -35,13 +35,13 @@ from heliostep.results.row_sinks import HeldTrace, RowSink
 from heliostep.results.run_figures import FigureStream, RunFigures
 from heliostep.results.run_summary import RunMetadata, RunStatus
 from heliostep.results.trace import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
-from heliostep.results.trace_io import ROW_GROUP_ROWS, warm_up_writers
+from heliostep.results.trace_io import ROW_GROUP_ROWS
 from heliostep.results.trace_stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
 from heliostep.run.result import RunFailed, RunResult
-from heliostep.run.supervised import DEFAULT_WATCHDOG, simulate_supervised
+from heliostep.run.supervised import DEFAULT_WATCHDOG, StartMethod, simulate_supervised
 from heliostep.scenario import Scenario, load_scenario
 
 __all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario"]
@@ -94,6 +94,7 @@ def run_scenario(
     supervise: bool = False,
     watchdog: float = DEFAULT_WATCHDOG,
     light_first_order: bool = True,
+    start_method: StartMethod = "fork",
 ) -> RunResult:
     """Run a scenario (an object or a YAML path with ``--set``-style overrides).
 
@@ -121,6 +122,7 @@ def run_scenario(
     ``supervise`` (``heliostep run``'s default): simulate in a child process (:mod:`heliostep.run.supervised`,
     which asks ``should_stop`` every 50 ms and passes it on); an FMU that crashes, exits or hangs
     (no FMI call begun for ``watchdog`` s) fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
+    ``start_method``: how the child is started, ``"forkserver"`` where this process runs threads (a Dask worker).
 
     ``light_first_order=False`` (sweep cases): the light's first-order stepping terms left out (None;
     two attitudes' light fewer per row), every other figure the same bit for bit.
@@ -131,7 +133,7 @@ def run_scenario(
     figures = _run_figures(prepared, row_group_rows, light_first_order)
     sink, temporary = _row_sink(prepared, figures, keep_trace, stream, trace_dir, row_group_rows)
     try:
-        supervision = (watchdog,) if supervise else None
+        supervision = (watchdog, start_method) if supervise else None
         run = _simulate_and_summarize(prepared, figures, sink, temporary, progress, should_stop, supervision)
     except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
         sink.abort()
@@ -268,16 +270,17 @@ def _co_simulate(
     sink: RowSink,
     progress: bool,
     should_stop: Callable[[], bool] | None,
-    supervision: tuple[float] | None = None,
+    supervision: tuple[float, StartMethod] | None = None,
 ):
     """The co-simulation, its rows to ``figures`` and ``sink``: (status, the master's empty
-    trace frame, its statistics); in a supervised child process with ``supervision`` (the watchdog [s])."""
+    trace frame, its statistics); in a supervised child process with ``supervision`` (the watchdog [s]
+    and how the child is started)."""
     inputs = prepared.inputs
     bar = _progress_bar(inputs.duration) if progress else None
     simulate = prepared.system.simulate
-    if supervision is not None:  # a kept trace's writers warmed up while the child simulates (a fresh process)
-        meanwhile = warm_up_writers if sink.trace_kept else None
-        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=supervision[0], meanwhile=meanwhile)
+    if supervision is not None:
+        watchdog, start_method = supervision
+        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=watchdog, start_method=start_method)
     try:
         result = simulate(
             0.0,
@@ -310,7 +313,7 @@ def _simulate_and_summarize(
     temporary: Path | None,
     progress: bool,
     should_stop: Callable[[], bool] | None,
-    supervision: tuple[float] | None = None,
+    supervision: tuple[float, StartMethod] | None = None,
 ) -> RunResult:
     """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
     scenario, meta = prepared.scenario, prepared.meta
