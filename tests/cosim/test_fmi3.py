@@ -19,6 +19,7 @@ from scipy.optimize import brentq
 
 from heliostep.cosim import Connection, CoSimulation, SolverOptions, read_fmu
 from heliostep.errors import InputError
+from heliostep.cosim.integrator import callback_integrator
 from third_party_fmu import build_mini_fmu
 from third_party_fmu3 import build_mini3_fmu
 
@@ -170,7 +171,7 @@ def test_unsupported_fmi3_features_are_refused_up_front_naming_the_fmu_and_the_f
 def test_on_the_python_right_hand_side_the_mixed_system_gives_the_same_first_principles(fmus, monkeypatch):
     from heliostep.cosim import master
 
-    monkeypatch.setattr(master, "COMPILED_RHS", False)
+    monkeypatch.setattr(master, "make_integrator", callback_integrator)
     result = run(
         fmus,
         {"ramp": "Gain", "lag": "Threshold3", "integral": "Gain"},

@@ -19,7 +19,9 @@ the supervisor asks it to stop through the call record, or kills it. It stops on
 its parent is gone: at its next safe point, and at once when an FMU hangs or the parent was killed
 (SIGKILL) — the kernel kills it then (Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``,
 :func:`die_with_supervisor`; elsewhere a thread that polls the parent's pid every
-:data:`PARENT_POLL` s and ends the process), so a hung FMU's process never outlives its supervisor.
+:data:`PARENT_POLL` s and ends the process). A child of the fork server also ends when its
+supervisor does (:func:`die_with_process`: the fork server lives on while any of its children holds
+the supervisor's end of its pipe), so a hung FMU's process never outlives its supervisor.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import ctypes.util
 import faulthandler
 import os
 import pickle
+import select
 import signal
 import sys
 import tempfile
@@ -58,6 +61,7 @@ __all__ = [
     "SEND_INTERVAL",
     "Request",
     "SupervisedMonitor",
+    "die_with_process",
     "die_with_supervisor",
     "run",
     "serve",
@@ -142,21 +146,29 @@ class Request:
     progress: bool = False
 
 
-def run(connection: Connection, record: str, tmpdir: str | None = None) -> int:
-    """Serve one request read from ``connection`` (:func:`serve`; a child started by multiprocessing's fork server).
+def run(connection: Connection, record: str, tmpdir: str | None = None, supervisor: int | None = None) -> int:
+    """Serve one request read from ``connection`` (:func:`serve`; a child started by multiprocessing's fork
+    server for the process ``supervisor``).
     A supervisor gone (its end of the socket closed: e.g. a Dask worker closed with its cluster) ends
     the run with one line on stderr and exit status 1: there is no one left to stream to."""
     try:
-        return serve(connection, record, None, tmpdir)
+        return serve(connection, record, None, tmpdir, supervisor)
     except (BrokenPipeError, ConnectionResetError, EOFError) as exc:
         why = getattr(exc, "strerror", None) or "connection closed"
         print(f"heliostep: a supervised run ends: its supervisor is gone ({why})", file=sys.stderr)
         return 1
 
 
-def serve(connection: Connection, record: str, request: Request | None = None, tmpdir: str | None = None) -> int:
+def serve(
+    connection: Connection,
+    record: str,
+    request: Request | None = None,
+    tmpdir: str | None = None,
+    supervisor: int | None = None,
+) -> int:
     """Simulate ``request`` (or the one read from ``connection``) and stream it on ``connection``,
-    noting FMU calls in the file ``record``; ``tmpdir``: the temporary folder to use. Returns the exit status."""
+    noting FMU calls in the file ``record``; ``tmpdir``: the temporary folder to use; ``supervisor``:
+    the supervising process where it is not this one's parent. Returns the exit status."""
     faulthandler.disable()  # a crash in an FMU is the supervisor's to report, without a dump here
     for number in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
         if number is not None:
@@ -164,8 +176,10 @@ def serve(connection: Connection, record: str, request: Request | None = None, t
     if tmpdir is not None:
         os.environ["TMPDIR"] = tempfile.tempdir = tmpdir
     restore_dynamic_heap()  # a Dask worker's MALLOC_TRIM_THRESHOLD_, inherited: see heliostep.cosim.allocator
-    supervisor = os.getppid()
-    die_with_supervisor(supervisor)
+    parent = os.getppid()
+    die_with_supervisor(parent)
+    if supervisor is not None and supervisor != parent:
+        die_with_process(supervisor)
     watch.attach(record)
     RowBuffer.flush_interval = 0.0  # every block the master stores goes out (in the outbox)
     Kernel.OUTPUTS_PER_BLOCK = BLOCK_ROWS  # and the kernel hands its trace rows over in small blocks
@@ -174,7 +188,7 @@ def serve(connection: Connection, record: str, request: Request | None = None, t
     connection.send(("started", None))
     outbox = _Outbox(connection, request.monitor)
     try:
-        result = _simulate(request, outbox, supervisor)
+        result = _simulate(request, outbox, parent)
         result.statistics["peak_rss_mb_child"] = _peak_rss_mb()
         outcome: tuple[str, object] = ("done", result)
     except SimulationError as exc:
@@ -210,6 +224,33 @@ def die_with_supervisor(supervisor: int) -> None:
         os._exit(1)
 
     threading.Thread(target=watch_parent, name="heliostep-watch-supervisor", daemon=True).start()
+
+
+def die_with_process(pid: int) -> None:
+    """End this process as soon as the process ``pid`` ends, even while an FMU call never returns: a
+    daemon thread waits for it (a pidfd where the OS has them, else polling every :data:`PARENT_POLL` s)."""
+
+    def wait() -> None:
+        try:
+            handle = os.pidfd_open(pid)
+        except (AttributeError, OSError):  # no pidfd here (or the process is gone already)
+            while _exists(pid):
+                clock.sleep(PARENT_POLL)
+        else:
+            select.select([handle], [], [])  # readable once the process has ended
+        os._exit(1)
+
+    threading.Thread(target=wait, name="heliostep-watch-supervisor", daemon=True).start()
+
+
+def _exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def _peak_rss_mb() -> float | None:

@@ -154,7 +154,7 @@ class _Served:
         connection = Connection(os.dup(theirs.fileno()))
         try:
             self.process = context.Process(
-                target=run, args=(connection, str(folder / "calls"), str(folder / "tmp")), daemon=True
+                target=run, args=(connection, str(folder / "calls"), str(folder / "tmp"), os.getpid()), daemon=True
             )
             self.process.start()
         finally:
