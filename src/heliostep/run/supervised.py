@@ -36,6 +36,7 @@ import socket
 import struct
 import sys
 import tempfile
+import threading
 import time as clock
 from collections.abc import Callable
 from multiprocessing.connection import Connection
@@ -145,6 +146,10 @@ def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: 
     return _Forked(pid)
 
 
+#: Held while a child of the fork server is started (the starting process's daemon flag is lowered meanwhile).
+_STARTING = threading.Lock()
+
+
 class _Served:
     """A child started by multiprocessing's fork server, seen as :class:`_Forked` (``poll``, ``wait``, ``kill``)."""
 
@@ -152,11 +157,18 @@ class _Served:
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["heliostep.cosim.child"])
         connection = Connection(os.dup(theirs.fileno()))
+        current = multiprocessing.current_process()
         try:
             self.process = context.Process(
                 target=run, args=(connection, str(folder / "calls"), str(folder / "tmp"), os.getpid()), daemon=True
             )
-            self.process.start()
+            with _STARTING:  # a Dask worker is a daemonic process, which multiprocessing lets start no child:
+                daemonic = current.daemon  # this one ends with it all the same (child.die_with_process)
+                current.daemon = False
+                try:
+                    self.process.start()
+                finally:
+                    current.daemon = daemonic
         finally:
             connection.close()
         self.pid = self.process.pid
