@@ -310,4 +310,6 @@ def test_an_unknown_start_method_is_bad_input(fmu_paths):
     from heliostep.paths import scenarios_dir
 
     with pytest.raises(InputError, match="start_method: 'spawn'; expected 'fork' or 'forkserver'"):
-        run_scenario(scenarios_dir() / "jan21-central.yaml", ("window.duration=1",), supervise=True, start_method="spawn")
+        run_scenario(
+            scenarios_dir() / "jan21-central.yaml", ("window.duration=1",), supervise=True, start_method="spawn"
+        )

@@ -13,11 +13,11 @@ import heliostep.cosim.fast_events as fast_events
 import heliostep.cosim.master as master
 from drive_system import DRIVE_CONNECTIONS, STEP_INDICES, STEP_TIMES, current_inputs
 from heliostep.cosim.fmi import read_fmu
+from heliostep.cosim.integrator import callback_integrator
 from heliostep.cosim.master import CoSimulation, PiecewiseConstant
 from heliostep.drive.sequencer import Sequencer
 from heliostep.run import run_scenario
 from heliostep.scenario import load_scenario
-from heliostep.cosim.integrator import callback_integrator
 from third_party_fmu import build_mini_fmu
 
 

@@ -18,8 +18,8 @@ import pytest
 from scipy.optimize import brentq
 
 from heliostep.cosim import Connection, CoSimulation, SolverOptions, read_fmu
-from heliostep.errors import InputError
 from heliostep.cosim.integrator import callback_integrator
+from heliostep.errors import InputError
 from third_party_fmu import build_mini_fmu
 from third_party_fmu3 import build_mini3_fmu
 

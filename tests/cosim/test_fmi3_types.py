@@ -21,8 +21,8 @@ import pytest
 
 from heliostep.cosim import Connection, CoSimulation, SolverOptions, read_fmu
 from heliostep.cosim.connections import ConnectionGraph
-from heliostep.errors import InputError
 from heliostep.cosim.integrator import callback_integrator
+from heliostep.errors import InputError
 from third_party_fmu import build_mini_fmu
 from third_party_fmu3 import build_mini3_fmu
 from types3_fmu import build_types3_fmu

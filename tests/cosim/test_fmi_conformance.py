@@ -23,8 +23,8 @@ from heliostep.cosim import (
     read_fmu,
 )
 from heliostep.cosim.fmi import FMIError, ModelExchangeInstance
-from heliostep.errors import InputError
 from heliostep.cosim.integrator import callback_integrator, make_integrator
+from heliostep.errors import InputError
 from third_party_fmu import build_mini_fmu
 
 

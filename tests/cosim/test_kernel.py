@@ -14,9 +14,9 @@ import heliostep.cosim.master as master
 from drive_system import DRIVE_CONNECTIONS, STEP_TIMES, current_inputs
 from heliostep.cosim import Connection, CoSimulation, SimulationError, read_fmu
 from heliostep.cosim.fmi import FMIError
+from heliostep.cosim.integrator import callback_integrator, make_integrator
 from heliostep.cosim.kernel import kernels_dir, library_path
 from heliostep.cosim.master import SolverOptions
-from heliostep.cosim.integrator import callback_integrator, make_integrator
 from third_party_fmu import build_mini_fmu
 
 

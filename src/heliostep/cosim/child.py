@@ -38,7 +38,6 @@ import tempfile
 import threading
 import time as clock
 import traceback
-from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any, Protocol

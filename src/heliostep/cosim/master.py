@@ -195,9 +195,9 @@ class CoSimulation(ConnectionGraph):
         holding a row at **every internal step of the solver**, at every event (both sides) and
         at every output time, so figures such as peaks and integrals can be
         computed from the solution itself rather than from the output grid (CVODE then runs in
-        one-step mode up to each stop, the output rows interpolated). ``should_stop`` is asked between solver calls; when it
-        returns True the run stops there with a :class:`SimulationError` whose ``reason`` is
-        ``"interrupted"``.
+        one-step mode up to each stop, the output rows interpolated). ``should_stop`` is asked
+        between solver calls; when it returns True the run stops there with a
+        :class:`SimulationError` whose ``reason`` is ``"interrupted"``.
 
         ``sink``, when given, receives the trace rows as they are produced, in time order, as 2-D
         blocks (rows × the trace's columns) of at most ``sink_rows`` rows; the master then holds
@@ -568,4 +568,3 @@ def _statistics(run: _Run) -> dict:
         **({"text_outputs": run.texts.values} if run.texts is not None else {}),
         **(system.loop.statistics() if system is not None and system.loop is not None else {}),
     }
-

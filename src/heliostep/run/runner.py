@@ -119,16 +119,14 @@ def run_scenario(
     come (:class:`~heliostep.results.run_figures.FigureStream`), nothing is written or plotted, and the
     figures are those with the trace kept, bit for bit (an interrupted run's not corrected at the cut).
 
-    ``supervise`` (``heliostep run``'s default): simulate in a child process (:mod:`heliostep.run.supervised`,
-    which asks ``should_stop`` every 50 ms and passes it on); an FMU that crashes, exits or hangs
-    (no FMI call begun for ``watchdog`` s) fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
-    ``start_method``: how the child is started, ``"forkserver"`` where this process runs threads (a Dask worker).
+    ``supervise`` (``heliostep run``'s default): simulate in a child process (:mod:`heliostep.run.supervised`, which
+    asks ``should_stop`` every 50 ms and passes it on; ``start_method="forkserver"`` where this process runs threads, a
+    Dask worker); an FMU that crashes, exits or hangs (no FMI call begun for ``watchdog`` s) fails the run, named.
 
     ``light_first_order=False`` (sweep cases): the light's first-order stepping terms left out (None;
     two attitudes' light fewer per row), every other figure the same bit for bit.
     """
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario, overrides)
+    scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, overrides)
     prepared = _prepare(scenario, fmu_paths, clock.perf_counter(), should_stop, keep_trace)
     figures = _run_figures(prepared, row_group_rows, light_first_order)
     sink, temporary = _row_sink(prepared, figures, keep_trace, stream, trace_dir, row_group_rows)

@@ -368,11 +368,8 @@ def simulate_supervised(
     # the child hands over each block of rows its master stores; stored here again, they reach the
     # sink in the very blocks the master would hand it in-process (and none is lost in the child)
     rows = RowBuffer(columns, sink, sink_rows) if sink is not None else None
-    callbacks = {
-        "rows": rows.store if rows is not None else None,
-        "totals": monitor.take_totals if monitor is not None else None,
-        "progress": progress,
-    }
+    totals = monitor.take_totals if monitor is not None else None
+    callbacks = {"rows": rows.store if rows is not None else None, "totals": totals, "progress": progress}
     folder = Path(tempfile.mkdtemp(prefix="heliostep-child-"))
     supervisor = None
     try:
@@ -424,4 +421,3 @@ def _outcome(kind: str, payload, reached: float, columns: list[str]) -> MasterRe
         "interrupted",
         reached,
     )
-
