@@ -8,8 +8,8 @@ more (16 384 float64) is then its own mmap, returned at once, and its pages are 
 each time. A sweep case's figures work on blocks of 16 384 rows, so a Dask worker ran them several
 times slower than a plain process (``benchmarks/bench_sweep.py --full-day``). :func:`restore_dynamic_heap`
 sets the two thresholds to where glibc's own dynamic rule takes them at most (64-bit: the mmap threshold
-32 MiB, the trim threshold twice it): arrays up to 32 MiB come from the heap and are reused, and a worker keeps at most 64 MiB
-of freed heap. It only acts where the variable is set and the C library has ``mallopt``.
+32 MiB, the trim threshold twice it): arrays up to 32 MiB come from the heap and are reused, and a worker
+keeps at most 64 MiB of freed heap. It only acts where the variable is set and the C library has ``mallopt``.
 """
 
 from __future__ import annotations
