@@ -10,11 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import heliostep.cosim.master as master
+import heliostep.cosim.integrator as integrator
 from drive_system import DRIVE_CONNECTIONS, STEP_TIMES, current_inputs
 from heliostep.cosim import Connection, CoSimulation, SimulationError, read_fmu
 from heliostep.cosim.fmi import FMIError
-from heliostep.cosim.integrator import callback_integrator, make_integrator
+from heliostep.cosim.integrator import compiled_kernel
 from heliostep.cosim.kernel import kernels_dir, library_path
 from heliostep.cosim.master import SolverOptions
 from third_party_fmu import build_mini_fmu
@@ -27,7 +27,7 @@ def mini(tmp_path_factory):
 
 
 def _run(drive, monkeypatch, compiled: bool, monitor=None):
-    monkeypatch.setattr(master, "make_integrator", make_integrator if compiled else callback_integrator)
+    monkeypatch.setattr(integrator, "compiled_kernel", compiled_kernel if compiled else (lambda *args: None))
     grid = np.round(np.arange(0.0, 0.6 + 1e-9, 1e-3), 12)
     return CoSimulation(drive, DRIVE_CONNECTIONS, current_inputs()).simulate(
         0.0, 0.6, grid, SolverOptions(rtol=1e-6), monitor=monitor
@@ -96,7 +96,7 @@ def test_an_algebraic_loop_of_two_gains_is_solved_in_the_compiled_kernel(mini, m
 
 def _lag_loop(mini, compiled: bool, monkeypatch, k: float = 0.5, b: float = 1.0):
     """A Lag (T dy/dt = e, e = u - y) and a Gain (y = k u + b) in a loop: lag.e -> g.u, g.y -> lag.u."""
-    monkeypatch.setattr(master, "make_integrator", make_integrator if compiled else callback_integrator)
+    monkeypatch.setattr(integrator, "compiled_kernel", compiled_kernel if compiled else (lambda *args: None))
     system = CoSimulation(
         {"lag": mini["Lag"], "g": mini["Gain"]},
         [Connection("lag.e", "g.u"), Connection("g.y", "lag.u")],
@@ -151,7 +151,7 @@ def test_a_loop_beside_the_drive_costs_the_same_evaluations_compiled_as_in_pytho
     grid = np.round(np.arange(0.0, 0.6 + 1e-9, 1e-3), 12)
     runs, seconds = {}, {}
     for compiled in (True, False):
-        monkeypatch.setattr(master, "make_integrator", make_integrator if compiled else callback_integrator)
+        monkeypatch.setattr(integrator, "compiled_kernel", compiled_kernel if compiled else (lambda *args: None))
         system = CoSimulation(
             fmus, connections, current_inputs(), parameters={"lag": {"T": 0.5}, "g": {"k": 0.5, "b": 1.0}}
         )
@@ -184,7 +184,7 @@ def test_two_loops_are_solved_together_in_c_as_in_python(mini, monkeypatch):
     parameters = {"lag1": {"T": 0.5}, "g1": {"k": 0.5, "b": 1.0}, "lag2": {"T": 0.5}, "g2": {"k": -1.0, "b": 2.0}}
     runs = {}
     for compiled in (True, False):
-        monkeypatch.setattr(master, "make_integrator", make_integrator if compiled else callback_integrator)
+        monkeypatch.setattr(integrator, "compiled_kernel", compiled_kernel if compiled else (lambda *args: None))
         system = CoSimulation(fmus, connections, parameters=parameters)
         runs[compiled] = system.simulate(0.0, 1.0, np.linspace(0.0, 1.0, 11), SolverOptions(rtol=1e-8))
     c, p = runs[True].statistics, runs[False].statistics
@@ -243,7 +243,7 @@ def test_an_output_time_a_rounding_error_before_an_internal_step_is_recorded(dri
     one (CVodeGetDky refuses it there; seen in a sweep at t = 2995.6497259287 s, 1.8e-12 s before
     a step). With interpolated outputs the internal steps do not depend on the grid, so a first
     run tells where they are."""
-    monkeypatch.setattr(master, "make_integrator", make_integrator if compiled else callback_integrator)
+    monkeypatch.setattr(integrator, "compiled_kernel", compiled_kernel if compiled else (lambda *args: None))
     seen = []
     system = CoSimulation(drive, DRIVE_CONNECTIONS, current_inputs())
     system.simulate(

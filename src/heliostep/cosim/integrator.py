@@ -349,40 +349,37 @@ def make_integrator(
     row_width: int,
     monitored: bool,
 ) -> Integrator:
-    """CVODE on the compiled kernel where the system allows it, else on the Python callbacks
-    (:func:`callback_integrator`: non-Real continuous or torn connections the kernel cannot take);
-    the kernel's one-step loop in both cases when the run is ``monitored``. The kernel reads the
-    master's inputs from ``input_values`` (updated in place) and records rows of ``row_width`` values."""
+    """CVODE on the compiled kernel where the system allows it (:func:`compiled_kernel`), else on the
+    Python callbacks; the kernel's one-step loop in both cases when the run is ``monitored``. The
+    kernel reads the master's inputs from ``input_values`` (updated in place) and records rows of
+    ``row_width`` values."""
     nx, nz = system.n_states, system.n_indicators
-    looped = system.kernel_loop()  # the links reordered for the loops, and the loops; None without
-    if (system.loop is None or looped is not None) and system.native_links is not None:
-        links, loop = looped if looped is not None else (system.native_links, None)
-        kernel = Kernel(system.kernel_units(), links, nx, inputs=input_values, row_width=row_width, loop=loop)
-        if system.loop is not None:  # the loops solved in C too: their counts in the run's statistics
-            system.loop.compiled_counts = kernel.loop_counts
+    kernel = compiled_kernel(system, input_values, row_width)
+    if kernel is not None:
         return CompiledIntegrator(system, kernel, nx, nz, start_time, options)
-    return callback_integrator(system, start_time, options, input_values, row_width, monitored)
-
-
-def callback_integrator(
-    system: CoupledSystem,
-    start_time: float,
-    options: SolverOptions,
-    input_values: np.ndarray,
-    row_width: int,
-    monitored: bool,
-) -> Integrator:
-    """CVODE on the coupled system's Python callbacks (:class:`CallbackIntegrator`), with the kernel's
-    one-step loop when the run is ``monitored`` (the arguments: :func:`make_integrator`'s)."""
     errors = CallbackErrors()
     native = None
     if monitored:
         native = Kernel(
             system.kernel_units(),
             [],
-            system.n_states,
+            nx,
             inputs=input_values,
             row_width=row_width,
             prepare=lambda t, x: errors.guard(system.prepare_row, t, x),
         )
-    return CallbackIntegrator(system, system.n_states, system.n_indicators, start_time, options, native, errors)
+    return CallbackIntegrator(system, nx, nz, start_time, options, native, errors)
+
+
+def compiled_kernel(system: CoupledSystem, input_values: np.ndarray, row_width: int) -> Kernel | None:
+    """The kernel that evaluates ``system``'s right-hand side in C, its algebraic loops included, or
+    None where the system needs the Python callbacks (non-Real continuous or torn connections the
+    kernel cannot take)."""
+    looped = system.kernel_loop()  # the links reordered for the loops, and the loops; None without
+    if (system.loop is not None and looped is None) or system.native_links is None:
+        return None
+    links, loop = looped if looped is not None else (system.native_links, None)
+    kernel = Kernel(system.kernel_units(), links, system.n_states, inputs=input_values, row_width=row_width, loop=loop)
+    if system.loop is not None:  # the loops solved in C too: their counts in the run's statistics
+        system.loop.compiled_counts = kernel.loop_counts
+    return kernel
