@@ -7,9 +7,9 @@ Printed side by side in one run:
 2. sunrise to sunset (scenarios/jan21-day.yaml): simulation wall time, RHS per motor step;
 3. the same day with fmpy.simulate_fmu on the monolithic DriveSystem FMU (same inputs, start
    values, tolerance and output grid) and the ratio master / fmpy;
-each for the master's paths: Python callbacks, or the compiled kernel (heliostep.cosim.kernel:
-right-hand side, root function and the loop over CVODE's internal steps in C) stopping CVODE at
-every output time or interpolating the output rows (the default).
+each for the master's two right-hand sides: the Python callbacks (the path of systems the kernel
+cannot take, forced here) and the compiled kernel (heliostep.cosim.kernel: right-hand side, root
+function and the loop over CVODE's internal steps in C; the default), the output rows interpolated.
 4. RHS evaluations per motor step of the paper's case with a smooth current loop, a chopper
    that never saturates, a wider friction regularisation and a looser tolerance (what sets them);
 5. with --profile: where the time of the 5-minute case goes (cProfile, top functions);
@@ -44,16 +44,16 @@ def best_of(function, repeat: int):
     return min(times), result
 
 
-#: the master's paths: (label, compiled right-hand side, interpolated output rows)
+#: the master's paths: (label, compiled right-hand side)
 PATHS = [
-    ("python callbacks, stops at outputs", False, False),
-    ("compiled kernel, stops at outputs", True, False),
-    ("compiled kernel, interpolated (default)", True, True),
+    ("python callbacks", False),
+    ("compiled kernel (default)", True),
 ]
 
 
-def run_path(name: str, compiled: bool, interpolate: bool, repeat: int):
+def run_path(name: str, compiled: bool, repeat: int):
     """run_scenario on one path: (best simulation wall time, run, the CoSimulation and its arguments)."""
+    import heliostep.cosim.integrator as integrator
     import heliostep.cosim.master as master
     from heliostep.run import run_scenario
 
@@ -64,7 +64,8 @@ def run_path(name: str, compiled: bool, interpolate: bool, repeat: int):
         captured.update(system=self, args=args)
         return simulate(self, *args, **kwargs)
 
-    master.COMPILED_RHS, master.INTERPOLATE_OUTPUTS = compiled, interpolate
+    chosen = integrator.compiled_kernel
+    integrator.compiled_kernel = chosen if compiled else (lambda *args: None)
     master.CoSimulation.simulate = capture
     try:
         walls, run = [], None
@@ -73,6 +74,7 @@ def run_path(name: str, compiled: bool, interpolate: bool, repeat: int):
             walls.append(run.metadata["statistics"]["wall_time"])
     finally:
         master.CoSimulation.simulate = simulate
+        integrator.compiled_kernel = chosen
     return min(walls), run, captured
 
 
@@ -134,8 +136,8 @@ def monolithic(captured, repeat: int) -> tuple[float, dict]:
 def bench(name: str, repeat: int, against_fmpy: bool) -> tuple[float, float | None]:
     """Print each path's line; return the default path's wall time [s] and fmpy's [s] (None without it)."""
     fmpy_wall = None
-    for label, compiled, interpolate in PATHS:
-        wall, run, captured = run_path(name, compiled, interpolate, repeat)
+    for label, compiled in PATHS:
+        wall, run, captured = run_path(name, compiled, repeat)
         stats = run.metadata["statistics"]
         steps = max(1, int(run.summary["steps_commanded"]))
         line = (

@@ -1,9 +1,9 @@
-"""What supervision costs (issue 22): jan21-day in-process and supervised, side by side in one run.
+"""What supervision costs: jan21-day in-process and supervised, side by side in one run.
 
     .venv/bin/python benchmarks/bench_supervision.py [--repeat N] [--scenario FILE]
 
 A supervised run (``run_scenario(..., supervise=True)``, the default; heliostep.run.supervised)
-simulates in a child process (``python -m heliostep.cosim.child``) that streams its rows back;
+simulates in a forked child process (heliostep.cosim.child) that streams its rows and figures back;
 an in-process one (``supervise=False``, ``heliostep run --no-supervise``) calls the FMUs in the
 process itself. The two are run alternately ``--repeat`` times (the machine's load drifts alike
 for both) and the wall time of the whole ``run_scenario`` call is printed per run, with the

@@ -2,16 +2,14 @@
 
     .venv/bin/python benchmarks/floor_plain_c.py [scenario] [--repeat 3]
 
-Issue #26: every speed figure as a ratio to the floor, measured side by side in one run. The C right-hand
+Every speed figure as a ratio to the floor, measured side by side in one run. The C right-hand
 side below is written by hand from ``models/StepperMotor.mo`` and ``models/PanelMechanics.mo`` (the paper's
 eqs. 7-9 with the averaged chopper and the Simscape block's iron loss and detent terms; eqs. 10-15, exact
 kinematics, rotor damping B_m, tanh-smoothed Coulomb friction), not generated: four states (i_a, i_b,
 theta_p, omega_p), the same parameters, the same initial state (the
 drive's holding equilibrium, from :func:`heliostep.drive.inputs.prepare_inputs`). The parameters are
 heliostep's own (:func:`heliostep_parameters`: the FMUs' start values, then what the runner sets), so the
-floor solves heliostep's problem: until 2026-12-02 it took defaults of its own and left out the motor's
-detent torque (T_d = 0.094 N.m), a different problem with 11 % fewer internal steps (1 299 698 against
-heliostep's 1 453 406 on ``jan21-day``; now 1 453 768). It runs on the CVODE that fmpy ships, as
+floor solves heliostep's problem (the motor's detent torque included). It runs on the CVODE that fmpy ships, as
 heliostep's master does: BDF, Newton with a dense difference-quotient Jacobian, rtol = the scenario's,
 atol = rtol x the FMUs' nominals (all 1: the same vector as heliostep's), no step limit, restarted at every
 step instant (``CVodeReInit``, the master's time event), with ``CVodeSetStopTime`` at the next one; no rows

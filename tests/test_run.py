@@ -189,9 +189,6 @@ def test_streamed_figures_equal_the_figures_of_every_row(fmu_paths, monkeypatch,
             self.kept.append(np.array(row, dtype=float))
             super().__call__(row)
 
-        def kernel_figures(self):  # every row to this recorder, not the kernel's accumulators
-            return None  # (those are held to this recorder by tests/results/test_kernel_figures.py)
-
     monkeypatch.setattr(figures_module, "SolutionRecorder", Keeping)
     run = run_scenario(SCENARIOS / scenario, overrides=["window.duration=60"])
     recorder = recorders[0]

@@ -1,5 +1,6 @@
-"""Supervised runs (issue 22, items 6 and 7): an FMU that crashes, exits or hangs ends the run with
-exit 1, named with its FMI call, the trace so far kept and marked, and nothing left in TMPDIR.
+"""Supervised runs: an FMU that crashes, exits or hangs ends the run with exit 1, named with its FMI
+call, the trace and figures so far kept and marked, nothing left in TMPDIR and no fault dump of the
+child's on stderr; the child forked, or started by multiprocessing's fork server (a Dask worker's way).
 
 The misbehaving FMU is ``Faulty`` (``tests/data/mini/faulty.c``, built with gcc), an extra FMU of
 the paper's scenario: der(x) = 1 until ``t_fault``, then in fmi2GetDerivatives a write through a
@@ -25,7 +26,7 @@ import pytest
 
 from heliostep.cosim.child import MAX_ROWS_LOST
 from heliostep.results.trace.files import read_trace
-from heliostep.run import RunOptions, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 from third_party_fmu import build_mini_fmu
 
 CLI = "from heliostep.cli import console_main; console_main()"
@@ -56,11 +57,21 @@ def _scenario(folder: Path, fmu: Path, fault: int, t_fault: float = T_FAULT) -> 
     return path
 
 
+#: A supervising process whose child the fork server starts: run_scenario on the scenario ``argv[1]``.
+SERVED = (
+    "import sys; from heliostep.run import RunOptions, run_scenario\n"
+    "run_scenario(sys.argv[1], RunOptions(supervise=True, keep_trace=False, start_method='forkserver'))\n"
+)
+
+
 def _start(scenario: Path, out: Path, private_tmp: Path, *extra: str, start: str = "fork") -> subprocess.Popen:
-    """``heliostep run`` in a subprocess with a TMPDIR of its own; its supervised child forked or executed."""
+    """``heliostep run`` in a subprocess with a TMPDIR of its own (its supervised child forked), or with
+    ``start="forkserver"`` a process that runs the scenario with its child started by the fork server."""
     private_tmp.mkdir(exist_ok=True)
-    env = {**os.environ, "TMPDIR": str(private_tmp), "HELIOSTEP_SUPERVISED_START": start}
+    env = {**os.environ, "TMPDIR": str(private_tmp)}
     command = [sys.executable, "-c", CLI, "run", str(scenario), "--out", str(out), "--no-plots", *extra]
+    if start == "forkserver":
+        command = [sys.executable, "-c", SERVED, str(scenario)]
     return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -87,22 +98,18 @@ FAULTS = {  # fault code: (how the message says the process ended, reason)
 }
 
 
-@pytest.mark.parametrize(
-    "fault, start",
-    # exec: the path without fork; server: forked by the fork server (a Dask worker's path)
-    [*((fault, "fork") for fault in sorted(FAULTS)), (1, "exec"), (1, "server"), (5, "server")],
-)
+@pytest.mark.parametrize("fault", sorted(FAULTS))
 def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so_far(
-    fault, start, faulty_fmu, complete_trace, tmp_path, fmu_paths
+    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths
 ):
     out, private = tmp_path / "out", tmp_path / "tmp"
     out.mkdir()
     (out / NOT_OURS).write_text("the user's")
-    process = _start(_scenario(tmp_path, faulty_fmu, fault), out, private, "--watchdog", "3", start=start)
+    process = _start(_scenario(tmp_path, faulty_fmu, fault), out, private, "--watchdog", "3")
     _, stderr = process.communicate(timeout=120)
     ended, reason = FAULTS[fault]
     assert process.returncode == 1, stderr[-3000:]  # never 0, 3, 134 or 139
-    assert "Traceback" not in stderr
+    assert "Traceback" not in stderr and "Fatal Python error" not in stderr  # the child's crash: no dump
     message = re.search(r"heliostep run: error: (.*)", stderr)
     assert message, stderr[-3000:]
     assert ended in message.group(1)
@@ -131,6 +138,28 @@ def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so
     assert sorted(p.name for p in private.iterdir()) == []  # no unpacked FMU, no partial trace
 
 
+@pytest.mark.parametrize("fault", [1, 5])
+def test_a_crash_or_hang_in_a_child_of_the_fork_server_fails_the_run_with_its_figures_so_far(
+    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths, capfd
+):
+    """A Dask worker's way: the child started by multiprocessing's fork server; the run fails named,
+    its figures those of the rows the child sent (the steps before the fault judged), no fault dump."""
+    scenario = _scenario(tmp_path, faulty_fmu, fault)
+    with pytest.raises(RunFailed) as failure:
+        run_scenario(
+            scenario, RunOptions(supervise=True, watchdog=3.0, keep_trace=False, start_method="forkserver")
+        )
+    result = failure.value.result
+    ended, reason = FAULTS[fault]
+    assert result.reason == reason and ended in str(failure.value)
+    assert "in fmi2GetDerivatives of FMU instance 'faulty' (model Faulty)" in str(failure.value)
+    figures = result.metadata["solution_figures"]
+    assert 0 < figures["end_time_s"] < T_FAULT and figures["solution_rows"] > 1000
+    commanded = int(np.sum(np.asarray(result.metadata["drive"]["step_times"]) <= figures["end_time_s"]))
+    assert 0 < len(figures["step_outcomes"]) <= commanded
+    assert "Fatal Python error" not in capfd.readouterr().err
+
+
 def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(faulty_fmu, complete_trace, tmp_path, fmu_paths):
     out, private = tmp_path / "out", tmp_path / "tmp"
     process = _start(_scenario(tmp_path, faulty_fmu, 5, t_fault=150.0), out, private)  # the default watchdog: 60 s
@@ -154,24 +183,21 @@ def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(faulty_fmu, comp
     assert sorted(p.name for p in private.iterdir()) == []
 
 
-@pytest.mark.parametrize("start", ["fork", "server", "exec"])
-def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_bit(
-    start, fmu_paths, tmp_path, monkeypatch
-):
-    import heliostep.run.supervised as supervised
+@pytest.mark.parametrize("start", ["fork", "forkserver"])
+def test_supervised_and_in_process_runs_give_the_same_trace_and_figures_bit_for_bit(start, fmu_paths, tmp_path):
     from heliostep.paths import scenarios_dir
 
-    monkeypatch.setattr(supervised, "START", start)
     scenario = scenarios_dir() / "jan21-central.yaml"
     overrides = ("window.duration=60",)
     inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
-    supervised = run_scenario(scenario, RunOptions(supervise=True), overrides=overrides)
+    supervised = run_scenario(scenario, RunOptions(supervise=True, start_method=start), overrides=overrides)
     assert list(inside.trace.columns) == list(supervised.trace.columns) and len(inside.trace) > 500
     for column in inside.trace.columns:
         np.testing.assert_array_equal(inside.trace[column].to_numpy(), supervised.trace[column].to_numpy())
     assert json.dumps(inside.summary, sort_keys=True, default=str) == json.dumps(
         supervised.summary, sort_keys=True, default=str
     )
+    assert inside.metadata["solution_figures"] == supervised.metadata["solution_figures"]
 
 
 def test_a_watchdog_that_is_not_positive_is_bad_input(tmp_path, fmu_paths):
@@ -223,16 +249,18 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux's /proc to find the child")
-@pytest.mark.parametrize("start", ["fork", "server", "exec"])
+@pytest.mark.parametrize("start", ["fork", "forkserver"])
 def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faulty_fmu, tmp_path, fmu_paths):
     out, private = tmp_path / "out", tmp_path / "tmp"
     process = _start(_scenario(tmp_path, faulty_fmu, 5, t_fault=20.0), out, private, start=start)  # watchdog 60 s
     _wait_until_hung(private, process, 20.0)
     children = _children(process.pid)
-    assert len(children) == 1, children
-    child = children[0]
-    if start == "server":  # the supervisor's child is the fork server, the simulation its child
-        server, children = child, _children(child)
+    if start == "forkserver":  # the supervisor's children: the fork server (the simulation its child), a tracker
+        served = [grandchild for helper in children for grandchild in _children(helper)]
+        server = next(helper for helper in children if _children(helper))
+        assert len(served) == 1, (children, served)
+        child = served[0]
+    else:
         assert len(children) == 1, children
         child = children[0]
     assert _alive(child)
@@ -242,69 +270,51 @@ def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faul
     while _alive(child):  # the child, looping in native code, is ended by the kernel (or its watcher)
         assert time.monotonic() < deadline, f"the hung child {child} outlived its supervisor"
         time.sleep(0.05)
-    while start == "server" and _alive(server):  # the fork server too, its control socket closed by the kernel
+    while start == "forkserver" and _alive(server):  # the fork server too, its supervisor's pipe closed
         assert time.monotonic() < deadline, f"the fork server {server} outlived its supervisor"
         time.sleep(0.05)
 
 
 def _run_in_thread(scenario: Path, overrides: tuple[str, ...]):
-    """``run_scenario(..., RunOptions(supervise=True))`` from a thread of its own: this process runs two threads,
-    so the child is not forked from it (``auto``: the fork server, as in a Dask worker)."""
+    """``run_scenario(..., supervise=True)`` from a thread of its own, its child started by the fork
+    server (this process runs two threads, as a Dask worker does)."""
     import threading
 
-    import heliostep.run.supervised as supervised
-
-    methods, results = [], []
+    results = []
 
     def run() -> None:
-        methods.append(supervised._start_method())
-        results.append(run_scenario(scenario, RunOptions(supervise=True), overrides=overrides))
+        options = RunOptions(supervise=True, start_method="forkserver")
+        results.append(run_scenario(scenario, options, overrides=overrides))
 
     thread = threading.Thread(target=run)
     thread.start()
     thread.join()
     assert len(results) == 1
-    return methods[0], results[0]
+    return results[0]
 
 
-def test_a_run_from_a_thread_is_forked_by_the_fork_server_the_same_bit_for_bit(fmu_paths, monkeypatch):
-    import heliostep.run.supervised as supervised
-    from heliostep.cosim import fork_server
+def test_a_run_from_a_thread_started_by_the_fork_server_gives_the_same_bit_for_bit(fmu_paths):
     from heliostep.paths import scenarios_dir
 
-    monkeypatch.setattr(supervised, "START", "auto")
     scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=60",)
     inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
-    method, served = _run_in_thread(scenario, overrides)
-    assert method == "server"
-    server = fork_server._CLIENT.process
-    assert server is not None and server.poll() is None  # it served the run, and waits for the next
+    served = _run_in_thread(scenario, overrides)
     for column in inside.trace.columns:
         np.testing.assert_array_equal(inside.trace[column].to_numpy(), served.trace[column].to_numpy())
     assert json.dumps(inside.summary, sort_keys=True, default=str) == json.dumps(
         served.summary, sort_keys=True, default=str
     )
-    # the server killed: the next run starts another one, and gives the same rows again
-    server.kill()
-    server.wait()
-    method, again = _run_in_thread(scenario, overrides)
-    assert method == "server" and fork_server._CLIENT.process is not server
-    assert fork_server._CLIENT.process.poll() is None and not fork_server._CLIENT.broken
+    again = _run_in_thread(scenario, overrides)  # the fork server started once serves the next run too
     np.testing.assert_array_equal(inside.trace.to_numpy(), again.trace.to_numpy())
-    fork_server.close()  # ends it (its control socket closed), as at this process's exit
-    assert server.returncode == -signal.SIGKILL and fork_server._CLIENT.process is None
 
 
-def test_a_fork_server_that_cannot_start_leaves_the_child_executed(fmu_paths, monkeypatch):
-    import heliostep.run.supervised as supervised
-    from heliostep.cosim import fork_server
+def test_an_unknown_start_method_is_bad_input(fmu_paths):
+    from heliostep.errors import InputError
     from heliostep.paths import scenarios_dir
 
-    monkeypatch.setattr(supervised, "START", "server")
-    monkeypatch.setattr(fork_server, "_CLIENT", fork_server._Client())  # a client of its own, no server yet
-    monkeypatch.setattr(fork_server, "_MAIN", "import sys; sys.exit(3)")  # a server that dies at once
-    scenario, overrides = scenarios_dir() / "jan21-central.yaml", ("window.duration=20",)
-    inside = run_scenario(scenario, RunOptions(supervise=False), overrides=overrides)
-    executed = run_scenario(scenario, RunOptions(supervise=True), overrides=overrides)
-    assert fork_server._CLIENT.broken and fork_server._CLIENT.process is None  # tried twice, then given up
-    np.testing.assert_array_equal(inside.trace.to_numpy(), executed.trace.to_numpy())
+    with pytest.raises(InputError, match="start_method: 'spawn'; expected 'fork' or 'forkserver'"):
+        run_scenario(
+            scenarios_dir() / "jan21-central.yaml",
+            RunOptions(supervise=True, start_method="spawn"),  # type: ignore[arg-type]
+            overrides=("window.duration=1",),
+        )

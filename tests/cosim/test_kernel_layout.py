@@ -7,9 +7,8 @@ import ctypes
 import pytest
 
 import heliostep.cosim.kernel as kernel
-from heliostep.cosim.figures import FigureState
 
-STRUCTURES = {**kernel.STRUCTURES, "hs_figures": FigureState}
+STRUCTURES = kernel.STRUCTURES
 
 
 @pytest.mark.parametrize("name", sorted(STRUCTURES))
@@ -22,7 +21,7 @@ def test_structure_size_and_field_offsets_match_the_c_side(name):
 
 def test_codes_match_the_c_side():
     codes = {name: getattr(kernel, name) for name in dir(kernel) if name.startswith("ADVANCE_")}
-    assert len(codes) == 8  # ADVANCE_NO_MEMORY: the figures' step rows could not be held
+    assert len(codes) == 7
     for name, value in codes.items():
         assert kernel.describe(name) == value, name
     c_names = [

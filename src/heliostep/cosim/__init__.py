@@ -20,7 +20,8 @@ Owns everything FMI and the solver. Its modules, each owning one thing:
   side, root function and the one loop over CVODE's internal steps;
 - :mod:`~heliostep.cosim.rows`: the trace rows held or handed to a sink;
 - :mod:`~heliostep.cosim.master`: the run (N FMUs on one CVODE, events, discrete exchange,
-  terminateSimulation) behind :class:`CoSimulation`.
+  terminateSimulation) behind :class:`CoSimulation`, every solution row shown to its
+  :class:`~heliostep.cosim.master.SolutionMonitor`.
 
 The ctypes code of heliostep is here (description, fmi, access, sundials, kernel, integrator,
 system); nothing outside :mod:`heliostep.cosim` imports ctypes. It imports nothing of heliostep but
@@ -30,7 +31,7 @@ cache): no scenario, drive or results type reaches it, so it serves any set of M
 
 from heliostep.cosim.fmi import FMIError, FMUInfo, read_fmu
 from heliostep.cosim.loops import LoopError
-from heliostep.cosim.master import CoSimulation, MasterResult, SimulationError
+from heliostep.cosim.master import CoSimulation, MasterResult, SimulationError, SolutionMonitor
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 
 __all__ = [
@@ -42,6 +43,7 @@ __all__ = [
     "MasterResult",
     "PiecewiseConstant",
     "SimulationError",
+    "SolutionMonitor",
     "SolverOptions",
     "read_fmu",
 ]

@@ -5,12 +5,11 @@ Dask's nanny starts every worker with ``MALLOC_TRIM_THRESHOLD_=65536`` (its conf
 also turns off glibc's dynamic mmap threshold (mallopt(3): setting M_TRIM_THRESHOLD, M_MMAP_THRESHOLD,
 M_TOP_PAD or M_MMAP_MAX disables it), so the threshold stays at 128 KiB: every numpy array of 128 KiB or
 more (16 384 float64) is then its own mmap, returned at once, and its pages are faulted in, zeroed,
-each time. A sweep case's figures work on blocks of 16 384 rows: a sunrise-to-sunset case ran 3.7×
-slower in a Dask worker than in a plain process (28 s against 7.5 s, day 172, mirror 0;
-``benchmarks/bench_sweep.py --full-day``). :func:`restore_dynamic_heap` sets the two thresholds to where
-glibc's own dynamic rule takes them at most (64-bit: the mmap threshold 32 MiB, the trim threshold
-twice it): arrays up to 32 MiB come from the heap and are reused, and a worker keeps at most 64 MiB
-of freed heap. It only acts where the variable is set and the C library has ``mallopt``.
+each time. A sweep case's figures work on blocks of 16 384 rows, so a Dask worker ran them several
+times slower than a plain process (``benchmarks/bench_sweep.py --full-day``). :func:`restore_dynamic_heap`
+sets the two thresholds to where glibc's own dynamic rule takes them at most (64-bit: the mmap threshold
+32 MiB, the trim threshold twice it): arrays up to 32 MiB come from the heap and are reused, and a worker
+keeps at most 64 MiB of freed heap. It only acts where the variable is set and the C library has ``mallopt``.
 """
 
 from __future__ import annotations

@@ -1,49 +1,53 @@
-"""One co-simulation in a process of its own, for a supervisor: forked (:func:`serve`) or executed
-(``python -m heliostep.cosim.child``, :func:`main`).
+"""One co-simulation in a process of its own, for a supervisor: :func:`serve`.
 
-The supervisor (:mod:`heliostep.run.supervised`) forks and calls :func:`serve` with the request,
-or starts this module with the number of a connected socket and the path of its call record
-(:mod:`heliostep.cosim.watch`) and sends it one request: a pickled :class:`Request` (the
-:class:`~heliostep.cosim.master.CoSimulation`, its time span, output grid and solver options).
-The child says ``("started", None)``, simulates it
-and streams, as it goes, ``("blocks", [(kind, block), ...])`` with ``kind`` ``"rows"`` (trace
-rows, for the supervisor's row sink) or ``"solution"`` (for its monitor), and ``("progress",
-t)``; it ends with exactly one of ``("done", MasterResult)``, ``("failed", SimulationError's
-fields)``, ``("input", message)`` or ``("error", traceback)``. Only the supervisor decides that
-a run succeeded: a child that ends without saying ``done`` (a crash, an FMU calling ``exit``)
-has failed, whatever its exit status.
+The supervisor (:mod:`heliostep.run.supervised`) forks and calls :func:`serve` with the request, or
+has multiprocessing's fork server start :func:`run` with a connected socket and the path of its call
+record (:mod:`heliostep.cosim.watch`) and sends it one request: a pickled :class:`Request` (the
+:class:`~heliostep.cosim.master.CoSimulation`, its time span, output grid, solver options and the
+monitor). The child says ``("started", None)``, simulates it (its monitor, a
+:class:`SupervisedMonitor`, takes every solution row here) and streams, as it goes,
+``("blocks", ([block, ...], totals))``: the trace rows for the supervisor's row sink and the monitor's
+:meth:`~SupervisedMonitor.totals` after them (so a crash keeps the figures of the rows sent), and
+``("progress", t)``; it ends with exactly one of ``("done", MasterResult)``, ``("failed",
+SimulationError's fields)``, ``("input", message)`` or ``("error", traceback)``. Only the supervisor
+decides that a run succeeded: a child that ends without saying ``done`` (a crash, an FMU calling
+``exit``) has failed, whatever its exit status. The supervisor reports a crash itself, so the child
+prints no fault dump of its own (:mod:`faulthandler` off).
 
 The child ignores SIGINT, SIGTERM and SIGHUP (a terminal sends them to the whole process group):
 the supervisor asks it to stop through the call record, or kills it. It stops on its own when
-the supervisor's process is gone: at its next safe point, and at once when an FMU hangs or the
-supervisor was killed (SIGKILL) — the kernel kills it then (Linux: ``prctl(PR_SET_PDEATHSIG,
-SIGKILL)``, :func:`die_with_supervisor`; elsewhere a thread that polls the parent's pid every
-:data:`PARENT_POLL` s and ends the process), so a hung FMU's process never outlives its supervisor.
+its parent is gone: at its next safe point, and at once when an FMU hangs or the parent was killed
+(SIGKILL) — the kernel kills it then (Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``,
+:func:`die_with_supervisor`; elsewhere a thread that polls the parent's pid every
+:data:`PARENT_POLL` s and ends the process). A child of the fork server also ends when its
+supervisor does (:func:`die_with_process`: the fork server lives on while any of its children holds
+the supervisor's end of its pipe), so a hung FMU's process never outlives its supervisor.
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import faulthandler
 import os
 import pickle
+import select
 import signal
 import sys
 import tempfile
 import threading
 import time as clock
 import traceback
-from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from multiprocessing.connection import Connection
+from typing import Any, Protocol
 
 import numpy as np
 
 from heliostep.cosim import watch
 from heliostep.cosim.allocator import restore_dynamic_heap
-from heliostep.cosim.figures import FigureSpec, FigureTotals, KernelFigures
 from heliostep.cosim.kernel import Kernel
-from heliostep.cosim.master import CoSimulation, SimulationError
+from heliostep.cosim.master import CoSimulation, SimulationError, SolutionMonitor
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.signals import SolverOptions
 from heliostep.errors import InputError
@@ -55,8 +59,9 @@ __all__ = [
     "PROGRESS_INTERVAL",
     "SEND_INTERVAL",
     "Request",
+    "SupervisedMonitor",
+    "die_with_process",
     "die_with_supervisor",
-    "main",
     "run",
     "serve",
 ]
@@ -71,14 +76,14 @@ _PR_SET_PDEATHSIG = 1
 #: Progress reports at most this often [s of wall time].
 PROGRESS_INTERVAL = 0.25
 
-#: The rows of the trace and of the solution go to the supervisor together, at most this often
-#: [s of wall time] (one message, their blocks and order kept) or once :data:`BLOCK_ROWS` trace
-#: rows are held. (One message per block would cost more than the simulation on a busy machine.)
+#: The trace rows and the monitor's totals go to the supervisor together, at most this often
+#: [s of wall time] (one message, the blocks' order kept) or once :data:`BLOCK_ROWS` trace rows
+#: are held (one message per block would cost more than the simulation on a busy machine).
 SEND_INTERVAL = 0.05
 
 #: The child's kernel hands its rows to the master once it holds this many trace rows (rows at
-#: output times, ``Kernel.OUTPUTS_PER_BLOCK``; 4096 in-process; the rows of internal steps, for
-#: the monitor only, still in blocks of 4096), and its outbox sends them once it holds this many (or after
+#: output times, ``Kernel.OUTPUTS_PER_BLOCK``; the rows of internal steps, for the monitor only, in
+#: the kernel's full blocks), and its outbox sends them once it holds this many (or after
 #: :data:`SEND_INTERVAL`): the rows a crash or a hang of an FMU loses are those of the kernel's
 #: block not yet handed over and those of the outbox not yet sent, fewer than :data:`MAX_ROWS_LOST`.
 BLOCK_ROWS = 128
@@ -88,36 +93,46 @@ BLOCK_ROWS = 128
 MAX_ROWS_LOST = 2 * BLOCK_ROWS
 
 
-class _Outbox:
-    """The master's row blocks, ``(kind, block)`` in order, sent together as ``("blocks", [...])``."""
+class SupervisedMonitor(SolutionMonitor, Protocol):
+    """A monitor that runs in the child: it takes the rows there, and its figures so far
+    (:meth:`totals`, picklable) are taken by the supervisor's monitor (:meth:`take_totals`)."""
 
-    def __init__(self, connection: Connection):
-        self.connection = connection
-        self.items: list[tuple[str, np.ndarray]] = []
+    def totals(self) -> Any:
+        """The figures of the rows taken so far (what changed since the totals before)."""
+        ...
+
+    def take_totals(self, totals: Any) -> None:
+        """The child's monitor's :meth:`totals`, each in turn, in place of rows."""
+        ...
+
+
+class _Outbox:
+    """The master's trace row blocks, in order, sent together with the monitor's totals as
+    ``("blocks", ([block, ...], totals))``."""
+
+    def __init__(self, connection: Connection, monitor: SupervisedMonitor | None):
+        self.connection, self.monitor = connection, monitor
+        self.items: list[np.ndarray] = []
         self.trace_rows = 0  # trace rows among the items
         self.sent = clock.monotonic()
-        self.after_send: Callable[[], None] | None = None  # called after each message of blocks
 
-    def add(self, kind: str, block: np.ndarray) -> None:
-        self.items.append((kind, np.array(block, dtype=float)))  # a copy: the master reuses its buffers
-        if kind == "rows":
-            self.trace_rows += len(block)
+    def add(self, block: np.ndarray) -> None:
+        self.items.append(np.array(block, dtype=float))  # a copy: the master reuses its buffers
+        self.trace_rows += len(block)
         if self.trace_rows >= BLOCK_ROWS or clock.monotonic() - self.sent >= SEND_INTERVAL:
             self.flush()
 
     def flush(self) -> None:
-        if self.items:
-            self.connection.send(("blocks", self.items))
-            self.items, self.trace_rows = [], 0
-            if self.after_send is not None:
-                self.after_send()
+        totals = self.monitor.totals() if self.monitor is not None else None
+        self.connection.send(("blocks", (self.items, totals)))
+        self.items, self.trace_rows = [], 0
         self.sent = clock.monotonic()
 
 
 @dataclass
 class Request:
     """What the child simulates: ``system.simulate(start, stop, output_times, solver, ...)``,
-    with a sink of ``sink_rows`` rows per block, a monitor and a progress report where asked."""
+    with a sink of ``sink_rows`` rows per block, ``monitor`` and a progress report where asked."""
 
     system: CoSimulation
     start: float
@@ -126,75 +141,53 @@ class Request:
     solver: SolverOptions
     sink_rows: int = 4096
     sink: bool = True
-    monitor: bool = True
+    monitor: SupervisedMonitor | None = None
     progress: bool = False
-    figures: FigureSpec | None = None  # the monitor's figures accumulated in the kernel, sent at the end
 
 
-class _FiguresToSupervisor:
-    """The child's monitor when the figures are accumulated in its kernel: their totals go to the
-    supervisor (``("figures", totals)``, after the rows) instead of every solution row."""
-
-    def __init__(self, spec: FigureSpec, outbox: _Outbox):
-        self.spec, self.outbox = spec, outbox
-        self.figures: KernelFigures | None = None
-
-    def bind_kernel_figures(self, figures: KernelFigures) -> None:
-        """The master's accumulator: its snapshot follows every block of rows sent (a crash keeps them)."""
-        self.figures = figures
-        self.outbox.after_send = lambda: self.outbox.connection.send(("figures", figures.snapshot()))
-
-    def __call__(self, block: np.ndarray) -> None:
-        self.outbox.add("solution", block)
-
-    def kernel_figures(self) -> dict:
-        """The spec's fields, as a monitor offers them (the master makes the spec of them)."""
-        return {field.name: getattr(self.spec, field.name) for field in fields(self.spec)}
-
-    def take_kernel_figures(self, totals: FigureTotals) -> None:
-        self.outbox.after_send = None
-        self.outbox.flush()
-        self.outbox.connection.send(("figures", totals))
-
-
-def main(argv: list[str]) -> int:
-    """Serve one request read from the socket ``argv[1]`` (a file descriptor), noting FMU calls in ``argv[2]``."""
-    return run(Connection(int(argv[1])), argv[2])
-
-
-def run(connection: Connection, record: str, tmpdir: str | None = None) -> int:
-    """Serve one request read from ``connection`` (:func:`serve`; also the fork server's children).
+def run(connection: Connection, record: str, tmpdir: str | None = None, supervisor: int | None = None) -> int:
+    """Serve one request read from ``connection`` (:func:`serve`; a child started by multiprocessing's fork
+    server for the process ``supervisor``).
     A supervisor gone (its end of the socket closed: e.g. a Dask worker closed with its cluster) ends
     the run with one line on stderr and exit status 1: there is no one left to stream to."""
     try:
-        return serve(connection, record, None, tmpdir)
+        return serve(connection, record, None, tmpdir, supervisor)
     except (BrokenPipeError, ConnectionResetError, EOFError) as exc:
         why = getattr(exc, "strerror", None) or "connection closed"
         print(f"heliostep: a supervised run ends: its supervisor is gone ({why})", file=sys.stderr)
         return 1
 
 
-def serve(connection: Connection, record: str, request: Request | None = None, tmpdir: str | None = None) -> int:
+def serve(
+    connection: Connection,
+    record: str,
+    request: Request | None = None,
+    tmpdir: str | None = None,
+    supervisor: int | None = None,
+) -> int:
     """Simulate ``request`` (or the one read from ``connection``) and stream it on ``connection``,
-    noting FMU calls in the file ``record``; ``tmpdir``: the temporary folder to use (a forked
-    child's; an executed one has it in ``TMPDIR``). Returns the exit status."""
+    noting FMU calls in the file ``record``; ``tmpdir``: the temporary folder to use; ``supervisor``:
+    the supervising process where it is not this one's parent. Returns the exit status."""
+    faulthandler.disable()  # a crash in an FMU is the supervisor's to report, without a dump here
     for number in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
         if number is not None:
             signal.signal(number, signal.SIG_IGN)
     if tmpdir is not None:
         os.environ["TMPDIR"] = tempfile.tempdir = tmpdir
     restore_dynamic_heap()  # a Dask worker's MALLOC_TRIM_THRESHOLD_, inherited: see heliostep.cosim.allocator
-    supervisor = os.getppid()
-    die_with_supervisor(supervisor)
+    parent = os.getppid()
+    die_with_supervisor(parent)
+    if supervisor is not None and supervisor != parent:
+        die_with_process(supervisor)
     watch.attach(record)
     RowBuffer.flush_interval = 0.0  # every block the master stores goes out (in the outbox)
     Kernel.OUTPUTS_PER_BLOCK = BLOCK_ROWS  # and the kernel hands its trace rows over in small blocks
     if request is None:
         request = pickle.loads(connection.recv_bytes())
     connection.send(("started", None))
-    outbox = _Outbox(connection)
+    outbox = _Outbox(connection, request.monitor)
     try:
-        result = _simulate(request, outbox, supervisor)
+        result = _simulate(request, outbox, parent)
         result.statistics["peak_rss_mb_child"] = _peak_rss_mb()
         outcome: tuple[str, object] = ("done", result)
     except SimulationError as exc:
@@ -232,6 +225,33 @@ def die_with_supervisor(supervisor: int) -> None:
     threading.Thread(target=watch_parent, name="heliostep-watch-supervisor", daemon=True).start()
 
 
+def die_with_process(pid: int) -> None:
+    """End this process as soon as the process ``pid`` ends, even while an FMU call never returns: a
+    daemon thread waits for it (a pidfd where the OS has them, else polling every :data:`PARENT_POLL` s)."""
+
+    def wait() -> None:
+        try:
+            handle = os.pidfd_open(pid)
+        except (AttributeError, OSError):  # no pidfd here (or the process is gone already)
+            while _exists(pid):
+                clock.sleep(PARENT_POLL)
+        else:
+            select.select([handle], [], [])  # readable once the process has ended
+        os._exit(1)
+
+    threading.Thread(target=wait, name="heliostep-watch-supervisor", daemon=True).start()
+
+
+def _exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def _peak_rss_mb() -> float | None:
     """This process's peak resident memory [MB] (None where the OS does not say)."""
     try:
@@ -261,21 +281,8 @@ def _simulate(request: Request, outbox: _Outbox, supervisor: int):
         request.output_times,
         request.solver,
         progress=progress if request.progress else None,
-        monitor=_child_monitor(request, outbox),
+        monitor=request.monitor,
         should_stop=should_stop,
-        sink=(lambda block: outbox.add("rows", block)) if request.sink else None,
+        sink=outbox.add if request.sink else None,
         sink_rows=request.sink_rows,
     )
-
-
-def _child_monitor(request: Request, outbox: _Outbox):
-    """The solution rows to the supervisor, or (with ``request.figures``) the kernel's figures."""
-    if not request.monitor:
-        return None
-    if request.figures is not None:
-        return _FiguresToSupervisor(request.figures, outbox)
-    return lambda block: outbox.add("solution", block)
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv))

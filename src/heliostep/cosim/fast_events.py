@@ -1,32 +1,29 @@
-"""An event's fixed work in one call of the compiled kernel (issue #26): :c:func:`hs_event`.
+"""An event's fixed work in one call of the compiled kernel: :c:func:`hs_event`.
 
 At an event the master (:meth:`heliostep.cosim.master._Run._event`) records the row before, puts every
 FMU into event mode, sets the master inputs' new values, iterates ``fmi2NewDiscreteStates`` to a
-fixed point, returns every FMU to continuous-time mode, restarts CVODE and records the row after:
-about twenty FMI calls through ctypes and as many numpy operations in Python. :class:`FastEvents`
-makes the same FMI calls, in the same order, from C (``c/kernel.c``, the section "events"), for the
-common case: the first round of ``fmi2NewDiscreteStates`` leaves every flag of every FMU's
-``fmi2EventInfo`` unset and the outputs unchanged (a step instant of the drive). Whenever a flag is
+fixed point, returns every FMU to continuous-time mode, restarts CVODE and records the row after.
+:class:`FastEvents` makes the same FMI calls, in the same order, from C (``c/kernel.c``, the section
+"events"), for the common case: the first round of ``fmi2NewDiscreteStates`` leaves every flag of every
+FMU's ``fmi2EventInfo`` unset and the outputs unchanged (a step instant of the drive). Whenever a flag is
 set (another round needed, terminate, the states or their nominals changed, a next time event) the
 kernel stops right after that FMU's call and the master goes on in Python from there
 (:class:`heliostep.cosim.events.Resume`), so FMI's semantics are exactly the Python path's; the same
 when the outputs changed in the round (the next round in Python).
 
-:func:`fast_events` says whether a run can use it: FMI 2.0 units only, every connection continuous and
-Real (the kernel's own links), no algebraic loop, every master input driving a Real input, no sampled
-Co-Simulation component, no String output, the compiled right-hand side, and the rows the monitor sees
-accumulated in the kernel (or no monitor). The outputs are read as the kernel reads every row
-(``read_row``: a Boolean as 0 or 1, FMI's fmi2True and fmi2False).
+:func:`fast_events` says whether a run's system allows it: FMI 2.0 units only, every connection continuous
+and Real (the kernel's own links), no algebraic loop, every master input driving a Real input, no sampled
+Co-Simulation component, no String output, the compiled right-hand side. The outputs are read as the
+kernel reads every row (``read_row``: a Boolean as 0 or 1, FMI's fmi2True and fmi2False); the rows
+before and after go to the trace and to the monitor as the Python path's do.
 
 ``statistics["compiled_events"]`` counts the events done wholly in the kernel, ``["resumed_events"]``
-those it began and the Python path finished. Anything else takes the Python path,
-as does every run with :data:`FAST_EVENTS` off (``HELIOSTEP_FAST_EVENTS=0``).
+those it began and the Python path finished. Any other system takes the Python path.
 """
 
 from __future__ import annotations
 
 import ctypes
-import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -41,12 +38,9 @@ if TYPE_CHECKING:
     from heliostep.cosim.signals import PiecewiseConstant
     from heliostep.cosim.system import CoupledSystem
 
-#: Events in one call of the kernel where a run allows it (``HELIOSTEP_FAST_EVENTS=0``: the Python path).
-FAST_EVENTS = os.environ.get("HELIOSTEP_FAST_EVENTS", "1") == "1"
-
 #: What :c:func:`hs_event` returns (kernel.c, the section "events").
 EVENT_DONE, EVENT_GENERAL, EVENT_CHANGED = 0, 1, 2
-EVENT_FAILED, EVENT_REINIT_FAILED, EVENT_NO_MEMORY = -1, -2, -3
+EVENT_FAILED, EVENT_REINIT_FAILED = -1, -2
 
 
 class EventUnit(ctypes.Structure):
@@ -135,8 +129,8 @@ def describe(name: str) -> int:
 
 def fast_events(system: CoupledSystem, kernel: Kernel | None, compiled: bool, served: bool) -> bool:
     """Whether the run's events can go through :c:func:`hs_event` (see the module's docstring); ``served``:
-    no sampled components, no text outputs, the monitor's rows accumulated in the kernel or no monitor."""
-    if not (FAST_EVENTS and compiled and served) or kernel is None or kernel.state.prepare:
+    no sampled components, no text outputs."""
+    if not (compiled and served) or kernel is None or kernel.state.prepare:
         return False
     if system.loop is not None or system.native_links is None or len(system.event_links) != len(system.links):
         return False
@@ -234,7 +228,7 @@ class FastEvents:
 def compiled_events(run: Any, system: CoupledSystem, integrator: Any, kernel: Kernel | None) -> FastEvents | None:
     """The run's :class:`FastEvents` where :func:`fast_events` allows them (``run``: the master's ``_Run``;
     ``integrator``: its CVODE on ``kernel``), the integrator's states then read and set by the kernel too."""
-    served = run.graph.sampled is None and run.texts is None and (run.monitor is None or run.figures is not None)
+    served = run.graph.sampled is None and run.texts is None
     if kernel is None or not fast_events(system, kernel, integrator.compiled, served):
         return None
     fast = FastEvents(system, kernel, run.graph.inputs, run.input_values, integrator.cvode_mem, integrator.x)
@@ -244,9 +238,9 @@ def compiled_events(run: Any, system: CoupledSystem, integrator: Any, kernel: Ke
 
 def fast_event(run: Any, t: float, new_inputs: bool, input_time: float, prepare: bool = False) -> None:
     """The master's event at ``t`` [s] through :c:func:`hs_event` (``run``: the master's ``_Run``; ``prepare``:
-    the time set and the connections copied first, in the kernel): both rows stored, or the Python path from
-    where the kernel stopped (:class:`~heliostep.cosim.events.Resume`); a failure raised as the Python path
-    raises it."""
+    the time set and the connections copied first, in the kernel): both rows stored and shown to the monitor,
+    or the Python path from where the kernel stopped (:class:`~heliostep.cosim.events.Resume`); a failure
+    raised as the Python path raises it."""
     system, integrator = run.system, run.integrator
     fast: FastEvents = run.fast_events
     run.counts["events"] += 1
@@ -266,9 +260,13 @@ def fast_event(run: Any, t: float, new_inputs: bool, input_time: float, prepare:
         else:
             trace.store(fast.rows[:1].copy())
             trace.store(fast.rows[1:].copy())
+        if run.monitor is not None:
+            run.monitor(fast.rows)
         return
     if args.recorded:
         run.rows.store(fast.rows[:1].copy())
+        if run.monitor is not None:
+            run.monitor(fast.rows[:1])
     if status < 0:
         _raise_failure(run, fast, integrator, status)
     run.counts["resumed_events"] += 1
@@ -295,8 +293,6 @@ def fast_event(run: Any, t: float, new_inputs: bool, input_time: float, prepare:
 def _raise_failure(run: Any, fast: FastEvents, integrator: Any, status: int) -> None:
     """The error of a failed :c:func:`hs_event`, as the Python path would have raised it."""
     fast.modes_after_failure()
-    if status == EVENT_NO_MEMORY:
-        raise MemoryError("no memory for the rotor's rows of one step interval")
     if status == EVENT_REINIT_FAILED:
         raise RuntimeError(f"CVodeReInit failed (flag {fast.args.cvode_flag})")
     run._raise_callback_error(integrator)  # the FMU's error the kernel recorded

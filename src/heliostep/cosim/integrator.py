@@ -17,8 +17,9 @@
 Its two implementations differ in the right-hand side and root function CVODE calls:
 :class:`CompiledIntegrator` gives CVODE the compiled kernel's ``hs_rhs``/``hs_root``
 (:mod:`heliostep.cosim.kernel`); :class:`CallbackIntegrator` gives it ctypes callbacks into the
-coupled system's Python methods (for non-Real continuous connections or torn connections, or
-``HELIOSTEP_COMPILED_RHS=0``; algebraic loops of Real connections are solved in the kernel).
+coupled system's Python methods (for non-Real continuous connections, or torn connections the kernel
+cannot take; algebraic loops of Real connections are solved in the kernel): :func:`make_integrator`
+chooses by the system, and the run's statistics say which (``compiled_rhs``).
 Both run the one loop over CVODE's internal steps, the kernel's ``hs_advance``
 (:meth:`heliostep.cosim.kernel.Kernel.advance`): with the Python callbacks the
 kernel is handed the coupled system's own preparation of the FMUs for each row.
@@ -37,7 +38,6 @@ from heliostep.cosim.kernel import (
     ADVANCE_DKY_FAILED,
     ADVANCE_FMU_FAILED,
     ADVANCE_MAX_STEPS,
-    ADVANCE_NO_MEMORY,
     ADVANCE_REACHED,
     ADVANCE_ROOT,
     Kernel,
@@ -252,8 +252,6 @@ class CVodeIntegrator:
             raise RuntimeError("an FMU failed inside the compiled one-step loop")
         if status == ADVANCE_MAX_STEPS:
             raise too_many_steps(self.max_num_steps, t_stop, reached)
-        if status == ADVANCE_NO_MEMORY:
-            raise RuntimeError("no memory for the rotor's rows of one step interval (the figures in the kernel)")
         if status == ADVANCE_DKY_FAILED:
             raise RuntimeError(f"CVodeGetDky failed between t = {reached:.9g} s and the step before")
         raise cvode_failure(self.error_info, flag)
@@ -350,20 +348,14 @@ def make_integrator(
     input_values: np.ndarray,
     row_width: int,
     monitored: bool,
-    compiled: bool = True,
 ) -> Integrator:
-    """CVODE on the compiled kernel (``compiled`` and the system allows it) or, where the Python
-    callbacks are needed (switched off, non-Real continuous or torn connections), on
-    those; the kernel's one-step loop in both cases when the run is ``monitored``. The kernel
-    reads the master's inputs from ``input_values`` (updated in place) and records rows of
+    """CVODE on the compiled kernel where the system allows it (:func:`compiled_kernel`), else on the
+    Python callbacks; the kernel's one-step loop in both cases when the run is ``monitored``. The
+    kernel reads the master's inputs from ``input_values`` (updated in place) and records rows of
     ``row_width`` values."""
     nx, nz = system.n_states, system.n_indicators
-    looped = system.kernel_loop()  # the links reordered for the loops, and the loops; None without
-    if compiled and (system.loop is None or looped is not None) and system.native_links is not None:
-        links, loop = looped if looped is not None else (system.native_links, None)
-        kernel = Kernel(system.kernel_units(), links, nx, inputs=input_values, row_width=row_width, loop=loop)
-        if system.loop is not None:  # the loops solved in C too: their counts in the run's statistics
-            system.loop.compiled_counts = kernel.loop_counts
+    kernel = compiled_kernel(system, input_values, row_width)
+    if kernel is not None:
         return CompiledIntegrator(system, kernel, nx, nz, start_time, options)
     errors = CallbackErrors()
     native = None
@@ -377,3 +369,17 @@ def make_integrator(
             prepare=lambda t, x: errors.guard(system.prepare_row, t, x),
         )
     return CallbackIntegrator(system, nx, nz, start_time, options, native, errors)
+
+
+def compiled_kernel(system: CoupledSystem, input_values: np.ndarray, row_width: int) -> Kernel | None:
+    """The kernel that evaluates ``system``'s right-hand side in C, its algebraic loops included, or
+    None where the system needs the Python callbacks (non-Real continuous or torn connections the
+    kernel cannot take)."""
+    looped = system.kernel_loop()  # the links reordered for the loops, and the loops; None without
+    if (system.loop is not None and looped is None) or system.native_links is None:
+        return None
+    links, loop = looped if looped is not None else (system.native_links, None)
+    kernel = Kernel(system.kernel_units(), links, system.n_states, inputs=input_values, row_width=row_width, loop=loop)
+    if system.loop is not None:  # the loops solved in C too: their counts in the run's statistics
+        system.loop.compiled_counts = kernel.loop_counts
+    return kernel

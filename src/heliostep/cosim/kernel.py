@@ -68,7 +68,7 @@ FUNCTIONS = list(watch.KERNEL_FUNCTIONS)
 
 #: What :c:func:`hs_advance` returns (kernel.h).
 ADVANCE_REACHED, ADVANCE_ROOT, ADVANCE_FULL, ADVANCE_MAX_STEPS = 0, 1, 2, 3
-ADVANCE_CVODE_FAILED, ADVANCE_FMU_FAILED, ADVANCE_DKY_FAILED, ADVANCE_NO_MEMORY = -1, -2, -3, -4
+ADVANCE_CVODE_FAILED, ADVANCE_FMU_FAILED, ADVANCE_DKY_FAILED = -1, -2, -3
 
 #: kernel.h: hs_kernel.status of a failed loop, and hs_loop.failure's codes.
 LOOP_FAILED, LOOP_NO_CONVERGENCE, LOOP_SINGULAR = 100, 1, 2
@@ -148,7 +148,6 @@ class KernelState(ctypes.Structure):
         ("prepare_user", ctypes.c_void_p),
         ("where", ctypes.c_void_p),
         ("loop", ctypes.c_void_p),
-        ("figures", ctypes.c_void_p),
     ]
 
 
@@ -349,7 +348,7 @@ class Kernel:
         self.loop_state = LoopState()
         if loop is not None:
             self._fill_loop(*loop)
-        self.rows = np.zeros((self.ROWS_PER_BLOCK + 1, row_width))  # the last: a spare row (kernel.h figures)
+        self.rows = np.zeros((row_width, self.ROWS_PER_BLOCK))  # column-major (kernel.h): its transpose the rows
         self.kinds = np.zeros(self.ROWS_PER_BLOCK, dtype=np.int64)
         self.user_data = ctypes.cast(ctypes.pointer(self.state), ctypes.c_void_p)
         self._library = library()
@@ -432,7 +431,8 @@ class Kernel:
         Rows (time, master inputs, traced outputs) are recorded after each internal step but the
         last (kind 0) and, with ``interpolate``, at the output times ``grid[next_output:]`` passed
         on the way, from CVODE's interpolating polynomial (kind 1); ``take_rows(rows, kinds)`` gets
-        them in blocks, in time order (views valid during the call only; it may raise to stop).
+        them in blocks, in time order (views valid during the call only, each column contiguous; it may
+        raise to stop).
         Returns hs_advance's last code (never ADVANCE_FULL), the time reached, the index of the
         next output time and CVODE's last flag; on ADVANCE_REACHED and ADVANCE_ROOT the FMUs hold
         the solution at the time reached. When an FMU fails, its error stays recorded for
@@ -461,7 +461,7 @@ class Kernel:
             for fmu in self.instances:
                 fmu.time = args.t_reached
             if args.n_rows:
-                take_rows(self.rows[: args.n_rows], self.kinds[: args.n_rows])
+                take_rows(self.rows[:, : args.n_rows].T, self.kinds[: args.n_rows])
             if status != ADVANCE_FULL:
                 return status, float(args.t_reached), int(args.next_output), int(args.cvode_flag)
 

@@ -13,7 +13,7 @@ every FMU is left consistent.
 The compiled kernel solves the same loops the same way in C at every right-hand-side and root
 evaluation (``c/kernel.c``, ``solve_loop``; :class:`heliostep.cosim.kernel.Kernel`'s ``loop``),
 starting from the same guess :attr:`LoopSolver.v` (shared, updated in place); this class then
-solves them at events and on the Python path (``HELIOSTEP_COMPILED_RHS=0``).
+solves them at events and on the Python path (callbacks, where the kernel cannot take the system).
 """
 
 from __future__ import annotations

@@ -39,22 +39,22 @@ machine over one integration (:class:`_Run`); split, each part would reach into 
 The trace has a row at every output time and a row just before and just after every event
 (two rows with the same time), so nothing that happens at a step is lost to interpolation.
 
-CVODE's right-hand side and root function are compiled C (:class:`~heliostep.cosim.integrator.CompiledIntegrator`,
-switch :data:`COMPILED_RHS`; algebraic loops solved in it too), or Python callbacks for runs with
-non-Real continuous or torn connections (:class:`~heliostep.cosim.integrator.CallbackIntegrator`). With a monitor
-(every run of heliostep's) the loop over CVODE's internal steps is C on either
-(:meth:`heliostep.cosim.kernel.Kernel.advance`, the one such loop), recording the rows the monitor
-sees in blocks; with :data:`INTERPOLATE_OUTPUTS` (``HELIOSTEP_INTERPOLATE_OUTPUTS=0`` stops CVODE
-at every output time instead) output rows between stops come from CVODE's interpolating
-polynomial. The two paths differ by the solver's error only (``benchmarks/tolerance_study.py``).
+CVODE's right-hand side and root function are compiled C (:class:`~heliostep.cosim.integrator.CompiledIntegrator`;
+algebraic loops solved in it too) wherever the system allows, or Python callbacks for systems with
+non-Real continuous or torn connections the kernel cannot take
+(:class:`~heliostep.cosim.integrator.CallbackIntegrator`); ``statistics["compiled_rhs"]`` says which.
+With a monitor (every run of heliostep's, :class:`SolutionMonitor`) the loop over CVODE's internal steps
+is C on either (:meth:`heliostep.cosim.kernel.Kernel.advance`, the one such loop), recording every
+solution row in blocks for the monitor; CVODE stops only at input changes, time events and the stop
+time, and the output rows between stops come from its interpolating polynomial.
 """
 
 from __future__ import annotations
 
-import os
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 import pandas as pd
@@ -62,7 +62,6 @@ import pandas as pd
 from heliostep.cosim import fast_events as events
 from heliostep.cosim.connections import ConnectionGraph
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
-from heliostep.cosim.figures import KERNEL_FIGURES, FigureSpec, FigureTotals, KernelFigures
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
 from heliostep.cosim.rows import RowBuffer
@@ -73,15 +72,24 @@ from heliostep.cosim.text_outputs import TextOutputs
 from heliostep.errors import HeliostepError, InputError, RunFailure
 
 __all__ = [
-    "COMPILED_RHS",
-    "INTERPOLATE_OUTPUTS",
     "CoSimulation",
     "Connection",
     "MasterResult",
     "PiecewiseConstant",
     "SimulationError",
+    "SolutionMonitor",
     "SolverOptions",
 ]
+
+
+class SolutionMonitor(Protocol):
+    """What the master calls on its ``monitor``: every solution row it records, in blocks."""
+
+    def __call__(self, rows: np.ndarray) -> None:
+        """Take ``rows``: a 2-D block laid out like the trace's rows (time, master inputs, FMU outputs),
+        in time order, holding every internal solver step, both sides of every event and every
+        output time; valid during the call only."""
+        ...
 
 
 class SimulationError(RunFailure):
@@ -103,17 +111,6 @@ class SimulationError(RunFailure):
 
 class _Interrupted(Exception):
     """Raised inside the main loop when ``should_stop`` says so (between solver calls)."""
-
-
-#: CVODE calls the compiled right-hand side and root function (:mod:`heliostep.cosim.kernel`)
-#: directly (algebraic loops solved in C too); runs with non-Real continuous or torn connections
-#: get Python callbacks.
-COMPILED_RHS = os.environ.get("HELIOSTEP_COMPILED_RHS", "1") == "1"
-
-#: With a monitor (one-step CVODE), stop the solver only at input changes, time events and the
-#: stop time, and record output times that fall between internal steps from CVODE's
-#: interpolating polynomial (CVodeGetDky) instead of making CVODE stop at each of them.
-INTERPOLATE_OUTPUTS = os.environ.get("HELIOSTEP_INTERPOLATE_OUTPUTS", "1") == "1"
 
 
 @dataclass
@@ -181,7 +178,7 @@ class CoSimulation(ConnectionGraph):
         output_times: np.ndarray | None = None,
         solver: SolverOptions | None = None,
         progress: Callable[[float], None] | None = None,
-        monitor: Callable[[np.ndarray], None] | None = None,
+        monitor: SolutionMonitor | None = None,
         should_stop: Callable[[], bool] | None = None,
         sink: Callable[[np.ndarray], None] | None = None,
         sink_rows: int = 4096,
@@ -198,9 +195,9 @@ class CoSimulation(ConnectionGraph):
         holding a row at **every internal step of the solver**, at every event (both sides) and
         at every output time, so figures such as peaks and integrals can be
         computed from the solution itself rather than from the output grid (CVODE then runs in
-        one-step mode up to each stop). ``should_stop`` is asked between solver calls; when it
-        returns True the run stops there with a :class:`SimulationError` whose ``reason`` is
-        ``"interrupted"``.
+        one-step mode up to each stop, the output rows interpolated). ``should_stop`` is asked
+        between solver calls; when it returns True the run stops there with a
+        :class:`SimulationError` whose ``reason`` is ``"interrupted"``.
 
         ``sink``, when given, receives the trace rows as they are produced, in time order, as 2-D
         blocks (rows × the trace's columns) of at most ``sink_rows`` rows; the master then holds
@@ -256,7 +253,7 @@ class _Run:
         graph: CoSimulation,
         options: SolverOptions,
         progress: Callable[[float], None] | None,
-        monitor: Callable[[np.ndarray], None] | None = None,
+        monitor: SolutionMonitor | None = None,
         should_stop: Callable[[], bool] | None = None,
         sink: Callable[[np.ndarray], None] | None = None,
         sink_rows: int = 4096,
@@ -270,7 +267,6 @@ class _Run:
         for name, info in graph.fmus.items():
             columns += [f"{name}.{output}" for output in info.traced_outputs]
         self.rows = RowBuffer(columns, sink, sink_rows)
-        self.figures = _kernel_figures(monitor, len(columns))  # None: every solution row to the monitor
         self.input_values = np.array([item.values[0] for item in graph.inputs], dtype=float)
         self.time = np.nan
         self.counts = {"integrator_calls": 0, "events": 0, "state_events": 0, "time_events": 0}
@@ -297,8 +293,7 @@ class _Run:
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
-        CVODE's memory freed; the figures the kernel accumulated handed to the monitor."""
-        _hand_over_figures(self)
+        CVODE's memory freed."""
         if self.graph.sampled is not None:
             self.graph.sampled.close()
         if self.system is not None:
@@ -311,19 +306,17 @@ class _Run:
         assert self.system is not None
         row = self.system.row(t)[None, :]
         self.rows.store(row)
-        if self.figures is not None:
-            self.figures.row(row)
-        elif self.monitor is not None:
+        if self.monitor is not None:
             self.monitor(row)
 
     def _take_rows(self, rows: np.ndarray, kinds: np.ndarray) -> None:
         """Rows from the one-step loop: all to the monitor, the output rows (kind 1) to the
         trace; then ``should_stop`` is asked (on a stop, the last row ends the trace)."""
-        if self.monitor is not None and self.figures is None:  # with figures in the kernel: taken there
+        if self.monitor is not None:
             self.monitor(rows)
         outputs = kinds == 1
         if outputs.any():
-            self.rows.store(rows[outputs].copy())
+            self.rows.store(np.ascontiguousarray(rows[outputs]))
         self.time = float(rows[-1, 0])
         if self.should_stop is not None and self.should_stop():
             if kinds[-1] != 1:  # the trace ends where the run stops: at the last solution row
@@ -439,15 +432,10 @@ class _Run:
             self.input_values,
             len(self.rows.columns),
             self.monitor is not None,
-            compiled=COMPILED_RHS,
         )
         kernel = getattr(integrator, "kernel", None)
         self.fast_events = events.compiled_events(self, system, integrator, kernel)
-        if self.figures is not None and kernel is not None:
-            kernel.state.figures = self.figures.address
-        elif self.figures is not None:  # no one-step loop in C: the rows to the monitor after all
-            raise RuntimeError("figures in the kernel asked of an integrator without the kernel's loop")
-        interpolate = self.monitor is not None and INTERPOLATE_OUTPUTS
+        interpolate = self.monitor is not None  # output rows from CVODE's interpolating polynomial
         t = start_time
         next_output = next_change = 0
         while True:
@@ -557,23 +545,6 @@ def _to_time_event(t_next: float, t_time_event: float) -> float:
     return t_time_event if t_next < t_time_event <= t_next + 1e-12 * max(1.0, abs(t_next)) else t_next
 
 
-def _kernel_figures(monitor: Callable[[np.ndarray], None] | None, width: int) -> KernelFigures | None:
-    """The kernel's figure accumulator for ``monitor`` when it offers a spec (``kernel_figures()``: the
-    fields of a :class:`~heliostep.cosim.figures.FigureSpec`, or None) and
-    :data:`~heliostep.cosim.figures.KERNEL_FIGURES` allows it; None: the monitor takes every row."""
-    spec = getattr(monitor, "kernel_figures", None)
-    if not KERNEL_FIGURES or spec is None or not hasattr(monitor, "take_kernel_figures"):
-        return None
-    fields = spec()
-    if fields is None:
-        return None
-    figures = KernelFigures(FigureSpec(**fields), width)
-    bind = getattr(monitor, "bind_kernel_figures", None)  # a monitor that reports the figures as they go
-    if bind is not None:
-        bind(figures)
-    return figures
-
-
 def _statistics(run: _Run) -> dict:
     """The run's counters and what it met (terminations, loops, sampled components, text outputs)."""
     system, integrator = run.system, run.integrator
@@ -597,15 +568,3 @@ def _statistics(run: _Run) -> dict:
         **({"text_outputs": run.texts.values} if run.texts is not None else {}),
         **(system.loop.statistics() if system is not None and system.loop is not None else {}),
     }
-
-
-def _hand_over_figures(run: _Run) -> None:
-    """The figures the kernel accumulated to the monitor (once: the accumulator is dropped)."""
-    if run.figures is None:
-        return
-    figures, run.figures = run.figures, None
-    kernel = getattr(run.integrator, "kernel", None)
-    if kernel is not None:
-        kernel.state.figures = None
-    take_totals: Callable[[FigureTotals], None] = getattr(run.monitor, "take_kernel_figures")  # noqa: B009
-    take_totals(figures.totals())

@@ -1,4 +1,4 @@
-"""Where this process's FMU calls are, for a supervisor in another process (issue 22).
+"""Where this process's FMU calls are, for a supervisor in another process.
 
 A supervised run (:mod:`heliostep.run.supervised`) simulates in a child process; when an FMU
 crashes or hangs there, the supervisor must still name the instance and the FMI function it was

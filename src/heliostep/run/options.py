@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from heliostep.results.trace.files import ROW_GROUP_ROWS
-from heliostep.run.supervised import DEFAULT_WATCHDOG
+from heliostep.run.supervised import DEFAULT_WATCHDOG, StartMethod
 
 __all__ = ["RunOptions"]
 
@@ -45,6 +45,9 @@ class RunOptions:
         an FMU that crashes, exits or hangs fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
     watchdog : float  [s]
         With ``supervise``: an FMU with no FMI call begun for this long hangs.
+    start_method : {"fork", "forkserver"}
+        With ``supervise``: how the child starts; ``"forkserver"`` where this process runs threads (a Dask
+        worker), since a fork copies one thread only.
     light_first_order : bool
         False (sweep cases): the light's first-order stepping terms left out (None), every other figure the
         same bit for bit.
@@ -59,4 +62,5 @@ class RunOptions:
     row_group_rows: int = ROW_GROUP_ROWS
     supervise: bool = False
     watchdog: float = DEFAULT_WATCHDOG
+    start_method: StartMethod = "fork"
     light_first_order: bool = True

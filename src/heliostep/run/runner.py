@@ -245,7 +245,9 @@ def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, opt
     bar = _progress_bar(inputs.duration) if options.progress else None
     simulate = prepared.system.simulate
     if options.supervise:
-        simulate = functools.partial(simulate_supervised, prepared.system, watchdog=options.watchdog)
+        simulate = functools.partial(
+            simulate_supervised, prepared.system, watchdog=options.watchdog, start_method=options.start_method
+        )
     try:
         result = simulate(
             0.0,

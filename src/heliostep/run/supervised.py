@@ -1,12 +1,13 @@
 """Supervised simulation: the master runs in a child process, so an FMU cannot take the run down.
 
 :func:`simulate_supervised` is :meth:`CoSimulation.simulate <heliostep.cosim.master.CoSimulation.simulate>`
-with the same arguments and results, but the simulation runs in a child process (forked, forked by a
-fork server, or a new interpreter: :data:`START`, ``$HELIOSTEP_SUPERVISED_START`` ``fork``,
-``server``, ``exec`` or ``auto``; :mod:`heliostep.cosim.child`) that streams its rows back over a
-socket: the supervisor
-(this process) feeds them to the run's row sink and monitor as they come, exactly as the master
-would in-process, so the figures and the trace are the same bit for bit.
+with the same arguments and results, but the simulation runs in a child process
+(:mod:`heliostep.cosim.child`): forked from this process, or, where the caller says this process runs
+threads (a Dask worker: a fork copies one thread, and any lock another one held), started by the
+standard library's ``multiprocessing`` fork server (``start_method``). The child's monitor computes the
+figures where the rows are made and streams its totals back over a socket with the trace rows: the
+supervisor (this process) feeds the rows to the run's row sink and the totals to its monitor as they
+come, so the figures and the trace are those of the master in-process, bit for bit.
 
 When an FMU crashes the child (a segmentation fault, ``abort()``, the FMU calling ``exit`` —
 even ``exit(0)``: only the child's explicit ``done`` is a success), the supervisor raises
@@ -25,15 +26,14 @@ the call record) are in a folder of the supervisor's, removed on every path.
 
 from __future__ import annotations
 
-import logging
 import mmap
+import multiprocessing
 import os
 import pickle
 import shutil
 import signal
 import socket
 import struct
-import subprocess
 import sys
 import tempfile
 import threading
@@ -41,44 +41,29 @@ import time as clock
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import pandas as pd
 
-from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions, fork_server
-from heliostep.cosim import master as master_module
-from heliostep.cosim.child import Request, serve
-from heliostep.cosim.figures import FigureSpec
+from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions
+from heliostep.cosim.child import Request, SupervisedMonitor, run, serve
 from heliostep.cosim.kernel import library_path
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.watch import LAYOUT, RECORD_BYTES, STOP_OFFSET, called_function
 from heliostep.errors import HeliostepError, InputError
 
-__all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "simulate_supervised"]
-
-logger = logging.getLogger(__name__)
+__all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "StartMethod", "simulate_supervised"]
 
 #: Seconds without a new FMI call (and without a message from the child) before the supervisor
 #: declares the FMU hung (a model evaluation takes microseconds to milliseconds).
 DEFAULT_WATCHDOG = 60.0
 
-#: How the child is started: ``"fork"`` (nothing to import again, about a millisecond),
-#: ``"server"`` (forked by this process's fork server, :mod:`heliostep.cosim.fork_server`: a
-#: single-threaded helper with the child's modules imported, started once, lazily; a few
-#: milliseconds per child), ``"exec"`` (a new interpreter, ``python -m heliostep.cosim.child``:
-#: about half a second of imports) or ``"auto"``: fork where the OS can and this process runs one
-#: thread only (a fork copies one thread, and any lock another one held: a Dask worker's threads),
-#: else the fork server where the OS has one (AF_UNIX sockets passing descriptors, fork), else exec.
-#: A fork server that cannot be started (twice) leaves exec. ``$HELIOSTEP_SUPERVISED_START`` chooses.
-START = os.environ.get("HELIOSTEP_SUPERVISED_START") or "auto"
-
-
-def _start_method() -> str:
-    if START != "auto":
-        return START
-    if hasattr(os, "fork") and threading.active_count() == 1:
-        return "fork"
-    return "server" if fork_server.AVAILABLE else "exec"
+#: How the child is started: ``"fork"`` from this process (nothing to import again; for a process
+#: that runs one thread), or ``"forkserver"``, forked by ``multiprocessing``'s fork server (a
+#: single-threaded process started once, the child's modules imported there; for a process that runs
+#: threads, such as a Dask worker).
+StartMethod = Literal["fork", "forkserver"]
 
 
 #: Seconds a child has to stop by itself once asked, before it is killed.
@@ -161,17 +146,56 @@ def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: 
     return _Forked(pid)
 
 
-def _execute(theirs: socket.socket, folder: Path) -> subprocess.Popen:
-    """The child as a new interpreter (``python -m heliostep.cosim.child``), its TMPDIR the supervisor's folder."""
-    environment = {**os.environ, "TMPDIR": str(folder / "tmp")}
-    command = [sys.executable, "-m", "heliostep.cosim.child", str(theirs.fileno()), str(folder / "calls")]
-    return subprocess.Popen(command, pass_fds=[theirs.fileno()], env=environment, stdin=subprocess.DEVNULL)
+#: Held while a child of the fork server is started (the starting process's daemon flag is lowered meanwhile).
+_STARTING = threading.Lock()
+
+
+class _Served:
+    """A child started by multiprocessing's fork server, seen as :class:`_Forked` (``poll``, ``wait``, ``kill``)."""
+
+    def __init__(self, theirs: socket.socket, folder: Path):
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(["heliostep.cosim.child"])
+        connection = Connection(os.dup(theirs.fileno()))
+        current = multiprocessing.current_process()
+        try:
+            self.process = context.Process(
+                target=run, args=(connection, str(folder / "calls"), str(folder / "tmp"), os.getpid()), daemon=True
+            )
+            with _STARTING:  # a Dask worker is a daemonic process, which multiprocessing lets start no child:
+                daemonic = current.daemon  # this one ends with it all the same (child.die_with_process)
+                current.daemon = False
+                try:
+                    self.process.start()
+                finally:
+                    current.daemon = daemonic
+        finally:
+            connection.close()
+        self.pid = self.process.pid
+
+    def poll(self) -> int | None:
+        return self.process.exitcode
+
+    def wait(self) -> int:
+        self.process.join()
+        return self.process.exitcode if self.process.exitcode is not None else 1
+
+    def kill(self) -> None:
+        if self.process.exitcode is None:
+            self.process.kill()
 
 
 class _Supervisor:
     """One child process running ``request``, its messages dispatched to the run's callbacks."""
 
-    def __init__(self, request: Request, folder: Path, callbacks: dict[str, Callable | None], watchdog: float):
+    def __init__(
+        self,
+        request: Request,
+        folder: Path,
+        callbacks: dict[str, Callable | None],
+        watchdog: float,
+        start_method: StartMethod,
+    ):
         self.request, self.callbacks, self.watchdog = request, callbacks, watchdog
         self.names = list(request.system.fmus)
         self.record = _Record(folder / "calls")
@@ -180,15 +204,9 @@ class _Supervisor:
         for end in (ours, theirs):  # room for a few blocks of solver steps: neither side waits on the other
             for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):
                 end.setsockopt(socket.SOL_SOCKET, option, SOCKET_BUFFER)
-        method = _start_method()
-        self.forked = method == "fork"
+        self.forked = start_method == "fork"
         try:
-            process: _Forked | fork_server.Served | subprocess.Popen | None = None
-            if self.forked:
-                process = _fork(request, ours, theirs, folder)
-            elif method == "server":  # None: no fork server could start
-                process = fork_server.spawn(theirs, str(folder / "calls"), str(folder / "tmp"))
-            self.process = process if process is not None else _execute(theirs, folder)
+            self.process = _fork(request, ours, theirs, folder) if self.forked else _Served(theirs, folder)
         finally:
             theirs.close()
         self.connection = Connection(ours.detach())
@@ -197,22 +215,10 @@ class _Supervisor:
         self.ended = False  # the child's end of the socket is closed
         self.started = False  # the child has its request: from now on the watchdog runs
 
-    def run(
-        self, should_stop: Callable[[], bool] | None, meanwhile: Callable[[], None] | None = None
-    ) -> tuple[str, object]:
-        """Serve the child until it reports its outcome or fails; returns (kind, payload).
-
-        ``meanwhile()`` is called once, when the child has its request and before any of its
-        messages is served (the child simulates meanwhile; its messages wait in the socket). An
-        exception from it is logged as a warning, and the run goes on: the rows are not lost for it.
-        """
+    def run(self, should_stop: Callable[[], bool] | None) -> tuple[str, object]:
+        """Serve the child until it reports its outcome or fails; returns (kind, payload)."""
         if not self.forked:  # a forked child has it already
             self.connection.send_bytes(pickle.dumps(self.request, protocol=pickle.HIGHEST_PROTOCOL))
-        if meanwhile is not None:
-            try:
-                meanwhile()
-            except Exception:
-                logger.warning("%r failed while the child simulated; the run goes on", meanwhile, exc_info=True)
         calls, progressed, stop_asked = -1, clock.monotonic(), None
         while self.outcome is None:
             received = self._receive()  # for at most about _POLL
@@ -256,13 +262,9 @@ class _Supervisor:
                 self.ended = True
                 return False
             if kind == "blocks":
-                for item, block in payload:
-                    if not self._dispatch(item, block):
-                        break
+                self._dispatch(*payload)
             elif kind == "progress" and self.callbacks.get("progress") is not None:
                 self.callbacks["progress"](payload)  # type: ignore[misc]
-            elif kind == "figures" and self.callbacks.get("figures") is not None:
-                self.callbacks["figures"](payload)  # type: ignore[misc]
             elif kind == "started":
                 self.started = True
             elif kind != "progress":
@@ -273,20 +275,22 @@ class _Supervisor:
                 break
         return True
 
-    def _dispatch(self, kind: str, block: np.ndarray) -> bool:
-        """A block of rows to the sink (``"rows"``) or the monitor (``"solution"``); False (and the
-        outcome set) when the sink cannot take it."""
-        callback = self.callbacks.get(kind)
-        if callback is None:
-            return True
-        try:
-            callback(block)
-        except (HeliostepError, RuntimeError) as exc:  # the sink cannot take them (disk full ...)
-            self.outcome = ("sink", f"{exc}")
-            return False
-        if kind == "rows" and len(block):
-            self.time = max(self.time, float(block[-1, 0]))
-        return True
+    def _dispatch(self, blocks: list[np.ndarray], totals: object) -> None:
+        """Blocks of trace rows to the sink, then the monitor's totals to the monitor (the outcome
+        set when the sink cannot take them)."""
+        store = self.callbacks.get("rows")
+        for block in blocks:
+            if store is not None:
+                try:
+                    store(block)
+                except (HeliostepError, RuntimeError) as exc:  # the sink cannot take them (disk full ...)
+                    self.outcome = ("sink", f"{exc}")
+                    return
+            if len(block):
+                self.time = max(self.time, float(block[-1, 0]))
+        take_totals = self.callbacks.get("totals")
+        if take_totals is not None and totals is not None:
+            take_totals(totals)
 
     def _where(self) -> str:
         unit, function, calls, time = self.record.read()
@@ -330,23 +334,24 @@ def simulate_supervised(
     output_times,
     solver: SolverOptions | None = None,
     progress: Callable[[float], None] | None = None,
-    monitor: Callable[[np.ndarray], None] | None = None,
+    monitor: SupervisedMonitor | None = None,
     should_stop: Callable[[], bool] | None = None,
     sink: Callable[[np.ndarray], None] | None = None,
     sink_rows: int = 4096,
     watchdog: float = DEFAULT_WATCHDOG,
-    meanwhile: Callable[[], None] | None = None,
+    start_method: StartMethod = "fork",
 ) -> MasterResult:
     """``system.simulate(...)`` in a supervised child process (see the module docstring).
 
-    ``watchdog`` [s]: how long no FMI call may begin before the FMU counts as hung. ``meanwhile``:
-    work of the caller's own done in this process while the child starts simulating (called once,
-    before the first of the child's rows is served; an exception from it is logged as a warning
-    and does not end the run), e.g. the trace writers' first-use costs
-    (:func:`heliostep.results.trace.files.warm_up_writers`).
+    ``monitor`` takes the rows in the child (a copy of it: forked, or pickled to the fork server's
+    child) and this one takes that one's totals as they come. ``watchdog`` [s]: how long no FMI call
+    may begin before the FMU counts as hung. ``start_method``: ``"fork"`` (this process runs one
+    thread) or ``"forkserver"`` (it runs threads: a Dask worker).
     """
     if not watchdog > 0:
         raise InputError(f"watchdog: {watchdog!r} s; expected a positive number of seconds")
+    if start_method not in ("fork", "forkserver"):
+        raise InputError(f"start_method: {start_method!r}; expected 'fork' or 'forkserver'")
     library_path()  # the compiled kernel built (once) here, not in the child's time
     request = Request(
         system,
@@ -356,22 +361,20 @@ def simulate_supervised(
         solver or SolverOptions(),
         sink_rows,
         sink=sink is not None,
-        monitor=monitor is not None,
+        monitor=monitor,
         progress=progress is not None,
-        figures=_figure_spec(monitor),
     )
     columns = master_columns(system)
     # the child hands over each block of rows its master stores; stored here again, they reach the
     # sink in the very blocks the master would hand it in-process (and none is lost in the child)
     rows = RowBuffer(columns, sink, sink_rows) if sink is not None else None
-    callbacks = {"rows": rows.store if rows is not None else None, "solution": monitor, "progress": progress}
-    if request.figures is not None:  # the kernel's figures, sent once by the child's master
-        callbacks["figures"] = getattr(monitor, "take_kernel_figures")  # noqa: B009
+    totals = monitor.take_totals if monitor is not None else None
+    callbacks = {"rows": rows.store if rows is not None else None, "totals": totals, "progress": progress}
     folder = Path(tempfile.mkdtemp(prefix="heliostep-child-"))
     supervisor = None
     try:
-        supervisor = _Supervisor(request, folder, callbacks, watchdog)
-        kind, payload = supervisor.run(should_stop, meanwhile)
+        supervisor = _Supervisor(request, folder, callbacks, watchdog, start_method)
+        kind, payload = supervisor.run(should_stop)
     finally:
         if supervisor is not None:
             supervisor.close()
@@ -418,12 +421,3 @@ def _outcome(kind: str, payload, reached: float, columns: list[str]) -> MasterRe
         "interrupted",
         reached,
     )
-
-
-def _figure_spec(monitor: Callable[[np.ndarray], None] | None) -> FigureSpec | None:
-    """What the child's kernel accumulates for ``monitor`` (None: every solution row sent back), as in-process."""
-    spec = getattr(monitor, "kernel_figures", None)
-    if not master_module.KERNEL_FIGURES or spec is None or not hasattr(monitor, "take_kernel_figures"):
-        return None
-    fields = spec()
-    return None if fields is None else FigureSpec(**fields)

@@ -186,8 +186,10 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
         dropped = {instance: None for instance, reference in data["fmus"].items() if reference is None}
         data["fmus"] = {**dropped, **{instance: str(path) for instance, path in local.items()}}
         scenario = validate_scenario(data, source=case.source, folder=case.folder)
-        # supervised (a crashing or hanging FMU fails this case only, named); the table needs the figures only
-        result = run_scenario(scenario, RunOptions(keep_trace=False, supervise=True, light_first_order=False))
+        # supervised (a crashing or hanging FMU fails this case only, named), the child started by a fork server
+        # (a Dask worker runs threads); the table needs the figures only
+        options = RunOptions(keep_trace=False, supervise=True, light_first_order=False, start_method="forkserver")
+        result = run_scenario(scenario, options)
         row.update(summary_figures(result.summary))
         motor = scenario.roles.instance_of("torque")
         row["holding_torque_Nm"] = _holding_torque(scenario, motor, local.get(motor) if motor else None)

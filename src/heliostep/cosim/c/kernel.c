@@ -265,244 +265,29 @@ int hs_root(double t, void *y, double *gout, void *user_data) {
 }
 
 /* the row at t of the prepared FMUs: time, master inputs, every unit's outputs */
-static int read_row(hs_kernel *k, double t, double *row) {
+static int read_row(hs_kernel *k, double t, double *row, long stride) {
     long i, j;
     row[0] = t;
-    for (j = 0; j < k->n_inputs; j++) row[1 + j] = k->inputs[j];
+    for (j = 0; j < k->n_inputs; j++) row[(1 + j) * stride] = k->inputs[j];
     for (i = 0; i < k->n_units; i++) {
         hs_unit *u = &k->units[i];
         hs_outputs *o = &u->real_outputs;
         if (o->n) {
             CHECK(u->get_real(u->component, o->vrs, (size_t)o->n, k->scratch), i, F_GET_REAL);
-            for (j = 0; j < o->n; j++) row[o->columns[j]] = k->scratch[j];
+            for (j = 0; j < o->n; j++) row[o->columns[j] * stride] = k->scratch[j];
         }
         o = &u->integer_outputs;
         if (o->n) {
             CHECK(u->get_integer(u->component, o->vrs, (size_t)o->n, o->ints), i, F_GET_INTEGER);
-            for (j = 0; j < o->n; j++) row[o->columns[j]] = (double)o->ints[j];
+            for (j = 0; j < o->n; j++) row[o->columns[j] * stride] = (double)o->ints[j];
         }
         o = &u->boolean_outputs;
         if (o->n) {
             CHECK(u->get_boolean(u->component, o->vrs, (size_t)o->n, o->ints), i, F_GET_BOOLEAN);
-            for (j = 0; j < o->n; j++) row[o->columns[j]] = o->ints[j] ? 1.0 : 0.0;
+            for (j = 0; j < o->n; j++) row[o->columns[j] * stride] = o->ints[j] ? 1.0 : 0.0;
         }
     }
     return 0;
-}
-
-/* ---------------------------------------------------------------- figures at every solution row
- * The twin of heliostep/results/solution.py SolutionRecorder, row by row instead of block by block:
- * the same peaks, trapezoid energy, tracking error (degrees of panel - reference, the reference
- * evaluated as scipy's PPoly evaluates it), envelope and steps judged as
- * heliostep/results/steps.py step_outcome judges them, the same operations in the same order on
- * each value. The sums over rows are taken one row after the other (numpy sums a block pairwise):
- * they differ in rounding only. */
-
-/* scipy's PPoly at x: the interval with breaks[i] <= x < breaks[i + 1] (the first or the last beyond
- * the breaks, the last at the end), then sum_k c[3 - k][i] s^k with s = x - breaks[i] */
-static double reference_at(hs_figures *f, double x) {
-    long n = f->n_breaks, m = n - 1, low = 0, high = n - 2, k, i = f->interval;
-    double s, z = 1.0, value = 0.0;
-    if (isnan(x)) return NAN;
-    if (i >= 0 && i < n - 1 && f->breaks[i] <= x && (x < f->breaks[i + 1] || (i == n - 2 && x >= f->breaks[i + 1])))
-        low = i; /* the last row's interval: the same interval as the search finds (it is unique) */
-    else if (x < f->breaks[0]) low = 0;
-    else if (x >= f->breaks[n - 1]) low = n - 2;
-    else
-        while (low < high) {
-            long mid = (low + high + 1) / 2;
-            if (x < f->breaks[mid]) high = mid - 1;
-            else low = mid;
-        }
-    f->interval = low;
-    s = x - f->breaks[low];
-    for (k = 0; k < 4; k++) {
-        value = value + f->coefs[(3 - k) * m + low] * z;
-        if (k < 3) z *= s;
-    }
-    return value;
-}
-
-/* step_outcome of the open step over its held rows [0, n) */
-static void judge(hs_figures *f, long n) {
-    const double *t = f->held_t, *x = f->held_x;
-    double commanded = f->commanded[f->judged], *out = f->outcomes + 3 * f->judged;
-    double move = (x[n - 1] - x[0]) / f->increment, rest = commanded - f->lag, band = f->band * f->increment;
-    long j, outside = -1;
-    out[0] = fabs(move - (commanded - f->previous) / f->increment) > f->miss_tolerance ? 1.0 : 0.0;
-    rest -= f->period * nearbyint((rest - x[n - 1]) / f->period);
-    for (j = 0; j < n; j++)
-        if (fabs(x[j] - rest) > band) outside = j;
-    if (outside < 0) out[1] = 0.0;
-    else if (outside == n - 1) out[1] = NAN;
-    else {
-        double d0 = fabs(x[outside] - rest) - band, d1 = fabs(x[outside + 1] - rest) - band;
-        double fraction = d0 != d1 ? d0 / (d0 - d1) : 1.0;
-        out[1] = t[outside] + fraction * (t[outside + 1] - t[outside]) - f->step_times[f->judged];
-    }
-    out[2] = move;
-}
-
-static int hold(hs_figures *f, double t, double x) {
-    if (f->held == f->held_capacity) {
-        long capacity = f->held_capacity ? 2 * f->held_capacity : 4096;
-        double *ht = realloc(f->held_t, (size_t)capacity * sizeof(double)), *hx;
-        if (!ht) return -1;
-        f->held_t = ht;
-        hx = realloc(f->held_x, (size_t)capacity * sizeof(double));
-        if (!hx) return -1;
-        f->held_x = hx;
-        f->held_capacity = capacity;
-    }
-    f->held_t[f->held] = t;
-    f->held_x[f->held] = x;
-    f->held++;
-    if (f->held > f->max_held) f->max_held = f->held;
-    return 0;
-}
-
-/* StepJudge: a step opens at its first row at or after its time and is judged at the first row at or
- * after the next step's (that row included, and the first of the next step) */
-static int judge_row(hs_figures *f, double t, double x) {
-    if (f->judged >= f->n_steps) return 0;
-    if (!f->open) {
-        if (!(t >= f->step_times[f->judged])) return 0;
-        f->open = 1;
-        f->held = 0;
-    }
-    if (hold(f, t, x)) return -1;
-    while (f->judged + 1 < f->n_steps && t >= f->step_times[f->judged + 1]) {
-        judge(f, f->held);
-        f->previous = f->commanded[f->judged];
-        f->judged++;
-        f->held = 0;
-        if (hold(f, t, x)) return -1;
-    }
-    return 0;
-}
-
-static void envelope_row(hs_figures *f, const double *row) {
-    double where = floor((row[0] - f->env_start) / (f->env_end - f->env_start) * (double)f->bins);
-    long bin, j;
-    if (isnan(where)) return;
-    bin = where < 0.0 ? 0 : (where > (double)(f->bins - 1) ? f->bins - 1 : (long)where);
-    for (j = 0; j < f->n_enveloped; j++) {
-        double v = row[f->enveloped[j]], *low = f->low + j * f->bins + bin, *high = f->high + j * f->bins + bin;
-        *low = fmin(*low, v);
-        *high = fmax(*high, v);
-        if (fabs(v) > f->worst[j]) {
-            f->worst[j] = fabs(v);
-            f->worst_at[2 * j] = row[0];
-            f->worst_at[2 * j + 1] = v;
-        }
-    }
-}
-
-/* PeakWindow: the rows within half_width of the largest |torque| (at most max_rows: later ones are
- * left out), the recent rows kept to start a new peak's window */
-static void peak_row(hs_figures *f, const double *row) {
-    long p = f->n_plotted, j;
-    double t = row[0], magnitude = fabs(row[f->torque]);
-    double *kept = f->trail;
-    if (f->trail_rows == f->max_rows) { /* the oldest half (or those 2 half widths old) dropped */
-        long drop = 0;
-        while (drop < f->trail_rows && kept[drop * p] < t - 2.0 * f->half_width) drop++;
-        if (drop == 0) drop = f->trail_rows / 2;
-        memmove(kept, kept + drop * p, (size_t)((f->trail_rows - drop) * p) * sizeof(double));
-        f->trail_rows -= drop;
-    }
-    for (j = 0; j < p; j++) kept[f->trail_rows * p + j] = row[f->plotted[j]];
-    f->trail_rows++;
-    if (isfinite(magnitude) && magnitude > f->peak) {
-        long r;
-        f->peak = magnitude;
-        f->peak_time = t;
-        f->peak_value = row[f->torque];
-        f->until = t + f->half_width;
-        f->window_rows = 0;
-        for (r = 0; r < f->trail_rows; r++)
-            if (fabs(kept[r * p] - t) <= f->half_width && f->window_rows < f->max_rows) {
-                memcpy(f->window + f->window_rows * p, kept + r * p, (size_t)p * sizeof(double));
-                f->window_rows++;
-            }
-    } else if (f->window_rows && t <= f->until && f->window_rows < f->max_rows) {
-        memcpy(f->window + f->window_rows * p, kept + (f->trail_rows - 1) * p, (size_t)p * sizeof(double));
-        f->window_rows++;
-    }
-}
-
-int hs_figures_row(hs_figures *f, const double *row, long width) {
-    double t = row[0];
-    if (f->count == 0) {
-        f->first_time = t;
-        if (f->rotor >= 0) {
-            f->first_rotor = row[f->rotor];
-            f->lag = f->initial_command - row[f->rotor];
-        }
-        f->previous = f->initial_command;
-    } else {
-        if (t < f->last[0]) f->unordered++;
-        f->last_repeated = t == f->last[0];
-    }
-    if (f->torque >= 0 && fabs(row[f->torque]) > f->peak_torque) f->peak_torque = fabs(row[f->torque]);
-    {
-        long j;
-        for (j = 0; j < f->n_currents; j++)
-            if (fabs(row[f->currents[j]]) > f->peak_current) f->peak_current = fabs(row[f->currents[j]]);
-    }
-    if (f->power >= 0 && f->count)
-        f->energy += (t - f->last[0]) * (f->last[f->power] + row[f->power]) / 2.0;
-    if (f->panel >= 0 && f->n_breaks > 1) {
-        double e = (row[f->panel] - reference_at(f, t)) * (180.0 / M_PI);
-        if (fabs(e) > f->error_max) f->error_max = fabs(e);
-        f->error_sq_sum += e * e;
-        if (f->count) {
-            f->error_sq_int += (t - f->last[0]) * (f->last_error * f->last_error + f->last_error * e + e * e) / 3.0;
-            f->error_int += (t - f->last[0]) * (f->last_error + e) / 2.0;
-        }
-        f->last_error = e;
-        while (f->marked < f->n_steps && t >= f->step_times[f->marked]) {
-            f->error_sq_marks[f->marked] = f->error_sq_int;
-            f->error_marks[f->marked++] = f->error_int;
-        }
-        if (!isnan(e)) {
-            double *x = f->extremes + 6 * f->marked;
-            if (isnan(x[1]) || e > x[1]) x[0] = t, x[1] = e, x[2] = row[f->panel];
-            if (isnan(x[4]) || e < x[4]) x[3] = t, x[4] = e, x[5] = row[f->panel];
-        }
-    }
-    if (f->rotor >= 0 && judge_row(f, t, row[f->rotor])) return -1;
-    if (f->n_enveloped) envelope_row(f, row);
-    if (f->torque >= 0 && f->n_plotted) peak_row(f, row);
-    memcpy(f->last, row, (size_t)width * sizeof(double));
-    f->count++;
-    return 0;
-}
-
-void hs_figures_judge_open(hs_figures *f, double end) {
-    if (f->open && f->judged < f->n_steps && f->held) {
-        long n = f->held;
-        if (f->judged + 1 == f->n_steps) { /* the last step: up to its first row at the end */
-            long cut = 0;
-            while (cut < n - 1 && f->held_t[cut] < end) cut++;
-            n = cut + 1;
-        }
-        judge(f, n);
-        f->judged++;
-        f->open = 0;
-    }
-}
-
-void hs_figures_finish(hs_figures *f, double end) {
-    hs_figures_judge_open(f, end);
-    hs_figures_free(f);
-}
-
-void hs_figures_free(hs_figures *f) {
-    free(f->held_t);
-    free(f->held_x);
-    f->held_t = f->held_x = NULL;
-    f->held_capacity = f->held = 0;
 }
 
 #define CV_ONE_STEP 2
@@ -513,8 +298,8 @@ void hs_figures_free(hs_figures *f) {
  *
  * After each internal step: the rows at the output times grid[a->next_output...] passed on the
  * way (interpolated, kind 1; only with a->interpolate), then, unless the step is the last one
- * (a root, the stop time), the row at the step (kind 0). Rows go to rows[a->n_rows...]
- * (row_width doubles each) with their kinds, up to a->capacity rows: when the buffer is full the
+ * (a root, the stop time), the row at the step (kind 0). Rows go to row a->n_rows... of the
+ * column-major buffer rows (kernel.h) with their kinds, up to a->capacity rows: when it is full the
  * call returns ADVANCE_FULL and the next call goes on where it stopped. On every return but a
  * failure the FMUs hold the solution at the time reached (a->t_reached). a->steps counts the
  * internal steps (refused past a->max_steps: ADVANCE_MAX_STEPS), a->cvode_flag is the last flag.
@@ -551,9 +336,7 @@ int hs_advance(hs_kernel *k, hs_advance_args *a) {
                 if (a->n_rows >= a->capacity || outputs >= a->max_outputs) return ADVANCE_FULL;
                 if (!k->discrete && k->get_dky(a->cvode_mem, g < t ? g : t, 0, a->dky) < 0) return ADVANCE_DKY_FAILED;
                 if (hs_prepare(k, g, k->discrete ? NULL : k->data(a->dky), 0)) return ADVANCE_FMU_FAILED;
-                if (read_row(k, g, a->rows + a->n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
-                if (k->figures && hs_figures_row(k->figures, a->rows + a->n_rows * k->row_width, k->row_width))
-                    return ADVANCE_NO_MEMORY;
+                if (read_row(k, g, a->rows + a->n_rows, a->capacity)) return ADVANCE_FMU_FAILED;
                 a->kinds[a->n_rows] = 1;
                 a->n_rows++;
                 outputs++;
@@ -565,17 +348,9 @@ int hs_advance(hs_kernel *k, hs_advance_args *a) {
             if (hs_prepare(k, t, k->data(a->y), 1)) return ADVANCE_FMU_FAILED;
             return k->step_flag == CV_ROOT_RETURN ? ADVANCE_ROOT : ADVANCE_REACHED;
         }
-        if (k->figures) { /* the step's row into the figures only, assembled in the spare row after the buffer */
-            double *spare = a->rows + a->capacity * k->row_width;
-            if (hs_prepare(k, t, k->data(a->y), 0)) return ADVANCE_FMU_FAILED;
-            if (read_row(k, t, spare)) return ADVANCE_FMU_FAILED;
-            if (hs_figures_row(k->figures, spare, k->row_width)) return ADVANCE_NO_MEMORY;
-            k->pending = 0;
-            continue;
-        }
         if (a->n_rows >= a->capacity) return ADVANCE_FULL;
         if (hs_prepare(k, t, k->data(a->y), 0)) return ADVANCE_FMU_FAILED;
-        if (read_row(k, t, a->rows + a->n_rows * k->row_width)) return ADVANCE_FMU_FAILED;
+        if (read_row(k, t, a->rows + a->n_rows, a->capacity)) return ADVANCE_FMU_FAILED;
         a->kinds[a->n_rows] = 0;
         a->n_rows++;
         k->pending = 0;
@@ -604,7 +379,7 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_kernel, failed_function), FIELD(hs_kernel, failed_time), FIELD(hs_kernel, cvode),
     FIELD(hs_kernel, get_dky), FIELD(hs_kernel, n_inputs), FIELD(hs_kernel, row_width), FIELD(hs_kernel, inputs),
     FIELD(hs_kernel, scratch), FIELD(hs_kernel, pending), FIELD(hs_kernel, step_time), FIELD(hs_kernel, step_flag),
-    FIELD(hs_kernel, prepare), FIELD(hs_kernel, prepare_user), FIELD(hs_kernel, where), FIELD(hs_kernel, loop), FIELD(hs_kernel, figures),
+    FIELD(hs_kernel, prepare), FIELD(hs_kernel, prepare_user), FIELD(hs_kernel, where), FIELD(hs_kernel, loop),
     SIZE(hs_loop), FIELD(hs_loop, n), FIELD(hs_loop, first_link), FIELD(hs_loop, target_units), FIELD(hs_loop, source_units),
     FIELD(hs_loop, target_vrs), FIELD(hs_loop, source_vrs), FIELD(hs_loop, v), FIELD(hs_loop, work),
     FIELD(hs_loop, rtol), FIELD(hs_loop, atol), FIELD(hs_loop, max_iterations), FIELD(hs_loop, checked),
@@ -617,30 +392,10 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_advance_args, max_outputs),
     FIELD(hs_advance_args, next_output), FIELD(hs_advance_args, n_rows), FIELD(hs_advance_args, steps),
     FIELD(hs_advance_args, t_reached), FIELD(hs_advance_args, cvode_flag),
-    SIZE(hs_figures), FIELD(hs_figures, torque), FIELD(hs_figures, power), FIELD(hs_figures, panel),
-    FIELD(hs_figures, rotor), FIELD(hs_figures, n_currents), FIELD(hs_figures, currents),
-    FIELD(hs_figures, n_breaks), FIELD(hs_figures, breaks), FIELD(hs_figures, coefs), FIELD(hs_figures, n_steps),
-    FIELD(hs_figures, step_times), FIELD(hs_figures, commanded), FIELD(hs_figures, initial_command),
-    FIELD(hs_figures, increment), FIELD(hs_figures, period), FIELD(hs_figures, band),
-    FIELD(hs_figures, miss_tolerance), FIELD(hs_figures, outcomes), FIELD(hs_figures, n_enveloped),
-    FIELD(hs_figures, bins), FIELD(hs_figures, enveloped), FIELD(hs_figures, env_start), FIELD(hs_figures, env_end),
-    FIELD(hs_figures, low), FIELD(hs_figures, high), FIELD(hs_figures, worst), FIELD(hs_figures, worst_at),
-    FIELD(hs_figures, n_plotted), FIELD(hs_figures, max_rows), FIELD(hs_figures, plotted),
-    FIELD(hs_figures, half_width), FIELD(hs_figures, window), FIELD(hs_figures, trail), FIELD(hs_figures, count),
-    FIELD(hs_figures, unordered), FIELD(hs_figures, window_rows), FIELD(hs_figures, trail_rows),
-    FIELD(hs_figures, judged), FIELD(hs_figures, open), FIELD(hs_figures, held), FIELD(hs_figures, held_capacity),
-    FIELD(hs_figures, max_held), FIELD(hs_figures, last_repeated), FIELD(hs_figures, interval), FIELD(hs_figures, first_time),
-    FIELD(hs_figures, first_rotor), FIELD(hs_figures, lag), FIELD(hs_figures, previous), FIELD(hs_figures, until),
-    FIELD(hs_figures, peak), FIELD(hs_figures, peak_time), FIELD(hs_figures, peak_value),
-    FIELD(hs_figures, peak_torque), FIELD(hs_figures, peak_current), FIELD(hs_figures, energy),
-    FIELD(hs_figures, error_max), FIELD(hs_figures, error_sq_int), FIELD(hs_figures, error_sq_sum),
-    FIELD(hs_figures, last_error), FIELD(hs_figures, last), FIELD(hs_figures, held_t), FIELD(hs_figures, held_x),
-    FIELD(hs_figures, error_int), FIELD(hs_figures, error_marks), FIELD(hs_figures, marked), FIELD(hs_figures, extremes),
-    FIELD(hs_figures, error_sq_marks),
     CODE(F_SET_TIME), CODE(F_SET_STATES), CODE(F_GET_REAL), CODE(F_SET_REAL), CODE(F_GET_DERIVATIVES),
     CODE(F_GET_EVENT_INDICATORS), CODE(F_GET_INTEGER), CODE(F_GET_BOOLEAN),
     CODE(ADVANCE_REACHED), CODE(ADVANCE_ROOT), CODE(ADVANCE_FULL), CODE(ADVANCE_MAX_STEPS),
-    CODE(ADVANCE_CVODE_FAILED), CODE(ADVANCE_FMU_FAILED), CODE(ADVANCE_DKY_FAILED), CODE(ADVANCE_NO_MEMORY),
+    CODE(ADVANCE_CVODE_FAILED), CODE(ADVANCE_FMU_FAILED), CODE(ADVANCE_DKY_FAILED),
     CODE(LOOP_FAILED), CODE(LOOP_NO_CONVERGENCE), CODE(LOOP_SINGULAR),
 };
 
@@ -651,12 +406,12 @@ long hs_describe(const char *name) {
     return -1;
 }
 
-/* ================================================================ events (issue #26): hs_event
+/* ================================================================ events: hs_event
  * The fixed work of one event of the master (heliostep/cosim/master.py _Run._event) in one call,
  * the FMI calls in the order the Python path makes them (heliostep/cosim/events.py event_iteration
  * and discrete_fixed_point, CoupledSystem.row, CVodeIntegrator.reset):
  *   (prepare) fmi2SetTime on every unit and the continuous Real connections copied;
- *   the row before (read_row; into the figures when the kernel accumulates them);
+ *   the row before (read_row);
  *   fmi2EnterEventMode on every unit;
  *   (new inputs) each master input's value from input_time on (the values of its piecewise-constant
  *     signal at searchsorted(times, input_time, 'right')) and fmi2SetReal into its target;
@@ -669,8 +424,8 @@ long hs_describe(const char *name) {
  *   the row after: EVENT_DONE.
  * Only for FMI 2.0 units with all connections continuous Real, no algebraic loop, Real input targets
  * (heliostep/cosim/fast_events.py decides); an FMI status worse than fmi2Warning is recorded as in
- * hs_rhs (EVENT_FAILED). Everything here is this section's own: it calls read_row, copy_links and
- * hs_figures_row and changes nothing above. */
+ * hs_rhs (EVENT_FAILED). Everything here is this section's own: it calls read_row and copy_links and
+ * changes nothing above. */
 
 typedef int (*status_only_t)(fmi2Component);
 typedef int (*new_discrete_t)(fmi2Component, void *);
@@ -712,7 +467,7 @@ typedef struct {
     void *cvode_mem, *y;
     double *rows;                   /* 2 rows: before and after */
     /* updated */
-    long recorded;                  /* rows recorded (and passed to the figures) */
+    long recorded;                  /* rows recorded */
     long entered, continued;        /* units in event mode / back in continuous-time mode */
     long unit;                      /* EVENT_GENERAL: the unit whose event info asks for more */
     hs_event_info info;             /* and that info */
@@ -720,8 +475,7 @@ typedef struct {
     int cvode_flag;
 } hs_event_args;
 
-enum { EVENT_DONE = 0, EVENT_GENERAL = 1, EVENT_CHANGED = 2, EVENT_FAILED = -1, EVENT_REINIT_FAILED = -2,
-       EVENT_NO_MEMORY = -3 };
+enum { EVENT_DONE = 0, EVENT_GENERAL = 1, EVENT_CHANGED = 2, EVENT_FAILED = -1, EVENT_REINIT_FAILED = -2 };
 
 /* numpy's searchsorted(times, x, side='right'): the number of times <= x */
 static long events_after(const double *times, long n, double x) {
@@ -737,7 +491,7 @@ static long events_after(const double *times, long n, double x) {
 static int events_round(hs_kernel *k, hs_events *e, hs_event_args *a) {
     double t = a->t, *before = e->work, *after = e->work + k->row_width;
     long i, j, first = 1 + k->n_inputs;
-    if (read_row(k, t, before)) return EVENT_FAILED;
+    if (read_row(k, t, before, 1)) return EVENT_FAILED;
     if (copy_links(k, t, 0, k->n_links)) return EVENT_FAILED;
     for (i = 0; i < k->n_units; i++) {
         hs_event_info info = {0, 0, 0, 0, 0, 0.0};
@@ -750,7 +504,7 @@ static int events_round(hs_kernel *k, hs_events *e, hs_event_args *a) {
             return EVENT_GENERAL;
         }
     }
-    if (read_row(k, t, after)) return EVENT_FAILED;
+    if (read_row(k, t, after, 1)) return EVENT_FAILED;
     for (j = 0; j < e->n_outputs; j++)
         if (!(after[first + j] == before[first + j])) { /* numpy's array_equal: NaN differs */
             memcpy(a->outputs, after + first, (size_t)e->n_outputs * sizeof(double));
@@ -769,9 +523,8 @@ int hs_event(hs_kernel *k, hs_events *e, hs_event_args *a) {
         for (i = 0; i < k->n_units; i++) CHECK(k->units[i].set_time(k->units[i].component, t), i, F_SET_TIME);
         if (copy_links(k, t, 0, k->n_links)) return EVENT_FAILED;
     }
-    if (read_row(k, t, a->rows)) return EVENT_FAILED;
+    if (read_row(k, t, a->rows, 1)) return EVENT_FAILED;
     a->recorded = 1;
-    if (k->figures && hs_figures_row(k->figures, a->rows, k->row_width)) return EVENT_NO_MEMORY;
     for (i = 0; i < k->n_units; i++) {
         CHECK(e->units[i].enter_event_mode(k->units[i].component), i, e->f_enter_event);
         a->entered = i + 1;
@@ -800,9 +553,8 @@ int hs_event(hs_kernel *k, hs_events *e, hs_event_args *a) {
     }
     a->cvode_flag = e->reinit(a->cvode_mem, t, a->y);
     if (a->cvode_flag != 0) return EVENT_REINIT_FAILED;
-    if (read_row(k, t, a->rows + k->row_width)) return EVENT_FAILED;
+    if (read_row(k, t, a->rows + k->row_width, 1)) return EVENT_FAILED;
     a->recorded = 2;
-    if (k->figures && hs_figures_row(k->figures, a->rows + k->row_width, k->row_width)) return EVENT_NO_MEMORY;
     return EVENT_DONE;
 }
 
@@ -836,7 +588,6 @@ static const struct { const char *name; long value; } event_layout[] = {
     FIELD(hs_event_args, unit), FIELD(hs_event_args, info), FIELD(hs_event_args, outputs),
     FIELD(hs_event_args, cvode_flag),
     CODE(EVENT_DONE), CODE(EVENT_GENERAL), CODE(EVENT_CHANGED), CODE(EVENT_FAILED), CODE(EVENT_REINIT_FAILED),
-    CODE(EVENT_NO_MEMORY),
 };
 
 long hs_event_describe(const char *name) {

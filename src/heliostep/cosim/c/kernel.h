@@ -82,54 +82,6 @@ typedef struct {
     double time;                           /* the time of the call [s] */
 } hs_where;
 
-/* The figures of a run accumulated at every solution row (kernel.c, hs_figures_row; the twin of
- * heliostep/results/solution.py SolutionRecorder, heliostep/cosim/figures.py): the rows the
- * kernel records (internal steps, output times) and those the master passes (events). */
-typedef struct {
-    /* set by the caller: columns of a row (-1: none) */
-    long torque, power, panel, rotor;
-    long n_currents;
-    const long *currents;
-    /* the panel reference [rad]: a piecewise cubic (scipy PPoly: breaks, coefficients c[k][i] at coefs[k n + i]) */
-    long n_breaks;
-    const double *breaks, *coefs;
-    /* the steps: times [s], commanded rotor angles [rad]; each judged into outcomes (missed, settling [s], NaN:
-     * not settled, move [increments]) */
-    long n_steps;
-    const double *step_times, *commanded;
-    double initial_command, increment, period, band, miss_tolerance;
-    double *outcomes;
-    /* the envelope: columns, span [s], bins; least and largest per bin, largest magnitude and its (time, value) */
-    long n_enveloped, bins;
-    const long *enveloped;
-    double env_start, env_end;
-    double *low, *high, *worst, *worst_at;
-    /* the rows around the peak |torque|: the plotted columns (time first, the torque second), half width [s] */
-    long n_plotted, max_rows;
-    const long *plotted;
-    double half_width;
-    double *window, *trail;   /* max_rows rows of n_plotted each */
-    /* updated */
-    long count, unordered, window_rows, trail_rows, judged, open, held, held_capacity, max_held, last_repeated;
-    long interval;            /* the reference's interval of the last row (rows come in time order) */
-    double first_time, first_rotor, lag, previous, until, peak, peak_time, peak_value;
-    double peak_torque, peak_current, energy, error_max, error_sq_int, error_sq_sum, last_error;
-    double *last;             /* the last row (row width) */
-    double *held_t, *held_x;  /* the rotor's rows of the open step (malloc'd; hs_figures_free) */
-    /* the tracking error's integral over the rows [deg s] (trapezoid, with the error's sums), and its
-     * value at the first row at or after each step's time: error_marks[0, marked), of n_steps (set by the
-     * caller: the light's correction for the rows between the output rows, heliostep/results/light_rows.py) */
-    double error_int;
-    double *error_marks;
-    long marked;
-    /* per interval between the marks (the first row, the steps; n_steps + 1 of them, the row's interval the
-     * steps marked by it): the rows of the error's largest and least value, (t, e, panel) each [s, deg, rad]
-     * (set by the caller to NaN: the light's misses at the panel's swing, heliostep/results/light_rows.py) */
-    double *extremes;
-    /* the integral of e^2 [deg^2 s] (error_sq_int) at each mark: error_sq_marks[0, marked) */
-    double *error_sq_marks;
-} hs_figures;
-
 typedef struct {
     long n_units;
     hs_unit *units;
@@ -155,8 +107,6 @@ typedef struct {
      * time and a count of the calls begun are stored there */
     hs_where *where;
     hs_loop *loop;            /* NULL, or the algebraic loops solved at every propagation */
-    hs_figures *figures;      /* NULL, or the figures accumulated at every row (the internal steps' rows then
-                                 not handed over) */
 } hs_kernel;
 
 /* One call of hs_advance: what the caller sets, then what hs_advance updates. */
@@ -169,7 +119,8 @@ typedef struct {
     const double *grid;       /* the output times */
     long n_grid;
     int interpolate;          /* record the output times passed on the way */
-    double *rows;             /* capacity rows of row_width doubles */
+    double *rows;             /* capacity rows, column-major: column c of row r at rows[c * capacity + r]
+                                 (each column contiguous, for the monitor's numpy) */
     long *kinds;              /* per row: 0 an internal step, 1 an output time */
     long capacity;
     long max_steps;           /* internal steps allowed in all calls towards t_stop */
@@ -191,18 +142,11 @@ enum { LOOP_FAILED = 100, LOOP_NO_CONVERGENCE = 1, LOOP_SINGULAR = 2 };
 
 /* what hs_advance returns */
 enum { ADVANCE_REACHED = 0, ADVANCE_ROOT = 1, ADVANCE_FULL = 2, ADVANCE_MAX_STEPS = 3,
-       ADVANCE_CVODE_FAILED = -1, ADVANCE_FMU_FAILED = -2, ADVANCE_DKY_FAILED = -3, ADVANCE_NO_MEMORY = -4 };
+       ADVANCE_CVODE_FAILED = -1, ADVANCE_FMU_FAILED = -2, ADVANCE_DKY_FAILED = -3 };
 
 int hs_rhs(double t, void *y, void *ydot, void *user_data);
 int hs_root(double t, void *y, double *gout, void *user_data);
 int hs_advance(hs_kernel *k, hs_advance_args *a);
-/* one solution row (row width doubles) into the figures; the open step judged to the end (time end [s]);
- * the open step's rows freed. hs_figures_row returns -1 when memory for the step's rows runs out */
-int hs_figures_row(hs_figures *f, const double *row, long width);
-void hs_figures_finish(hs_figures *f, double end);
-/* the open step judged to the end, its rows kept (on a copy of the structure: a snapshot of the figures) */
-void hs_figures_judge_open(hs_figures *f, double end);
-void hs_figures_free(hs_figures *f);
 /* sizeof("hs_unit"), offsetof("hs_unit.nx") or the value of a code ("ADVANCE_ROOT"); -1 if unknown */
 long hs_describe(const char *name);
 

@@ -237,6 +237,11 @@ class StepJudge:
                 self._step_t.append(time[pos:])
                 self._step_x.append(rotor[pos:])
                 return
+            if not self._step_t:  # the steps that begin and end in this block: judged at once
+                judged = self._judge_within(time, rotor, pos)
+                if judged is not None:
+                    pos = judged
+                    continue
             last = pos + int(np.searchsorted(time[pos:], times[self._k + 1], side="left"))
             if last == len(time):
                 self._step_t.append(time[pos:])
@@ -254,6 +259,48 @@ class StepJudge:
             self._open = False
             self._step_t, self._step_x = [], []
             pos = last
+
+    def _judge_within(self, time: np.ndarray, rotor: np.ndarray, pos: int) -> int | None:
+        """Judge the open step (its rows from ``pos`` on) and those after it that end within the
+        block, as :func:`step_outcome` judges one, operation for operation on arrays: returns the
+        first row of the step then open (None: none ends here)."""
+        times, k = self.schedule.times, self._k
+        ends = np.searchsorted(time, times[k + 1 :], side="left")
+        m = int(np.searchsorted(ends, len(time), side="left"))  # steps k .. k + m - 1 end here
+        if m == 0 or self.lag is None:
+            return None
+        starts = np.concatenate([[pos], ends[: m - 1]])
+        stops = ends[:m]
+        sequencer, increment = self.sequencer, self.sequencer.increment
+        period, band = _period(sequencer), SETTLING_BAND * increment
+        commanded = np.asarray(sequencer.position(self.schedule.indices[k : k + m]), dtype=float)
+        previous = np.concatenate([[self._previous], commanded[:-1]])
+        move = (rotor[stops] - rotor[starts]) / increment
+        missed = np.abs(move - (commanded - previous) / increment) > MISS_TOLERANCE
+        rest = commanded - self.lag
+        rest -= period * np.round((rest - rotor[stops]) / period)
+        lengths = stops - starts + 1  # each step's rows: its first to the next step's first, both included
+        offsets = np.cumsum(lengths) - lengths
+        local = np.arange(int(lengths.sum())) - np.repeat(offsets, lengths)
+        rows = np.repeat(starts, lengths) + local
+        outside = np.abs(rotor[rows] - np.repeat(rest, lengths)) > band
+        last = np.maximum.reduceat(np.where(outside, local, -1), offsets)  # each step's last row outside
+        j = starts + np.maximum(last, 0)
+        following = np.minimum(j + 1, len(time) - 1)
+        d0, d1 = np.abs(rotor[j] - rest) - band, np.abs(rotor[following] - rest) - band
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fraction = np.where(d0 != d1, d0 / (d0 - d1), 1.0)
+        settling = time[j] + fraction * (time[following] - time[j]) - times[k : k + m]
+        for i in range(m):
+            settled = 0.0 if last[i] < 0 else None if last[i] == lengths[i] - 1 else float(settling[i])
+            self.outcomes.append(
+                StepOutcome(float(times[k + i]), float(commanded[i]), bool(missed[i]), settled, float(move[i]))
+            )
+        self.max_held = max(self.max_held, int(lengths.max()))
+        self._previous = float(commanded[-1])
+        self._k += m
+        self._open = self._k < len(self.schedule)  # the next step's first row: the last step's last
+        return int(stops[-1])
 
     def _outcome(self, t: np.ndarray, x: np.ndarray) -> StepOutcome:
         if self.lag is None:  # set by the first rows taken, before any step is judged
