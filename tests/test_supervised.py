@@ -146,9 +146,7 @@ def test_a_crash_or_hang_in_a_child_of_the_fork_server_fails_the_run_with_its_fi
     its figures those of the rows the child sent (the steps before the fault judged), no fault dump."""
     scenario = _scenario(tmp_path, faulty_fmu, fault)
     with pytest.raises(RunFailed) as failure:
-        run_scenario(
-            scenario, RunOptions(supervise=True, watchdog=3.0, keep_trace=False, start_method="forkserver")
-        )
+        run_scenario(scenario, RunOptions(supervise=True, watchdog=3.0, keep_trace=False, start_method="forkserver"))
     result = failure.value.result
     ended, reason = FAULTS[fault]
     assert result.reason == reason and ended in str(failure.value)
