@@ -24,9 +24,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from heliostep.cosim.child import MAX_ROWS_LOST
 from heliostep.results.trace.files import read_trace
 from heliostep.run import RunFailed, RunOptions, run_scenario
+from heliostep.run.supervision.child import MAX_ROWS_LOST
 from third_party_fmu import build_mini_fmu
 
 CLI = "from heliostep.cli import console_main; console_main()"

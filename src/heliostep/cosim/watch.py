@@ -1,6 +1,6 @@
 """Where this process's FMU calls are, for a supervisor in another process.
 
-A supervised run (:mod:`heliostep.run.supervised`) simulates in a child process; when an FMU
+A supervised run (:mod:`heliostep.run.supervision.supervisor`) simulates in a child process; when an FMU
 crashes or hangs there, the supervisor must still name the instance and the FMI function it was
 in. Before every FMI call the child stores, in a small record that both processes map (a file
 of :data:`RECORD_BYTES` bytes, mapped shared), the instance's index in the master's order, the
