@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "support"))
 
 import heliostep.cosim.integrator as integrator  # noqa: E402
 from heliostep.cosim import Connection, CoSimulation, PiecewiseConstant, SolverOptions, read_fmu  # noqa: E402

@@ -5,17 +5,9 @@ import signal
 import pytest
 
 from heliostep.fmu.build import build_fmu
+from shipped_models import MODELS
 
 pytest.register_assert_rewrite("lag_reference")  # its checks say their values when they fail, as a test's do
-
-MODELS = (
-    "StepperMotor",
-    "StepperMotorIdealCurrent",
-    "PanelMechanics",
-    "PanelMechanicsSmallAngle",
-    "PanelMechanicsKarnopp",
-    "DriveSystem",
-)
 
 
 def pytest_configure(config):

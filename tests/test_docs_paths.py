@@ -1,6 +1,6 @@
 """Every repository path and heliostep module that README.md and docs/architecture.md name exists.
 
-A path is a backticked word that looks like a file or folder of the repository (``tests/test_run.py``,
+A path is a backticked word that looks like a file or folder of the repository (``tests/run/test_run.py``,
 ``benchmarks/bench_run.py``, ``results/figures/solution.py``: relative to the repository, to ``src`` or to
 ``src/heliostep``; a bare ``kernel.c`` or ``test_ssp_fmi3.py`` anywhere in the repository), a dotted
 ``heliostep.…`` name (a module, or an attribute of one), or a Markdown link to a local file. Words with
@@ -124,7 +124,7 @@ def test_every_test_a_document_names_is_defined_in_its_file(doc):
 
 def test_the_path_pattern_takes_repository_paths_and_leaves_outputs_and_placeholders():
     words = [
-        "tests/test_run.py::test_x",
+        "tests/run/test_run.py::test_x",
         "results/figures/solution.py",
         "kernel.c",
         "models/NAME.mo",
@@ -136,7 +136,7 @@ def test_the_path_pattern_takes_repository_paths_and_leaves_outputs_and_placehol
         "--set fmus.motor=X",
         "heliostep.cosim.fmi",
     ]
-    assert _path_words(words) == ["tests/test_run.py", "results/figures/solution.py", "kernel.c"]
+    assert _path_words(words) == ["tests/run/test_run.py", "results/figures/solution.py", "kernel.c"]
     assert _module_words(["heliostep.cosim.fmi", "heliostep.run_scenario", "sections"]) == [
         "heliostep.cosim.fmi",
         "heliostep.run_scenario",

@@ -1,6 +1,6 @@
 """Issue #24: FMI 3.0 Model Exchange FMUs in the master and its compiled kernel.
 
-The mini FMI 3.0 FMUs (``tests/data/mini3/``, built by ``tests/third_party_fmu3.py``): Counter3
+The mini FMI 3.0 FMUs (``tests/data/mini3/``, built by ``tests/support/third_party_fmu3.py``): Counter3
 (an Int32 count stepped at time events, a Boolean parity, a state with der(x) = scale, a Float32
 parameter; it terminates at the first event at or after t_stop) and Threshold3 (tau dy/dt = u - y
 with a state event where y crosses level). Each alone is compared with fmpy's own FMI 3.0

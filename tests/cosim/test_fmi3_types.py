@@ -1,6 +1,6 @@
 """Issue #24: FMI 3.0 Model Exchange with every variable type and array variables.
 
-Types3 (``tests/data/mini3/types3.c``, built by ``tests/types3_fmu.py``) passes every FMI 3.0
+Types3 (``tests/data/mini3/types3.c``, built by ``tests/support/types3_fmu.py``) passes every FMI 3.0
 type through (T_out = T_in), a 2 x 3 Float64 array (a_out = a_in + offset) and has generators:
 states x (Float64 [2]) with der(x) = rates, an Int8 counter count8 (count8_start + one per time
 event k * period, wrapping as an Int8 does), a Float32 ramp32 = float32(slope * t), a String

@@ -1,5 +1,5 @@
 """Issue #24: the master run against FMI 3.0 FMUs that nobody in the project wrote, of the kinds the
-issue names: exported by PythonFMU3 (``tests/third_party_pythonfmu3.py``: its own C++ FMI 3.0 layer
+issue names: exported by PythonFMU3 (``tests/support/third_party_pythonfmu3.py``: its own C++ FMI 3.0 layer
 and modelDescription.xml), each checked against fmpy's own FMI 3.0 simulation and first principles:
 
 - a first-order lag (Model Exchange) driven by an FMI 2.0 ramp in one system, in the compiled kernel:

@@ -6,7 +6,6 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
-from conftest import MODELS
 from heliostep.cosim.fmi import ModelExchangeInstance, read_fmu
 from physics_reference import (
     MOTOR_LOSSES,
@@ -17,6 +16,7 @@ from physics_reference import (
     panel_mechanics,
     stepper_motor,
 )
+from shipped_models import MODELS
 
 MOTOR_OUTPUTS = ["i_a", "i_b", "tau", "v_a", "v_b", "power"]
 MECHANICS_OUTPUTS = ["theta_p", "omega_p", "theta", "omega"]

@@ -205,7 +205,7 @@ def test_no_section_collects_more_than_the_beam_its_aperture_sees():
 
 def test_noon_gain_on_21_december_from_the_ray_tracer_losses():
     # The gain at the solar noon of 21 December with each row's lost share measured by the ray tracer
-    # (tests/mirror_tracer.py) and the powers from vector geometry: the cap is 12.8 %
+    # (tests/support/mirror_tracer.py) and the powers from vector geometry: the cap is 12.8 %
     elevation, azimuth = _noon()
     sun = sun_vectors(["2025-12-21 12:00"])  # the tracer's sun: 12:00, 3 min from the transit
     end, length = 12.31, 100.0

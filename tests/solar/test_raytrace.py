@@ -1,5 +1,5 @@
 """The intercept's closed form (heliostep.solar.intercept) against a Monte Carlo ray tracer written for the
-tests (tests/receiver_tracer.py, sharing no code with heliostep.solar): instants across the day and the
+tests (tests/support/receiver_tracer.py, sharing no code with heliostep.solar): instants across the day and the
 year, flat and curved mirrors, central and outer mirrors, single- and two-axis, a bare tube and a
 secondary concentrator.
 

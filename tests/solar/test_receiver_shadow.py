@@ -1,5 +1,5 @@
 """The receiver's own shadow on the mirrors (:mod:`heliostep.solar.receiver_shadow`) from first principles and
-against the Monte Carlo ray tracer written for the tests (``tests/mirror_tracer.py``: the receiver a cylinder
+against the Monte Carlo ray tracer written for the tests (``tests/support/mirror_tracer.py``: the receiver a cylinder
 about (0, y, h), each sun ray tested by the closest approach of two lines in 3-D; 40 000 points per mirror,
 standard error <= 0.0025), alone and united with the neighbours' shading and blocking
 (:func:`heliostep.solar.shading.row_losses` with ``receiver``)."""

@@ -1,5 +1,5 @@
 """Shading and blocking between neighbouring mirrors (:mod:`heliostep.solar.shading`) against a Monte Carlo
-ray tracer written for the tests (``tests/mirror_tracer.py``: vectorised numpy, sharing no code with
+ray tracer written for the tests (``tests/support/mirror_tracer.py``: vectorised numpy, sharing no code with
 ``heliostep.solar``; the sun from pvlib, the mirrors as rectangles built from rotation matrices, rays
 intersected with planes). It samples 40 000 points per mirror: a standard error <= 0.0025 on a fraction.
 

@@ -152,7 +152,7 @@ def test_field_run_reports_sharing_error_beside_secondary_error(client, tmp_path
         normal = np.array(
             [own[0] * np.cos(delta) + own[2] * np.sin(delta), own[1], -own[0] * np.sin(delta) + own[2] * np.cos(delta)]
         )
-        # the finite 0.3 m x 1.5 m flat mirror over the bare 70 mm tube, traced (tests/receiver_tracer.py)
+        # the finite 0.3 m x 1.5 m flat mirror over the bare 70 mm tube, traced (tests/support/receiver_tracer.py)
         gamma, error = trace(
             to_sun,
             np.arctan2(normal[0], normal[2]),

@@ -24,7 +24,7 @@ resists the wind, is left out (the figure is on the safe side).
 The drive holds against the wind moment M (scenario ``wind.moment``, on the panel axis) while
 g f k_e I > |M|; ``idle_holding_margin`` is their ratio. Below :data:`REQUIRED_HOLDING_MARGIN`
 (the paper's factor 2 on the torque for the wind) the summary carries a warning; below 1 the
-rotor slips when the current drops (``tests/results/test_tradeoffs.py`` co-simulates both).
+rotor slips when the current drops (``tests/results/figures/test_tradeoffs.py`` co-simulates both).
 
 Drive energy per day
 --------------------

@@ -22,14 +22,14 @@ that no neighbour hides from the sun or stands in front of on the way to the tub
 (:func:`heliostep.solar.shading.row_losses`, its ``lost``) and the share outside the receiver's own
 shadow (:mod:`heliostep.solar.receiver_shadow`, at every instant: a narrow band that crosses the
 field in minutes), the two combined as independent, (1 - lost) (1 - s_r) (their exact union,
-``row_losses(..., receiver=...)``, differs by the overlap's error: ``tests/results/test_field_light.py``
+``row_losses(..., receiver=...)``, differs by the overlap's error: ``tests/results/light/test_field_light.py``
 bounds it); without shading, the receiver's shadow only (the one mirror's, as a run's light).
 The neighbours: the field's 13 rows at ``mirror.spacing``, each an end section of two-axis mirrors
 ``optics.mirror_length`` long and contiguous along the row (pitch = length, as
 :mod:`heliostep.solar.endloss`), every mirror at the attitude of its row (ideal, or with the shared
 primary: the neighbours share it too). Their shading and blocking computed every
 ``shading_step_minutes`` with the sun up (and at each day's first and last such instant) and
-interpolated linearly between (``tests/results/test_field_light.py``: moves a day's energy by less
+interpolated linearly between (``tests/results/light/test_field_light.py``: moves a day's energy by less
 than 0.3 % against every instant). Approximations, stated: the intercept of a partly hidden mirror is
 taken as the whole mirror's (the unhidden part's image is narrower: not modelled); blocking follows
 the flat mirror's reflected ray (a mirror curved to focus at its slant distance f converges its rays by

@@ -6,7 +6,7 @@ new detent and rings for some 20-50 ms; where the rows do not follow that (a coa
 ``step_detail`` shorter than the swing), the trapezoid draws a line from a row in mid-swing to the
 next row, seconds later, and the actual attitude's energy moves with the output grid: on
 ``jan21-central`` the stepping's change was -5.4e-4 J on its own grid and -1.6e-2 J on a 30 s grid
-with 10 ms of detail (``tests/results/test_light_rows.py``).
+with 10 ms of detail (``tests/results/light/test_light_rows.py``).
 
 The solution does follow it: the master's monitor sees every internal solver step and integrates the
 tracking error e = theta_actual - theta_reference and its square over them

@@ -89,7 +89,7 @@ SEND_INTERVAL = 0.05
 BLOCK_ROWS = 128
 
 #: The most trace rows a supervised run loses when its child crashes, hangs or is killed (the
-#: rows computed before are in the supervisor; tests/test_supervised.py holds it to this).
+#: rows computed before are in the supervisor; tests/run/test_supervised.py holds it to this).
 MAX_ROWS_LOST = 2 * BLOCK_ROWS
 
 

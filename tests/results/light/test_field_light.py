@@ -153,7 +153,7 @@ def _field_normals(times):
 @pytest.mark.filterwarnings("ignore::Warning")  # pvlib's own pandas deprecations
 def test_field_shading_and_blocking_match_the_ray_tracer():
     # Every field mirror's unhidden share, ideal and with the shared primary (the neighbours share it too),
-    # against the ray tracer (tests/mirror_tracer.py: 40 000 points, standard error <= 0.0025) on a section of
+    # against the ray tracer (tests/support/mirror_tracer.py: 40 000 points, standard error <= 0.0025) on a section of
     # 7 contiguous mirrors along each of the 13 rows; the band: tests/solar/test_shading.py's two-axis one
     from heliostep.results.light.field import field_light_instants
     from mirror_tracer import layout, trace

@@ -204,7 +204,7 @@ def test_bad_mirror_and_secondary_are_errors_naming_the_key(key, value):
 @pytest.mark.filterwarnings("ignore::Warning")
 def test_finite_mirror_intercept_is_the_ray_traced_one():
     """The default mirror (flat, 0.3 m x 1.5 m, bare 70 mm tube) at the paper's instant: the light
-    series' intercept against the ray tracer (tests/receiver_tracer.py), and the area w x l."""
+    series' intercept against the ray tracer (tests/support/receiver_tracer.py), and the area w x l."""
     from receiver_tracer import trace
 
     scenario = _scenario(0.0)

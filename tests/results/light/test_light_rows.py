@@ -17,7 +17,7 @@ from heliostep.results.light.rows import RowMarks, corrections
 from heliostep.run import RunOptions, run_scenario
 
 #: an output grid of 30 s with 10 ms of detail after each step at 5 ms: the panel is still swinging at
-#: its last detail row (tests/test_figures.py's coarse grid)
+#: its last detail row (tests/results/figures/test_figures.py's coarse grid)
 COARSE = ("output.interval=30", "output.step_detail=0.01", "output.step_interval=0.005")
 
 # a stepped angle: the reference a t, the panel stepped onto it every 10 s with a decaying ring

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-SOURCE_DIR = Path(__file__).parent / "data" / "pythonfmu3"
+SOURCE_DIR = Path(__file__).parents[1] / "data" / "pythonfmu3"
 
 #: the model files and the identifier (class name) PythonFMU3 gives each FMU
 MODELS = {

@@ -88,7 +88,7 @@ def test_run_light_figures_are_the_integrals_of_the_whole_series(runs):
     ):
         assert summary[key] == pytest.approx(np.trapezoid(series[f"power_{name}_W"].to_numpy(), time), rel=1e-12)
     # the actual attitude's: the rows' trapezoid corrected between the rows by the solution
-    # (heliostep.results.light.rows; tests/results/test_light_rows.py): here by under 1e-9 of it,
+    # (heliostep.results.light.rows; tests/results/light/test_light_rows.py): here by under 1e-9 of it,
     # and the whole trace taken as one block gives the same to rounding
     actual = np.trapezoid(series["power_actual_W"].to_numpy(), time)
     assert summary["light_energy_J"] == pytest.approx(actual, rel=1e-9)

@@ -133,7 +133,7 @@ def solution_figures(solution: pd.DataFrame, metadata: Mapping) -> dict:
 # The summary as it was computed after the simulation, before the one pass: the trace read back,
 # its rows judged again by a second recorder and merged with the solution's figures by precedence
 # (``TraceSummary``), and the summary at a cut recomputed from the rows up to the cut's step. The
-# run's single-pass summary is checked against it (tests/test_run_one_pass.py).
+# run's single-pass summary is checked against it (tests/run/test_run_one_pass.py).
 
 _STEP_KEYS = (
     "missed_steps",

@@ -16,7 +16,7 @@ import heliostep.results.figures.run_figures as run_figures
 from heliostep.results.figures.solution import SolutionRecorder
 from heliostep.run import run_scenario
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 
 
 @pytest.fixture(scope="module")

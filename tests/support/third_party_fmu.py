@@ -19,7 +19,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-SOURCE_DIR = Path(__file__).parent / "data" / "bouncing_ball"
+SOURCE_DIR = Path(__file__).parents[1] / "data" / "bouncing_ball"
 MODEL_IDENTIFIER = "BouncingBall"
 CFLAGS = ["-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror"]
 
@@ -66,7 +66,7 @@ def build_bouncing_ball(out_dir: Path) -> Path:
 #: modelDescription.xml is written from these tables by :func:`build_mini_fmu`.
 #: Each variable: (name, type, causality, variability, start or None, derivative-of or None);
 #: its value reference is its index (as in the C source).
-MINI_DIR = Path(__file__).parent / "data" / "mini"
+MINI_DIR = Path(__file__).parents[1] / "data" / "mini"
 MINI_FMUS = {
     "Counter": (
         "counter.c",

@@ -21,7 +21,7 @@ from heliostep.drive.inputs import prepare_inputs
 from heliostep.run import run_scenario
 from heliostep.scenario import load_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

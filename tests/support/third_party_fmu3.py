@@ -20,7 +20,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-MINI3_DIR = Path(__file__).parent / "data" / "mini3"
+MINI3_DIR = Path(__file__).parents[1] / "data" / "mini3"
 #: every FMI 3.0 function some test FMU does not define, each a weak symbol returning fmi3Error (its own wins)
 FMI3_STUBS = MINI3_DIR / "fmi3_stubs.c"
 CFLAGS = ["-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror", "-Wno-unused-parameter"]

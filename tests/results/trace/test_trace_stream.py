@@ -53,7 +53,7 @@ def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_p
     assert index[at_step[-1]] == held.inputs.schedule.indices[0]
     assert meta["complete"] == "true" and meta["unit.motor.tau"] == "N.m"
     # the figures: evaluated in chunks of 23 rows here, of all rows in the held run: equal to
-    # rounding (bit for bit with the same chunks: tests/test_run_figures.py)
+    # rounding (bit for bit with the same chunks: tests/results/figures/test_run_figures.py)
     assert set(streamed.summary) == set(held.summary)
     # differences of two light energies (lost, stepping change) agree to the energies' rounding
     energy_rounding = 1e-12 * held.summary["light_energy_ideal_J"]

@@ -4,7 +4,7 @@ does not define from ``tests/data/mini3/fmi3_stubs.c``).
 Lag3 is a first-order lag T dy/dt = u - y, e = u - y, exporting FMI 3.0 Model Exchange and
 Co-Simulation from one binary (its fmi3DoStep: RK4 at the internal step h_int, the input held): the
 CS FMU and its ME twin. :func:`build_lag3_fmu` compiles it with gcc against the FMI 3.0 headers fmpy
-ships (as ``tests/third_party_fmu3.py`` does for ``tests/data/mini3/``) and packs it with the
+ships (as ``tests/support/third_party_fmu3.py`` does for ``tests/data/mini3/``) and packs it with the
 ``modelDescription.xml`` of :func:`lag3_model_description`; with ``sources_only`` it packs no binary,
 only ``sources/`` with FMI 3.0's ``sources/buildDescription.xml`` (a source FMU). Zip entries carry a
 fixed time stamp, so the same arguments give the same bytes. No binary is committed.
@@ -19,7 +19,7 @@ from pathlib import Path
 
 from third_party_fmu3 import CFLAGS, FMI3_STUBS, fmi3_headers
 
-MINI3CS_DIR = Path(__file__).parent / "data" / "mini3cs"
+MINI3CS_DIR = Path(__file__).parents[1] / "data" / "mini3cs"
 LAG3_TOKEN = "{c0a7e1f2-3101-4000-8000-000000000101}"
 SOURCES = ("lag3.c", FMI3_STUBS.name)
 _FIXED_TIME = (1980, 1, 1, 0, 0, 0)
