@@ -39,7 +39,7 @@ from heliostep.results.compare.traces import ComparisonResult, SignalEvaluation,
 from heliostep.results.compare.verdicts import failure_message
 from heliostep.results.trace.files import TIME
 
-__all__ = ["failure_window", "plot_signal", "png_name", "signal_figure", "write_report"]
+__all__ = ["failure_window", "png_name", "signal_figure", "write_report"]
 
 #: Drawn points per series and panel at most (extremes per time bin are kept).
 MAX_POINTS = 4000
@@ -180,24 +180,6 @@ def signal_figure(
     axes[0, 0].legend(loc="best", fontsize=8)
     axes[1, 0].legend(loc="best", fontsize=8)
     return fig
-
-
-def plot_signal(
-    evaluation: SignalEvaluation,
-    path: str | Path,
-    reference: tuple[np.ndarray, np.ndarray],
-    actual: tuple[np.ndarray, np.ndarray],
-    unit: str | None = None,
-    time_unit: str = "s",
-) -> Path:
-    """Write the PNG of one signal (:func:`signal_figure`)."""
-    path = Path(path)
-    fig = signal_figure(evaluation, reference, actual, unit, time_unit)
-    try:
-        save_png(fig, path, 90)
-    finally:
-        plt.close(fig)
-    return path
 
 
 def write_report(

@@ -63,7 +63,6 @@ from heliostep.solar.field import (
     solar_noon_sun,
 )
 from heliostep.solar.irradiance import (
-    WeatherDNI,
     WeatherFile,
     WeatherSeries,
     clear_sky_dni,
@@ -74,13 +73,8 @@ from heliostep.solar.irradiance import (
 )
 from heliostep.solar.optics import (
     SUN_HALF_ANGLE,
-    beam_spread,
-    concentration_limit,
     cosine_factor,
     end_fraction,
-    facet_slope_error,
-    intercept_factor,
-    lit_length,
     mirror_normal,
     optical_chain,
     receiver_miss,
@@ -111,7 +105,6 @@ from heliostep.solar.transmission import (
     PAPER_LEVER_ARM,
     PAPER_PINION_RADIUS,
     panel_angle_from_rotor,
-    panel_speed_from_rotor_speed,
     rotor_angle_from_panel,
     rotor_speed_from_panel_speed,
 )
@@ -133,7 +126,6 @@ __all__ = [
     "normal_orientation",
     "panel_angle_from_rotor",
     "panel_angle_reference",
-    "panel_speed_from_rotor_speed",
     "plant_azimuth",
     "rotor_angle_from_panel",
     "rotor_speed_from_panel_speed",
@@ -149,15 +141,10 @@ __all__ = [
     "two_axis_angles_from_normal",
     "two_axis_normal",
     "SUN_HALF_ANGLE",
-    "beam_spread",
     "clear_sky_dni",
-    "concentration_limit",
     "cosine_factor",
     "dni",
     "end_fraction",
-    "facet_slope_error",
-    "intercept_factor",
-    "lit_length",
     "mirror_normal",
     "optical_chain",
     "read_weather",
@@ -165,7 +152,6 @@ __all__ = [
     "reflect",
     "weather_dni",
     "weather_series",
-    "WeatherDNI",
     "WeatherFile",
     "WeatherSeries",
 ]

@@ -92,29 +92,6 @@ def two_axis_cosine(elevation, azimuth, mirror_distance, tube_height, plant_azim
     return np.sqrt(np.clip((1.0 + dot) / 2.0, 0.0, None)) * (sun_z > 0)  # cosine of half the angle S, T
 
 
-def row_distance_for_shift(shift, elevation, azimuth, tube_height, plant_azimuth: float = 0.0):
-    """Transverse distance d of the row whose light is shifted by |k| = ``shift`` (eq. 2 inverted).
-
-    Parameters
-    ----------
-    shift : float or array-like  [m]
-        |k|.
-    elevation, azimuth : array-like  [deg]
-    tube_height : float  [m]
-
-    Returns
-    -------
-    array  [m]
-        d = sqrt((|k| sqrt(1 - yS^2) / |yS|)^2 - h^2), NaN where |k| is shorter than the
-        central row's (d = 0) shift.
-    """
-    tube_height = check_positive(tube_height, "tube_height", "m")
-    _, sun_y, _ = (as_float_array(c) for c in sun_vector(elevation, azimuth, plant_azimuth))
-    slant = np.abs(as_float_array(shift)) * np.sqrt(1.0 - sun_y**2) / np.abs(sun_y)  # [paper], eq. 2 solved
-    with np.errstate(invalid="ignore"):
-        return np.sqrt(slant**2 - tube_height**2)
-
-
 def end_loss_power(
     elevation,
     azimuth,

@@ -285,10 +285,6 @@ class WeatherFile:
         )
 
 
-#: The earlier name of :class:`WeatherFile` (it read only the DNI).
-WeatherDNI = WeatherFile
-
-
 def weather_dni(times, site: Site, path, max_offset: float = MAX_SITE_OFFSET) -> pd.Series:
     """DNI of a typical-year file at the window's times (matched by month, day and hour).
 

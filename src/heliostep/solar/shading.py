@@ -90,31 +90,6 @@ def interval_union_length(low, high, axis: int = -1):
     return np.sum(np.where(np.isfinite(added) & (added > 0), added, 0.0), axis=-1)
 
 
-def across_hidden_fraction(direction, normals, mirror_distances, mirror_width):
-    """Fraction of each mirror's width hidden by the other rows along ``direction``.
-
-    Parameters
-    ----------
-    direction : array-like, shape (T, 3) or (T, N, 3)  [-]
-        Unit direction from the mirrors toward what must be seen: the sun (shading, one per
-        instant) or the reflected ray (blocking, per instant and mirror).
-    normals : array-like, shape (T, N, 3)  [-]
-        Unit normals of the N mirrors at the T instants.
-    mirror_distances : array-like, shape (N,)  [m]
-        Transverse positions d_i of the pivots (all at the same height).
-    mirror_width : float  [m]
-
-    Returns
-    -------
-    numpy.ndarray, shape (T, N)  [-]
-        Union over the neighbours j != i of their footprints' extent along e_u, over w
-        (exact for single-axis rows; module docstring).
-    """
-    width = check_positive(mirror_width, "mirror_width", "m")
-    low, high = _across_intervals(direction, normals, mirror_distances, width)
-    return interval_union_length(low, high) / width
-
-
 def _across_intervals(direction, normals, mirror_distances, width: float) -> tuple[np.ndarray, np.ndarray]:
     """The neighbours' footprints on each mirror along e_u [m], (T, N_i, N_j), empty (0, 0) where none."""
     normal, e_u, _ = mirror_axes(*np.moveaxis(as_float_array(normals), -1, 0))

@@ -53,7 +53,6 @@ import importlib
 #: Parquet table and the workers.
 _PUBLIC = {
     "CASE_COLUMNS": "heliostep.sweep.store",
-    "CASE_STATUSES": "heliostep.sweep.store",
     "CENTRAL_MIRROR": "heliostep.sweep.spec",
     "COMBINE_MODES": "heliostep.sweep.spec",
     "CONSOLIDATE_EVERY": "heliostep.sweep.cluster",
@@ -91,7 +90,6 @@ def __getattr__(name: str):
 
 __all__ = [
     "CASE_COLUMNS",
-    "CASE_STATUSES",
     "CENTRAL_MIRROR",
     "COMBINE_MODES",
     "CONSOLIDATE_EVERY",

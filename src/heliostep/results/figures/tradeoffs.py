@@ -40,7 +40,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from heliostep.drive.inputs import MOTOR_DEFAULTS, held_current
 from heliostep.solar.sun import sun_events
@@ -108,13 +107,13 @@ def smallest_drive_ratio(panel_angle, scenario) -> float:
     )
 
 
-def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
-    """Holding torque at full and idle current against the wind moment.
+def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
+    """Holding torque at full and idle current against the wind moment, the window's smallest drive ratio known.
 
     Parameters
     ----------
-    trace : pandas.DataFrame
-        With ``panel_angle_ref`` [rad].
+    ratio : float  [-]
+        The smallest drive ratio over the window (:func:`smallest_drive_ratio`).
     metadata : Mapping
         With ``drive`` (mode, current, idle_current_fraction).
     scenario : heliostep.scenario.Scenario
@@ -130,12 +129,6 @@ def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
         None without wind), ``idle_holds_wind`` (margin >= :data:`REQUIRED_HOLDING_MARGIN`,
         None without wind), and ``warnings`` (a list, when the margin is short).
     """
-    return holding_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario)
-
-
-def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
-    """:func:`holding_figures` with the smallest drive ratio over the window, ``ratio``
-    (:func:`smallest_drive_ratio`), known."""
     drive = metadata["drive"]
     constants = _motor_constants(scenario)
     current = held_current(scenario, float(drive["current"]))
@@ -209,15 +202,9 @@ def energy_per_day(summary: Mapping, scenario) -> dict:
     return {"drive_power_mean_W": power, "drive_energy_per_day_J": None if daylight is None else power * daylight}
 
 
-def tradeoff_figures(trace: pd.DataFrame, metadata: Mapping, scenario, summary: Mapping) -> dict:
-    """:func:`holding_figures` and :func:`energy_per_day` of a run (its ``warnings`` appended to
-    the summary's own)."""
-    return tradeoff_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario, summary)
-
-
 def tradeoff_figures_at(ratio: float, metadata: Mapping, scenario, summary: Mapping) -> dict:
-    """:func:`tradeoff_figures` with the smallest drive ratio over the window known
-    (:func:`holding_figures_at`)."""
+    """:func:`holding_figures_at` and :func:`energy_per_day` of a run, the window's smallest drive ratio
+    ``ratio`` known (its ``warnings`` appended to the summary's own)."""
     figures = {**holding_figures_at(ratio, metadata, scenario), **energy_per_day(summary, scenario)}
     if "warnings" in figures:
         figures["warnings"] = list(summary.get("warnings", [])) + figures["warnings"]
