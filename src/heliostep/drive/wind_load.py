@@ -42,6 +42,7 @@ __all__ = [
     "moment_signal",
     "panel_axis_azimuth",
     "wind_speed_knots",
+    "wind_weather_path",
 ]
 
 
@@ -87,7 +88,8 @@ class WindSignal:
         }
 
 
-def _weather_path(scenario: Scenario) -> Path:
+def wind_weather_path(scenario: Scenario) -> Path:
+    """The scenario's ``wind.weather_file``, relative to the scenario's folder unless absolute."""
     path = Path(str(scenario.wind.weather_file)).expanduser()
     return path if path.is_absolute() else Path(scenario.folder) / path
 
@@ -136,7 +138,7 @@ def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -
         return WindKnots(times, np.interp(times, t, v), None, _constant(given, times))
     if wind.weather_file is None:
         return None
-    path = _weather_path(scenario)
+    path = wind_weather_path(scenario)
     weather = WeatherFile.read(path, scenario.site.to_site())
     end = start + pd.Timedelta(seconds=duration)
     stamps = pd.date_range(start.floor("h"), end.ceil("h"), freq="h")

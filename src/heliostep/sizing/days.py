@@ -25,11 +25,11 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from heliostep.drive.wind_load import wind_weather_path
 from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.solar.irradiance import WeatherFile
@@ -44,6 +44,7 @@ __all__ = [
     "WINDIEST_DAY_COUNT",
     "ChosenDay",
     "DaySelection",
+    "date_of",
     "day_windows",
     "fastest_days",
     "panel_angle_range",
@@ -99,7 +100,8 @@ class DaySelection:
         return {"kind": self.kind, "criterion": self.criterion, "days": [day.record() for day in self.chosen]}
 
 
-def _date_of(year: int, day_of_year: int) -> dt.date:
+def date_of(year: int, day_of_year: int) -> dt.date:
+    """The date of a year's day (1 for 1 January)."""
     return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
 
@@ -125,7 +127,7 @@ def _year_windows(scenario: Scenario) -> list[tuple[pd.Timestamp, pd.Timestamp] 
     year = scenario.window.date.year
     windows: list[tuple[pd.Timestamp, pd.Timestamp] | None] = []
     for day in range(1, DAYS_IN_YEAR + 1):
-        window = scenario.window.model_copy(update={"date": _date_of(year, day)})
+        window = scenario.window.model_copy(update={"date": date_of(year, day)})
         try:
             windows.append(scenario.model_copy(update={"window": window}).window_bounds())
         except InputError:
@@ -210,11 +212,6 @@ def fastest_days(rates: np.ndarray, count: int = FASTEST_DAY_COUNT, separation: 
     return [k + 1 for k in peaks[:count]]
 
 
-def _weather_path(scenario: Scenario) -> Path:
-    path = Path(str(scenario.wind.weather_file)).expanduser()
-    return path if path.is_absolute() else Path(scenario.folder) / path
-
-
 def _window_instants(window: tuple[pd.Timestamp, pd.Timestamp]) -> pd.DatetimeIndex:
     """A window's ends and the whole hours inside it: where a linear interpolant has its largest value."""
     start, end = window
@@ -241,7 +238,7 @@ def window_wind_speeds(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp,
     stamps: the largest is at a whole hour inside the window or at an end); NaN where the file does not
     cover the window or marks the speed missing. One evaluation of the file for every day when it covers
     them all, else day by day."""
-    weather = WeatherFile.read(_weather_path(scenario), scenario.site.to_site())
+    weather = WeatherFile.read(wind_weather_path(scenario), scenario.site.to_site())
     parts = [(day, _window_instants(window)) for day, window in enumerate(windows) if window is not None]
     if not parts:
         return np.full(len(windows), np.nan)
@@ -286,10 +283,10 @@ def _taken(scenario: Scenario, days: Sequence[int] | str) -> DaySelection:
         if days != ALL_DAYS:
             raise InputError(f"--days {days!r}: expected days of the year (1..365) or {ALL_DAYS!r}")
         every = list(range(1, DAYS_IN_YEAR + 1))
-        chosen = [ChosenDay(d, _date_of(year, d), ("every day of the year (--days all)",)) for d in every]
+        chosen = [ChosenDay(d, date_of(year, d), ("every day of the year (--days all)",)) for d in every]
         return DaySelection(every, chosen, "every day of the year (--days all)", "all")
     given = sorted(set(int(d) for d in days))
-    chosen = [ChosenDay(d, _date_of(year, d), ("given (--days)",)) for d in given]
+    chosen = [ChosenDay(d, date_of(year, d), ("given (--days)",)) for d in given]
     return DaySelection(given, chosen, "the days given (--days)", "given")
 
 
@@ -298,7 +295,7 @@ def _covered_speeds(scenario: Scenario, windows) -> np.ndarray:
     speeds = window_wind_speeds(scenario, windows)
     if not np.any(np.isfinite(speeds)):
         raise InputError(
-            f"{scenario.source}: wind.weather_file: {_weather_path(scenario)} has no wind speed within the window "
+            f"{scenario.source}: wind.weather_file: {wind_weather_path(scenario)} has no wind speed within the window "
             f"on any day it covers; expected a speed [m/s] at its stamps"
         )
     return speeds
@@ -316,7 +313,7 @@ def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelect
             missing = [d for d in selection.days if not np.isfinite(speeds[d - 1])]
             if missing:
                 raise InputError(
-                    f"{scenario.source}: wind.weather_file: {_weather_path(scenario)} has no wind speed within the "
+                    f"{scenario.source}: wind.weather_file: {wind_weather_path(scenario)} has no wind speed within the "
                     f"window on day(s) {missing[:10]}{' ...' if len(missing) > 10 else ''} of --days"
                 )
         return selection
@@ -338,7 +335,7 @@ def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelect
     chosen = [
         ChosenDay(
             day,
-            _date_of(year, day),
+            date_of(year, day),
             tuple(reasons[day]),
             float(np.degrees(rates[day - 1])) if np.isfinite(rates[day - 1]) else None,
             float(speeds[day - 1]) if np.isfinite(speeds[day - 1]) else None,

@@ -46,7 +46,7 @@ from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
-from heliostep.sizing.days import select_days
+from heliostep.sizing.days import date_of, select_days
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sizing.stow import stow_angles, stow_step_rates
 from heliostep.sizing.verdict import judge
@@ -89,10 +89,6 @@ def _speed_source(scenario: Scenario) -> str:
     if wind.weather_file is not None:
         return f"wind.weather_file {wind.weather_file}"
     return "wind.speed" if wind.speed is not None else "wind.profile"
-
-
-def _date_of(year: int, day_of_year: int) -> dt.date:
-    return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
 
 def _instance(scenario: Scenario, role: str, default: str) -> str:
@@ -225,7 +221,7 @@ def _plan_cases(plan: SizingPlan) -> list[SizingCase]:
         for candidate in plan.candidates:
             for current in candidate.currents:
                 for day in plan.days:
-                    overrides = _case_overrides(scenario, candidate, current, _date_of(year, day), plan.wind_moment)
+                    overrides = _case_overrides(scenario, candidate, current, date_of(year, day), plan.wind_moment)
                     overrides += corner if at_corner else ()  # after the candidate's own bus and loop gain
                     cases.append(SizingCase(candidate.name, current, day, overrides, at_corner))
     return cases
