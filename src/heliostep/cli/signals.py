@@ -131,24 +131,32 @@ def signals_end_the_command() -> Iterator[StartingUp]:
                 os._exit(exit_status(signum))
         raise StopSignal(signum)
 
+    with _handling_stop_signals(handler), _raised_again_after_callbacks(StopSignal):
+        yield state
+
+
+@contextmanager
+def _handling_stop_signals(handler) -> Iterator[None]:
+    """Within the block, ``handler`` handles the stop signals that are not ignored (an ignored one,
+    e.g. SIGINT of a background job, stays so); the previous handlers are restored on leaving."""
     previous = {}
     try:
         for sig in STOP_SIGNALS:
             if signal.getsignal(sig) is signal.SIG_IGN:
                 continue
             previous[sig] = signal.signal(sig, handler)
-        with _raised_again_after_callbacks(StopSignal):
-            yield state
+        yield
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
 
 
 @contextmanager
-def _raised_again_after_callbacks(kind: type[BaseException]) -> Iterator[None]:
+def _raised_again_after_callbacks(kind: type[BaseException] | tuple[type[BaseException], ...]) -> Iterator[None]:
     """Within the block, an exception of ``kind`` that a signal handler raised inside a weakref
     callback or ``__del__`` (where Python only prints "Exception ignored") is raised again 1 ms
-    later by SIGALRM, outside the callback (Unix only)."""
+    later by SIGALRM, outside the callback (Unix only; raising it inside the hook would run a
+    handler at once, inside the hook)."""
     swallowed: list[BaseException] = []
     previous_alarm: dict = {}
     previous_hook = sys.unraisablehook
@@ -226,12 +234,6 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         yield request
         return
 
-    swallowed: list[BaseException] = []  # the handler's exception, lost in a callback: raise it again
-
-    def again(signum, frame):  # SIGALRM, armed by the hook below
-        if swallowed:
-            raise swallowed.pop()
-
     def handler(signum, frame):
         _after_hangup(signum)  # (SIGHUP: the terminal may be gone)
         request.count += 1
@@ -244,33 +246,6 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         else:  # a third: no more clean-up
             os._exit(exit_status(signum))
 
-    def unraisable(hook_args):
-        exc = hook_args.exc_value
-        ours = isinstance(exc, ForcedStop) or (raise_exception is not None and isinstance(exc, raise_exception))
-        if ours and hasattr(signal, "setitimer"):  # (not on Windows: there it stays lost, as before)
-            swallowed[:] = [exc]
-            # raised again 1 ms later by SIGALRM, once this hook has returned (raise_signal or
-            # os.kill here would run a handler at once, inside the hook)
-            if "handler" not in previous_alarm:  # installed once; restored on leaving
-                previous_alarm["handler"] = signal.signal(signal.SIGALRM, again)
-            signal.setitimer(signal.ITIMER_REAL, 1e-3)
-            return
-        previous_hook(hook_args)
-
-    previous = {}
-    previous_alarm: dict = {}  # SIGALRM's handler before the hook first armed it
-    previous_hook = sys.unraisablehook
-    try:
-        for sig in STOP_SIGNALS:
-            if signal.getsignal(sig) is signal.SIG_IGN:
-                continue  # ignored on purpose (e.g. SIGINT of a background job): keep it so
-            previous[sig] = signal.signal(sig, handler)
-        sys.unraisablehook = unraisable
+    kinds = (ForcedStop,) if raise_exception is None else (ForcedStop, raise_exception)
+    with _handling_stop_signals(handler), _raised_again_after_callbacks(kinds):
         yield request
-    finally:
-        sys.unraisablehook = previous_hook
-        if previous_alarm:
-            signal.setitimer(signal.ITIMER_REAL, 0.0)
-            previous[signal.SIGALRM] = previous_alarm["handler"]
-        for sig, old in previous.items():  # (SIGALRM's too)
-            signal.signal(sig, old)
