@@ -1,29 +1,10 @@
 """Stopping a command cleanly on SIGINT (Ctrl+C), SIGTERM and SIGHUP, and at once on a second one.
 
-SIGHUP (a closed terminal, a dropped SSH connection) is handled as SIGTERM; since the terminal
-may be gone, the messages after it go to stderr as far as it takes them (:class:`_LenientStream`:
-a write that fails is dropped, never an exception that would keep the results from being
-written). Before any command runs, :func:`signals_end_the_command` (installed first thing in
-:func:`heliostep.cli.main`, while the heavy modules are imported) turns these signals into
-:class:`StopSignal`, one line and 128 + the signal number, never a traceback.
+The first signal is recorded, so a long computation ends at its next safe point with its results
+written; a second raises :class:`ForcedStop` (every ``finally`` runs); a third ends the process.
+Exit status: 128 + the signal number.
 
-:func:`stop_requests` installs handlers that only record the first signal (no exception is raised
-inside the solver's ctypes callbacks), so a long computation can ask ``stop.is_set()`` at its next
-safe point and end with its results written. A **second** SIGINT or SIGTERM (the user does not
-want to wait for the clean-up and writing) raises :class:`ForcedStop`, a ``BaseException`` that no
-``except Exception`` swallows: on its way out every ``finally`` runs, so files being written
-under temporary names are removed (nothing is renamed into place half-written) and temporary
-folders are deleted; :func:`heliostep.cli.main` turns it into one line and the exit status. A
-third signal ends the process at once (``os._exit``), without any clean-up. The previous handlers
-are restored on leaving.
-
-Python runs a signal handler between any two bytecodes, also inside a weakref callback or a
-``__del__`` (matplotlib's transforms have such callbacks), where an exception cannot propagate:
-Python prints it as "Exception ignored" and goes on. Within :func:`stop_requests` a
-``sys.unraisablehook`` catches the handler's own exception there and arms a 1 ms timer
-(SIGALRM) that raises it anew once the callback has returned (not counted as another signal):
-no stop request dies inside a callback. Exit status of a stopped command: 128 + the signal number (130 for
-SIGINT, 143 for SIGTERM).
+Details: docs/running.md, ``heliostep.cli.signals``.
 """
 
 from __future__ import annotations

@@ -1,20 +1,7 @@
-"""Plots and the report of ``heliostep compare``.
+"""Plots and the report of ``heliostep compare``: a self-contained ``index.html``, its Markdown twin,
+one figure per failing signal.
 
-:func:`write_report` writes into one folder:
-
-* ``index.html``: one self-contained file (every figure embedded as a base64 ``data:image/png``
-  URI, the style inline; no link to any other file), readable offline and in a CI artifact
-  viewer: the verdict, which actual signal was compared with which reference signal and how,
-  a summary table with units, and per failing signal its figure;
-* ``index.md``: the Markdown twin (same tables) for text viewers, linking the PNGs;
-* one PNG per failing signal (named by :func:`png_name`), the same figures.
-
-A failing signal's figure (:func:`signal_figure`) has four panels: the whole span and a zoom
-around the worst point, each as values (reference, the tube as a band, actual, the parts outside
-the tube in red) over the difference ``actual - reference`` against the tube's edges relative to
-the reference (``L - y``, ``U - y``: the half-width, widened by the time tolerance). The zoom is
-scaled to the failure's own duration (:func:`failure_window`): a 40 ms excursion is shown over
-about three times its length, not over seconds.
+Details: docs/compare.md, ``heliostep.plots.compare``.
 """
 
 from __future__ import annotations

@@ -1,23 +1,6 @@
 """The days ``heliostep size`` co-simulates: the year's windiest and the sun's fastest, found, not assumed.
 
-Unless the days are given, the selection is, over the 365 days of the scenario's year, each with the
-scenario's window (its clock times or sunrise/sunset on that date):
-
-* **the sun's fastest days**: the days on which the ideal panel angle of the scenario's mirror and axis
-  (:func:`heliostep.solar.tracking.two_axis_angles` of NREL's SPA sun,
-  :func:`heliostep.solar.sun.solar_position`, the mirror's own two-axis law) turns fastest within the
-  window: max |d theta_p / dt| over the window, as differences on a grid of :func:`rate_grid_step`
-  (the sun above the horizon at both ends), all days in one vectorised SPA call. The annual curve of
-  that rate is smooth, so its neighbouring days say the same: the days kept are the curve's peaks
-  (a day whose rate is the highest within :data:`PEAK_SEPARATION_DAYS` on either side, the year
-  taken as a circle), the :data:`FASTEST_DAY_COUNT` highest of them;
-* **the year's windiest days**, when the wind comes from a weather file (``wind.weather_file``): the
-  :data:`WINDIEST_DAY_COUNT` days with the highest mean wind speed within the window (the file's speed,
-  linear between its stamps as the run takes it, :meth:`heliostep.solar.irradiance.WeatherFile.series`:
-  its largest over the window is at a stamp inside it or at an end), among the days the file covers.
-
-A day found by both criteria is simulated once and carries both reasons. ``days="all"`` takes all 365
-(meant for ``--scheduler``); given day numbers are taken as given.
+Details: docs/sizing.md, ``heliostep.sizing.days``.
 """
 
 from __future__ import annotations

@@ -1,25 +1,6 @@
 """``heliostep size``: every candidate drive and current against a scenario's load, and the verdict.
 
-For a scenario and a motor catalogue (:mod:`heliostep.scenario.catalogue`), each candidate at each of
-its currents is judged on:
-
-* the **load budget** at the worst instant of the window (:mod:`heliostep.run.load_budget`): the design
-  wind moment reflected through the transmission, friction and the inertia torque of the fastest move;
-* the **margin to slip while tracking**: the largest static load the motor steps against from rest
-  (:func:`~heliostep.run.load_budget.static_step_limit`) over the load budget;
-* the **margin at idle current**: the holding torque at the idle current over the wind's share;
-* the **margin while stowing** (:mod:`heliostep.sizing.stow`): a stow move's load (wind at the stow
-  threshold, friction, the move's inertia torque) against the pull-out torque at its step rate;
-* the **co-simulated days** (:mod:`heliostep.sizing.days`: the sun's fastest days and, with a weather
-  file, the year's windiest, found over the year; or ``days``, or all 365): the scenario's window on each day with
-  the candidate's motor, the current and the design wind moment, run through
-  :func:`~heliostep.run.run_scenario` (locally, or on Dask with a scheduler): steps missed and lost,
-  the worst tracking error, the drive's energy.
-
-It passes when the three margins reach the safety factor (default :data:`DEFAULT_SAFETY_FACTOR`, the
-paper's 2, on the load) and no simulated step was missed or lost; the sheet names every reason a
-candidate fails. The speed-torque curve of each candidate (:mod:`heliostep.run.speed_torque`) is drawn
-beside it. The files (``sizing.json``, ``sizing.html``) are :mod:`heliostep.sizing.sheet`'s.
+Details: docs/sizing.md, ``heliostep.sizing.size``.
 """
 
 from __future__ import annotations
