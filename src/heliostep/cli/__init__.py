@@ -1,14 +1,9 @@
 """The ``heliostep`` command line: argument parsing and exit codes only.
 
-Each command lives in its own module of this package, which exposes ``register(subparsers)``; that
-function adds the command's parser and sets ``func`` (taking the parsed arguments and
-returning an exit status). This module only assembles them and turns a
-:class:`~heliostep.errors.HeliostepError` into one line on stderr: exit status 1 for a
-:class:`~heliostep.errors.RunFailure` (a build, an FMU or the solver failed), 2 for any other (bad
-input); a KeyboardInterrupt that reaches it becomes one line and exit status 130, and a stop
-signal (SIGINT, SIGTERM, SIGHUP) from the very start, while the commands' modules are imported,
-one line and 128 + its number (:func:`~heliostep.cli.signals.signals_end_the_command`).
-The installed command is :func:`console_main`: :func:`main`, its status the process's exit status.
+Each command lives in its own module with a ``register(subparsers)``; this module assembles them and
+turns an error into one line on stderr and an exit status. The installed command is :func:`console_main`.
+
+Details: docs/running.md, ``heliostep.cli``.
 """
 
 from __future__ import annotations

@@ -1,21 +1,6 @@
 """``heliostep end-loss``: lit length and energy on the tube, single-axis plant vs two-axis end mirrors.
 
-For a plant of ``--length`` L with the tube at ``--tube-height`` h and ``--rows`` rows of
-mirrors ``--spacing`` apart (``--mirror-width`` wide), clear sky (pvlib Ineichen), writes to
-``--out`` (default ``end-loss-out``):
-
-* ``end_loss_days.csv``: per day of ``--year``, the energy absorbed by the single-axis plant
-  and by the plant with two-axis end sections of ``--end-length`` at both ends (default: the
-  year's largest shift k of the rows with the sun above 5 deg, as the paper sizes them), the
-  light the single-axis plant sends past the tube's end, the gain, and the dark and lit length
-  at the day's highest sun ([paper], eq. 2);
-* ``end_loss_year.png``: the same over the year;
-
-with shading and blocking between neighbouring rows (and, for the two-axis end mirrors of
-``--mirror-length``, along the row) and the receiver's own shadow (``--receiver-width``) unless
-``--no-shading``;
-
-and prints the year's totals and the 21 December figures (:mod:`heliostep.solar.endloss`).
+Details: docs/light.md, ``heliostep.cli.endloss``.
 """
 
 from __future__ import annotations

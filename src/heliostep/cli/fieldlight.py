@@ -1,16 +1,6 @@
 """``heliostep field-light``: light on the tube of every end mirror per day of a year, with the shared primary.
 
-For the scenario's site, plant, optics and mirror spacing (the year of its ``window.date``),
-writes to ``--out`` (default ``out/<scenario name>-field-light``):
-
-* ``field_light_days.csv``: per day and mirror, the energy on the tube with ideal two-axis
-  tracking and with the primary shared with the central mirror (mounted exact at each day's
-  solar noon), and the light lost (:func:`heliostep.results.light.field.field_light_days`);
-* ``heatmap_light_lost_year.png`` [MJ per day] and ``heatmap_light_lost_fraction_year.png``
-  [%]: day of year x mirror;
-
-and prints each mirror's year total. Geometry and optics only: no co-simulation (the stepping
-of the secondaries loses 2e-7 of the light; ``heliostep sweep`` co-simulates the drives).
+Details: docs/light.md, ``heliostep.cli.fieldlight``.
 """
 
 from __future__ import annotations

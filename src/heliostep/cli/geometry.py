@@ -1,22 +1,6 @@
 """``heliostep geometry``: solar geometry tables and plots.
 
-Writes to ``--out`` (default ``geometry-out``):
-
-* ``end_loss.csv`` / ``end_loss.png`` -- end loss k of a single-axis mirror over the
-  day, one curve per date (the paper's Fig. 2; defaults: 21 Dec, 21 Jan, 21 Mar,
-  21 Jun, h = 5 m, d = 0, 40 deg N).
-* ``two_axis_angles.csv`` / ``two_axis_angles.png`` -- primary and secondary angles of
-  the chosen two-axis end mirrors, and each one's primary error when it follows the
-  central mirror's primary law.
-* with ``--paper-case``: ``paper_case.csv``, ``paper_case_panel_angle.png`` (Fig. 8)
-  and ``paper_case_rotor_angle.png`` (Fig. 9) -- 21 January, h = 3 m, central mirror
-  (d = 0), secondary axis, a ``--window-minutes`` window from ``--window-start``
-  local clock time (default 10:00-10:05, as scenarios/jan21-central.yaml), rotor angle 0 at the window start,
-  r = 2.5 mm, s = 0.3 m.
-
-The default site is the paper's latitude 40 deg N; longitude 14.25 deg E, sea level
-and Europe/Rome are assumptions (the paper is Italian and does not give them). Day
-tables hold only the samples with the (apparent) sun above the horizon.
+Details: docs/geometry.md, ``heliostep.cli.geometry``.
 """
 
 from __future__ import annotations

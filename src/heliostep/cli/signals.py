@@ -1,29 +1,10 @@
 """Stopping a command cleanly on SIGINT (Ctrl+C), SIGTERM and SIGHUP, and at once on a second one.
 
-SIGHUP (a closed terminal, a dropped SSH connection) is handled as SIGTERM; since the terminal
-may be gone, the messages after it go to stderr as far as it takes them (:class:`_LenientStream`:
-a write that fails is dropped, never an exception that would keep the results from being
-written). Before any command runs, :func:`signals_end_the_command` (installed first thing in
-:func:`heliostep.cli.main`, while the heavy modules are imported) turns these signals into
-:class:`StopSignal`, one line and 128 + the signal number, never a traceback.
+The first signal is recorded, so a long computation ends at its next safe point with its results
+written; a second raises :class:`ForcedStop` (every ``finally`` runs); a third ends the process.
+Exit status: 128 + the signal number.
 
-:func:`stop_requests` installs handlers that only record the first signal (no exception is raised
-inside the solver's ctypes callbacks), so a long computation can ask ``stop.is_set()`` at its next
-safe point and end with its results written. A **second** SIGINT or SIGTERM (the user does not
-want to wait for the clean-up and writing) raises :class:`ForcedStop`, a ``BaseException`` that no
-``except Exception`` swallows: on its way out every ``finally`` runs, so files being written
-under temporary names are removed (nothing is renamed into place half-written) and temporary
-folders are deleted; :func:`heliostep.cli.main` turns it into one line and the exit status. A
-third signal ends the process at once (``os._exit``), without any clean-up. The previous handlers
-are restored on leaving.
-
-Python runs a signal handler between any two bytecodes, also inside a weakref callback or a
-``__del__`` (matplotlib's transforms have such callbacks), where an exception cannot propagate:
-Python prints it as "Exception ignored" and goes on. Within :func:`stop_requests` a
-``sys.unraisablehook`` catches the handler's own exception there and arms a 1 ms timer
-(SIGALRM) that raises it anew once the callback has returned (not counted as another signal):
-no stop request dies inside a callback. Exit status of a stopped command: 128 + the signal number (130 for
-SIGINT, 143 for SIGTERM).
+Details: docs/running.md, ``heliostep.cli.signals``.
 """
 
 from __future__ import annotations
@@ -131,24 +112,32 @@ def signals_end_the_command() -> Iterator[StartingUp]:
                 os._exit(exit_status(signum))
         raise StopSignal(signum)
 
+    with _handling_stop_signals(handler), _raised_again_after_callbacks(StopSignal):
+        yield state
+
+
+@contextmanager
+def _handling_stop_signals(handler) -> Iterator[None]:
+    """Within the block, ``handler`` handles the stop signals that are not ignored (an ignored one,
+    e.g. SIGINT of a background job, stays so); the previous handlers are restored on leaving."""
     previous = {}
     try:
         for sig in STOP_SIGNALS:
             if signal.getsignal(sig) is signal.SIG_IGN:
                 continue
             previous[sig] = signal.signal(sig, handler)
-        with _raised_again_after_callbacks(StopSignal):
-            yield state
+        yield
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
 
 
 @contextmanager
-def _raised_again_after_callbacks(kind: type[BaseException]) -> Iterator[None]:
+def _raised_again_after_callbacks(kind: type[BaseException] | tuple[type[BaseException], ...]) -> Iterator[None]:
     """Within the block, an exception of ``kind`` that a signal handler raised inside a weakref
     callback or ``__del__`` (where Python only prints "Exception ignored") is raised again 1 ms
-    later by SIGALRM, outside the callback (Unix only)."""
+    later by SIGALRM, outside the callback (Unix only; raising it inside the hook would run a
+    handler at once, inside the hook)."""
     swallowed: list[BaseException] = []
     previous_alarm: dict = {}
     previous_hook = sys.unraisablehook
@@ -226,12 +215,6 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         yield request
         return
 
-    swallowed: list[BaseException] = []  # the handler's exception, lost in a callback: raise it again
-
-    def again(signum, frame):  # SIGALRM, armed by the hook below
-        if swallowed:
-            raise swallowed.pop()
-
     def handler(signum, frame):
         _after_hangup(signum)  # (SIGHUP: the terminal may be gone)
         request.count += 1
@@ -244,33 +227,6 @@ def stop_requests(raise_exception: type[BaseException] | None = None) -> Iterato
         else:  # a third: no more clean-up
             os._exit(exit_status(signum))
 
-    def unraisable(hook_args):
-        exc = hook_args.exc_value
-        ours = isinstance(exc, ForcedStop) or (raise_exception is not None and isinstance(exc, raise_exception))
-        if ours and hasattr(signal, "setitimer"):  # (not on Windows: there it stays lost, as before)
-            swallowed[:] = [exc]
-            # raised again 1 ms later by SIGALRM, once this hook has returned (raise_signal or
-            # os.kill here would run a handler at once, inside the hook)
-            if "handler" not in previous_alarm:  # installed once; restored on leaving
-                previous_alarm["handler"] = signal.signal(signal.SIGALRM, again)
-            signal.setitimer(signal.ITIMER_REAL, 1e-3)
-            return
-        previous_hook(hook_args)
-
-    previous = {}
-    previous_alarm: dict = {}  # SIGALRM's handler before the hook first armed it
-    previous_hook = sys.unraisablehook
-    try:
-        for sig in STOP_SIGNALS:
-            if signal.getsignal(sig) is signal.SIG_IGN:
-                continue  # ignored on purpose (e.g. SIGINT of a background job): keep it so
-            previous[sig] = signal.signal(sig, handler)
-        sys.unraisablehook = unraisable
+    kinds = (ForcedStop,) if raise_exception is None else (ForcedStop, raise_exception)
+    with _handling_stop_signals(handler), _raised_again_after_callbacks(kinds):
         yield request
-    finally:
-        sys.unraisablehook = previous_hook
-        if previous_alarm:
-            signal.setitimer(signal.ITIMER_REAL, 0.0)
-            previous[signal.SIGALRM] = previous_alarm["handler"]
-        for sig, old in previous.items():  # (SIGALRM's too)
-            signal.signal(sig, old)

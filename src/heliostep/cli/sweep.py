@@ -1,11 +1,7 @@
-"""``heliostep sweep SWEEP.yaml``: run a sizing sweep on Dask (see :mod:`heliostep.sweep`).
+"""``heliostep sweep SWEEP.yaml``: run a sizing sweep on Dask (see :mod:`heliostep.sweep`), one row
+per case in ``results.parquet`` and the sweep's figures.
 
-Writes ``<out>/results.parquet`` (one row per case, written as cases finish) and the
-sweep's figures (:mod:`heliostep.plots.sweep`) into ``--out`` (default
-``out/<sweep name>``). Exit status: 0 when every case is ok, 1 when some case failed,
-2 for bad input (raised as :class:`~heliostep.errors.InputError`, reported by
-:mod:`heliostep.cli`) before any case runs; 130 / 143 when stopped by SIGINT / SIGTERM (the
-cases finished so far stay in results.parquet; a rerun runs the rest).
+Details: docs/sweep.md, ``heliostep.cli.sweep``.
 """
 
 from __future__ import annotations

@@ -1,19 +1,6 @@
 """From a scenario to what the drive commands: reference, step schedule, phase currents, grid.
 
-This is the second stage of heliostep's one-way data flow
-(scenario → solar / **drive** → cosim → results → plots):
-
-1. the reference panel angle of the scenario's mirror and axis over the window, from the
-   sun's position (pvlib SPA, :mod:`heliostep.solar`) on a grid of at most 10 s;
-2. the reference rotor angle through the transmission law ([paper], eqs. 12–14), 0 at the
-   window start as in the paper;
-3. the step instants where that reference crosses half-step boundaries
-   (:func:`heliostep.drive.sequencer.schedule_steps`, exact roots of a monotone interpolant);
-4. the sequencer's reference currents (piecewise constant, changing at the steps) and the
-   wind moment, as plain arrays (the run hands them to the master by role); with a wind speed
-   (:mod:`heliostep.drive.wind_load`) the reference includes the stow moves
-   (:mod:`heliostep.drive.stow`) and the moment is a signal on the commanded panel angle;
-5. the output grid: regular, plus a finer grid for a while after each step.
+Details: docs/physics.md, ``heliostep.drive.inputs``.
 """
 
 from __future__ import annotations

@@ -1,20 +1,9 @@
 """Open-loop stepping: the phase-current sequencer and the step scheduler.
 
-The sequencer turns a step index into the two reference phase currents (pattern × rated
-current). The scheduler decides *when* to step. With the default trigger, ``midpoint``, a step is
-commanded at the instant the reference rotor angle crosses the midpoint between the current
-commanded position and the next one (either direction), so the commanded position is always
-the reachable position nearest to the reference and the error stays within half a step.
-With ``reach`` a step is commanded only when the reference has reached the next position, so
-the rotor lags by up to one step (what a drive that "executes each step when it is due", as
-the paper puts it, does). The instants are the exact roots of a monotone piecewise-cubic
-(PCHIP) interpolant of the reference (:meth:`scipy.interpolate.PPoly.solve`), not samples;
-PCHIP does not overshoot, so a reference that holds still (sun below the horizon) makes no
-spurious step pairs.
+Steps are commanded at the exact instants the reference crosses a half-step boundary (``midpoint``)
+or reaches the next position (``reach``), roots of a PCHIP interpolant of the reference.
 
-Stable positions follow from the torque law C = −k_e i_a sin(N_c θ) − k_e i_b cos(N_c θ)
-([paper], eq. 9): pattern (+1, 0) holds θ = 0, (0, −1) holds θ = π/(2 N_c) (one full step),
-(+1, −1) holds half a step, and so on.
+Details: docs/physics.md, ``heliostep.drive.sequencer``.
 """
 
 from __future__ import annotations

@@ -1,13 +1,9 @@
 """Stow in high wind: when the panel leaves tracking, where it goes, how fast, and when it comes back.
 
-Above the stow wind speed the drive slews the panel from its tracking reference to the stow angle at
-the slew rate, holds it there, and once the wind has stayed at or below the threshold for the calm
-time, slews back at the same rate until it meets the (moving) tracking reference, which it follows
-again. The wind speed is piecewise linear between its knots (a weather file's stamps, a design
-gust's points), so the threshold crossings are exact. The result is a new panel reference: the
-tracking one outside the stowed spans, straight ramps at the slew rate and a hold inside; the
-sequencer schedules its steps from it like any other reference, so the moves are stepped, and
-co-simulated, step by step.
+The result is a new panel reference that the sequencer steps like any other, so the moves are
+co-simulated step by step.
+
+Details: docs/physics.md, ``heliostep.drive.stow``.
 """
 
 from __future__ import annotations

@@ -1,52 +1,10 @@
 """The wind as a load on the panel axis: moment coefficient, air density, gust factor (pure, vectorised).
 
-The moment of the wind about the panel's axis (through the middle of its chord) is
+M = C_M(alpha) 1/2 rho (G v)^2 A c, with a flat plate's moment coefficient about its mid-chord
+(Hoerner's normal force, Joessel's centre of pressure), the wind's cross-axis component, the ISA's
+air density and Durst's gust factor.
 
-    M = C_M(alpha) . 1/2 rho (G v)^2 . A . c
-
-with A the mirror's area [m^2], c its chord [m] (the mirror's width, across the axis), v the mean
-wind speed [m/s], G the gust factor (peak over mean speed) and rho the air density [kg/m^3].
-
-The moment coefficient of a flat mirror about its mid-chord is that of a flat plate in separated
-flow: the normal force C_N(alpha) acting at the centre of pressure x_cp(alpha) from the windward
-edge, C_M = C_N (1/2 - x_cp / c):
-
-- C_N(alpha) = 1 / (0.222 + 0.283 / sin alpha): Hoerner's normal force of a flat plate beyond stall
-  (S. F. Hoerner, *Fluid-Dynamic Drag*, 1965, ch. 3; 1.98 broadside, the 2-D plate's drag);
-- x_cp / c = 0.195 + 0.305 sin alpha: Joessel's centre of pressure of a flat plate (rudder
-  experiments, 1873; the naval architects' rudder-torque law), moving from about a fifth of the
-  chord at small angles to the middle broadside.
-
-The wind's direction: only the horizontal component of the wind normal to the panel's axis loads it
-(:func:`cross_wind_speed`), u = -v sin(phi - psi) for a wind blowing *from* azimuth phi on an axis
-along azimuth psi (both clockwise from north; u > 0 blows towards the side the panel's normal tilts to
-at theta_p > 0, azimuth psi + 90 deg). This is the cross-flow (independence) principle of a long
-yawed body: its loads are those of the velocity component normal to its axis (W. R. Sears, "The
-boundary layer of yawed cylinders", J. Aeronautical Sciences 15, 1948; J. C. Cooke, Proc. Cambridge
-Phil. Soc. 46, 1950). Exact for an infinitely long body with a laminar boundary layer, an
-approximation for a finite, separated panel: its end flow, and the load left with the wind along
-the axis, are neglected (docs/physics.md). Without a direction the wind is taken normal
-to the axis (u = v, the worst case).
-
-The signed angle of attack (:func:`attack_angle`) is theta_p in the frame of a wind blowing towards
-+psi + 90 deg: it flips sign with the side the wind comes from. The moment in the panel's sense is
-M = sign(u) C_M*(sign(u) theta_p) q A c with C_M*(beta) = sign(beta) C_M(|beta|) the flat plate's odd
-curve, so the two sign flips cancel: a flat plate pivoted at its middle turns broadside, M has the
-sign of theta_p whichever side the wind comes from (it *increases* |theta_p|). It is 0 flat
-(theta_p = 0, the stow attitude) and broadside (|theta_p| = 90 deg), largest (0.198) at 25.5 deg.
-
-The mechanics FMU's ``m_ext`` is the moment *opposing* positive rotation (models/PanelMechanics.mo),
-so ``m_ext = -M`` (:func:`external_moment`).
-
-Air density: the ideal gas at the International Standard Atmosphere's pressure at the site's
-altitude, rho = p / (R T), p = p0 (1 - L h / T0)^(g M / (R* L)) (ISO 2533:1975, the troposphere),
-at the ISA temperature T0 - L h unless a temperature is given.
-
-Gust factor: the peak 3-s gust over the hourly mean speed in open terrain at 10 m, 1.52 (Durst's
-curve: C. S. Durst, "Wind speeds over short periods of time", *Meteorological Magazine* 89, 1960;
-ASCE 7-16 commentary, Fig. C26.5-1), for extratropical winds: tropical-cyclone gust factors are
-higher (Krayer & Marshall, Bull. Amer. Meteor. Soc. 73, 1992; docs/physics.md). A weather file's
-speed is a mean; the moment takes the gust.
+Details: docs/physics.md, ``heliostep.drive.wind``.
 """
 
 from __future__ import annotations

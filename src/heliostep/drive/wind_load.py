@@ -1,25 +1,9 @@
 """From a scenario's ``wind`` section to the wind over the window: its speed, the stow plan, the moment signal.
 
-The speed is piecewise linear between knots: a constant, a design gust's points, or a weather
-file's stamps (its wind is measured at the stamp, :mod:`heliostep.solar.irradiance`) with the
-window's ends interpolated between them. The moment on the mechanics' ``m_ext`` input is a
-piecewise-constant signal (the master's inputs change only at known instants, where CVODE restarts)
-that changes at the drive's step instants, which restart the solver anyway, at the speed's knots,
-and, where neither comes for ``wind.update_interval`` seconds, on a grid of that spacing: it costs
-a restart per update interval without steps, not per row of the file.
+The speed is piecewise linear between knots; the moment on the mechanics' ``m_ext`` is piecewise
+constant, evaluated on the commanded panel angle, never understating the continuous one.
 
-The moment is evaluated on the *commanded* panel angle (the commanded rotor position through the
-transmission), a known function of time: the panel's own angle differs from it by the elastic lag
-and the tracking error (< 0.1 deg), which changes C_M by at most max|dC_M/dalpha| x 0.1 deg =
-1.06 x 1.75e-3 = 1.9e-3 (1 % of C_M's largest, 0.198; docs/physics.md). On each hold the value is
-the larger in magnitude of the moments at the hold's two ends, so the held signal never
-understates the continuous one between the knots.
-
-The wind's component normal to the panel's axis (:func:`heliostep.drive.wind.cross_wind_speed`) is
-taken at the knots and linear between them (the vector's interpolation, as the weather file's
-direction is interpolated), so q ~ u^2 is still largest at a hold's end. The axis
-(:func:`panel_axis_azimuth`): the primary axis runs along the tube, the secondary across it (taken
-horizontal: it turns with the primary, whose angle stays below the secondary's range here).
+Details: docs/physics.md, ``heliostep.drive.wind_load``.
 """
 
 from __future__ import annotations
@@ -42,6 +26,7 @@ __all__ = [
     "moment_signal",
     "panel_axis_azimuth",
     "wind_speed_knots",
+    "wind_weather_path",
 ]
 
 
@@ -87,7 +72,8 @@ class WindSignal:
         }
 
 
-def _weather_path(scenario: Scenario) -> Path:
+def wind_weather_path(scenario: Scenario) -> Path:
+    """The scenario's ``wind.weather_file``, relative to the scenario's folder unless absolute."""
     path = Path(str(scenario.wind.weather_file)).expanduser()
     return path if path.is_absolute() else Path(scenario.folder) / path
 
@@ -136,7 +122,7 @@ def wind_speed_knots(scenario: Scenario, start: pd.Timestamp, duration: float) -
         return WindKnots(times, np.interp(times, t, v), None, _constant(given, times))
     if wind.weather_file is None:
         return None
-    path = _weather_path(scenario)
+    path = wind_weather_path(scenario)
     weather = WeatherFile.read(path, scenario.site.to_site())
     end = start + pd.Timedelta(seconds=duration)
     stamps = pd.date_range(start.floor("h"), end.ceil("h"), freq="h")

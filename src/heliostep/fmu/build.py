@@ -1,26 +1,9 @@
 """Building the project's FMUs from the Modelica models, cached by content.
 
-Every ``models/NAME.mo`` becomes ``NAME.fmu`` (FMI 2.0) or ``NAME-fmi3.fmu`` (FMI 3.0, ``build-fmus
---fmi 3``) in the FMU cache through one loop (no per-model build code). An FMU is rebuilt only when
-its *build key* changes: a SHA-256 of every Modelica file of the folder, the FMI version, its C layer
-and their shared core, the build code and the versions of heliostep, pymoca, CasADi, fmpy and the C
-compiler. The key also makes the FMU's GUID, so a built FMU says
-which sources it came from.
+Every ``models/NAME.mo`` becomes an FMU through one loop, rebuilt only when its build key (a hash of
+the sources, the FMI version and the tools' versions) changes.
 
-The cache keeps each build under its key, ``CACHE/KEY16/NAME.fmu`` (``KEY16``: the key's first
-16 hex digits), so two heliostep versions (or two source trees) sharing a cache never replace
-each other's FMUs. Beside each FMU, ``NAME.fmu.sha256`` holds the SHA-256 of the file written at
-build time: a cached FMU is used only when its digest matches (no lock taken, so a read-only
-cache of up-to-date FMUs works); a damaged or unfinished one is rebuilt. Only a build takes the
-model's lock (``CACHE/.build/NAME.lock``) and works in ``CACHE/.build/NAME-PID-*``; a build killed
-midway leaves that folder, which the next build of the model removes once its process is gone.
-
-An ``.fmu`` a user drops into an ``fmus/`` folder (beside the scenario, or in the current
-directory) without a model of the same name (for example one exported by another Modelica tool)
-is used as it is, never rebuilt.
-
-Folders: :mod:`heliostep.paths` (shipped models; the per-user FMU cache, or
-``$HELIOSTEP_MODELS`` / ``$HELIOSTEP_FMUS``).
+Details: docs/fmus.md, ``heliostep.fmu.build``.
 """
 
 from __future__ import annotations

@@ -1,30 +1,10 @@
 """Export a flat model (:mod:`heliostep.fmu.modelica`) as an FMI 2.0 or 3.0 Model Exchange FMU.
 
-Steps, the same for every model:
+CasADi solves the implicit residual for the derivatives (explicit code where the equations sort,
+else a Newton iteration in C) and generates C; one FMI layer per version compiles it; the
+modelDescription's dependencies come from CasADi's sparsity; the zip has fixed time stamps.
 
-1. CasADi builds ``model_eval(t, x, u, p, guess) -> (computed, residual)``: the model's
-   implicit residual ``F(der(x), z; t, x, u, p) = 0`` is solved for the derivatives and
-   algebraic variables. Where the equations can be solved one at a time, each affine in its
-   unknown (:func:`sequential_solution`, the sorting Modelica tools do), ``model_eval`` is
-   explicit code with no iteration; otherwise CasADi's ``fast_newton`` rootfinder runs the
-   Newton iteration inside the generated C code; ``residual`` is ``F`` at the solution (checked by the C
-   layer, equation by equation, relative to ``model_scale(t, x, u, p)``: the size of the terms
-   the equation balances, ``|F_i| + sum_k |dF_i/dk_k| |k_k|`` over the known values with the
-   unknowns at zero, computed only when a residual exceeds the absolute bound). ``model_solve``
-   is the same with a converging iteration first (see :data:`POLISH_OPTIONS`);
-   ``model_start(p) -> x0`` gives the start values of the states bound to parameters. For an
-   explicit model, ``model_state_part`` computes only the variables that depend on no input, and
-   ``model_rest`` the others from its values (:func:`state_part`, :func:`rest_evaluation`).
-2. CasADi generates C for all of them (``equations.c``/``equations.h``).
-3. ``model.h`` describes the model to the FMI layer written once for all models
-   (``c/fmi2_model_exchange.c`` or ``c/fmi3_model_exchange.c``: each version's signatures around
-   the bodies in ``c/model_exchange_core.h``): sizes, start values, names. Both versions compile
-   the very same generated equations.
-4. ``modelDescription.xml``: causality, variability, initial, start values, units (with SI
-   base units), descriptions and a ``ModelStructure`` whose dependencies come from CasADi's
-   Jacobian sparsity of ``model_eval``.
-5. gcc compiles with warnings as errors against the FMI headers that fmpy ships, and the
-   FMU is zipped with fixed time stamps (same input, same bytes).
+Details: docs/fmus.md, ``heliostep.fmu.export``.
 """
 
 from __future__ import annotations

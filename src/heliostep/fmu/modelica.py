@@ -1,15 +1,7 @@
-"""Modelica front end: ``models/*.mo`` → a flat, typed description of one model.
+"""Modelica front end: ``models/*.mo`` → a flat, typed description of one model (pymoca), with errors
+that name the file and line and a check for the constructs the export does not support.
 
-pymoca parses and flattens the Modelica source (components and ``connect`` included) and
-translates it to CasADi symbols. This module adds what a build needs around it: errors that
-name the file, line and reason, a check for the constructs the FMU export does not support,
-and the descriptions of the variables (which pymoca's CasADi model drops) taken from the
-flattened tree.
-
-The supported subset: ``model`` classes of ``Real`` parameters, inputs, outputs and
-continuous variables, equations (including ``connect``), ``der()``, the usual maths
-functions and ``min``/``max``. Discrete-time constructs (``when``, ``pre``, ``reinit``,
-``sample``, ``algorithm`` sections, ``Integer``/``Boolean`` variables) are refused.
+Details: docs/fmus.md, ``heliostep.fmu.modelica``.
 """
 
 from __future__ import annotations

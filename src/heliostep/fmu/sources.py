@@ -1,24 +1,8 @@
 """Source FMUs: an FMU that ships only ``sources/`` compiled on first use, cached by content.
 
-FMI 2.0 and 3.0 let an FMU carry its C sources instead of (or besides) binaries: ``sources/``
-holds them, and the files to compile are listed in ``modelDescription.xml`` (FMI 2.0:
-``<SourceFiles>`` of the ``ModelExchange`` or ``CoSimulation`` element) or in
-``sources/buildDescription.xml`` (FMI 3.0: ``BuildConfiguration`` / ``SourceFileSet`` /
-``SourceFile``, with its ``PreprocessorDefinition`` and ``IncludeDirectory`` elements); fmpy reads
-both into ``ModelDescription.buildConfigurations``. Without a list, every ``.c`` at the top of
-``sources/`` is compiled. :func:`with_platform_binary` leaves an FMU with a binary for this
-platform as it is; one without a binary but with sources is compiled with the project's toolchain
-(the C compiler of :func:`heliostep.fmu.export.compiler`, against the FMI 2.0 and 3.0 headers fmpy
-ships) into a copy of the FMU that adds ``binaries/<platform>/<modelIdentifier>.so`` (FMI 2.0:
-``linux64``; FMI 3.0: the platform tuple ``x86_64-linux``), one per model identifier of its
-interfaces. (fmpy's own ``fmpy.build.build_platform_binary`` builds FMI 3.0 sources too, but
-through CMake; heliostep keeps one toolchain, the compiler its FMUs and kernel are built with.)
+Compiled with the project's one toolchain into a cached copy of the FMU that adds this platform's binary.
 
-The copy is cached like the project's own FMUs: under ``CACHE/sources/KEY16/NAME.fmu``, ``KEY16``
-the first 16 hex digits of a SHA-256 of the FMU's bytes, this module and the compiler's version
-line, its own SHA-256 recorded beside it (``NAME.fmu.sha256``) and checked before every use; a
-second use finds it there and compiles nothing. A compilation that fails is bad input
-(:class:`~heliostep.errors.InputError`, exit 2) naming the FMU and the compiler's first error.
+Details: docs/fmus.md, ``heliostep.fmu.sources``.
 """
 
 from __future__ import annotations

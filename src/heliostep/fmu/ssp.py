@@ -1,20 +1,6 @@
 """SSP 1.0 systems: a scenario's FMUs, connections and parameters read from and written to an ``.ssp``.
 
-An ``.ssp`` (System Structure and Parameterization, Modelica Association, SSP 1.0) is a zip with
-``SystemStructure.ssd`` and the FMUs under ``resources/``. :func:`read_ssp` reads it with fmpy's
-SSD reader (validated against the SSP 1.0 schemas fmpy ships): each ``Component`` of the system
-becomes an FMU instance of its name (its FMU extracted into the FMU cache, ``CACHE/ssp/KEY16/``,
-keyed by the file's SHA-256), each ``Connection`` a connection, and the parameter bindings
-(``ParameterValues`` inline or a referenced ``.ssv``; on a component, or on the system with
-names ``component.parameter``) the instances' parameters. What the master cannot take is refused
-naming the file and the element: nested systems, connections to the system's own connectors,
-connections with a transformation, components that are not FMUs.
-
-:func:`write_ssp` writes a scenario's system: its FMUs as ``resources/INSTANCE.fmu``, every
-input, output and parameter as a connector (type, unit, the units' SI base units from each
-FMU's ``UnitDefinitions``), the connections, and the scenario's parameters as inline bindings.
-FMI 2.0 and 3.0 FMUs alike: FMI 3.0's Float64/Float32 connectors are SSP ``Real``, its integer
-types ``Integer``.
+Details: docs/fmus.md, ``heliostep.fmu.ssp``.
 """
 
 from __future__ import annotations

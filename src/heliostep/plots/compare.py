@@ -1,20 +1,7 @@
-"""Plots and the report of ``heliostep compare``.
+"""Plots and the report of ``heliostep compare``: a self-contained ``index.html``, its Markdown twin,
+one figure per failing signal.
 
-:func:`write_report` writes into one folder:
-
-* ``index.html``: one self-contained file (every figure embedded as a base64 ``data:image/png``
-  URI, the style inline; no link to any other file), readable offline and in a CI artifact
-  viewer: the verdict, which actual signal was compared with which reference signal and how,
-  a summary table with units, and per failing signal its figure;
-* ``index.md``: the Markdown twin (same tables) for text viewers, linking the PNGs;
-* one PNG per failing signal (named by :func:`png_name`), the same figures.
-
-A failing signal's figure (:func:`signal_figure`) has four panels: the whole span and a zoom
-around the worst point, each as values (reference, the tube as a band, actual, the parts outside
-the tube in red) over the difference ``actual - reference`` against the tube's edges relative to
-the reference (``L - y``, ``U - y``: the half-width, widened by the time tolerance). The zoom is
-scaled to the failure's own duration (:func:`failure_window`): a 40 ms excursion is shown over
-about three times its length, not over seconds.
+Details: docs/compare.md, ``heliostep.plots.compare``.
 """
 
 from __future__ import annotations
@@ -39,7 +26,7 @@ from heliostep.results.compare.traces import ComparisonResult, SignalEvaluation,
 from heliostep.results.compare.verdicts import failure_message
 from heliostep.results.trace.files import TIME
 
-__all__ = ["failure_window", "plot_signal", "png_name", "signal_figure", "write_report"]
+__all__ = ["failure_window", "png_name", "signal_figure", "write_report"]
 
 #: Drawn points per series and panel at most (extremes per time bin are kept).
 MAX_POINTS = 4000
@@ -180,24 +167,6 @@ def signal_figure(
     axes[0, 0].legend(loc="best", fontsize=8)
     axes[1, 0].legend(loc="best", fontsize=8)
     return fig
-
-
-def plot_signal(
-    evaluation: SignalEvaluation,
-    path: str | Path,
-    reference: tuple[np.ndarray, np.ndarray],
-    actual: tuple[np.ndarray, np.ndarray],
-    unit: str | None = None,
-    time_unit: str = "s",
-) -> Path:
-    """Write the PNG of one signal (:func:`signal_figure`)."""
-    path = Path(path)
-    fig = signal_figure(evaluation, reference, actual, unit, time_unit)
-    try:
-        save_png(fig, path, 90)
-    finally:
-        plt.close(fig)
-    return path
 
 
 def write_report(

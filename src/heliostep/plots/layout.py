@@ -1,11 +1,7 @@
-"""A fixed layout for the figures of ``heliostep run``: margins in inches, no layout engine.
+"""A fixed layout for the figures of ``heliostep run``: margins in inches, no layout engine (the
+run's figures are always the same few shapes, so measuring every text before drawing buys nothing).
 
-matplotlib's constrained layout measures every text of a figure (a full pass of tick labels,
-titles and legends without drawing) before the real draw, a large part of a run figure's
-``savefig``. The run's figures are always the same few shapes, so :func:`fixed_axes` places their
-axes by margins given in inches instead: wide enough for the widest tick labels and axis labels
-of the shipped scenarios' figures (``tests/plots/test_plots_layout.py`` draws them and checks
-that no text reaches past the figure's edge).
+Details: docs/running.md, ``heliostep.plots.layout``.
 """
 
 from __future__ import annotations

@@ -1,15 +1,6 @@
 """Plot of one run's light on the tube: power over the window, ideal tracking against the drive.
 
-:func:`plot_light` draws :func:`heliostep.results.light.on_tube.light_timeseries`'s power on the tube
-(absorbed, [kW]) for ideal two-axis tracking, for the reference (the driven axis on the drive's
-law, the primary shared) and for the actual panel, on an axis zoomed to the powers (not from 0,
-where curves that differ by parts in 10^7, as the central mirror's do, draw as one line). The
-differences get panels of their own [W]: what sharing the primary loses (ideal - shared) with the
-reference law's part (shared - reference), and the stepping's change (actual - reference,
-signed: a first-order term, not a loss) with its first-order estimate. The legends give each
-energy [kJ, or J below 1 kJ]: the run's figures (``summary.json``'s, which take the panel's swing between the
-rows from the solution, :mod:`heliostep.results.light.rows`) where given, else the rows' trapezoids.
-:func:`plot_light_run` computes the series from a run and writes ``POWER_FILE``.
+Details: docs/light.md, ``heliostep.plots.light``.
 """
 
 from __future__ import annotations

@@ -1,12 +1,6 @@
 """Every PNG heliostep draws is written here: the text without the font's hinting program, zlib's fastest level.
 
-matplotlib's Agg backend renders each glyph through FreeType with the hinting that ``text.hinting``
-selects; by default that runs the font's own TrueType bytecode (FreeType's interpreter,
-``TT_RunIns``). Without hinting (``"no_hinting"``, the setting matplotlib's own image tests use)
-the glyphs keep their outlines' shapes, anti-aliased; the figures' lines, axes and layout are
-unchanged, and they are drawn faster (``benchmarks/bench_plots.py``). zlib's level 1 gives the same
-pixels in less time than the default level, in slightly larger files. Both apply only while a
-figure is written (:func:`save_png`): the caller's ``rcParams`` are left as they were.
+Details: docs/running.md, ``heliostep.plots.png``.
 """
 
 from __future__ import annotations

@@ -1,17 +1,6 @@
 """Plots of one run's trace: the paper's Figs. 8-14.
 
-:func:`plot_run` writes one PNG per figure into a folder. The x axis is the local
-clock time (``metadata["window_start"]`` plus the trace's ``time``), angles are shown
-in degrees. A figure whose columns are missing from the trace is skipped, and so is
-the torque zoom of a run without steps.
-
-Given the run's solution data (``RunResult.solution_plot``), Fig. 14 draws every solver step
-around the largest |torque| (its peak is ``summary.json``'s) and Figs. 10-11 per-bin envelopes.
-Long traces are thinned before drawing: per time bucket the first, last, smallest
-and largest sample of each line are kept, so steps and peaks stay visible while a
-line never has more than about ``4 * MAX_BUCKETS`` points. Figures are built with
-:class:`matplotlib.figure.Figure` (no pyplot state), so they can be drawn from
-worker threads.
+Details: docs/running.md, ``heliostep.plots.run``.
 """
 
 from __future__ import annotations

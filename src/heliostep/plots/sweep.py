@@ -1,25 +1,6 @@
-"""Plots of a sweep's results table (:mod:`heliostep.sweep`).
+"""Plots of a sweep's results table (:mod:`heliostep.sweep`): heat maps over day of year x mirror.
 
-:func:`plot_sweep` writes, into a folder:
-
-* ``heatmap_peak_torque.png``, ``heatmap_max_tracking_error.png``,
-  ``heatmap_primary_sharing_error.png``, and the energy-loss maps ``heatmap_light_lost.png``
-  (light on the tube lost against ideal two-axis tracking, by the shared primary and the
-  stepping together [kJ]) and ``heatmap_light_lost_fraction.png`` (the same as a share of the
-  ideal [%]): the figure over day of year x mirror index (the largest value over the other
-  axes), when the table has at least two days and two mirrors;
-* no torque verdict. The figure that was drawn here, ``torque_requirement.png`` (the paper's rule,
-  2 x the simulated peak torque against the holding torque k_e x I), is no longer written: the
-  peak is the torque the motor produces to swing its load into the next detent, not the
-  requirement. The requirement is ``heliostep size``'s (:mod:`heliostep.sizing.size`): the load
-  budget at each day's worst instant (wind through the transmission, friction, inertia) against
-  the torque the motor can deliver, with the safety factor on the load (docs/sizing.md). The name
-  stays owned by the sweep's folder (:data:`TORQUE_FILE`), so a figure an earlier version wrote is
-  removed with the older figures rather than left showing the old rule.
-
-Only cases with status "ok" are drawn; a missing cell (failed case) stays grey. Each cell
-prints its value; a peak-torque cell whose cases commanded no step says "no steps" (white). Figures
-are built with :class:`matplotlib.figure.Figure` (no pyplot state).
+Details: docs/sweep.md, ``heliostep.plots.sweep``.
 """
 
 from __future__ import annotations

@@ -1,11 +1,5 @@
 """Running a scenario: ``run_scenario``, heliostep's one public entry point (re-exported as
 ``heliostep.run_scenario``), with its :class:`RunOptions`.
-
-:mod:`~heliostep.run.runner` orchestrates a run (set up, simulate once, summarize);
-:mod:`~heliostep.run.fmus` resolves and reads the scenario's FMUs; :mod:`~heliostep.run.bindings`
-binds the scenario's roles, parameters and drive signals onto them; :mod:`~heliostep.run.result`
-is the outcome (:class:`RunResult`, written through :mod:`heliostep.results.output.run_files`, its figures drawn
-by :mod:`heliostep.plots.drawing`).
 """
 
 from heliostep.run.fmus import resolve_fmus

@@ -1,19 +1,8 @@
 """What a run will take, estimated from its scenario alone before anything is computed.
 
-:func:`estimate_run` gives the steps, events, trace rows, memory and disk of a run in a few
-milliseconds: the reference rotor angle on at most :data:`REFERENCE_POINTS` instants (pvlib SPA, as
-the run does), its travel over the window divided by the sequencer's increment (the steps), and
-the output grid's rows counted, not built (the regular grid, plus each step's fine grid and the
-rows at each step). :func:`check_budget` refuses (:class:`~heliostep.errors.InputError`, exit 2)
-a run whose memory or disk is over the scenario's ``budget`` (``budget.memory_gb``,
-``budget.disk_gb``; ``heliostep run --max-memory / --max-disk``), naming the key that makes it
-large (the one furthest from its default in the direction that enlarges the largest part of the
-estimate) and the estimate. So the inputs are never prepared for a run too large to finish: the
-preparation of inputs within the budget takes seconds at most.
+:func:`check_budget` refuses a run over its memory or disk budget before its inputs are prepared.
 
-The constants are measured on the shipped scenarios (``tests/run/test_estimate.py`` checks the
-rows within 2 % and the memory and disk within a factor 2 of what the shipped short scenarios
-take).
+Details: docs/running.md, ``heliostep.run.estimate``.
 """
 
 from __future__ import annotations

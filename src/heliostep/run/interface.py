@@ -1,12 +1,7 @@
-"""A helpful refusal for FMUs whose variables do not match the connections and roles.
+"""A helpful refusal for FMUs whose variables do not match the connections and roles, with a
+``connections`` and ``roles`` block that would fit, ready to paste into the scenario.
 
-A vendor FMU dropped in with ``--set fmus.motor=VendorMotor`` usually names its variables otherwise
-than the shipped interface (``iaRef`` for ``i_a_ref``, ``tauEl`` for ``tau``). The default
-connections and roles then name variables it does not have. :func:`check_interface` finds that
-before anything is simulated and refuses the run (:class:`~heliostep.errors.InputError`, exit 2)
-with every instance's inputs and outputs (units in brackets) and a ``connections`` and ``roles``
-block that would fit, each missing variable matched to one of the FMU's own by causality, unit
-and name (:func:`propose_interface`), ready to paste into the scenario.
+Details: docs/running.md, ``heliostep.run.interface``.
 """
 
 from __future__ import annotations

@@ -1,20 +1,6 @@
 """The load a drive must carry and the torque its motor has against it: the sizing's two sides.
 
-The load on the motor shaft at each instant of a scenario's window ([paper], eqs. 10 and 15, with the
-exact ratio g = s/(r cos^2 theta_p)):
-
-* wind: M / g, the moment on the panel axis reflected through the rack and pinion;
-* friction: T_c + M_c / g, the Coulomb friction of reducer and rack on the shaft and of the hinge
-  bearings on the panel axis (the mechanics FMU's parameters);
-* inertia: (J_m + J_p / g^2) |d^2 theta_ref / dt^2|, the torque to follow the reference's fastest
-  change of speed (while tracking this is tiny: the sun moves slowly; a slew move's would be larger).
-
-:class:`LoadBudget` is the worst instant's. Against it, :func:`static_step_limit` is the largest static
-load the motor steps against without slipping, from the static torque curves ([paper], eq. 9): a step
-moves the stable position by an electrical angle Delta; a rotor held at lag delta behind its detent
-(A_from sin delta = T) feels A_to sin(Delta + delta) towards the next one, which must exceed T. One
-phase on, full steps: T_max = T_hold cos(pi/4) = 0.707 T_hold (the adjacent detents' curves cross
-there); microsteps m: T_hold cos(pi/(4m)); two phases on: sqrt(2) T_hold cos(pi/4) = T_hold.
+Details: docs/sizing.md, ``heliostep.run.load_budget``.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
 """``run_scenario``: a run set up, simulated once and summarized.
 
-scenario → FMUs (:mod:`~heliostep.run.fmus`) and bindings (:mod:`~heliostep.run.bindings`) →
-drive inputs (:mod:`heliostep.drive`) → master (:mod:`heliostep.cosim`), whose rows go, in the one
-pass, to the run's figures (:class:`~heliostep.results.figures.run_figures.RunFigures`) and to its row
-sink (:mod:`heliostep.results.trace.sinks`: the trace held, streamed to Parquet, or not kept) →
-:class:`~heliostep.run.result.RunResult`. A run that fails or is interrupted part-way still
-returns (and writes) the trace so far, marked incomplete. The command line is :mod:`heliostep.cli.run`.
+Its rows go in one pass to the run's figures and to its row sink; a run that fails or is
+interrupted part-way still returns (and writes) the trace so far, marked incomplete.
 """
 
 from __future__ import annotations

@@ -1,32 +1,9 @@
 """The torque a motor can deliver: its holding torque and its pull-out torque against step rate.
 
-Both are co-simulated with the project's FMUs on its master (:class:`~heliostep.cosim.CoSimulation`):
-the motor FMU (``StepperMotor``, with its averaged chopper on the drive's bus) turns the mechanics FMU
-(``PanelMechanics``) set up as a test bench: the rotor's inertia plus a load inertia on the shaft
-(default the paper's panel seen through its drive, :data:`BENCH_LOAD_INERTIA`), no hinge friction, and
-a transmission ratio g = s/r = 1200 (the panel turns by under 0.01 rad in a test, so g stays constant).
+Both co-simulated with the project's FMUs on a test bench (the mechanics FMU as a load inertia and
+a brake), as a dynamometer measures them.
 
-**Pull-out torque** at step rate f [full steps/s] against a load T [N.m], as a dynamometer measures it:
-the load is a brake, the mechanics' Coulomb friction on the shaft ``T_c = T`` (it opposes motion and
-never drives the rotor). The step rate rises from ``min(f, START_RATE)`` to f at a constant acceleration
-whose inertia torque is :data:`RAMP_TORQUE_FRACTION` of the holding torque, then :data:`HOLD_STEPS` steps
-run at f. The steps are kept when, midway between each of the last :data:`JUDGED_STEPS` steps, the rotor
-is within two full steps of the commanded position (a rotor that slips loses whole electrical periods,
-four full steps each, or stalls). :func:`pull_out_torque` bisects T between 0 and the holding torque.
-
-**Holding torque**: a static load through the mechanics' ``m_ext`` (a moment on the panel axis, m_ext/g
-on the shaft), raised in :data:`LOAD_LEVELS` levels over :data:`LOAD_RAMP_TIME` with no step; it is held
-when the rotor rests within two steps of its detent :data:`SETTLE_TIME` later. A rotor that slips under a
-static load runs away (nothing holds it) until CVODE runs out of steps (:data:`MAX_SOLVER_STEPS` per
-:data:`OUTPUT_INTERVAL`): that counts as not held (in a brake test too, where it has not been seen since
-the step limit is counted per output interval).
-
-The bench's brake is regularised as the mechanics' friction is (tanh(omega/w_s), docs/physics.md): at
-rest it vanishes, so between slow steps the rotor creeps into its detent, and at low rates the
-pull-out torque rises towards the holding torque (0.91 of it at 2 steps/s, full steps); a brake that
-sticks would hold the rotor at its lag, where full steps carry only T_hold sin(pi/4)
-(:func:`heliostep.run.load_budget.static_step_limit`, the figure ``heliostep size`` uses for a static
-wind load).
+Details: docs/sizing.md, ``heliostep.run.speed_torque``.
 """
 
 from __future__ import annotations

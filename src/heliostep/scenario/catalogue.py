@@ -1,13 +1,6 @@
 """The motor catalogue: candidate drives for ``heliostep size``, read and checked before anything runs.
 
-The shipped catalogue is ``heliostep/data/motors.yaml`` (package data); ``--catalogue FILE`` gives
-another of the same form. Every entry needs every key of :data:`REQUIRED_KEYS`; a missing, unknown or
-non-positive value is an :class:`~heliostep.errors.InputError` naming the file and the dotted key.
-
-From a datasheet to the motor FMU (docs/physics.md, "From a datasheet to the motor FMU"): a hybrid
-stepper's datasheet holding torque is measured with both phases on at the rated current, where the
-model's torque ([paper], eq. 9) has the amplitude sqrt(2) k_e I; so k_e = T_hold / (sqrt(2) I_rated),
-and one phase on at current I holds k_e I. N_c = 90 deg / step angle (50 for 1.8 deg).
+Details: docs/sizing.md, ``heliostep.scenario.catalogue``.
 """
 
 from __future__ import annotations

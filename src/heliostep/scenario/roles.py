@@ -1,20 +1,6 @@
 """Roles: which FMU variable plays which part in the drive, so no instance name is hard-wired.
 
-The drive's master signals, the trace's derived columns, the summary and the plots find
-their variables through a :class:`RolesConfig` (the scenario's ``roles`` section), never
-through a literal ``motor.tau``. The defaults name the shipped FMUs' interface
-(instances ``motor`` and ``mechanics``); a scenario that renames its instances, or uses a
-vendor FMU with other variable names, says where each role lives::
-
-    roles:
-      current_a_ref: drive.ia_ref        # the sequencer drives these inputs
-      current_b_ref: drive.ib_ref
-      torque: drive.torque               # outputs the figures are computed from
-      rotor_angle: load.phi
-      ...
-
-A role set to null is absent (for example ``wind_moment: null`` for a mechanics FMU
-without a load input); roles the run needs must be present.
+Details: docs/running.md, ``heliostep.scenario.roles``.
 """
 
 from __future__ import annotations

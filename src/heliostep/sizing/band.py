@@ -1,15 +1,6 @@
 """The sizing's uncertainty band: each candidate's margins over the corners of the drive physics' ranges.
 
-The ranges are the bands' (:func:`heliostep.sweep.band.load_ranges`, ``data/parameter_ranges.yaml``):
-each key's low and high, every combination of them (the 2^k corners; k = 3 shipped, 8 corners). Cheap:
-no simulation. The static margins depend on a range's key only through the drive's holding torque
-k_e K I / (K + R) (:meth:`heliostep.scenario.catalogue.MotorDrive.holding_torque`), so of the shipped keys
-only the chopper's loop gain ``K_current`` moves them; the bus ``V_supply`` moves the speed-torque curve
-(the current's rise time L I / V), which is co-simulated once more per candidate at the **worst corner**
-(:func:`worst_corner`: every key at the end that lowers the deliverable torque: the lowest bus and loop
-gain, the highest rotor damping); the bench's rotor damping is the mechanics FMU's default B_m = 8e-4
-N.m.s/rad, the range's top, already. A key that enters neither (not the torque or mechanics instance's
-``V_supply``, ``K_current``, ``B_m``) is listed as not evaluated.
+Details: docs/sizing.md, ``heliostep.sizing.band``.
 """
 
 from __future__ import annotations

@@ -1,23 +1,6 @@
 """The days ``heliostep size`` co-simulates: the year's windiest and the sun's fastest, found, not assumed.
 
-Unless the days are given, the selection is, over the 365 days of the scenario's year, each with the
-scenario's window (its clock times or sunrise/sunset on that date):
-
-* **the sun's fastest days**: the days on which the ideal panel angle of the scenario's mirror and axis
-  (:func:`heliostep.solar.tracking.two_axis_angles` of NREL's SPA sun,
-  :func:`heliostep.solar.sun.solar_position`, the mirror's own two-axis law) turns fastest within the
-  window: max |d theta_p / dt| over the window, as differences on a grid of :func:`rate_grid_step`
-  (the sun above the horizon at both ends), all days in one vectorised SPA call. The annual curve of
-  that rate is smooth, so its neighbouring days say the same: the days kept are the curve's peaks
-  (a day whose rate is the highest within :data:`PEAK_SEPARATION_DAYS` on either side, the year
-  taken as a circle), the :data:`FASTEST_DAY_COUNT` highest of them;
-* **the year's windiest days**, when the wind comes from a weather file (``wind.weather_file``): the
-  :data:`WINDIEST_DAY_COUNT` days with the highest mean wind speed within the window (the file's speed,
-  linear between its stamps as the run takes it, :meth:`heliostep.solar.irradiance.WeatherFile.series`:
-  its largest over the window is at a stamp inside it or at an end), among the days the file covers.
-
-A day found by both criteria is simulated once and carries both reasons. ``days="all"`` takes all 365
-(meant for ``--scheduler``); given day numbers are taken as given.
+Details: docs/sizing.md, ``heliostep.sizing.days``.
 """
 
 from __future__ import annotations
@@ -25,11 +8,11 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from heliostep.drive.wind_load import wind_weather_path
 from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.solar.irradiance import WeatherFile
@@ -44,6 +27,7 @@ __all__ = [
     "WINDIEST_DAY_COUNT",
     "ChosenDay",
     "DaySelection",
+    "date_of",
     "day_windows",
     "fastest_days",
     "panel_angle_range",
@@ -99,7 +83,8 @@ class DaySelection:
         return {"kind": self.kind, "criterion": self.criterion, "days": [day.record() for day in self.chosen]}
 
 
-def _date_of(year: int, day_of_year: int) -> dt.date:
+def date_of(year: int, day_of_year: int) -> dt.date:
+    """The date of a year's day (1 for 1 January)."""
     return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
 
@@ -125,7 +110,7 @@ def _year_windows(scenario: Scenario) -> list[tuple[pd.Timestamp, pd.Timestamp] 
     year = scenario.window.date.year
     windows: list[tuple[pd.Timestamp, pd.Timestamp] | None] = []
     for day in range(1, DAYS_IN_YEAR + 1):
-        window = scenario.window.model_copy(update={"date": _date_of(year, day)})
+        window = scenario.window.model_copy(update={"date": date_of(year, day)})
         try:
             windows.append(scenario.model_copy(update={"window": window}).window_bounds())
         except InputError:
@@ -210,11 +195,6 @@ def fastest_days(rates: np.ndarray, count: int = FASTEST_DAY_COUNT, separation: 
     return [k + 1 for k in peaks[:count]]
 
 
-def _weather_path(scenario: Scenario) -> Path:
-    path = Path(str(scenario.wind.weather_file)).expanduser()
-    return path if path.is_absolute() else Path(scenario.folder) / path
-
-
 def _window_instants(window: tuple[pd.Timestamp, pd.Timestamp]) -> pd.DatetimeIndex:
     """A window's ends and the whole hours inside it: where a linear interpolant has its largest value."""
     start, end = window
@@ -241,7 +221,7 @@ def window_wind_speeds(scenario: Scenario, windows: Sequence[tuple[pd.Timestamp,
     stamps: the largest is at a whole hour inside the window or at an end); NaN where the file does not
     cover the window or marks the speed missing. One evaluation of the file for every day when it covers
     them all, else day by day."""
-    weather = WeatherFile.read(_weather_path(scenario), scenario.site.to_site())
+    weather = WeatherFile.read(wind_weather_path(scenario), scenario.site.to_site())
     parts = [(day, _window_instants(window)) for day, window in enumerate(windows) if window is not None]
     if not parts:
         return np.full(len(windows), np.nan)
@@ -286,10 +266,10 @@ def _taken(scenario: Scenario, days: Sequence[int] | str) -> DaySelection:
         if days != ALL_DAYS:
             raise InputError(f"--days {days!r}: expected days of the year (1..365) or {ALL_DAYS!r}")
         every = list(range(1, DAYS_IN_YEAR + 1))
-        chosen = [ChosenDay(d, _date_of(year, d), ("every day of the year (--days all)",)) for d in every]
+        chosen = [ChosenDay(d, date_of(year, d), ("every day of the year (--days all)",)) for d in every]
         return DaySelection(every, chosen, "every day of the year (--days all)", "all")
     given = sorted(set(int(d) for d in days))
-    chosen = [ChosenDay(d, _date_of(year, d), ("given (--days)",)) for d in given]
+    chosen = [ChosenDay(d, date_of(year, d), ("given (--days)",)) for d in given]
     return DaySelection(given, chosen, "the days given (--days)", "given")
 
 
@@ -298,7 +278,7 @@ def _covered_speeds(scenario: Scenario, windows) -> np.ndarray:
     speeds = window_wind_speeds(scenario, windows)
     if not np.any(np.isfinite(speeds)):
         raise InputError(
-            f"{scenario.source}: wind.weather_file: {_weather_path(scenario)} has no wind speed within the window "
+            f"{scenario.source}: wind.weather_file: {wind_weather_path(scenario)} has no wind speed within the window "
             f"on any day it covers; expected a speed [m/s] at its stamps"
         )
     return speeds
@@ -316,7 +296,7 @@ def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelect
             missing = [d for d in selection.days if not np.isfinite(speeds[d - 1])]
             if missing:
                 raise InputError(
-                    f"{scenario.source}: wind.weather_file: {_weather_path(scenario)} has no wind speed within the "
+                    f"{scenario.source}: wind.weather_file: {wind_weather_path(scenario)} has no wind speed within the "
                     f"window on day(s) {missing[:10]}{' ...' if len(missing) > 10 else ''} of --days"
                 )
         return selection
@@ -338,7 +318,7 @@ def select_days(scenario: Scenario, days: Sequence[int] | str = ()) -> DaySelect
     chosen = [
         ChosenDay(
             day,
-            _date_of(year, day),
+            date_of(year, day),
             tuple(reasons[day]),
             float(np.degrees(rates[day - 1])) if np.isfinite(rates[day - 1]) else None,
             float(speeds[day - 1]) if np.isfinite(speeds[day - 1]) else None,

@@ -1,25 +1,6 @@
 """``heliostep size``: every candidate drive and current against a scenario's load, and the verdict.
 
-For a scenario and a motor catalogue (:mod:`heliostep.scenario.catalogue`), each candidate at each of
-its currents is judged on:
-
-* the **load budget** at the worst instant of the window (:mod:`heliostep.run.load_budget`): the design
-  wind moment reflected through the transmission, friction and the inertia torque of the fastest move;
-* the **margin to slip while tracking**: the largest static load the motor steps against from rest
-  (:func:`~heliostep.run.load_budget.static_step_limit`) over the load budget;
-* the **margin at idle current**: the holding torque at the idle current over the wind's share;
-* the **margin while stowing** (:mod:`heliostep.sizing.stow`): a stow move's load (wind at the stow
-  threshold, friction, the move's inertia torque) against the pull-out torque at its step rate;
-* the **co-simulated days** (:mod:`heliostep.sizing.days`: the sun's fastest days and, with a weather
-  file, the year's windiest, found over the year; or ``days``, or all 365): the scenario's window on each day with
-  the candidate's motor, the current and the design wind moment, run through
-  :func:`~heliostep.run.run_scenario` (locally, or on Dask with a scheduler): steps missed and lost,
-  the worst tracking error, the drive's energy.
-
-It passes when the three margins reach the safety factor (default :data:`DEFAULT_SAFETY_FACTOR`, the
-paper's 2, on the load) and no simulated step was missed or lost; the sheet names every reason a
-candidate fails. The speed-torque curve of each candidate (:mod:`heliostep.run.speed_torque`) is drawn
-beside it. The files (``sizing.json``, ``sizing.html``) are :mod:`heliostep.sizing.sheet`'s.
+Details: docs/sizing.md, ``heliostep.sizing.size``.
 """
 
 from __future__ import annotations
@@ -46,7 +27,7 @@ from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
-from heliostep.sizing.days import select_days
+from heliostep.sizing.days import date_of, select_days
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sizing.stow import stow_angles, stow_step_rates
 from heliostep.sizing.verdict import judge
@@ -89,10 +70,6 @@ def _speed_source(scenario: Scenario) -> str:
     if wind.weather_file is not None:
         return f"wind.weather_file {wind.weather_file}"
     return "wind.speed" if wind.speed is not None else "wind.profile"
-
-
-def _date_of(year: int, day_of_year: int) -> dt.date:
-    return dt.date(year, 1, 1) + dt.timedelta(days=day_of_year - 1)
 
 
 def _instance(scenario: Scenario, role: str, default: str) -> str:
@@ -225,7 +202,7 @@ def _plan_cases(plan: SizingPlan) -> list[SizingCase]:
         for candidate in plan.candidates:
             for current in candidate.currents:
                 for day in plan.days:
-                    overrides = _case_overrides(scenario, candidate, current, _date_of(year, day), plan.wind_moment)
+                    overrides = _case_overrides(scenario, candidate, current, date_of(year, day), plan.wind_moment)
                     overrides += corner if at_corner else ()  # after the candidate's own bus and loop gain
                     cases.append(SizingCase(candidate.name, current, day, overrides, at_corner))
     return cases

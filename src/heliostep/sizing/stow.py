@@ -1,26 +1,6 @@
 """The margin to slip while stowing: a stow move's load against the pull-out torque at its step rate.
 
-The stow and return moves (:mod:`heliostep.drive.stow`) slew the panel at ``wind.slew_rate`` between the
-tracking angles and ``wind.stow_angle``, in a wind at the stow threshold ``wind.stow_speed``. At each
-panel angle theta_p they travel (:func:`stow_angles`: from the stow angle to the farthest tracking angle
-of the year, :data:`ANGLE_POINTS` points), the rotor steps at f = g omega_slew / phi, and the
-load on the shaft is :func:`heliostep.run.load_budget.stow_load`'s (wind at the threshold, friction, the
-move's inertia torque). The torque the motor delivers there is
-
-    min(T_po(f) T_hold(I) / T_hold(I_curve), static step limit at I)
-
-* T_po(f): the candidate's co-simulated speed-torque curve (:mod:`heliostep.run.speed_torque`), linear in
-  the step rate between its rates (:meth:`SpeedTorqueCurve.at`); it is co-simulated at the moves'
-  highest step rate too (:func:`stow_step_rates`), so nothing is extrapolated above, and below its
-  lowest rate the lowest rate's value is taken (the pull-out torque falls with the rate);
-* the curve is computed at the candidate's largest current I_curve; at a lower current I it is scaled
-  by the holding torque's ratio, I's k_e K I / (K + R) over I_curve's: exact where the chopper keeps up,
-  conservative at high rates (the current's rise time L I / V is shorter at a lower current);
-* a move starts from rest against the wind, a static load: its first step can take no more than the
-  static step limit (:func:`heliostep.run.load_budget.static_step_limit`).
-
-The margin is the least of deliverable / load over the angles; None when the scenario never stows
-(``wind.stow_speed`` null) or there is no curve (an interrupted sizing).
+Details: docs/sizing.md, ``heliostep.sizing.stow``.
 """
 
 from __future__ import annotations

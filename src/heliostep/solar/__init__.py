@@ -1,55 +1,10 @@
 """Solar geometry of a linear Fresnel plant with two-axis end mirrors.
 
-Small, pure, vectorised functions in the style of pvlib: angles of the sun in
-degrees (as pvlib gives them), mirror and motor angles in radians, lengths in
-metres. A :class:`pandas.Series` in gives Series out (functions returning several
-components return a tuple of Series).
+Small, pure, vectorised functions in the style of pvlib: sun angles in degrees, mirror and motor
+angles in radians, lengths in metres; a Series in gives Series out. ``[paper], eq. N`` in the
+comments is the source paper's equation. Frames and conventions: docs/geometry.md.
 
-``[paper]`` in the comments is the source paper of the project's physics notes
-(linear Fresnel plant, two-axis end mirrors, stepper drive); ``eq. N`` is its
-equation number. See ``docs/geometry.md`` for the equations and conventions.
-
-Frames and conventions
-----------------------
-* Plant frame: x across the tube, y along the tube, z up. For the default
-  North-South plant x = East, y = North. The plant azimuth ``plant_azimuth`` is
-  the compass direction of +y, measured from North toward East [deg]: 0 for a
-  North-South plant, 90 for an East-West plant (+y = East, +x = South), plus any
-  ``azimuth_offset``. The frame stays right-handed for every azimuth.
-* The receiver tube is parallel to y, at height ``tube_height`` above the mirror
-  plane, over x = 0; a mirror sits at x = ``mirror_distance``.
-* Sun: unit vector S toward the sun from pvlib's SPA (``nrel_numpy``). The
-  geometry uses the *apparent* (refraction-corrected) elevation throughout,
-  because that is the direction from which the light actually arrives.
-* End loss k: signed, **positive k means the reflected light lands shifted
-  toward +y** (North for a North-South plant), so the first |k| metres at the
-  -y end of the tube get no light when k > 0 (and at the +y end when k < 0).
-  Its magnitude is [paper] eq. 2.
-* Two-axis mirror: n = R_y(primary) R_x(secondary) z_hat, i.e.
-  n = (cos q sin p, -sin q, cos q cos p). Both rotations follow the right-hand
-  rule: a positive primary tilts the normal toward +x (East for a North-South
-  plant), a positive secondary tilts it toward -y. The paper writes eq. 3 with a
-  minus sign (its opposite sense for the primary); ours is minus the paper's.
-* Stow policy for reference angles (sun at or below ``min_elevation``):
-  ``"hold"`` keeps the last valid angle (before the first valid sample, the first
-  valid one; with no valid sample in the window at all, ``stow_angle``);
-  ``"stow"`` goes to ``stow_angle``. No NaN ever leaves
-  :func:`panel_angle_reference`.
-
-Modules: :mod:`~heliostep.solar.sun` (site, plant, SPA), :mod:`~heliostep.solar.tracking`
-(tracking laws, reference panel angle), :mod:`~heliostep.solar.transmission` (rotor <-> panel),
-:mod:`~heliostep.solar.field` (the end mirrors' field, shared primary),
-:mod:`~heliostep.solar.optics` (reflected ray, miss, cosine factor, the point mirror's intercept),
-:mod:`~heliostep.solar.intercept` (a finite flat or curved mirror's image on the absorber or a
-secondary concentrator), :mod:`~heliostep.solar.shading` (shading and blocking between
-neighbouring mirrors), :mod:`~heliostep.solar.receiver_shadow` (the receiver's own shadow),
-:mod:`~heliostep.solar.row_shading` (a plant's rows at their tracking attitudes),
-:mod:`~heliostep.solar.irradiance` (DNI and wind: pvlib clear sky or a
-TMY3/EPW file, hour-ending records), :mod:`~heliostep.solar.endloss` (lit length and energy on the
-tube of a plant, single-axis vs two-axis end mirrors, per instant, day and year), and
-:mod:`~heliostep.solar.checks`; pvlib's sun grids are kept by content in the FMU cache
-(:mod:`~heliostep.solar.sun_cache`: a run seen before does not import pvlib). This package imports
-nothing of heliostep but :mod:`heliostep.errors` and :mod:`heliostep.paths` (the cache's folder).
+Details: docs/geometry.md, ``heliostep.solar``.
 """
 
 from heliostep.solar.checks import check_timezone
@@ -63,7 +18,6 @@ from heliostep.solar.field import (
     solar_noon_sun,
 )
 from heliostep.solar.irradiance import (
-    WeatherDNI,
     WeatherFile,
     WeatherSeries,
     clear_sky_dni,
@@ -74,13 +28,8 @@ from heliostep.solar.irradiance import (
 )
 from heliostep.solar.optics import (
     SUN_HALF_ANGLE,
-    beam_spread,
-    concentration_limit,
     cosine_factor,
     end_fraction,
-    facet_slope_error,
-    intercept_factor,
-    lit_length,
     mirror_normal,
     optical_chain,
     receiver_miss,
@@ -111,7 +60,6 @@ from heliostep.solar.transmission import (
     PAPER_LEVER_ARM,
     PAPER_PINION_RADIUS,
     panel_angle_from_rotor,
-    panel_speed_from_rotor_speed,
     rotor_angle_from_panel,
     rotor_speed_from_panel_speed,
 )
@@ -133,7 +81,6 @@ __all__ = [
     "normal_orientation",
     "panel_angle_from_rotor",
     "panel_angle_reference",
-    "panel_speed_from_rotor_speed",
     "plant_azimuth",
     "rotor_angle_from_panel",
     "rotor_speed_from_panel_speed",
@@ -149,15 +96,10 @@ __all__ = [
     "two_axis_angles_from_normal",
     "two_axis_normal",
     "SUN_HALF_ANGLE",
-    "beam_spread",
     "clear_sky_dni",
-    "concentration_limit",
     "cosine_factor",
     "dni",
     "end_fraction",
-    "facet_slope_error",
-    "intercept_factor",
-    "lit_length",
     "mirror_normal",
     "optical_chain",
     "read_weather",
@@ -165,7 +107,6 @@ __all__ = [
     "reflect",
     "weather_dni",
     "weather_series",
-    "WeatherDNI",
     "WeatherFile",
     "WeatherSeries",
 ]

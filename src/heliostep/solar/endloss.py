@@ -1,43 +1,9 @@
 """The end-loss gain of two-axis end mirrors: lit length and energy on the tube, per instant, day and year.
 
-The plant: rows of mirrors of width ``w`` across at transverse distances d_i, all as long as
-the plant (L, along the tube), the tube at height h over x = 0 (frames as in
-:mod:`heliostep.solar`).
+A single-axis plant against one with two-axis end sections, both with shading and blocking between
+neighbouring rows ([paper], eqs. 1-6).
 
-**Single-axis plant** (the classic linear Fresnel). Row i turns about its longitudinal axis
-only ([paper], eq. 1): its normal bisects the sun projected on the cross-section and the
-direction to the tube, so the cosine of incidence is S . n_i with n_i = (cos beta_i, 0,
-sin beta_i). Its light keeps the sun's longitudinal component and lands shifted by k_i along
-the tube ([paper], eq. 2): the first |k_i| metres get none of it and the light of its last
-|k_i| metres falls past the far end. Absorbed power:
-P_single = DNI rho tau alpha w sum_i cos_i^single (L - |k_i|)+.
-
-**Two-axis end mirrors** (the paper's proposal). End sections of length L_e at both ends
-(the paper: as long as the largest k of the year) carry two-axis mirrors that send the sun to
-the tube point in their own cross-section ([paper], eqs. 3-6): their normal bisects S and
-T_i = (-d_i, 0, h)/sqrt(d_i^2 + h^2), cosine sqrt((1 + S . T_i)/2), and all their light lands
-on the tube. The single-axis middle (L - 2 L_e) sends its light to
-[L_e + k_i, L - L_e + k_i], on the tube while |k_i| <= L_e. Absorbed power:
-P_two = DNI rho tau alpha w sum_i [cos_i^single overlap_i + cos_i^two-axis 2 L_e].
-The gain has two parts, both reported: the end light recovered (``end_spill_single_W``, the
-light a single-axis plant sends past the end) and the two-axis mirrors' better cosine.
-
-**Lit length.** No single-axis row lights the first min_i |k_i| metres: the dark length
-(``unlit_length_m``; the paper's "first 10.4 m"); the lit length is L - min_i |k_i|. With the
-two-axis mirrors aimed at their own cross-sections the dark length stays as long (it moves
-from the tube's start to just past the upstream end section): what the end mirrors gain is
-energy, not lit length ([paper], Fig. 15: the last section gets about twice the power).
-
-**Shading and blocking** (:mod:`heliostep.solar.shading`): each row collects the beam on the part
-of it that neither a neighbour hides from the sun nor a neighbour stands in front of on the way to
-the tube: cos_i (1 - lost_i). Single-axis rows: the exact 2-D transverse geometry, rows long and
-continuous. Two-axis end mirrors (length l along the row, Table 2's 1.5 m, at pitch p = l along it):
-tilted toward the sun along the row as well, they shade and block their neighbours along it too
-(footprints of the neighbouring rectangles, :func:`heliostep.solar.shading.row_losses`). Neither
-section then collects more than the beam its ground area (and the outer row's side) lets through.
-
-The intercept factor is taken as 1 for every mirror here (the tube or its secondary catches
-the whole beam; :mod:`heliostep.solar.optics` gives it for one mirror).
+Details: docs/light.md, ``heliostep.solar.endloss``.
 """
 
 from __future__ import annotations
@@ -90,29 +56,6 @@ def two_axis_cosine(elevation, azimuth, mirror_distance, tube_height, plant_azim
     sun_x, _, sun_z = (as_float_array(c) for c in sun_vector(elevation, azimuth, plant_azimuth))
     dot = (-d * sun_x + tube_height * sun_z) / np.hypot(d, tube_height)
     return np.sqrt(np.clip((1.0 + dot) / 2.0, 0.0, None)) * (sun_z > 0)  # cosine of half the angle S, T
-
-
-def row_distance_for_shift(shift, elevation, azimuth, tube_height, plant_azimuth: float = 0.0):
-    """Transverse distance d of the row whose light is shifted by |k| = ``shift`` (eq. 2 inverted).
-
-    Parameters
-    ----------
-    shift : float or array-like  [m]
-        |k|.
-    elevation, azimuth : array-like  [deg]
-    tube_height : float  [m]
-
-    Returns
-    -------
-    array  [m]
-        d = sqrt((|k| sqrt(1 - yS^2) / |yS|)^2 - h^2), NaN where |k| is shorter than the
-        central row's (d = 0) shift.
-    """
-    tube_height = check_positive(tube_height, "tube_height", "m")
-    _, sun_y, _ = (as_float_array(c) for c in sun_vector(elevation, azimuth, plant_azimuth))
-    slant = np.abs(as_float_array(shift)) * np.sqrt(1.0 - sun_y**2) / np.abs(sun_y)  # [paper], eq. 2 solved
-    with np.errstate(invalid="ignore"):
-        return np.sqrt(slant**2 - tube_height**2)
 
 
 def end_loss_power(

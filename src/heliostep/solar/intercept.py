@@ -1,73 +1,10 @@
 """Intercept of a finite mirror's light by the receiver: a bare absorber tube or a secondary concentrator.
 
-Conventions: see :mod:`heliostep.solar` (plant frame x across, y along the tube, z up; the tube's
-axis at x = 0, z = h; a mirror centred at (d, 0, 0), normal n = R_y(p) R_x(q) z_hat). The mirror
-is a rectangle of width w along its secondary axis u = R_y(p) x_hat = (cos p, 0, -sin p) and
-length l along v = R_y(p) R_x(q) y_hat = (sin q sin p, cos q, sin q cos p) (the panel's long
-axis, along the tube when q = 0), flat or curved about its long axis (a parabolic cylinder of
-focal length f: its normal at s across the width is n - (s / 2f) u to first order).
+The mirror's image at the receiver is a box (its width), a box (a two-axis mirror's shear) and a
+Gaussian (sun, slope and specularity errors) convolved, integrated over the receiver in closed form;
+a secondary concentrator adds what it accepts within its half-angle.
 
-The image at the receiver
--------------------------
-The tube is infinite along y, so a ray hits it when its projection on the x-z cross-section
-passes within D/2 of the axis. Let r be the central reflected ray, rho = |r_xz|, and
-e = (-r_z, 0, r_x) / rho the unit vector perpendicular to r in the cross-section. A ray leaving the
-mirror at s u + t v with direction r + dr passes the axis at the signed distance (first order in
-dr; exact in s and t for a flat mirror)::
-
-    m = m0 + s (u.e - (L / f) k) + t (v.e) + L (e.dr),    k = (S.u)(n.e) + (S.n)(u.e)
-
-with m0 the central ray's miss, L its slant distance (:func:`heliostep.solar.optics.receiver_miss`)
-and S the sun. The width term is the flat mirror's projected width (u.e) less the focusing of a
-curved one (it vanishes at L = f (u.e) / k: in the cross-section, the tangential focus f cos(theta_i));
-the length term is the two-axis mirror's shear across the tube, v.e = sin q (r_x cos p - r_z sin p)
-/ rho (sin q sin p at d = 0). Over the mirror's area s and t are uniform (a uniform
-image of half-widths A = |u.e - L k / f| w / 2 and B = |v.e| l / 2). The angular term gathers
-
-- the sun's disc, a pillbox of half-angle 4.65 mrad: reflection maps it to a disc about r, whose
-  projection on e has variance R^2 / 4 (replaced by a Gaussian of that variance: the one
-  approximation of the sun's shape);
-- the slope error, a Gaussian tilt of the normal of sigma_s per axis of the mirror's tangent
-  plane: dr = 2 (S.dn) n + 2 (S.n) dn, so e.dr has variance 4 sigma_s^2 |g|^2,
-  g = (n.e) S_t + (S.n) e_t (the subscript t: the part in the tangent plane), |g| = 1 with the
-  sun in the cross-section;
-- the specularity error, a Gaussian of sigma_spec on the reflected ray.
-
-The intercept is then P(|m| <= D/2) for m = m0 + U(-A, A) + U(-B, B) + N(0, (L sigma)^2): a box
-convolved with a box and a Gaussian, integrated over the receiver, in closed form with the first
-and second antiderivatives of the normal CDF (:func:`box_gauss_fraction`: differences of erf's
-and Gaussians). A two-axis mirror's tilted long axis brings one end nearer the receiver by
-t (v_x r_x + v_z r_z) / rho^2: the slant, and so a curved mirror's focus term L k / f and the
-spread L sigma, change along the length. The length is therefore cut into
-:data:`LENGTH_SLABS` slabs, each the closed form above with its own A and L and its share of the
-shear (:func:`_slab_fraction`). What it neglects: terms of second order in the angles (the sun's
-4.65 mrad, the slope error, and the curved mirror's s / f < 0.05 for w = 0.3 m, f >= 3 m), the
-change of slant across the width and of the cosine over the mirror, A's change within a slab, the
-shadow that the receiver itself casts on the mirror, and shading and blocking by the neighbours
-(:mod:`heliostep.solar.shading`). Checked against a Monte Carlo ray tracer within 0.01
-(``tests/solar/test_raytrace.py``).
-
-The receiver
-------------
-A bare tube: the absorber of diameter D (its glass envelope is a thin shell of transmittance tau,
-which the rays cross without deviation: it changes no ray's path, so the absorber's D decides the
-intercept). A secondary concentrator: an aperture of width a in the horizontal plane tangent to
-the absorber from below (z = h - D/2), accepting rays whose cross-section angle from the vertical
-is within the acceptance half-angle theta_a. A ray that passes the aperture and meets the
-absorber directly is absorbed; one that passes the aperture within theta_a and misses the
-absorber reaches it after one reflection on the secondary (reflectivity rho_2; an ideal
-secondary delivers every ray within its acceptance, and one reflection is this model's choice);
-any other is lost::
-
-    gamma = gamma_direct + rho_2 gamma_accept (gamma_aperture - gamma_direct)
-
-gamma_direct the bare tube's intercept, gamma_aperture the share through the aperture's
-half-width (a/2) cos(psi_0) across the central ray (psi_0 its angle from the vertical),
-gamma_accept the share of the beam's angles within theta_a (the same box-Gaussian closed form in
-angle: a curved mirror's rays fan by k / (f rho) per metre of width). The product treats the
-angle and the position of a ray as independent: exact when the acceptance edge lies outside the
-beam's angular spread (ten milliradians against tens of degrees), approximate near it; the direct
-part assumes the tube's shadow along the beam lies within the aperture.
+Details: docs/light.md, ``heliostep.solar.intercept``.
 """
 
 from __future__ import annotations

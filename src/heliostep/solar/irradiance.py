@@ -1,35 +1,9 @@
 """Direct normal irradiance (DNI) and wind over a window: pvlib's clear sky, or a TMY3/EPW weather file.
 
-Clear sky: pvlib's Ineichen-Perez model (``Location.get_clearsky(model="ineichen")``) with the
-Linke turbidity climatology shipped inside pvlib (no download). Weather files: pvlib.iotools
-``read_epw`` / ``read_tmy3``; a typical-year file mixes years, so its hourly values are matched to
-the window by month, day and hour of the file's standard time.
+A file's hourly energy is placed at the middle of its hour and interpolated linearly (it keeps the
+day's energy and its centroid); its wind, measured at the stamps, is interpolated there.
 
-The time convention of the files: a record's irradiance is the energy received during the hour
-*ending* at its stamp (TMY3: Wilcox & Marion, NREL/TP-581-43156 (2008), and pvlib's read_tmy3
-docs, "TMY3 irradiance data corresponds to the *previous* hour"; EPW: pvlib's read_epw docs after
-the EnergyPlus Auxiliary Programs manual, "recv'd during 60 minutes prior to timestamp"), while
-its wind is measured *at* the stamp (both: "at the time indicated"). pvlib keeps the TMY3 stamp
-(24:00 as 00:00 of the next day) but indexes an EPW record of hour h (1 .. 24) at h - 1, the
-hour's *start*; :func:`read_weather` undoes both and indexes every record by the end of its hour.
-
-How heliostep uses the hourly energy: each hour's mean DNI is placed at the middle of its hour
-(stamp - 30 min) and interpolated linearly between the middles. Interpolating it at the stamp
-would move the whole day's light by 30 minutes (later for TMY3, earlier for EPW as pvlib indexes
-it). Mid-interval linear interpolation, rather than a step held over each hour:
-
-- it keeps the day's energy and its centroid in time exactly: the interpolant is a sum of hat
-  functions of area ``mean x 1 h`` centred on the hours' middles, so its integral is the sum of
-  the hours' energies and its first moment the sum of ``middle x energy`` (the hours at the day's
-  ends being 0); for light that varies linearly within each hour that is the true centroid;
-- it is continuous, so a run's window that crosses the change of hour sees no jump of DNI that
-  the file does not contain (a step would put one of up to the hour-to-hour change there);
-- what it does not keep is each single hour's energy: the interpolant's integral over hour i is
-  (E[i-1] + 6 E[i] + E[i+1]) / 8, a smoothing of the hourly series the file cannot resolve anyway.
-
-The wind (instantaneous at the stamps) is interpolated linearly at the stamps: the speed as a
-scalar, the direction through the wind's vector (so 350 deg and 10 deg average to 0 deg, not
-180 deg). :class:`WeatherSeries` carries DNI and wind at the same UTC instants.
+Details: docs/light.md, ``heliostep.solar.irradiance``.
 """
 
 from __future__ import annotations
@@ -283,10 +257,6 @@ class WeatherFile:
             wind_direction=pd.Series(direction, index=utc, name="wind_direction"),
             air_temperature=pd.Series(wind["temp_air"], index=utc, name="temp_air"),
         )
-
-
-#: The earlier name of :class:`WeatherFile` (it read only the DNI).
-WeatherDNI = WeatherFile
 
 
 def weather_dni(times, site: Site, path, max_offset: float = MAX_SITE_OFFSET) -> pd.Series:

@@ -1,32 +1,14 @@
-"""Optics of one mirror: reflected ray, where it meets the tube, cosine and intercept factors.
+"""Optics of one mirror: reflected ray, where it meets the tube, cosine factor and end effect.
 
 Conventions: see :mod:`heliostep.solar` (plant frame x across, y along the tube, z up; tube
 axis at x = 0, z = ``tube_height``; a mirror at x = ``mirror_distance``, y = 0, z = 0;
 n = R_y(primary) R_x(secondary) z_hat).
 
-Beam spread model
------------------
-The reflected beam's angular spread about the central ray is taken as a Gaussian whose
-variance adds the independent contributions (the usual optical error budget of SolTrace and
-SAM's physical trough/linear Fresnel models, after Guven & Bannerot, J. Sol. Energy Eng. 108
-(1986); Rabl, *Active Solar Collectors and Their Applications*, 1985, ch. 6)::
-
-    sigma_total**2 = sigma_sun**2 + (2 * sigma_slope)**2 + sigma_specularity**2
-
-where the slope error counts twice because a tilt of the normal by e turns the reflected ray
-by 2 e (law of reflection), and the sun's disc (a pillbox of half-angle 4.65 mrad) is replaced
-by the Gaussian of the same 1-D projected standard deviation, 4.65 / 2 mrad (the projected
-variance of a uniform disc of radius R is R**2 / 4). At the slant distance L the spread is
-L * sigma_total across the ray (small angles), and the intercept factor of a tube of diameter
-D whose axis the central ray misses by e is the closed form::
-
-    gamma = 1/2 [erf((D/2 - e) / (sqrt(2) L sigma)) + erf((D/2 + e) / (sqrt(2) L sigma))]
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import erf
 
 from heliostep.solar.checks import as_float_array, check_positive, check_range
 
@@ -144,60 +126,6 @@ def receiver_miss(ray_x, ray_y, ray_z, mirror_distance, tube_height):
     return transverse, t * ry, t * np.sqrt(rx**2 + ry**2 + rz**2)
 
 
-def beam_spread(slope_error=0.0, specularity=0.0, sun_sigma: float = SUN_SIGMA):
-    """Standard deviation of the reflected beam's angular spread.
-
-    Parameters
-    ----------
-    slope_error : float  [rad]
-        RMS slope error of the mirror surface (e.g. :func:`facet_slope_error`).
-    specularity : float  [rad]
-        Specularity (scatter) error of the reflective surface.
-    sun_sigma : float, default SUN_SIGMA  [rad]
-
-    Returns
-    -------
-    float  [rad]
-        sqrt(sigma_sun**2 + (2 sigma_slope)**2 + sigma_specularity**2) (Guven & Bannerot 1986;
-        SolTrace/SAM error budget).
-    """
-    return float(np.sqrt(sun_sigma**2 + (2.0 * slope_error) ** 2 + specularity**2))  # Guven & Bannerot 1986
-
-
-def intercept_factor(miss, slant, tube_diameter, sigma):
-    """Fraction of a Gaussian beam that hits a tube.
-
-    Parameters
-    ----------
-    miss : array-like  [m]
-        Transverse miss of the central ray (:func:`receiver_miss`).
-    slant : array-like  [m]
-        Path length from the mirror to the tube.
-    tube_diameter : float  [m]
-        Diameter D of the tube (or the aperture of a secondary reflector), > 0.
-    sigma : float  [rad]
-        Angular standard deviation (:func:`beam_spread`), >= 0.
-
-    Returns
-    -------
-    array  [-]
-        1/2 [erf((D/2 - e)/(sqrt 2 s)) + erf((D/2 + e)/(sqrt 2 s))], s = L sigma; the
-        indicator |e| <= D/2 when sigma = 0; 0 where slant or miss is NaN.
-    """
-    tube_diameter = check_positive(tube_diameter, "tube_diameter", "m")
-    sigma = check_range(sigma, "sigma", 0.0, np.inf, "rad")
-    e, length = as_float_array(miss), as_float_array(slant)
-    half = tube_diameter / 2.0
-    spread = np.sqrt(2.0) * length * sigma
-    with np.errstate(invalid="ignore", divide="ignore"):
-        gamma = np.where(
-            spread > 0,
-            0.5 * (erf((half - e) / spread) + erf((half + e) / spread)),  # Gaussian integral over the tube
-            (np.abs(e) <= half).astype(float),
-        )
-    return np.nan_to_num(gamma, nan=0.0)
-
-
 def end_fraction(longitudinal, mirror_length, mirror_y, tube_start, tube_end):
     """Fraction of a mirror's light that lands on the tube's length (the end effect).
 
@@ -229,18 +157,6 @@ def end_fraction(longitudinal, mirror_length, mirror_y, tube_start, tube_end):
     return np.nan_to_num(overlap / length, nan=0.0)
 
 
-def lit_length(longitudinal, plant_length):
-    """Length of tube lit by a row whose light is shifted by k along the tube.
-
-    Returns
-    -------
-    array  [m]
-        max(L - |k|, 0): the first |k| metres get no light ([paper], Section 2, eq. 2).
-    """
-    plant_length = check_positive(plant_length, "plant_length", "m")
-    return np.clip(plant_length - np.abs(as_float_array(longitudinal)), 0.0, None)  # [paper], eq. 2
-
-
 def optical_chain(reflectivity, transmittance, absorptance):
     """Product rho tau alpha of mirror reflectivity, glass transmittance and tube absorptance.
 
@@ -254,37 +170,3 @@ def optical_chain(reflectivity, transmittance, absorptance):
         for v, n in ((reflectivity, "reflectivity"), (transmittance, "transmittance"), (absorptance, "absorptance"))
     ]
     return values[0] * values[1] * values[2]  # seed 004, energy chain
-
-
-def facet_slope_error(facet_width, focal_length):
-    """Mean slope error of a cylindrically curved facet approximating a parabola.
-
-    Returns
-    -------
-    float  [rad]
-        b / (8 f) (seed 002, eq. 13).
-    """
-    b = check_positive(facet_width, "facet_width", "m")
-    f = check_positive(focal_length, "focal_length", "m")
-    return b / (8.0 * f)  # seed 002, eq. 13
-
-
-def concentration_limit(acceptance_half_angle, dimensions: int = 2):
-    """Ideal concentration limit for an acceptance half-angle theta_c.
-
-    Parameters
-    ----------
-    acceptance_half_angle : float  [rad]
-    dimensions : {2, 3}
-
-    Returns
-    -------
-    float  [-]
-        1 / sin(theta_c) in 2-D (seed 004, eq. 10), 1 / sin(theta_c)**2 in 3-D (seed 004, eq. 21).
-    """
-    theta = check_range(acceptance_half_angle, "acceptance_half_angle", 0.0, np.pi / 2, "rad")
-    if dimensions not in (2, 3):
-        from heliostep.errors import InputError
-
-        raise InputError(f"dimensions must be 2 or 3, got {dimensions!r}")
-    return 1.0 / np.sin(theta) ** (dimensions - 1)  # seed 004, eqs. 10 and 21

@@ -1,31 +1,9 @@
 """The receiver's own shadow on the mirrors below it.
 
-The receiver (the absorber tube, or the secondary concentrator around it) runs along y at x = 0,
-z = h, above the mirrors' pivots (frames as in :mod:`heliostep.solar`). Infinite along y, it hides
-a mirror's point F from the sun when F's sun ray passes its axis, in the cross-section, within half
-the receiver's width across, toward the sun ([shading]: the receiver's shadow is the third
-geometric loss of a linear Fresnel field's mirrors, e.g. Sharma et al., Solar Energy 2015, with the
-neighbours' shading and blocking, :mod:`heliostep.solar.shading`).
+The shadow is a band on the mirror, a trapezoid's CDF over its uniform width and length: exact for
+a flat mirror.
 
-With sigma = (S_x, S_z) / |(S_x, S_z)| the sun's direction in the cross-section and
-e = (-sigma_z, sigma_x) across it, the ray through F = C + s e_u + t e_v (the mirror's width and
-length axes, :func:`heliostep.solar.optics.mirror_axes`; C = (d, 0, 0)) passes the axis A = (0, h)
-at the signed distance (exact: a straight line and an infinite cylinder)::
-
-    g(s, t) = (F - A)_xz . e = g0 + a s + b t,   g0 = -d sigma_z - h sigma_x,
-    a = e_u,xz . e,   b = e_v,xz . e,
-
-and the receiver is toward the sun when (A - C)_xz . sigma > 0. The shadow is the band |g| <= r on
-the mirror, r half the receiver's width: over the mirror's uniform (s, t), g - g0 is a box of
-half-width |a| w / 2 convolved with a box of half-width |b| l / 2, a trapezoid, and the share is its
-CDF's difference over the window g0 +- r (:func:`trapezoid_cdf`, piecewise quadratic): **exact** for a
-flat mirror (the band's edges are straight lines on it). A two-axis mirror's tilted long axis (b != 0) shears the
-band across the mirror. The sun's disc blurs the band's edges by lambda x 4.65 mrad (about 14 mm at
-3 m): neglected, as for the neighbours' shadows.
-
-The receiver's width across, the shadow's 2 r: the absorber's diameter for a bare tube (its glass
-envelope transmits tau of the light, which is already in the optical chain) or the secondary's
-aperture width (its casing is at least as wide: a lower bound).
+Details: docs/light.md, ``heliostep.solar.receiver_shadow``.
 """
 
 from __future__ import annotations

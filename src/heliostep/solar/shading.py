@@ -1,41 +1,10 @@
 """Shading and blocking between neighbouring mirrors of a linear Fresnel field.
 
-**Shading**: a neighbour stands between the sun and a mirror; **blocking**: a neighbour stands
-between a mirror and the tube, on the path of its reflected light ([shading], the two "cosine,
-shading, blocking" terms of every concentrator's field efficiency, e.g. Sharma et al., Solar
-Energy 2015, "Geometrical and optical losses of a linear Fresnel reflector" (its eqs. for the
-shaded and blocked widths); Collado & Guallar, Renew. Sust. Energy Rev. 2013, for heliostat fields).
+A neighbour's footprint projected along the sun (shading) or the reflected ray (blocking) onto a
+mirror's plane; exact in 2-D for single-axis rows, parallelograms unioned by slabs for two-axis
+end mirrors.
 
-Geometry (frames as in :mod:`heliostep.solar`): mirror i is a flat rectangle of width w
-(across the tube) and length l (along it), its centre (its pivot) at (d_i, y, 0): every pivot at
-the same height, the tube at h above them. Its attitude is its unit normal n; its width axis
-e_u = (n_z, 0, -n_x)/|.| (horizontal, across the tube) and its length axis e_v = n x e_u, i.e.
-exactly the axes of n = R_y(p) R_x(q) z_hat ([paper], eqs. 3-6; the width axis turns with the
-primary only, the length axis with both). A single-axis row is the case q = 0.
-
-A neighbour's point P lies on the ray through a mirror's point F along a direction D when
-P = F + lambda D, lambda > 0: D = S (toward the sun) for shading, D = the reflected direction
-r = 2 (S.n) n - S (toward the tube; flat mirror, every point reflects parallel) for blocking.
-The part of the mirror a neighbour hides is the neighbour's projection along D onto the mirror's
-plane ("footprint"), lambda = (P - C).n / (D.n).
-
-**Single-axis rows** (long and continuous along y): the footprint's extent along e_u is the
-projection of the neighbour's width (its two long edges' midpoints). In the cross-section nothing
-depends on y or on D_y: this is the **exact** 2-D transverse result. The hidden fraction of the width
-is the union of every other row's interval (sorted, cumulative maximum), exact for any number of rows.
-
-**Two-axis end mirrors** (length l along the row, pitch p along it): each neighbour's footprint is a
-parallelogram (the affine image of its rectangle; the part of it with lambda <= 0 clipped off),
-**exact**. Taken: every other row and, along each row, the mirror whose footprint comes closest and
-``reach`` either side (the footprints of one row's mirrors are translates of one another by one
-pitch's projection). The union's area: slabs between the corners (and where edges meet the mirror's
-ends), each cut in :data:`SUB_SLABS`, the midpoint rule; exact unless two footprints' edges cross
-inside a slab (``tests/solar/test_shading.py``: within 0.006 of a ray tracer written there).
-
-The sun's disc (+-4.65 mrad) and the slope error widen the shadows by ~ lambda * 5 mrad, a few mm
-here: neglected. The receiver's own shadow (:mod:`heliostep.solar.receiver_shadow`, a straight band
-on each mirror) joins the neighbours' shadows with ``receiver``. The section's two end mirrors (one
-neighbour along the row only) are not modelled.
+Details: docs/light.md, ``heliostep.solar.shading``.
 """
 
 from __future__ import annotations
@@ -88,31 +57,6 @@ def interval_union_length(low, high, axis: int = -1):
     before = np.concatenate([np.full(reach.shape[:-1] + (1,), -np.inf), reach[..., :-1]], axis=-1)
     added = high - np.maximum(low, before)
     return np.sum(np.where(np.isfinite(added) & (added > 0), added, 0.0), axis=-1)
-
-
-def across_hidden_fraction(direction, normals, mirror_distances, mirror_width):
-    """Fraction of each mirror's width hidden by the other rows along ``direction``.
-
-    Parameters
-    ----------
-    direction : array-like, shape (T, 3) or (T, N, 3)  [-]
-        Unit direction from the mirrors toward what must be seen: the sun (shading, one per
-        instant) or the reflected ray (blocking, per instant and mirror).
-    normals : array-like, shape (T, N, 3)  [-]
-        Unit normals of the N mirrors at the T instants.
-    mirror_distances : array-like, shape (N,)  [m]
-        Transverse positions d_i of the pivots (all at the same height).
-    mirror_width : float  [m]
-
-    Returns
-    -------
-    numpy.ndarray, shape (T, N)  [-]
-        Union over the neighbours j != i of their footprints' extent along e_u, over w
-        (exact for single-axis rows; module docstring).
-    """
-    width = check_positive(mirror_width, "mirror_width", "m")
-    low, high = _across_intervals(direction, normals, mirror_distances, width)
-    return interval_union_length(low, high) / width
 
 
 def _across_intervals(direction, normals, mirror_distances, width: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,27 +1,8 @@
 """pvlib's sun grids kept by content, so that a run seen before does not import pvlib at all.
 
-``import pvlib`` imports every pvlib module (its ``__init__`` lists them: scipy.integrate, h5py,
-requests, ...), far more than the little SPA a run needs. :func:`cached_frame` keeps what a pvlib
-function returned for a grid of times in a file named by the SHA-256 of everything the values depend on,
-and gives it back on the next call with the same inputs. The values are always pvlib's own (SPA,
-Ineichen), computed by pvlib on the first call; the file holds their float64 bits, so a value read back
-is the computed one bit for bit (``tests/solar/test_sun_cache.py``); instants (sunrise, transit, sunset)
-as int64 nanoseconds.
+The values are pvlib's own, stored bit for bit under a hash of every input; the cache never fails a run.
 
-The key (:func:`cache_key`) is the hash of: the kind of grid (``"solar_position"``,
-``"clear_sky_dni"``, ``"sun_events"``) and :data:`CACHE_FORMAT`; pvlib's version (read from its installed metadata,
-without importing it: a new pvlib is a new key); the grid's instants as int64 counts since the epoch
-(UTC) and its dtype (their unit, its timezone); every parameter, each float by its exact hexadecimal form; the
-bits of any input array (the sun's apparent zenith given to the clear sky). So any change of an
-input, down to one instant by one nanosecond or a latitude in its last bit, is another file:
-nothing is ever invalidated in place, an entry is only found or not. Entries are removed oldest
-first (last used: a hit renews it) beyond :data:`MAX_ENTRIES`; a grid of more than
-:data:`MAX_ENTRY_BYTES` is not kept (a long window's grids cost little beside its simulation).
-A file that cannot be read back whole (another process writing it, a damaged disk) is a miss.
-
-The folder is ``sun-grids`` in the FMU cache (:func:`heliostep.paths.fmus_dir`, ``$HELIOSTEP_FMUS``).
-Writes are atomic (a temporary file renamed into place), so concurrent runs (a sweep's workers) only
-ever see whole entries. The cache never fails a run: an unusable folder is a miss and an entry not written.
+Details: docs/geometry.md, ``heliostep.solar.sun_cache``.
 """
 
 from __future__ import annotations

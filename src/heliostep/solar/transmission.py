@@ -104,23 +104,3 @@ def rotor_speed_from_panel_speed(panel_angle, panel_speed, pinion_radius, lever_
     panel = _check_panel_angle(panel_angle, "panel_angle")
     speed = arm * as_float_array(panel_speed) / (radius * np.cos(panel) ** 2)  # [paper], eq. 15
     return wrap_like(speed, series_template(panel_angle, panel_speed), "rotor_speed")
-
-
-def panel_speed_from_rotor_speed(panel_angle, rotor_speed, pinion_radius, lever_arm):
-    """Panel speed for a rotor speed of the secondary stepper (inverse of eq. 15).
-
-    Parameters
-    ----------
-    panel_angle : array-like or Series  [rad]
-    rotor_speed : array-like or Series  [rad/s]
-    pinion_radius, lever_arm : float  [m]
-
-    Returns
-    -------
-    array or Series  [rad/s]
-        omega_p = r omega cos^2(panel_angle) / s.
-    """
-    radius, arm = _check_transmission(pinion_radius, lever_arm)
-    panel = _check_panel_angle(panel_angle, "panel_angle")
-    speed = radius * as_float_array(rotor_speed) * np.cos(panel) ** 2 / arm  # [paper], eq. 15
-    return wrap_like(speed, series_template(panel_angle, rotor_speed), "panel_speed")

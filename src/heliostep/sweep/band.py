@@ -1,19 +1,6 @@
 """Uncertainty bands: the ranges of the uncertain parameters and a Latin-hypercube design over them.
 
-``heliostep run SCENARIO --band N`` runs the scenario at N samples of its uncertain parameters
-(:mod:`heliostep.sweep.band_run`). The parameters and their ranges are a YAML file,
-:data:`RANGES_FILE` (package data, ``heliostep/data/parameter_ranges.yaml``) unless another is
-given: a ``ranges`` list whose entries each name a scenario key as ``--set`` takes it
-(``parameters.<instance>.<name>`` for an FMU parameter, or a scenario key such as
-``sequencer.current``), its ``low`` and ``high`` [``unit``] and its ``source``. A parameter is
-added to the band by one entry there.
-
-The design (:func:`band_design`) is a Latin hypercube, :class:`scipy.stats.qmc.LatinHypercube`
-(scrambled, ``seed`` stated): each of the N equal strata of each key's range holds exactly one
-sample, the value uniform within its stratum. A key the scenario pins (``band.pinned``) keeps the
-scenario's value. The nominal value of each key is the scenario's (its ``parameters`` entry, else
-the FMU's start value); it may lie outside the range (the paper's 3.1 V bus against a chopper's
-24-48 V): the design says so for each key (``nominal_in_range``).
+Details: docs/sweep.md, ``heliostep.sweep.band``.
 """
 
 from __future__ import annotations

@@ -1,13 +1,6 @@
 """An uncertainty band run: the design's samples on Dask, their figures, and ``summary.json``'s ``band``.
 
-:func:`run_band` runs each sample of a :class:`~heliostep.sweep.band.BandDesign` as one task on the
-local Dask cluster (:func:`heliostep.sweep.cluster._dask_client`: one single-threaded worker process
-per core, on 127.0.0.1) or a given scheduler, the FMUs shipped to the workers once, each run
-supervised and keeping no trace (its figures only, as a sweep's case). A sample that fails is
-recorded with its error, never dropped; a stop request (Ctrl+C) ends the band at once, the samples
-finished so far kept. :func:`band_record` makes ``summary.json``'s ``band`` section: for every figure
-of the summary that is a number, the nominal run's value and the min, median and max over the
-samples that finished, beside the design and each sample's values and figures.
+Details: docs/sweep.md, ``heliostep.sweep.band_run``.
 """
 
 from __future__ import annotations

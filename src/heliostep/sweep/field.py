@@ -1,22 +1,6 @@
 """The 13-mirror field: one shared primary drive, one secondary drive per mirror.
 
-The end mirrors of the plant sit across the receiver tube at
-:func:`heliostep.solar.field_distances` (index 0 .. 12, the central mirror 6 under
-the tube). As in the paper, all primaries share one motor that follows the **central**
-mirror's primary law, while every mirror's secondary has its own motor. The motor turns
-every primary by the same angle and each mirror is mounted with the offset that makes it
-exact at solar noon, so every mirror but the central one carries a primary error from
-sharing: the difference between its own primary motion and the central one's
-(:func:`heliostep.solar.sharing_errors`).
-
-:func:`run_field` simulates the field as a sweep (:mod:`heliostep.sweep`): one case per
-mirror's secondary drive and one for the shared primary drive, and reports each
-mirror's primary sharing error beside its secondary tracking error, and its light on the tube
-with the shared primary (intercept, energy, the energy ideal tracking would give and the part
-the shared primary loses; :mod:`heliostep.results.light.on_tube`).
-:func:`heliostep.sweep.worker.primary_sharing_error` is the per-case figure, computed for every case of
-any sweep (columns ``primary_sharing_error_max_deg`` and
-``primary_sharing_error_signed_deg``).
+Details: docs/sweep.md, ``heliostep.sweep.field``.
 """
 
 from __future__ import annotations

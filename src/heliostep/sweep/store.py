@@ -21,10 +21,6 @@ from heliostep.sweep.spec import SweepCase, SweepSpec
 logger = logging.getLogger(__name__)
 
 
-#: Status of a case in the results table.
-CASE_STATUSES = ("ok", "failed")
-
-
 #: Figure columns of the table and their dtypes ("Int64": nullable integer).
 FIGURE_COLUMNS = {
     "max_tracking_error_deg": "float64",

@@ -1,12 +1,6 @@
 """Regression of the shipped scenarios against their reference traces: ``heliostep regress``.
 
-Each ``scenarios/NAME.yaml`` keeps its reference trace beside it as
-``scenarios/NAME.reference.parquet``: only the signals in :data:`REFERENCE_SIGNALS`, on the
-run's own output grid (regular grid, fine grid after each step, rows before/after each
-step). ``heliostep regress`` runs the scenarios and compares each with its reference by the
-tolerance tube of :mod:`heliostep.results.compare.traces`, with the tolerances of
-``scenarios/regress-tolerances.yaml``; ``--update`` rewrites the references on purpose and
-says what changed against the old ones.
+Details: docs/compare.md, ``heliostep.results.compare.regress``.
 """
 
 from __future__ import annotations

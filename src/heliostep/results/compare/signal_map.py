@@ -1,17 +1,7 @@
-"""Which signal of an actual trace is compared with which signal of a reference trace.
+"""Which signal of an actual trace is compared with which signal of a reference trace: explicit,
+by role, or by name.
 
-A vendor's FMU names its variables its own way (``drive.tauMot`` for heliostep's ``motor.tau``);
-both traces still say which column plays which part of the drive, in their metadata: a key
-``role.<role>`` whose value is the column (``role.torque: motor.tau``, written by every run, see
-:func:`heliostep.results.trace.frame.trace_metadata`). A reference signal is matched, in this order:
-
-1. **explicit**: an entry ``actual=reference`` of ``--map`` or of a mapping file;
-2. **role**: both traces name a column for the same role (the default when the names differ);
-   when the two columns have the same name the match is reported as by **name**;
-3. **name**: the actual has a column of the same name.
-
-Each actual column is matched at most once. :func:`match_signals` returns a :class:`SignalMatch`
-per matched reference signal, the report says which actual column it was and how.
+Details: docs/compare.md, ``heliostep.results.compare.signal_map``.
 """
 
 from __future__ import annotations

@@ -1,40 +1,10 @@
 """Compare simulation traces against reference traces with a tolerance tube.
 
-The method follows the regression tools of the Modelica community (the Modelica
-Association's ``funnel``, ITI's ``csv-compare``): a *tube* is built around the
-reference and the actual trace passes when it stays inside the tube. See
-``docs/compare.md`` for the full description; in short, for one signal with
-tolerance ``Tolerance(abs=a, rel=r, time=tau)`` and the reference ``y(t)`` (the
-polyline through its samples, with a jump wherever two samples share a time):
+A trace passes when it stays inside a tube of half-width max(abs, rel |y|) around the reference,
+widened by a time tolerance, checked exactly on the polylines (docs/compare.md); every public name
+of :mod:`~heliostep.results.compare.tolerance` and :mod:`~heliostep.results.compare.tube` is importable from here.
 
-* value half-width ``h(y) = max(a, r*|y|)`` (the eFMI / ``max(absTol,
-  relTol*|nominal|)`` convention, *not* ``a + r*|y|``);
-* upper bound ``U(t) = max{ y(s) + h(y(s)) : s in [t - tau, t + tau] }``;
-* lower bound ``L(t) = min{ y(s) - h(y(s)) : s in [t - tau, t + tau] }``;
-
-the maximum and minimum are taken over the continuous polyline (every vertex in the
-window, both sides of every jump, and the interpolated values at the window ends),
-restricted to the time span of the reference. At a jump of either trace the check
-is done on the left limit and on the right limit separately (and on any rows
-between them); interpolation never crosses a jump.
-
-The check is exact for the polylines, not just at sample points: it is evaluated on
-a merged grid of the actual's times, the reference's times (which checks the
-reference's points against the interpolated actual), the reference's times
-shifted by ``+-tau`` (where a vertex enters or leaves the window) and the instants
-where the tube's bounding piece changes. Between two grid points both the actual
-and the bounds are linear, so no violation between grid points can be missed: a
-spike of the actual between reference samples is caught, and so is a reference
-feature between actual samples unless it is narrower than the time tolerance
-(which the tube, by definition, tolerates).
-
-Cost per signal is ``O(n log n)``: a sparse table answers window maxima in
-constant time, window ends are located with :func:`numpy.searchsorted`.
-
-Modules: :mod:`~heliostep.results.compare.tolerance` (the tolerances and their YAML file),
-:mod:`~heliostep.results.compare.tube` (the tube's numerics); here the check of a signal
-(:func:`evaluate_signal`), of two trace tables (:func:`compare_traces`) and its table
-(:func:`format_table`). Every public name of the three is importable from here.
+Details: docs/compare.md, ``heliostep.results.compare.traces``.
 """
 
 from __future__ import annotations

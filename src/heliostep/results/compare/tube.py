@@ -1,11 +1,8 @@
 """The tolerance tube around a reference signal and the numerics of checking a trace against it.
 
-The method is described in :mod:`heliostep.results.compare.traces` (and ``docs/compare.md``): value
-half-width ``h(y) = max(abs, rel*|y|)``, bounds ``U(t)``/``L(t)`` the maximum/minimum of ``y +- h(y)``
-over the window ``[t - tau, t + tau]`` of the reference polyline. Here: polyline interpolation that
-never crosses a jump (:func:`interp_at`), window maxima by a sparse table (:class:`RangeMax`), the
-tube's bounds at left limits, right limits and instants (:class:`Tube`), and the grid refinement
-where a bound changes its piece (:meth:`Tube.breakpoints`).
+Interpolation that never crosses a jump (:func:`interp_at`), window maxima by a sparse table
+(:class:`RangeMax`), the tube's bounds (:class:`Tube`) and where a bound changes its piece
+(:meth:`Tube.breakpoints`); the method: docs/compare.md.
 """
 
 from __future__ import annotations

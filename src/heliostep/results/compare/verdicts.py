@@ -1,18 +1,6 @@
 """Verdicts of a trace comparison in the forms CI servers read: JUnit XML and GitHub annotations.
 
-JUnit XML (:func:`junit_xml`): one ``<testsuite>`` per comparison (``compare``: one; ``regress``:
-one per scenario), one ``<testcase>`` per compared signal (classname: the suite, name: the
-signal), a ``<failure>`` for a signal outside its tube whose message gives the worst deviation,
-its time and the tube's half-width there. A run that failed is a test case ``run`` with an
-``<error>``; an actual trace marked ``complete: false`` a failing test case ``complete``. The
-elements and attributes are those Apache Ant's JUnit schema requires (which Jenkins, GitLab and
-the GitHub test-report actions read): ``testsuites``; ``testsuite`` with ``name``, ``timestamp``,
-``hostname``, ``tests``, ``failures``, ``errors``, ``skipped``, ``time``, then ``properties``,
-the test cases, ``system-out`` and ``system-err``; ``testcase`` with ``name``, ``classname``,
-``time``; ``failure``/``error`` with ``message`` and ``type``.
-
-GitHub annotations (:func:`github_annotations`): one ``::error file=...,title=...::message``
-workflow command per failing signal, which GitHub Actions shows on the run's summary.
+Details: docs/compare.md, ``heliostep.results.compare.verdicts``.
 """
 
 from __future__ import annotations

@@ -1,17 +1,9 @@
 """A run's figures (``summary.json``), computed in the one pass of its simulation.
 
-:class:`RunFigures` is the one owner of a run's figures. The master shows its
-:attr:`~RunFigures.solution` (:class:`~heliostep.results.figures.solution.SolutionRecorder`, the
-``monitor``) every solver step; the run's row sink (:mod:`heliostep.results.trace.sinks`) hands it
-the assembled output rows as they come, which it evaluates in chunks of ``block_rows`` rows
-counted from the first row: the summary's output-row part
-(:class:`~heliostep.results.figures.summary.OutputRows`), the light on the tube
-(:class:`~heliostep.results.light.on_tube.LightIntegrals`) and the holding torque (the smallest drive
-ratio, :func:`~heliostep.results.figures.tradeoffs.smallest_drive_ratio`). Held, streamed and
-figures-only runs feed it the same rows, so they give the same figures bit for bit; nothing
-reads the trace back. :meth:`RunFigures.summary` is the run's
-:class:`~heliostep.results.figures.run_summary.RunSummary` (at a cut:
-:func:`~heliostep.results.figures.summary.summary_at_cut`).
+:class:`RunFigures` owns them: held, streamed and figures-only runs feed it the same rows, so they
+give the same figures bit for bit.
+
+Details: docs/running.md, ``heliostep.results.figures.run_figures``.
 """
 
 from __future__ import annotations

@@ -1,21 +1,9 @@
 """The figures of a run's solution: :class:`SolutionRecorder`, the master's ``monitor``.
 
-The master shows the monitor the state at every internal CVODE step, at every event (both
-sides) and at every output row; the recorder evaluates the definitions of
-:mod:`heliostep.results.figures.summary` on those rows as they come (running peaks and sums, each step
-judged once the next step is reached, :class:`~heliostep.results.figures.steps.StepJudge`), so its
-memory does not grow with the run. Its :meth:`SolutionRecorder.figures` are stored in the run's
-metadata (``solution_figures``) and are the figures of ``summary.json``: each figure of the
-solution is defined here, once.
+Each figure of ``summary.json`` is defined here once, evaluated on every solver step as it comes,
+with running sums, so the figures are the same bit for bit whatever the blocks.
 
-The sums over rows (the energy, the error's integrals and sum of squares) are running sums taken one
-row after the other (``np.cumsum`` from the sum so far), so every figure is the same bit for bit
-whatever the blocks the rows come in. A supervised run's child runs its own recorder and sends
-:meth:`SolutionRecorder.totals` with every block of output rows; the supervisor's recorder takes
-them (:meth:`SolutionRecorder.take_totals`).
-
-The rows the plots draw besides (the window around the peak, the envelopes) are kept by
-:mod:`heliostep.results.figures.plot_data`.
+Details: docs/running.md, ``heliostep.results.figures.solution``.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
 """Judging a run's steps: each step's outcome, the figures of the steps, the steps lost.
 
-The definitions (missed, settling, lost) are those of :mod:`heliostep.results.figures.summary`.
-:class:`StepJudge` judges each step from the rotor's rows as they come, each step once the row at
-the next step is reached, holding the rotor's rows of one step interval only; the run's figures
-judge the solution's rows with it (:class:`~heliostep.results.figures.solution.SolutionRecorder`) and
-the trace's output rows (:class:`~heliostep.results.figures.summary.OutputRows`, for the summary of an
-interrupted run).
+:class:`StepJudge` judges each step once the row at the next step is reached, holding one step
+interval's rows; the definitions are those of :mod:`heliostep.results.figures.summary`.
 """
 
 from __future__ import annotations

@@ -1,12 +1,6 @@
 """The stow moves of a run, judged: per move its steps commanded, missed and lost, its peak torque.
 
-The moves (``metadata['drive']['stow_moves']``, :mod:`heliostep.drive.stow`) are known before the
-run. :class:`StowMoveFigures` sees the output rows in blocks, in time order (what the run's figures
-see), and keeps per move the rotor's row at its start and at its end plus
-:data:`SETTLE_AFTER_MOVE` seconds (the fine grid after the last step), and the largest |torque| of
-the rows in between; the missed steps are the solution's step outcomes
-(:mod:`heliostep.results.figures.steps`) whose instants fall in the move, the lost ones
-:func:`~heliostep.results.figures.steps.lost_between` the two rows.
+Details: docs/running.md, ``heliostep.results.figures.stow``.
 """
 
 from __future__ import annotations

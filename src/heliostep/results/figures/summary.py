@@ -1,40 +1,10 @@
 """A run's figures (``summary.json``): their definitions, the output rows' part, the summary.
 
-A run computes its figures from **the solution itself**: the master's monitor sees the state
-at every internal CVODE step, at every event (both sides) and at every output row, and
-:class:`~heliostep.results.figures.solution.SolutionRecorder` evaluates the definitions below on those
-rows as they come. The trace's output rows, taken in the same pass, give what only they can
-(:class:`OutputRows`: the rows, the duration, the final panel angle, the steps judged on the
-output rows for the summary at a cut); :func:`build_summary` makes the
-:class:`~heliostep.results.figures.run_summary.RunSummary` of both and :func:`summary_at_cut` that of an
-interrupted run. The run stores the solution's figures in its metadata (``solution_figures``),
-so :func:`summarize` needs nothing but the trace and the metadata (:func:`summarize_files`
-recomputes a stored run's summary). For a trace without solution figures (an older run, a
-hand-built trace) the same definitions are evaluated on the trace's rows, and ``figures_from``
-says so.
+The figures come from the solution itself (:class:`~heliostep.results.figures.solution.SolutionRecorder`);
+the output rows add what only they give (:class:`OutputRows`); :func:`build_summary` joins both and
+:func:`summary_at_cut` summarizes an interrupted run.
 
-Definitions:
-
-- tracking error: the panel angle minus its reference; max of its magnitude and its RMS
-  over time (the error taken as linear between rows) [deg];
-- peak torque, peak phase current: max magnitude over the rows (every solver step);
-- electrical energy drawn: the integral of the motor's electrical power, trapezoidal over
-  every solver step [J];
-- a step is *missed* when it did not move the rotor by its increment: the rotor's move
-  from the step to the next step (or to the end) differs from the commanded increment by
-  more than :data:`MISS_TOLERANCE` increments (the rotor then ends in another detent; a slip
-  falls back by whole electrical periods, 4 full steps). Steps executed = commanded − missed;
-- steps lost: how many step increments the rotor ends behind the commanded position, net of
-  the elastic lag (the static deflection under load, which the run holds from its first row:
-  it starts at the loaded detent): round((cmd − rotor)/increment − lag), negative when ahead.
-  The lag is the one at the start, or, when the run ends on a reduced idle current, the lag
-  the same load causes at that current (:func:`held_lag`, from the detent's sine torque law).
-  A slip under load loses whole electrical periods (4 full steps).
-  ``final_lag_steps`` is what is left, the elastic lag at the end, in increments;
-- settling time of a step: from the step until the rotor stays within ``settling_band`` ×
-  the increment of its rest position (the commanded position minus the elastic lag held at
-  the start, in the detent the rotor ends in; the crossing time is interpolated linearly
-  between rows); ``None`` when at the next step (or the end) it is still outside.
+Details: docs/running.md, ``heliostep.results.figures.summary``.
 """
 
 from __future__ import annotations

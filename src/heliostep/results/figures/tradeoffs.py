@@ -1,36 +1,9 @@
 """The drive's trade-offs in a run's summary: holding torque against the wind, energy per day.
 
-What a stepper driver offers (microstepping, idle current reduction) costs or saves energy and
-holding torque; these figures let one sweep answer "which mode and current for this site".
+What a driver offers (microstepping, idle current reduction) costs or saves energy and holding
+torque; these figures let a sweep answer "which mode and current for this site".
 
-Holding torque under idle current
----------------------------------
-The static torque of the two phases ([paper], eq. 9) is C = -k_e (i_a sin(N_c theta) +
-i_b cos(N_c theta)). Its largest value over the rotor angle, the holding (pull-out) torque, is
-
-- k_e I for one phase on (Table 1) and for sine/cosine microstepping (i_a = I cos phi,
-  i_b = -I sin phi gives C = -k_e I sin(N_c theta - phi)),
-- sqrt(2) k_e I for two phases on (i_a = +-I, i_b = +-I),
-- k_e I for half-stepping (its one-phase positions are the weaker ones),
-
-with I the current the drive holds: K I_ref / (K + R) for the averaged chopper
-(:func:`heliostep.drive.inputs.held_current`). After ``idle_delay`` the current falls to the
-fraction f of it, so the holding torque to f k_e I. Through the rack and pinion the panel sees
-g times the motor torque, g = s / (r cos^2 theta_p) ([paper], eq. 15): the holding moment on the
-panel axis is g f k_e I, smallest where cos^2 theta_p is largest. The run's window gives the
-panel angles; the holding moment is the smallest over them. Coulomb friction, which also
-resists the wind, is left out (the figure is on the safe side).
-
-The drive holds against the wind moment M (scenario ``wind.moment``, on the panel axis) while
-g f k_e I > |M|; ``idle_holding_margin`` is their ratio. Below :data:`REQUIRED_HOLDING_MARGIN`
-(the paper's factor 2 on the torque for the wind) the summary carries a warning; below 1 the
-rotor slips when the current drops (``tests/results/figures/test_tradeoffs.py`` co-simulates both).
-
-Drive energy per day
---------------------
-The electrical energy the run drew, as mean power over the window times the daylight of its
-date (sunrise to sunset, NREL SPA): the drive tracks while the sun is up. For a window from
-sunrise to sunset it is the run's energy itself.
+Details: docs/light.md, ``heliostep.results.figures.tradeoffs``.
 """
 
 from __future__ import annotations
@@ -40,7 +13,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from heliostep.drive.inputs import MOTOR_DEFAULTS, held_current
 from heliostep.solar.sun import sun_events
@@ -108,13 +80,13 @@ def smallest_drive_ratio(panel_angle, scenario) -> float:
     )
 
 
-def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
-    """Holding torque at full and idle current against the wind moment.
+def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
+    """Holding torque at full and idle current against the wind moment, with the window's smallest drive ratio.
 
     Parameters
     ----------
-    trace : pandas.DataFrame
-        With ``panel_angle_ref`` [rad].
+    ratio : float  [-]
+        The smallest drive ratio over the window (:func:`smallest_drive_ratio`).
     metadata : Mapping
         With ``drive`` (mode, current, idle_current_fraction).
     scenario : heliostep.scenario.Scenario
@@ -122,20 +94,13 @@ def holding_figures(trace: pd.DataFrame, metadata: Mapping, scenario) -> dict:
     Returns
     -------
     dict
-        ``holding_torque_full_Nm`` and ``holding_torque_idle_Nm`` (motor shaft) [N.m],
-        ``idle_holding_moment_Nm`` (panel axis, the smallest over the window) [N.m],
-        ``wind_moment_Nm`` [N.m] (with a wind speed: the moment at the worst instant, where the
-        holding moment over the wind's is smallest, ``metadata['drive']['wind']``; the holding
-        moment is then the one at that instant), ``idle_holding_margin`` (holding moment / |wind moment|;
-        None without wind), ``idle_holds_wind`` (margin >= :data:`REQUIRED_HOLDING_MARGIN`,
-        None without wind), and ``warnings`` (a list, when the margin is short).
+        ``holding_torque_full_Nm`` and ``holding_torque_idle_Nm`` (motor shaft) [N.m], ``idle_holding_moment_Nm``
+        (panel axis, the smallest over the window) [N.m], ``wind_moment_Nm`` [N.m] (with a wind speed: the
+        moment at the worst instant, where the holding moment over the wind's is smallest,
+        ``metadata['drive']['wind']``; the holding moment is then the one at that instant),
+        ``idle_holding_margin`` (holding moment / |wind moment|; None without wind), ``idle_holds_wind``
+        (margin >= :data:`REQUIRED_HOLDING_MARGIN`, None without wind), ``warnings`` (when the margin is short).
     """
-    return holding_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario)
-
-
-def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
-    """:func:`holding_figures` with the smallest drive ratio over the window, ``ratio``
-    (:func:`smallest_drive_ratio`), known."""
     drive = metadata["drive"]
     constants = _motor_constants(scenario)
     current = held_current(scenario, float(drive["current"]))
@@ -159,8 +124,7 @@ def holding_figures_at(ratio: float, metadata: Mapping, scenario) -> dict:
     }
     if wind == 0.0:
         return figures
-    margin = moment / abs(wind)
-    figures["idle_holding_margin"] = margin
+    margin = figures["idle_holding_margin"] = moment / abs(wind)
     figures["idle_holds_wind"] = bool(margin >= REQUIRED_HOLDING_MARGIN)
     if margin < REQUIRED_HOLDING_MARGIN:
         consequence = (
@@ -209,15 +173,9 @@ def energy_per_day(summary: Mapping, scenario) -> dict:
     return {"drive_power_mean_W": power, "drive_energy_per_day_J": None if daylight is None else power * daylight}
 
 
-def tradeoff_figures(trace: pd.DataFrame, metadata: Mapping, scenario, summary: Mapping) -> dict:
-    """:func:`holding_figures` and :func:`energy_per_day` of a run (its ``warnings`` appended to
-    the summary's own)."""
-    return tradeoff_figures_at(smallest_drive_ratio(trace["panel_angle_ref"], scenario), metadata, scenario, summary)
-
-
 def tradeoff_figures_at(ratio: float, metadata: Mapping, scenario, summary: Mapping) -> dict:
-    """:func:`tradeoff_figures` with the smallest drive ratio over the window known
-    (:func:`holding_figures_at`)."""
+    """:func:`holding_figures_at` and :func:`energy_per_day` of a run, the window's smallest drive ratio
+    ``ratio`` known (its ``warnings`` appended to the summary's own)."""
     figures = {**holding_figures_at(ratio, metadata, scenario), **energy_per_day(summary, scenario)}
     if "warnings" in figures:
         figures["warnings"] = list(summary.get("warnings", [])) + figures["warnings"]

@@ -1,39 +1,9 @@
 """Light on the tube of every end mirror of the field, per day over a year, with the shared primary.
 
-What the co-simulated field sweep (:func:`heliostep.sweep.run_field`) gives per case, without
-co-simulating: the secondary's stepping changes the light by parts in 1e8 of it (4e-8 on the paper's
-case and on the longest day of year-field.yaml's end mirror), of either sign and not a loss
-(:mod:`heliostep.results.light.on_tube`), so over a year the loss per mirror is the shared primary's
-(exactly 0 for the central mirror, whose primary is the shared one). For each day and mirror i of
-the field (:func:`heliostep.solar.field_distances`):
+Geometry and optics only, no co-simulation: the stepping changes the light by parts in 1e8, so over a
+year a mirror's loss is the shared primary's; shading, blocking and the receiver's shadow included.
 
-- **ideal**: both axes follow the mirror's own two-axis law ([paper], eqs. 3-6);
-- **shared primary**: the primary follows the central mirror's law plus the mounting offset
-  that makes it exact at that day's solar noon (:func:`heliostep.solar.sharing_errors`), the
-  secondary its own law (exact, as its own stepper keeps it within 0.006 deg);
-
-and the power on the tube of each attitude by :func:`heliostep.results.light.on_tube.attitude_light`
-(cosine, the finite mirror's image and its intercept on the receiver), integrated over the day
-(trapezoid on a ``step_minutes`` grid from local midnight). DNI: the scenario's (clear sky, or its
-weather file, read once: :class:`heliostep.solar.irradiance.WeatherFile`, its hourly means at mid-hour).
-
-**Shading and blocking** (``shading=True``, the default): each mirror's power times the share of it
-that no neighbour hides from the sun or stands in front of on the way to the tube
-(:func:`heliostep.solar.shading.row_losses`, its ``lost``) and the share outside the receiver's own
-shadow (:mod:`heliostep.solar.receiver_shadow`, at every instant: a narrow band that crosses the
-field in minutes), the two combined as independent, (1 - lost) (1 - s_r) (their exact union,
-``row_losses(..., receiver=...)``, differs by the overlap's error: ``tests/results/light/test_field_light.py``
-bounds it); without shading, the receiver's shadow only (the one mirror's, as a run's light).
-The neighbours: the field's 13 rows at ``mirror.spacing``, each an end section of two-axis mirrors
-``optics.mirror_length`` long and contiguous along the row (pitch = length, as
-:mod:`heliostep.solar.endloss`), every mirror at the attitude of its row (ideal, or with the shared
-primary: the neighbours share it too). Their shading and blocking computed every
-``shading_step_minutes`` with the sun up (and at each day's first and last such instant) and
-interpolated linearly between (``tests/results/light/test_field_light.py``: moves a day's energy by less
-than 0.3 % against every instant). Approximations, stated: the intercept of a partly hidden mirror is
-taken as the whole mirror's (the unhidden part's image is narrower: not modelled); blocking follows
-the flat mirror's reflected ray (a mirror curved to focus at its slant distance f converges its rays by
-+-w/(2 f) across its width; ``tests/solar/test_shading.py`` measures what that changes).
+Details: docs/light.md, ``heliostep.results.light.field``.
 """
 
 from __future__ import annotations

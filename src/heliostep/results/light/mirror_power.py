@@ -1,17 +1,6 @@
 """Power on the tube of one mirror at a given attitude: the one formula every light figure uses.
 
-P = DNI A cos(theta_i) (1 - s_r) rho tau alpha gamma f_end, with
-
-- cos(theta_i) the cosine of incidence of the mirror's normal ([paper], eqs. 3-4);
-- s_r the share of the mirror in the receiver's own shadow (:mod:`heliostep.solar.receiver_shadow`,
-  exact for a flat mirror; the shadow's width: the absorber, or the secondary's aperture);
-- rho tau alpha the optical chain (seed 004), gamma the intercept of the finite mirror's image by the
-  receiver (:func:`heliostep.solar.intercept.intercept`) and f_end the share that lands on the tube's
-  length (``optics.tube_ends``).
-
-The intercept of a partly shadowed mirror is taken as the whole mirror's (its unshadowed part makes a
-narrower image: not modelled). Neighbours' shading and blocking are not here: one mirror has none (the
-field's: :mod:`heliostep.results.light.field`).
+Details: docs/light.md, ``heliostep.results.light.mirror_power``.
 """
 
 from __future__ import annotations

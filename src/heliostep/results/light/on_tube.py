@@ -1,43 +1,10 @@
 """Light on the tube and energy per run, from a stored trace, its metadata and the scenario.
 
-Three attitudes of the mirror are compared over the run's window:
+The ideal, reference and actual attitudes of the mirror compared over the window; their differences
+split into the shared primary, the reference law and the stepping. :class:`LightIntegrals`
+accumulates the figures block by block, so a streamed trace is read one row group at a time.
 
-- **ideal**: both axes follow the mirror's own two-axis law continuously
-  (:func:`heliostep.solar.tracking.two_axis_angles` at its own distance d);
-- **reference**: the driven axis at the trace's ``panel_angle_ref``, the other axis as mounted:
-  for a driven secondary, the primary is the shared one, following the central mirror's law
-  (d = 0, the paper's plant) plus a mounting offset exact at solar noon of the window's date
-  (:func:`heliostep.solar.field.sharing_errors`); for a driven primary, the secondary follows its own law;
-- **actual**: as *reference*, with the driven axis at the trace's panel angle (role
-  ``panel_angle``).
-
-Power on the tube (absorbed) at each row: P = DNI A cos(theta_i) (1 - s_r) rho tau alpha gamma f_end
-(:mod:`heliostep.results.light.mirror_power`); one mirror, unshaded (the field's: :mod:`heliostep.results.light.field`).
-Energies are trapezoidal integrals over the trace's rows. What separates the ideal from the actual
-light, in three parts that add up to E_ideal - E_actual:
-
-- the shared primary: E_ideal - E_shared, *shared* the ideal attitude with the primary shared
-  (only for a driven secondary; 0 for a driven primary). For the central mirror (d = 0) it is
-  exactly 0: its primary *is* the shared one, so its sharing error is 0 by definition, not by a
-  computation that leaves rounding (:func:`sun_grid`);
-- the reference law: E_shared - E_reference, the trace's ``panel_angle_ref`` (the law the drive
-  follows, exact at the rows) against the ideal law interpolated from the sun grid: the
-  interpolation's noise unless the scenario's reference law is another (small-angle, ...);
-- the stepping: E_reference - E_actual (``light_lost_stepping_J``), reported signed as
-  ``light_stepping_change_J`` = E_actual - E_reference with its first-order term. For a driven
-  secondary it is not a loss: the axis' error moves the image along the tube, which costs nothing
-  on a tube that runs on past it, and changes the cosine to first order, dE = integral of
-  P_ref (d cos / d theta) / cos * (theta_actual - theta_ref) dt; its sign is the window's mean
-  error's (times the cosine's slope), so it is negative in about half the runs. The reference
-  (each mirror's image aimed at its own cross-section) is not the cosine optimum either.
-The sun's vector and the DNI are evaluated on a :data:`SUN_GRID_S` grid from the trace's first
-row and interpolated linearly onto the rows (the sun moves 0.25 deg/min: the interpolation error
-is < 1e-5 rad). So is the image on the receiver of the ideal and shared attitudes, functions of the
-sun alone (:mod:`heliostep.results.light.sun_grid_image`); the reference and actual attitudes take their own.
-
-The figures are accumulated block by block (:class:`LightIntegrals`: running trapezoids, sums and
-maxima; the window's grid points computed at the first block, :func:`sun_grid`), so a streamed trace
-is read one row group at a time; :func:`light_figures` of a whole trace is one block.
+Details: docs/light.md, ``heliostep.results.light.on_tube``.
 """
 
 from __future__ import annotations

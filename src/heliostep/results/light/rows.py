@@ -1,32 +1,10 @@
 """The light's integrals between the output rows: the solution's correction of the rows' trapezoid.
 
-The light on the tube is integrated over the trace's rows (:class:`heliostep.results.light.on_tube.LightIntegrals`):
-a trapezoid, the driven angle taken as linear between two rows. After a step the panel swings to its
-new detent and rings for some 20-50 ms; where the rows do not follow that (a coarse output grid, a
-``step_detail`` shorter than the swing), the trapezoid draws a line from a row in mid-swing to the
-next row, seconds later, and the actual attitude's energy moves with the output grid: on
-``jan21-central`` the stepping's change was -5.4e-4 J on its own grid and -1.6e-2 J on a 30 s grid
-with 10 ms of detail (``tests/results/light/test_light_rows.py``).
+Where the output rows miss the panel's swing after a step, each power that depends on the driven
+angle is corrected to second order in the tracking error by the solution's integrals of the error
+and its square.
 
-The solution does follow it: the master's monitor sees every internal solver step and integrates the
-tracking error e = theta_actual - theta_reference and its square over them
-(:meth:`heliostep.results.figures.solution.SolutionRecorder.figures`: ``error_integral_deg_s``,
-``error_sq_integral_deg2_s`` to the end and at each step's time). Between two marks (the first row, each
-step's time, the end) the rows' trapezoids miss D1 = (the integral of e over the solution) - (its trapezoid
-over the rows) and D2, the same of e^2. The difference of the actual and the reference power is, about the
-reference, g = S e + (C / 2) e^2 (S = dP/dtheta, C = d2P/dtheta2 there), so each power that depends on the
-driven angle is corrected by
-
-    E += sum over the intervals of S D1 + (C / 2) D2 + r sum(h^2 d(theta_ref)) / 6
-
-S and C by central differences of :data:`~heliostep.results.light.on_tube.COSINE_STEP` at the actual attitude of the
-interval's first row, S taken back to the reference (S - C e there); the last term the trapezoid's error on
-S e where both are linear in a row's interval (-h dS de / 6, de = -d(theta_ref) while the panel is held, r the
-rate of S from mark to mark). The first-order terms take S D1 and their own slopes (they are linear in e);
-the mean error the reference power. What is left is third order in the error and the slope's drift over
-the swing's milliseconds. A step's time is a row of both (the master records both sides of every event),
-so the intervals are the same for both; an end where the solution and the rows stop at different times (an
-interrupted run) leaves its last interval uncorrected.
+Details: docs/light.md, ``heliostep.results.light.rows``.
 """
 
 from __future__ import annotations

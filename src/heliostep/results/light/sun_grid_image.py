@@ -1,18 +1,6 @@
 """The receiver's image of an attitude that is a function of the sun alone, from the sun grid.
 
-The ideal attitude and the shared one (:mod:`heliostep.results.light.on_tube`) depend on the sun alone, and
-the sun moves 0.25 deg/min: their image on the receiver (the intercept and the central ray's misses,
-:func:`heliostep.results.light.mirror_power.receiver_image`, 64 normal-CDF evaluations a row and the
-costly part of the light) changes over hours. It is computed at the sun grid's points
-(``light.SUN_GRID_S`` apart) and interpolated linearly onto the rows; linear interpolation over dt
-errs by at most (dt^2 / 8) |gamma''| (3e-8 and 6e-8 of the intercept an hour after sunrise in January,
-bare tube and secondary concentrator), and below 1e-6 of an energy
-(``tests/results/light/test_light.py::test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_its_curvature``:
-against the image of the exact attitude at every row).
-Over a grid interval with a point below the horizon the grid's attitude is not the rows' (the field's
-sharing is 0 there): those rows take their own image. The cosine, the receiver's shadow (kinked
-where its edge crosses the mirror) and the end fraction stay the rows' own
-(:func:`heliostep.results.light.mirror_power.attitude_light`).
+Details: docs/light.md, ``heliostep.results.light.sun_grid_image``.
 """
 
 from __future__ import annotations

@@ -1,13 +1,6 @@
-"""Writing a run's output folder safely.
-
-* every file goes to a temporary name in the same folder first and is renamed into place
-  (:func:`atomic_path`), so no file is ever cut short under its final name: a run killed while
-  writing leaves the previous file (or none) and a ``.heliostep-tmp-*`` file at most;
-* :func:`check_out_dir` finds an unusable output folder before anything is computed (an empty
-  name too: it would mean the current folder).
-
-Which files of a folder are heliostep's, its lock and the swap of a new run's files:
-:mod:`heliostep.results.output.folder`.
+"""Writing a run's output folder safely: every file written to a temporary name and renamed into
+place (:func:`atomic_path`), so none is ever cut short under its final name; :func:`check_out_dir`
+finds an unusable folder before anything is computed.
 """
 
 from __future__ import annotations

@@ -1,29 +1,9 @@
 """A run owns its output folder: a lock for the run's life, a manifest of the files it wrote, and
 its results swapped in at once.
 
-* :func:`hold_folder` takes the folder's lock (``.heliostep-lock``: an ``flock`` on it, the
-  holder's pid and command written in it) for as long as the block runs; a second run into the
-  same folder is an :class:`~heliostep.errors.InputError` naming the holder. The kernel drops an
-  ``flock`` when its process dies, so the lock of a killed run is taken over by the next one.
-  Once held, the temporary files and folders of dead runs (``.heliostep-tmp-*``) are removed;
-  when a stop (a second Ctrl+C) leaves the block, so are the command's own.
-* The manifest (``.heliostep-manifest.json``) lists the files heliostep wrote into the folder,
-  the names of what was actually written (:func:`swap_in` writes it); a later run removes or
-  replaces only those. :func:`check_foreign` refuses, before simulating, a folder holding a file
-  of a name the run may write that no manifest lists (the user's own ``summary.json``).
-* :func:`staging_folder` is where a run's files are written first (inside the folder, so the
-  swap is renames); :func:`swap_in` then removes the earlier run's files and renames the new ones
-  into place with SIGINT, SIGTERM and SIGHUP blocked (they are delivered once it is done), the
-  records (``metadata.json``, ``summary.json``) last. No signal can leave the old run's files
-  beside the new ones; the manifest written first, listing both, lets a run after a SIGKILL in
-  the middle of it remove them all.
+No signal can leave an old run's files beside the new ones, and no run removes a file it did not write.
 
-Every command that writes a folder (``run``, ``regress``, ``sweep``, ``geometry``, ``end-loss``,
-``field-light``) owns it so: :func:`owned_folder` (the folder checked and made, its lock held for
-the command's life, the files it may write checked against the manifest) and
-:func:`write_swapped` (files written into a staging folder by a callable, then swapped in); a
-file a command updates in place as it goes (a sweep's ``results.parquet``, resumable) is listed
-in the manifest first (:func:`claim`).
+Details: docs/running.md, ``heliostep.results.output.folder``.
 """
 
 from __future__ import annotations

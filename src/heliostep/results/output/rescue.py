@@ -1,14 +1,7 @@
 """A run's results saved where they still fit, after its output folder could not take them (a full
 disk, a file-size limit).
 
-:func:`rescue_folder` makes a fresh folder in the first place that takes a probe file (the
-temporary folder, then ``/dev/shm``, a memory file system on Linux, when the disk is full).
-:func:`write_trace_parts` writes every row of a trace given in blocks as Parquet files of at most
-:func:`file_size_limit` bytes each (the process's ``RLIMIT_FSIZE``; one file without a limit):
-``trace.parquet``, or ``trace-part-000.parquet``, ``trace-part-001.parquet``, ... in time order,
-each a whole trace file with the run's metadata. :func:`write_text_parts` does the same for a
-record (``metadata.json``, or ``metadata.json.part-000``, ... to be joined by ``cat``).
-:func:`write_rescue` writes a run's every computed row and its records so.
+Details: docs/running.md, ``heliostep.results.output.rescue``.
 """
 
 from __future__ import annotations

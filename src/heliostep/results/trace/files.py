@@ -1,65 +1,7 @@
-"""Reading and writing simulation traces.
+"""Reading and writing simulation traces: Parquet and CSV, both round-tripping values, duplicate
+time stamps and metadata; Modelica ``.mat`` files and OpenModelica's CSV read only.
 
-Trace format
-============
-
-A *trace* is a table of samples of a simulation run:
-
-* The first column is ``time`` in seconds: float, finite and non-decreasing. A
-  discontinuity at an instant is written as consecutive rows with the same time,
-  the value just before the instant first, the value just after it last (event
-  iterations may put further rows in between).
-* Every other column is one signal, a float column named like ``motor.tau`` or
-  ``panel_angle_error``. Column names are unique. Signals may hold NaN (for
-  example after a solver failure); :func:`read_trace` keeps them, consumers such
-  as :mod:`heliostep.results.compare.traces` decide what to do with them.
-* *Metadata* is a flat ``dict[str, str]``. Conventional keys:
-
-  ``complete``
-      ``"true"`` or ``"false"``; a run that failed mid-way writes ``"false"``.
-  ``unit.<column>``
-      unit of a column, e.g. ``unit.motor.tau: N.m``.
-
-  Keys are non-empty, contain no ``:`` and no line break, and have no leading or
-  trailing blanks; values contain no line break.
-
-Two encodings, chosen by the file suffix:
-
-``.parquet``
-    An Apache Parquet file (written with pyarrow) with one float64 column per table
-    column, in row groups; the metadata is the file's key-value metadata (UTF-8), which
-    Parquet keeps in the footer, written last: a file cut short while being written has no
-    footer and cannot be read, so it never claims to be complete. Keys that Arrow or pandas
-    put there themselves (``pandas``, ``ARROW:*``) are not returned as metadata.
-    :class:`TraceWriter` writes one row group at a time and its status keys (``complete``
-    and so on) only when closing. When a row group cannot be written (disk full, a file-size
-    limit) the file is closed at the last row group written: those rows stay readable, and
-    the metadata given at closing says how the run ended.
-``.csv``
-    UTF-8 text. The metadata comes first, one ``# key: value`` line per entry, then
-    the header line (``time,motor.tau,...``) and one line per row, comma-separated,
-    floats in shortest round-trip form (``0.1``, ``0`` for 0.0, ``1e-100``: Arrow's CSV writer),
-    missing values as empty fields (:func:`read_trace`
-    also accepts a UTF-8 byte order mark and, as Excel writes in many locales, ``;`` as the
-    separator with ``,`` or ``.`` as the decimal mark)::
-
-        # complete: true
-        # unit.motor.tau: N.m
-        time,motor.tau
-        0,0
-        1,0.5
-        1,2
-
-Read only: Modelica tools' ``.mat`` result files (Dymola / OpenModelica layout,
-:mod:`~heliostep.results.trace.modelica`) and OpenModelica's CSV (a quoted header
-``"time","a.b",`` and a separator ending every line).
-
-Both encodings round-trip values (bit for bit), column order, duplicate time stamps
-and metadata.
-
-The rules both encodings share are in :mod:`~heliostep.results.trace.format`, the streaming
-Parquet writer in :mod:`~heliostep.results.trace.writer`; every public name of the two is
-importable from here.
+Details: docs/compare.md, ``heliostep.results.trace.files``.
 """
 
 from __future__ import annotations

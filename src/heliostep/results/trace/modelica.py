@@ -1,28 +1,6 @@
 """Reading Modelica tools' result files (``.mat``, Dymola and OpenModelica) as traces.
 
-The layout both tools write (MATLAB v4 container, which :func:`scipy.io.loadmat` reads):
-
-``Aclass``
-    a char matrix of four rows: ``Atrajectory``, the version ``1.1``, an empty row and
-    ``binNormal`` or ``binTrans``. With ``binTrans`` every matrix below is stored transposed
-    (the names are the *columns* of ``name``, the variables the rows of ``data_2``); Dymola and
-    OpenModelica write ``binTrans``.
-``name``, ``description``
-    char matrices, one variable per row (``binNormal``) or column (``binTrans``), padded with
-    blanks or NULs. A description may end in ``[unit]`` or ``[unit|displayUnit]`` (Dymola):
-    the unit becomes the trace's ``unit.<name>``.
-``dataInfo``
-    one integer row per variable: ``(matrix, column, interpolation, extrapolation)``. *matrix*
-    is 1 (``data_1``, the parameters: a value at the start and at the end of the interval), 2
-    (``data_2``, the trajectories) or 0 (the abscissa, time: column 1 of ``data_2``). *column*
-    is signed: ``-j`` means the variable is the negation of column ``j`` (an alias ``y = -x``
-    shares ``x``'s column).
-``data_1``, ``data_2``
-    the values, one column per stored variable (``binNormal``), column 1 the time.
-
-:func:`read_modelica_mat` returns the trace table (``time`` first, then every variable of
-``name`` in its order, parameters as constant columns) and the metadata (``unit.<name>``,
-``source: modelica-mat``). Times repeat at events, as in heliostep's own traces.
+Details: docs/compare.md, ``heliostep.results.trace.modelica``.
 """
 
 from __future__ import annotations

@@ -1,13 +1,7 @@
 """Where a run's rows go while simulating: the :class:`RowSink` protocol and the held trace.
 
-The master hands its trace rows to a sink in blocks (``CoSimulation.simulate(..., sink=...)``).
-Each sink assembles them (:class:`~heliostep.results.trace.frame.TraceAssembler`), keeps them its own
-way and hands the assembled rows to the run's figures
-(:class:`~heliostep.results.figures.run_figures.RunFigures`) in the same pass:
-
-- :class:`HeldTrace`: kept in memory (short windows);
-- :class:`~heliostep.results.trace.stream.TraceStream`: written to Parquet row groups (long windows);
-- :class:`~heliostep.results.figures.run_figures.FigureStream`: not kept (a sweep's cases).
+Each sink assembles the master's rows, keeps them its own way (in memory, streamed to Parquet, or
+not at all) and hands them to the run's figures in the same pass.
 """
 
 from __future__ import annotations

@@ -1,23 +1,8 @@
 """A run's trace streamed to Parquet as the master produces it (long windows: bounded memory).
 
-:class:`TraceStream` is the master's row sink (``CoSimulation.simulate(..., sink=...)``): it takes
-the master's rows in blocks, adds the derived columns block by block
-(:class:`~heliostep.results.trace.frame.TraceAssembler`, which gives the same rows as assembling the
-whole trace) and appends them to a Parquet file in row groups of ``row_group_rows`` rows
-(:class:`~heliostep.results.trace.files.TraceWriter`). It holds at most one row group's rows (plus
-one block): memory does not grow with the window. Each row group written goes on to the run's
-figures (``figures``), so they are those of the rows the file holds. The file's metadata (``complete`` and the rest)
-is written only by :meth:`TraceStream.close`, once the run's outcome is known; until then the file
-has no footer and claims nothing. Write it under a temporary name and rename it into place.
+The file has no footer until :meth:`TraceStream.close`, so it claims nothing before the run's outcome is known.
 
-When a row group cannot be written (disk full, a file-size limit) the stream raises
-:class:`~heliostep.results.trace.files.TraceWriteError` (the master then ends the run as failed) and
-:meth:`TraceStream.close` keeps the row groups written before it: the file is then a readable
-trace of the rows up to :attr:`TraceStream.written_time`. The rows computed and not written (the
-failed row group's, and any block that comes after) are kept in memory
-(:attr:`TraceStream.unwritten_trace`; the run stops at the failure, so they are at most a row
-group and a few blocks) and go to the figures too: nothing computed is lost, the command line's
-rescue writes them after the file's rows.
+Details: docs/running.md, ``heliostep.results.trace.stream``.
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ class TraceWriter:
     the cause) and writes nothing more; :meth:`close` then keeps the row groups written before
     it: the file is cut back to their end and given the footer a second writer produced from the
     same row groups (Parquet bytes are a function of the rows and the settings; the two files'
-    sizes are compared after every row group, ``recoverable`` says they agree). With
+    sizes are compared after every row group). With
     ``keep_on_failure=False`` there is no second writer (half the encoding work) and a failed
     file cannot be closed, only aborted. ``rows`` counts the rows written, ``last_time`` the
     time of the last one.
@@ -102,11 +102,6 @@ class TraceWriter:
     @property
     def last_time(self) -> float | None:
         return float(self._last_time) if self.rows else None
-
-    @property
-    def recoverable(self) -> bool:
-        """The file so far is the second writer's bytes: it can be closed at its last row group."""
-        return self._shadow is not None
 
     def write(self, columns: Mapping[str, np.ndarray]) -> None:
         """Append rows as one row group; ``columns`` maps every column name to its values."""
