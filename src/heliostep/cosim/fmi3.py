@@ -22,10 +22,7 @@ through its own ``instanceEnvironment`` into :class:`ModelExchangeInstance`'s me
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import os
-import subprocess
-import tempfile
 from collections import deque
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -47,6 +44,7 @@ from heliostep.cosim.fmi import (
     _extract,
 )
 from heliostep.cosim.fmi3_types import TYPED_CALLS, slot_table, typed_access
+from heliostep.cosim.libraries import compiled_library
 
 ADAPTER_SOURCE = Path(__file__).resolve().parent / "c" / "fmi3_adapter.c"
 
@@ -156,34 +154,11 @@ def _logger3():
 
 
 def adapter_library() -> ctypes.CDLL:
-    """The compiled FMI 3.0 adapter, built at first use beside the kernel, cached by content."""
+    """The compiled FMI 3.0 adapter, built at first use beside the kernel, loaded once per process."""
     global _adapter_library
-    if _adapter_library is not None:
-        return _adapter_library
-    from heliostep.cosim.kernel import KernelBuildError, _compiler, kernels_dir
-    from heliostep.toolchain import compiler_version, exclusive_lock
-
-    cc = _compiler()
-    source = ADAPTER_SOURCE.read_bytes()
-    digest = hashlib.sha256(source + b"\0" + compiler_version(cc).encode()).hexdigest()[:24]
-    folder = kernels_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"heliostep_fmi3_adapter_{digest}.so"
-    if not path.exists():
-        with exclusive_lock(folder / ".lock"):
-            if not path.exists():
-                with tempfile.TemporaryDirectory(dir=folder) as work:
-                    target = Path(work) / path.name
-                    result = subprocess.run(
-                        [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", "-o", str(target)]
-                        + [str(ADAPTER_SOURCE)],
-                        capture_output=True,
-                        text=True,
-                    )
-                    if result.returncode != 0:
-                        raise KernelBuildError(f"compiling the FMI 3.0 adapter failed:\n{result.stderr}")
-                    os.replace(target, path)
-    _adapter_library = ctypes.CDLL(str(path))
+    if _adapter_library is None:
+        path = compiled_library("heliostep_fmi3_adapter", "the FMI 3.0 adapter", [ADAPTER_SOURCE], ["-std=c99"])
+        _adapter_library = ctypes.CDLL(str(path))
     return _adapter_library
 
 

@@ -39,11 +39,6 @@ source, the header and the compiler's version: a changed source or compiler give
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -51,9 +46,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heliostep.cosim import sundials, watch
-from heliostep.errors import RunFailure
-from heliostep.paths import fmus_dir
-from heliostep.toolchain import compiler_version, exclusive_lock
+from heliostep.cosim.libraries import KernelBuildError, compiled_library, kernels_dir  # noqa: F401 - re-exported
 
 if TYPE_CHECKING:
     from heliostep.cosim.fmi import FMIError, ModelExchangeInstance
@@ -202,49 +195,9 @@ STRUCTURES: dict[str, type[ctypes.Structure]] = {
 }
 
 
-class KernelBuildError(RunFailure):
-    """The C compiler could not build the kernel (a run failure)."""
-
-
-def kernels_dir() -> Path:
-    """The cache of compiled kernels: beside the FMU cache."""
-    return fmus_dir().parent / "kernels"
-
-
-def _compiler() -> str:
-    return os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or "cc"
-
-
 def library_path() -> Path:
     """The compiled kernel, built at first use and cached by content (source, header, compiler version)."""
-    cc = _compiler()
-    try:
-        version = compiler_version(cc)
-    except OSError as exc:
-        raise KernelBuildError(f"no C compiler for the compiled kernel ({cc}): {exc}") from None
-    source_text, header_text = SOURCE_PATH.read_bytes(), HEADER_PATH.read_bytes()
-    digest = hashlib.sha256(source_text + b"\0" + header_text + b"\0" + version.encode()).hexdigest()[:24]
-    folder = kernels_dir()
-    path = folder / f"heliostep_kernel_{digest}.so"
-    if path.exists():
-        return path
-    with exclusive_lock(folder / ".lock"):
-        if path.exists():
-            return path
-        with tempfile.TemporaryDirectory(dir=folder) as work:
-            source = Path(work) / SOURCE_PATH.name
-            source.write_bytes(source_text)
-            (Path(work) / HEADER_PATH.name).write_bytes(header_text)
-            target = Path(work) / path.name
-            result = subprocess.run(
-                [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", "-o", str(target), str(source), "-lm"],
-                capture_output=True,
-                text=True,
-            )
-            if result.returncode != 0:
-                raise KernelBuildError(f"compiling the kernel failed:\n{result.stderr}")
-            os.replace(target, path)  # atomic: other processes see no half-written library
-    return path
+    return compiled_library("heliostep_kernel", "the kernel", [SOURCE_PATH, HEADER_PATH])
 
 
 _library: ctypes.CDLL | None = None
