@@ -20,7 +20,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from heliostep.cosim.description import FMUInfo, _extract, convert_value
-from heliostep.cosim.fmi import FMIError, _by_environment, _environment_ids
+from heliostep.cosim.instance import FMIError, _by_environment, _environment_ids
 from heliostep.errors import InputError
 
 __all__ = ["CoSimulationInstanceBase"]
@@ -53,7 +53,7 @@ class CoSimulationInstanceBase:
         self.time = float("nan")
         self.last_successful_time: float | None = None  # where a step that asked to terminate ended [s]
         self._environment = next(_environment_ids)
-        _by_environment[self._environment] = self  # type: ignore[assignment]  # the logger routes by this
+        _by_environment[self._environment] = self  # the logger routes by this
         self._slave: Any = None
         self._parameters = dict(parameters)
 

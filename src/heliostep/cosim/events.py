@@ -21,9 +21,6 @@ from heliostep.errors import RunFailure
 
 __all__ = ["Resume", "Terminated", "discrete_fixed_point", "event_iteration"]
 
-#: the event-iteration function of each FMI version, for the messages
-_UPDATE_FUNCTION = {"2.0": "fmi2NewDiscreteStates", "3.0": "fmi3UpdateDiscreteStates"}
-
 
 class Terminated(Exception):
     """An FMU asked to terminate the simulation (fmi2NewDiscreteStates/CompletedIntegratorStep)."""
@@ -81,9 +78,7 @@ def discrete_fixed_point(
                 stop.append(unit.name)
         if stop:  # the round is complete: pass the final outputs on, then end the run
             system.propagate_at_event()
-            functions = sorted(
-                {_UPDATE_FUNCTION[unit.info.fmi_version] for unit in system.unit_list if unit.name in stop}
-            )
+            functions = sorted({unit.info.kind.update_function for unit in system.unit_list if unit.name in stop})
             raise Terminated(
                 f"{', '.join(stop)} asked to terminate the simulation ({'/'.join(functions)}: terminateSimulation)",
                 time,

@@ -135,9 +135,8 @@ def fast_events(system: CoupledSystem, kernel: Kernel | None, compiled: bool, se
     if system.loop is not None or system.native_links is None or len(system.event_links) != len(system.links):
         return False
     graph = system.graph
-    for unit in system.unit_list:
-        if unit.info.fmi_version != "2.0":
-            return False
+    if not all(unit.info.kind.fast_events for unit in system.unit_list):
+        return False
     for item in graph.inputs:
         if item.target:
             instance, variable = split_name(item.target, "input target")

@@ -218,7 +218,7 @@ def typed_access(fmu: Any, names: Sequence[str]) -> tuple[Callable[[], None], Ca
     pointer, getter, setter = values.ctypes.data, _function(fmi3_type, False), _function(fmi3_type, True)
 
     def get() -> None:
-        fmu._call3(getter, vrs, len(references), pointer, total)
+        fmu._call(getter, vrs, len(references), pointer, total)
         buffer[:] = values[index]
 
     def put() -> None:
@@ -226,9 +226,9 @@ def typed_access(fmu: Any, names: Sequence[str]) -> tuple[Callable[[], None], Ca
             if fmu.mode == "instantiated":
                 values[:] = [0 if s is None else s for s in starts]
             else:
-                fmu._call3(getter, vrs, len(references), pointer, total)
+                fmu._call(getter, vrs, len(references), pointer, total)
         values[index] = buffer
-        fmu._call3(setter, vrs, len(references), pointer, total)
+        fmu._call(setter, vrs, len(references), pointer, total)
 
     return get, put, buffer
 
@@ -244,10 +244,10 @@ def _text_access(fmu, fmi3_type, vrs, n_references, total, index, buffer, whole)
     def get() -> None:
         texts: list[str] | list[bytes]
         if fmi3_type == "String":
-            fmu._call3(getter, vrs, n_references, pointers, total)
+            fmu._call(getter, vrs, n_references, pointers, total)
             texts = [ctypes.string_at(p).decode("utf-8", "replace") if p else "" for p in pointers]
         else:
-            fmu._call3(getter, vrs, n_references, lengths, pointers, total)
+            fmu._call(getter, vrs, n_references, lengths, pointers, total)
             texts = [ctypes.string_at(p, n) if p else b"" for p, n in zip(pointers, lengths)]
         for j, k in enumerate(index):
             buffer[j] = texts[k]
@@ -262,8 +262,8 @@ def _text_access(fmu, fmi3_type, vrs, n_references, total, index, buffer, whole)
             pointers[k] = ctypes.addressof(block)
             lengths[k] = len(data[k])
         if fmi3_type == "String":
-            fmu._call3(setter, vrs, n_references, pointers, total)
+            fmu._call(setter, vrs, n_references, pointers, total)
         else:
-            fmu._call3(setter, vrs, n_references, lengths, pointers, total)
+            fmu._call(setter, vrs, n_references, lengths, pointers, total)
 
     return get, put, buffer

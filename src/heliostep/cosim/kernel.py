@@ -49,7 +49,7 @@ from heliostep.cosim import sundials, watch
 from heliostep.cosim.libraries import KernelBuildError, compiled_library, kernels_dir  # noqa: F401 - re-exported
 
 if TYPE_CHECKING:
-    from heliostep.cosim.fmi import FMIError, ModelExchangeInstance
+    from heliostep.cosim.instance import FMIError, ModelExchangeBase
     from heliostep.cosim.loops import LoopError, LoopSolver
 
 #: The kernel's C source and header (package data beside this module).
@@ -222,7 +222,7 @@ def describe(name: str) -> int:
 
 #: One unit for the kernel: (instance, state offset, indicator offset, traced outputs as
 #: (FMI type, value reference, column of the row)).
-KernelUnit = tuple["ModelExchangeInstance", int, int, Sequence[tuple[str, int, int]]]
+KernelUnit = tuple["ModelExchangeBase", int, int, Sequence[tuple[str, int, int]]]
 #: One continuous Real connection group: (source unit index, target unit index, source value
 #: references, target value references).
 KernelLink = tuple[int, int, Sequence[int], Sequence[int]]
@@ -334,7 +334,7 @@ class Kernel:
         return int(state.solves), int(state.iterations), int(state.most_iterations)
 
     def _fill_unit(
-        self, u: Unit, fmu: ModelExchangeInstance, x_offset: int, z_offset: int, outputs: Sequence[tuple[str, int, int]]
+        self, u: Unit, fmu: ModelExchangeBase, x_offset: int, z_offset: int, outputs: Sequence[tuple[str, int, int]]
     ) -> None:
         u.component = fmu.component
         for field, function in (
@@ -438,7 +438,7 @@ class Kernel:
         time = float(self.state.failed_time)
         fmu.time = time
         error = fmu.status_error(
-            watch.called_function(self.state.failed_function, fmu.info.fmi_version), int(self.state.status)
+            watch.called_function(self.state.failed_function, fmu.info.kind), int(self.state.status)
         )
         self.state.status = 0
         return error, time

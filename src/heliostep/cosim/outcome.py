@@ -4,15 +4,12 @@ from __future__ import annotations
 
 import time as clock
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from heliostep.errors import HeliostepError, InputError, RunFailure
-
-if TYPE_CHECKING:
-    from heliostep.cosim.master import _Run
 
 __all__ = ["Interrupted", "MasterResult", "SimulationError", "completed", "statistics"]
 
@@ -53,10 +50,10 @@ class MasterResult:
     termination_time: float | None = None
 
 
-def completed(run: _Run, start_time: float, stop_time: float, grid: np.ndarray) -> MasterResult:
-    """``run`` executed from ``start_time`` to ``stop_time`` [s] with output rows at ``grid``, its
-    FMUs freed on every path: the result, or a :class:`SimulationError` carrying the rows so far
-    (an :class:`~heliostep.errors.InputError` before any row raised as it is)."""
+def completed(run: Any, start_time: float, stop_time: float, grid: np.ndarray) -> MasterResult:
+    """``run`` (the master's ``_Run``) executed from ``start_time`` to ``stop_time`` [s] with output rows at
+    ``grid``, its FMUs freed on every path: the result, or a :class:`SimulationError` carrying the rows so
+    far (an :class:`~heliostep.errors.InputError` before any row raised as it is)."""
     try:
         run.execute(start_time, stop_time, grid)
     except Interrupted:
@@ -84,14 +81,14 @@ def completed(run: _Run, start_time: float, stop_time: float, grid: np.ndarray) 
     )
 
 
-def failure(run: _Run, exc: BaseException) -> SimulationError:
+def failure(run: Any, exc: BaseException) -> SimulationError:
     """The SimulationError of a run that failed with ``exc`` at the time reached."""
     return SimulationError(
         f"simulation failed at t = {run.time:.9g} s: {exc}", run.rows.trace(), statistics(run), time=run.time
     )
 
 
-def statistics(run: _Run) -> dict:
+def statistics(run: Any) -> dict:
     """The run's counters and what it met (terminations, loops, sampled components, text outputs)."""
     system, integrator = run.system, run.integrator
     rhs = (system.rhs_evaluations if system is not None else 0) + (

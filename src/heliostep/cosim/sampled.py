@@ -38,8 +38,8 @@ from heliostep.cosim.co_simulation import CoSimulationInstanceBase
 from heliostep.cosim.connections import ConnectionGraph, split_name
 from heliostep.cosim.description import FMUInfo
 from heliostep.cosim.events import Terminated
-from heliostep.cosim.fmi import FMIError, _callbacks
-from heliostep.cosim.sampled3 import CoSimulation3Instance
+from heliostep.cosim.fmi import _callbacks
+from heliostep.cosim.instance import FMIError
 from heliostep.cosim.signals import Connection, PiecewiseConstant
 from heliostep.errors import InputError
 
@@ -130,7 +130,7 @@ class SampledComponent:
         self.held = {v: float(info.variables[v].start or 0.0) for v in self.outputs}  # before the start: starts
         self.times: np.ndarray = np.zeros(0)  # the communication points after the start, up to the stop time
         self.steps = 0
-        self.instance: CoSimulationInstance | CoSimulation3Instance | None = None
+        self.instance: CoSimulationInstanceBase | None = None
 
     def start(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
         count = math.floor((stop_time - start_time) / self.interval * (1.0 + 1e-12))
@@ -139,8 +139,7 @@ class SampledComponent:
             self._check_shorter_step(stop_time - start_time)
             self.times = np.append(self.times, stop_time)  # the last point at the stop time
         self.steps = 0
-        kind = CoSimulation3Instance if self.info.fmi_version == "3.0" else CoSimulationInstance
-        self.instance = kind(self.info, self.name, self.parameters)
+        self.instance = self.info.kind.instance_class()(self.info, self.name, self.parameters)
         self.instance.initialize(start_time, stop_time, inputs)
         self._read()
 

@@ -32,8 +32,8 @@ from collections.abc import Mapping
 
 from heliostep.cosim.co_simulation import CoSimulationInstanceBase
 from heliostep.cosim.description import FMUInfo
-from heliostep.cosim.fmi import FMIError
 from heliostep.cosim.fmi3 import _logger3
+from heliostep.cosim.instance import FMIError
 
 __all__ = ["CoSimulation3Instance"]
 

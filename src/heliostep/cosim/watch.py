@@ -23,6 +23,10 @@ import ctypes
 import mmap
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from heliostep.cosim.kinds import Kind
 
 __all__ = [
     "FUNCTIONS",
@@ -92,25 +96,6 @@ FUNCTIONS = KERNEL_FUNCTIONS + (
 )
 _INDEX = {name: k for k, name in enumerate(FUNCTIONS)}
 
-#: An FMI 3.0 FMU's own function for each fmi2-shaped call the master notes (heliostep.cosim.fmi3's
-#: adapter makes them of the FMI 3.0 ones); its integer and Boolean calls go through the getter or setter
-#: of the variable's own type.
-_FMI3_NAMES = {
-    "fmi2SetTime": "fmi3SetTime",
-    "fmi2SetContinuousStates": "fmi3SetContinuousStates",
-    "fmi2GetContinuousStates": "fmi3GetContinuousStates",
-    "fmi2GetReal": "fmi3GetFloat64",
-    "fmi2SetReal": "fmi3SetFloat64",
-    "fmi2GetDerivatives": "fmi3GetContinuousStateDerivatives",
-    "fmi2GetEventIndicators": "fmi3GetEventIndicators",
-    "fmi2GetInteger": "an fmi3Get function of an integer type",
-    "fmi2SetInteger": "an fmi3Set function of an integer type",
-    "fmi2GetBoolean": "fmi3GetBoolean",
-    "fmi2SetBoolean": "fmi3SetBoolean",
-    "fmi2GetString": "fmi3GetString",
-    "fmi2SetString": "fmi3SetString",
-}
-
 
 class Record(ctypes.Structure):
     """kernel.h ``hs_where``."""
@@ -166,8 +151,8 @@ def stop_requested() -> bool:
     return _record is not None and _record.stop != 0
 
 
-def called_function(function: int, fmi_version: str = "2.0") -> str:
-    """The name of the FMI function at index ``function`` of :data:`FUNCTIONS` for an FMU of ``fmi_version``
-    (an FMI 3.0 FMU's own name for the fmi2-shaped calls), or "an FMI call" for an unknown index."""
+def called_function(function: int, kind: Kind) -> str:
+    """The name of the FMI function at index ``function`` of :data:`FUNCTIONS` for an FMU of ``kind`` (its
+    own name for the fmi2-shaped calls), or "an FMI call" for an unknown index."""
     name = FUNCTIONS[function] if 0 <= function < len(FUNCTIONS) else "an FMI call"
-    return _FMI3_NAMES.get(name, name) if fmi_version.startswith("3") else name
+    return kind.own_name(name)
