@@ -1,16 +1,8 @@
 """What an FMI 2.0 and an FMI 3.0 Co-Simulation instance of a sampled component share.
 
-:class:`CoSimulationInstanceBase` holds the part of
-:class:`~heliostep.cosim.sampled.CoSimulationInstance` (FMI 2.0, fmpy's ``FMU2Slave``) and
-:class:`~heliostep.cosim.sampled3.CoSimulation3Instance` (FMI 3.0, fmpy's ``FMU3Slave``) that does
-not depend on the FMI version: the instance's messages and logging environment, every call through
-one error path (:class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time
-and the FMU's messages), initialization (parameters checked by name and set, inputs set), Real
-(FMI 3.0: Float64) values set and read, and closing. Each version gives its instantiation, its
-entry into initialization mode, the setter of each type and its ``DoStep``.
-
-It is a module of its own, not part of :mod:`heliostep.cosim.sampled`, because ``sampled`` imports
-``sampled3`` (a sampled component makes either instance), so ``sampled3`` cannot import ``sampled``.
+:class:`CoSimulationInstanceBase` holds the version-independent part (messages, the one error path,
+initialization, Real values, closing); each version gives its instantiation, its entry into
+initialization mode, its setters and its ``DoStep``.
 """
 
 from __future__ import annotations

@@ -1,11 +1,8 @@
-"""FMI 2.0 event mode of the coupled system: the discrete fixed point and ``terminateSimulation``.
+"""Event mode of the coupled system: the discrete fixed point and ``terminateSimulation``.
 
-The master (:mod:`heliostep.cosim.master`) decides *when* an event happens (an input change, an
-FMU time event, a state event found by CVODE's root finding, a step event); this module does what
-FMI 2.0 asks at that instant: every FMU enters event mode, the master's new inputs are set, the
-``fmi2NewDiscreteStates`` iteration runs to a fixed point with the outputs re-propagated between
-rounds, and every FMU returns to continuous-time mode. An FMU asking for ``terminateSimulation``
-raises :class:`Terminated`, which ends the run normally at that instant.
+Every FMU enters event mode, the master's new inputs are set, the event update iterates to a fixed
+point with the outputs re-propagated between rounds, and every FMU returns to continuous-time mode;
+an FMU asking to terminate raises :class:`Terminated`, which ends the run normally at that instant.
 """
 
 from __future__ import annotations

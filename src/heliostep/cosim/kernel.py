@@ -1,39 +1,13 @@
-"""The compiled kernel: CVODE calls C code that calls the FMUs' own ``fmi2*`` functions.
+"""The compiled kernel: CVODE calls C code (``c/kernel.c``, ``c/kernel.h``) that calls the FMUs' own functions.
 
-For every evaluation the C functions (``c/kernel.c``, structures and codes in ``c/kernel.h``)
-set the time and the states of every FMU, copy the continuous-time Real connections in the
-master's propagation order (``fmi2GetReal`` then ``fmi2SetReal``) and read the derivatives
-(:c:func:`hs_rhs`) or the event indicators (:c:func:`hs_root`), with no Python in between. The
-FMUs' handles and function addresses come from
-:class:`~heliostep.cosim.fmi.ModelExchangeInstance`'s public accessors (``component``,
-``function_address``), so the kernel serves any set of Model Exchange FMUs the master accepts.
-
-An FMI status worse than ``fmi2Warning`` stops the evaluation: the kernel records the status, the
-instance, the function and the time of the failing evaluation, returns -1 (unrecoverable) to
-CVODE, and refuses every further evaluation until the master has collected the error
-(:meth:`Kernel.take_error`, which turns it into the instance's
-:class:`~heliostep.cosim.fmi.FMIError`).
-
-Algebraic loops (the torn connections of :mod:`heliostep.cosim.loops`) are solved in the same C
-code at every propagation: Newton's method on the torn inputs with a forward-difference
-Jacobian, the twin of :meth:`heliostep.cosim.loops.LoopSolver.solve` (same evaluations, same
-tolerance and iteration bound, the guess shared), the rest of the system unchanged. A loop that
-fails (no convergence, a singular Jacobian) is recorded like an FMU error and collected as the
-solver's :class:`~heliostep.cosim.loops.LoopError`, naming the loop.
-
-:meth:`Kernel.advance` is heliostep's one loop over CVODE's internal steps (:c:func:`hs_advance`,
-one-step mode): after each internal step, and at the output times passed on the way
-(interpolated), it records a row (time, master inputs, every FMU's traced outputs) into a buffer
-the master takes in blocks. Where the master propagates the connections itself (non-Real
-connections, the Python right-hand side) it hands the kernel a ``prepare`` callback
-that sets the FMUs to each row's time and states instead of the kernel's own C code.
-
-The ctypes Structures below mirror ``kernel.h``; ``tests/cosim/test_kernel_layout.py`` checks
-their sizes, field offsets and the codes against the compiled library (:c:func:`hs_describe`).
-
-The C source is compiled with the system C compiler (``$CC`` or ``cc``) at first use into a
-cache folder beside the FMU cache (``kernels/``), under a name derived from the SHA-256 of the
-source, the header and the compiler's version: a changed source or compiler gives a new library.
+For each evaluation :c:func:`hs_rhs` and :c:func:`hs_root` set every FMU's time and states, copy the
+continuous Real connections in the master's propagation order (algebraic loops solved by Newton, as
+:class:`~heliostep.cosim.loops.LoopSolver` does) and read the derivatives or event indicators, with no
+Python in between; :meth:`Kernel.advance` is the one loop over CVODE's internal steps, recording rows in
+blocks. A status worse than warning stops the evaluation and is collected by :meth:`Kernel.take_error` as
+the instance's :class:`~heliostep.cosim.instance.FMIError`. The ctypes Structures mirror ``kernel.h``
+(checked by ``tests/cosim/test_kernel_layout.py``); the library is built at first use
+(:mod:`~heliostep.cosim.libraries`).
 """
 
 from __future__ import annotations

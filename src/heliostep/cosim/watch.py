@@ -1,20 +1,10 @@
 """Where this process's FMU calls are, for a supervisor in another process.
 
-A supervised run (:mod:`heliostep.run.supervised`) simulates in a child process; when an FMU
-crashes or hangs there, the supervisor must still name the instance and the FMI function it was
-in. Before every FMI call the child stores, in a small record that both processes map (a file
-of :data:`RECORD_BYTES` bytes, mapped shared), the instance's index in the master's order, the
-function's index in :data:`FUNCTIONS` and a running count of the calls begun; the compiled
-kernel (``kernel.c``, through ``hs_kernel.where``) and the Python calls
-(:class:`~heliostep.cosim.fmi.ModelExchangeInstance`) alike. A store is a few nanoseconds in C.
-The supervisor reads the count to tell a hang (no call begun for a while) from a long run, and
-writes the record's ``stop`` to ask the child to stop at its next safe point.
-
-Without :func:`attach` (every unsupervised run) nothing is recorded.
-
-The record (:class:`Record`, kernel.h ``hs_where``): the unit's index, the function's, the
-calls begun, the stop request (int64 each) and the time of the call [s] (a double): :data:`LAYOUT`
-for :mod:`struct`.
+Before every FMI call (the compiled kernel's and the Python ones alike) a supervised child stores, in
+a record both processes map (:class:`Record`, kernel.h ``hs_where``; :data:`LAYOUT` for :mod:`struct`),
+the instance's index, the function's index in :data:`FUNCTIONS`, the time and a running count of the
+calls begun; the supervisor reads the count to tell a hang from a long run, and writes ``stop`` to ask
+the child to stop at its next safe point. Without :func:`attach` nothing is recorded.
 """
 
 from __future__ import annotations
