@@ -27,11 +27,11 @@ from heliostep.cosim.instance import (  # noqa: F401 - re-exported
     VALUES_CALL,
     EventResult,
     FMIError,
-    LifeCycle,
     ModelExchangeBase,
     _dispatch_log,
     address,
 )
+from heliostep.cosim.kinds import life_cycle
 
 _logger_callback = None
 
@@ -95,19 +95,7 @@ _CALLS = {
 class ModelExchangeInstance(ModelExchangeBase):
     """One instance of an FMI 2.0 Model Exchange FMU (see :class:`~heliostep.cosim.instance.ModelExchangeBase`)."""
 
-    _life = LifeCycle(
-        "fmi2Instantiate",
-        "fmi2EnterInitializationMode",
-        "fmi2ExitInitializationMode",
-        "fmi2EnterEventMode",
-        "fmi2NewDiscreteStates",
-        "fmi2EnterContinuousTimeMode",
-        "fmi2CompletedIntegratorStep",
-        "fmi2GetNominalsOfContinuousStates",
-        "fmi2Terminate",
-        "fmi2Reset",
-        "fmi2FreeInstance",
-    )
+    _life = life_cycle("2.0")
     _BOOLEAN = ctypes.c_int  # fmi2Boolean
 
     def _fmpy_model(self) -> Any:

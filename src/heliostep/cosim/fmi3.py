@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from heliostep.cosim.fmi3_types import TYPED_CALLS, slot_table, typed_access
-from heliostep.cosim.instance import HOT_CALLS, SHAPED_CALLS, STATUS_ONLY, LifeCycle, ModelExchangeBase, _dispatch_log
+from heliostep.cosim.instance import HOT_CALLS, SHAPED_CALLS, STATUS_ONLY, ModelExchangeBase, _dispatch_log
+from heliostep.cosim.kinds import life_cycle
 from heliostep.cosim.libraries import compiled_library
 
 ADAPTER_SOURCE = Path(__file__).resolve().parent / "c" / "fmi3_adapter.c"
@@ -140,19 +141,7 @@ def adapter_library() -> ctypes.CDLL:
 class ModelExchange3Instance(ModelExchangeBase):
     """One instance of an FMI 3.0 Model Exchange FMU (see :class:`~heliostep.cosim.instance.ModelExchangeBase`)."""
 
-    _life = LifeCycle(
-        "fmi3InstantiateModelExchange",
-        "fmi3EnterInitializationMode",
-        "fmi3ExitInitializationMode",
-        "fmi3EnterEventMode",
-        "fmi3UpdateDiscreteStates",
-        "fmi3EnterContinuousTimeMode",
-        "fmi3CompletedIntegratorStep",
-        "fmi3GetNominalsOfContinuousStates",
-        "fmi3Terminate",
-        "fmi3Reset",
-        "fmi3FreeInstance",
-    )
+    _life = life_cycle("3.0")
 
     def _fmpy_model(self) -> Any:
         from fmpy.fmi3 import FMU3Model
@@ -234,8 +223,8 @@ class ModelExchange3Instance(ModelExchangeBase):
     def enter_initialization_mode(self) -> None:
         """fmi3EnterInitializationMode with the tolerance and start time (FMI 3.0 has no SetupExperiment)."""
         tolerance = self._tolerance
-        self._call(self._life.enter_initialization_mode, tolerance is not None, tolerance or 0.0, self.time, False, 0.0)
-        self.mode = "initialization"
+        args = (tolerance is not None, tolerance or 0.0, self.time, False, 0.0)
+        self._into(self._life.enter_initialization_mode, "initialization", *args)
 
     def _update_once(self, iteration: int, first: Any) -> tuple[bool, bool, bool, bool, float | None]:
         """One fmi3UpdateDiscreteStates."""

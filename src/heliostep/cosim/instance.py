@@ -17,16 +17,17 @@ import weakref
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from heliostep.cosim import watch
 from heliostep.cosim.access import VariableAccess
 from heliostep.cosim.description import FMUInfo, _extract
+from heliostep.cosim.kinds import LifeCycle
 from heliostep.errors import RunFailure
 
-__all__ = ["FMIError", "EventResult", "LifeCycle", "ModelExchangeBase", "address"]
+__all__ = ["FMIError", "EventResult", "ModelExchangeBase", "address"]
 
 
 class FMIError(RunFailure):
@@ -114,22 +115,6 @@ class EventResult:
     states_changed: bool = False
     next_event_time: float | None = None
     nominals_changed: bool = False  # nominalsOfContinuousStatesChanged: read them again
-
-
-class LifeCycle(NamedTuple):
-    """A version's functions for each step of the life cycle (noted for a supervisor, named in errors)."""
-
-    instantiate: str
-    enter_initialization_mode: str
-    exit_initialization_mode: str
-    enter_event_mode: str
-    update_discrete_states: str
-    enter_continuous_time_mode: str
-    completed_integrator_step: str
-    get_nominals: str
-    terminate: str
-    reset: str
-    free_instance: str
 
 
 class ModelExchangeBase(VariableAccess):
@@ -290,12 +275,7 @@ class ModelExchangeBase(VariableAccess):
 
     def get_states(self, out: np.ndarray | None = None) -> np.ndarray:
         """Continuous states, into ``out`` if given (else a new array)."""
-        if self.n_states:
-            self._call("fmi2GetContinuousStates", self._x_ptr, self.n_states)
-        if out is None:
-            return self._x.copy()
-        out[:] = self._x
-        return out
+        return self._vector("fmi2GetContinuousStates", self._x, self._x_ptr, out)
 
     def set_states(self, x: np.ndarray) -> None:
         if self.n_states:
@@ -304,29 +284,34 @@ class ModelExchangeBase(VariableAccess):
 
     def get_derivatives(self, out: np.ndarray | None = None) -> np.ndarray:
         """State derivatives, into ``out`` if given (else a new array)."""
+        return self._vector("fmi2GetDerivatives", self._dx, self._dx_ptr, out)
+
+    def _vector(self, function: str, buffer: np.ndarray, pointer: Any, out: np.ndarray | None) -> np.ndarray:
         if self.n_states:
-            self._call("fmi2GetDerivatives", self._dx_ptr, self.n_states)
+            self._call(function, pointer, self.n_states)
         if out is None:
-            return self._dx.copy()
-        out[:] = self._dx
+            return buffer.copy()
+        out[:] = buffer
         return out
 
     # ------------------------------------------------------------------ life cycle
+    def _into(self, function: str, mode: str, *args: Any) -> None:
+        """Call the life-cycle function ``function``, which puts the instance into ``mode``."""
+        self._call(function, *args)
+        self.mode = mode
+
     def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:
         """The start time [s] and tolerance of the experiment, before initialization mode."""
         self.time, self._tolerance = start_time, tolerance
 
     def enter_initialization_mode(self) -> None:
-        self._call(self._life.enter_initialization_mode)
-        self.mode = "initialization"
+        self._into(self._life.enter_initialization_mode, "initialization")
 
     def exit_initialization_mode(self) -> None:
-        self._call(self._life.exit_initialization_mode)
-        self.mode = "event"
+        self._into(self._life.exit_initialization_mode, "event")
 
     def enter_event_mode(self) -> None:
-        self._call(self._life.enter_event_mode)
-        self.mode = "event"
+        self._into(self._life.enter_event_mode, "event")
 
     def update_discrete_states(self, max_iterations: int = 100, first: Any = None) -> EventResult:
         """Iterate the event update until the FMU needs no more (or asks to terminate); ``first``: the
@@ -351,8 +336,7 @@ class ModelExchangeBase(VariableAccess):
         )
 
     def enter_continuous_time_mode(self) -> None:
-        self._call(self._life.enter_continuous_time_mode)
-        self.mode = "continuous"
+        self._into(self._life.enter_continuous_time_mode, "continuous")
 
     def completed_integrator_step(self) -> tuple[bool, bool]:
         """Returns (enter event mode, terminate simulation)."""
@@ -367,12 +351,10 @@ class ModelExchangeBase(VariableAccess):
         return out
 
     def terminate(self) -> None:
-        self._call(self._life.terminate)
-        self.mode = "terminated"
+        self._into(self._life.terminate, "terminated")
 
     def reset(self) -> None:
-        self._call(self._life.reset)
-        self.mode = "instantiated"
+        self._into(self._life.reset, "instantiated")
 
     def close(self) -> None:
         """End the instance on any path: terminate where the state machine allows it (event,

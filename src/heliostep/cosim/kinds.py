@@ -9,9 +9,25 @@ from __future__ import annotations
 import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
-__all__ = ["KINDS", "Kind", "kind_of", "versions"]
+__all__ = ["KINDS", "Kind", "LifeCycle", "kind_of", "life_cycle", "versions"]
+
+
+class LifeCycle(NamedTuple):
+    """A version's functions for each step of the life cycle (noted for a supervisor, named in errors)."""
+
+    instantiate: str
+    enter_initialization_mode: str
+    exit_initialization_mode: str
+    enter_event_mode: str
+    update_discrete_states: str
+    enter_continuous_time_mode: str
+    completed_integrator_step: str
+    get_nominals: str
+    terminate: str
+    reset: str
+    free_instance: str
 
 
 @dataclass(frozen=True)
@@ -24,8 +40,8 @@ class Kind:
     instance: str  # "module:Class" of its instances
     #: the functions its binary must export
     required_functions: tuple[str, ...]
-    #: the event iteration's function (Model Exchange), named when an FMU asks to terminate there
-    update_function: str = ""
+    #: its life-cycle functions (Model Exchange)
+    life: LifeCycle | None = None
     #: its own name of each fmi2-shaped call the master notes for a supervisor (watch.FUNCTIONS)
     call_names: Mapping[str, str] = field(default_factory=dict)
     #: whether the compiled kernel's events (fast_events.hs_event, FMI 2.0's calls) take it
@@ -42,6 +58,11 @@ class Kind:
     def read(self, path: Any, description: Any) -> Any:
         """The :class:`~heliostep.cosim.description.FMUInfo` of an FMU of this kind read by fmpy (``description``)."""
         return _load(self.reader)(path, description, self)
+
+    @property
+    def update_function(self) -> str:
+        """The event iteration's function, named when an FMU asks to terminate there."""
+        return self.life.update_discrete_states if self.life is not None else ""
 
     def own_name(self, call: str) -> str:
         """This kind's name of the fmi2-shaped ``call`` noted for a supervisor."""
@@ -112,7 +133,19 @@ KINDS: tuple[Kind, ...] = (
         "heliostep.cosim.description:read_fmi2",
         "heliostep.cosim.fmi:ModelExchangeInstance",
         _FMI2_COMMON + _FMI2_MODEL_EXCHANGE,
-        update_function="fmi2NewDiscreteStates",
+        life=LifeCycle(
+            "fmi2Instantiate",
+            "fmi2EnterInitializationMode",
+            "fmi2ExitInitializationMode",
+            "fmi2EnterEventMode",
+            "fmi2NewDiscreteStates",
+            "fmi2EnterContinuousTimeMode",
+            "fmi2CompletedIntegratorStep",
+            "fmi2GetNominalsOfContinuousStates",
+            "fmi2Terminate",
+            "fmi2Reset",
+            "fmi2FreeInstance",
+        ),
         fast_events=True,
     ),
     Kind(
@@ -152,7 +185,19 @@ KINDS: tuple[Kind, ...] = (
             "fmi3GetContinuousStates",
             "fmi3GetNominalsOfContinuousStates",
         ),
-        update_function="fmi3UpdateDiscreteStates",
+        life=LifeCycle(
+            "fmi3InstantiateModelExchange",
+            "fmi3EnterInitializationMode",
+            "fmi3ExitInitializationMode",
+            "fmi3EnterEventMode",
+            "fmi3UpdateDiscreteStates",
+            "fmi3EnterContinuousTimeMode",
+            "fmi3CompletedIntegratorStep",
+            "fmi3GetNominalsOfContinuousStates",
+            "fmi3Terminate",
+            "fmi3Reset",
+            "fmi3FreeInstance",
+        ),
         call_names=_FMI3_CALL_NAMES,
     ),
     Kind(
@@ -185,3 +230,10 @@ def kind_of(version: str, co_simulation: bool = False) -> Kind | None:
 def versions() -> str:
     """The FMI versions heliostep runs, for a message: "2.0 or 3.0"."""
     return " or ".join(sorted({kind.version for kind in KINDS}))
+
+
+def life_cycle(version: str) -> LifeCycle:
+    """The life-cycle functions of FMI ``version``'s Model Exchange instances."""
+    kind = kind_of(version)
+    assert kind is not None and kind.life is not None
+    return kind.life

@@ -13,10 +13,8 @@ import ctypes
 import mmap
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from heliostep.cosim.kinds import Kind
+from heliostep.cosim.kinds import KINDS, Kind
 
 __all__ = [
     "FUNCTIONS",
@@ -44,45 +42,18 @@ KERNEL_FUNCTIONS = (
     "fmi2GetBoolean",
 )
 #: Every FMI function a run calls (the kernel's first): the record's function index is a position here.
-FUNCTIONS = KERNEL_FUNCTIONS + (
+FUNCTIONS = (
+    *KERNEL_FUNCTIONS,
     "loading the binary",
-    "fmi2Instantiate",
+    *dict.fromkeys(name for kind in KINDS if kind.life is not None for name in kind.life),
     "fmi2SetupExperiment",
-    "fmi2EnterInitializationMode",
-    "fmi2ExitInitializationMode",
-    "fmi2EnterEventMode",
-    "fmi2NewDiscreteStates",
-    "fmi2EnterContinuousTimeMode",
-    "fmi2CompletedIntegratorStep",
     "fmi2GetContinuousStates",
-    "fmi2GetNominalsOfContinuousStates",
     "fmi2SetInteger",
     "fmi2SetBoolean",
     "fmi2GetString",
     "fmi2SetString",
-    "fmi2Terminate",
-    "fmi2Reset",
-    "fmi2FreeInstance",
-    # FMI 3.0's own (heliostep.cosim.fmi3); its fmi2-shaped calls are noted by their fmi2 names
-    "fmi3InstantiateModelExchange",
-    "fmi3EnterInitializationMode",
-    "fmi3ExitInitializationMode",
-    "fmi3EnterEventMode",
-    "fmi3UpdateDiscreteStates",
-    "fmi3EnterContinuousTimeMode",
-    "fmi3CompletedIntegratorStep",
-    "fmi3GetNominalsOfContinuousStates",
-    "fmi3Terminate",
-    "fmi3Reset",
-    "fmi3FreeInstance",
-    "fmi3SetFloat32",
-    "fmi3SetInt8",
-    "fmi3SetUInt8",
-    "fmi3SetInt16",
-    "fmi3SetUInt16",
-    "fmi3SetUInt32",
-    "fmi3SetInt64",
-    "fmi3SetUInt64",
+    # FMI 3.0's typed setters (heliostep.cosim.fmi3_types); its fmi2-shaped calls are noted by their fmi2 names
+    *(f"fmi3Set{t}" for t in ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64")),
 )
 _INDEX = {name: k for k, name in enumerate(FUNCTIONS)}
 
