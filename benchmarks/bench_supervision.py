@@ -2,14 +2,14 @@
 
     .venv/bin/python benchmarks/bench_supervision.py [--repeat N] [--scenario FILE]
 
-A supervised run (``run_scenario(..., supervise=True)``, the default; heliostep.run.supervised)
-simulates in a forked child process (heliostep.cosim.child) that streams its rows and figures back;
+A supervised run (``run_scenario(..., supervise=True)``, the default; heliostep.run.supervision.supervisor)
+simulates in a forked child process (heliostep.run.supervision.child) that streams its rows and figures back;
 an in-process one (``supervise=False``, ``heliostep run --no-supervise``) calls the FMUs in the
 process itself. The two are run alternately ``--repeat`` times (the machine's load drifts alike
 for both) and the wall time of the whole ``run_scenario`` call is printed per run, with the
 median of each and their ratio. Also checked: both give the same trace, bit for bit.
 Supervised runs are timed for each ``--block-rows`` (the child's kernel block and outbox bound,
-heliostep.cosim.child.BLOCK_ROWS: a crash loses fewer than twice that many rows).
+heliostep.run.supervision.child.BLOCK_ROWS: a crash loses fewer than twice that many rows).
 Prints figures; not a test.
 """
 
@@ -35,11 +35,11 @@ def main() -> None:
         type=int,
         nargs="+",
         default=[128, 4096],
-        help="the supervised child's block sizes to time (heliostep.cosim.child.BLOCK_ROWS; 128 is the default)",
+        help="the supervised child's block sizes to time (run.supervision.child.BLOCK_ROWS; 128 is the default)",
     )
     args = parser.parse_args()
 
-    import heliostep.cosim.child as child
+    import heliostep.run.supervision.child as child
     from heliostep.run import run_scenario
 
     run_scenario(args.scenario, supervise=False)  # FMUs and kernel built, files cached: not timed

@@ -24,9 +24,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from heliostep.cosim.child import MAX_ROWS_LOST
 from heliostep.results.trace.files import read_trace
 from heliostep.run import RunFailed, RunOptions, run_scenario
+from heliostep.run.supervision.child import MAX_ROWS_LOST
 from third_party_fmu import build_mini_fmu
 
 CLI = "from heliostep.cli import console_main; console_main()"
@@ -146,9 +146,7 @@ def test_a_crash_or_hang_in_a_child_of_the_fork_server_fails_the_run_with_its_fi
     its figures those of the rows the child sent (the steps before the fault judged), no fault dump."""
     scenario = _scenario(tmp_path, faulty_fmu, fault)
     with pytest.raises(RunFailed) as failure:
-        run_scenario(
-            scenario, RunOptions(supervise=True, watchdog=3.0, keep_trace=False, start_method="forkserver")
-        )
+        run_scenario(scenario, RunOptions(supervise=True, watchdog=3.0, keep_trace=False, start_method="forkserver"))
     result = failure.value.result
     ended, reason = FAULTS[fault]
     assert result.reason == reason and ended in str(failure.value)

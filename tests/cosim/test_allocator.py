@@ -1,4 +1,4 @@
-"""heliostep.cosim.allocator: a Dask worker's fixed heap thresholds undone.
+"""heliostep.run.supervision.allocator: a Dask worker's fixed heap thresholds undone.
 
 With ``MALLOC_TRIM_THRESHOLD_`` set (Dask's nanny sets 65536 in every worker), glibc's mmap threshold
 stays at 128 KiB, so each array of 1 MiB is a fresh mmap whose 256 pages of 4 KiB fault in again every
@@ -28,7 +28,7 @@ def fault_counts() -> tuple[int, int, bool]:
 
     import numpy as np
 
-    from heliostep.cosim.allocator import restore_dynamic_heap
+    from heliostep.run.supervision.allocator import restore_dynamic_heap
 
     def faults() -> int:
         before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt

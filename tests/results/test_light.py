@@ -310,7 +310,7 @@ def test_the_sun_alone_attitudes_image_from_the_sun_grid_is_the_rows_own_within_
     function of the interpolated miss, errs by at most the miss's error over the mirror's length (the
     share of the length past the end). Across sunrise the rows between a grid point below the horizon
     and one above take their own image, bit for bit."""
-    from heliostep.results.light.on_tube import on_tube as light
+    from heliostep.results.light import on_tube as light
     from heliostep.results.light.mirror_power import receiver_image
     from heliostep.solar import optics as optics_module
 

@@ -36,7 +36,7 @@ def slipping_run():
     patch = pytest.MonkeyPatch()
     patch.setattr(run_figures, "SolutionRecorder", Keeping)
     try:
-        run = run_scenario(SCENARIOS / "jan21-weak-motor.yaml", ("window.duration=60",))
+        run = run_scenario(SCENARIOS / "jan21-weak-motor.yaml", overrides=("window.duration=60",))
     finally:
         patch.undo()
     return run, np.vstack(kept), made[0]

@@ -19,7 +19,7 @@ from heliostep.results.trace.files import TraceWriteError
 from heliostep.run import RunFailed, RunOptions, RunResult, resolve_fmus, run_scenario
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION
-from heliostep.run.supervised import DEFAULT_WATCHDOG
+from heliostep.run.supervision.supervisor import DEFAULT_WATCHDOG
 from heliostep.scenario import load_scenario
 
 #: Windows longer than this [s] get no CSV copy of the trace unless --csv is given.

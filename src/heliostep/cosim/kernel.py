@@ -224,7 +224,8 @@ class Kernel:
     #: Rows one call of :c:func:`hs_advance` records before it hands them over.
     ROWS_PER_BLOCK = 4096
     #: Rows at output times (the trace's) one call records before it hands them over: fewer in a
-    #: supervised child (:data:`heliostep.cosim.child.BLOCK_ROWS`), whose crash loses the rows not handed over.
+    #: supervised child (:data:`heliostep.run.supervision.child.BLOCK_ROWS`), whose crash loses the rows
+    #: not handed over.
     OUTPUTS_PER_BLOCK = 4096
 
     def __init__(

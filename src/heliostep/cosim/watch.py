@@ -1,10 +1,11 @@
 """Where this process's FMU calls are, for a supervisor in another process.
 
-Before every FMI call (the compiled kernel's and the Python ones alike) a supervised child stores, in
-a record both processes map (:class:`Record`, kernel.h ``hs_where``; :data:`LAYOUT` for :mod:`struct`),
-the instance's index, the function's index in :data:`FUNCTIONS`, the time and a running count of the
-calls begun; the supervisor reads the count to tell a hang from a long run, and writes ``stop`` to ask
-the child to stop at its next safe point. Without :func:`attach` nothing is recorded.
+Before every FMI call (the compiled kernel's and the Python ones alike) a supervised child
+(:mod:`heliostep.run.supervision`) stores, in a record both processes map (:class:`Record`, kernel.h
+``hs_where``; :data:`LAYOUT` for :mod:`struct`), the instance's index, the function's index in
+:data:`FUNCTIONS`, the time and a running count of the calls begun; the supervisor reads the count to
+tell a hang from a long run, and writes ``stop`` to ask the child to stop at its next safe point.
+Without :func:`attach` nothing is recorded.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from heliostep.results.trace.files import ROW_GROUP_ROWS
-from heliostep.run.supervised import DEFAULT_WATCHDOG, StartMethod
+from heliostep.run.supervision.supervisor import DEFAULT_WATCHDOG, StartMethod
 
 __all__ = ["RunOptions"]
 
@@ -41,8 +41,8 @@ class RunOptions:
         Rows per row group of a streamed trace, and per chunk of the output rows' figures: held and streamed
         runs with the same value give the same figures bit for bit.
     supervise : bool
-        Simulate in a supervised child process (:mod:`heliostep.run.supervised`; ``heliostep run``'s default):
-        an FMU that crashes, exits or hangs fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
+        Simulate in a supervised child process (:mod:`heliostep.run.supervision.supervisor`; ``heliostep run``'s
+        default): an FMU that crashes, exits or hangs fails the run (``"fmu-crashed"``, ``"fmu-hung"``), named.
     watchdog : float  [s]
         With ``supervise``: an FMU with no FMI call begun for this long hangs.
     start_method : {"fork", "forkserver"}

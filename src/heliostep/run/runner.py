@@ -26,7 +26,6 @@ import numpy as np
 
 from heliostep._version import __version__
 from heliostep.cosim import Connection, CoSimulation, FMUInfo, SimulationError, SolverOptions
-from heliostep.cosim.allocator import restore_dynamic_heap
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import InputError
 from heliostep.results.figures.run_figures import FigureStream, RunFigures
@@ -41,7 +40,8 @@ from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
 from heliostep.run.options import RunOptions
 from heliostep.run.result import RunFailed, RunResult
-from heliostep.run.supervised import simulate_supervised
+from heliostep.run.supervision.allocator import restore_dynamic_heap
+from heliostep.run.supervision.supervisor import simulate_supervised
 from heliostep.scenario import Scenario, load_scenario
 
 __all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario"]
@@ -151,7 +151,7 @@ def _prepare(
     """The run checked and set up: its estimate against the budget, FMUs, roles, weather, drive
     inputs (:class:`~heliostep.drive.sequencer.PreparationStopped` on a stop request), the coupled system."""
     check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, keep_trace))  # before any work
-    restore_dynamic_heap()  # in a Dask worker (its MALLOC_TRIM_THRESHOLD_): heliostep.cosim.allocator
+    restore_dynamic_heap()  # in a Dask worker (its MALLOC_TRIM_THRESHOLD_): heliostep.run.supervision.allocator
     fmu_paths = dict(fmu_paths) if fmu_paths is not None else resolve_fmus(scenario)
     infos = read_fmus(scenario, fmu_paths)
     roles = present_roles(scenario, infos)

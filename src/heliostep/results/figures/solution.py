@@ -26,7 +26,6 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from heliostep.drive.sequencer import Sequencer, StepSchedule
-from heliostep.results.figures.run_summary import Peaks, StepFigures, Tracking
 from heliostep.results.figures.plot_data import (
     ENVELOPE_BINS,
     PEAK_WINDOW_HALF_WIDTH,
@@ -34,6 +33,7 @@ from heliostep.results.figures.plot_data import (
     PeakWindow,
     SolutionPlotData,
 )
+from heliostep.results.figures.run_summary import Peaks, StepFigures, Tracking
 from heliostep.results.figures.steps import (
     StepJudge,
     judged_steps,

@@ -1,6 +1,6 @@
 """One co-simulation in a process of its own, for a supervisor: :func:`serve`.
 
-The supervisor (:mod:`heliostep.run.supervised`) forks and calls :func:`serve` with the request, or
+The supervisor (:mod:`heliostep.run.supervision.supervisor`) forks and calls :func:`serve` with the request, or
 has multiprocessing's fork server start :func:`run` with a connected socket and the path of its call
 record (:mod:`heliostep.cosim.watch`) and sends it one request: a pickled :class:`Request` (the
 :class:`~heliostep.cosim.master.CoSimulation`, its time span, output grid, solver options and the
@@ -45,12 +45,12 @@ from typing import Any, Protocol
 import numpy as np
 
 from heliostep.cosim import watch
-from heliostep.cosim.allocator import restore_dynamic_heap
 from heliostep.cosim.kernel import Kernel
 from heliostep.cosim.master import CoSimulation, SimulationError, SolutionMonitor
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.signals import SolverOptions
 from heliostep.errors import InputError
+from heliostep.run.supervision.allocator import restore_dynamic_heap
 
 __all__ = [
     "BLOCK_ROWS",
@@ -174,7 +174,7 @@ def serve(
             signal.signal(number, signal.SIG_IGN)
     if tmpdir is not None:
         os.environ["TMPDIR"] = tempfile.tempdir = tmpdir
-    restore_dynamic_heap()  # a Dask worker's MALLOC_TRIM_THRESHOLD_, inherited: see heliostep.cosim.allocator
+    restore_dynamic_heap()  # a Dask worker's MALLOC_TRIM_THRESHOLD_, inherited: see heliostep.run.supervision.allocator
     parent = os.getppid()
     die_with_supervisor(parent)
     if supervisor is not None and supervisor != parent:

@@ -2,7 +2,7 @@
 
 :func:`simulate_supervised` is :meth:`CoSimulation.simulate <heliostep.cosim.master.CoSimulation.simulate>`
 with the same arguments and results, but the simulation runs in a child process
-(:mod:`heliostep.cosim.child`): forked from this process, or, where the caller says this process runs
+(:mod:`heliostep.run.supervision.child`): forked from this process, or, where the caller says this process runs
 threads (a Dask worker: a fork copies one thread, and any lock another one held), started by the
 standard library's ``multiprocessing`` fork server (``start_method``). The child's monitor computes the
 figures where the rows are made and streams its totals back over a socket with the trace rows: the
@@ -47,11 +47,11 @@ import numpy as np
 import pandas as pd
 
 from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverOptions
-from heliostep.cosim.child import Request, SupervisedMonitor, run, serve
 from heliostep.cosim.kernel import library_path
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.watch import LAYOUT, RECORD_BYTES, STOP_OFFSET, called_function
 from heliostep.errors import HeliostepError, InputError
+from heliostep.run.supervision.child import Request, SupervisedMonitor, run, serve
 
 __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "StartMethod", "simulate_supervised"]
 
@@ -155,7 +155,7 @@ class _Served:
 
     def __init__(self, theirs: socket.socket, folder: Path):
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["heliostep.cosim.child"])
+        context.set_forkserver_preload(["heliostep.run.supervision.child"])
         connection = Connection(os.dup(theirs.fileno()))
         current = multiprocessing.current_process()
         try:
