@@ -4,8 +4,8 @@
   pyproject.toml);
 * mypy type-checks the whole of ``src/heliostep`` (``[tool.mypy]``; until 2026-12-03 only
   :mod:`heliostep.cosim`, :mod:`heliostep.results`, :mod:`heliostep.run` and what they import);
-* the size limits hold in ``src/heliostep``: no module over 500 lines unless its docstring has a
-  line starting with "Why this module is long:", no class over 300 lines, no function over 60.
+* the size limits hold in ``src/heliostep``: no module over 500 lines, no class over 300 lines, no
+  function over 60.
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ CHECKED_TREES = ("src", "tests", "benchmarks")
 MAX_MODULE_LINES = 500
 MAX_CLASS_LINES = 300
 MAX_FUNCTION_LINES = 60
-LONG_MODULE_REASON = "Why this module is long:"
 
 #: Functions and classes allowed over their limit: "path/inside/src/heliostep.py:qualified.name" -> the
 #: reason. Empty: every function and class is within its limit. Add an entry only with a reason that
@@ -82,10 +81,8 @@ def size_problems(root: Path = PACKAGE) -> list[str]:
         source = path.read_text(encoding="utf-8")
         tree = ast.parse(source, filename=str(path))
         lines = source.count("\n")
-        docstring = ast.get_docstring(tree) or ""
-        explained = any(line.strip().startswith(LONG_MODULE_REASON) for line in docstring.splitlines())
-        if lines > MAX_MODULE_LINES and not explained:
-            problems.append(f"{where}: {lines} lines (> {MAX_MODULE_LINES}) and no '{LONG_MODULE_REASON}' line")
+        if lines > MAX_MODULE_LINES:
+            problems.append(f"{where}: {lines} lines (> {MAX_MODULE_LINES})")
         for name, node in _definitions(tree):
             limit = MAX_CLASS_LINES if isinstance(node, ast.ClassDef) else MAX_FUNCTION_LINES
             kind = "class" if isinstance(node, ast.ClassDef) else "function"
@@ -100,19 +97,17 @@ def test_modules_classes_and_functions_keep_their_size():
 
 
 def test_the_size_check_finds_what_is_too_long(tmp_path):
-    # the check itself: a long function, a long class, a long module with and without its reason
+    # the check itself: a long function, a long class, a long module
     body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES))
     (tmp_path / "long_function.py").write_text(f"def f():\n{body}\n")
     methods = "\n".join(f"    def m{i}(self):\n        return {i}\n" for i in range(MAX_CLASS_LINES // 3 + 1))
     (tmp_path / "long_class.py").write_text(f"class C:\n{methods}\n")
     filler = "\n".join(f"y{i} = {i}" for i in range(MAX_MODULE_LINES + 1))
     (tmp_path / "long_module.py").write_text(f'"""A long module."""\n{filler}\n')
-    (tmp_path / "long_module_why.py").write_text(f'"""A long module.\n\n{LONG_MODULE_REASON} a table."""\n{filler}\n')
     problems = size_problems(tmp_path)
     assert any("long_function.py:1: function f:" in p for p in problems), problems
     assert any("long_class.py:1: class C:" in p for p in problems), problems
     assert any(p.startswith("long_module.py:") for p in problems), problems
-    assert not any(p.startswith("long_module_why.py") for p in problems), problems
 
 
 @pytest.mark.parametrize("tool", ["ruff", "mypy"])

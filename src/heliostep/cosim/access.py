@@ -1,11 +1,9 @@
-"""Typed access to the variables of an FMU instance: get, set, read, write and link by name.
+"""Typed access to the variables of a Model Exchange instance: get, set, read, write and link by name.
 
-:class:`VariableAccess` is the part of :class:`~heliostep.cosim.fmi.ModelExchangeInstance` that
-reads and sets variables of every FMI 2.0 type with its own functions (Real with
-``fmi2GetReal``, Integer and Enumeration with ``fmi2GetInteger``, Boolean with
-``fmi2GetBoolean``, String with ``fmi2SetString``), builds the fast readers, writers and
-connection copies the master uses, and sets parameters by name. The life cycle, the error path
-and the calls on the integrator's hot path are :class:`~heliostep.cosim.fmi.ModelExchangeInstance`'s.
+:class:`VariableAccess` reads and sets variables with the fmi2-shaped function of their type, builds
+the readers, writers and connection copies the master uses, sets parameters by name and moves the
+states at addresses; the life cycle and the error path are
+:class:`~heliostep.cosim.instance.ModelExchangeBase`'s.
 """
 
 from __future__ import annotations
@@ -34,12 +32,14 @@ class VariableAccess:
 
     The methods here call the FMU through ``_call`` (any FMI function, status checked),
     ``_check`` and ``_hot`` (the hot-path calls taking addresses) and ``_component``, which
-    :class:`~heliostep.cosim.fmi.ModelExchangeInstance` provides.
+    :class:`~heliostep.cosim.instance.ModelExchangeBase` provides.
     """
 
     info: FMUInfo
     index: int  # the instance's position in the master's order (for a supervisor's record)
     time: float  # the instance's current time [s]
+    n_states: int
+    n_event_indicators: int
     _component: Any
     _hot: dict[str, Callable[..., int]]
 
@@ -131,6 +131,34 @@ class VariableAccess:
             self._call(setter, vrs, n, pointer)
 
         return get, put, buffer
+
+    # ------------------------------------------------------------------ the states at addresses (the hot path)
+    def set_states_at(self, address: int) -> None:
+        """Set the continuous states from ``n_states`` doubles at ``address``."""
+        watch.note(self.index, "fmi2SetContinuousStates", self.time)
+        self._check(
+            "fmi2SetContinuousStates", self._hot["fmi2SetContinuousStates"](self._component, address, self.n_states)
+        )
+
+    def get_states_at(self, address: int) -> None:
+        """The continuous states into ``n_states`` doubles at ``address``."""
+        watch.note(self.index, "fmi2GetContinuousStates", self.time)
+        self._check(
+            "fmi2GetContinuousStates", self._hot["fmi2GetContinuousStates"](self._component, address, self.n_states)
+        )
+
+    def get_derivatives_at(self, address: int) -> None:
+        """The state derivatives into ``n_states`` doubles at ``address``."""
+        watch.note(self.index, "fmi2GetDerivatives", self.time)
+        self._check("fmi2GetDerivatives", self._hot["fmi2GetDerivatives"](self._component, address, self.n_states))
+
+    def get_event_indicators_at(self, address: int) -> None:
+        """The event indicators into ``n_event_indicators`` doubles at ``address``."""
+        watch.note(self.index, "fmi2GetEventIndicators", self.time)
+        self._check(
+            "fmi2GetEventIndicators",
+            self._hot["fmi2GetEventIndicators"](self._component, address, self.n_event_indicators),
+        )
 
     def value_references(self, names: Iterable[str]) -> list[int]:
         return [self.info.variable(name).value_reference for name in names]

@@ -1,16 +1,8 @@
 """What an FMI 2.0 and an FMI 3.0 Co-Simulation instance of a sampled component share.
 
-:class:`CoSimulationInstanceBase` holds the part of
-:class:`~heliostep.cosim.sampled.CoSimulationInstance` (FMI 2.0, fmpy's ``FMU2Slave``) and
-:class:`~heliostep.cosim.sampled3.CoSimulation3Instance` (FMI 3.0, fmpy's ``FMU3Slave``) that does
-not depend on the FMI version: the instance's messages and logging environment, every call through
-one error path (:class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time
-and the FMU's messages), initialization (parameters checked by name and set, inputs set), Real
-(FMI 3.0: Float64) values set and read, and closing. Each version gives its instantiation, its
-entry into initialization mode, the setter of each type and its ``DoStep``.
-
-It is a module of its own, not part of :mod:`heliostep.cosim.sampled`, because ``sampled`` imports
-``sampled3`` (a sampled component makes either instance), so ``sampled3`` cannot import ``sampled``.
+:class:`CoSimulationInstanceBase` holds the version-independent part (messages, the one error path,
+initialization, Real values, closing); each version gives its instantiation, its entry into
+initialization mode, its setters and its ``DoStep``.
 """
 
 from __future__ import annotations
@@ -20,7 +12,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from heliostep.cosim.description import FMUInfo, _extract, convert_value
-from heliostep.cosim.fmi import FMIError, _by_environment, _environment_ids
+from heliostep.cosim.instance import FMIError, _by_environment, _environment_ids
 from heliostep.errors import InputError
 
 __all__ = ["CoSimulationInstanceBase"]
@@ -53,7 +45,7 @@ class CoSimulationInstanceBase:
         self.time = float("nan")
         self.last_successful_time: float | None = None  # where a step that asked to terminate ended [s]
         self._environment = next(_environment_ids)
-        _by_environment[self._environment] = self  # type: ignore[assignment]  # the logger routes by this
+        _by_environment[self._environment] = self  # the logger routes by this
         self._slave: Any = None
         self._parameters = dict(parameters)
 

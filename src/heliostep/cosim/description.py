@@ -1,12 +1,8 @@
 """What heliostep reads of an FMU before running it: ``modelDescription.xml`` and its binary.
 
-:func:`read_fmu` checks that the file is an FMI 2.0 (or 3.0, :func:`read_fmu3`, the end of this
-module) Model Exchange FMU with a binary for
-this platform that loads and exports every FMI 2.0 Model Exchange function (else
-:class:`~heliostep.errors.InputError` naming the ``.fmu`` file and the platform) and returns
-an :class:`FMUInfo` with every variable and its type. :func:`convert_value` turns a value
-given by the user into a variable's type. The calls on instances are in
-:mod:`heliostep.cosim.fmi`.
+:func:`read_fmu` checks the FMU (its kind, :mod:`~heliostep.cosim.kinds`; a binary for this platform
+exporting the kind's functions) and returns an :class:`FMUInfo` with every variable and its type;
+:func:`convert_value` turns a value given by the user into a variable's type.
 """
 
 from __future__ import annotations
@@ -20,7 +16,8 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from heliostep.cosim.fmi3_types import fmi3_variables, integer_range
+from heliostep.cosim.fmi3_types import integer_range
+from heliostep.cosim.kinds import Kind, kind_of, versions
 from heliostep.errors import InputError
 
 
@@ -78,8 +75,15 @@ class FMUInfo:
     description: object = None  # fmpy's ModelDescription
     #: read for Co-Simulation (a sampled component) rather than Model Exchange
     co_simulation: bool = False
-    #: "2.0" or "3.0" (FMI 3.0 Model Exchange: :mod:`heliostep.cosim.fmi3`)
+    #: modelDescription.xml's fmiVersion
     fmi_version: str = "2.0"
+
+    @property
+    def kind(self) -> Kind:
+        """The FMU's kind (version and interface, :mod:`~heliostep.cosim.kinds`)."""
+        kind = kind_of(self.fmi_version, self.co_simulation)
+        assert kind is not None, "read_fmu refuses the kinds heliostep does not run"
+        return kind
 
     def names(self, causality: str) -> list[str]:
         return [v.name for v in self.variables.values() if v.causality == causality]
@@ -118,9 +122,9 @@ def _unit(variable) -> str:
 
 
 def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
-    """Read and check an FMU: it must be FMI 2.0 or 3.0 (:func:`read_fmu3`) with Model Exchange (else
-    :class:`InputError`); with ``co_simulation``, with Co-Simulation (run as a sampled component,
-    :mod:`heliostep.cosim.sampled`)."""
+    """Read and check an FMU of a kind heliostep runs (FMI 2.0 or 3.0): Model Exchange, or with
+    ``co_simulation`` Co-Simulation (a sampled component, :mod:`heliostep.cosim.sampled`); else
+    :class:`InputError`."""
     from fmpy import read_model_description
 
     path = Path(path)
@@ -130,12 +134,16 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
         description = read_model_description(str(path), validate=False)
     except Exception as exc:
         raise InputError(f"{path}: not a readable FMU ({exc})") from None
-    if description.fmiVersion == "3.0":
-        return read_fmu3(path, description, co_simulation)
-    if description.fmiVersion != "2.0":
-        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI 2.0 or 3.0")
-    interface = description.coSimulation if co_simulation else description.modelExchange
-    if interface is None and co_simulation:
+    kind = kind_of(description.fmiVersion, co_simulation)
+    if kind is None:
+        raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI {versions()}")
+    return kind.read(path, description)
+
+
+def read_fmi2(path: Path, description, kind: Kind) -> FMUInfo:
+    """An FMI 2.0 FMU read by fmpy (``description``) as the master's :class:`FMUInfo` of ``kind``."""
+    interface = description.coSimulation if kind.co_simulation else description.modelExchange
+    if interface is None and kind.co_simulation:
         raise InputError(f"{path}: the FMU does not support Co-Simulation, but communication_interval asks for it")
     if interface is None:
         raise InputError(
@@ -143,7 +151,7 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
             "Exchange FMUs itself, or runs a Co-Simulation FMU as a sampled component: give its instance a "
             "communication_interval (docs/fmus.md)"
         )
-    _check_binary(path, interface.modelIdentifier, CS_REQUIRED_FUNCTIONS if co_simulation else REQUIRED_FUNCTIONS)
+    check_binary(path, interface.modelIdentifier, kind)
     variables = _variables(description)
     states = [d.variable.derivative.name for d in description.derivatives]
     inputs = {v.name for v in description.modelVariables if v.causality == "input"}
@@ -166,7 +174,8 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
         output_feedthrough=feedthrough,
         description=description,
         needs_completed_integrator_step=bool(getattr(interface, "needsCompletedIntegratorStep", False)),
-        co_simulation=co_simulation,
+        co_simulation=kind.co_simulation,
+        fmi_version=kind.version,
     )
 
 
@@ -198,50 +207,8 @@ def _parse_start(type_: str, start) -> float | str | None:
         return None
 
 
-#: The functions every FMI 2.0 Model Exchange binary must export (fmpy binds all of them).
-REQUIRED_FUNCTIONS = (
-    "fmi2GetTypesPlatform",
-    "fmi2GetVersion",
-    "fmi2SetDebugLogging",
-    "fmi2Instantiate",
-    "fmi2FreeInstance",
-    "fmi2SetupExperiment",
-    "fmi2EnterInitializationMode",
-    "fmi2ExitInitializationMode",
-    "fmi2Terminate",
-    "fmi2Reset",
-    "fmi2GetReal",
-    "fmi2GetInteger",
-    "fmi2GetBoolean",
-    "fmi2GetString",
-    "fmi2SetReal",
-    "fmi2SetInteger",
-    "fmi2SetBoolean",
-    "fmi2SetString",
-    "fmi2EnterEventMode",
-    "fmi2NewDiscreteStates",
-    "fmi2EnterContinuousTimeMode",
-    "fmi2CompletedIntegratorStep",
-    "fmi2SetTime",
-    "fmi2SetContinuousStates",
-    "fmi2GetDerivatives",
-    "fmi2GetEventIndicators",
-    "fmi2GetContinuousStates",
-    "fmi2GetNominalsOfContinuousStates",
-)
-
-
-#: The functions an FMI 2.0 Co-Simulation binary must export for a sampled component.
-CS_REQUIRED_FUNCTIONS = (
-    *REQUIRED_FUNCTIONS[:18],  # the common functions, fmi2GetTypesPlatform ... fmi2SetString
-    "fmi2DoStep",
-)
-
-
-def _check_binary(
-    path: Path, model_identifier: str, functions: tuple[str, ...] = REQUIRED_FUNCTIONS, platform: str | None = None
-) -> None:
-    """The FMU must have a binary for this platform that loads and exports the FMI 2.0 ME API.
+def check_binary(path: Path, model_identifier: str, kind: Kind, platform: str | None = None) -> None:
+    """The FMU must have a binary for this platform that loads and exports ``kind``'s required functions.
 
     Refused with :class:`InputError` naming the ``.fmu`` file and the platform (never the
     temporary folder it is unpacked to).
@@ -268,15 +235,14 @@ def _check_binary(
         reason = str(exc).replace(str(library), member)
         raise InputError(f"{path}: the binary for {platform} ({member}) does not load: {reason}") from None
     try:
-        missing = [name for name in functions if not hasattr(dll, name)]
+        missing = [name for name in kind.required_functions if not hasattr(dll, name)]
     finally:  # unload again: instances must start from a freshly loaded library
         import _ctypes
 
         _ctypes.dlclose(dll._handle)
     if missing:
         raise InputError(
-            f"{path}: the binary for {platform} ({member}) lacks the FMI {functions[0][3]}.0 "
-            f"{'Co-Simulation' if functions[-1].endswith('DoStep') else 'Model Exchange'} function(s) "
+            f"{path}: the binary for {platform} ({member}) lacks the FMI {kind.version} {kind.interface} function(s) "
             f"{', '.join(missing)}"
         )
 
@@ -332,113 +298,3 @@ def convert_value(variable: VariableInfo, value):
         return str(value)
     except (TypeError, ValueError):
         raise InputError(f"parameter {variable.name}: {value!r} is not a valid {variable.type} value") from None
-
-
-# ---------------------------------------------------------------------- FMI 3.0
-# What heliostep reads of an FMI 3.0 FMU: its Model Exchange interface, variables and refusals.
-#
-# :func:`read_fmu3` turns fmpy's reading of an FMI 3.0 ``modelDescription.xml`` into the same
-# :class:`~heliostep.cosim.description.FMUInfo` as an FMI 2.0 FMU's (``fmi_version`` "3.0"), so the
-# master, the connections and the compiled kernel treat both alike: every variable type, array
-# variables element by element (``a[1,2]``), their calls through the adapter of
-# :mod:`heliostep.cosim.fmi3` (:mod:`heliostep.cosim.fmi3_types`). What the master does not support
-# is refused up front with :class:`~heliostep.errors.InputError` naming the FMU and the feature:
-# Scheduled Execution, Co-Simulation only unless asked for (``co_simulation``: a sampled component,
-# :mod:`heliostep.cosim.sampled3`), clocks (and clocked variables).
-
-#: The functions every FMI 3.0 Model Exchange binary must export that heliostep calls.
-REQUIRED_FUNCTIONS3 = (
-    "fmi3GetVersion",
-    "fmi3InstantiateModelExchange",
-    "fmi3FreeInstance",
-    "fmi3EnterInitializationMode",
-    "fmi3ExitInitializationMode",
-    "fmi3Terminate",
-    "fmi3Reset",
-    "fmi3GetFloat64",
-    "fmi3SetFloat64",
-    "fmi3GetInt32",
-    "fmi3SetInt32",
-    "fmi3GetBoolean",
-    "fmi3SetBoolean",
-    "fmi3EnterEventMode",
-    "fmi3UpdateDiscreteStates",
-    "fmi3EnterContinuousTimeMode",
-    "fmi3CompletedIntegratorStep",
-    "fmi3SetTime",
-    "fmi3SetContinuousStates",
-    "fmi3GetContinuousStateDerivatives",
-    "fmi3GetEventIndicators",
-    "fmi3GetContinuousStates",
-    "fmi3GetNominalsOfContinuousStates",
-)
-
-
-def read_fmu3(path: Path, description, co_simulation: bool = False) -> FMUInfo:
-    """An FMI 3.0 FMU read by fmpy (``description``) as the master's :class:`FMUInfo`, or
-    :class:`InputError` naming ``path`` and the feature heliostep does not support."""
-    from fmpy import platform_tuple
-
-    interface = description.coSimulation if co_simulation else description.modelExchange
-    if interface is None:
-        _refuse_interface3(path, description, co_simulation)
-    _refuse_unsupported(path, description)
-    required = CS_REQUIRED_FUNCTIONS3 if co_simulation else REQUIRED_FUNCTIONS3
-    _check_binary(path, interface.modelIdentifier, required, platform_tuple)
-    fields, states, n_indicators, feedthrough = fmi3_variables(description)
-    variables = {name: VariableInfo(**values) for name, values in fields.items()}
-    return FMUInfo(
-        path=path,
-        model_name=description.modelName,
-        model_identifier=interface.modelIdentifier,
-        guid=description.instantiationToken or description.guid or "",
-        variables=variables,
-        states=states,
-        n_event_indicators=n_indicators,
-        output_feedthrough=feedthrough,
-        needs_completed_integrator_step=bool(getattr(interface, "needsCompletedIntegratorStep", False)),
-        description=description,
-        co_simulation=co_simulation,
-        fmi_version="3.0",
-    )
-
-
-#: The functions an FMI 3.0 Co-Simulation binary must export for a sampled component.
-CS_REQUIRED_FUNCTIONS3 = (
-    "fmi3GetVersion",
-    "fmi3InstantiateCoSimulation",
-    "fmi3FreeInstance",
-    "fmi3EnterInitializationMode",
-    "fmi3ExitInitializationMode",
-    "fmi3Terminate",
-    "fmi3GetFloat64",
-    "fmi3SetFloat64",
-    "fmi3DoStep",
-)
-
-
-def _refuse_interface3(path: Path, description, co_simulation: bool) -> None:
-    """The interface asked for is missing: an InputError saying what the FMU offers and what to do."""
-    if co_simulation:
-        raise InputError(f"{path}: the FMU does not support Co-Simulation, but communication_interval asks for it")
-    if description.coSimulation is not None:
-        raise InputError(
-            f"{path}: FMI 3.0 Co-Simulation only (no Model Exchange); heliostep integrates Model Exchange FMUs "
-            "itself, or runs a Co-Simulation FMU as a sampled component: give its instance a communication_interval "
-            "(docs/fmus.md)"
-        )
-    offered = "Scheduled Execution" if getattr(description, "scheduledExecution", None) is not None else "no interface"
-    raise InputError(
-        f"{path}: FMI 3.0 {offered}: heliostep runs FMI 3.0 FMUs through Model Exchange, or Co-Simulation as a "
-        "sampled component (FMI 3.0 Scheduled Execution is not supported)"
-    )
-
-
-def _refuse_unsupported(path: Path, description) -> None:
-    """Clocks and clocked variables (the master has no clocked partitions)."""
-    for v in description.modelVariables:
-        if v.type == "Clock" or getattr(v, "clocks", None):
-            raise InputError(
-                f"{path}: FMI 3.0 clocks ({'clock' if v.type == 'Clock' else 'clocked variable'} {v.name!r}) are "
-                "not supported by heliostep's master"
-            )

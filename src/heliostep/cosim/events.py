@@ -1,11 +1,8 @@
-"""FMI 2.0 event mode of the coupled system: the discrete fixed point and ``terminateSimulation``.
+"""Event mode of the coupled system: the discrete fixed point and ``terminateSimulation``.
 
-The master (:mod:`heliostep.cosim.master`) decides *when* an event happens (an input change, an
-FMU time event, a state event found by CVODE's root finding, a step event); this module does what
-FMI 2.0 asks at that instant: every FMU enters event mode, the master's new inputs are set, the
-``fmi2NewDiscreteStates`` iteration runs to a fixed point with the outputs re-propagated between
-rounds, and every FMU returns to continuous-time mode. An FMU asking for ``terminateSimulation``
-raises :class:`Terminated`, which ends the run normally at that instant.
+Every FMU enters event mode, the master's new inputs are set, the event update iterates to a fixed
+point with the outputs re-propagated between rounds, and every FMU returns to continuous-time mode;
+an FMU asking to terminate raises :class:`Terminated`, which ends the run normally at that instant.
 """
 
 from __future__ import annotations
@@ -20,9 +17,6 @@ from heliostep.cosim.system import CoupledSystem
 from heliostep.errors import RunFailure
 
 __all__ = ["Resume", "Terminated", "discrete_fixed_point", "event_iteration"]
-
-#: the event-iteration function of each FMI version, for the messages
-_UPDATE_FUNCTION = {"2.0": "fmi2NewDiscreteStates", "3.0": "fmi3UpdateDiscreteStates"}
 
 
 class Terminated(Exception):
@@ -81,9 +75,7 @@ def discrete_fixed_point(
                 stop.append(unit.name)
         if stop:  # the round is complete: pass the final outputs on, then end the run
             system.propagate_at_event()
-            functions = sorted(
-                {_UPDATE_FUNCTION[unit.info.fmi_version] for unit in system.unit_list if unit.name in stop}
-            )
+            functions = sorted({unit.info.kind.update_function for unit in system.unit_list if unit.name in stop})
             raise Terminated(
                 f"{', '.join(stop)} asked to terminate the simulation ({'/'.join(functions)}: terminateSimulation)",
                 time,

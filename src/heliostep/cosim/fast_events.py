@@ -1,24 +1,12 @@
 """An event's fixed work in one call of the compiled kernel: :c:func:`hs_event`.
 
-At an event the master (:meth:`heliostep.cosim.master._Run._event`) records the row before, puts every
-FMU into event mode, sets the master inputs' new values, iterates ``fmi2NewDiscreteStates`` to a
-fixed point, returns every FMU to continuous-time mode, restarts CVODE and records the row after.
-:class:`FastEvents` makes the same FMI calls, in the same order, from C (``c/kernel.c``, the section
-"events"), for the common case: the first round of ``fmi2NewDiscreteStates`` leaves every flag of every
-FMU's ``fmi2EventInfo`` unset and the outputs unchanged (a step instant of the drive). Whenever a flag is
-set (another round needed, terminate, the states or their nominals changed, a next time event) the
-kernel stops right after that FMU's call and the master goes on in Python from there
-(:class:`heliostep.cosim.events.Resume`), so FMI's semantics are exactly the Python path's; the same
-when the outputs changed in the round (the next round in Python).
-
-:func:`fast_events` says whether a run's system allows it: FMI 2.0 units only, every connection continuous
-and Real (the kernel's own links), no algebraic loop, every master input driving a Real input, no sampled
-Co-Simulation component, no String output, the compiled right-hand side. The outputs are read as the
-kernel reads every row (``read_row``: a Boolean as 0 or 1, FMI's fmi2True and fmi2False); the rows
-before and after go to the trace and to the monitor as the Python path's do.
-
-``statistics["compiled_events"]`` counts the events done wholly in the kernel, ``["resumed_events"]``
-those it began and the Python path finished. Any other system takes the Python path.
+:class:`FastEvents` makes, from C, the FMI calls the Python path makes at an event (row before, event
+mode, new inputs, the first round of the event update, continuous-time mode, CVODE restarted, row after),
+for kinds whose calls the kernel knows (:attr:`~heliostep.cosim.kinds.Kind.fast_events`). Whenever an
+FMU's answer sets a flag, or the outputs changed, the kernel stops there and the Python path goes on
+(:class:`~heliostep.cosim.events.Resume`), so FMI's semantics are the Python path's.
+:func:`fast_events` says whether a run's system allows it; ``statistics["compiled_events"]`` and
+``["resumed_events"]`` count the events done wholly in the kernel and those the Python path finished.
 """
 
 from __future__ import annotations
@@ -135,9 +123,8 @@ def fast_events(system: CoupledSystem, kernel: Kernel | None, compiled: bool, se
     if system.loop is not None or system.native_links is None or len(system.event_links) != len(system.links):
         return False
     graph = system.graph
-    for unit in system.unit_list:
-        if unit.info.fmi_version != "2.0":
-            return False
+    if not all(unit.info.kind.fast_events for unit in system.unit_list):
+        return False
     for item in graph.inputs:
         if item.target:
             instance, variable = split_name(item.target, "input target")

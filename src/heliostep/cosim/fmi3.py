@@ -1,52 +1,27 @@
-"""FMI 3.0 Model Exchange instances: fmpy's ``FMU3Model`` behind :class:`ModelExchangeInstance`'s API.
+"""FMI 3.0 Model Exchange instances (fmpy's ``FMU3Model`` loads the binary), a sibling of FMI 2.0's.
 
-:class:`ModelExchange3Instance` is an FMI 3.0 Model Exchange instance that the master, the
-connections and the compiled kernel use exactly like an FMI 2.0 one. Its ``component`` is an
-adapter (``c/fmi3_adapter.c``, compiled once like the kernel and cached by content) holding the
-``fmi3Instance`` and its fmi3* functions, and its fmi2-shaped functions (``fmi2GetReal`` ...) are
-the adapter's: ``fmi3GetFloat64``/``SetFloat64``/``GetInt32``/``SetInt32`` with their extra
-``nValues``, ``fmi3GetBoolean``/``SetBoolean`` with C ``bool`` values converted, the calls of the
-same shape passed through, and every other variable (an array element, Float32, Int8 ... UInt64,
-an enumeration) reached through the adapter's slot table as a double
-(:mod:`heliostep.cosim.fmi3_types`). So one kernel (``kernel.c``) runs FMI 2.0 and 3.0 FMUs in one
-system. Off the hot path (event-time connections, parameters, String and Binary) each type is got
-and set with its own fmi3 function (:func:`~heliostep.cosim.fmi3_types.typed_access`).
-The life cycle is FMI 3.0's own: ``fmi3EnterInitializationMode`` (tolerance, start and stop time),
-``fmi3EnterEventMode``, the ``fmi3UpdateDiscreteStates`` iteration (``discreteStatesNeedUpdate``,
-``terminateSimulation``, ``nominalsOfContinuousStatesChanged``, ``valuesOfContinuousStatesChanged``,
-``nextEventTimeDefined``/``nextEventTime``), ``fmi3EnterContinuousTimeMode``,
-``fmi3CompletedIntegratorStep``, ``fmi3Terminate``, ``fmi3FreeInstance``. Each instance logs
-through its own ``instanceEnvironment`` into :class:`ModelExchangeInstance`'s message buffer.
+The fmi2-shaped calls the master and the compiled kernel make on every instance go to an adapter
+(``c/fmi3_adapter.c``, compiled once and cached by content) holding the ``fmi3Instance`` and its fmi3
+functions: Float64, Int32 and Boolean with their own calls, every other variable (an array element,
+Float32, Int8 ... UInt64, an enumeration) through the adapter's slot table as a double
+(:mod:`~heliostep.cosim.fmi3_types`). Off the hot path each type is got and set with its own fmi3 function.
 """
 
 from __future__ import annotations
 
 import ctypes
-import hashlib
+import functools
 import os
-import subprocess
-import tempfile
-from collections import deque
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from heliostep.cosim import watch
-from heliostep.cosim.fmi import (
-    _CALLS,
-    _HOT_CALLS,
-    EventResult,
-    FMIError,
-    FMUInfo,
-    ModelExchangeInstance,
-    _by_environment,
-    _dispatch_log,
-    _environment_ids,
-    _extract,
-)
 from heliostep.cosim.fmi3_types import TYPED_CALLS, slot_table, typed_access
+from heliostep.cosim.instance import HOT_CALLS, SHAPED_CALLS, STATUS_ONLY, ModelExchangeBase, _dispatch_log
+from heliostep.cosim.kinds import life_cycle
+from heliostep.cosim.libraries import compiled_library
 
 ADAPTER_SOURCE = Path(__file__).resolve().parent / "c" / "fmi3_adapter.c"
 
@@ -111,12 +86,11 @@ class _Adapter(ctypes.Structure):
     _fields_ = _ADAPTER_STRUCT
 
 
-_STATUS_ONLY = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
 _B = ctypes.c_bool
 _B_P = ctypes.POINTER(ctypes.c_bool)
 _CALLS3 = {
     **{
-        name: _STATUS_ONLY
+        name: STATUS_ONLY
         for name in (
             "fmi3ExitInitializationMode",
             "fmi3EnterEventMode",
@@ -156,100 +130,39 @@ def _logger3():
 
 
 def adapter_library() -> ctypes.CDLL:
-    """The compiled FMI 3.0 adapter, built at first use beside the kernel, cached by content."""
+    """The compiled FMI 3.0 adapter, built at first use beside the kernel, loaded once per process."""
     global _adapter_library
-    if _adapter_library is not None:
-        return _adapter_library
-    from heliostep.cosim.kernel import KernelBuildError, _compiler, kernels_dir
-    from heliostep.toolchain import compiler_version, exclusive_lock
-
-    cc = _compiler()
-    source = ADAPTER_SOURCE.read_bytes()
-    digest = hashlib.sha256(source + b"\0" + compiler_version(cc).encode()).hexdigest()[:24]
-    folder = kernels_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"heliostep_fmi3_adapter_{digest}.so"
-    if not path.exists():
-        with exclusive_lock(folder / ".lock"):
-            if not path.exists():
-                with tempfile.TemporaryDirectory(dir=folder) as work:
-                    target = Path(work) / path.name
-                    result = subprocess.run(
-                        [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", "-o", str(target)]
-                        + [str(ADAPTER_SOURCE)],
-                        capture_output=True,
-                        text=True,
-                    )
-                    if result.returncode != 0:
-                        raise KernelBuildError(f"compiling the FMI 3.0 adapter failed:\n{result.stderr}")
-                    os.replace(target, path)
-    _adapter_library = ctypes.CDLL(str(path))
+    if _adapter_library is None:
+        path = compiled_library("heliostep_fmi3_adapter", "the FMI 3.0 adapter", [ADAPTER_SOURCE], ["-std=c99"])
+        _adapter_library = ctypes.CDLL(str(path))
     return _adapter_library
 
 
-class ModelExchange3Instance(ModelExchangeInstance):
-    """One instance of an FMI 3.0 Model Exchange FMU (see the module docstring); same API as
-    :class:`ModelExchangeInstance`, the FMI calls FMI 3.0's."""
+class ModelExchange3Instance(ModelExchangeBase):
+    """One instance of an FMI 3.0 Model Exchange FMU (see :class:`~heliostep.cosim.instance.ModelExchangeBase`)."""
 
-    def __init__(
-        self,
-        info: FMUInfo,
-        instance_name: str,
-        parameters: Mapping[str, object] | None = None,
-        logging: bool = False,
-        index: int = -1,
-    ):
+    _life = life_cycle("3.0")
+
+    def _fmpy_model(self) -> Any:
         from fmpy.fmi3 import FMU3Model
 
-        self.info, self.name, self.index = info, instance_name, index
-        self.messages: deque[str] = deque(maxlen=50)
-        self.n_states, self.n_event_indicators = len(info.states), info.n_event_indicators
-        self.time, self.mode, self._model = float("nan"), "freed", None
-        self._environment = next(_environment_ids)
-        _by_environment[self._environment] = self
-        self._stop_time = None
-        try:
-            watch.note(index, "loading the binary", self.time)
-            self._model = FMU3Model(
-                guid=info.guid,
-                unzipDirectory=_extract(info.path),
-                modelIdentifier=info.model_identifier,
-                instanceName=instance_name,
-            )
-            watch.note(index, "fmi3InstantiateModelExchange", self.time)
-            self._instance = self._model.fmi3InstantiateModelExchange(
-                instance_name.encode(),
-                info.guid.encode(),
-                (os.path.join(self._model.unzipDirectory, "resources") + os.path.sep).encode(),
-                False,
-                logging,
-                ctypes.c_void_p(self._environment),
-                _logger3(),
-            )
-            if not self._instance:
-                raise RuntimeError("fmi3InstantiateModelExchange returned NULL")
-        except Exception as exc:
-            if self._model is not None:
-                try:
-                    self._model.freeLibrary()
-                except Exception:  # noqa: BLE001
-                    pass
-            self._model = None
-            raise FMIError("fmi3InstantiateModelExchange", instance_name, f"failure ({exc})", self.messages) from None
-        self.mode = "instantiated"
-        self._bind()
-        self._x, self._dx = np.zeros(self.n_states), np.zeros(self.n_states)
-        self._x_ptr, self._dx_ptr = self._pointer(self._x), self._pointer(self._dx)
-        if parameters:
-            try:
-                self.set_parameters(parameters)
-            except BaseException:
-                self.free()
-                raise
+        return FMU3Model
+
+    def _instantiate(self, logging: bool) -> None:
+        self._handle = self._instance = self._model.fmi3InstantiateModelExchange(
+            self.name.encode(),
+            self.info.guid.encode(),
+            (os.path.join(self._model.unzipDirectory, "resources") + os.path.sep).encode(),
+            False,
+            logging,
+            ctypes.c_void_p(self._environment),
+            _logger3(),
+        )
+        if not self._instance:
+            raise RuntimeError("fmi3InstantiateModelExchange returned NULL")
 
     def _bind(self) -> None:
-        """The adapter (its handle is the component the kernel and the hot path pass) and the calls."""
-        assert self._model is not None
+        """The adapter (its address is the component the fmi2-shaped calls take) and the calls."""
         dll, library = self._model.dll, adapter_library()
 
         def address(name: str) -> int | None:
@@ -272,28 +185,19 @@ class ModelExchange3Instance(ModelExchangeInstance):
         self._addresses = {
             name: ctypes.cast(library[shim], ctypes.c_void_p).value or 0 for name, shim in _ADAPTED.items()
         }
-        prototypes = {**_CALLS, **_HOT_CALLS}
-        self._functions = {name: prototypes[name](self._addresses[name]) for name in _ADAPTED}
-        self._hot = {name: self._functions[name] for name in _HOT_CALLS}
-        self._fmi3 = {name: prototype((name, dll)) for name, prototype in {**_CALLS3, **TYPED_CALLS}.items()}
+        self._hot = {name: HOT_CALLS[name](self._addresses[name]) for name in HOT_CALLS}
+        self._functions = {
+            **{
+                name: functools.partial(SHAPED_CALLS[name](self._addresses[name]), self._component) for name in _ADAPTED
+            },
+            **{
+                name: functools.partial(prototype((name, dll)), self._instance)
+                for name, prototype in {**_CALLS3, **TYPED_CALLS}.items()
+            },
+        }
 
-    def function_address(self, name: str) -> int:
-        """The address of the fmi2-shaped function ``name`` (the adapter's, taking :attr:`component`)."""
-        if self._model is None:
-            raise FMIError(name, self.name, "no instance (freed, library unloaded)", (), self.time)
+    def _address(self, name: str) -> int:
         return self._addresses[name]
-
-    def _call3(self, function: str, *args: Any) -> int:
-        """Call the FMI 3.0 function ``function`` on the fmi3Instance; raise :class:`FMIError` on error or fatal."""
-        if self._model is None:
-            raise FMIError(function, self.name, "no instance (freed, library unloaded)", (), self.time)
-        if self.messages:
-            self.messages.clear()
-        watch.note(self.index, function, self.time)
-        status = self._fmi3[function](self._instance, *args)
-        if status > 1:
-            raise self.status_error(function, status)
-        return status
 
     # ------------------------------------------------------------------ variables of any type
     def _typed(self, kind: str, names: list[str]) -> tuple[Callable[[], None], Callable[[], None], np.ndarray]:
@@ -316,91 +220,23 @@ class ModelExchange3Instance(ModelExchangeInstance):
         put()
 
     # ------------------------------------------------------------------ life cycle
-    def setup_experiment(self, start_time: float = 0.0, tolerance: float | None = None) -> None:
-        """FMI 3.0 has no fmi2SetupExperiment: start time and tolerance go to fmi3EnterInitializationMode."""
-        self.time, self._tolerance = start_time, tolerance
-
     def enter_initialization_mode(self) -> None:
-        tolerance = getattr(self, "_tolerance", None)
-        self._call3("fmi3EnterInitializationMode", tolerance is not None, tolerance or 0.0, self.time, False, 0.0)
-        self.mode = "initialization"
+        """fmi3EnterInitializationMode with the tolerance and start time (FMI 3.0 has no SetupExperiment)."""
+        tolerance = self._tolerance
+        args = (tolerance is not None, tolerance or 0.0, self.time, False, 0.0)
+        self._into(self._life.enter_initialization_mode, "initialization", *args)
 
-    def exit_initialization_mode(self) -> None:
-        self._call3("fmi3ExitInitializationMode")
-        self.mode = "event"
-
-    def enter_event_mode(self) -> None:
-        self._call3("fmi3EnterEventMode")
-        self.mode = "event"
-
-    def update_discrete_states(self, max_iterations: int = 100, first: None = None) -> EventResult:
-        """Iterate fmi3UpdateDiscreteStates until ``discreteStatesNeedUpdate`` is false (or it terminates)."""
+    def _update_once(self, iteration: int, first: Any) -> tuple[bool, bool, bool, bool, float | None]:
+        """One fmi3UpdateDiscreteStates."""
         need, terminate, nominals, values, defined = (ctypes.c_bool() for _ in range(5))
         next_time = ctypes.c_double()
-        changed = nominals_changed = False
-        for _ in range(max_iterations):
-            self._call3(
-                "fmi3UpdateDiscreteStates",
-                ctypes.byref(need),
-                ctypes.byref(terminate),
-                ctypes.byref(nominals),
-                ctypes.byref(values),
-                ctypes.byref(defined),
-                ctypes.byref(next_time),
-            )
-            changed |= values.value
-            nominals_changed |= nominals.value
-            if terminate.value or not need.value:
-                break
-        else:
-            raise FMIError(
-                "fmi3UpdateDiscreteStates",
-                self.name,
-                f"no fixed point after {max_iterations} event iterations",
-                self.messages,
-                self.time,
-            )
-        return EventResult(
-            terminate=terminate.value,
-            states_changed=changed,
-            next_event_time=next_time.value if defined.value else None,
-            nominals_changed=nominals_changed,
+        self._call(
+            "fmi3UpdateDiscreteStates",
+            ctypes.byref(need),
+            ctypes.byref(terminate),
+            ctypes.byref(nominals),
+            ctypes.byref(values),
+            ctypes.byref(defined),
+            ctypes.byref(next_time),
         )
-
-    def enter_continuous_time_mode(self) -> None:
-        self._call3("fmi3EnterContinuousTimeMode")
-        self.mode = "continuous"
-
-    def completed_integrator_step(self) -> tuple[bool, bool]:
-        """Returns (enter event mode, terminate simulation)."""
-        enter, terminate = ctypes.c_bool(), ctypes.c_bool()
-        self._call3("fmi3CompletedIntegratorStep", True, ctypes.byref(enter), ctypes.byref(terminate))
-        return enter.value, terminate.value
-
-    def get_nominals(self) -> np.ndarray:
-        out = np.ones(self.n_states)
-        if self.n_states:
-            self._call3("fmi3GetNominalsOfContinuousStates", out.ctypes.data, self.n_states)
-        return out
-
-    def terminate(self) -> None:
-        self._call3("fmi3Terminate")
-        self.mode = "terminated"
-
-    def reset(self) -> None:
-        self._call3("fmi3Reset")
-        self.mode = "instantiated"
-
-    def free(self) -> None:
-        """fmi3FreeInstance (not after fmi3Fatal) and unload the binary (safe to call twice)."""
-        if self._model is not None:
-            model, self._model = self._model, None
-            self._hot = {name: self._freed(name) for name in _HOT_CALLS}
-            try:
-                if self.mode != "fatal":
-                    watch.note(self.index, "fmi3FreeInstance", self.time)
-                    model.fmi3FreeInstance(self._instance)
-            finally:
-                self.mode = "freed"
-                self._component = None
-                model.freeLibrary()
+        return need.value, terminate.value, values.value, nominals.value, next_time.value if defined.value else None

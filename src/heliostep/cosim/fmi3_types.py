@@ -1,27 +1,12 @@
 """FMI 3.0 variables of every type, and array variables element by element.
 
-The master knows a variable by the name it traces and connects (:class:`VariableInfo`). For an
-FMI 3.0 FMU, :func:`fmi3_variables` gives every scalar variable its own name and every element of
-an array variable a name of its own: ``a[1]``, ``a[2,3]``, the indices 1-based and in row-major
-order (FMI 3.0 serializes arrays row-major, FMI 3.0 standard section 2.4.7.1; the names are
-Modelica's and the FMI display convention's). fmpy's results (``fmpy.simulate_fmu``) keep one
-column per array with the array's shape instead: element ``a[i,j]`` is fmpy's ``result["a"][:, i-1, j-1]``
-(fmpy's ``plot_result`` labels it 0-based, ``a[i-1,j-1]``; heliostep keeps the 1-based names an FMI 2.0
-export of a Modelica model gives its scalars, so traces compare across FMI versions).
-
-Each such variable keeps its FMI 3.0 type (``fmi3_type``), the FMI 3.0 value reference of its
-scalar or array (``fmi3_reference``), its element and the array's size. Float64, Int32 and Boolean
-scalars keep their own value reference and the master's type names ("Real", "Integer",
-"Boolean"): the adapter (``c/fmi3_adapter.c``) passes their fmi2-shaped calls straight on. Every
-other variable (an array element, a scalar of another type) gets a *slot*: a value reference past
-the FMU's own, which the adapter's ``fmi2GetReal``/``fmi2SetReal`` resolve through its slot table
-to the typed call and the element, converted to and from a double. So the compiled kernel traces
-every numeric type and copies Float32 and array elements in continuous time.
-
-:func:`typed_access` gets and sets variables of one FMI 3.0 type with their own function
-(``fmi3GetInt8`` ..., ``fmi3GetString``, ``fmi3GetBinary``) into a numpy buffer of their type
-(``object`` for String and Binary): the exact copies of the event-time connections, the
-parameters and the Python paths. :func:`integer_range` gives the range connections are checked against.
+:func:`fmi3_variables` names every scalar and every element of an array (``a[2,3]``: 1-based,
+row-major, as an FMI 2.0 export of a Modelica model names its scalars, so traces compare across
+versions). Float64, Int32 and Boolean scalars keep their own value reference; every other variable
+gets a *slot*, a value reference past the FMU's own that the adapter (``c/fmi3_adapter.c``) resolves
+to the typed call and element, as a double, so the compiled kernel reaches every numeric type.
+:func:`typed_access` gets and sets variables of one type with their own fmi3 function;
+:func:`integer_range` gives the range connections are checked against.
 """
 
 from __future__ import annotations
@@ -218,7 +203,7 @@ def typed_access(fmu: Any, names: Sequence[str]) -> tuple[Callable[[], None], Ca
     pointer, getter, setter = values.ctypes.data, _function(fmi3_type, False), _function(fmi3_type, True)
 
     def get() -> None:
-        fmu._call3(getter, vrs, len(references), pointer, total)
+        fmu._call(getter, vrs, len(references), pointer, total)
         buffer[:] = values[index]
 
     def put() -> None:
@@ -226,9 +211,9 @@ def typed_access(fmu: Any, names: Sequence[str]) -> tuple[Callable[[], None], Ca
             if fmu.mode == "instantiated":
                 values[:] = [0 if s is None else s for s in starts]
             else:
-                fmu._call3(getter, vrs, len(references), pointer, total)
+                fmu._call(getter, vrs, len(references), pointer, total)
         values[index] = buffer
-        fmu._call3(setter, vrs, len(references), pointer, total)
+        fmu._call(setter, vrs, len(references), pointer, total)
 
     return get, put, buffer
 
@@ -244,10 +229,10 @@ def _text_access(fmu, fmi3_type, vrs, n_references, total, index, buffer, whole)
     def get() -> None:
         texts: list[str] | list[bytes]
         if fmi3_type == "String":
-            fmu._call3(getter, vrs, n_references, pointers, total)
+            fmu._call(getter, vrs, n_references, pointers, total)
             texts = [ctypes.string_at(p).decode("utf-8", "replace") if p else "" for p in pointers]
         else:
-            fmu._call3(getter, vrs, n_references, lengths, pointers, total)
+            fmu._call(getter, vrs, n_references, lengths, pointers, total)
             texts = [ctypes.string_at(p, n) if p else b"" for p, n in zip(pointers, lengths)]
         for j, k in enumerate(index):
             buffer[j] = texts[k]
@@ -262,8 +247,8 @@ def _text_access(fmu, fmi3_type, vrs, n_references, total, index, buffer, whole)
             pointers[k] = ctypes.addressof(block)
             lengths[k] = len(data[k])
         if fmi3_type == "String":
-            fmu._call3(setter, vrs, n_references, pointers, total)
+            fmu._call(setter, vrs, n_references, pointers, total)
         else:
-            fmu._call3(setter, vrs, n_references, lengths, pointers, total)
+            fmu._call(setter, vrs, n_references, lengths, pointers, total)
 
     return get, put, buffer

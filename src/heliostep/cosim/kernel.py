@@ -1,49 +1,18 @@
-"""The compiled kernel: CVODE calls C code that calls the FMUs' own ``fmi2*`` functions.
+"""The compiled kernel: CVODE calls C code (``c/kernel.c``, ``c/kernel.h``) that calls the FMUs' own functions.
 
-For every evaluation the C functions (``c/kernel.c``, structures and codes in ``c/kernel.h``)
-set the time and the states of every FMU, copy the continuous-time Real connections in the
-master's propagation order (``fmi2GetReal`` then ``fmi2SetReal``) and read the derivatives
-(:c:func:`hs_rhs`) or the event indicators (:c:func:`hs_root`), with no Python in between. The
-FMUs' handles and function addresses come from
-:class:`~heliostep.cosim.fmi.ModelExchangeInstance`'s public accessors (``component``,
-``function_address``), so the kernel serves any set of Model Exchange FMUs the master accepts.
-
-An FMI status worse than ``fmi2Warning`` stops the evaluation: the kernel records the status, the
-instance, the function and the time of the failing evaluation, returns -1 (unrecoverable) to
-CVODE, and refuses every further evaluation until the master has collected the error
-(:meth:`Kernel.take_error`, which turns it into the instance's
-:class:`~heliostep.cosim.fmi.FMIError`).
-
-Algebraic loops (the torn connections of :mod:`heliostep.cosim.loops`) are solved in the same C
-code at every propagation: Newton's method on the torn inputs with a forward-difference
-Jacobian, the twin of :meth:`heliostep.cosim.loops.LoopSolver.solve` (same evaluations, same
-tolerance and iteration bound, the guess shared), the rest of the system unchanged. A loop that
-fails (no convergence, a singular Jacobian) is recorded like an FMU error and collected as the
-solver's :class:`~heliostep.cosim.loops.LoopError`, naming the loop.
-
-:meth:`Kernel.advance` is heliostep's one loop over CVODE's internal steps (:c:func:`hs_advance`,
-one-step mode): after each internal step, and at the output times passed on the way
-(interpolated), it records a row (time, master inputs, every FMU's traced outputs) into a buffer
-the master takes in blocks. Where the master propagates the connections itself (non-Real
-connections, the Python right-hand side) it hands the kernel a ``prepare`` callback
-that sets the FMUs to each row's time and states instead of the kernel's own C code.
-
-The ctypes Structures below mirror ``kernel.h``; ``tests/cosim/test_kernel_layout.py`` checks
-their sizes, field offsets and the codes against the compiled library (:c:func:`hs_describe`).
-
-The C source is compiled with the system C compiler (``$CC`` or ``cc``) at first use into a
-cache folder beside the FMU cache (``kernels/``), under a name derived from the SHA-256 of the
-source, the header and the compiler's version: a changed source or compiler gives a new library.
+For each evaluation :c:func:`hs_rhs` and :c:func:`hs_root` set every FMU's time and states, copy the
+continuous Real connections in the master's propagation order (algebraic loops solved by Newton, as
+:class:`~heliostep.cosim.loops.LoopSolver` does) and read the derivatives or event indicators, with no
+Python in between; :meth:`Kernel.advance` is the one loop over CVODE's internal steps, recording rows in
+blocks. A status worse than warning stops the evaluation and is collected by :meth:`Kernel.take_error` as
+the instance's :class:`~heliostep.cosim.instance.FMIError`. The ctypes Structures mirror ``kernel.h``
+(checked by ``tests/cosim/test_kernel_layout.py``); the library is built at first use
+(:mod:`~heliostep.cosim.libraries`).
 """
 
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -51,12 +20,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heliostep.cosim import sundials, watch
-from heliostep.errors import RunFailure
-from heliostep.paths import fmus_dir
-from heliostep.toolchain import compiler_version, exclusive_lock
+from heliostep.cosim.libraries import KernelBuildError, compiled_library, kernels_dir  # noqa: F401 - re-exported
 
 if TYPE_CHECKING:
-    from heliostep.cosim.fmi import FMIError, ModelExchangeInstance
+    from heliostep.cosim.instance import FMIError, ModelExchangeBase
     from heliostep.cosim.loops import LoopError, LoopSolver
 
 #: The kernel's C source and header (package data beside this module).
@@ -202,49 +169,9 @@ STRUCTURES: dict[str, type[ctypes.Structure]] = {
 }
 
 
-class KernelBuildError(RunFailure):
-    """The C compiler could not build the kernel (a run failure)."""
-
-
-def kernels_dir() -> Path:
-    """The cache of compiled kernels: beside the FMU cache."""
-    return fmus_dir().parent / "kernels"
-
-
-def _compiler() -> str:
-    return os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or "cc"
-
-
 def library_path() -> Path:
     """The compiled kernel, built at first use and cached by content (source, header, compiler version)."""
-    cc = _compiler()
-    try:
-        version = compiler_version(cc)
-    except OSError as exc:
-        raise KernelBuildError(f"no C compiler for the compiled kernel ({cc}): {exc}") from None
-    source_text, header_text = SOURCE_PATH.read_bytes(), HEADER_PATH.read_bytes()
-    digest = hashlib.sha256(source_text + b"\0" + header_text + b"\0" + version.encode()).hexdigest()[:24]
-    folder = kernels_dir()
-    path = folder / f"heliostep_kernel_{digest}.so"
-    if path.exists():
-        return path
-    with exclusive_lock(folder / ".lock"):
-        if path.exists():
-            return path
-        with tempfile.TemporaryDirectory(dir=folder) as work:
-            source = Path(work) / SOURCE_PATH.name
-            source.write_bytes(source_text)
-            (Path(work) / HEADER_PATH.name).write_bytes(header_text)
-            target = Path(work) / path.name
-            result = subprocess.run(
-                [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", "-o", str(target), str(source), "-lm"],
-                capture_output=True,
-                text=True,
-            )
-            if result.returncode != 0:
-                raise KernelBuildError(f"compiling the kernel failed:\n{result.stderr}")
-            os.replace(target, path)  # atomic: other processes see no half-written library
-    return path
+    return compiled_library("heliostep_kernel", "the kernel", [SOURCE_PATH, HEADER_PATH])
 
 
 _library: ctypes.CDLL | None = None
@@ -269,7 +196,7 @@ def describe(name: str) -> int:
 
 #: One unit for the kernel: (instance, state offset, indicator offset, traced outputs as
 #: (FMI type, value reference, column of the row)).
-KernelUnit = tuple["ModelExchangeInstance", int, int, Sequence[tuple[str, int, int]]]
+KernelUnit = tuple["ModelExchangeBase", int, int, Sequence[tuple[str, int, int]]]
 #: One continuous Real connection group: (source unit index, target unit index, source value
 #: references, target value references).
 KernelLink = tuple[int, int, Sequence[int], Sequence[int]]
@@ -382,7 +309,7 @@ class Kernel:
         return int(state.solves), int(state.iterations), int(state.most_iterations)
 
     def _fill_unit(
-        self, u: Unit, fmu: ModelExchangeInstance, x_offset: int, z_offset: int, outputs: Sequence[tuple[str, int, int]]
+        self, u: Unit, fmu: ModelExchangeBase, x_offset: int, z_offset: int, outputs: Sequence[tuple[str, int, int]]
     ) -> None:
         u.component = fmu.component
         for field, function in (
@@ -486,7 +413,7 @@ class Kernel:
         time = float(self.state.failed_time)
         fmu.time = time
         error = fmu.status_error(
-            watch.called_function(self.state.failed_function, fmu.info.fmi_version), int(self.state.status)
+            watch.called_function(self.state.failed_function, fmu.info.kind), int(self.state.status)
         )
         self.state.status = 0
         return error, time

@@ -1,19 +1,11 @@
 """Algebraic loops across FMUs: Newton's method on the torn connections' inputs.
 
-A loop of direct feedthrough (an output that depends, through other FMUs, on the input it
-feeds) has no evaluation order. The master tears it: in each cycle, the connection that comes
-first in the order the connections were given is *torn*
-(:meth:`heliostep.cosim.connections.ConnectionGraph._propagation_order`).
-Its target input becomes an iteration variable ``v``; the other connections are copied in
-feedthrough order as usual, and the torn source output ``y(v)`` is read back. The loop is solved
-when ``y(v) = v``: Newton's method on ``r(v) = y(v) - v`` with a forward-difference Jacobian,
-starting from the previous solution. The last evaluation is always at the accepted ``v``, so
-every FMU is left consistent.
-
-The compiled kernel solves the same loops the same way in C at every right-hand-side and root
-evaluation (``c/kernel.c``, ``solve_loop``; :class:`heliostep.cosim.kernel.Kernel`'s ``loop``),
-starting from the same guess :attr:`LoopSolver.v` (shared, updated in place); this class then
-solves them at events and on the Python path (callbacks, where the kernel cannot take the system).
+In each cycle of direct feedthrough the connection given first is torn
+(:meth:`heliostep.cosim.connections.ConnectionGraph._propagation_order`): its input becomes an
+iteration variable ``v`` and the loop is solved when the torn source output ``y(v) = v`` (Newton with a
+forward-difference Jacobian from the previous solution; the last evaluation at the accepted ``v``, so
+every FMU is left consistent). The compiled kernel solves the same loops the same way in C from the
+same guess :attr:`LoopSolver.v`; this class solves them at events and on the Python path.
 """
 
 from __future__ import annotations

@@ -1,75 +1,36 @@
-"""The co-simulation master: several FMI 2.0 Model Exchange FMUs solved as one system.
+"""The co-simulation master: Model Exchange FMUs solved as one system on one CVODE.
 
-This module owns the run: when events happen and the main loop over solver calls. The parts it
-drives live beside it: FMI's event mode (:mod:`~heliostep.cosim.events`), the coupled system
-(:mod:`~heliostep.cosim.system`: instances, links, algebraic loops, propagation, the states as
-one vector), the integrator
-(:mod:`~heliostep.cosim.integrator`: one SUNDIALS CVODE, BDF with Newton iteration and a dense
-Jacobian, behind the :class:`~heliostep.cosim.integrator.Integrator` protocol), the compiled
-kernel (:mod:`~heliostep.cosim.kernel`) and the row buffer (:mod:`~heliostep.cosim.rows`). On
-every right-hand-side evaluation the FMUs get time and states, outputs are propagated to
-connected inputs in the order of the FMUs' direct feedthrough (read from their
-``ModelStructure``) and the derivatives collected.
-
-Discontinuities are handled per FMI 2.0: master-side inputs change only at known instants
-(:class:`PiecewiseConstant`), where the integration stops, every FMU enters event mode, the
-new inputs are set, the ``fmi2NewDiscreteStates`` iteration runs to a fixed point (outputs
-re-propagated between rounds) and CVODE restarts. FMU time events (``nextEventTime``), state
-events (CVODE root finding on all event indicators) and step events
-(``fmi2CompletedIntegratorStep``) go through the same event handling. Co-Simulation FMUs run
-beside the system as sampled components (:mod:`~heliostep.cosim.sampled`): their communication
-points are time events, their held outputs master inputs.
-
-Variables of every FMI 2.0 type are exchanged with their own get/set functions; connections
-join compatible types only (Real with Real of the same unit, Integer/Enumeration with
-Integer/Enumeration, Boolean with Boolean). Discrete-time connections (any non-Real variable,
-or a Real of variability discrete on either side) are copied only at events (initialization,
-event mode, the discrete fixed point), continuous ones also on every model evaluation.
-An FMU asking for ``terminateSimulation`` ends the run normally at that instant
-(:attr:`MasterResult.terminated`). Every instance gets ``fmi2Terminate`` (where allowed) and
-``fmi2FreeInstance`` on every path. Exceptions raised inside CVODE's callbacks are kept and
-re-raised after the solver call, with the time of the failing evaluation. A failed run raises
-:class:`SimulationError` (a :class:`~heliostep.errors.RunFailure`); an
-:class:`~heliostep.errors.InputError` found while setting up the FMUs, before any row is
-recorded (an unknown parameter, say), is raised as it is.
-
-Why this module is long: the run loop, its events, its termination and its statistics are one state
-machine over one integration (:class:`_Run`); split, each part would reach into the other's state.
-
-The trace has a row at every output time and a row just before and just after every event
-(two rows with the same time), so nothing that happens at a step is lost to interpolation.
-
-CVODE's right-hand side and root function are compiled C (:class:`~heliostep.cosim.integrator.CompiledIntegrator`;
-algebraic loops solved in it too) wherever the system allows, or Python callbacks for systems with
-non-Real continuous or torn connections the kernel cannot take
-(:class:`~heliostep.cosim.integrator.CallbackIntegrator`); ``statistics["compiled_rhs"]`` says which.
-With a monitor (every run of heliostep's, :class:`SolutionMonitor`) the loop over CVODE's internal steps
-is C on either (:meth:`heliostep.cosim.kernel.Kernel.advance`, the one such loop), recording every
-solution row in blocks for the monitor; CVODE stops only at input changes, time events and the stop
-time, and the output rows between stops come from its interpolating polynomial.
+The run's call order: instantiate every FMU (sampled Co-Simulation components first), set the master
+inputs, propagate the connections, exit initialization mode, iterate the discrete states to a fixed
+point and enter continuous-time mode; then, until the stop time, integrate to the next input change,
+FMU time event or stop time (output rows interpolated between CVODE's internal steps when a monitor
+watches), call ``CompletedIntegratorStep`` where the FMU asks for it, and at an input change, time,
+state or step event record the row before, run event mode (:mod:`~heliostep.cosim.events`, or
+:mod:`~heliostep.cosim.fast_events` in one call of the kernel), restart CVODE and record the row after.
+An FMU's ``terminateSimulation`` ends the run normally there; every instance is terminated (where
+allowed) and freed on every path (:mod:`~heliostep.cosim.outcome`).
 """
 
 from __future__ import annotations
 
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-import pandas as pd
 
 from heliostep.cosim import fast_events as events
 from heliostep.cosim.connections import ConnectionGraph
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
+from heliostep.cosim.outcome import Interrupted, MasterResult, SimulationError, completed, statistics
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.sampled import split_sampled
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
 from heliostep.cosim.system import CoupledSystem
 from heliostep.cosim.text_outputs import TextOutputs
-from heliostep.errors import HeliostepError, InputError, RunFailure
+from heliostep.errors import InputError
 
 __all__ = [
     "CoSimulation",
@@ -90,42 +51,6 @@ class SolutionMonitor(Protocol):
         in time order, holding every internal solver step, both sides of every event and every
         output time; valid during the call only."""
         ...
-
-
-class SimulationError(RunFailure):
-    """The simulation failed or was stopped part-way; ``trace`` holds what was computed until then.
-
-    ``reason`` is ``"failed"`` or ``"interrupted"`` (``should_stop`` asked to stop); ``time`` is
-    the simulation time reached [s].
-    """
-
-    def __init__(
-        self, message: str, trace: pd.DataFrame, statistics: dict, reason: str = "failed", time: float = float("nan")
-    ):
-        super().__init__(message)
-        self.trace = trace
-        self.statistics = statistics
-        self.reason = reason
-        self.time = time
-
-
-class _Interrupted(Exception):
-    """Raised inside the main loop when ``should_stop`` says so (between solver calls)."""
-
-
-@dataclass
-class MasterResult:
-    """A finished co-simulation: the trace and the solver statistics.
-
-    ``terminated`` is True when an FMU asked to stop (terminateSimulation) before the stop
-    time: the run then ended normally at ``termination_time`` for ``termination_reason``.
-    """
-
-    trace: pd.DataFrame
-    statistics: dict = field(default_factory=dict)
-    terminated: bool = False
-    termination_reason: str = ""
-    termination_time: float | None = None
 
 
 class CoSimulation(ConnectionGraph):
@@ -211,38 +136,7 @@ class CoSimulation(ConnectionGraph):
         points = [start_time, stop_time] if output_times is None else output_times
         grid = np.unique(np.clip(np.asarray(points, dtype=float), start_time, stop_time))
         run = _Run(self, solver or SolverOptions(), progress, monitor, should_stop, sink, sink_rows)
-        return _completed(run, start_time, stop_time, grid)
-
-
-def _completed(run: _Run, start_time: float, stop_time: float, grid: np.ndarray) -> MasterResult:
-    """``run`` executed from ``start_time`` to ``stop_time`` [s] with output rows at ``grid``, its
-    FMUs freed on every path: the result, or a :class:`SimulationError` carrying the rows so far
-    (an :class:`~heliostep.errors.InputError` before any row raised as it is)."""
-    try:
-        run.execute(start_time, stop_time, grid)
-    except _Interrupted:
-        raise SimulationError(
-            f"interrupted at t = {run.time:.9g} s",
-            run.rows.trace(),
-            run.statistics(),
-            reason="interrupted",
-            time=run.time,
-        ) from None
-    except InputError as exc:
-        if not run.rows.total:  # found setting up the FMUs: bad input, not a failed simulation
-            raise
-        raise run.failure(exc) from exc
-    except (HeliostepError, RuntimeError) as exc:
-        raise run.failure(exc) from exc
-    finally:
-        run.close()
-    return MasterResult(
-        run.rows.trace(),
-        run.statistics(),
-        terminated=run.terminated,
-        termination_reason=run.termination_reason,
-        termination_time=run.termination_time,
-    )
+        return completed(run, start_time, stop_time, grid)
 
 
 class _Run:
@@ -282,14 +176,8 @@ class _Run:
         self.fast_events: events.FastEvents | None = None  # the events in one call of the kernel, where allowed
 
     # --------------------------------------------------------------- results
-    def failure(self, exc: BaseException) -> SimulationError:
-        """The SimulationError of a run that failed with ``exc`` at the time reached."""
-        return SimulationError(
-            f"simulation failed at t = {self.time:.9g} s: {exc}", self.rows.trace(), self.statistics(), time=self.time
-        )
-
     def statistics(self) -> dict:
-        return _statistics(self)
+        return statistics(self)
 
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
@@ -321,7 +209,7 @@ class _Run:
         if self.should_stop is not None and self.should_stop():
             if kinds[-1] != 1:  # the trace ends where the run stops: at the last solution row
                 self.rows.store(rows[-1:].copy())
-            raise _Interrupted()
+            raise Interrupted()
 
     # --------------------------------------------------------------- events
     def _event_iteration(self, system: CoupledSystem, t: float, new_inputs: bool, input_time: float) -> None:
@@ -535,7 +423,7 @@ class _Run:
         if self.progress:
             self.progress(t)
         if self.should_stop is not None and self.should_stop():
-            raise _Interrupted()
+            raise Interrupted()
 
 
 def _to_time_event(t_next: float, t_time_event: float) -> float:
@@ -543,28 +431,3 @@ def _to_time_event(t_next: float, t_time_event: float) -> float:
     event moves to the event's own instant (the row is taken there); stopping short of it, the event would
     count as passed (within eps of the time reached) and never be handled."""
     return t_time_event if t_next < t_time_event <= t_next + 1e-12 * max(1.0, abs(t_next)) else t_next
-
-
-def _statistics(run: _Run) -> dict:
-    """The run's counters and what it met (terminations, loops, sampled components, text outputs)."""
-    system, integrator = run.system, run.integrator
-    rhs = (system.rhs_evaluations if system is not None else 0) + (
-        integrator.rhs_evaluations() if integrator is not None else 0
-    )
-    counts = {"rhs": rhs, **run.counts, "nominal_reads": system.nominal_reads if system is not None else 0}
-    return {
-        **counts,
-        "compiled_rhs": integrator is not None and integrator.compiled,
-        "wall_time": clock.perf_counter() - run.wall_start,
-        "states": system.n_states if system is not None else 0,
-        "event_indicators": system.n_indicators if system is not None else 0,
-        "terminated": run.terminated,
-        "termination_reason": run.termination_reason,
-        "termination_time": run.termination_time,
-        "termination_instances": run.termination_instances,
-        "algebraic_loops": list(run.graph.loops),
-        **({"sampled_components": run.graph.sampled.statistics()} if run.graph.sampled is not None else {}),
-        "max_buffered_rows": run.rows.max_buffered,
-        **({"text_outputs": run.texts.values} if run.texts is not None else {}),
-        **(system.loop.statistics() if system is not None and system.loop is not None else {}),
-    }

@@ -1,11 +1,8 @@
 """The trace rows of a run: held for the trace, or handed to a sink in blocks as they come.
 
-:class:`RowBuffer` is where every trace row the master records goes (2-D blocks in time
-order). Without a sink it keeps them all for the trace the master returns; with one it holds at
-most ``sink_rows`` rows (or one larger block stored at once) and hands them over in blocks of at
-most ``sink_rows``, and also whatever it holds once :attr:`RowBuffer.flush_interval` seconds of
-wall time have passed since the last hand-over (a supervised child process: a crash then loses
-only the rows of the last moments).
+With a sink, :class:`RowBuffer` holds at most ``sink_rows`` rows (or one larger block stored at once)
+and hands over whatever it holds after :attr:`RowBuffer.flush_interval` seconds of wall time too (a
+supervised child's crash then loses only the last moments' rows).
 """
 
 from __future__ import annotations

@@ -1,27 +1,12 @@
 """Co-Simulation FMUs (FMI 2.0 and 3.0) as sampled components of the Model Exchange system.
 
-A Co-Simulation FMU integrates itself; the master only says when to step. Here it runs as a
-*sampled component*: stepped with ``fmi2DoStep`` (FMI 3.0: ``fmi3DoStep``, the instance in
-:mod:`heliostep.cosim.sampled3`) at a fixed communication interval ``h`` (the
-scenario's ``communication_interval.NAME``), its inputs **sampled** at each communication point
-and held until the next, its outputs **held** between communication points. Each communication
-point is a time event of the Model Exchange system: the master stops CVODE there, the component
-steps from the last point to this one with the inputs it held, its new outputs become the new
-values of the Model Exchange inputs they drive (an event of those FMUs, like a sequencer step),
-and the Model Exchange outputs it reads are sampled at that instant for the next step
-(Jacobi-style: every component steps with the values of the last point).
-
-This is loose coupling: a connected Model Exchange FMU sees a staircase, delayed by up to ``h``,
-the CS FMU sees its inputs as a staircase too. For a ramp through a first-order lag the delay is
-about ``h / 2`` on each side (docs/fmus.md gives the measured figures). An algebraic loop through
-a CS FMU cannot be solved at a communication point with held values, so it is refused up front
-(:func:`split_sampled`). Only Real variables of a CS FMU (FMI 3.0: Float64) may be connected. A
-step whose FMU asks to terminate (FMI 3.0's ``terminateSimulation``) ends the run at that point
-(:class:`~heliostep.cosim.events.Terminated`), after every component due there has stepped.
-
-The component's outputs connected to Model Exchange inputs are master inputs of the Model Exchange
-system (:class:`SampledSignal`, duck-typed like :class:`~heliostep.cosim.signals.PiecewiseConstant`,
-traced under ``INSTANCE.VARIABLE``), so the compiled kernel stays in use.
+A sampled component steps (``DoStep``) at a fixed communication interval (the scenario's
+``communication_interval.NAME``); its inputs are sampled at each communication point and held, its
+outputs held between points (loose coupling: a delay of up to one interval). Each communication point
+is a time event of the Model Exchange system, and the component's outputs are master inputs of it
+(:class:`SampledSignal`), so the compiled kernel stays in use. An algebraic loop through a component is
+refused up front (:func:`split_sampled`); only Real (FMI 3.0: Float64) variables connect. A step whose
+FMU asks to terminate ends the run at that point (:class:`~heliostep.cosim.events.Terminated`).
 """
 
 from __future__ import annotations
@@ -38,8 +23,8 @@ from heliostep.cosim.co_simulation import CoSimulationInstanceBase
 from heliostep.cosim.connections import ConnectionGraph, split_name
 from heliostep.cosim.description import FMUInfo
 from heliostep.cosim.events import Terminated
-from heliostep.cosim.fmi import FMIError, _callbacks
-from heliostep.cosim.sampled3 import CoSimulation3Instance
+from heliostep.cosim.fmi import _callbacks
+from heliostep.cosim.instance import FMIError
 from heliostep.cosim.signals import Connection, PiecewiseConstant
 from heliostep.errors import InputError
 
@@ -130,7 +115,7 @@ class SampledComponent:
         self.held = {v: float(info.variables[v].start or 0.0) for v in self.outputs}  # before the start: starts
         self.times: np.ndarray = np.zeros(0)  # the communication points after the start, up to the stop time
         self.steps = 0
-        self.instance: CoSimulationInstance | CoSimulation3Instance | None = None
+        self.instance: CoSimulationInstanceBase | None = None
 
     def start(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
         count = math.floor((stop_time - start_time) / self.interval * (1.0 + 1e-12))
@@ -139,8 +124,7 @@ class SampledComponent:
             self._check_shorter_step(stop_time - start_time)
             self.times = np.append(self.times, stop_time)  # the last point at the stop time
         self.steps = 0
-        kind = CoSimulation3Instance if self.info.fmi_version == "3.0" else CoSimulationInstance
-        self.instance = kind(self.info, self.name, self.parameters)
+        self.instance = self.info.kind.instance_class()(self.info, self.name, self.parameters)
         self.instance.initialize(start_time, stop_time, inputs)
         self._read()
 

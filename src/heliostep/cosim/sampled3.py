@@ -1,27 +1,10 @@
 """FMI 3.0 Co-Simulation instances for sampled components (:mod:`heliostep.cosim.sampled`).
 
-:class:`CoSimulation3Instance` has the API of :class:`~heliostep.cosim.sampled.CoSimulationInstance`
-(FMI 2.0), so a :class:`~heliostep.cosim.sampled.SampledComponent` steps an FMI 2.0 or 3.0
-Co-Simulation FMU alike; what both do alike is their base's,
-:class:`~heliostep.cosim.co_simulation.CoSimulationInstanceBase`, and only the FMI calls are here.
-The binary is loaded by fmpy (``fmpy.fmi3.FMU3Slave``); the instance is made with
-``fmi3InstantiateCoSimulation`` called directly, so that its ``instanceEnvironment`` routes its log
-messages to it (fmpy's own ``instantiate`` passes none), with ``eventModeUsed`` and
-``earlyReturnAllowed`` false and no intermediate update: the FMU handles its events inside
-``fmi3DoStep`` and completes every step (FMI 3.0 standard, section 4.2, basic Co-Simulation).
-
-The life cycle is FMI 3.0's: ``fmi3EnterInitializationMode`` (start and stop time; FMI 3.0 has no
-``SetupExperiment``), parameters (each with its own ``fmi3Set*`` function) and inputs set,
-``fmi3ExitInitializationMode`` (into Step Mode), ``fmi3DoStep`` from each communication point to the
-next, ``fmi3Terminate``, ``fmi3FreeInstance``. What ``fmi3DoStep`` reports back:
-
-- ``terminateSimulation``: the step's outputs are taken, then the run ends at that communication point
-  (:class:`~heliostep.cosim.events.Terminated`, said in stdout and ``summary.json`` like a Model
-  Exchange FMU's termination);
-- ``earlyReturn`` (the step ended at ``lastSuccessfulTime``, before the point) or ``eventHandlingNeeded``
-  (the FMU asks for Event Mode): the FMU was instantiated with neither allowed, so the run fails
-  (:class:`~heliostep.cosim.fmi.FMIError`, exit 1) naming the instance, the flag and the time;
-  heliostep does not run FMI 3.0's Co-Simulation Event Mode or early return.
+Instantiated with ``fmi3InstantiateCoSimulation`` called directly, so that its ``instanceEnvironment``
+routes its log messages to it, with ``eventModeUsed`` and ``earlyReturnAllowed`` false (basic
+Co-Simulation: the FMU handles its events inside ``fmi3DoStep``). A step's ``terminateSimulation`` ends
+the run at that point; an ``earlyReturn`` or ``eventHandlingNeeded`` is an
+:class:`~heliostep.cosim.instance.FMIError` (neither was allowed).
 """
 
 from __future__ import annotations
@@ -32,8 +15,8 @@ from collections.abc import Mapping
 
 from heliostep.cosim.co_simulation import CoSimulationInstanceBase
 from heliostep.cosim.description import FMUInfo
-from heliostep.cosim.fmi import FMIError
 from heliostep.cosim.fmi3 import _logger3
+from heliostep.cosim.instance import FMIError
 
 __all__ = ["CoSimulation3Instance"]
 

@@ -19,22 +19,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heliostep.cosim.connections import split_name
-from heliostep.cosim.fmi import FMUInfo, ModelExchangeInstance
+from heliostep.cosim.description import FMUInfo
 from heliostep.cosim.loops import LoopSolver
 from heliostep.cosim.signals import SolverOptions
 
 if TYPE_CHECKING:
     from heliostep.cosim.connections import ConnectionGraph
+    from heliostep.cosim.instance import ModelExchangeBase
     from heliostep.cosim.kernel import KernelLink, KernelLoop, KernelUnit
-
-
-def _instance_class(info: FMUInfo) -> type[ModelExchangeInstance]:
-    """The instance class of the FMU's FMI version (FMI 3.0: :mod:`heliostep.cosim.fmi3`)."""
-    if info.fmi_version == "3.0":
-        from heliostep.cosim.fmi3 import ModelExchange3Instance
-
-        return ModelExchange3Instance
-    return ModelExchangeInstance
 
 
 class Unit:
@@ -43,7 +35,7 @@ class Unit:
     def __init__(self, name: str, info: FMUInfo, parameters: Mapping[str, Any], index: int = -1):
         self.name = name
         self.info = info
-        self.fmu = _instance_class(info)(info, name, parameters, index=index)
+        self.fmu: ModelExchangeBase = info.kind.instance_class()(info, name, parameters, index=index)
         self.n_states = self.fmu.n_states
         self.n_indicators = self.fmu.n_event_indicators
         self.outputs = info.traced_outputs  # every type but String, traced as floats

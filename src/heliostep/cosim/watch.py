@@ -1,20 +1,11 @@
 """Where this process's FMU calls are, for a supervisor in another process.
 
-A supervised run (:mod:`heliostep.run.supervision.supervisor`) simulates in a child process; when an FMU
-crashes or hangs there, the supervisor must still name the instance and the FMI function it was
-in. Before every FMI call the child stores, in a small record that both processes map (a file
-of :data:`RECORD_BYTES` bytes, mapped shared), the instance's index in the master's order, the
-function's index in :data:`FUNCTIONS` and a running count of the calls begun; the compiled
-kernel (``kernel.c``, through ``hs_kernel.where``) and the Python calls
-(:class:`~heliostep.cosim.fmi.ModelExchangeInstance`) alike. A store is a few nanoseconds in C.
-The supervisor reads the count to tell a hang (no call begun for a while) from a long run, and
-writes the record's ``stop`` to ask the child to stop at its next safe point.
-
-Without :func:`attach` (every unsupervised run) nothing is recorded.
-
-The record (:class:`Record`, kernel.h ``hs_where``): the unit's index, the function's, the
-calls begun, the stop request (int64 each) and the time of the call [s] (a double): :data:`LAYOUT`
-for :mod:`struct`.
+Before every FMI call (the compiled kernel's and the Python ones alike) a supervised child
+(:mod:`heliostep.run.supervision`) stores, in a record both processes map (:class:`Record`, kernel.h
+``hs_where``; :data:`LAYOUT` for :mod:`struct`), the instance's index, the function's index in
+:data:`FUNCTIONS`, the time and a running count of the calls begun; the supervisor reads the count to
+tell a hang from a long run, and writes ``stop`` to ask the child to stop at its next safe point.
+Without :func:`attach` nothing is recorded.
 """
 
 from __future__ import annotations
@@ -23,6 +14,8 @@ import ctypes
 import mmap
 import os
 from pathlib import Path
+
+from heliostep.cosim.kinds import KINDS, Kind
 
 __all__ = [
     "FUNCTIONS",
@@ -50,66 +43,20 @@ KERNEL_FUNCTIONS = (
     "fmi2GetBoolean",
 )
 #: Every FMI function a run calls (the kernel's first): the record's function index is a position here.
-FUNCTIONS = KERNEL_FUNCTIONS + (
+FUNCTIONS = (
+    *KERNEL_FUNCTIONS,
     "loading the binary",
-    "fmi2Instantiate",
+    *dict.fromkeys(name for kind in KINDS if kind.life is not None for name in kind.life),
     "fmi2SetupExperiment",
-    "fmi2EnterInitializationMode",
-    "fmi2ExitInitializationMode",
-    "fmi2EnterEventMode",
-    "fmi2NewDiscreteStates",
-    "fmi2EnterContinuousTimeMode",
-    "fmi2CompletedIntegratorStep",
     "fmi2GetContinuousStates",
-    "fmi2GetNominalsOfContinuousStates",
     "fmi2SetInteger",
     "fmi2SetBoolean",
     "fmi2GetString",
     "fmi2SetString",
-    "fmi2Terminate",
-    "fmi2Reset",
-    "fmi2FreeInstance",
-    # FMI 3.0's own (heliostep.cosim.fmi3); its fmi2-shaped calls are noted by their fmi2 names
-    "fmi3InstantiateModelExchange",
-    "fmi3EnterInitializationMode",
-    "fmi3ExitInitializationMode",
-    "fmi3EnterEventMode",
-    "fmi3UpdateDiscreteStates",
-    "fmi3EnterContinuousTimeMode",
-    "fmi3CompletedIntegratorStep",
-    "fmi3GetNominalsOfContinuousStates",
-    "fmi3Terminate",
-    "fmi3Reset",
-    "fmi3FreeInstance",
-    "fmi3SetFloat32",
-    "fmi3SetInt8",
-    "fmi3SetUInt8",
-    "fmi3SetInt16",
-    "fmi3SetUInt16",
-    "fmi3SetUInt32",
-    "fmi3SetInt64",
-    "fmi3SetUInt64",
+    # FMI 3.0's typed setters (heliostep.cosim.fmi3_types); its fmi2-shaped calls are noted by their fmi2 names
+    *(f"fmi3Set{t}" for t in ("Float32", "Int8", "UInt8", "Int16", "UInt16", "UInt32", "Int64", "UInt64")),
 )
 _INDEX = {name: k for k, name in enumerate(FUNCTIONS)}
-
-#: An FMI 3.0 FMU's own function for each fmi2-shaped call the master notes (heliostep.cosim.fmi3's
-#: adapter makes them of the FMI 3.0 ones); its integer and Boolean calls go through the getter or setter
-#: of the variable's own type.
-_FMI3_NAMES = {
-    "fmi2SetTime": "fmi3SetTime",
-    "fmi2SetContinuousStates": "fmi3SetContinuousStates",
-    "fmi2GetContinuousStates": "fmi3GetContinuousStates",
-    "fmi2GetReal": "fmi3GetFloat64",
-    "fmi2SetReal": "fmi3SetFloat64",
-    "fmi2GetDerivatives": "fmi3GetContinuousStateDerivatives",
-    "fmi2GetEventIndicators": "fmi3GetEventIndicators",
-    "fmi2GetInteger": "an fmi3Get function of an integer type",
-    "fmi2SetInteger": "an fmi3Set function of an integer type",
-    "fmi2GetBoolean": "fmi3GetBoolean",
-    "fmi2SetBoolean": "fmi3SetBoolean",
-    "fmi2GetString": "fmi3GetString",
-    "fmi2SetString": "fmi3SetString",
-}
 
 
 class Record(ctypes.Structure):
@@ -166,8 +113,8 @@ def stop_requested() -> bool:
     return _record is not None and _record.stop != 0
 
 
-def called_function(function: int, fmi_version: str = "2.0") -> str:
-    """The name of the FMI function at index ``function`` of :data:`FUNCTIONS` for an FMU of ``fmi_version``
-    (an FMI 3.0 FMU's own name for the fmi2-shaped calls), or "an FMI call" for an unknown index."""
+def called_function(function: int, kind: Kind) -> str:
+    """The name of the FMI function at index ``function`` of :data:`FUNCTIONS` for an FMU of ``kind`` (its
+    own name for the fmi2-shaped calls), or "an FMI call" for an unknown index."""
     name = FUNCTIONS[function] if 0 <= function < len(FUNCTIONS) else "an FMI call"
-    return _FMI3_NAMES.get(name, name) if fmi_version.startswith("3") else name
+    return kind.own_name(name)

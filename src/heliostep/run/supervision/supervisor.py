@@ -298,7 +298,7 @@ class _Supervisor:
             return "before any FMU call"
         name = self.names[unit]
         info = self.request.system.fmus[name]
-        model, call = info.model_name, called_function(function, info.fmi_version)
+        model, call = info.model_name, called_function(function, info.kind)
         at = f" at t = {time:.9g} s" if np.isfinite(time) else ""
         return f"in {call} of FMU instance '{name}' (model {model}){at}"
 
