@@ -15,7 +15,7 @@ import sys
 from typing import NoReturn
 
 from heliostep._version import __version__
-from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command
+from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command, signals_until_exit
 from heliostep.errors import HeliostepError, RunFailure
 
 #: The commands and the modules that provide them, in the order ``--help`` lists them.
@@ -96,7 +96,9 @@ def console_main() -> NoReturn:
 
     What is alive when the command has returned is frozen (:func:`gc.freeze`) before the interpreter exits:
     its finalization then frees those objects as usual but its full garbage collections no longer
-    traverse every object of the imported libraries, which made up most of the exit's time."""
+    traverse every object of the imported libraries, which made up most of the exit's time. A stop
+    signal after the command has returned does not interrupt the exit (:func:`signals_until_exit`)."""
+    signals_until_exit()
     status = main()
     gc.freeze()
     sys.exit(status)

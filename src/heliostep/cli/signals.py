@@ -91,6 +91,25 @@ class StartingUp:
         self.command = "heliostep"
 
 
+def signals_until_exit() -> None:
+    """From now until the process ends, a stop signal no longer interrupts the exit: the first is noted and
+    the exit goes on with the command's status, a second ends the process at once (128 + its number).
+
+    The installed command calls it before the command runs, so :func:`signals_end_the_command` restores
+    these handlers, not Python's, when the command returns; ignored signals stay ignored."""
+    taken: list[int] = []
+
+    def handler(signum, frame):
+        _after_hangup(signum)
+        if taken:
+            os._exit(exit_status(signum))
+        taken.append(signum)
+
+    for sig in STOP_SIGNALS:
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            signal.signal(sig, handler)
+
+
 @contextmanager
 def signals_end_the_command() -> Iterator[StartingUp]:
     """Within the block, a stop signal ends the command: at once with one line while
