@@ -1,23 +1,34 @@
-"""A run's figures drawn by one function: :func:`draw_run_figures` (the paper's Figs. 8-14, then the power on
-the tube), one after the other, from a :class:`~heliostep.run.RunResult`."""
+"""A run's figures drawn by one function: :func:`draw_run_figures` (the paper's Figs. 8-14 and the power on
+the tube) from a :class:`~heliostep.run.RunResult`, on two cores: a child forked once the run is done draws a
+share of them while this process draws the rest (matplotlib's rendering is most of a short run's time)."""
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import shutil
+import signal
 import tempfile
+import traceback
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol
 
 import pandas as pd
 
-from heliostep.plots.light import plot_light_run
-from heliostep.plots.run import plot_run
+from heliostep.errors import RunFailure
+from heliostep.plots.light import POWER_FILE, plot_light_run
+from heliostep.plots.run import FIGURE_FILES, plot_run
 from heliostep.results.figures.solution import SolutionPlotData
 from heliostep.results.output.files import TMP_PREFIX
 
-__all__ = ["DrawnRun", "draw_run_figures"]
+__all__ = ["CHILD_SHARE", "DrawnRun", "draw_run_figures"]
+
+#: The figures the forked child draws (with the power on the tube), about half the drawing's time.
+CHILD_SHARE = (FIGURE_FILES[0], FIGURE_FILES[2])
+#: Seconds the child may take before its share is drawn here instead (a child that hangs).
+CHILD_LIMIT = 600.0
+_ERROR = ".error"
 
 
 class DrawnRun(Protocol):
@@ -74,16 +85,64 @@ def draw_run_figures(result: DrawnRun, out_dir: str | Path) -> list[Path]:
     if source is None:
         raise ValueError("the run kept no trace: no figure to draw")
     staging = Path(tempfile.mkdtemp(prefix=TMP_PREFIX + "figures-", dir=out_dir))
+    child = None
     try:
-        drawn = plot_run(source, staging, result.trace_metadata(), result.solution_plot)
-        panel = result.metadata.get("roles", {}).get("panel_angle", "")
-        light = result.trace_columns(["panel_angle_ref", panel])
-        drawn += plot_light_run(light, result.metadata, result.scenario, staging, result.weather, result.summary)
+        child = _start_child(result, source, staging)
+        here = None if child is None else [name for name in FIGURE_FILES if name not in CHILD_SHARE]
+        plot_run(source, staging, result.trace_metadata(), result.solution_plot, only=here)
+        if child is None or not _joined(child, staging):
+            _draw_child_share(result, source, staging)
         written = []
-        for path in drawn:
-            target = out_dir / path.name
-            os.replace(path, target)
-            written.append(target)
+        for name in (*FIGURE_FILES, POWER_FILE):
+            if (staging / name).exists():
+                os.replace(staging / name, out_dir / name)
+                written.append(out_dir / name)
         return written
     finally:
+        if child is not None and child.is_alive():
+            child.kill()
+            child.join()
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _draw_child_share(result: DrawnRun, source: pd.DataFrame | Path, staging: Path) -> None:
+    plot_run(source, staging, result.trace_metadata(), result.solution_plot, only=CHILD_SHARE)
+    panel = result.metadata.get("roles", {}).get("panel_angle", "")
+    light = result.trace_columns(["panel_angle_ref", panel])
+    plot_light_run(light, result.metadata, result.scenario, staging, result.weather, result.summary)
+
+
+def _start_child(result: DrawnRun, source: pd.DataFrame | Path, staging: Path):
+    """The child drawing :data:`CHILD_SHARE` and the power on the tube (None where the OS cannot fork)."""
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return None
+    child = multiprocessing.get_context("fork").Process(target=_child, args=(result, source, staging), daemon=True)
+    child.start()
+    return child
+
+
+def _child(result: DrawnRun, source: pd.DataFrame | Path, staging: Path) -> None:
+    """The child's work; a stop signal is the parent's to handle (it kills the child), an error is written
+    for the parent to raise."""
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
+    try:
+        _draw_child_share(result, source, staging)
+    except BaseException:
+        (staging / _ERROR).write_text(traceback.format_exc())
+        os._exit(1)
+
+
+def _joined(child, staging: Path) -> bool:
+    """Whether the child drew its share (False: it hung, and was killed); its error raised here."""
+    child.join(CHILD_LIMIT)
+    if child.is_alive():
+        child.kill()
+        child.join()
+        return False
+    if (staging / _ERROR).exists():
+        raise RunFailure("drawing the figures failed in the drawing process:\n" + (staging / _ERROR).read_text())
+    if child.exitcode != 0:
+        raise RunFailure(f"the drawing process ended with status {child.exitcode}")
+    return True

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import logging
 import zoneinfo
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
 
 import matplotlib.dates as mdates
@@ -406,7 +406,10 @@ _FIGURES: tuple[tuple[str, Callable], ...] = tuple(
 
 # --------------------------------------------------------------------------- public
 def run_figures(
-    trace: pd.DataFrame | str | Path, metadata: Mapping | None, solution: SolutionPlotData | None = None
+    trace: pd.DataFrame | str | Path,
+    metadata: Mapping | None,
+    solution: SolutionPlotData | None = None,
+    only: Collection[str] | None = None,
 ) -> Iterator[tuple[str, Figure | None]]:
     """The figures of :func:`plot_run`, one at a time: (file name, :class:`~matplotlib.figure.Figure`
     or None when skipped), for reading back what is drawn (same arguments as :func:`plot_run`)."""
@@ -427,6 +430,8 @@ def run_figures(
         parts.append(f"{clock.start:%Y-%m-%d}")
     context = f" ({', '.join(parts)})" if parts else ""
     for file_name, draw in _FIGURES:
+        if only is not None and file_name not in only:
+            continue
         figure = draw(columns, clock, context, solution)
         columns.release()
         yield file_name, figure
@@ -437,8 +442,9 @@ def plot_run(
     out_dir,
     metadata: Mapping,
     solution: SolutionPlotData | None = None,
+    only: Collection[str] | None = None,
 ) -> list[Path]:
-    """Write the paper's Figs. 8-14 for one run as PNGs.
+    """Write the paper's Figs. 8-14 for one run as PNGs (``only``: those of these file names).
 
     Parameters
     ----------
@@ -471,7 +477,7 @@ def plot_run(
         The PNGs written, in figure order (names in :data:`FIGURE_FILES`): a figure
         whose columns are missing is skipped, and so is Fig. 14 without steps.
     """
-    figures = run_figures(trace, metadata, solution)
+    figures = run_figures(trace, metadata, solution, only)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
