@@ -192,7 +192,7 @@ def rhs_per_step() -> None:
     from heliostep.run import run_scenario
 
     for label, overrides in RHS_VARIANTS:
-        run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides)
+        run = run_scenario(SCENARIOS / "jan21-central.yaml", overrides=overrides)
         rhs, steps = run.metadata["statistics"]["rhs"], max(1, int(run.summary["steps_commanded"]))
         print(
             f"jan21-central  {label:42s} {rhs:>8,d} RHS  {rhs / steps:7.1f} RHS/motor step  "

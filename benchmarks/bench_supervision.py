@@ -40,9 +40,9 @@ def main() -> None:
     args = parser.parse_args()
 
     import heliostep.run.supervision.child as child
-    from heliostep.run import run_scenario
+    from heliostep.run import RunOptions, run_scenario
 
-    run_scenario(args.scenario, supervise=False)  # FMUs and kernel built, files cached: not timed
+    run_scenario(args.scenario, RunOptions(supervise=False))  # FMUs and kernel built, files cached: not timed
     modes: list[int | None] = [None, *args.block_rows]  # None: in-process
     times: dict[int | None, list[float]] = {mode: [] for mode in modes}
     cpu: dict[int | None, list[float]] = {mode: [] for mode in modes}  # [s] this process's and the child's
@@ -52,7 +52,7 @@ def main() -> None:
             if mode is not None:
                 child.BLOCK_ROWS = mode  # read by the forked child
             start, cpu_start = time.perf_counter(), _cpu_seconds()
-            result = run_scenario(args.scenario, supervise=mode is not None)
+            result = run_scenario(args.scenario, RunOptions(supervise=mode is not None))
             times[mode].append(time.perf_counter() - start)
             cpu[mode].append(_cpu_seconds() - cpu_start)
             traces[mode] = result.trace

@@ -35,7 +35,7 @@ import numpy as np
 
 from heliostep.cosim import sundials
 from heliostep.drive.inputs import prepare_inputs
-from heliostep.run import run_scenario
+from heliostep.run import RunOptions, run_scenario
 from heliostep.run.bindings import parameters, present_roles
 from heliostep.run.fmus import read_fmus, resolve_fmus
 from heliostep.scenario import load_scenario
@@ -178,7 +178,7 @@ def main(argv=None) -> int:
         print(f"final panel angle, heliostep - floor: {panel - floor_run(library, scenario, inputs)[2]:.2e} rad")
         print(f"{'':>3} {'heliostep [s]':>14} {'floor [s]':>10} {'ratio':>6} {'RHS heliostep':>14} {'RHS floor':>10}")
         for repeat in range(args.repeat):  # side by side, alternating: the machine is shared
-            ours = run_scenario(scenario, keep_trace=False).metadata["statistics"]
+            ours = run_scenario(scenario, RunOptions(keep_trace=False)).metadata["statistics"]
             floor_time, floor_rhs, _ = floor_run(library, scenario, inputs)
             print(
                 f"{repeat:3d} {ours['wall_time']:14.3f} {floor_time:10.3f} {ours['wall_time'] / floor_time:6.2f} "

@@ -105,6 +105,8 @@ def run_scenario(
         Bad input.
     """
     options = options if options is not None else RunOptions()
+    if not isinstance(options, RunOptions):
+        raise TypeError(f"options must be a RunOptions, not {type(options).__name__} (overrides go in overrides=)")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, tuple(overrides))
     prepared = _prepare(scenario, options.fmu_paths, clock.perf_counter(), options.should_stop, options.keep_trace)
