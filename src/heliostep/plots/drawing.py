@@ -64,8 +64,10 @@ def draw_run_figures(result: DrawnRun, out_dir: str | Path) -> list[Path]:
     """Draw a run's figures into ``out_dir``: Figs. 8-14 (:func:`~heliostep.plots.run.plot_run`, a streamed
     trace read from its file by column) and the power on the tube (:func:`~heliostep.plots.light.plot_light_run`).
 
-    The PNGs are drawn into a temporary folder inside ``out_dir`` and renamed into place once all are drawn,
-    so ``out_dir`` never holds a half-written one.
+    :data:`CHILD_SHARE` and the power on the tube are drawn by a child forked for it (where the OS forks; a
+    child that hangs past :data:`CHILD_LIMIT` is killed and its share drawn here), the other figures here
+    meanwhile. The PNGs are drawn into a temporary folder inside ``out_dir`` and renamed into place once all
+    are drawn, so ``out_dir`` never holds a half-written one.
 
     Parameters
     ----------
@@ -88,7 +90,7 @@ def draw_run_figures(result: DrawnRun, out_dir: str | Path) -> list[Path]:
     child = None
     try:
         child = _start_child(result, source, staging)
-        here = None if child is None else [name for name in FIGURE_FILES if name not in CHILD_SHARE]
+        here = [name for name in FIGURE_FILES if name not in CHILD_SHARE]
         plot_run(source, staging, result.trace_metadata(), result.solution_plot, only=here)
         if child is None or not _joined(child, staging):
             _draw_child_share(result, source, staging)
