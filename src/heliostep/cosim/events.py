@@ -31,11 +31,11 @@ class Terminated(Exception):
 
 @dataclass
 class Resume:
-    """Where the compiled kernel (:mod:`heliostep.cosim.fast_events`) left a first round of
+    """Where the compiled kernel (:mod:`heliostep.cosim.fast_events`) left a first iteration of
     ``fmi2NewDiscreteStates`` for the Python path to go on from: the outputs the round propagated from,
     and ``unit``, the index of the unit whose first call's answer ``info`` (an fmi2EventInfo) asks for more
     (its iteration goes on from it, then the units after it); ``unit`` None: the round is complete and
-    changed the outputs to ``previous`` (the next round follows). The units before ``unit`` answered
+    changed the outputs to ``previous`` (the next iteration follows). The units before ``unit`` answered
     with no flag set."""
 
     previous: np.ndarray
@@ -48,7 +48,7 @@ def discrete_fixed_point(
 ) -> bool:
     """NewDiscreteStates on every FMU, re-propagating outputs, until nothing changes; whether a
     discrete state changed. ``time`` [s] is the run's time, for the messages; ``resume``: go on from
-    a first round the compiled kernel began (:class:`Resume`).
+    a first iteration the compiled kernel began (:class:`Resume`).
 
     The outputs are compared with those the round propagated from (read before the first
     round): when NewDiscreteStates changed none, the inputs set from them are consistent

@@ -1,7 +1,7 @@
 """An event's fixed work in one call of the compiled kernel: :c:func:`hs_event`.
 
 :class:`FastEvents` makes, from C, the FMI calls the Python path makes at an event (row before, event
-mode, new inputs, the first round of the event update, continuous-time mode, CVODE restarted, row after),
+mode, new inputs, the first iteration of the event update, continuous-time mode, CVODE restarted, row after),
 for kinds whose calls the kernel knows (:attr:`~heliostep.cosim.kinds.Kind.fast_events`). Whenever an
 FMU's answer sets a flag, or the outputs changed, the kernel stops there and the Python path goes on
 (:class:`~heliostep.cosim.events.Resume`), so FMI's semantics are the Python path's.
@@ -257,7 +257,7 @@ def fast_event(run: Any, t: float, new_inputs: bool, input_time: float, prepare:
     if status < 0:
         _raise_failure(run, fast, integrator, status)
     run.counts["resumed_events"] += 1
-    for unit in units:  # all in event mode, the first round begun
+    for unit in units:  # all in event mode, the first iteration begun
         unit.fmu.mode = "event"
     general = status == EVENT_GENERAL
     for unit in units[: args.unit if general else len(units)]:
