@@ -127,6 +127,22 @@ def test_a_second_run_into_a_held_folder_is_refused_naming_the_holder(tmp_path, 
     assert not (out / LOCK_NAME).exists()
 
 
+def test_a_symbolic_link_where_the_lock_goes_is_refused_and_its_target_untouched(tmp_path, fmu_paths, capsys):
+    """A link planted as ``out/.heliostep-lock`` would have the lock's record written into its target (a
+    user's file outside ``--out``): the run is refused before any simulation, naming the link, and the
+    target keeps its bytes."""
+    target = tmp_path / "important.txt"
+    target.write_text("a user's own words\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).symlink_to(target)
+    assert main(["run", SCENARIO, "--out", str(out), *SHORT, "--no-plots"]) == 2
+    error = capsys.readouterr().err
+    assert "symbolic link" in error and LOCK_NAME in error, error
+    assert target.read_text() == "a user's own words\n"
+    assert {p.name for p in out.iterdir()} == {LOCK_NAME} and (out / LOCK_NAME).is_symlink()
+
+
 def test_the_lock_of_a_killed_run_is_taken_over_and_its_leftovers_removed(tmp_path, fmu_paths, capsys):
     out = tmp_path / "out"
     first = popen_heliostep(["run", str(five_day_scenario(tmp_path)), "--out", str(out)])

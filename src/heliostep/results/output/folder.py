@@ -69,8 +69,13 @@ class FolderLock:
 
         while True:
             try:
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
             except OSError as exc:
+                if exc.errno == errno.ELOOP:  # a link where the lock goes: writing through it would touch its target
+                    raise InputError(
+                        f"--out {self.folder}: its lock {self.path} is a symbolic link, which heliostep did not "
+                        "make and does not follow; remove it or choose another --out"
+                    ) from None
                 raise InputError(f"--out {self.folder}: cannot create its lock {self.path}: {exc.strerror}") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
