@@ -105,9 +105,7 @@ def signals_until_exit() -> None:
             os._exit(exit_status(signum))
         taken.append(signum)
 
-    for sig in STOP_SIGNALS:
-        if signal.getsignal(sig) is not signal.SIG_IGN:
-            signal.signal(sig, handler)
+    _install_stop_handler(handler)
 
 
 @contextmanager
@@ -139,16 +137,18 @@ def signals_end_the_command() -> Iterator[StartingUp]:
 def _handling_stop_signals(handler) -> Iterator[None]:
     """Within the block, ``handler`` handles the stop signals that are not ignored (an ignored one,
     e.g. SIGINT of a background job, stays so); the previous handlers are restored on leaving."""
-    previous = {}
+    previous: dict = {}
     try:
-        for sig in STOP_SIGNALS:
-            if signal.getsignal(sig) is signal.SIG_IGN:
-                continue
-            previous[sig] = signal.signal(sig, handler)
+        previous = _install_stop_handler(handler)
         yield
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
+
+
+def _install_stop_handler(handler) -> dict:
+    """``handler`` for every stop signal that is not ignored; the handlers it replaced, by signal."""
+    return {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS if signal.getsignal(sig) is not signal.SIG_IGN}
 
 
 @contextmanager

@@ -21,6 +21,7 @@ from heliostep.plots.light import POWER_FILE, plot_light_run
 from heliostep.plots.run import FIGURE_FILES, plot_run
 from heliostep.results.figures.solution import SolutionPlotData
 from heliostep.results.output.files import TMP_PREFIX
+from heliostep.results.output.folder import HELD_SIGNALS
 
 __all__ = ["CHILD_SHARE", "DrawnRun", "draw_run_figures"]
 
@@ -126,9 +127,8 @@ def _start_child(result: DrawnRun, source: pd.DataFrame | Path, staging: Path):
 def _child(result: DrawnRun, source: pd.DataFrame | Path, staging: Path) -> None:
     """The child's work; a stop signal is the parent's to handle (it kills the child), an error is written
     for the parent to raise."""
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_IGN)
+    for sig in HELD_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
     try:
         _draw_child_share(result, source, staging)
     except BaseException:
