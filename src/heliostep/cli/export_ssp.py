@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from heliostep.fmu.ssp import write_ssp
+from heliostep.results.output.files import refuse_link
 from heliostep.run.fmus import resolve_fmus
 from heliostep.scenario import load_scenario
 
@@ -27,6 +28,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run_export(args: argparse.Namespace) -> int:
+    refuse_link(args.out)  # a link there is not heliostep's: neither written through nor replaced
     scenario = load_scenario(args.scenario, args.overrides)
     fmus = resolve_fmus(scenario)  # built or found, as a run would
     print(write_ssp(args.out, scenario.name, fmus, scenario.connection_pairs(), scenario.parameters))
