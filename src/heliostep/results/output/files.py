@@ -58,10 +58,11 @@ def refuse_link(path: str | Path) -> None:
 
 
 def check_out_name(text: str) -> Path:
-    """``--out`` as given: an empty text (which ``Path`` would read as the current folder) is refused."""
+    """``--out`` as a path, ``~`` expanded as a shell user expects (the one place the commands turn --out into
+    a path): an empty text (which ``Path`` would read as the current folder) is refused."""
     if not text.strip():
         raise InputError('--out: empty; name the output folder (e.g. "." for the current one)')
-    return Path(text)
+    return Path(text).expanduser()
 
 
 def check_out_dir(out_dir: str | Path) -> Path:
