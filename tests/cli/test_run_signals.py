@@ -9,6 +9,7 @@ while the inputs are prepared ends the command there: tests/run/test_estimate.py
 from __future__ import annotations
 
 import glob
+import hashlib
 import json
 import select
 import signal
@@ -55,8 +56,10 @@ def _signal_twice(process: subprocess.Popen, sig, gap: float, status: int, out: 
 def test_signal_stops_run_and_keeps_the_trace_so_far(sig, status, tmp_path, fmu_paths):
     out = tmp_path / "run"
     (out).mkdir()
-    (out / "fig08_panel_angle_ref.png").write_bytes(b"stale figure of an earlier run")
-    (out / ".heliostep-manifest.json").write_text(json.dumps({"files": ["fig08_panel_angle_ref.png"]}))  # its record
+    stale = b"stale figure of an earlier run"
+    (out / "fig08_panel_angle_ref.png").write_bytes(stale)
+    record = {"size": len(stale), "sha256": hashlib.sha256(stale).hexdigest()}  # as heliostep records its files
+    (out / ".heliostep-manifest.json").write_text(json.dumps({"files": {"fig08_panel_angle_ref.png": record}}))
     (out / "notes.txt").write_text("not heliostep's")
     process = popen_heliostep(["run", str(five_day_scenario(tmp_path)), "--out", str(out)], tmp_path / "tmp")
     _wait_for_fmus(tmp_path / "tmp", process)  # unpacked to be checked

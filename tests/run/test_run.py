@@ -384,7 +384,9 @@ def test_rerun_removes_stale_files_of_its_own_kinds_only(tmp_path, fmu_paths, ca
     for name in ("fig11_torque.png", "trace.csv", ".heliostep-tmp-abc-trace.parquet"):
         (out / name).write_text("stale")
     # an earlier run's files are those its manifest lists (a leftover temporary file is heliostep's by its name)
-    (out / ".heliostep-manifest.json").write_text(json.dumps({"files": ["fig11_torque.png", "trace.csv"]}))
+    stale = {"size": 5, "sha256": hashlib.sha256(b"stale").hexdigest()}  # as heliostep records its files
+    listed = {"fig11_torque.png": stale, "trace.csv": stale}
+    (out / ".heliostep-manifest.json").write_text(json.dumps({"files": listed}))
     (out / "mine.png").write_text("the user's")
     assert main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), "--no-csv", *SHORT]) == 0
     assert sorted(p.name for p in out.iterdir()) == [

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from heliostep.fmu.ssp import write_ssp
+from heliostep.results.output.files import check_out_name, refuse_link
 from heliostep.run.fmus import resolve_fmus
 from heliostep.scenario import load_scenario
 
@@ -19,7 +19,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the scenario's parameters as parameter bindings. A scenario with 'system: FILE.ssp' reads it back.",
     )
     parser.add_argument("scenario", help="scenario YAML file or the name of a shipped scenario")
-    parser.add_argument("--out", type=Path, required=True, metavar="FILE.ssp", help="the SSP file to write")
+    parser.add_argument("--out", required=True, metavar="FILE.ssp", help="the SSP file to write")
     parser.add_argument(
         "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key"
     )
@@ -27,7 +27,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run_export(args: argparse.Namespace) -> int:
+    out = check_out_name(args.out)
+    refuse_link(out)  # a link there is not heliostep's: neither written through nor replaced
     scenario = load_scenario(args.scenario, args.overrides)
     fmus = resolve_fmus(scenario)  # built or found, as a run would
-    print(write_ssp(args.out, scenario.name, fmus, scenario.connection_pairs(), scenario.parameters))
+    print(write_ssp(out, scenario.name, fmus, scenario.connection_pairs(), scenario.parameters))
     return 0

@@ -14,7 +14,7 @@ from heliostep.drive.sequencer import PreparationStopped
 from heliostep.results.output.files import TMP_PREFIX, check_out_name
 from heliostep.results.output.folder import owned_folder
 from heliostep.results.output.rescue import rescue_folder
-from heliostep.results.output.run_files import run_file_names
+from heliostep.results.output.run_files import run_file_names, write_stopped_records
 from heliostep.results.trace.files import TraceWriteError
 from heliostep.run import RunFailed, RunOptions, RunResult, resolve_fmus, run_scenario
 from heliostep.run.estimate import check_budget, estimate_run
@@ -148,7 +148,7 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
     """The run simulated and written into ``out_dir`` (whose lock is held), then its --band."""
     if stop.is_set():
         print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
-        return stop.exit_status
+        return _write_stopped(out_dir, stop, "starting", "before simulating")
     try:  # a long window streams its trace into out_dir while simulating (bounded memory)
         options = RunOptions(
             progress=True,
@@ -162,7 +162,7 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         status = 0
     except PreparationStopped:
         print(f"heliostep run: stopped by {stop.name} while preparing the inputs (nothing computed)", file=sys.stderr)
-        return stop.exit_status
+        return _write_stopped(out_dir, stop, "preparing_inputs", "while preparing the inputs")
     except RunFailed as failed:
         result = failed.result
         if failed.interrupted:
@@ -192,6 +192,16 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
         )
         status = stop.exit_status
     return status
+
+
+def _write_stopped(out_dir: Path, stop, stage: str, when: str) -> int:
+    """summary.json and metadata.json of a run stopped at ``stage``, before any simulation (complete: false):
+    the stop's exit status, whether or not they could be written (said on stderr when not)."""
+    try:
+        write_stopped_records(out_dir, f"stopped by {stop.name or 'a stop request'} {when}", stage)
+    except OSError as exc:
+        print(f"heliostep run: error: could not write summary.json to {out_dir}: {exc}", file=sys.stderr)
+    return stop.exit_status
 
 
 def _write_results(args: argparse.Namespace, result: RunResult, out_dir: Path, stop, status: int) -> int | None:

@@ -73,7 +73,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="do not co-simulate the days again at the drive physics' worst corner (the band's steps and error)",
     )
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default out/<scenario>-sizing)")
+    parser.add_argument("--out", default=None, help="output folder (default out/<scenario>-sizing)")
     parser.add_argument("--scheduler", default=None, metavar="ADDR", help="Dask scheduler (tcp://HOST:PORT)")
     parser.set_defaults(func=main)
 
@@ -91,10 +91,12 @@ def _days(values: list[str]) -> list[int] | str:
 
 
 def main(args: argparse.Namespace) -> int:
+    from heliostep.results.output.files import check_out_name
     from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
     from heliostep.sizing.sheet import size
     from heliostep.sizing.size import plan_sizing
 
+    out_name = check_out_name(args.out) if args.out is not None else None  # "" refused before anything
     candidates = load_catalogue(args.catalogue, args.candidate)
     plan = plan_sizing(
         args.scenario,
@@ -106,7 +108,7 @@ def main(args: argparse.Namespace) -> int:
         overrides=args.set,
         band_days=not args.no_band_days,
     )
-    out = args.out if args.out is not None else Path("out") / f"{plan.scenario.name}-sizing"
+    out = out_name or Path("out") / f"{plan.scenario.name}-sizing"
     catalogue = str(args.catalogue or shipped_catalogue_path())
     with stop_requests() as stop:
         sheet = size(plan, out, scheduler=args.scheduler, progress=True, should_stop=stop.is_set, catalogue=catalogue)

@@ -21,7 +21,7 @@ import pandas as pd
 from heliostep.cli.signals import exit_status, stop_requests
 from heliostep.errors import HeliostepError, InputError
 from heliostep.results.output.files import check_out_name
-from heliostep.results.output.folder import claim, owned_folder, write_swapped
+from heliostep.results.output.folder import claimed, owned_folder, write_swapped
 from heliostep.sweep import (
     SweepOutcome,
     execute_cases,
@@ -127,18 +127,18 @@ def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tu
 
     out_dir.mkdir(parents=True, exist_ok=True)  # a folder that cannot be made: an OSError, a run failure
     with owned_folder(out_dir, [RESULTS_FILE, *(name for _, name, _ in HEATMAPS), TORQUE_FILE]):
-        claim(out_dir, [RESULTS_FILE])
-        write_swapped(out_dir, lambda staging: [], keep={RESULTS_FILE})  # the older figures out
-        outcome = execute_cases(
-            cases,
-            out_dir / RESULTS_FILE,
-            scheduler=args.scheduler,
-            n_workers=args.workers,
-            connect_timeout=args.connect_timeout,
-            retry_failed=args.retry_failed,
-            progress=True,
-            metadata=sweep_metadata(spec),
-        )
+        with claimed(out_dir, [RESULTS_FILE]):  # listed while the cases update it, its digest recorded after
+            write_swapped(out_dir, lambda staging: [], keep={RESULTS_FILE})  # the older figures out
+            outcome = execute_cases(
+                cases,
+                out_dir / RESULTS_FILE,
+                scheduler=args.scheduler,
+                n_workers=args.workers,
+                connect_timeout=args.connect_timeout,
+                retry_failed=args.retry_failed,
+                progress=True,
+                metadata=sweep_metadata(spec),
+            )
 
         def draw(staging: Path) -> list[Path]:
             if args.no_plots or not len(outcome.table):

@@ -16,6 +16,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from heliostep.errors import InputError
+from heliostep.results.trace.writer import arrow_path
 from heliostep.sweep.spec import SweepCase, SweepSpec
 
 logger = logging.getLogger(__name__)
@@ -143,7 +144,7 @@ def _write_atomically(table: pd.DataFrame, path: Path, metadata: Mapping | None 
     path.parent.mkdir(parents=True, exist_ok=True)
     scratch = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
     try:
-        pq.write_table(arrow, scratch)
+        pq.write_table(arrow, arrow_path(scratch))
         os.replace(scratch, path)
     finally:
         scratch.unlink(missing_ok=True)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from heliostep.errors import InputError
 
-__all__ = ["TMP_PREFIX", "atomic_path", "check_out_dir", "check_out_name", "write_text_atomic"]
+__all__ = ["TMP_PREFIX", "atomic_path", "check_out_dir", "check_out_name", "refuse_link", "write_text_atomic"]
 
 TMP_PREFIX = ".heliostep-tmp-"
 
@@ -28,6 +28,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     tmp = path.with_name(f"{TMP_PREFIX}{uuid.uuid4().hex[:12]}-{path.name}")
     try:
         yield tmp
+        refuse_link(path)  # a link planted meanwhile is not replaced (it is not heliostep's)
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -46,11 +47,22 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     return path
 
 
+def refuse_link(path: str | Path) -> None:
+    """Refuse (InputError naming it) a symbolic link at ``path``, where heliostep is about to write: it did
+    not make it, and writing through it (or over it) would touch a file it did not write."""
+    if os.path.islink(path):
+        raise InputError(
+            f"{path} is a symbolic link, which heliostep did not make and does not follow or replace; "
+            "remove it or choose another --out"
+        )
+
+
 def check_out_name(text: str) -> Path:
-    """``--out`` as given: an empty text (which ``Path`` would read as the current folder) is refused."""
+    """``--out`` as a path, ``~`` expanded as a shell user expects (the one place the commands turn --out into
+    a path): an empty text (which ``Path`` would read as the current folder) is refused."""
     if not text.strip():
         raise InputError('--out: empty; name the output folder (e.g. "." for the current one)')
-    return Path(text)
+    return Path(text).expanduser()
 
 
 def check_out_dir(out_dir: str | Path) -> Path:
@@ -69,8 +81,12 @@ def check_out_dir(out_dir: str | Path) -> Path:
         raise InputError(f"--out {out_dir}: cannot create the output folder: {exc.strerror or exc}") from None
     probe = out_dir / f"{TMP_PREFIX}probe-{os.getpid()}"
     try:
-        with open(probe, "w") as fh:
-            fh.write("probe")
+        refuse_link(probe)
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        try:
+            os.write(fd, b"probe")
+        finally:
+            os.close(fd)
         probe.unlink()
     except OSError as exc:
         raise InputError(f"--out {out_dir}: the output folder is not writable: {exc.strerror or exc}") from None

@@ -23,14 +23,22 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from heliostep.errors import HeliostepError, InputError
-from heliostep.results.output.files import TMP_PREFIX, check_out_dir
+from heliostep.results.output.files import TMP_PREFIX, check_out_dir, refuse_link
+from heliostep.results.output.manifest import (
+    MANIFEST_NAME,
+    FileRecord,
+    file_record,
+    is_ours,
+    read_records,
+    write_manifest,
+)
 
 __all__ = [
     "LOCK_NAME",
     "MANIFEST_NAME",
     "FolderLock",
     "check_foreign",
-    "claim",
+    "claimed",
     "hold_folder",
     "manifest_files",
     "owned_folder",
@@ -41,7 +49,6 @@ __all__ = [
 ]
 
 LOCK_NAME = ".heliostep-lock"
-MANIFEST_NAME = ".heliostep-manifest.json"
 STAGING_PREFIX = TMP_PREFIX + "staging-"
 
 #: Files written last into place and removed first: they say whether the run is complete.
@@ -199,53 +206,65 @@ def remove_leftovers(folder: Path) -> list[Path]:
 
 
 def manifest_files(folder: str | Path) -> set[str]:
-    """The files the manifest in ``folder`` lists (none without one). Only plain names in the
-    folder are taken (never a path out of it)."""
-    path = Path(folder) / MANIFEST_NAME
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        return set()
-    except (OSError, ValueError) as exc:
-        raise InputError(
-            f"{path}: heliostep's manifest cannot be read ({exc}); remove it to reuse the folder"
-        ) from None
-    names = record.get("files", []) if isinstance(record, dict) else []
-    return {n for n in names if isinstance(n, str) and _plain_name(n)}
+    """The files the manifest in ``folder`` lists (none without one), whether or not they are still heliostep's."""
+    return set(read_records(folder))
 
 
-def _plain_name(name: str) -> bool:
-    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\0" not in name
+def _owned(folder: Path) -> tuple[dict[str, FileRecord], list[str]]:
+    """The manifest's records of the files in ``folder`` still as heliostep wrote them, and the names of
+    those listed there that are not (changed, replaced, listed without a record: kept, never removed)."""
+    owned, changed = {}, []
+    for name, record in read_records(folder).items():
+        if is_ours(folder / name, record):
+            owned[name] = record
+        elif os.path.lexists(folder / name):
+            changed.append(name)
+    return owned, sorted(changed)
 
 
 def check_foreign(folder: str | Path, names: Iterable[str]) -> None:
     """Refuse (InputError) a folder holding a file named like one of ``names`` (those a run may
-    write) that its manifest does not list: heliostep did not write it and will not replace it."""
+    write) that heliostep did not write there: not listed in its manifest, or no longer of the size and
+    sha256 listed. heliostep replaces only its own files."""
     folder = Path(folder)
-    own = manifest_files(folder)
-    foreign = sorted(n for n in set(names) if n not in own and os.path.lexists(folder / n))
-    if foreign:
-        raise InputError(
-            f"--out {folder}: {', '.join(foreign)} {'is' if len(foreign) == 1 else 'are'} not listed in "
-            f"{MANIFEST_NAME} (heliostep did not write {'it' if len(foreign) == 1 else 'them'} and "
-            f"replaces only its own files); move {'it' if len(foreign) == 1 else 'them'} away or choose another --out"
+    _refuse_foreign(folder, names, *_owned(folder))
+
+
+def _refuse_foreign(folder: Path, names: Iterable[str], owned: dict[str, FileRecord], changed: list[str]) -> None:
+    """:func:`check_foreign` with the folder's own files and changed ones (:func:`_owned`) known."""
+    foreign = sorted(n for n in set(names) if n not in owned and os.path.lexists(folder / n))
+    if not foreign:
+        return
+    unlisted = [n for n in foreign if n not in changed]
+    why = []
+    if unlisted:
+        why.append(f"{', '.join(unlisted)} {'is' if len(unlisted) == 1 else 'are'} not listed in {MANIFEST_NAME}")
+    if len(unlisted) < len(foreign):
+        others = [n for n in foreign if n in changed]
+        why.append(
+            f"{', '.join(others)} {'is' if len(others) == 1 else 'are'} listed in {MANIFEST_NAME} but not "
+            "as heliostep wrote it (another size or sha256, or no record of them)"
+        )
+    one = len(foreign) == 1
+    raise InputError(
+        f"--out {folder}: {'; '.join(why)} (heliostep did not write {'it' if one else 'them'} and "
+        f"replaces only its own files); move {'it' if one else 'them'} away or choose another --out"
+    )
+
+
+def _warn_kept(folder: Path, names: list[str]) -> None:
+    """Say on stderr which listed files are kept: they are not (or no longer) the ones heliostep wrote."""
+    if names:
+        print(
+            f"heliostep: warning: --out {folder}: kept {', '.join(names)}: listed in {MANIFEST_NAME} but not as "
+            "heliostep wrote it (another size or sha256, or no record of it), so not heliostep's to remove",
+            file=sys.stderr,
         )
 
 
 def staging_folder(folder: str | Path) -> Path:
     """A new empty folder inside ``folder`` where a run's files are written before :func:`swap_in`."""
     return Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=folder))
-
-
-def _write_manifest(folder: Path, files: Iterable[str], state: str) -> None:
-    path = folder / MANIFEST_NAME
-    tmp = folder / f"{TMP_PREFIX}{os.getpid()}-manifest.json"
-    record = {"files": sorted(set(files)), "state": state, "pid": os.getpid()}
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(json.dumps(record, indent=1) + "\n")
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
 
 
 #: The signals a swap holds back (those that stop a command, :mod:`heliostep.cli.signals`).
@@ -290,29 +309,51 @@ def _stop_signals_blocked() -> Iterator[None]:
 
 
 def swap_in(folder: str | Path, staging: Path, names: Iterable[str], keep: Iterable[str] = ()) -> dict[str, Path]:
-    """Replace the earlier run's files in ``folder`` (its manifest's, but those in ``keep``) by
-    ``names`` from ``staging``: the old records removed first, the new ones renamed last, then
-    the manifest of what is there now; ``staging`` is removed. Returns name -> path in ``folder``."""
+    """Replace the earlier run's files in ``folder`` (those its manifest lists and that are still as written,
+    but those in ``keep``) by ``names`` from ``staging``: the old records removed first, the new ones renamed
+    last, then the manifest of what is there now (each file's size and sha256); ``staging`` is removed. A
+    listed file that is no longer as heliostep wrote it is kept and named on stderr. Returns name -> path."""
     folder, names, keep = Path(folder), list(dict.fromkeys(names)), set(keep)
-    old = manifest_files(folder) - keep
-    check_foreign(folder, names)
+    listed = read_records(folder)
+    owned, changed = _owned(folder)
+    _refuse_foreign(folder, names, owned, changed)
+    kept = {n: listed[n] for n in keep if n in listed}
+    old = {n: r for n, r in owned.items() if n not in keep}
+    new = {name: file_record(staging / name) for name in names}
+    for name in names:
+        refuse_link(folder / name)
+    _warn_kept(folder, [n for n in changed if n not in keep])
     order = sorted(names, key=lambda n: (n in RECORDS, RECORDS.index(n) if n in RECORDS else 0))
     with _stop_signals_blocked():
-        _write_manifest(folder, old | keep | set(names), "swapping")  # a SIGKILL from here: all of them are ours
-        for name in [n for n in RECORDS if n in old] + sorted(old - set(RECORDS) - set(names)):
+        write_manifest(folder, {**old, **kept, **new}, "swapping")  # a SIGKILL from here: all of them are ours
+        for name in [n for n in RECORDS if n in old] + sorted(set(old) - set(RECORDS) - set(names)):
             (folder / name).unlink(missing_ok=True)  # the old records first: nothing claims the old run
         for name in order:
             os.replace(staging / name, folder / name)
-        _write_manifest(folder, keep | set(names), "complete")
+        write_manifest(folder, {**kept, **new}, "complete")
     shutil.rmtree(staging, ignore_errors=True)
     return {name: folder / name for name in names}
 
 
-def claim(folder: str | Path, names: Iterable[str]) -> None:
-    """List ``names`` in ``folder``'s manifest before heliostep writes them in place (a file a
-    command updates as it goes, never swapped: a sweep's ``results.parquet``)."""
-    folder = Path(folder)
-    _write_manifest(folder, manifest_files(folder) | set(names), "complete")
+@contextmanager
+def claimed(folder: str | Path, names: Iterable[str]) -> Iterator[None]:
+    """``names`` listed in ``folder``'s manifest while heliostep writes them in place within the block (a
+    file a command updates as it goes, never swapped: a sweep's ``results.parquet``), then recorded with
+    their size and sha256 however the block ends (a kill within it leaves them listed without a record:
+    not provably heliostep's)."""
+    folder, names = Path(folder), list(names)
+    for name in names:
+        refuse_link(folder / name)
+    owned, _ = _owned(folder)
+    write_manifest(folder, {**read_records(folder), **{n: owned.get(n) for n in names}}, "complete")
+    try:
+        yield
+    finally:
+        records = read_records(folder)
+        for name in names:
+            present = os.path.isfile(folder / name) and not os.path.islink(folder / name)
+            records[name] = file_record(folder / name) if present else None
+        write_manifest(folder, records, "complete")
 
 
 @contextmanager

@@ -19,7 +19,7 @@ import pandas as pd
 
 from heliostep.results.figures.run_summary import RunMetadata, RunStatus, RunSummary, status_record, summary_record
 from heliostep.results.output.files import TMP_PREFIX, atomic_path, write_text_atomic
-from heliostep.results.output.folder import staging_folder, swap_in
+from heliostep.results.output.folder import staging_folder, swap_in, write_swapped
 from heliostep.results.trace.files import TraceWriter, copy_trace_to_csv, iter_trace_blocks, write_trace
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
     "write_joined_trace",
     "write_records",
     "write_run_records",
+    "write_stopped_records",
     "write_trace_csv",
 ]
 
@@ -169,8 +170,12 @@ def write_trace_csv(out_dir: Path, trace_file: Path, metadata: Mapping[str, str]
 
 
 def record_texts(summary: RunSummary | None, status: RunStatus, metadata: Mapping) -> dict[str, str]:
-    """The text of ``metadata.json`` (the status, then ``metadata``) and ``summary.json`` (:func:`summary_record`)."""
-    contents = ({**status_record(status), **metadata}, summary_record(summary, status, metadata.get("terminated")))
+    """The text of ``metadata.json`` (the status, then ``metadata``) and ``summary.json`` (:func:`summary_record`;
+    an incomplete run's also says the stage it reached, ``metadata``'s ``stage``, else ``simulating``)."""
+    summary_content = summary_record(summary, status, metadata.get("terminated"))
+    if not status.complete:
+        summary_content = {**summary_content, "stage": metadata.get("stage", "simulating")}
+    contents = ({**status_record(status), **metadata}, summary_content)
     return {name: json.dumps(content, indent=2, default=str) + "\n" for name, content in zip(RECORD_FILES, contents)}
 
 
@@ -178,6 +183,18 @@ def write_records(out_dir: Path, summary: RunSummary | None, status: RunStatus, 
     """``metadata.json`` and ``summary.json`` (:func:`record_texts`), each renamed into place."""
     texts = record_texts(summary, status, metadata)
     return {name: write_text_atomic(out_dir / name, text) for name, text in texts.items()}
+
+
+def write_stopped_records(out_dir: Path, error: str, stage: str) -> dict[str, Path]:
+    """``summary.json`` and ``metadata.json`` of a run stopped before it computed anything (``complete: false``,
+    reason interrupted, ``stage`` the one it reached), swapped into ``out_dir`` (the earlier run's files out): a
+    script finds a summary after any stop."""
+
+    def write(staging: Path) -> list[Path]:
+        status = RunStatus(False, error, "interrupted", None)
+        return list(write_records(staging, None, status, {"stage": stage}).values())
+
+    return write_swapped(out_dir, write)
 
 
 def write_joined_trace(

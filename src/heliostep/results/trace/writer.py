@@ -13,7 +13,13 @@ import numpy as np
 from heliostep.errors import InputError, RunFailure
 from heliostep.results.trace.format import TIME, check_parquet_keys, check_time, clean_metadata, trace_format
 
-__all__ = ["PARQUET_OPTIONS", "TRACE_ENCODING", "TraceWriteError", "TraceWriter"]
+__all__ = ["PARQUET_OPTIONS", "TRACE_ENCODING", "TraceWriteError", "TraceWriter", "arrow_path"]
+
+
+def arrow_path(path: str | Path) -> str:
+    """``path`` as pyarrow is to write it: absolute, so that pyarrow's own expansion of a leading ``~`` never
+    sends a file elsewhere than where heliostep made its folder (``~`` means $HOME only where --out is read)."""
+    return os.fspath(Path(path).absolute())
 
 
 class TraceWriteError(RunFailure):
@@ -93,7 +99,7 @@ class TraceWriter:
         # float64 split into its 8 byte planes (BYTE_STREAM_SPLIT), then zstd; against Parquet's
         # default dictionary encoding, which the continuous columns overflow, the row groups are
         # written faster and take less space (benchmarks/bench_trace_io.py)
-        self._writer = pq.ParquetWriter(self.path, self._schema, **PARQUET_OPTIONS)
+        self._writer = pq.ParquetWriter(arrow_path(self.path), self._schema, **PARQUET_OPTIONS)
         # the same row groups written nowhere: its footer is the one for the groups written so far
         self._shadow_sink = _ByteCounter()
         self._shadow = pq.ParquetWriter(self._shadow_sink, self._schema, **PARQUET_OPTIONS) if keep_on_failure else None
