@@ -192,7 +192,7 @@ def load_catalogue(path: str | Path | None = None, names: Sequence[str] = ()) ->
         raise InputError(f"{source}: motors: expected a mapping of motor name -> datasheet values")
     unknown = [name for name in names if name not in motors]
     if unknown:
-        near = sorted({match for name in unknown for match in close_names(str(name), list(map(str, motors)))})
+        near = list(dict.fromkeys(m for name in unknown for m in close_names(str(name), list(map(str, motors)))))
         hint = f" (close: {', '.join(near)})" if near else ""
         raise InputError(
             f"{source}: unknown motor(s) {', '.join(map(repr, unknown))}{hint}; the catalogue has: {', '.join(motors)}"
@@ -211,9 +211,8 @@ def _candidate(source: Path, name: str, entry) -> MotorCandidate:
         raise InputError(f"{where}.{missing[0]}: missing (every entry needs {', '.join(REQUIRED_KEYS)})")
     extra = sorted(set(map(str, entry)) - set(REQUIRED_KEYS) - set(OPTIONAL_KEYS))
     if extra:
-        raise InputError(
-            f"{where}.{extra[0]}: unknown key; expected {', '.join(REQUIRED_KEYS)} (optional: {', '.join(OPTIONAL_KEYS)})"
-        )
+        expected = f"{', '.join(REQUIRED_KEYS)} (optional: {', '.join(OPTIONAL_KEYS)})"
+        raise InputError(f"{where}.{extra[0]}: unknown key; expected {expected}")
     values: dict = {}
     given = {**REQUIRED_KEYS, **{key: unit for key, unit in OPTIONAL_KEYS.items() if entry.get(key) is not None}}
     for key, unit in given.items():
