@@ -28,6 +28,7 @@ COMMANDS = {
     "regress": "heliostep.cli.regress",
     "sweep": "heliostep.cli.sweep",
     "size": "heliostep.cli.size",
+    "motors": "heliostep.cli.motors",
     "field-light": "heliostep.cli.fieldlight",
     "export-ssp": "heliostep.cli.export_ssp",
 }

@@ -70,6 +70,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="KEY=VALUE",
         help="override a scenario key, e.g. --set fmus.motor=StepperMotorIdealCurrent",
     )
+    parser.add_argument(
+        "--motor",
+        metavar="NAME",
+        help="a catalogue motor by name (heliostep motors lists them): its R, L, k_e, N_c, bus, T_d, rotor inertia "
+        "and step angle set on the scenario (as heliostep size sets a candidate), before --set; recorded in "
+        "metadata.json's motor",
+    )
+    parser.add_argument(
+        "--current",
+        type=float,
+        metavar="A",
+        help="the phase current [A] (sequencer.current), with or without --motor (default: the scenario's)",
+    )
+    parser.add_argument(
+        "--catalogue",
+        type=Path,
+        default=None,
+        help="--motor's catalogue (default heliostep/data/motors.yaml)",
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument(
         "--max-memory",
@@ -127,7 +146,8 @@ def _positive_seconds(text: str) -> float:
 def _run_command(args: argparse.Namespace) -> int:
     with stop_requests() as stop:
         out_name = check_out_name(args.out) if args.out is not None else None  # "" refused before anything
-        scenario = load_scenario(args.scenario, [*args.overrides, *_budget_overrides(args)])
+        motor, motor_items = _catalogue_motor(args)
+        scenario = load_scenario(args.scenario, [*motor_items, *args.overrides, *_budget_overrides(args)])
         # the estimate first: a run too large for the budget is exit 2 before any work
         check_budget(scenario, estimate_run(scenario, HELD_TRACE_MAX_DURATION, csv=args.csv))
         out_dir = out_name or Path("out") / scenario.name
@@ -135,7 +155,21 @@ def _run_command(args: argparse.Namespace) -> int:
         band = prepare_band(args, scenario, fmu_paths)  # --band's design and keys checked before any run
         # the folder's lock, for the run's life; a folder made here and left empty by bad input is removed
         with owned_folder(out_dir, run_file_names(plots=not args.no_plots, csv=args.csv is not False)):
-            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band)
+            return _run_in_folder(args, scenario, out_dir, fmu_paths, stop, band, motor)
+
+
+def _catalogue_motor(args: argparse.Namespace) -> tuple[dict | None, list[str]]:
+    """--motor's catalogue entry (its record for metadata.json, or None) and the ``--set`` items of --motor and
+    --current (:func:`heliostep.scenario.catalogue.motor_overrides`: the items ``heliostep size`` sets)."""
+    current = [] if args.current is None else [f"sequencer.current={args.current!r}"]
+    if args.motor is None:
+        return None, current
+    from heliostep.scenario.catalogue import load_catalogue, motor_overrides, shipped_catalogue_path
+
+    (candidate,) = load_catalogue(args.catalogue, [args.motor])  # unknown: exit 2 naming it and close names
+    base = load_scenario(args.scenario, args.overrides)  # which instances play the motor and the mechanics
+    record = {**candidate.record(), "catalogue": str(args.catalogue or shipped_catalogue_path())}
+    return {**record, "current_A": args.current}, [*motor_overrides(base, candidate), *current]
 
 
 def _budget_overrides(args: argparse.Namespace) -> list[str]:
@@ -144,8 +178,11 @@ def _budget_overrides(args: argparse.Namespace) -> list[str]:
     return [f"{key}={value!r}" for key, value in given if value is not None]
 
 
-def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None) -> int:
-    """The run simulated and written into ``out_dir`` (whose lock is held), then its --band."""
+def _run_in_folder(
+    args: argparse.Namespace, scenario, out_dir: Path, fmu_paths, stop, band=None, motor: dict | None = None
+) -> int:
+    """The run simulated and written into ``out_dir`` (whose lock is held), then its --band; ``motor``: the
+    catalogue entry of --motor, recorded in its metadata."""
     if stop.is_set():
         print(f"heliostep run: stopped by {stop.name} before simulating", file=sys.stderr)
         return _write_stopped(out_dir, stop, "starting", "before simulating")
@@ -178,6 +215,8 @@ def _run_in_folder(args: argparse.Namespace, scenario, out_dir: Path, fmu_paths,
     except OSError as exc:  # the streamed trace could not be written
         print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
         return 1
+    if motor is not None:
+        result.metadata["motor"] = motor
     _warn(result)
     failure_status = _write_results(args, result, out_dir, stop, status)
     if failure_status is not None:

@@ -17,8 +17,12 @@ __all__ = [
     "DEFAULT_CURRENT_GAIN",
     "REQUIRED_KEYS",
     "MotorCandidate",
+    "OPTIONAL_KEYS",
     "MotorDrive",
+    "close_names",
     "load_catalogue",
+    "motor_overrides",
+    "role_instance",
     "shipped_catalogue_path",
 ]
 
@@ -38,11 +42,15 @@ REQUIRED_KEYS: dict[str, str] = {
     "currents": "A",
 }
 
+#: Keys an entry may have, with their unit: the frame (e.g. ``NEMA 17``, where the datasheet names it) and the
+#: datasheet's test voltage (the supply of its speed-torque curves, where it gives one).
+OPTIONAL_KEYS: dict[str, str] = {"frame": "", "test_voltage": "V"}
+
 #: The averaged chopper's loop gain K [V/A] the catalogue's drives run with (the motor FMU's default,
 #: docs/physics.md, the driver).
 DEFAULT_CURRENT_GAIN = 100.0
 
-_TEXT_KEYS = ("manufacturer", "model", "datasheet")
+_TEXT_KEYS = ("manufacturer", "model", "datasheet", "frame")
 
 
 @dataclass(frozen=True)
@@ -121,6 +129,8 @@ class MotorCandidate:
     step_angle: float  # [deg]
     bus_voltage: float  # [V]
     currents: tuple[float, ...]  # [A]
+    frame: str | None = None  # e.g. "NEMA 17", where the datasheet names it
+    test_voltage: float | None = None  # [V] the datasheet's speed-torque curves' supply, where it gives one
 
     @property
     def torque_constant(self) -> float:
@@ -156,6 +166,8 @@ class MotorCandidate:
             "bus_voltage_V": self.bus_voltage,
             "currents_A": list(self.currents),
             "torque_constant_NmA": self.torque_constant,
+            "frame": self.frame,
+            "test_voltage_V": self.test_voltage,
         }
 
 
@@ -180,8 +192,10 @@ def load_catalogue(path: str | Path | None = None, names: Sequence[str] = ()) ->
         raise InputError(f"{source}: motors: expected a mapping of motor name -> datasheet values")
     unknown = [name for name in names if name not in motors]
     if unknown:
+        near = list(dict.fromkeys(m for name in unknown for m in close_names(str(name), list(map(str, motors)))))
+        hint = f" (close: {', '.join(near)})" if near else ""
         raise InputError(
-            f"{source}: unknown candidate(s) {', '.join(map(repr, unknown))}; the catalogue has: {', '.join(motors)}"
+            f"{source}: unknown motor(s) {', '.join(map(repr, unknown))}{hint}; the catalogue has: {', '.join(motors)}"
         )
     chosen = list(names) if names else list(motors)
     return [_candidate(source, str(name), motors[name]) for name in chosen]
@@ -195,11 +209,13 @@ def _candidate(source: Path, name: str, entry) -> MotorCandidate:
     missing = [key for key in REQUIRED_KEYS if key not in entry or entry[key] is None]
     if missing:
         raise InputError(f"{where}.{missing[0]}: missing (every entry needs {', '.join(REQUIRED_KEYS)})")
-    extra = sorted(set(map(str, entry)) - set(REQUIRED_KEYS))
+    extra = sorted(set(map(str, entry)) - set(REQUIRED_KEYS) - set(OPTIONAL_KEYS))
     if extra:
-        raise InputError(f"{where}.{extra[0]}: unknown key; expected {', '.join(REQUIRED_KEYS)}")
+        expected = f"{', '.join(REQUIRED_KEYS)} (optional: {', '.join(OPTIONAL_KEYS)})"
+        raise InputError(f"{where}.{extra[0]}: unknown key; expected {expected}")
     values: dict = {}
-    for key, unit in REQUIRED_KEYS.items():
+    given = {**REQUIRED_KEYS, **{key: unit for key, unit in OPTIONAL_KEYS.items() if entry.get(key) is not None}}
+    for key, unit in given.items():
         value = entry[key]
         if key in _TEXT_KEYS:
             if not isinstance(value, str) or not value.strip():
@@ -227,3 +243,35 @@ def _currents(where: str, value) -> tuple[float, ...]:
     if any(b <= a for a, b in zip(currents, currents[1:])):
         raise InputError(f"{where}: expected rising currents [A], got {list(currents)}")
     return currents
+
+
+def close_names(name: str, names: Sequence[str]) -> list[str]:
+    """The names in ``names`` close to ``name`` (a mistyped catalogue name's suggestions): those that contain
+    it or that it contains, case aside, and those :func:`difflib.get_close_matches` finds."""
+    import difflib
+
+    low = name.lower()
+    contained = [n for n in names if low and (low in n.lower() or n.lower() in low)]
+    return list(dict.fromkeys([*contained, *difflib.get_close_matches(name, names, n=5, cutoff=0.5)]))
+
+
+def role_instance(scenario, role: str, default: str) -> str:
+    """The FMU instance that plays ``role`` in ``scenario`` (``default`` when no role names one)."""
+    target = scenario.resolved_roles().get(role)
+    return target.partition(".")[0] if target else default
+
+
+def motor_overrides(scenario, candidate: MotorCandidate) -> tuple[str, ...]:
+    """A catalogue entry's drive as ``--set`` items on ``scenario``: the motor FMU's parameters
+    (:meth:`MotorDrive.motor_parameters`: R, L, k_e, N_c, V_supply, K_current, T_d) on the instance playing the
+    ``torque`` role, the rotor inertia J_m on the one playing ``wind_moment`` (the mechanics) and the
+    sequencer's full-step angle. ``heliostep size`` (each case, with its current) and ``heliostep run --motor``
+    apply the same items. The current is not set here."""
+    motor, mechanics = role_instance(scenario, "torque", "motor"), role_instance(scenario, "wind_moment", "mechanics")
+    drive = candidate.drive()
+    values = [f"parameters.{motor}.{name}={value!r}" for name, value in drive.motor_parameters().items()]
+    return (
+        *values,
+        f"parameters.{mechanics}.J_m={drive.rotor_inertia!r}",
+        f"sequencer.step_angle={candidate.step_angle!r}",
+    )

@@ -23,7 +23,7 @@ from heliostep.errors import InputError
 from heliostep.run import RunFailed, RunOptions, resolve_fmus, run_scenario
 from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
 from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
-from heliostep.scenario.catalogue import MotorCandidate
+from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_instance
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
@@ -73,8 +73,7 @@ def _speed_source(scenario: Scenario) -> str:
 
 
 def _instance(scenario: Scenario, role: str, default: str) -> str:
-    target = scenario.resolved_roles().get(role)
-    return target.partition(".")[0] if target else default
+    return role_instance(scenario, role, default)
 
 
 def _case_overrides(
@@ -82,14 +81,9 @@ def _case_overrides(
 ) -> tuple[str, ...]:
     """A case's ``--set`` items; ``wind``: the design moment [N.m], which replaces the scenario's wind
     speed source (if any), or None: the scenario's wind over time as it is."""
-    motor, mechanics = _instance(scenario, "torque", "motor"), _instance(scenario, "wind_moment", "mechanics")
-    drive = candidate.drive()
-    values = [f"parameters.{motor}.{name}={value!r}" for name, value in drive.motor_parameters().items()]
     return (
-        *values,
-        f"parameters.{mechanics}.J_m={drive.rotor_inertia!r}",
+        *motor_overrides(scenario, candidate),  # the same items as heliostep run --motor
         f"sequencer.current={current!r}",
-        f"sequencer.step_angle={candidate.step_angle!r}",
         f"window.date={day.isoformat()}",
         *(() if wind is None else _design_wind(scenario, wind)),
     )

@@ -189,3 +189,4 @@ class RunMetadata(TypedDict, total=False):
     statistics: dict[str, Any]  # the master's counters, wall time, memory
     terminated: dict[str, Any]  # an FMU asked to stop: by whom, when [s]
     solution_figures: dict[str, Any]  # results.solution.SolutionRecorder.figures
+    motor: dict[str, Any]  # heliostep run --motor: the catalogue entry (MotorCandidate.record), catalogue, current
