@@ -10,7 +10,8 @@ monitor). The child says ``("started", None)``, simulates it (its monitor, a
 :meth:`~SupervisedMonitor.totals` after them (so a crash keeps the figures of the rows sent), and
 ``("progress", t)``, keeping the rows computed and not yet sent in a journal its supervisor maps
 (:mod:`heliostep.run.supervision.journal`) and reads when the child dies; it ends with exactly one
-of ``("done", MasterResult)``, ``("failed", SimulationError's fields)``, ``("input", message)`` or ``("error", traceback)``. Only the supervisor
+of ``("done", MasterResult)``, ``("failed", SimulationError's fields)``, ``("input", message)`` or
+``("error", traceback)``. Only the supervisor
 decides that a run succeeded: a child that ends without saying ``done`` (a crash, an FMU calling
 ``exit``) has failed, whatever its exit status. The supervisor reports a crash itself, so the child
 prints no fault dump of its own (:mod:`faulthandler` off).
