@@ -26,7 +26,6 @@ import pytest
 
 from heliostep.results.trace.files import read_trace
 from heliostep.run import RunFailed, RunOptions, run_scenario
-from heliostep.run.supervision.child import MAX_ROWS_LOST
 from third_party_fmu import build_mini_fmu
 
 CLI = "from heliostep.cli import console_main; console_main()"
@@ -123,10 +122,9 @@ def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so
     trace, meta = read_trace(out / "trace.parquet")
     assert meta["complete"] == "false" and meta["reason"] == reason
     reached = float(trace["time"].iloc[-1])
-    assert summary["time_reached_s"] == pytest.approx(reached)
-    # the rows computed before the fault are kept, but for fewer than MAX_ROWS_LOST (the child's kernel
-    # block not handed over and its outbox not sent)
-    assert _rows_computed(complete_trace, called_at) - MAX_ROWS_LOST < len(trace) and reached < T_FAULT
+    assert summary["time_reached_s"] == pytest.approx(called_at)  # the FMU's last time
+    # every row computed before the fault is kept (those sent, and those the child's journal held)
+    assert _rows_computed(complete_trace, called_at) <= len(trace) and reached < T_FAULT
     # first principles: der(x) = 1 from x(0) = 0, so x is the time
     np.testing.assert_allclose(trace["faulty.x"], trace["time"], rtol=0, atol=1e-6)
     # and the rows are those of the run without a fault, up to where it stopped
@@ -136,6 +134,34 @@ def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so
     assert (out / NOT_OURS).read_text() == "the user's"
     assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
     assert sorted(p.name for p in private.iterdir()) == []  # no unpacked FMU, no partial trace
+
+
+EARLY = 5.0  # [s] of the 300 s window: before the child's first message
+
+
+@pytest.mark.parametrize("fault", [1, 2, 3, 4])
+def test_a_crash_before_the_childs_first_message_keeps_every_row_and_the_fmus_time(
+    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths
+):
+    out, private = tmp_path / "out", tmp_path / "tmp"
+    process = _start(_scenario(tmp_path, faulty_fmu, fault, t_fault=EARLY), out, private)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 1, stderr[-3000:]
+    assert "Traceback" not in stderr
+    ended, reason = FAULTS[fault]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False and summary["reason"] == reason and ended in summary["error"]
+    assert EARLY <= summary["time_reached_s"] < EARLY + 1.0  # the FMU's time in the failing call (max_step 1 s)
+    assert f"(model Faulty) at t = {summary['time_reached_s']:.9g} s" in summary["error"]
+    trace, meta = read_trace(out / "trace.parquet")
+    assert meta["complete"] == "false" and meta["reason"] == reason
+    assert _rows_computed(complete_trace, summary["time_reached_s"]) <= len(trace) and trace["time"].iloc[-1] < EARLY
+    expected = complete_trace.iloc[: len(trace)]
+    for column in ("time", "motor.i_a", "mechanics.theta_p", "faulty.x"):
+        np.testing.assert_array_equal(trace[column].to_numpy(), expected[column].to_numpy())
+    assert summary["rows"] == len(trace) and summary["figures_from"] == "solution"
+    assert f"the trace keeps the rows up to t = {trace['time'].iloc[-1]:.9g} s" in summary["error"]
+    assert sorted(p.name for p in private.iterdir()) == []
 
 
 @pytest.mark.parametrize("fault", [1, 5])
@@ -174,9 +200,8 @@ def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(faulty_fmu, comp
     stuck = "did not stop within 1 s in fmi2GetDerivatives of FMU instance 'faulty' (model Faulty) at t = 15"
     assert stuck in summary["error"]
     trace, _ = read_trace(out / "trace.parquet")
-    # the rows computed before the FMU hung are kept but for fewer than MAX_ROWS_LOST; it hung at the
-    # first evaluation past t = 150 s
-    assert _rows_computed(complete_trace, 150.0) - MAX_ROWS_LOST < len(trace) and trace["time"].iloc[-1] < 150.0
+    # every row computed before the FMU hung is kept; it hung at the first evaluation past t = 150 s
+    assert _rows_computed(complete_trace, 150.0) <= len(trace) and trace["time"].iloc[-1] < 150.0
     np.testing.assert_array_equal(trace["time"].to_numpy(), complete_trace["time"].to_numpy()[: len(trace)])
     assert sorted(p.name for p in private.iterdir()) == []
 

@@ -8,7 +8,6 @@ exporting the kind's functions) and returns an :class:`FMUInfo` with every varia
 from __future__ import annotations
 
 import atexit
-import ctypes
 import shutil
 import tempfile
 import zipfile
@@ -16,6 +15,7 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from heliostep.cosim.elf import NotASharedObject, read_shared_object
 from heliostep.cosim.fmi3_types import integer_range
 from heliostep.cosim.kinds import Kind, kind_of, versions
 from heliostep.errors import InputError
@@ -208,7 +208,8 @@ def _parse_start(type_: str, start) -> float | str | None:
 
 
 def check_binary(path: Path, model_identifier: str, kind: Kind, platform: str | None = None) -> None:
-    """The FMU must have a binary for this platform that loads and exports ``kind``'s required functions.
+    """The FMU must have a binary for this platform, a shared object for this machine that exports ``kind``'s
+    required functions (read from the file: loading it would run its code in this process).
 
     Refused with :class:`InputError` naming the ``.fmu`` file and the platform (never the
     temporary folder it is unpacked to).
@@ -228,18 +229,14 @@ def check_binary(path: Path, model_identifier: str, kind: Kind, platform: str | 
             f"{path}: no binary for this platform ({platform}): {member} is missing; "
             f"the FMU has binaries for: {', '.join(available) or 'no platform'}"
         )
+    if not member.endswith(".so"):  # not an ELF file: read when the supervised child loads it
+        return
     library = Path(_extract(path)) / member
-    try:
-        dll = ctypes.CDLL(str(library))
-    except OSError as exc:
-        reason = str(exc).replace(str(library), member)
-        raise InputError(f"{path}: the binary for {platform} ({member}) does not load: {reason}") from None
-    try:
-        missing = [name for name in kind.required_functions if not hasattr(dll, name)]
-    finally:  # unload again: instances must start from a freshly loaded library
-        import _ctypes
-
-        _ctypes.dlclose(dll._handle)
+    try:  # read, never loaded here: its code (constructors too) runs in the supervised child only
+        exported = read_shared_object(library)
+    except NotASharedObject as exc:
+        raise InputError(f"{path}: the binary for {platform} ({member}) does not load: it is {exc}") from None
+    missing = [name for name in kind.required_functions if name not in exported]
     if missing:
         raise InputError(
             f"{path}: the binary for {platform} ({member}) lacks the FMI {kind.version} {kind.interface} function(s) "

@@ -209,6 +209,30 @@ KernelLoop = tuple["LoopSolver", Sequence[tuple[int, int, int, int]], int]
 AdvanceOutcome = tuple[int, float, int, int]
 
 
+def block_bytes(row_width: int) -> int:
+    """Bytes of a kernel's block of rows placed in a buffer (:attr:`Kernel.block_buffer`): the
+    arguments of :c:func:`hs_advance` (their count of rows recorded), the rows' kinds, the rows."""
+    return ctypes.sizeof(AdvanceArgs) + 8 * Kernel.ROWS_PER_BLOCK * (1 + row_width)
+
+
+def place_block(buffer: memoryview, row_width: int) -> tuple[AdvanceArgs, np.ndarray, np.ndarray]:
+    """The arguments, the kinds and the (column-major) rows of a kernel's block, in ``buffer``."""
+    if len(buffer) < block_bytes(row_width):
+        raise ValueError(f"a block of rows {row_width} wide needs {block_bytes(row_width)} bytes, not {len(buffer)}")
+    capacity, offset = Kernel.ROWS_PER_BLOCK, ctypes.sizeof(AdvanceArgs)
+    kinds = np.ndarray((capacity,), np.int64, buffer, offset)
+    rows = np.ndarray((row_width, capacity), float, buffer, offset + 8 * capacity)
+    return AdvanceArgs.from_buffer(buffer), kinds, rows
+
+
+def rows_not_handed_over(buffer: memoryview, row_width: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rows (copies, one a row) and their kinds that a kernel recorded in the block in ``buffer``
+    (:attr:`Kernel.block_buffer`) and did not hand over: read by another process after its death."""
+    args, kinds, rows = place_block(buffer, row_width)
+    n = min(max(int(args.n_rows), 0), Kernel.ROWS_PER_BLOCK)
+    return rows[:, :n].T.copy(), kinds[:n].copy()
+
+
 class Kernel:
     """The C structures for one run: FMU handles and function pointers, connections, error record.
 
@@ -224,9 +248,12 @@ class Kernel:
     #: Rows one call of :c:func:`hs_advance` records before it hands them over.
     ROWS_PER_BLOCK = 4096
     #: Rows at output times (the trace's) one call records before it hands them over: fewer in a
-    #: supervised child (:data:`heliostep.run.supervision.child.BLOCK_ROWS`), whose crash loses the rows
-    #: not handed over.
+    #: supervised child (:data:`heliostep.run.supervision.child.BLOCK_ROWS`), which streams them as it goes.
     OUTPUTS_PER_BLOCK = 4096
+    #: Where the next kernels keep their block of rows and its count (:func:`place_block`): a writable
+    #: buffer of :func:`block_bytes` bytes that another process can read after this one died (a
+    #: supervised child's, :mod:`heliostep.run.supervision.journal`), or None for memory of their own.
+    block_buffer: memoryview | None = None
 
     def __init__(
         self,
@@ -276,8 +303,12 @@ class Kernel:
         self.loop_state = LoopState()
         if loop is not None:
             self._fill_loop(*loop)
-        self.rows = np.zeros((row_width, self.ROWS_PER_BLOCK))  # column-major (kernel.h): its transpose the rows
-        self.kinds = np.zeros(self.ROWS_PER_BLOCK, dtype=np.int64)
+        if Kernel.block_buffer is None:
+            self.args = AdvanceArgs()
+            self.rows = np.zeros((row_width, self.ROWS_PER_BLOCK))  # column-major (kernel.h): its transpose the rows
+            self.kinds = np.zeros(self.ROWS_PER_BLOCK, dtype=np.int64)
+        else:
+            self.args, self.kinds, self.rows = place_block(Kernel.block_buffer, row_width)
         self.user_data = ctypes.cast(ctypes.pointer(self.state), ctypes.c_void_p)
         self._library = library()
         self.rhs = sundials.function_address(self._library, "hs_rhs")
@@ -367,29 +398,22 @@ class Kernel:
         :meth:`take_error`.
         """
         grid = np.ascontiguousarray(grid, dtype=float)
-        args = AdvanceArgs(
-            cvode_mem=cvode_mem,
-            y=y,
-            dky=dky,
-            t_stop=t_stop,
-            grid=grid.ctypes.data,
-            n_grid=len(grid),
-            interpolate=int(interpolate),
-            rows=self.rows.ctypes.data,
-            kinds=self.kinds.ctypes.data,
-            capacity=self.ROWS_PER_BLOCK,
-            max_steps=max_steps,
-            max_outputs=max(1, self.OUTPUTS_PER_BLOCK),
-            next_output=next_output,
-            t_reached=np.nan,
-        )
+        args = self.args
+        args.cvode_mem, args.y, args.dky, args.t_stop = cvode_mem, y, dky, t_stop
+        args.grid, args.n_grid, args.interpolate = grid.ctypes.data, len(grid), int(interpolate)
+        args.rows, args.kinds, args.capacity = self.rows.ctypes.data, self.kinds.ctypes.data, self.ROWS_PER_BLOCK
+        args.max_steps, args.max_outputs = max_steps, max(1, self.OUTPUTS_PER_BLOCK)
+        args.next_output, args.steps, args.t_reached, args.cvode_flag = next_output, 0, np.nan, 0
         while True:
             args.n_rows = 0
             status = self._library.hs_advance(self.user_data, ctypes.byref(args))
             for fmu in self.instances:
                 fmu.time = args.t_reached
-            if args.n_rows:
-                take_rows(self.rows[:, : args.n_rows].T, self.kinds[: args.n_rows])
+            try:
+                if args.n_rows:
+                    take_rows(self.rows[:, : args.n_rows].T, self.kinds[: args.n_rows])
+            finally:
+                args.n_rows = 0  # handed over: what the block holds now is none of them
             if status != ADVANCE_FULL:
                 return status, float(args.t_reached), int(args.next_output), int(args.cvode_flag)
 

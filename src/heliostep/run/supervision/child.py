@@ -8,8 +8,10 @@ monitor). The child says ``("started", None)``, simulates it (its monitor, a
 :class:`SupervisedMonitor`, takes every solution row here) and streams, as it goes,
 ``("blocks", ([block, ...], totals))``: the trace rows for the supervisor's row sink and the monitor's
 :meth:`~SupervisedMonitor.totals` after them (so a crash keeps the figures of the rows sent), and
-``("progress", t)``; it ends with exactly one of ``("done", MasterResult)``, ``("failed",
-SimulationError's fields)``, ``("input", message)`` or ``("error", traceback)``. Only the supervisor
+``("progress", t)``, keeping the rows computed and not yet sent in a journal its supervisor maps
+(:mod:`heliostep.run.supervision.journal`) and reads when the child dies; it ends with exactly one
+of ``("done", MasterResult)``, ``("failed", SimulationError's fields)``, ``("input", message)`` or
+``("error", traceback)``. Only the supervisor
 decides that a run succeeded: a child that ends without saying ``done`` (a crash, an FMU calling
 ``exit``) has failed, whatever its exit status. The supervisor reports a crash itself, so the child
 prints no fault dump of its own (:mod:`faulthandler` off).
@@ -51,10 +53,10 @@ from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.signals import SolverOptions
 from heliostep.errors import InputError
 from heliostep.run.supervision.allocator import restore_dynamic_heap
+from heliostep.run.supervision.journal import Journal
 
 __all__ = [
     "BLOCK_ROWS",
-    "MAX_ROWS_LOST",
     "PARENT_POLL",
     "PROGRESS_INTERVAL",
     "SEND_INTERVAL",
@@ -84,13 +86,9 @@ SEND_INTERVAL = 0.05
 #: The child's kernel hands its rows to the master once it holds this many trace rows (rows at
 #: output times, ``Kernel.OUTPUTS_PER_BLOCK``; the rows of internal steps, for the monitor only, in
 #: the kernel's full blocks), and its outbox sends them once it holds this many (or after
-#: :data:`SEND_INTERVAL`): the rows a crash or a hang of an FMU loses are those of the kernel's
-#: block not yet handed over and those of the outbox not yet sent, fewer than :data:`MAX_ROWS_LOST`.
+#: :data:`SEND_INTERVAL`), so the supervisor's trace follows the run closely. A crash or a hang of an
+#: FMU loses none of them: those not yet sent are in the journal.
 BLOCK_ROWS = 128
-
-#: The most trace rows a supervised run loses when its child crashes, hangs or is killed (the
-#: rows computed before are in the supervisor; tests/run/test_supervised.py holds it to this).
-MAX_ROWS_LOST = 2 * BLOCK_ROWS
 
 
 class SupervisedMonitor(SolutionMonitor, Protocol):
@@ -108,23 +106,37 @@ class SupervisedMonitor(SolutionMonitor, Protocol):
 
 class _Outbox:
     """The master's trace row blocks, in order, sent together with the monitor's totals as
-    ``("blocks", ([block, ...], totals))``."""
+    ``("blocks", ([block, ...], totals))``; until sent, they and the rows the monitor took are
+    kept in the journal too."""
 
-    def __init__(self, connection: Connection, monitor: SupervisedMonitor | None):
-        self.connection, self.monitor = connection, monitor
+    def __init__(self, connection: Connection, monitor: SupervisedMonitor | None, journal: Journal):
+        self.connection, self.monitor, self.journal = connection, monitor, journal
         self.items: list[np.ndarray] = []
         self.trace_rows = 0  # trace rows among the items
         self.sent = clock.monotonic()
 
     def add(self, block: np.ndarray) -> None:
-        self.items.append(np.array(block, dtype=float))  # a copy: the master reuses its buffers
+        """Trace rows of the master's (its sink)."""
+        block = np.array(block, dtype=float)  # a copy: the master reuses its buffers
+        self.items.append(block)
         self.trace_rows += len(block)
-        if self.trace_rows >= BLOCK_ROWS or clock.monotonic() - self.sent >= SEND_INTERVAL:
+        kept = self.journal.keep_trace(block)
+        if not kept or self.trace_rows >= BLOCK_ROWS or clock.monotonic() - self.sent >= SEND_INTERVAL:
+            self.flush()
+
+    def show(self, rows: np.ndarray) -> None:
+        """Solution rows for the monitor (the master's monitor): kept, then taken (or taken and sent at once)."""
+        assert self.monitor is not None
+        if self.journal.keep_solution(rows):
+            self.monitor(rows)
+        else:  # no room: the monitor's totals carry them now
+            self.monitor(rows)
             self.flush()
 
     def flush(self) -> None:
         totals = self.monitor.totals() if self.monitor is not None else None
         self.connection.send(("blocks", (self.items, totals)))
+        self.journal.sent()
         self.items, self.trace_rows = [], 0
         self.sent = clock.monotonic()
 
@@ -145,13 +157,15 @@ class Request:
     progress: bool = False
 
 
-def run(connection: Connection, record: str, tmpdir: str | None = None, supervisor: int | None = None) -> int:
+def run(
+    connection: Connection, record: str, journal: str, tmpdir: str | None = None, supervisor: int | None = None
+) -> int:
     """Serve one request read from ``connection`` (:func:`serve`; a child started by multiprocessing's fork
     server for the process ``supervisor``).
     A supervisor gone (its end of the socket closed: e.g. a Dask worker closed with its cluster) ends
     the run with one line on stderr and exit status 1: there is no one left to stream to."""
     try:
-        return serve(connection, record, None, tmpdir, supervisor)
+        return serve(connection, record, journal, None, tmpdir, supervisor)
     except (BrokenPipeError, ConnectionResetError, EOFError) as exc:
         why = getattr(exc, "strerror", None) or "connection closed"
         print(f"heliostep: a supervised run ends: its supervisor is gone ({why})", file=sys.stderr)
@@ -161,12 +175,14 @@ def run(connection: Connection, record: str, tmpdir: str | None = None, supervis
 def serve(
     connection: Connection,
     record: str,
+    journal: str,
     request: Request | None = None,
     tmpdir: str | None = None,
     supervisor: int | None = None,
 ) -> int:
     """Simulate ``request`` (or the one read from ``connection``) and stream it on ``connection``,
-    noting FMU calls in the file ``record``; ``tmpdir``: the temporary folder to use; ``supervisor``:
+    noting FMU calls in the file ``record`` and keeping the rows not yet sent in the file ``journal``
+    (:class:`~heliostep.run.supervision.journal.Journal`); ``tmpdir``: the temporary folder to use; ``supervisor``:
     the supervising process where it is not this one's parent. Returns the exit status."""
     faulthandler.disable()  # a crash in an FMU is the supervisor's to report, without a dump here
     for number in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
@@ -180,12 +196,14 @@ def serve(
     if supervisor is not None and supervisor != parent:
         die_with_process(supervisor)
     watch.attach(record)
+    rows = Journal(journal)
+    Kernel.block_buffer = rows.kernel_block  # the kernel's rows not yet handed over, readable after a crash
     RowBuffer.flush_interval = 0.0  # every block the master stores goes out (in the outbox)
     Kernel.OUTPUTS_PER_BLOCK = BLOCK_ROWS  # and the kernel hands its trace rows over in small blocks
     if request is None:
         request = pickle.loads(connection.recv_bytes())
     connection.send(("started", None))
-    outbox = _Outbox(connection, request.monitor)
+    outbox = _Outbox(connection, request.monitor, rows)
     try:
         result = _simulate(request, outbox, parent)
         result.statistics["peak_rss_mb_child"] = _peak_rss_mb()
@@ -281,7 +299,7 @@ def _simulate(request: Request, outbox: _Outbox, supervisor: int):
         request.output_times,
         request.solver,
         progress=progress if request.progress else None,
-        monitor=request.monitor,
+        monitor=outbox.show if request.monitor is not None else None,
         should_stop=should_stop,
         sink=outbox.add if request.sink else None,
         sink_rows=request.sink_rows,

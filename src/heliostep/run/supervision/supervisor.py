@@ -15,8 +15,10 @@ even ``exit(0)``: only the child's explicit ``done`` is a success), the supervis
 call), it kills the child and raises :class:`FMUHung`. Both are
 :class:`~heliostep.cosim.master.SimulationError` with ``reason`` ``"fmu-crashed"`` /
 ``"fmu-hung"`` and name the FMU instance, its model and the FMI call it was in, read from the
-call record the child keeps in a file both processes map (:mod:`heliostep.cosim.watch`). The
-rows received until then are in the sink: the run keeps its trace so far, marked.
+call record the child keeps in a file both processes map (:mod:`heliostep.cosim.watch`), and carry
+the FMU's time then. Every row the child computed is in the sink and shown to the monitor: those
+received, then those its journal (:mod:`heliostep.run.supervision.journal`) kept unsent: the run keeps
+its trace and figures so far, marked.
 
 A stop request (``should_stop``) is passed to the child, which stops at its next safe point;
 a child that does not stop within :data:`STOP_GRACE` (an FMU stuck in a call) is killed, and the
@@ -52,6 +54,7 @@ from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.watch import LAYOUT, RECORD_BYTES, STOP_OFFSET, called_function
 from heliostep.errors import HeliostepError, InputError
 from heliostep.run.supervision.child import Request, SupervisedMonitor, run, serve
+from heliostep.run.supervision.journal import Journal
 
 __all__ = ["DEFAULT_WATCHDOG", "STOP_GRACE", "FMUCrashed", "FMUHung", "StartMethod", "simulate_supervised"]
 
@@ -140,7 +143,8 @@ def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: 
         status = 1
         try:
             ours.close()
-            status = serve(Connection(theirs.detach()), str(folder / "calls"), request, str(folder / "tmp"))
+            connection = Connection(theirs.detach())
+            status = serve(connection, str(folder / "calls"), str(folder / "rows"), request, str(folder / "tmp"))
         finally:
             os._exit(status)
     return _Forked(pid)
@@ -160,7 +164,9 @@ class _Served:
         current = multiprocessing.current_process()
         try:
             self.process = context.Process(
-                target=run, args=(connection, str(folder / "calls"), str(folder / "tmp"), os.getpid()), daemon=True
+                target=run,
+                args=(connection, str(folder / "calls"), str(folder / "rows"), str(folder / "tmp"), os.getpid()),
+                daemon=True,
             )
             with _STARTING:  # a Dask worker is a daemonic process, which multiprocessing lets start no child:
                 daemonic = current.daemon  # this one ends with it all the same (child.die_with_process)
@@ -199,6 +205,9 @@ class _Supervisor:
         self.request, self.callbacks, self.watchdog = request, callbacks, watchdog
         self.names = list(request.system.fmus)
         self.record = _Record(folder / "calls")
+        Journal.create(folder / "rows", len(master_columns(request.system)))
+        self.journal = Journal(folder / "rows")
+        self.received = 0  # ("blocks", ...) messages received
         (folder / "tmp").mkdir()
         ours, theirs = socket.socketpair()
         for end in (ours, theirs):  # room for a few blocks of solver steps: neither side waits on the other
@@ -228,6 +237,8 @@ class _Supervisor:
             if received:
                 progressed = now
             elif self.ended or self.process.poll() is not None and not self.connection.poll(0):
+                self.process.wait()  # dead: its journal is final
+                self._take_unsent()
                 return "crashed", self._crash_message()
             current = self.record.read()[2]  # FMI calls begun
             if current != calls:
@@ -248,7 +259,24 @@ class _Supervisor:
         self.process.wait()
         while not self.ended and self.outcome is None and self._receive():
             pass
+        if self.outcome is None:
+            self._take_unsent()
         return kind, message()
+
+    def _take_unsent(self) -> None:
+        """The rows the dead child computed and did not send (its journal's) to the monitor and the sink."""
+        solution, trace = self.journal.unsent(self.received)
+        show = self.callbacks.get("solution")
+        if show is not None and len(solution):
+            show(solution)
+        if len(trace):
+            self._dispatch([trace], None)
+
+    @property
+    def fmu_time(self) -> float:
+        """The FMU's last time: that of the last FMI call begun, or of the last row where none says one [s]."""
+        time = self.record.read()[3]
+        return float(time) if np.isfinite(time) and time >= self.time else self.time
 
     def _receive(self) -> bool:
         """Dispatch the messages waiting (up to :data:`_POLL` for the first); True if any came."""
@@ -262,6 +290,7 @@ class _Supervisor:
                 self.ended = True
                 return False
             if kind == "blocks":
+                self.received += 1
                 self._dispatch(*payload)
             elif kind == "progress" and self.callbacks.get("progress") is not None:
                 self.callbacks["progress"](payload)  # type: ignore[misc]
@@ -325,6 +354,7 @@ class _Supervisor:
         self.process.wait()
         self.connection.close()
         self.record.close()
+        self.journal.close()
 
 
 def simulate_supervised(
@@ -369,12 +399,14 @@ def simulate_supervised(
     # sink in the very blocks the master would hand it in-process (and none is lost in the child)
     rows = RowBuffer(columns, sink, sink_rows) if sink is not None else None
     totals = monitor.take_totals if monitor is not None else None
-    callbacks = {"rows": rows.store if rows is not None else None, "totals": totals, "progress": progress}
+    callbacks: dict[str, Callable | None] = {"rows": rows.store if rows is not None else None, "totals": totals}
+    callbacks.update(solution=monitor, progress=progress)
     folder = Path(tempfile.mkdtemp(prefix="heliostep-child-"))
     supervisor = None
     try:
         supervisor = _Supervisor(request, folder, callbacks, watchdog, start_method)
         kind, payload = supervisor.run(should_stop)
+        failed_at = supervisor.fmu_time if kind in ("crashed", "hung") else supervisor.time
     finally:
         if supervisor is not None:
             supervisor.close()
@@ -384,7 +416,7 @@ def simulate_supervised(
             rows.flush()  # the rows received, on every outcome
         except (HeliostepError, RuntimeError) as exc:
             kind, payload = "sink", f"{exc}"
-    return _outcome(kind, payload, supervisor.time, columns)
+    return _outcome(kind, payload, failed_at, columns)
 
 
 def master_columns(system: CoSimulation) -> list[str]:
