@@ -15,6 +15,7 @@ from pathlib import Path
 import yaml
 
 from heliostep.errors import InputError
+from heliostep.input_files import MAX_YAML_BYTES, read_input_text
 
 #: Deepest nesting of mappings and lists a file may have (a scenario has 4).
 MAX_DEPTH = 64
@@ -141,16 +142,12 @@ def read_yaml_file(path: str | Path, what: str):
     """Read a YAML file the way heliostep reads scenarios (and sweeps).
 
     YAML 1.2 numbers (``1e-6`` is a float), clock times such as ``10:00`` kept as strings,
-    a key repeated in one mapping refused. Every problem is an :class:`InputError` naming
+    a key repeated in one mapping refused. Only a regular file of at most
+    :data:`~heliostep.input_files.MAX_YAML_BYTES` is read. Every problem is an :class:`InputError` naming
     the file (``what`` says which kind of file it is).
     """
     source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{source}: {what} file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{source}: cannot read the {what} file: {exc}") from None
+    text = read_input_text(path, what, MAX_YAML_BYTES)
     try:
         return yaml.load(text, Loader=HeliostepLoader)  # noqa: S506 - a SafeLoader
     except yaml.YAMLError as exc:
