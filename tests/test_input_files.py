@@ -71,3 +71,16 @@ def test_run_on_a_fifo_or_dev_zero_exits_2_at_once(kind, tmp_path):
 
 def test_the_shipped_scenario_still_loads():
     assert load_scenario(scenarios_dir() / "jan21-central.yaml").name == "jan21-central"
+
+
+def test_compare_on_a_csv_of_a_gigabyte_is_refused_before_reading_it(tmp_path, capsys):
+    from heliostep.cli import main
+
+    huge = tmp_path / "huge.csv"
+    with open(huge, "wb") as handle:  # sparse: a header line of 1 GB that takes no disk
+        handle.write(b"time,")
+        handle.truncate(10**9)
+    small = tmp_path / "small.csv"
+    small.write_text("time,x\n0,1\n1,2\n")
+    assert main(["compare", str(huge), str(small)]) == 2  # before: MemoryError
+    assert "huge.csv: the trace file has 1,000,000,000 bytes; expected at most" in capsys.readouterr().err

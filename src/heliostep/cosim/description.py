@@ -19,6 +19,7 @@ from pathlib import Path
 from heliostep.cosim.archive import DEFAULT_MAX_UNPACKED_BYTES, check_fmu_archive, remove_unpacked, unpack
 from heliostep.cosim.fmi3_types import integer_range
 from heliostep.cosim.kinds import Kind, kind_of, versions
+from heliostep.cosim.structure import check_model_structure
 from heliostep.errors import InputError
 
 
@@ -142,6 +143,7 @@ def read_fmu(
     kind = kind_of(description.fmiVersion, co_simulation)
     if kind is None:
         raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI {versions()}")
+    check_model_structure(path, description)
     return kind.read(path, description)
 
 

@@ -10,6 +10,7 @@ does not exist (an unquoted ``2025-02-29``) is kept as its text, so the key's ow
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 
 import yaml
@@ -116,9 +117,17 @@ HeliostepLoader.add_implicit_resolver(
 
 def _octal_aware_int(loader, node):
     value = loader.construct_scalar(node).replace("_", "")
-    if value.startswith("0o"):
-        return int(value[2:], 8)
-    return int(value, 0) if value.startswith("0x") else int(value)
+    try:
+        if value.startswith("0o"):
+            return int(value[2:], 8)
+        return int(value, 0) if value.startswith("0x") else int(value)
+    except ValueError:  # more digits than Python converts (sys.get_int_max_str_digits)
+        raise yaml.constructor.ConstructorError(
+            None,
+            None,
+            f"an integer of {len(value)} digits; expected at most {sys.get_int_max_str_digits()}",
+            node.start_mark,
+        ) from None
 
 
 HeliostepLoader.add_constructor("tag:yaml.org,2002:int", _octal_aware_int)
