@@ -23,6 +23,7 @@ from heliostep.errors import InputError
 from heliostep.fmu.build import digest_path, file_sha256, verified
 from heliostep.fmu.export import compiler
 from heliostep.input_files import MAX_ARCHIVE_BYTES, read_input_bytes
+from heliostep.paths import private_cache
 from heliostep.toolchain import compiler_version, exclusive_lock
 
 __all__ = ["SOURCE_CACHE", "source_build_key", "with_platform_binary"]
@@ -114,6 +115,7 @@ def with_platform_binary(path: Path, cache: Path) -> Path:
     build = _source_build(path, names)
     if build is None:
         return path
+    cache = private_cache(Path(cache))
     key = source_build_key(path)
     target = Path(cache) / SOURCE_CACHE / key[:16] / path.name
     if verified(target):
