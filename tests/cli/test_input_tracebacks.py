@@ -108,3 +108,37 @@ def test_a_sweep_too_large_is_refused_before_its_cases_are_built(axes, expected,
         sweep.write_text(f"name: big\nbase: {CENTRAL}\nmax_cases: 2000000\naxes:\n{axes}")
         spec = load_sweep(sweep)
         assert spec.max_cases == 2_000_000 and count_cases(spec.axes, spec.combine, spec.shared_primary) == 1000 * 1000
+
+
+def test_an_integer_of_more_digits_than_python_converts_names_the_key(tmp_path, capsys):
+    digits = "1" * 5000
+    assert main(["run", str(CENTRAL), "--out", str(tmp_path / "out"), "--set", f"site.latitude={digits}"]) == 2
+    assert "an integer of 5000 digits; expected at most 4300" in _one_line_error(capsys)
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(CENTRAL.read_text().replace("latitude: 40.0", f"latitude: {digits}", 1))
+    assert main(["run", str(scenario), "--out", str(tmp_path / "out")]) == 2
+    assert "s.yaml: not valid YAML: line" in _one_line_error(capsys)
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_out_name_longer_than_the_file_system_takes_is_exit_2(tmp_path, capsys):
+    out = tmp_path / ("x" * 300)
+    assert main(["run", str(CENTRAL), "--out", str(out), "--no-plots"]) == 2
+    assert "a name of 300 bytes; expected at most 255 per folder" in _one_line_error(capsys)
+
+
+def test_a_deleted_current_folder_is_exit_2_naming_it(tmp_path):
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    script = (
+        "import os, sys; os.chdir(sys.argv[1]); os.rmdir(sys.argv[1]); sys.argv[1:] = sys.argv[2:]; "
+        "from heliostep.cli import console_main; console_main()"
+    )
+    completed = subprocess.run(
+        [sys.executable, "-c", script, str(gone), "run", str(CENTRAL), "--out", str(tmp_path / "out"), "--no-plots"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert completed.returncode == 2 and "Traceback" not in completed.stderr, completed.stderr
+    assert "the current folder no longer exists" in completed.stderr

@@ -70,3 +70,13 @@ def test_sources_that_do_not_compile_are_an_input_error_naming_the_fmu_and_the_f
     message = str(error.value)
     assert "fmus.gain" in message and str(gain) in message and "does not compile" in message
     assert "gain.c" in message and "error: expected ';'" in message and "\n" not in message
+
+
+def test_an_empty_binary_folder_beside_sources_is_compiled_not_taken_for_a_binary(tmp_path):
+    gain = source_only_gain(tmp_path / "vendor")
+    with zipfile.ZipFile(gain, "a") as fmu:
+        fmu.writestr(zipfile.ZipInfo("binaries/linux64/"), b"")  # the folder, no library in it
+    compiled = with_platform_binary(gain, tmp_path / "cache")
+    assert compiled != gain and compiled.is_relative_to(tmp_path / "cache")
+    with zipfile.ZipFile(compiled) as copy:
+        assert "binaries/linux64/Gain.so" in copy.namelist()

@@ -98,3 +98,31 @@ def test_absurd_altitudes_are_refused_with_the_allowed_range(altitude):
 def test_a_window_ending_past_pandas_timestamps_names_the_duration(duration):
     with pytest.raises(InputError, match=r"window\.duration: .* ends after 2261-12-31"):
         load_scenario(CENTRAL, [f"window.duration={duration}"])
+
+
+@pytest.mark.parametrize("current", ["1e308", "101", "1e30"])
+def test_a_phase_current_beyond_any_stepper_drive_is_refused_with_the_range(current):
+    from heliostep.scenario.sections import MAX_PHASE_CURRENT
+
+    with pytest.raises(InputError, match=rf"sequencer\.current: .*less than or equal to {MAX_PHASE_CURRENT:g}"):
+        load_scenario(CENTRAL, [f"sequencer.current={current}"])
+    assert load_scenario(CENTRAL, ["sequencer.current=100"]).sequencer.current == 100
+
+
+def test_a_catalogue_current_beyond_any_stepper_drive_is_refused_naming_the_entry(tmp_path):
+    from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
+
+    text = shipped_catalogue_path().read_text()
+    assert "currents: [3.0, 4.5, 5.9]" in text
+    catalogue = tmp_path / "motors.yaml"
+    catalogue.write_text(text.replace("currents: [3.0, 4.5, 5.9]", "currents: [3.0, 4.5, 1e30]"))
+    with pytest.raises(
+        InputError, match=r"motors.yaml: motors\.[\w-]+\.currents: expected phase currents up to 100 A, got 1e\+30"
+    ):
+        load_catalogue(catalogue)
+
+
+@pytest.mark.parametrize("name", ["jan21\\ncentral", "jan21\\tcentral", "jan21\\rcentral"])
+def test_a_name_with_a_line_break_is_refused_naming_the_file_and_key(name):
+    with pytest.raises(InputError, match=r"jan21-central.yaml: name: .*a name is one line of printable text"):
+        load_scenario(CENTRAL, [f'name="{name}"'])

@@ -11,12 +11,13 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib
+import os
 import sys
 from typing import NoReturn
 
 from heliostep._version import __version__
 from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command, signals_until_exit
-from heliostep.errors import HeliostepError, RunFailure
+from heliostep.errors import HeliostepError, InputError, RunFailure
 
 #: The commands and the modules that provide them, in the order ``--help`` lists them.
 COMMANDS = {
@@ -73,9 +74,19 @@ def main(argv: list[str] | None = None) -> int:
         return stopped.exit_status
 
 
+def _check_current_folder() -> None:
+    """Relative paths (``--out``, scenarios, ``fmus/``) resolve against the current folder: one that was
+    deleted under the shell is refused before the command starts."""
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        raise InputError("the current folder no longer exists (deleted); cd to an existing folder") from None
+
+
 def _run(command: str, args: argparse.Namespace) -> int:
     """The command's function, its errors as one line and an exit status."""
     try:
+        _check_current_folder()
         return int(args.func(args) or 0)
     except HeliostepError as exc:
         print(f"{command}: error: {exc}", file=sys.stderr)

@@ -15,9 +15,11 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from heliostep.cosim.archive import DEFAULT_MAX_UNPACKED_BYTES, check_fmu_archive, remove_unpacked, unpack
 from heliostep.cosim.elf import NotASharedObject, read_shared_object
 from heliostep.cosim.fmi3_types import integer_range
 from heliostep.cosim.kinds import Kind, kind_of, versions
+from heliostep.cosim.structure import check_model_structure
 from heliostep.errors import InputError
 
 
@@ -121,15 +123,19 @@ def _unit(variable) -> str:
     return getattr(declared, "unit", None) or ""
 
 
-def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
+def read_fmu(
+    path: str | Path, co_simulation: bool = False, max_unpacked_bytes: int = DEFAULT_MAX_UNPACKED_BYTES
+) -> FMUInfo:
     """Read and check an FMU of a kind heliostep runs (FMI 2.0 or 3.0): Model Exchange, or with
     ``co_simulation`` Co-Simulation (a sampled component, :mod:`heliostep.cosim.sampled`); else
-    :class:`InputError`."""
+    :class:`InputError`. Its archive is checked first (:func:`~heliostep.cosim.archive.check_fmu_archive`:
+    entry names, at most ``max_unpacked_bytes`` unpacked)."""
     from fmpy import read_model_description
 
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"FMU file not found: {path}")
+    check_fmu_archive(path, max_unpacked_bytes)
     try:
         description = read_model_description(str(path), validate=False)
     except Exception as exc:
@@ -137,6 +143,7 @@ def read_fmu(path: str | Path, co_simulation: bool = False) -> FMUInfo:
     kind = kind_of(description.fmiVersion, co_simulation)
     if kind is None:
         raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI {versions()}")
+    check_model_structure(path, description)
     return kind.read(path, description)
 
 
@@ -249,9 +256,9 @@ _extract_root = None
 
 
 def _extract(path: Path) -> str:
-    """Unzip an FMU once per process (per file and modification time)."""
+    """Unzip an FMU once per process (per file and modification time), each entry no longer than it
+    declares (:func:`~heliostep.cosim.archive.unpack`)."""
     global _extract_root
-    from fmpy import extract
 
     key = (str(path.resolve()), path.stat().st_mtime)
     if key not in _extracted:
@@ -260,10 +267,14 @@ def _extract(path: Path) -> str:
             atexit.register(shutil.rmtree, _extract_root, True)
         folder = tempfile.mkdtemp(dir=_extract_root)
         try:
-            _extracted[key] = extract(str(path), unzipdir=folder)
+            unpack(path, Path(folder))
         except (zipfile.BadZipFile, zlib.error, EOFError) as exc:  # a damaged archive (a flipped bit, cut short)
-            shutil.rmtree(folder, ignore_errors=True)
+            remove_unpacked(Path(folder))
             raise InputError(f"{path}: a damaged FMU archive ({type(exc).__name__}: {exc})") from None
+        except BaseException:
+            remove_unpacked(Path(folder))
+            raise
+        _extracted[key] = folder
     return _extracted[key]
 
 

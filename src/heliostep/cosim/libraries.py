@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from heliostep.errors import RunFailure
-from heliostep.paths import fmus_dir
+from heliostep.paths import fmus_dir, private_cache
 from heliostep.toolchain import compiler_version, exclusive_lock
 
 __all__ = ["KernelBuildError", "compiled_library", "kernels_dir"]
@@ -22,8 +22,8 @@ class KernelBuildError(RunFailure):
 
 
 def kernels_dir() -> Path:
-    """The cache of compiled libraries: beside the FMU cache."""
-    return fmus_dir().parent / "kernels"
+    """The cache of compiled libraries: beside the FMU cache, private to the user as it is."""
+    return private_cache(fmus_dir().parent / "kernels")
 
 
 def _compiler() -> str:

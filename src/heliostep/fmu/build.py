@@ -25,7 +25,7 @@ from heliostep.errors import InputError
 from heliostep.fmu.export import FMI_LAYERS, LAYER_CORE, compiler, export_fmu
 from heliostep.fmu.modelica import available_models, load_model, model_files
 from heliostep.fmu.reference import is_variant_name
-from heliostep.paths import fmus_dir, models_dir
+from heliostep.paths import fmus_dir, models_dir, private_cache
 from heliostep.toolchain import compiler_version, exclusive_lock
 
 #: A variant name ``NAME-fmi3`` is model ``NAME`` built as an FMI 3.0 FMU (:func:`ensure_fmu`).
@@ -113,7 +113,7 @@ def build_fmu(
     (:func:`cached_fmu_path`), built unless a verified one with the same build key is there (see
     the module docstring)."""
     models = Path(models or models_dir())
-    out_dir = Path(out_dir or fmus_dir())
+    out_dir = private_cache(Path(out_dir)) if out_dir else fmus_dir()
     _check_version(fmi_version)
     if model_name not in available_models(models):
         raise InputError(f"{models}: no model {model_name!r}; available: {', '.join(available_models(models))}")

@@ -22,6 +22,8 @@ from pathlib import Path
 from heliostep.errors import InputError
 from heliostep.fmu.build import digest_path, file_sha256, verified
 from heliostep.fmu.export import compiler
+from heliostep.input_files import MAX_ARCHIVE_BYTES, read_input_bytes
+from heliostep.paths import private_cache
 from heliostep.toolchain import compiler_version, exclusive_lock
 
 __all__ = ["SOURCE_CACHE", "source_build_key", "with_platform_binary"]
@@ -82,10 +84,15 @@ def _source_build(path: Path, names: list[str]) -> _SourceBuild | None:
 
 def source_build_key(path: Path) -> str:
     """SHA-256 of what a compiled source FMU depends on: the FMU, this module, fmpy and the compiler."""
-    digest = hashlib.sha256(Path(path).read_bytes())
+    digest = hashlib.sha256(read_input_bytes(path, "FMU", MAX_ARCHIVE_BYTES))
     digest.update((resources.files("heliostep.fmu") / "sources.py").read_bytes())
     digest.update(f"fmpy {metadata.version('fmpy')}\0{compiler_version(compiler())}".encode())
     return digest.hexdigest()
+
+
+def _has_binary(names: list[str], platform: str) -> bool:
+    """Whether the archive holds a file (not only an empty folder) under ``binaries/<platform>/``."""
+    return any(n.startswith(f"binaries/{platform}/") and not n.endswith("/") for n in names)
 
 
 def with_platform_binary(path: Path, cache: Path) -> Path:
@@ -95,16 +102,20 @@ def with_platform_binary(path: Path, cache: Path) -> Path:
     try:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
-            head = archive.read("modelDescription.xml")[:4096] if "modelDescription.xml" in names else b""
+            head = b""
+            if "modelDescription.xml" in names:
+                with archive.open("modelDescription.xml") as description:
+                    head = description.read(4096)
     except (OSError, zipfile.BadZipFile, zlib.error, EOFError):
         return path  # read_fmu names what is wrong with it
     version = re.search(rb'fmiVersion\s*=\s*"([^"]*)"', head)
     platform = _platforms()[version is not None and version.group(1).startswith(b"3.")]
-    if any(n.startswith(f"binaries/{platform}/") for n in names) or not any(n.startswith("sources/") for n in names):
+    if _has_binary(names, platform) or not any(n.startswith("sources/") for n in names):
         return path  # a binary for this platform (the common case: decided without parsing the XML), or no sources
     build = _source_build(path, names)
     if build is None:
         return path
+    cache = private_cache(Path(cache))
     key = source_build_key(path)
     target = Path(cache) / SOURCE_CACHE / key[:16] / path.name
     if verified(target):

@@ -15,6 +15,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from heliostep.errors import InputError
+from heliostep.input_files import MAX_ARCHIVE_BYTES, read_input_bytes
 
 __all__ = ["FMU_TYPE", "SSPSystem", "read_ssp", "write_ssp"]
 
@@ -53,15 +54,16 @@ def read_ssp(path: str | Path, cache: Path) -> SSPSystem:
     from fmpy.ssp.ssd import Component, read_ssd
 
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"SSP file not found: {path}")
+    digest = hashlib.sha256(read_input_bytes(path, "SSP", MAX_ARCHIVE_BYTES)).hexdigest()
     try:
         ssd = read_ssd(str(path), validate=True)
     except Exception as exc:  # a damaged zip, no SystemStructure.ssd, or a schema violation
         first = str(exc).strip().splitlines()
         raise InputError(f"{path}: not a valid SSP 1.0 file ({' '.join(first[:2]) or type(exc).__name__})") from None
     system, result = ssd.system, SSPSystem()
-    folder = Path(cache) / "ssp" / hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+    folder = Path(cache) / "ssp" / digest[:16]
     for element in system.elements:
         if not isinstance(element, Component):
             raise InputError(f"{path}: element {element.name!r} is not a component (nested systems are not supported)")
@@ -110,6 +112,8 @@ def _extracted(path: Path, name: str, source: str | None, folder: Path) -> Path:
     with zipfile.ZipFile(path) as archive:
         if member not in archive.namelist():
             raise InputError(f"{path}: component {name!r}: its source {source!r} is not in the file")
+        if archive.getinfo(member).file_size > MAX_ARCHIVE_BYTES:
+            raise InputError(f"{path}: component {name!r}: its source {source!r} unpacks to more than an FMU may be")
         data = archive.read(member)
     target = folder / Path(member).name
     if target.is_file() and target.read_bytes() == data:

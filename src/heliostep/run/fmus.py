@@ -36,12 +36,13 @@ def resolve_fmus(scenario: Scenario) -> dict[str, Path]:
 
 
 def read_fmus(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, FMUInfo]:
-    """Instance -> the FMU read (FMI 2.0 ME, a binary for this platform that loads), or an
-    InputError naming ``fmus.NAME``."""
+    """Instance -> the FMU read (FMI 2.0 ME, a binary for this platform that loads, unpacking within
+    ``budget.disk_gb``), or an InputError naming ``fmus.NAME``."""
     infos = {}
+    max_unpacked_bytes = int(scenario.budget.disk_gb * 1e9)
     for name, path in fmu_paths.items():
         try:
-            infos[name] = read_fmu(path, co_simulation=name in scenario.communication_interval)
+            infos[name] = read_fmu(path, name in scenario.communication_interval, max_unpacked_bytes)
         except InputError as exc:
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     return infos

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from heliostep.errors import InputError
+from heliostep.scenario.sections import MAX_PHASE_CURRENT
 from heliostep.scenario.yaml_io import read_yaml_file
 
 __all__ = [
@@ -240,6 +241,9 @@ def _currents(where: str, value) -> tuple[float, ...]:
     if not isinstance(value, list) or not value:
         raise InputError(f"{where}: expected a non-empty list of phase currents [A], got {value!r}")
     currents = tuple(_positive(f"{where}[{k}]", item, "A") for k, item in enumerate(value))
+    too_large = [current for current in currents if current > MAX_PHASE_CURRENT]
+    if too_large:
+        raise InputError(f"{where}: expected phase currents up to {MAX_PHASE_CURRENT:g} A, got {too_large[0]:g}")
     if any(b <= a for a, b in zip(currents, currents[1:])):
         raise InputError(f"{where}: expected rising currents [A], got {list(currents)}")
     return currents

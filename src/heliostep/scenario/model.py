@@ -192,6 +192,8 @@ class Scenario(Section):
         value = value.strip()
         if not value:
             raise ValueError("must not be blank")
+        if any(not c.isprintable() for c in value):
+            raise ValueError(f"{value!r}: a name is one line of printable text (no line break or control character)")
         if value in (".", "..") or any(c in value for c in "/\\\0") or os.path.isabs(value):
             raise ValueError(
                 f"{value!r}: a name is one folder name (the default output folder is out/NAME): "

@@ -39,6 +39,10 @@ from heliostep.solar.sun import ALTITUDE_RANGE
 SEQUENCER_MODES = ("one-phase-on", "two-phase-on", "half-step")
 #: When a step is commanded: the reference crosses the midpoint to the next position, or reaches it.
 SEQUENCER_TRIGGERS = ("midpoint", "reach")
+#: Largest phase current a scenario or a motor catalogue may ask for [A]: hybrid steppers' rated phase
+#: currents stay under about 10 A up to NEMA 42 frames, and the chopper drivers for them deliver at most
+#: some 20 A; ten times the largest motor's rating leaves room for any real drive and refuses a typo.
+MAX_PHASE_CURRENT = 100.0
 
 _CLOCK_TIME = re.compile(r"(\d{1,2}):(\d{2})(?::(\d{2}))?")
 SUNRISE, SUNSET = "sunrise", "sunset"
@@ -197,7 +201,7 @@ class SequencerConfig(Section):
     """``sequencer``: how the stepper's phases are energised."""
 
     mode: Literal[SEQUENCER_MODES] = Field("one-phase-on", description="energising sequence")
-    current: Real = Field(5.5, gt=0.0, description="[A], phase current")
+    current: Real = Field(5.5, gt=0.0, le=MAX_PHASE_CURRENT, description="[A], phase current")
     step_angle: Real = Field(1.8, gt=0.0, description="[deg], full step of the rotor")
     trigger: Literal[SEQUENCER_TRIGGERS] = Field(
         "midpoint", description="step when the reference crosses the midpoint to the next position, or reaches it"

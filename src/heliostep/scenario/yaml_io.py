@@ -10,11 +10,13 @@ does not exist (an unquoted ``2025-02-29``) is kept as its text, so the key's ow
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 
 import yaml
 
 from heliostep.errors import InputError
+from heliostep.input_files import MAX_YAML_BYTES, read_input_text
 
 #: Deepest nesting of mappings and lists a file may have (a scenario has 4).
 MAX_DEPTH = 64
@@ -115,9 +117,17 @@ HeliostepLoader.add_implicit_resolver(
 
 def _octal_aware_int(loader, node):
     value = loader.construct_scalar(node).replace("_", "")
-    if value.startswith("0o"):
-        return int(value[2:], 8)
-    return int(value, 0) if value.startswith("0x") else int(value)
+    try:
+        if value.startswith("0o"):
+            return int(value[2:], 8)
+        return int(value, 0) if value.startswith("0x") else int(value)
+    except ValueError:  # more digits than Python converts (sys.get_int_max_str_digits)
+        raise yaml.constructor.ConstructorError(
+            None,
+            None,
+            f"an integer of {len(value)} digits; expected at most {sys.get_int_max_str_digits()}",
+            node.start_mark,
+        ) from None
 
 
 HeliostepLoader.add_constructor("tag:yaml.org,2002:int", _octal_aware_int)
@@ -141,16 +151,12 @@ def read_yaml_file(path: str | Path, what: str):
     """Read a YAML file the way heliostep reads scenarios (and sweeps).
 
     YAML 1.2 numbers (``1e-6`` is a float), clock times such as ``10:00`` kept as strings,
-    a key repeated in one mapping refused. Every problem is an :class:`InputError` naming
+    a key repeated in one mapping refused. Only a regular file of at most
+    :data:`~heliostep.input_files.MAX_YAML_BYTES` is read. Every problem is an :class:`InputError` naming
     the file (``what`` says which kind of file it is).
     """
     source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{source}: {what} file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{source}: cannot read the {what} file: {exc}") from None
+    text = read_input_text(path, what, MAX_YAML_BYTES)
     try:
         return yaml.load(text, Loader=HeliostepLoader)  # noqa: S506 - a SafeLoader
     except yaml.YAMLError as exc:

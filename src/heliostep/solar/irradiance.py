@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.errors import InputError
+from heliostep.input_files import MAX_WEATHER_BYTES, check_input_file
 from heliostep.solar.checks import check_positive, check_times
 from heliostep.solar.sun import Site
 from heliostep.solar.sun_cache import cached_frame
@@ -139,6 +140,10 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Da
     max_offset = check_positive(max_offset, "max_offset", "deg")
     path = Path(path)
     epw = path.suffix.lower() == ".epw"
+    try:
+        check_input_file(path, "weather", MAX_WEATHER_BYTES)
+    except InputError as exc:
+        raise InputError(f"weather_file {exc}") from None
     try:
         data, meta = (
             pvlib.iotools.read_epw(str(path)) if epw else pvlib.iotools.read_tmy3(str(path), map_variables=True)

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Literal
 
 from heliostep.errors import InputError
+from heliostep.input_files import MAX_YAML_BYTES, read_input_text
 from heliostep.results.trace.format import TIME
 
 __all__ = [
@@ -83,7 +84,7 @@ def load_signal_map(path: str | Path) -> dict[str, str]:
     file and the line or key for anything else.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no such file (signal mapping)")
     if path.suffix.lower() in (".yaml", ".yml"):
         from heliostep.scenario import read_yaml_file
@@ -101,9 +102,10 @@ def load_signal_map(path: str | Path) -> dict[str, str]:
 
 
 def _read_map_csv(path: Path) -> dict[str, str]:
+    text = read_input_text(path, "signal mapping", MAX_YAML_BYTES, "utf-8-sig")
     try:
-        rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8-sig"))))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
         raise InputError(f"{path}: cannot read the signal mapping: {exc}") from None
     rows = [[cell.strip() for cell in row] for row in rows if any(cell.strip() for cell in row)]
     if not rows or sorted(c.lower() for c in rows[0]) != ["actual", "reference"]:

@@ -16,6 +16,10 @@ from heliostep.errors import InputError
 __all__ = ["TMP_PREFIX", "atomic_path", "check_out_dir", "check_out_name", "refuse_link", "write_text_atomic"]
 
 TMP_PREFIX = ".heliostep-tmp-"
+#: Longest name of one folder or file [bytes]: what Linux's file systems take (ext4, xfs, btrfs: NAME_MAX).
+NAME_MAX = 255
+#: Longest path the system calls take [bytes] (Linux's PATH_MAX, with room for the files written inside).
+PATH_MAX = 4096 - 256
 
 
 @contextmanager
@@ -59,15 +63,23 @@ def refuse_link(path: str | Path) -> None:
 
 def check_out_name(text: str) -> Path:
     """``--out`` as a path, ``~`` expanded as a shell user expects (the one place the commands turn --out into
-    a path): an empty text (which ``Path`` would read as the current folder) is refused."""
+    a path): an empty text (which ``Path`` would read as the current folder) and a name longer than the file
+    system takes (:data:`NAME_MAX`, :data:`PATH_MAX`) are refused."""
     if not text.strip():
         raise InputError('--out: empty; name the output folder (e.g. "." for the current one)')
-    return Path(text).expanduser()
+    path = Path(text).expanduser()
+    longest = max((len(os.fsencode(part)) for part in path.parts), default=0)
+    if longest > NAME_MAX:
+        raise InputError(f"--out {text[:60]}...: a name of {longest} bytes; expected at most {NAME_MAX} per folder")
+    length = len(os.fsencode(str(path)))
+    if length > PATH_MAX:
+        raise InputError(f"--out {text[:60]}...: a path of {length} bytes; expected at most {PATH_MAX}")
+    return path
 
 
 def check_out_dir(out_dir: str | Path) -> Path:
     """Create ``out_dir`` if needed and prove it writable (a probe file), or raise InputError."""
-    out_dir = check_out_name(str(out_dir)) if isinstance(out_dir, str) else Path(out_dir)
+    out_dir = check_out_name(str(out_dir))
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir}: exists and is not a folder")
     for parent in out_dir.parents:

@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from heliostep.errors import HeliostepError, InputError
-from heliostep.results.output.files import TMP_PREFIX, check_out_dir, refuse_link
+from heliostep.results.output.files import TMP_PREFIX, check_out_dir, check_out_name, refuse_link
 from heliostep.results.output.manifest import (
     MANIFEST_NAME,
     FileRecord,
@@ -363,7 +363,7 @@ def owned_folder(folder: str | Path, names: Iterable[str], command: str | None =
     command may write) that its manifest does not list (:func:`check_foreign`). A folder this
     made is removed again when the block ends in a :class:`~heliostep.errors.HeliostepError`
     with the folder empty (bad input found while setting up)."""
-    folder = Path(folder)
+    folder = check_out_name(str(folder))
     existed = folder.exists()
     check_out_dir(folder)
     try:

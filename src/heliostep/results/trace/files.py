@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.errors import InputError
+from heliostep.input_files import MAX_ARCHIVE_BYTES, MAX_CSV_BYTES, check_input_file, read_input_text
 from heliostep.results.trace.format import (
     ROW_GROUP_ROWS,
     SUFFIXES,
@@ -177,8 +178,9 @@ def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.D
         table, meta = read_modelica_mat(path)
         return _to_float_frame(table, str(path)), meta
     fmt = trace_format(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no such file")
+    check_input_file(path, "trace", MAX_ARCHIVE_BYTES if fmt == "parquet" else MAX_CSV_BYTES)
     if columns is not None:
         if fmt != "parquet":
             raise InputError(f"{path}: reading selected columns needs a Parquet trace")
@@ -255,8 +257,9 @@ def iter_trace_blocks(path: str | Path, columns: list[str] | None = None) -> Ite
     path = Path(path)
     if trace_format(path) != "parquet":
         raise InputError(f"{path}: reading a trace by row groups needs a Parquet trace")
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no such file")
+    check_input_file(path, "trace", MAX_ARCHIVE_BYTES)
     if columns is not None:
         columns = [TIME] + [c for c in dict.fromkeys(columns) if c != TIME]
     source, order = _open_parquet(path, columns)
@@ -272,10 +275,8 @@ def iter_trace_blocks(path: str | Path, columns: list[str] | None = None) -> Ite
 
 
 def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
-    try:
-        text = path.read_text(encoding="utf-8-sig")  # a leading byte order mark (Excel) is dropped
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read as CSV: {exc}") from None
+    text = read_input_text(path, "trace", MAX_CSV_BYTES, "utf-8-sig")  # a byte order mark (Excel) is dropped
+    text = text.replace("\r\n", "\n").replace("\r", "\n")  # the universal newlines read_text gave
     meta: dict[str, str] = {}
     lines = text.splitlines(keepends=True)
     start = len(lines)

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from heliostep.errors import InputError
+from heliostep.input_files import MAX_ARCHIVE_BYTES, check_input_file
 from heliostep.results.trace.format import TIME, check_time
 
 __all__ = ["MAT_SUFFIX", "read_modelica_mat", "unit_of_description"]
@@ -61,8 +62,9 @@ def _load(path: Path) -> dict:
 def read_modelica_mat(path: str | Path) -> tuple[pd.DataFrame, dict[str, str]]:
     """A Dymola / OpenModelica ``.mat`` result file as ``(table, metadata)``; see the module."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no such file")
+    check_input_file(path, "Modelica result", MAX_ARCHIVE_BYTES)
     contents = _load(path)
     if "Aclass" not in contents:
         raise InputError(f"{path}: no 'Aclass' matrix: not a Modelica result file (Dymola/OpenModelica layout)")
