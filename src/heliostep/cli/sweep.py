@@ -24,6 +24,7 @@ from heliostep.results.output.files import check_out_name
 from heliostep.results.output.folder import claim, owned_folder, write_swapped
 from heliostep.sweep import (
     SweepOutcome,
+    check_results_owner,
     execute_cases,
     expand_cases,
     load_sweep,
@@ -75,6 +76,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="run again the cases recorded as failed (they are skipped otherwise)",
     )
+    parser.add_argument(
+        "--replace",
+        action="store_true",
+        help="run even when the folder's results.parquet holds another sweep's rows, dropping them (refused otherwise)",
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--list", action="store_true", help="list the cases and whether each is done; run nothing")
     parser.set_defaults(func=_run_command)
@@ -122,12 +128,13 @@ def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tu
     """The cases run into ``out_dir``, its lock held meanwhile: results.parquet (listed in the
     folder's manifest, then updated in place as cases finish: a rerun resumes it) and the
     figures, swapped in; the earlier figures are removed before any case runs (they would show
-    other results)."""
+    other results). A table of another sweep's rows is refused first, unless ``--replace``."""
     from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE
 
     out_dir.mkdir(parents=True, exist_ok=True)  # a folder that cannot be made: an OSError, a run failure
     with owned_folder(out_dir, [RESULTS_FILE, *(name for _, name, _ in HEATMAPS), TORQUE_FILE]):
         claim(out_dir, [RESULTS_FILE])
+        check_results_owner(out_dir / RESULTS_FILE, sweep_metadata(spec), args.replace)  # before the figures go
         write_swapped(out_dir, lambda staging: [], keep={RESULTS_FILE})  # the older figures out
         outcome = execute_cases(
             cases,
@@ -138,6 +145,7 @@ def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tu
             retry_failed=args.retry_failed,
             progress=True,
             metadata=sweep_metadata(spec),
+            replace=args.replace,
         )
 
         def draw(staging: Path) -> list[Path]:
