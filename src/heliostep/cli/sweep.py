@@ -31,6 +31,7 @@ from heliostep.sweep import (
     read_results,
     sweep_metadata,
 )
+from heliostep.sweep.local_worker import silence_distributed_logs
 
 __all__ = ["register"]
 
@@ -175,7 +176,9 @@ def _scratch_tmpdir() -> Iterator[Path]:
 
     Dask's scratch space and the workers' FMU unpack folders and trace streams go there. On
     SIGINT/SIGTERM the cluster's shutdown kills the worker processes, which then cannot remove
-    their own temporary folders; this process removes the whole folder once the cluster is gone.
+    their own temporary folders; this process removes the whole folder once the cluster is gone,
+    distributed's messages silenced first: a work folder of the closed cluster that distributed
+    releases later (as the stop's traceback lets go of it) is found gone, which it would report.
     """
     scratch = Path(tempfile.mkdtemp(prefix="heliostep-sweep-"))
     saved_env, saved_tempdir = os.environ.get("TMPDIR"), tempfile.tempdir
@@ -188,6 +191,7 @@ def _scratch_tmpdir() -> Iterator[Path]:
         else:
             os.environ["TMPDIR"] = saved_env
         tempfile.tempdir = saved_tempdir
+        silence_distributed_logs()  # the cluster is closed: what distributed says now is about its folders
         shutil.rmtree(scratch, ignore_errors=True)
 
 

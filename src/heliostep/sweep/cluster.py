@@ -18,6 +18,7 @@ import pandas as pd
 
 from heliostep.errors import InputError
 from heliostep.fmu.build import ensure_fmu
+from heliostep.sweep import local_worker
 from heliostep.sweep.spec import (
     SweepCase,
     SweepSpec,
@@ -162,6 +163,7 @@ def _dask_client(
     if workers < 1:
         raise InputError(f"n_workers must be >= 1, got {workers}")
     with (
+        local_worker.held_while_starting() as release,  # its processes born with Ctrl+C held
         LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
@@ -169,10 +171,12 @@ def _dask_client(
             host="127.0.0.1",
             dashboard_address=":0",
             silence_logs=logging.ERROR,
+            preload=[local_worker.PRELOAD],  # its workers leave the terminal's Ctrl+C to this process
         ) as cluster,
         Client(cluster) as local,
     ):
         try:
+            release()  # a Ctrl+C that came while the cluster started is taken here: the cluster closes quietly
             yield local
         finally:
             _close_quietly(local, cluster)
@@ -184,28 +188,19 @@ def _close_quietly(client, cluster) -> None:
     While a cluster closes, its processes can report the closing itself: a worker whose heartbeat finds
     the scheduler gone logs the failure with its traceback (``distributed.worker``, at ERROR), e.g. after
     a Ctrl+C that stopped a band mid-sample. Those are the shutdown's, not the user's; a failed case is
-    reported by heliostep. The workers are told first (:func:`_silence_distributed_logs`, errors
+    reported by heliostep. The workers are told first (:func:`.local_worker.silence_distributed_logs`, errors
     ignored: a worker that is gone says nothing), then the client and the cluster are closed with this
     process's own handlers silenced the same way (the ``with`` around them then finds them closed).
     """
     from distributed.utils import silence_logging_cmgr
 
     try:
-        client.run(_silence_distributed_logs, on_error="ignore")
+        client.run(local_worker.silence_distributed_logs, on_error="ignore")
     except Exception:  # noqa: BLE001 - a cluster already broken: closing it is all that is left
         pass
     with silence_logging_cmgr(logging.CRITICAL):
         client.close()
         cluster.close()
-
-
-def _silence_distributed_logs() -> bool:
-    """Run on a worker of heliostep's own local cluster just before it closes: distributed's stream handlers
-    (where its loggers' records end) pass only CRITICAL records from then on."""
-    for handler in logging.getLogger("distributed").handlers:
-        if isinstance(handler, logging.StreamHandler):
-            handler.setLevel(logging.CRITICAL)
-    return True
 
 
 def _progress_bar(total: int, enabled: bool):
