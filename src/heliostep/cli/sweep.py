@@ -24,12 +24,14 @@ from heliostep.results.output.files import check_out_name
 from heliostep.results.output.folder import claimed, owned_folder, write_swapped
 from heliostep.sweep import (
     SweepOutcome,
+    check_results_owner,
     execute_cases,
     expand_cases,
     load_sweep,
     read_results,
     sweep_metadata,
 )
+from heliostep.sweep.local_worker import silence_distributed_logs
 
 __all__ = ["register"]
 
@@ -74,6 +76,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--retry-failed",
         action="store_true",
         help="run again the cases recorded as failed (they are skipped otherwise)",
+    )
+    parser.add_argument(
+        "--replace",
+        action="store_true",
+        help="run even when the folder's results.parquet holds another sweep's rows, dropping them (refused otherwise)",
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--list", action="store_true", help="list the cases and whether each is done; run nothing")
@@ -122,12 +129,13 @@ def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tu
     """The cases run into ``out_dir``, its lock held meanwhile: results.parquet (listed in the
     folder's manifest, then updated in place as cases finish: a rerun resumes it) and the
     figures, swapped in; the earlier figures are removed before any case runs (they would show
-    other results)."""
+    other results). A table of another sweep's rows is refused first, unless ``--replace``."""
     from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE
 
     out_dir.mkdir(parents=True, exist_ok=True)  # a folder that cannot be made: an OSError, a run failure
     with owned_folder(out_dir, [RESULTS_FILE, *(name for _, name, _ in HEATMAPS), TORQUE_FILE]):
         with claimed(out_dir, [RESULTS_FILE]):  # listed while the cases update it, its digest recorded after
+            check_results_owner(out_dir / RESULTS_FILE, sweep_metadata(spec), args.replace)  # before figures go
             write_swapped(out_dir, lambda staging: [], keep={RESULTS_FILE})  # the older figures out
             outcome = execute_cases(
                 cases,
@@ -138,6 +146,7 @@ def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tu
                 retry_failed=args.retry_failed,
                 progress=True,
                 metadata=sweep_metadata(spec),
+                replace=args.replace,
             )
 
         def draw(staging: Path) -> list[Path]:
@@ -167,7 +176,9 @@ def _scratch_tmpdir() -> Iterator[Path]:
 
     Dask's scratch space and the workers' FMU unpack folders and trace streams go there. On
     SIGINT/SIGTERM the cluster's shutdown kills the worker processes, which then cannot remove
-    their own temporary folders; this process removes the whole folder once the cluster is gone.
+    their own temporary folders; this process removes the whole folder once the cluster is gone,
+    distributed's messages silenced first: a work folder of the closed cluster that distributed
+    releases later (as the stop's traceback lets go of it) is found gone, which it would report.
     """
     scratch = Path(tempfile.mkdtemp(prefix="heliostep-sweep-"))
     saved_env, saved_tempdir = os.environ.get("TMPDIR"), tempfile.tempdir
@@ -180,6 +191,7 @@ def _scratch_tmpdir() -> Iterator[Path]:
         else:
             os.environ["TMPDIR"] = saved_env
         tempfile.tempdir = saved_tempdir
+        silence_distributed_logs()  # the cluster is closed: what distributed says now is about its folders
         shutil.rmtree(scratch, ignore_errors=True)
 
 

@@ -10,7 +10,6 @@ import dataclasses
 import hashlib
 import json
 import math
-import signal
 import time as clock
 import uuid
 from collections.abc import Callable, Mapping
@@ -178,9 +177,7 @@ def run_band(
     if should_stop is not None and should_stop():  # stopped before the cluster starts
         outcome.interrupted = True
         return outcome
-    with _dask_client(client, scheduler, n_workers, connect_timeout) as dask:
-        if client is None and not scheduler:  # our own local cluster: its workers leave Ctrl+C to us
-            dask.run(_ignore_terminal_signals)
+    with _dask_client(client, scheduler, n_workers, connect_timeout) as dask:  # Ctrl+C: sweep.local_worker
         futures, shipped = _submit_samples(dask, samples, payloads, str(scenario.folder))
         try:
             _collect(dask, futures, outcome, should_stop, on_sample)
@@ -188,16 +185,6 @@ def run_band(
             for future in shipped:
                 future.release()
     return outcome
-
-
-def _ignore_terminal_signals() -> bool:
-    """Run on each worker of a local cluster (in its main thread): SIGINT and SIGHUP ignored there,
-    and so in the supervised runs it starts. A Ctrl+C at the terminal reaches the whole process
-    group; this process then stops the band itself (the samples finished kept) instead of its
-    workers dying mid-sample with a traceback each."""
-    for signum in (signal.SIGINT, signal.SIGHUP):
-        signal.signal(signum, signal.SIG_IGN)
-    return True
 
 
 def _submit_samples(dask, samples: list[tuple[int, dict, str]], payloads: Mapping[str, FmuPayload], folder: str):

@@ -18,6 +18,7 @@ import pandas as pd
 
 from heliostep.errors import InputError
 from heliostep.fmu.build import ensure_fmu
+from heliostep.sweep import local_worker
 from heliostep.sweep.spec import (
     SweepCase,
     SweepSpec,
@@ -29,7 +30,9 @@ from heliostep.sweep.store import (
     _consolidate,
     _normalize,
     _parts_dir,
+    _write_atomically,
     _write_part,
+    check_results_owner,
     default_results_path,
 )
 from heliostep.sweep.worker import (
@@ -160,6 +163,7 @@ def _dask_client(
     if workers < 1:
         raise InputError(f"n_workers must be >= 1, got {workers}")
     with (
+        local_worker.held_while_starting() as release,  # its processes born with Ctrl+C held
         LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
@@ -167,10 +171,12 @@ def _dask_client(
             host="127.0.0.1",
             dashboard_address=":0",
             silence_logs=logging.ERROR,
+            preload=[local_worker.PRELOAD],  # its workers leave the terminal's Ctrl+C to this process
         ) as cluster,
         Client(cluster) as local,
     ):
         try:
+            release()  # a Ctrl+C that came while the cluster started is taken here: the cluster closes quietly
             yield local
         finally:
             _close_quietly(local, cluster)
@@ -182,28 +188,19 @@ def _close_quietly(client, cluster) -> None:
     While a cluster closes, its processes can report the closing itself: a worker whose heartbeat finds
     the scheduler gone logs the failure with its traceback (``distributed.worker``, at ERROR), e.g. after
     a Ctrl+C that stopped a band mid-sample. Those are the shutdown's, not the user's; a failed case is
-    reported by heliostep. The workers are told first (:func:`_silence_distributed_logs`, errors
+    reported by heliostep. The workers are told first (:func:`.local_worker.silence_distributed_logs`, errors
     ignored: a worker that is gone says nothing), then the client and the cluster are closed with this
     process's own handlers silenced the same way (the ``with`` around them then finds them closed).
     """
     from distributed.utils import silence_logging_cmgr
 
     try:
-        client.run(_silence_distributed_logs, on_error="ignore")
+        client.run(local_worker.silence_distributed_logs, on_error="ignore")
     except Exception:  # noqa: BLE001 - a cluster already broken: closing it is all that is left
         pass
     with silence_logging_cmgr(logging.CRITICAL):
         client.close()
         cluster.close()
-
-
-def _silence_distributed_logs() -> bool:
-    """Run on a worker of heliostep's own local cluster just before it closes: distributed's stream handlers
-    (where its loggers' records end) pass only CRITICAL records from then on."""
-    for handler in logging.getLogger("distributed").handlers:
-        if isinstance(handler, logging.StreamHandler):
-            handler.setLevel(logging.CRITICAL)
-    return True
 
 
 def _progress_bar(total: int, enabled: bool):
@@ -257,6 +254,7 @@ def execute_cases(
     progress: bool = False,
     on_result: Callable[[dict], None] | None = None,
     metadata: Mapping | None = None,
+    replace: bool = False,
 ) -> SweepOutcome:
     """Run the cases not yet in the results table on Dask, writing each row as it finishes.
 
@@ -277,12 +275,13 @@ def execute_cases(
     retry_failed : bool, default False
         Run again the cases whose row says "failed" (they are skipped otherwise).
     progress : bool, default False
-        Show a progress bar (cases done / failed / remaining) when stderr is a terminal
-        and ``CI`` is not set.
+        Show a progress bar (cases done / failed / remaining) when stderr is a terminal and ``CI`` is not set.
     on_result : callable, optional
         Called in the client with each finished case's row.
     metadata : Mapping, optional
-        Stored in the table's Parquet metadata (``heliostep.sweep``).
+        Stored in the table's Parquet metadata (``heliostep.sweep``): the sweep's identity.
+    replace : bool, default False
+        Run even when the table holds another sweep's rows (they are dropped); refused otherwise.
 
     Returns
     -------
@@ -291,18 +290,17 @@ def execute_cases(
     Raises
     ------
     InputError
-        An FMU that cannot be built or found, or an unreachable scheduler (before any case runs).
+        Before any case runs: a table of another sweep's rows, an FMU not found or built, no scheduler.
     """
-    results_path = Path(results_path)
-    metadata = dict(metadata or {})
+    results_path, metadata = Path(results_path), dict(metadata or {})
+    check_results_owner(results_path, metadata, replace)
     cases, payloads = _ship_fmus(cases)
     if client is None and scheduler:
         _probe_scheduler(scheduler, connect_timeout)
     table, to_run = _table_and_cases_to_run(cases, results_path, metadata, retry_failed)
     dask = _DaskSettings(client, scheduler, n_workers, connect_timeout, progress, on_result)
     table, executed = _run_and_consolidate(to_run, cases, payloads, results_path, metadata, table, dask)
-    failed = int((table["status"] == "failed").sum())
-    skipped = len(cases) - len(to_run)
+    failed, skipped = int((table["status"] == "failed").sum()), len(cases) - len(to_run)
     return SweepOutcome(table=table, results_path=results_path, executed=executed, skipped=skipped, failed=failed)
 
 
@@ -343,13 +341,13 @@ def _run_and_consolidate(
 def _table_and_cases_to_run(
     cases: Sequence[SweepCase], results_path: Path, metadata: Mapping, retry_failed: bool
 ) -> tuple[pd.DataFrame, list[SweepCase]]:
-    """The results table so far (its part files merged in) and the cases it has no finished row of:
-    none yet, one whose FMUs differ, or (with ``retry_failed``) a failed one."""
-    table = (
-        _consolidate(results_path, metadata)
-        if results_path.exists() or _parts_dir(results_path).is_dir()
-        else _normalize(pd.DataFrame())
-    )
+    """The results table so far (its part files merged in; an empty one written if there is none) and the
+    cases it has no finished row of: none yet, one whose FMUs differ, or (with ``retry_failed``) a failed one."""
+    if results_path.exists() or _parts_dir(results_path).is_dir():
+        table = _consolidate(results_path, metadata)
+    else:  # written empty now, so that the table names its sweep before any row is in it
+        table = _normalize(pd.DataFrame())
+        _write_atomically(table, results_path, metadata)
     done_statuses = {"ok"} if retry_failed else {"ok", "failed"}
     finished = {row.case_id: row for row in table.itertuples(index=False) if row.status in done_statuses}
     to_run = [
@@ -419,6 +417,7 @@ def run_sweep(
     retry_failed: bool = False,
     progress: bool = False,
     on_result: Callable[[dict], None] | None = None,
+    replace: bool = False,
 ) -> SweepOutcome:
     """Run a sweep: validate every case, then run the unfinished ones on Dask.
 
@@ -428,7 +427,7 @@ def run_sweep(
         A sweep, or the path of a sweep file.
     results_path : str or Path, optional
         Default :func:`default_results_path`.
-    client, scheduler, n_workers, connect_timeout, retry_failed, progress, on_result
+    client, scheduler, n_workers, connect_timeout, retry_failed, progress, on_result, replace
         See :func:`execute_cases`.
 
     Returns
@@ -438,7 +437,8 @@ def run_sweep(
     Raises
     ------
     InputError
-        Bad sweep or case scenario, unknown FMU, unreachable scheduler: before any case runs.
+        Bad sweep or case scenario, unknown FMU, unreachable scheduler, a table holding another sweep's
+        rows: before any case runs.
     """
     spec = sweep if isinstance(sweep, SweepSpec) else load_sweep(sweep)
     cases = expand_cases(spec)
@@ -454,4 +454,5 @@ def run_sweep(
         progress=progress,
         on_result=on_result,
         metadata=sweep_metadata(spec),
+        replace=replace,
     )

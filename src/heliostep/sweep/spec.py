@@ -107,6 +107,11 @@ class SweepSpec:
         Add, per combination of the other axes, one case of the field's shared primary
         drive (the central mirror's primary axis); needs a ``mirror`` axis.
     description : str or None
+    max_cases : int
+        The most cases the axes may give.
+    file : str or None
+        The sweep file's absolute path (None for a sweep built in Python): the sweep's identity in
+        its results table.
     """
 
     name: str
@@ -120,6 +125,7 @@ class SweepSpec:
     shared_primary: bool = False
     description: str | None = None
     max_cases: int = MAX_CASES
+    file: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,6 +218,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
         shared_primary=data.get("shared_primary", False),
         description=data.get("description"),
         max_cases=data.get("max_cases", MAX_CASES),
+        file=str(path.resolve()),
     )
 
 
@@ -273,6 +280,7 @@ def _make_spec(
     shared_primary,
     description,
     max_cases=MAX_CASES,
+    file=None,
 ) -> SweepSpec:
     if combine not in COMBINE_MODES:
         raise InputError(f"{source}: combine: expected one of {', '.join(COMBINE_MODES)}, got {combine!r}")
@@ -307,6 +315,7 @@ def _make_spec(
         shared_primary=shared_primary,
         description=description,
         max_cases=max_cases,
+        file=file,
     )
     year = _validated(spec, (), f"{source}: overrides").window.date.year
 
@@ -476,9 +485,10 @@ def _make_case(spec: SweepSpec, year: int, chosen: Mapping[SweepAxis, Any], inde
 
 
 def sweep_metadata(spec: SweepSpec) -> dict:
-    """What the table's Parquet metadata records about the sweep (name, source, axes, combine)."""
+    """What the table's Parquet metadata records about the sweep (name, file, source, axes, combine)."""
     return {
         "name": spec.name,
+        "file": spec.file,
         "source": spec.source,
         "base": spec.base_source,
         "combine": spec.combine,

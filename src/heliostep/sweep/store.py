@@ -196,6 +196,64 @@ def read_results(results_path: str | Path) -> pd.DataFrame:
     return combined
 
 
+def check_results_owner(results_path: str | Path, metadata: Mapping, replace: bool = False) -> None:
+    """Refuse to run a sweep into a results table that holds another sweep's rows, unless ``replace``.
+
+    A rerun drops the rows of cases no longer in the sweep; that is the sweep's own business when it is
+    the same sweep (its file edited), never a silent loss of another sweep's finished cases.
+
+    Parameters
+    ----------
+    results_path : str or Path
+        The ``results.parquet`` the sweep would write.
+    metadata : Mapping
+        The new sweep's :func:`heliostep.sweep.sweep_metadata`.
+    replace : bool, default False
+        Let the new sweep drop the other sweep's rows.
+
+    Raises
+    ------
+    InputError
+        Naming the table, the sweep its rows belong to and the new one.
+    """
+    results_path = Path(results_path)
+    if replace or not results_path.exists():
+        return
+    recorded = _recorded_metadata(results_path)
+    if _same_sweep(recorded, metadata):
+        return
+    rows = len(read_results(results_path))
+    if rows:
+        raise InputError(
+            f"{results_path}: holds {rows} finished case(s) of sweep {_sweep_label(recorded)}, "
+            f"not of this sweep {_sweep_label(metadata)}; give another --out, or --replace to drop those rows"
+        )
+
+
+def _recorded_metadata(path: Path) -> dict:
+    """The sweep's metadata of a results table, read from its footer only."""
+    try:
+        raw = (pq.read_schema(path).metadata or {}).get(_METADATA_KEY)
+    except (OSError, pa.ArrowException) as exc:
+        raise InputError(f"{path}: not a readable results table: {exc}") from None
+    return json.loads(raw) if raw else {}
+
+
+def _same_sweep(recorded: Mapping, new: Mapping) -> bool:
+    """Same name and the same sweep file (its absolute path; the path as given for a table that has none)."""
+    if recorded.get("name") != new.get("name"):
+        return False
+    if recorded.get("file") and new.get("file"):
+        return recorded["file"] == new["file"]
+    return recorded.get("source") == new.get("source")
+
+
+def _sweep_label(metadata: Mapping) -> str:
+    if not metadata:
+        return "(unnamed: the table records no sweep)"
+    return f"{metadata.get('name')!r} ({metadata.get('file') or metadata.get('source')})"
+
+
 def _consolidate(results_path: Path, metadata: Mapping, cases: Sequence[SweepCase] | None = None) -> pd.DataFrame:
     """Merge the part files into the table (atomically), then delete the merged parts.
 
