@@ -17,6 +17,7 @@ from typing import NoReturn
 
 from heliostep._version import __version__
 from heliostep.cli.signals import ForcedStop, StopSignal, signals_end_the_command, signals_until_exit
+from heliostep.cli.standard_streams import guard_standard_streams
 from heliostep.errors import HeliostepError, InputError, RunFailure
 
 #: The commands and the modules that provide them, in the order ``--help`` lists them.
@@ -109,9 +110,12 @@ def console_main() -> NoReturn:
     What is alive when the command has returned is frozen (:func:`gc.freeze`) before the interpreter exits:
     its finalization then frees those objects as usual but its full garbage collections no longer
     traverse every object of the imported libraries, which made up most of the exit's time. A stop
-    signal after the command has returned does not interrupt the exit (:func:`signals_until_exit`)."""
+    signal after the command has returned does not interrupt the exit (:func:`signals_until_exit`). A standard
+    output that fails does not change the exit status (:func:`guard_standard_streams`)."""
     signals_until_exit()
+    guard_standard_streams()
     status = main()
+    sys.stdout.flush()  # guarded: a failure is said on stderr, before the status is returned
     gc.freeze()
     sys.exit(status)
 

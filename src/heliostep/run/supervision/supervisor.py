@@ -136,8 +136,9 @@ class _Forked:
 
 def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: Path) -> _Forked:
     """The child forked from this process (everything already imported, the request at hand)."""
-    sys.stdout.flush()  # nothing buffered here may be written twice
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):  # nothing buffered here may be written twice (None: started closed)
+        if stream is not None:
+            stream.flush()
     pid = os.fork()
     if pid == 0:  # the child: it never returns into the supervisor's code, nor runs its exit handlers
         status = 1
