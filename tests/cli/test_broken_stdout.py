@@ -9,6 +9,7 @@ import os
 import subprocess
 
 import pytest
+
 from heliostep_process import HELIOSTEP
 
 
@@ -49,6 +50,7 @@ def test_a_run_whose_stdout_fails_writes_its_results_and_exits_0(broken, tmp_pat
 
 def test_bad_input_with_a_failing_stdout_stays_exit_2(tmp_path):
     with open("/dev/full", "w") as full:
-        done = _run(["run", "jan21-central", "--set", "sequencer.current=-1", "--out", str(tmp_path / "o")], stdout=full)
+        args = ["run", "jan21-central", "--set", "sequencer.current=-1", "--out", str(tmp_path / "o")]
+        done = _run(args, stdout=full)
     assert done.returncode == 2
     assert "sequencer" in done.stderr and "Traceback" not in done.stderr

@@ -212,8 +212,10 @@ def _run_in_folder(
         else:
             status = 1
             print(f"heliostep run: error: {failed}", file=sys.stderr)
-    except OSError as exc:  # the streamed trace could not be written
-        print(f"heliostep run: error: could not write the trace to {out_dir}: {exc}", file=sys.stderr)
+    except OSError as exc:  # the streamed trace could not be written, or a file elsewhere (named: not --out)
+        elsewhere = exc.filename is not None and out_dir.resolve() not in Path(exc.filename).resolve().parents
+        what = f"{exc.filename}" if elsewhere else f"the trace to {out_dir}"
+        print(f"heliostep run: error: could not write {what}: {exc}", file=sys.stderr)
         return 1
     if motor is not None:
         result.metadata["motor"] = motor

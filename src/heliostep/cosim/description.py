@@ -20,7 +20,7 @@ from heliostep.cosim.elf import NotASharedObject, read_shared_object
 from heliostep.cosim.fmi3_types import integer_range
 from heliostep.cosim.kinds import Kind, kind_of, versions
 from heliostep.cosim.structure import check_model_structure
-from heliostep.errors import InputError
+from heliostep.errors import InputError, RunFailure
 
 
 @dataclass(frozen=True)
@@ -271,6 +271,12 @@ def _extract(path: Path) -> str:
         except (zipfile.BadZipFile, zlib.error, EOFError) as exc:  # a damaged archive (a flipped bit, cut short)
             remove_unpacked(Path(folder))
             raise InputError(f"{path}: a damaged FMU archive ({type(exc).__name__}: {exc})") from None
+        except OSError as exc:  # the temporary folder is full or read-only: named, it is not --out
+            remove_unpacked(Path(folder))
+            raise RunFailure(
+                f"{path}: could not be unpacked into {_extract_root} (the temporary folder, TMPDIR): "
+                f"{exc.strerror or exc}"
+            ) from None
         except BaseException:
             remove_unpacked(Path(folder))
             raise

@@ -62,6 +62,8 @@ class Journal:
         size = _HEADER + block_bytes(width) + 8 * width * (TRACE_ROWS + _solution_rows(width))
         with open(path, "wb") as handle:
             handle.truncate(size)
+            # its blocks allocated now: a full file system refuses here, not with SIGBUS while the child writes
+            os.posix_fallocate(handle.fileno(), 0, size)
             handle.write(np.array([0, 0, 0, width], dtype=np.int64).tobytes())
 
     # ------------------------------------------------------------------ the child's side

@@ -52,7 +52,7 @@ from heliostep.cosim import CoSimulation, MasterResult, SimulationError, SolverO
 from heliostep.cosim.kernel import library_path
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.watch import LAYOUT, RECORD_BYTES, STOP_OFFSET, called_function
-from heliostep.errors import HeliostepError, InputError
+from heliostep.errors import HeliostepError, InputError, RunFailure
 from heliostep.run.supervision.child import Request, SupervisedMonitor, run, serve
 from heliostep.run.supervision.journal import Journal
 
@@ -205,11 +205,17 @@ class _Supervisor:
     ):
         self.request, self.callbacks, self.watchdog = request, callbacks, watchdog
         self.names = list(request.system.fmus)
-        self.record = _Record(folder / "calls")
-        Journal.create(folder / "rows", len(master_columns(request.system)))
-        self.journal = Journal(folder / "rows")
+        try:
+            self.record = _Record(folder / "calls")
+            Journal.create(folder / "rows", len(master_columns(request.system)))
+            self.journal = Journal(folder / "rows")
+            (folder / "tmp").mkdir()
+        except OSError as exc:  # the temporary folder is full or read-only: named, it is not --out
+            raise RunFailure(
+                f"the supervised child's files could not be made in {folder.parent} (the temporary folder, "
+                f"TMPDIR): {exc.strerror or exc}"
+            ) from None
         self.received = 0  # ("blocks", ...) messages received
-        (folder / "tmp").mkdir()
         ours, theirs = socket.socketpair()
         for end in (ours, theirs):  # room for a few blocks of solver steps: neither side waits on the other
             for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):
