@@ -9,7 +9,8 @@ process itself. The two are run alternately ``--repeat`` times (the machine's lo
 for both) and the wall time of the whole ``run_scenario`` call is printed per run, with the
 median of each and their ratio. Also checked: both give the same trace, bit for bit.
 Supervised runs are timed for each ``--block-rows`` (the child's kernel block and outbox bound,
-heliostep.run.supervision.child.BLOCK_ROWS: a crash loses fewer than twice that many rows).
+heliostep.run.supervision.child.BLOCK_ROWS; a crash loses none: the child's row journal keeps what no
+message carried).
 Prints figures; not a test.
 """
 
