@@ -29,8 +29,13 @@ SIZE_DESCRIPTION = (
     "here one after another, or on a Dask cluster with --scheduler. Ctrl+C (SIGINT), SIGTERM or SIGHUP stops "
     "after the case in progress: the sheet is written with the cases finished, marked complete: false, naming "
     "those not run.\n\n"
-    "Exit status: 0 written (whatever the verdicts); 1 a failure; 2 bad input (scenario, catalogue: unknown "
-    "candidate, an entry missing a value; a bad option), before any simulation; 130 / 143 / 129 stopped."
+    "Before any simulation the cases are counted (candidates' currents x days, x 2 with the worst corner's days) "
+    "and refused over --max-cases, naming the catalogue entry or --days that makes them many; the largest case's "
+    "memory is estimated and refused over budget.memory_gb (--set budget.memory_gb=GB). A sheet --out cannot take "
+    "(a full disk) is written as sizing.json into a rescue folder, named on stderr, exit 1.\n\n"
+    "Exit status: 0 written (whatever the verdicts); 1 a failure (the sheet not written: rescued); 2 bad input "
+    "(scenario, catalogue: unknown candidate, an entry missing a value; a bad option; too many cases, over the "
+    "budget), before any simulation; 130 / 143 / 129 stopped."
 )
 
 
@@ -73,9 +78,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="do not co-simulate the days again at the drive physics' worst corner (the band's steps and error)",
     )
+    parser.add_argument(
+        "--max-cases",
+        type=_whole_number,
+        default=None,
+        metavar="N",
+        help="refuse a sizing of more cases than this, before any runs (default: as many as a sweep may have)",
+    )
     parser.add_argument("--out", default=None, help="output folder (default out/<scenario>-sizing)")
     parser.add_argument("--scheduler", default=None, metavar="ADDR", help="Dask scheduler (tcp://HOST:PORT)")
     parser.set_defaults(func=main)
+
+
+def _whole_number(text: str) -> int:
+    """A whole number >= 1 (argparse type: exit 2 naming the option otherwise)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text}: expected a whole number of cases >= 1")
+    return value
 
 
 def _days(values: list[str]) -> list[int] | str:
@@ -98,6 +121,8 @@ def main(args: argparse.Namespace) -> int:
 
     out_name = check_out_name(args.out) if args.out is not None else None  # "" refused before anything
     candidates = load_catalogue(args.catalogue, args.candidate)
+    catalogue = str(args.catalogue or shipped_catalogue_path())
+    limit = {} if args.max_cases is None else {"max_cases": args.max_cases}
     plan = plan_sizing(
         args.scenario,
         candidates,
@@ -107,9 +132,10 @@ def main(args: argparse.Namespace) -> int:
         curve_rates=args.curve_rates,
         overrides=args.set,
         band_days=not args.no_band_days,
+        catalogue=catalogue,
+        **limit,
     )
     out = out_name or Path("out") / f"{plan.scenario.name}-sizing"
-    catalogue = str(args.catalogue or shipped_catalogue_path())
     with stop_requests() as stop:
         sheet = size(plan, out, scheduler=args.scheduler, progress=True, should_stop=stop.is_set, catalogue=catalogue)
     best = sheet["smallest_passing"]

@@ -7,13 +7,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from heliostep.errors import InputError
+from heliostep.run import HELD_TRACE_MAX_DURATION
+from heliostep.run.estimate import RunEstimate, check_budget, estimate_run
 from heliostep.scenario import Scenario, validate_scenario
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.scenario.keys import apply_overrides
 from heliostep.sizing.days import DaySelection
 from heliostep.sweep.band import ParameterRange
 
-__all__ = ["SizingCase", "SizingPlan", "case_scenario"]
+__all__ = ["SizingCase", "SizingPlan", "case_scenario", "check_case_count", "check_cases", "count_cases"]
 
 
 @dataclass(frozen=True)
@@ -60,3 +63,58 @@ def case_scenario(raw: dict, overrides: Sequence[str], source: str, folder: Path
     """A case's scenario: the file's mapping with the case's overrides, validated."""
     data = apply_overrides(copy.deepcopy(raw), overrides, source)
     return validate_scenario(data, source=source, folder=folder)
+
+
+def count_cases(candidates: Sequence[MotorCandidate], days: Sequence[int], at_worst_corner: bool) -> int:
+    """The cases of a sizing, counted, not built: every candidate's currents on every day, twice with the
+    days again at the worst corner."""
+    return sum(len(candidate.currents) for candidate in candidates) * len(days) * (2 if at_worst_corner else 1)
+
+
+def check_case_count(
+    catalogue: str, candidates: Sequence[MotorCandidate], days: Sequence[int], at_worst_corner: bool, max_cases: int
+) -> None:
+    """Refuse (InputError) a sizing of more than ``max_cases`` cases, naming the catalogue entry whose currents
+    or the ``--days`` that make it large, and the count; before any case is built."""
+    count = count_cases(candidates, days, at_worst_corner)
+    if count <= max_cases:
+        return
+    widest = max(candidates, key=lambda candidate: len(candidate.currents))
+    if len(widest.currents) >= len(days):
+        culprit = f"motors.{widest.name}.currents ({len(widest.currents):,} currents)"
+        fewer = f"fewer currents in motors.{widest.name}"
+    else:
+        culprit, fewer = f"--days ({len(days):,} days)", "fewer --days"
+    currents = sum(len(candidate.currents) for candidate in candidates)
+    again = " x 2 (each day again at the worst corner; --no-band-days: once)" if at_worst_corner else ""
+    raise InputError(
+        f"{catalogue}: {culprit} makes the sizing too large: {currents:,} current(s) of {len(candidates)} "
+        f"candidate(s) x {len(days):,} days{again} make {count:,} cases, over --max-cases = {max_cases:,}; "
+        f"each case is a run: {fewer}, or size --max-cases N if meant"
+    )
+
+
+def check_cases(plan: SizingPlan) -> None:
+    """The largest case's estimate (:func:`heliostep.run.estimate.estimate_run`, as a case runs: no trace kept)
+    within the scenario's budget, then every case's scenario validated; an InputError before any case runs. A
+    case's estimate depends on its candidate and day, not on its current or the worst corner: one per pair."""
+    largest: tuple[SizingCase, Scenario, RunEstimate] | None = None
+    estimated: dict[tuple[str, int], SizingCase] = {}
+    for case in plan.cases:
+        if (case.candidate, case.day_of_year) in estimated:
+            continue
+        estimated[case.candidate, case.day_of_year] = case
+        scenario = case_scenario(plan.raw, case.overrides, plan.scenario.source, plan.folder)
+        estimate = estimate_run(scenario, HELD_TRACE_MAX_DURATION, keep_trace=False)
+        if largest is None or estimate.memory_bytes > largest[2].memory_bytes:
+            largest = (case, scenario, estimate)
+    if largest is not None:
+        case, scenario, estimate = largest
+        try:
+            check_budget(scenario, estimate)
+        except InputError as exc:
+            raise InputError(f"the largest case, {case.key}: {exc}") from None
+    validated = {case.key for case in estimated.values()}
+    for case in plan.cases:
+        if case.key not in validated:
+            case_scenario(plan.raw, case.overrides, plan.scenario.source, plan.folder)

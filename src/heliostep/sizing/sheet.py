@@ -3,25 +3,41 @@ as ``heliostep run`` owns its own (:mod:`heliostep.results.output.folder`: a loc
 written into a staging folder and swapped in, a manifest of what it wrote).
 
 An interrupted sizing still writes both, marked ``"complete": false``, with the cases it finished (and
-their figures) and those it did not; its verdicts are ``incomplete`` where a case is missing.
+their figures) and those it did not; its verdicts are ``incomplete`` where a case is missing. A sheet the
+folder cannot take (a full disk, a file-size limit, a folder gone read-only) is written as ``sizing.json`` into
+a rescue folder instead (:mod:`heliostep.results.output.rescue`) and the sizing fails (:class:`SheetNotWritten`).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+from heliostep.errors import RunFailure
 from heliostep.results.output.files import check_out_dir
 from heliostep.results.output.folder import check_foreign, hold_folder, staging_folder, swap_in
+from heliostep.results.output.rescue import rescue_folder, write_text_parts
 from heliostep.sizing.plan import SizingPlan
 from heliostep.sizing.size import judge_candidates, run_sizing_cases
 
-__all__ = ["SIZING_FILES", "size"]
+__all__ = ["SIZING_FILES", "SheetNotWritten", "size"]
 
 #: The files ``heliostep size`` writes.
 SIZING_FILES = ("sizing.json", "sizing.html")
+
+
+class SheetNotWritten(RunFailure):
+    """The sheet could not be written into its folder ``failed`` (exit status 1); ``rescue``: the folder that took
+    ``sizing.json`` instead (None: none did); ``sheet``: the sheet, every finished case in it."""
+
+    def __init__(self, failed: Path, error: OSError, rescue: Path | None, sheet: dict):
+        self.failed, self.error, self.rescue, self.sheet = failed, error, rescue, sheet
+        why = f"{error.filename}: {error.strerror}" if error.filename else (error.strerror or str(error))
+        kept = f"sizing.json was written to {rescue} instead" if rescue else "no folder could take sizing.json either"
+        super().__init__(f"could not write the sizing sheet to {failed} ({why}); {kept}")
 
 
 def _json_safe(value):
@@ -69,8 +85,34 @@ def size(
             "unfinished_cases": [case.key for case in plan.cases if case.key not in results],
             **sheet,
         }
-        staging = staging_folder(folder)
-        (staging / "sizing.json").write_text(json.dumps(_json_safe(sheet), indent=1) + "\n", encoding="utf-8")
-        (staging / "sizing.html").write_text(sizing_html(sheet), encoding="utf-8")
-        swap_in(folder, staging, SIZING_FILES)
+        record = json.dumps(_json_safe(sheet), indent=1) + "\n"
+        _write_sheet(folder, record, sizing_html(sheet), plan.scenario.name, sheet)
     return sheet
+
+
+def _write_sheet(folder: Path, record: str, html: str, name: str, sheet: dict) -> None:
+    """``sizing.json`` (``record``) and ``sizing.html`` swapped into ``folder``; on an OSError the staging
+    folder removed and ``record`` rescued (:class:`SheetNotWritten`): no finished case is lost."""
+    staging = None
+    try:
+        staging = staging_folder(folder)
+        (staging / "sizing.json").write_text(record, encoding="utf-8")
+        (staging / "sizing.html").write_text(html, encoding="utf-8")
+        swap_in(folder, staging, SIZING_FILES)
+    except OSError as exc:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
+        raise SheetNotWritten(folder, exc, _rescue(name, record), sheet) from None
+
+
+def _rescue(name: str, record: str) -> Path | None:
+    """``record`` as ``sizing.json`` in a fresh rescue folder (in pieces under a file-size limit); None if
+    no folder takes it."""
+    folder = rescue_folder(f"{name}-sizing")
+    if folder is None:
+        return None
+    try:
+        write_text_parts(folder, "sizing.json", record)
+    except OSError:
+        return None
+    return folder

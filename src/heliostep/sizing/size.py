@@ -23,15 +23,16 @@ from heliostep.errors import InputError
 from heliostep.run import RunFailed, RunOptions, resolve_fmus, run_scenario
 from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
 from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
-from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_instance
+from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_instance, shipped_catalogue_path
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
 from heliostep.sizing.days import date_of, select_days
-from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario
+from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario, check_case_count, check_cases
 from heliostep.sizing.stow import stow_angles, stow_step_rates
 from heliostep.sizing.verdict import judge
 from heliostep.sweep.band import load_ranges
+from heliostep.sweep.spec import MAX_CASES
 from heliostep.sweep.worker import FmuPayload, _local_fmu
 
 __all__ = [
@@ -112,8 +113,10 @@ def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict
     return values
 
 
-def _check_options(design_gust, days, safety_factor: float, curve_rates: Sequence[float]) -> None:
+def _check_options(design_gust, days, safety_factor: float, curve_rates: Sequence[float], max_cases) -> None:
     """The options' values, InputError naming the option."""
+    if isinstance(max_cases, bool) or not isinstance(max_cases, int) or max_cases < 1:
+        raise InputError(f"--max-cases {max_cases!r}: expected a whole number of cases >= 1")
     if design_gust is not None and not (math.isfinite(design_gust) and design_gust >= 0):
         raise InputError(f"--design-gust {design_gust!r}: expected a wind speed >= 0 [m/s]")
     if not (math.isfinite(safety_factor) and safety_factor > 0):
@@ -135,19 +138,23 @@ def plan_sizing(
     curve_rates: Sequence[float] = DEFAULT_CURVE_RATES,
     overrides: Sequence[str] = (),
     band_days: bool = True,
+    catalogue: str | Path | None = None,
+    max_cases: int = MAX_CASES,
 ) -> SizingPlan:
     """Every case of the sizing, each case's scenario validated (an :class:`InputError` before any run).
     ``days``: days of the year, ``"all"``, or empty for the selection of :mod:`heliostep.sizing.days`;
     ``overrides``: ``--set``-style items applied to the scenario first; ``band_days``: every day co-simulated
     once more with the drive physics' ranges at their worst corner (after all the nominal cases), for the
-    band's steps missed and lost and tracking error."""
+    band's steps missed and lost and tracking error. ``catalogue``: the file ``candidates`` came from (None: the
+    shipped one), named when they make more than ``max_cases`` cases (refused before any is built); the largest
+    case's estimate is refused over the scenario's budget."""
     path = resolve_scenario_path(scenario_path)
     raw = read_yaml_file(path, "scenario")
     if not isinstance(raw, dict):
         raise InputError(f"{path}: the top level must be a mapping of keys (name, site, window, ...)")
     raw = apply_overrides(raw, overrides, str(path))
     scenario = validate_scenario(copy.deepcopy(raw), source=str(path), folder=path.absolute().parent)
-    _check_options(design_gust, days, safety_factor, curve_rates)
+    _check_options(design_gust, days, safety_factor, curve_rates, max_cases)
     wind: float | None
     if design_gust is not None:
         wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
@@ -171,9 +178,10 @@ def plan_sizing(
     plan.day_selection = selection
     plan.ranges = load_ranges()
     plan.corner = _band_corner(plan) if band_days else {}
+    source = str(catalogue if catalogue is not None else shipped_catalogue_path())
+    check_case_count(source, plan.candidates, plan.days, bool(plan.corner), max_cases)  # before any is built
     plan.cases = _plan_cases(plan)
-    for case in plan.cases:  # every case's scenario valid before anything runs
-        case_scenario(plan.raw, case.overrides, scenario.source, plan.folder)
+    check_cases(plan)  # every case's scenario valid and the largest within the budget before anything runs
     plan.fmu_paths = resolve_fmus(scenario)
     plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
     return plan
