@@ -65,3 +65,27 @@ def test_the_hook_is_restored_and_other_unraisable_exceptions_reach_it():
         assert sys.unraisablehook == seen.append
     finally:
         sys.unraisablehook = before
+
+
+def test_a_second_signal_wrapped_by_an_import_is_still_a_forced_stop(capsys):
+    """An extension module's initialization turns an exception raised in it (the second signal's ForcedStop,
+    when the signal lands during an import) into ``ImportError`` caused by it: still one line and 128 + n."""
+    import argparse
+
+    from heliostep.cli import _run
+
+    def command(args):
+        try:
+            raise ForcedStop(signal.SIGINT)
+        except ForcedStop as forced:
+            raise ImportError("initialization failed") from forced
+
+    assert _run("heliostep run", argparse.Namespace(func=command)) == 128 + signal.SIGINT
+    err = capsys.readouterr().err
+    assert "stopped by SIGINT a second time" in err and "Traceback" not in err
+
+    def failing(args):
+        raise ImportError("a real import failure")
+
+    with pytest.raises(ImportError, match="a real import failure"):  # any other error is not taken for a stop
+        _run("heliostep run", argparse.Namespace(func=failing))

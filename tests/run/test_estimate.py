@@ -122,7 +122,7 @@ def _wait_for_cpu_seconds(pid: int, seconds: float, deadline: float) -> None:
 
 def test_a_stop_request_while_the_inputs_are_prepared_is_honoured_at_once(tmp_path, fmu_paths):
     """A million steps to schedule (a step angle 1000 times finer, within the budget): SIGTERM
-    two seconds into the preparation ends the command within seconds, exit 143, nothing left."""
+    two seconds into the preparation ends the command within seconds, exit 143, only its stopped records left."""
     out = tmp_path / "out"
     process = subprocess.Popen(
         [*HELIOSTEP, "run", "jan21-day", "--out", str(out), "--set", "sequencer.step_angle=0.0018"],
@@ -141,4 +141,7 @@ def test_a_stop_request_while_the_inputs_are_prepared_is_honoured_at_once(tmp_pa
     _, stderr = process.communicate(timeout=30)
     assert time.monotonic() - sent < 10  # the schedule loop looks at the request every 1024 steps
     assert process.returncode == 143 and "while preparing the inputs" in stderr and "Traceback" not in stderr, stderr
-    assert [p.name for p in Path(out).iterdir()] == []
+    # nothing computed is written, only the records of a run stopped before simulating (complete: false)
+    assert sorted(p.name for p in Path(out).iterdir()) == [".heliostep-manifest.json", "metadata.json", "summary.json"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False and summary["stage"] == "preparing_inputs"

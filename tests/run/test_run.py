@@ -2,6 +2,7 @@
 
 import hashlib
 import json
+import os
 import time
 from pathlib import Path
 
@@ -310,15 +311,18 @@ def test_unusable_out_folder_is_refused_before_simulating(tmp_path, fmu_paths, c
 def test_out_folder_that_cannot_be_written_is_refused(tmp_path, fmu_paths, capsys, monkeypatch):
     import builtins
 
-    real_open = builtins.open
     out = tmp_path / "ro"
 
-    def refusing_open(file, *args, **kwargs):  # root ignores chmod: refuse the probe instead
-        if str(file).startswith(str(out)):
-            raise PermissionError(13, "Permission denied", str(file))
-        return real_open(file, *args, **kwargs)
+    def refusing(real):
+        def refusing_open(file, *args, **kwargs):  # root ignores chmod: refuse the probe instead
+            if str(file).startswith(str(out)):
+                raise PermissionError(13, "Permission denied", str(file))
+            return real(file, *args, **kwargs)
 
-    monkeypatch.setattr(builtins, "open", refusing_open)
+        return refusing_open
+
+    monkeypatch.setattr(builtins, "open", refusing(builtins.open))
+    monkeypatch.setattr(os, "open", refusing(os.open))
     status = main(["run", str(SCENARIOS / "jan21-central.yaml"), "--out", str(out), *SHORT])
     assert status == 2
     assert f"--out {out}: the output folder is not writable" in capsys.readouterr().err

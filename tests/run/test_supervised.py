@@ -13,10 +13,12 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import struct
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -63,6 +65,15 @@ SERVED = (
 )
 
 
+@pytest.fixture
+def private():
+    """A TMPDIR of the test's own, with a short path: multiprocessing's fork server puts its socket there, and a
+    Unix socket's path holds at most 107 bytes (a pytest tmp_path can be longer)."""
+    folder = Path(tempfile.mkdtemp(prefix="hs-", dir="/tmp"))
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
 def _start(scenario: Path, out: Path, private_tmp: Path, *extra: str, start: str = "fork") -> subprocess.Popen:
     """``heliostep run`` in a subprocess with a TMPDIR of its own (its supervised child forked), or with
     ``start="forkserver"`` a process that runs the scenario with its child started by the fork server."""
@@ -99,9 +110,9 @@ FAULTS = {  # fault code: (how the message says the process ended, reason)
 
 @pytest.mark.parametrize("fault", sorted(FAULTS))
 def test_a_crashing_exiting_or_hanging_fmu_fails_the_run_named_with_its_trace_so_far(
-    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths
+    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths, private
 ):
-    out, private = tmp_path / "out", tmp_path / "tmp"
+    out = tmp_path / "out"
     out.mkdir()
     (out / NOT_OURS).write_text("the user's")
     process = _start(_scenario(tmp_path, faulty_fmu, fault), out, private, "--watchdog", "3")
@@ -141,9 +152,9 @@ EARLY = 5.0  # [s] of the 300 s window: before the child's first message
 
 @pytest.mark.parametrize("fault", [1, 2, 3, 4])
 def test_a_crash_before_the_childs_first_message_keeps_every_row_and_the_fmus_time(
-    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths
+    fault, faulty_fmu, complete_trace, tmp_path, fmu_paths, private
 ):
-    out, private = tmp_path / "out", tmp_path / "tmp"
+    out = tmp_path / "out"
     process = _start(_scenario(tmp_path, faulty_fmu, fault, t_fault=EARLY), out, private)
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 1, stderr[-3000:]
@@ -184,8 +195,10 @@ def test_a_crash_or_hang_in_a_child_of_the_fork_server_fails_the_run_with_its_fi
     assert "Fatal Python error" not in capfd.readouterr().err
 
 
-def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(faulty_fmu, complete_trace, tmp_path, fmu_paths):
-    out, private = tmp_path / "out", tmp_path / "tmp"
+def test_ctrl_c_stops_a_run_whose_fmu_hangs_and_keeps_its_trace(
+    faulty_fmu, complete_trace, tmp_path, fmu_paths, private
+):
+    out = tmp_path / "out"
     process = _start(_scenario(tmp_path, faulty_fmu, 5, t_fault=150.0), out, private)  # the default watchdog: 60 s
     _wait_until_hung(private, process, 150.0)  # the FMU loops inside fmi2GetDerivatives
     signalled = time.monotonic()
@@ -273,8 +286,8 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux's /proc to find the child")
 @pytest.mark.parametrize("start", ["fork", "forkserver"])
-def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faulty_fmu, tmp_path, fmu_paths):
-    out, private = tmp_path / "out", tmp_path / "tmp"
+def test_a_hung_fmus_process_does_not_outlive_a_sigkilled_supervisor(start, faulty_fmu, tmp_path, fmu_paths, private):
+    out = tmp_path / "out"
     process = _start(_scenario(tmp_path, faulty_fmu, 5, t_fault=20.0), out, private, start=start)  # watchdog 60 s
     _wait_until_hung(private, process, 20.0)
     children = _children(process.pid)

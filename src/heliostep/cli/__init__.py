@@ -95,13 +95,28 @@ def _run(command: str, args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print(f"{command}: interrupted", file=sys.stderr)
         return 130
-    except ForcedStop as forced:  # a second stop signal: left at once, temporary files removed
+    except (ForcedStop, Exception) as exc:  # a second stop signal: left at once, temporary files removed
+        forced = _forced_stop(exc)  # raised by the handler, perhaps inside C code that wrapped it (an import)
+        if forced is None:
+            raise
         print(
             f"{command}: stopped by {forced}: exited without finishing the clean-up "
             f"(no file was left claiming to be complete)",
             file=sys.stderr,
         )
         return forced.exit_status
+
+
+def _forced_stop(exc: BaseException | None) -> ForcedStop | None:
+    """The :class:`ForcedStop` that ``exc`` is, or that caused it (an extension module's import, for one, turns
+    an exception raised during its initialization into ``ImportError`` caused by it); None when neither."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, ForcedStop):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def console_main() -> NoReturn:

@@ -175,15 +175,16 @@ def run(
 def serve(
     connection: Connection,
     record: str,
-    journal: str,
+    journal: Journal | str,
     request: Request | None = None,
     tmpdir: str | None = None,
     supervisor: int | None = None,
 ) -> int:
     """Simulate ``request`` (or the one read from ``connection``) and stream it on ``connection``,
-    noting FMU calls in the file ``record`` and keeping the rows not yet sent in the file ``journal``
-    (:class:`~heliostep.run.supervision.journal.Journal`); ``tmpdir``: the temporary folder to use; ``supervisor``:
-    the supervising process where it is not this one's parent. Returns the exit status."""
+    noting FMU calls in the file ``record`` and keeping the rows not yet sent in ``journal`` (the
+    :class:`~heliostep.run.supervision.journal.Journal` a forked child inherits, or the file to map);
+    ``tmpdir``: the temporary folder to use; ``supervisor``: the supervising process where it is not this
+    one's parent. Returns the exit status."""
     faulthandler.disable()  # a crash in an FMU is the supervisor's to report, without a dump here
     for number in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
         if number is not None:
@@ -196,7 +197,7 @@ def serve(
     if supervisor is not None and supervisor != parent:
         die_with_process(supervisor)
     watch.attach(record)
-    rows = Journal(journal)
+    rows = journal if isinstance(journal, Journal) else Journal(journal)
     Kernel.block_buffer = rows.kernel_block  # the kernel's rows not yet handed over, readable after a crash
     RowBuffer.flush_interval = 0.0  # every block the master stores goes out (in the outbox)
     Kernel.OUTPUTS_PER_BLOCK = BLOCK_ROWS  # and the kernel hands its trace rows over in small blocks

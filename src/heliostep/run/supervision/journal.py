@@ -38,14 +38,17 @@ _SENT, _TRACE, _SOLUTION, _WIDTH = range(4)
 
 
 class Journal:
-    """The journal in the file ``path`` (made by :meth:`create`), mapped by this process."""
+    """A journal in shared memory ``memory``: made by :meth:`in_memory` (a forked child inherits it) or mapped
+    from the file ``path`` made by :meth:`create` (a child started by the fork server maps it by name)."""
 
-    def __init__(self, path: str | Path):
-        descriptor = os.open(path, os.O_RDWR)
-        try:
-            self._map = mmap.mmap(descriptor, 0)
-        finally:
-            os.close(descriptor)
+    def __init__(self, path: str | Path | None = None, memory: mmap.mmap | None = None):
+        if memory is None:
+            descriptor = os.open(path, os.O_RDWR)  # type: ignore[arg-type]
+            try:
+                memory = mmap.mmap(descriptor, 0)
+            finally:
+                os.close(descriptor)
+        self._map = memory
         self._view = memoryview(self._map)
         self.header = np.ndarray((4,), np.int64, self._view, 0)
         self.width = int(self.header[_WIDTH])
@@ -56,10 +59,18 @@ class Journal:
         start += self._trace.nbytes
         self._solution = np.ndarray((_solution_rows(self.width), self.width), float, self._view, start)
 
+    @classmethod
+    def in_memory(cls, width: int) -> Journal:
+        """A journal of rows ``width`` values wide in anonymous shared memory, which a child forked after it
+        shares (no file: neither a full TMPDIR nor a file-size limit can take it away)."""
+        memory = mmap.mmap(-1, _size(width), flags=mmap.MAP_SHARED | mmap.MAP_ANONYMOUS)
+        memory[:32] = np.array([0, 0, 0, width], dtype=np.int64).tobytes()
+        return cls(memory=memory)
+
     @staticmethod
     def create(path: str | Path, width: int) -> None:
         """Make the file of a journal of rows ``width`` values wide (zeros: nothing sent, no rows)."""
-        size = _HEADER + block_bytes(width) + 8 * width * (TRACE_ROWS + _solution_rows(width))
+        size = _size(width)
         with open(path, "wb") as handle:
             handle.truncate(size)
             # its blocks allocated now: a full file system refuses here, not with SIGBUS while the child writes
@@ -104,6 +115,11 @@ class Journal:
         self.kernel_block.release()
         self._view.release()
         self._map.close()
+
+
+def _size(width: int) -> int:
+    """Bytes of a journal of rows ``width`` values wide."""
+    return _HEADER + block_bytes(width) + 8 * width * (TRACE_ROWS + _solution_rows(width))
 
 
 def _solution_rows(width: int) -> int:

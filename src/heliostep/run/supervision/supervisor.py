@@ -134,7 +134,7 @@ class _Forked:
             os.kill(self.pid, signal.SIGKILL)
 
 
-def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: Path) -> _Forked:
+def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: Path, journal: Journal) -> _Forked:
     """The child forked from this process (everything already imported, the request at hand)."""
     for stream in (sys.stdout, sys.stderr):  # nothing buffered here may be written twice (None: started closed)
         if stream is not None:
@@ -145,7 +145,7 @@ def _fork(request: Request, ours: socket.socket, theirs: socket.socket, folder: 
         try:
             ours.close()
             connection = Connection(theirs.detach())
-            status = serve(connection, str(folder / "calls"), str(folder / "rows"), request, str(folder / "tmp"))
+            status = serve(connection, str(folder / "calls"), journal, request, str(folder / "tmp"))
         finally:
             os._exit(status)
     return _Forked(pid)
@@ -205,10 +205,15 @@ class _Supervisor:
     ):
         self.request, self.callbacks, self.watchdog = request, callbacks, watchdog
         self.names = list(request.system.fmus)
+        self.forked = start_method == "fork"
+        width = len(master_columns(request.system))
         try:
             self.record = _Record(folder / "calls")
-            Journal.create(folder / "rows", len(master_columns(request.system)))
-            self.journal = Journal(folder / "rows")
+            if self.forked:  # the forked child inherits the memory
+                self.journal = Journal.in_memory(width)
+            else:  # the fork server's child maps the file by name
+                Journal.create(folder / "rows", width)
+                self.journal = Journal(folder / "rows")
             (folder / "tmp").mkdir()
         except OSError as exc:  # the temporary folder is full or read-only: named, it is not --out
             raise RunFailure(
@@ -220,9 +225,11 @@ class _Supervisor:
         for end in (ours, theirs):  # room for a few blocks of solver steps: neither side waits on the other
             for option in (socket.SO_SNDBUF, socket.SO_RCVBUF):
                 end.setsockopt(socket.SOL_SOCKET, option, SOCKET_BUFFER)
-        self.forked = start_method == "fork"
         try:
-            self.process = _fork(request, ours, theirs, folder) if self.forked else _Served(theirs, folder)
+            if self.forked:
+                self.process: _Forked | _Served = _fork(request, ours, theirs, folder, self.journal)
+            else:
+                self.process = _Served(theirs, folder)
         finally:
             theirs.close()
         self.connection = Connection(ours.detach())
