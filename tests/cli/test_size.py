@@ -20,26 +20,14 @@ import pandas as pd
 import pytest
 import yaml
 
+from catalogue_entries import QSH8618_65_AT_3A
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
 from heliostep.scenario.catalogue import load_catalogue, shipped_catalogue_path
 
 SCENARIO = str(scenarios_dir() / "jan21-central.yaml")
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-SMALL = {  # TRINAMIC QSH8618-65-59-340 (QMot manual V1.08, Table 2.1), run at 3 A
-    "manufacturer": "TRINAMIC Motion Control (QMot)",
-    "model": "QSH8618-65-59-340",
-    "datasheet": "QMot QSH8618 manual V1.08, Table 2.1",
-    "holding_torque": 3.4,
-    "rated_current": 5.9,
-    "resistance": 0.28,
-    "inductance": 1.7e-3,
-    "rotor_inertia": 1.0e-4,
-    "detent_torque": 0.078,
-    "step_angle": 1.8,
-    "bus_voltage": 48.0,
-    "currents": [3.0],
-}
+SMALL = QSH8618_65_AT_3A
 LARGE = {  # TRINAMIC QSH8618-156-62-1280, at its rated 6.2 A
     **SMALL,
     "model": "QSH8618-156-62-1280",

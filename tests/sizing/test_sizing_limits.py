@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from catalogue_entries import QSH8618_65_AT_3A
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
 from heliostep.run import HELD_TRACE_MAX_DURATION
@@ -20,20 +21,7 @@ from heliostep.scenario.catalogue import load_catalogue, motor_overrides
 from heliostep.sweep.spec import MAX_CASES
 
 SCENARIO = str(scenarios_dir() / "jan21-central.yaml")
-ENTRY = {  # TRINAMIC QSH8618-65-59-340 (QMot manual V1.08, Table 2.1)
-    "manufacturer": "TRINAMIC Motion Control (QMot)",
-    "model": "QSH8618-65-59-340",
-    "datasheet": "QMot QSH8618 manual V1.08, Table 2.1",
-    "holding_torque": 3.4,
-    "rated_current": 5.9,
-    "resistance": 0.28,
-    "inductance": 1.7e-3,
-    "rotor_inertia": 1.0e-4,
-    "detent_torque": 0.078,
-    "step_angle": 1.8,
-    "bus_voltage": 48.0,
-    "currents": [3.0],
-}
+ENTRY = QSH8618_65_AT_3A
 #: Refusals come before any case is built: well under this even on a loaded machine [s].
 QUICK = 5.0
 

@@ -13,24 +13,12 @@ import tempfile
 import yaml
 
 import heliostep.sizing.sheet as sheet_module
+from catalogue_entries import QSH8618_65_AT_3A
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
 
 SCENARIO = str(scenarios_dir() / "jan21-central.yaml")
-ENTRY = {  # TRINAMIC QSH8618-65-59-340 (QMot manual V1.08, Table 2.1), run at 3 A
-    "manufacturer": "TRINAMIC Motion Control (QMot)",
-    "model": "QSH8618-65-59-340",
-    "datasheet": "QMot QSH8618 manual V1.08, Table 2.1",
-    "holding_torque": 3.4,
-    "rated_current": 5.9,
-    "resistance": 0.28,
-    "inductance": 1.7e-3,
-    "rotor_inertia": 1.0e-4,
-    "detent_torque": 0.078,
-    "step_angle": 1.8,
-    "bus_voltage": 48.0,
-    "currents": [3.0],
-}
+ENTRY = QSH8618_65_AT_3A
 
 
 def test_a_sheet_the_folder_cannot_take_is_rescued_with_every_finished_case(tmp_path, capsys, monkeypatch, fmu_paths):
