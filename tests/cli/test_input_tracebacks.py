@@ -113,7 +113,9 @@ def test_a_sweep_too_large_is_refused_before_its_cases_are_built(axes, expected,
 def test_an_integer_of_more_digits_than_python_converts_names_the_key(tmp_path, capsys):
     digits = "1" * 5000
     assert main(["run", str(CENTRAL), "--out", str(tmp_path / "out"), "--set", f"site.latitude={digits}"]) == 2
-    assert "an integer of 5000 digits; expected at most 4300" in _one_line_error(capsys)
+    error = _one_line_error(capsys)
+    assert "an integer of 5000 digits; expected at most 4300" in error
+    assert "site.latitude=" in error and "(5,016 characters)" in error and len(error) < 400  # not echoed whole
     scenario = tmp_path / "s.yaml"
     scenario.write_text(CENTRAL.read_text().replace("latitude: 40.0", f"latitude: {digits}", 1))
     assert main(["run", str(scenario), "--out", str(tmp_path / "out")]) == 2

@@ -31,21 +31,32 @@ def dotted(loc: Sequence) -> str:
 def apply_overrides(data: dict, overrides: Sequence[str], source: str) -> dict:
     """Set ``"dotted.key=value"`` overrides in ``data`` (in place); values are YAML."""
     for override in overrides:
+        shown = _shown(override)
         if not isinstance(override, str):
-            raise InputError(f"{source}: --set {override!r}: expected a string 'dotted.key=value'")
+            raise InputError(f"{source}: --set {shown}: expected a string 'dotted.key=value'")
         key, equals, text = override.partition("=")
         parts = key.strip().split(".")
         if not equals or not all(part.strip() for part in parts):
-            raise InputError(f"{source}: --set {override!r}: expected 'dotted.key=value', e.g. 'sequencer.current=3'")
+            raise InputError(f"{source}: --set {shown}: expected 'dotted.key=value', e.g. 'sequencer.current=3'")
         parts = [part.strip() for part in parts]
         try:
             value = parse_yaml_value(text)
         except yaml.YAMLError as exc:
-            raise InputError(
-                f"{source}: --set {override!r}: the value is not valid YAML: {yaml_problem(exc)}"
-            ) from None
-        set_dotted_key(data, parts, value, f"{source}: --set {override!r}")
+            raise InputError(f"{source}: --set {shown}: the value is not valid YAML: {yaml_problem(exc)}") from None
+        set_dotted_key(data, parts, value, f"{source}: --set {shown}")
     return data
+
+
+#: The most characters of an override a message repeats (a value can be megabytes long).
+SHOWN_CHARACTERS = 80
+
+
+def _shown(override) -> str:
+    """``override`` as a message shows it: its repr, cut to :data:`SHOWN_CHARACTERS` with its length said."""
+    text = repr(override)
+    if len(text) <= SHOWN_CHARACTERS:
+        return text
+    return f"{text[:SHOWN_CHARACTERS]}... ({len(text):,} characters)"
 
 
 def set_dotted_key(data: dict, parts: Sequence[str], value, where: str) -> None:

@@ -174,6 +174,11 @@ class _Served:
                 current.daemon = False
                 try:
                     self.process.start()
+                except OSError as exc:  # e.g. its socket's path, in TMPDIR, longer than a Unix socket takes
+                    raise RunFailure(
+                        f"the fork server could not start the supervised child: {exc.strerror or exc} (its socket "
+                        f"goes in the temporary folder {tempfile.gettempdir()}, TMPDIR)"
+                    ) from None
                 finally:
                     current.daemon = daemonic
         finally:
