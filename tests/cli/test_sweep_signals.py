@@ -8,6 +8,7 @@ cluster's worker processes and their supervised runs.
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -93,3 +94,20 @@ def test_ctrl_c_while_the_cluster_starts_prints_one_line(tmp_path, fmu_paths):
     wait_for(process, results.exists, "results table")
     stderr = interrupted(process)
     assert_only_the_stop_line(stderr, results)
+
+
+def test_a_sweep_killed_outright_is_taken_up_again_by_the_same_command(tmp_path, fmu_paths):
+    """SIGKILL leaves the table marked as being written in the manifest (no digest yet): the same sweep
+    takes it up again, keeps the finished cases and runs the rest."""
+    process, results = start_sweep(tmp_path)
+    parts = results.with_name(results.name + ".parts")
+    wait_for(process, lambda: parts.is_dir() and any(parts.glob("*.parquet")), "finished case")
+    os.killpg(process.pid, signal.SIGKILL)
+    process.communicate(timeout=WAIT)
+    again, _ = start_sweep(tmp_path)
+    stdout, stderr = again.communicate(timeout=WAIT)
+    assert again.returncode == 0, stderr
+    done = re.search(r"(\d+) run now, (\d+) already done", stdout)
+    assert done and int(done.group(2)) >= 1 and int(done.group(1)) + int(done.group(2)) == len(DAYS), stdout
+    table = read_results(results)
+    assert sorted(table["day_of_year"]) == DAYS and (table["status"] == "ok").all()

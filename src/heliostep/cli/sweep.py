@@ -133,7 +133,8 @@ def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tu
     from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE
 
     out_dir.mkdir(parents=True, exist_ok=True)  # a folder that cannot be made: an OSError, a run failure
-    with owned_folder(out_dir, [RESULTS_FILE, *(name for _, name, _ in HEATMAPS), TORQUE_FILE]):
+    names = [RESULTS_FILE, *(name for _, name, _ in HEATMAPS), TORQUE_FILE]
+    with owned_folder(out_dir, names, in_place=[RESULTS_FILE]):  # a killed sweep's table: taken up again
         with claimed(out_dir, [RESULTS_FILE]):  # listed while the cases update it, its digest recorded after
             check_results_owner(out_dir / RESULTS_FILE, sweep_metadata(spec), args.replace)  # before figures go
             write_swapped(out_dir, lambda staging: [], keep={RESULTS_FILE})  # the older figures out

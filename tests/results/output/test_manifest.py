@@ -16,7 +16,14 @@ import pytest
 
 from heliostep.errors import InputError
 from heliostep.results.output.files import TMP_PREFIX, check_out_dir
-from heliostep.results.output.folder import MANIFEST_NAME, claimed, hold_folder, swap_in, write_swapped
+from heliostep.results.output.folder import (
+    MANIFEST_NAME,
+    check_foreign,
+    claimed,
+    hold_folder,
+    swap_in,
+    write_swapped,
+)
 
 
 def _write(names: dict[str, str]):
@@ -115,8 +122,11 @@ def test_a_symbolic_link_at_the_probe_is_refused_and_its_target_untouched(tmp_pa
 def test_a_file_updated_in_place_is_recorded_when_its_block_ends_and_replaced_on_a_rerun(tmp_path):
     with hold_folder(tmp_path):
         with claimed(tmp_path, ["results.parquet"]):
-            assert _manifest(tmp_path)["files"]["results.parquet"] is None  # listed, not yet provably ours
+            assert _manifest(tmp_path)["files"]["results.parquet"] == {"in_place": True}  # listed, being written
             (tmp_path / "results.parquet").write_text("rows\n")
+            check_foreign(tmp_path, ["results.parquet"], in_place=["results.parquet"])  # its own command's again
+            with pytest.raises(InputError, match="results.parquet is listed"):  # any other's: not provably ours
+                check_foreign(tmp_path, ["results.parquet"])
         assert _manifest(tmp_path)["files"]["results.parquet"]["size"] == 5
         staging = tmp_path / f"{TMP_PREFIX}staging-x"
         staging.mkdir()

@@ -25,9 +25,11 @@ from pathlib import Path
 from heliostep.errors import HeliostepError, InputError
 from heliostep.results.output.files import TMP_PREFIX, check_out_dir, check_out_name, refuse_link
 from heliostep.results.output.manifest import (
+    IN_PLACE,
     MANIFEST_NAME,
     FileRecord,
     file_record,
+    is_in_place,
     is_ours,
     read_records,
     write_manifest,
@@ -210,24 +212,26 @@ def manifest_files(folder: str | Path) -> set[str]:
     return set(read_records(folder))
 
 
-def _owned(folder: Path) -> tuple[dict[str, FileRecord], list[str]]:
+def _owned(folder: Path, in_place: Iterable[str] = ()) -> tuple[dict[str, FileRecord], list[str]]:
     """The manifest's records of the files in ``folder`` still as heliostep wrote them, and the names of
-    those listed there that are not (changed, replaced, listed without a record: kept, never removed)."""
-    owned, changed = {}, []
+    those listed there that are not (changed, replaced, listed without a record: kept, never removed).
+    ``in_place``: the files this command updates in place (a sweep's table): one a killed command left
+    marked as being written (:func:`claimed`) is its own to take up again, proven by its content."""
+    owned, changed, in_place = {}, [], set(in_place)
     for name, record in read_records(folder).items():
-        if is_ours(folder / name, record):
+        if is_ours(folder / name, record) or (name in in_place and is_in_place(folder / name, record)):
             owned[name] = record
         elif os.path.lexists(folder / name):
             changed.append(name)
     return owned, sorted(changed)
 
 
-def check_foreign(folder: str | Path, names: Iterable[str]) -> None:
+def check_foreign(folder: str | Path, names: Iterable[str], in_place: Iterable[str] = ()) -> None:
     """Refuse (InputError) a folder holding a file named like one of ``names`` (those a run may
     write) that heliostep did not write there: not listed in its manifest, or no longer of the size and
-    sha256 listed. heliostep replaces only its own files."""
+    sha256 listed (``in_place``: see :func:`_owned`). heliostep replaces only its own files."""
     folder = Path(folder)
-    _refuse_foreign(folder, names, *_owned(folder))
+    _refuse_foreign(folder, names, *_owned(folder, in_place))
 
 
 def _refuse_foreign(folder: Path, names: Iterable[str], owned: dict[str, FileRecord], changed: list[str]) -> None:
@@ -339,13 +343,12 @@ def swap_in(folder: str | Path, staging: Path, names: Iterable[str], keep: Itera
 def claimed(folder: str | Path, names: Iterable[str]) -> Iterator[None]:
     """``names`` listed in ``folder``'s manifest while heliostep writes them in place within the block (a
     file a command updates as it goes, never swapped: a sweep's ``results.parquet``), then recorded with
-    their size and sha256 however the block ends (a kill within it leaves them listed without a record:
-    not provably heliostep's)."""
+    their size and sha256 however the block ends (a kill within it leaves them marked as being written: the
+    same command takes them up again, :func:`owned_folder`'s ``in_place``, any other keeps them)."""
     folder, names = Path(folder), list(names)
     for name in names:
         refuse_link(folder / name)
-    owned, _ = _owned(folder)
-    write_manifest(folder, {**read_records(folder), **{n: owned.get(n) for n in names}}, "complete")
+    write_manifest(folder, {**read_records(folder), **{n: IN_PLACE for n in names}}, "complete")
     try:
         yield
     finally:
@@ -357,18 +360,21 @@ def claimed(folder: str | Path, names: Iterable[str]) -> Iterator[None]:
 
 
 @contextmanager
-def owned_folder(folder: str | Path, names: Iterable[str], command: str | None = None) -> Iterator[Path]:
+def owned_folder(
+    folder: str | Path, names: Iterable[str], command: str | None = None, in_place: Iterable[str] = ()
+) -> Iterator[Path]:
     """``folder`` made if needed and proved writable, its lock held within the block
     (:func:`hold_folder`), and refused when it holds a file named like one of ``names`` (those the
     command may write) that its manifest does not list (:func:`check_foreign`). A folder this
     made is removed again when the block ends in a :class:`~heliostep.errors.HeliostepError`
-    with the folder empty (bad input found while setting up)."""
+    with the folder empty (bad input found while setting up). ``in_place``: the names the command updates
+    in place (:func:`claimed`), its own again after a kill."""
     folder = check_out_name(str(folder))
     existed = folder.exists()
     check_out_dir(folder)
     try:
         with hold_folder(folder, command):
-            check_foreign(folder, names)
+            check_foreign(folder, names, in_place)
             yield folder
     except HeliostepError:
         if not existed:

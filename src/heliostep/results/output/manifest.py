@@ -20,9 +20,11 @@ from heliostep.errors import InputError
 from heliostep.results.output.files import TMP_PREFIX, refuse_link
 
 __all__ = [
+    "IN_PLACE",
     "MANIFEST_NAME",
     "FileRecord",
     "file_record",
+    "is_in_place",
     "is_ours",
     "open_new",
     "read_records",
@@ -55,6 +57,18 @@ def file_record(path: Path) -> dict:
                 size += len(chunk)
             _READ[key] = {"size": size, "sha256": digest.hexdigest()}
     return dict(_READ[key])
+
+
+#: The record of a file heliostep is updating in place (a sweep's table): no digest until the update ends.
+IN_PLACE = {"in_place": True}
+
+
+def is_in_place(path: Path, record: FileRecord) -> bool:
+    """Whether ``record`` marks ``path`` as being updated in place and ``path`` is a plain file (not a link)."""
+    try:
+        return record == IN_PLACE and stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False
 
 
 def is_ours(path: Path, record: FileRecord) -> bool:
