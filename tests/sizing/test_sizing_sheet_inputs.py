@@ -164,3 +164,42 @@ def test_a_wind_moment_given_even_zero_is_the_wind_sized_against(tmp_path):
     plan = plan_sizing(SCENARIO, candidates, days=[21], overrides=["wind.moment=0", "window.duration=20"])
     assert plan.wind_moment == 0.0 and plan.wind_source.endswith("wind.moment")
     assert plan.inputs["wind"]["moment_Nm"] == 0.0 and plan.inputs["wind"]["design_gust_m_s"] is None
+
+
+def _least_margin(row: dict) -> tuple[str, float]:
+    margins = {"tracking": row["tracking_margin"], "idle": row["idle_margin"], "stow": row["stow_margin"]}
+    return min(margins.items(), key=lambda item: item[1])
+
+
+def test_a_nema_17_fails_where_a_nema_23_passes_and_the_sheet_names_each_governing_case(tmp_path, fmu_paths):
+    """The shipped catalogue's smallest NEMA 17 (0.27 N.m) and smallest NEMA 23 (1.01 N.m) against a 20 m/s
+    design gust: the friction alone (0.08 N.m) leaves the NEMA 17 no margin of 2 at any current."""
+    nema_17, nema_23 = "QSH4218-35-10-027", "QSH5718-51-28-101"
+    frames = {c.name: c.frame for c in load_catalogue(None, [nema_17, nema_23])}
+    assert frames == {nema_17: "NEMA 17", nema_23: "NEMA 23"}
+    out = tmp_path / "out"
+    argv = ["size", str(SCENARIO), "--candidate", nema_17, "--candidate", nema_23, "--days", "21"]
+    argv += ["--curve-rates", "5", "--no-band-days", "--design-gust", "20", "--set", "window.duration=20"]
+    assert main([*argv, "--out", str(out)]) == 0
+    sheet = json.loads((out / "sizing.json").read_text(encoding="utf-8"))
+    by_name = {c["name"]: c for c in sheet["candidates"]}
+    assert by_name[nema_17]["verdict"] == "fail" and by_name[nema_23]["verdict"] == "pass"
+    for entry in sheet["candidates"]:
+        for row in entry["currents"]:
+            assert (row["governing"]["case"], row["governing"]["margin"]) == _least_margin(row)
+    verdict = sheet["verdict"]
+    chosen = next(row for row in by_name[nema_23]["currents"] if row["verdict"] == "pass")
+    assert (verdict["candidate"], verdict["current_A"]) == (nema_23, chosen["current_A"])
+    assert verdict["governing"] == chosen["governing"]
+    smaller = by_name[nema_17]["currents"][-1]  # the NEMA 17 at its highest current
+    assert (
+        verdict["next_smaller"]["candidate"] == nema_17 and verdict["next_smaller"]["governing"] == smaller["governing"]
+    )
+    case, margin = smaller["governing"]["case"], smaller["governing"]["margin"]
+    assert (
+        f"The next smaller candidate, {nema_17} at 1 A (its governing case {case}, margin {margin:.2f}), fails: "
+        in (verdict["text"])
+    )
+    page = _Page()
+    page.feed((out / "sizing.html").read_text(encoding="utf-8"))
+    assert page.sections[0][1][2] == verdict["text"]

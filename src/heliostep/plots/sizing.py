@@ -133,6 +133,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
         "drive energy per year [kWh]",
         "light change vs ideal tracking, stowed included [%]",
         "light lost while stowed [J]",
+        "governing case [tracking/idle/stow]",
         "verdict [pass/fail]",
         "reasons [text]",
     )
@@ -157,6 +158,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
                     simulated.get("drive_energy_per_year_kWh"),
                     None if simulated.get("light_change_share") is None else 100.0 * simulated["light_change_share"],
                     simulated.get("light_lost_stowed_J"),
+                    (row.get("governing") or {}).get("case"),
                     row["verdict"],
                     "; ".join(row["reasons"]) or "passes",
                 )

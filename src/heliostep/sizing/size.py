@@ -177,23 +177,30 @@ def plan_sizing(
     plan.corner = _band_corner(plan) if band_days else {}
     source = str(catalogue if catalogue is not None else shipped_catalogue_path())
     check_case_count(source, plan.candidates, plan.days, bool(plan.corner), max_cases)  # before any is built
-    plan.inputs = sizing_inputs(
-        scenario,
-        scenario_digest=scenario_digest,
-        catalogue=str(Path(source).absolute()),
-        catalogue_digest=file_digest(source, "motor catalogue"),
-        overrides=overrides,
-        design_gust=design_gust,
-        wind_moment=plan.wind_moment,
-        wind_source=plan.wind_source,
-        safety_factor=safety_factor,
-        days=selection.record(),
-    )
+    plan.inputs = _inputs(plan, scenario_digest, source, overrides, design_gust)
     plan.cases = _plan_cases(plan)
     check_cases(plan)  # every case's scenario valid and the largest within the budget before anything runs
     plan.fmu_paths = resolve_fmus(scenario)
     plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
     return plan
+
+
+def _inputs(
+    plan: SizingPlan, scenario_digest: str, catalogue: str, overrides: Sequence[str], design_gust: float | None
+) -> dict:
+    """The sheet's ``inputs`` (:func:`heliostep.sizing.inputs.sizing_inputs`), the catalogue's digest read now."""
+    return sizing_inputs(
+        plan.scenario,
+        scenario_digest=scenario_digest,
+        catalogue=str(Path(catalogue).absolute()),
+        catalogue_digest=file_digest(catalogue, "motor catalogue"),
+        overrides=overrides,
+        design_gust=design_gust,
+        wind_moment=plan.wind_moment,
+        wind_source=plan.wind_source,
+        safety_factor=plan.safety_factor,
+        days=plan.day_selection.record() if plan.day_selection is not None else {},
+    )
 
 
 def _plan_wind(scenario: Scenario, design_gust: float | None) -> tuple[float | None, str]:

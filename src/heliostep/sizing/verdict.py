@@ -169,6 +169,7 @@ def _judge_current(
         row["band"]["stow_margin_worst_corner"] = worst_stow
         if plan.corner:
             row["band"]["simulation_worst_corner"] = _band_days(plan, candidate, current, results)
+    row["governing"] = governing_case(plan, row)
     row["reasons"] = _reasons(plan, row, budget, day)
     unfinished = (row.get("band") or {}).get("simulation_worst_corner", {}).get("days_unfinished", [])
     if row["simulation"]["days_unfinished"]:
@@ -342,13 +343,14 @@ def verdict_summary(plan: SizingPlan, candidates: list[dict], chosen: str | None
             "candidate": smaller["name"],
             "current_A": best["current_A"],
             "verdict": best["verdict"],
+            "governing": best["governing"],
             "reasons": best["reasons"],
         }
     summary = {
         "candidate": entry["name"] if chosen is not None else None,
         "current_A": row["current_A"] if chosen is not None else None,
         "judged": {"candidate": entry["name"], "current_A": row["current_A"], "verdict": row["verdict"]},
-        "governing": governing_case(plan, row),
+        "governing": row["governing"],
         "next_smaller": next_smaller,
     }
     return {**summary, "text": _verdict_text(summary, row["reasons"])}
@@ -369,10 +371,8 @@ def _verdict_text(summary: Mapping, reasons: list[str]) -> str:
         f"{governing['timezone']}, {governing['time_s']:g} s into the window, panel at "
         f"{governing['panel_angle_deg']:.1f} deg"
     )
-    margin = governing["margin"]
-    margin_text = "unbounded (no load)" if math.isinf(margin) else f"{margin:.2f}"
     body = (
-        f" Governing case: {governing['what']}, {where}; margin {margin_text} against the safety factor "
+        f" Governing case: {governing['what']}, {where}; margin {_margin(governing)} against the safety factor "
         f"{governing['safety_factor']:g}."
     )
     smaller = summary["next_smaller"]
@@ -381,5 +381,13 @@ def _verdict_text(summary: Mapping, reasons: list[str]) -> str:
     else:
         why = "; ".join(smaller["reasons"]) or "no reason recorded"
         fails = "fails" if smaller["verdict"] == "fail" else f"is {smaller['verdict']}"
-        tail = f" The next smaller candidate, {smaller['candidate']} at {smaller['current_A']:g} A, {fails}: {why}."
+        case = f"its governing case {smaller['governing']['case']}, margin {_margin(smaller['governing'])}"
+        tail = (
+            f" The next smaller candidate, {smaller['candidate']} at {smaller['current_A']:g} A ({case}), "
+            f"{fails}: {why}."
+        )
     return head + body + tail
+
+
+def _margin(governing: Mapping) -> str:
+    return "unbounded (no load)" if math.isinf(governing["margin"]) else f"{governing['margin']:.2f}"
