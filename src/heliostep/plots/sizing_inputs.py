@@ -92,11 +92,13 @@ def sheet_title(sheet: Mapping[str, Any]) -> str:
     """The sheet's title: the scenario, its site and how many ``--set`` changed it (escaped)."""
     inputs = sheet.get("inputs") or {}
     site, overrides = inputs.get("site") or {}, inputs.get("overrides") or []
-    where = (
-        f" at {site['latitude']:g}° N, {site['longitude']:g}° E, {site['altitude']:g} m ({site['timezone']})"
-        if site
-        else ""
-    )
+    where = ""
+    if site:
+        north, east = site["latitude"], site["longitude"]
+        where = (
+            f" at {abs(north):g}° {'N' if north >= 0 else 'S'}, {abs(east):g}° {'E' if east >= 0 else 'W'}, "
+            f"{site['altitude']:g} m ({site['timezone']})"
+        )
     changed = f", with {len(overrides)} --set" if overrides else ""
     return html.escape(f"Sizing sheet: {sheet['scenario']}{where}{changed}")
 
