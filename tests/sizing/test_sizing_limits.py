@@ -33,7 +33,8 @@ def _catalogue(folder: Path, motors: dict) -> Path:
 
 
 def _size(tmp_path: Path, catalogue: Path, *options: str) -> tuple[int, float]:
-    argv = ["size", SCENARIO, "--catalogue", str(catalogue), "--set", "window.duration=60", *options]
+    argv = ["size", SCENARIO, "--catalogue", str(catalogue), "--set", "window.duration=60", "--design-gust", "30"]
+    argv += options
     started = time.perf_counter()
     status = main([*argv, "--out", str(tmp_path / "out")])
     return status, time.perf_counter() - started

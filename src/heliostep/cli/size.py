@@ -21,7 +21,12 @@ SIZE_DESCRIPTION = (
     "tracking error, drive energy). A candidate passes when both margins reach the safety factor and no step "
     "is missed or lost. Each day is co-simulated once more at the worst corner of the drive physics' ranges "
     "(data/parameter_ranges.yaml: the lowest bus and loop gain, the highest rotor damping), shown in the band "
-    "beside the verdict (--no-band-days: not). Writes sizing.json and sizing.html (self-contained) into --out.\n\n"
+    "beside the verdict (--no-band-days: not). Writes sizing.json and sizing.html (self-contained, one "
+    "printed page per section) into --out: first the verdict (the drive chosen, its governing case and margin, "
+    "why the next smaller one fails), then what it was sized for (site, window and days, mirror, transmission, "
+    "wind, safety factor, every --set, the files' sha256, the versions).\n\n"
+    "Wind: --design-gust, or the scenario's wind.speed, wind.weather_file, wind.profile or wind.moment; with "
+    "none of them the sizing is refused (exit 2): it does not size against no wind.\n\n"
     "Days: --days DOY ..., or --days all (every day of the year, meant for --scheduler); else the days that "
     "matter, found over the scenario's year: the sun's fastest days (the peaks of the year's curve of the ideal "
     "panel angle's largest rate within the window) and, with wind.weather_file, the year's windiest days (the "
@@ -34,8 +39,8 @@ SIZE_DESCRIPTION = (
     "memory is estimated and refused over budget.memory_gb (--set budget.memory_gb=GB). A sheet --out cannot take "
     "(a full disk) is written as sizing.json into a rescue folder, named on stderr, exit 1.\n\n"
     "Exit status: 0 written (whatever the verdicts); 1 a failure (the sheet not written: rescued); 2 bad input "
-    "(scenario, catalogue: unknown candidate, an entry missing a value; a bad option; too many cases, over the "
-    "budget), before any simulation; 130 / 143 / 129 stopped."
+    "(scenario, catalogue: unknown candidate, an entry missing a value; a bad option; no wind; too many cases, "
+    "over the budget), before any simulation; 130 / 143 / 129 stopped."
 )
 
 
@@ -52,7 +57,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--candidate", action="append", default=[], help="only this catalogue entry (repeatable)")
     parser.add_argument(
-        "--design-gust", type=float, default=None, metavar="M_PER_S", help="design gust [m/s] (else wind.moment)"
+        "--design-gust",
+        type=float,
+        default=None,
+        metavar="M_PER_S",
+        help="design gust [m/s] (else the scenario's wind; one of the two is required)",
     )
     parser.add_argument(
         "--days",

@@ -17,6 +17,7 @@ from typing import Any
 from matplotlib.figure import Figure
 
 from heliostep.plots.png import save_png
+from heliostep.plots.sizing_inputs import PRINT_STYLE, inputs_section, sheet_title, verdict_paragraph
 
 __all__ = ["margins_png", "sizing_html", "speed_torque_png"]
 
@@ -132,6 +133,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
         "drive energy per year [kWh]",
         "light change vs ideal tracking, stowed included [%]",
         "light lost while stowed [J]",
+        "governing case [tracking/idle/stow]",
         "verdict [pass/fail]",
         "reasons [text]",
     )
@@ -156,6 +158,7 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
                     simulated.get("drive_energy_per_year_kWh"),
                     None if simulated.get("light_change_share") is None else 100.0 * simulated["light_change_share"],
                     simulated.get("light_lost_stowed_J"),
+                    (row.get("governing") or {}).get("case"),
                     row["verdict"],
                     "; ".join(row["reasons"]) or "passes",
                 )
@@ -357,8 +360,9 @@ def _beside_the_verdict(sheet: Mapping[str, Any]) -> str:
     return f"<p>Beside the verdict (the uncertainty band):</p><ul>{items}</ul>" if items else ""
 
 
-def sizing_html(sheet: Mapping[str, Any]) -> str:
-    """The sizing sheet as one HTML page (everything embedded)."""
+def _summary_section(sheet: Mapping[str, Any]) -> list[str]:
+    """The first page: the title (scenario and site), the verdict paragraph, the smallest passing drive,
+    what the band puts beside it and why each smaller one fails."""
     best = sheet.get("smallest_passing")
     verdict = (
         f"The smallest passing drive: <b>{html.escape(best['candidate'])} at {best['current_A']:g} A</b>."
@@ -378,37 +382,51 @@ def sizing_html(sheet: Mapping[str, Any]) -> str:
             f"{html.escape(', '.join(sheet.get('unfinished_cases', [])))}</p>"
         )
     )
-    parts = [
-        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>sizing: {html.escape(sheet['scenario'])}</title>",
-        f"<style>{_STYLE}</style></head><body>",
-        f"<h1>Sizing sheet: {html.escape(sheet['scenario'])}</h1>",
-        f"<p>Wind: {_wind_text(sheet['wind'])}; "
+    return [
+        f"<h1>{sheet_title(sheet)}</h1>",
+        verdict_paragraph(sheet),
+        status,
+        f"<p>{verdict} Wind: {_wind_text(sheet['wind'])}; "
         f"safety factor {sheet['safety_factor']:g} on the load; days simulated (day of year): "
         f"{html.escape(', '.join(map(str, sheet['days'])))}.</p>",
-        status,
-        f"<p>{verdict}</p>",
         _beside_the_verdict(sheet),
         f"<h2>Why each smaller one fails</h2><ul>{smaller or '<li>none smaller</li>'}</ul>",
-        "<h2>Verdicts</h2>",
-        _verdict_table(sheet),
-        _energy_note(sheet),
-        _image(margins_png(sheet), "margins"),
-        "<h2>Load budget at the worst instant</h2>",
-        _budget_table(sheet),
-        _stow_table(sheet),
-        "<h2>Uncertainty band of the drive physics</h2>",
-        "<p>The margins at every corner of the bands' parameter ranges (data/parameter_ranges.yaml); the "
-        "speed-torque curve and the days co-simulated again at the worst corner (the lowest bus and loop gain, "
-        "the highest rotor damping). The verdict is on the nominal figures; these are beside it.</p>",
-        _band_table(sheet),
-        "<h2>Speed-torque curves</h2>",
-        _image(speed_torque_png(sheet), "speed-torque curves"),
-        _curve_table(sheet),
-        "<h2>Days simulated</h2>",
-        f"<p>{html.escape((sheet.get('day_selection') or {}).get('criterion', ''))}</p>",
-        _days_table(sheet),
-        "<h2>Catalogue</h2>",
-        _catalogue_table(sheet),
-        "</body></html>",
     ]
-    return "\n".join(parts)
+
+
+def _sections(sheet: Mapping[str, Any]) -> list[list[str]]:
+    """The sheet's sections in order, each printed on a page of its own."""
+    return [
+        _summary_section(sheet),
+        [inputs_section(sheet)],
+        ["<h2>Verdicts</h2>", _verdict_table(sheet), _energy_note(sheet), _image(margins_png(sheet), "margins")],
+        ["<h2>Load budget at the worst instant</h2>", _budget_table(sheet), _stow_table(sheet)],
+        [
+            "<h2>Uncertainty band of the drive physics</h2>",
+            "<p>The margins at every corner of the bands' parameter ranges (data/parameter_ranges.yaml); the "
+            "speed-torque curve and the days co-simulated again at the worst corner (the lowest bus and loop "
+            "gain, the highest rotor damping). The verdict is on the nominal figures; these are beside it.</p>",
+            _band_table(sheet),
+        ],
+        [
+            "<h2>Speed-torque curves</h2>",
+            _image(speed_torque_png(sheet), "speed-torque curves"),
+            _curve_table(sheet),
+        ],
+        [
+            "<h2>Days simulated</h2>",
+            f"<p>{html.escape((sheet.get('day_selection') or {}).get('criterion', ''))}</p>",
+            _days_table(sheet),
+        ],
+        ["<h2>Catalogue</h2>", _catalogue_table(sheet)],
+    ]
+
+
+def sizing_html(sheet: Mapping[str, Any]) -> str:
+    """The sizing sheet as one HTML page (everything embedded), one section per printed page."""
+    head = (
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{sheet_title(sheet)}</title>"
+        f"<style>{_STYLE}{PRINT_STYLE}</style></head><body>"
+    )
+    body = ["<section>\n" + "\n".join(part for part in parts if part) + "\n</section>" for parts in _sections(sheet)]
+    return "\n".join([head, *body, "</body></html>"])

@@ -5,7 +5,7 @@
 from heliostep.run.fmus import resolve_fmus
 from heliostep.run.options import RunOptions
 from heliostep.run.result import RunFailed, RunResult
-from heliostep.run.runner import HELD_TRACE_MAX_DURATION, SINK_ROWS, VERSIONED_PACKAGES, run_scenario
+from heliostep.run.runner import HELD_TRACE_MAX_DURATION, SINK_ROWS, VERSIONED_PACKAGES, run_scenario, run_versions
 
 __all__ = [
     "HELD_TRACE_MAX_DURATION",
@@ -16,4 +16,5 @@ __all__ = [
     "RunResult",
     "resolve_fmus",
     "run_scenario",
+    "run_versions",
 ]

@@ -40,7 +40,7 @@ from heliostep.run.supervision.allocator import restore_dynamic_heap
 from heliostep.run.supervision.supervisor import simulate_supervised
 from heliostep.scenario import Scenario, load_scenario
 
-__all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario"]
+__all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario", "run_versions"]
 
 #: Packages whose versions go into a run's metadata.
 VERSIONED_PACKAGES = ("fmpy", "pymoca", "casadi", "pvlib", "numpy", "scipy", "pandas")
@@ -179,6 +179,16 @@ def _prepare(
     return _PreparedRun(scenario, system, inputs, solver, roles, meta, started, weather)
 
 
+def run_versions() -> dict:
+    """heliostep's, Python's and :data:`VERSIONED_PACKAGES`' versions, as a run's metadata records them
+    (the sizing sheet records the same)."""
+    return {
+        "heliostep": __version__,
+        "python": platform.python_version(),
+        "packages": {p: package_metadata.version(p) for p in VERSIONED_PACKAGES},
+    }
+
+
 def _metadata(
     scenario: Scenario,
     fmu_paths: Mapping[str, Path],
@@ -192,9 +202,7 @@ def _metadata(
     for name, info in infos.items():
         units.update({f"{name}.{v}": info.variables[v].unit for v in info.outputs if info.variables[v].unit})
     return RunMetadata(
-        heliostep=__version__,
-        python=platform.python_version(),
-        packages={p: package_metadata.version(p) for p in VERSIONED_PACKAGES},
+        **run_versions(),
         scenario=scenario.resolved_dict(),
         fmus=fmu_records(fmu_paths, infos),
         parameters=values,

@@ -57,6 +57,7 @@ class SizingPlan:
     day_selection: DaySelection | None = None  # the days and why each (heliostep.sizing.days)
     ranges: tuple[ParameterRange, ...] = ()  # the drive physics' ranges (heliostep.sizing.band)
     corner: dict[str, float] = field(default_factory=dict)  # the worst corner's values the band's days set
+    inputs: dict = field(default_factory=dict)  # what it is sized for: the sheet's inputs (heliostep.sizing.inputs)
 
 
 def case_scenario(raw: dict, overrides: Sequence[str], source: str, folder: Path) -> Scenario:

@@ -75,6 +75,7 @@ def size(
         sheet = {
             "scenario": plan.scenario.name,
             "source": plan.scenario.source,
+            "inputs": plan.inputs,
             "catalogue": catalogue,
             "wind": {"moment_Nm": plan.wind_moment, "source": plan.wind_source},
             "safety_factor": plan.safety_factor,

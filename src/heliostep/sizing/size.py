@@ -28,6 +28,7 @@ from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
 from heliostep.sizing.days import date_of, select_days
+from heliostep.sizing.inputs import check_wind_given, file_digest, sizing_inputs
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario, check_case_count, check_cases
 from heliostep.sizing.stow import stow_angles, stow_step_rates
 from heliostep.sizing.verdict import judge
@@ -149,19 +150,15 @@ def plan_sizing(
     shipped one), named when they make more than ``max_cases`` cases (refused before any is built); the largest
     case's estimate is refused over the scenario's budget."""
     path = resolve_scenario_path(scenario_path)
+    scenario_digest = file_digest(path, "scenario")  # the file as read next
     raw = read_yaml_file(path, "scenario")
     if not isinstance(raw, dict):
         raise InputError(f"{path}: the top level must be a mapping of keys (name, site, window, ...)")
     raw = apply_overrides(raw, overrides, str(path))
     scenario = validate_scenario(copy.deepcopy(raw), source=str(path), folder=path.absolute().parent)
     _check_options(design_gust, days, safety_factor, curve_rates, max_cases)
-    wind: float | None
-    if design_gust is not None:
-        wind, source = design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s"
-    elif scenario.wind.has_speed:
-        wind, source = None, f"{scenario.source}: the wind over time ({_speed_source(scenario)}), each day's own"
-    else:
-        wind, source = scenario.wind.moment, f"{scenario.source}: wind.moment"
+    check_wind_given(str(path), raw, design_gust)
+    wind, source = _plan_wind(scenario, design_gust)
     selection = select_days(scenario, days)
     rates = tuple(sorted(float(rate) for rate in curve_rates))
     plan = SizingPlan(
@@ -180,11 +177,42 @@ def plan_sizing(
     plan.corner = _band_corner(plan) if band_days else {}
     source = str(catalogue if catalogue is not None else shipped_catalogue_path())
     check_case_count(source, plan.candidates, plan.days, bool(plan.corner), max_cases)  # before any is built
+    plan.inputs = _inputs(plan, scenario_digest, source, overrides, design_gust)
     plan.cases = _plan_cases(plan)
     check_cases(plan)  # every case's scenario valid and the largest within the budget before anything runs
     plan.fmu_paths = resolve_fmus(scenario)
     plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
     return plan
+
+
+def _inputs(
+    plan: SizingPlan, scenario_digest: str, catalogue: str, overrides: Sequence[str], design_gust: float | None
+) -> dict:
+    """The sheet's ``inputs`` (:func:`heliostep.sizing.inputs.sizing_inputs`), the catalogue's digest read now."""
+    return sizing_inputs(
+        plan.scenario,
+        scenario_digest=scenario_digest,
+        catalogue=str(Path(catalogue).absolute()),
+        catalogue_digest=file_digest(catalogue, "motor catalogue"),
+        overrides=overrides,
+        design_gust=design_gust,
+        wind_moment=plan.wind_moment,
+        wind_source=plan.wind_source,
+        safety_factor=plan.safety_factor,
+        days=plan.day_selection.record() if plan.day_selection is not None else {},
+    )
+
+
+def _plan_wind(scenario: Scenario, design_gust: float | None) -> tuple[float | None, str]:
+    """The sizing's wind: the design gust's moment [N.m], the scenario's constant ``wind.moment``, or None
+    (the scenario's wind over time, each day's own); and its source in words."""
+    if design_gust is not None:
+        replaced = [key for key in ("speed", "weather_file", "profile") if getattr(scenario.wind, key) is not None]
+        instead = f" in place of the scenario's wind.{replaced[0]}" if replaced else ""
+        return design_gust_moment(scenario, design_gust), f"design gust {design_gust:g} m/s{instead}"
+    if scenario.wind.has_speed:
+        return None, f"{scenario.source}: the wind over time ({_speed_source(scenario)}), each day's own"
+    return scenario.wind.moment, f"{scenario.source}: wind.moment"
 
 
 def _band_corner(plan: SizingPlan) -> dict[str, float]:

@@ -7,6 +7,7 @@ recommendation, and every pair before it is listed with the reasons it fails.
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 from collections.abc import Mapping
 
@@ -17,10 +18,11 @@ from heliostep.run.load_budget import LoadBudget, load_budget, static_step_limit
 from heliostep.run.speed_torque import SpeedTorqueCurve
 from heliostep.scenario.catalogue import MotorCandidate
 from heliostep.sizing.band import drive_at, margin_band, worst_corner
+from heliostep.sizing.days import date_of, day_windows
 from heliostep.sizing.plan import SizingPlan, case_scenario
 from heliostep.sizing.stow import stow_angles, stow_margin
 
-__all__ = ["ENERGY_ESTIMATORS", "judge"]
+__all__ = ["ENERGY_ESTIMATORS", "MARGIN_CASES", "judge", "verdict_summary"]
 
 #: How the drive's energy per year is estimated from the simulated days, by the kind of day selection.
 ENERGY_ESTIMATORS = {
@@ -167,6 +169,7 @@ def _judge_current(
         row["band"]["stow_margin_worst_corner"] = worst_stow
         if plan.corner:
             row["band"]["simulation_worst_corner"] = _band_days(plan, candidate, current, results)
+    row["governing"] = governing_case(plan, row)
     row["reasons"] = _reasons(plan, row, budget, day)
     unfinished = (row.get("band") or {}).get("simulation_worst_corner", {}).get("days_unfinished", [])
     if row["simulation"]["days_unfinished"]:
@@ -277,6 +280,7 @@ def judge(
     first = next((k for k, (_, row) in enumerate(ordered) if row["verdict"] == "pass"), None)
     smaller = ordered if first is None else ordered[:first]
     return {
+        "verdict": verdict_summary(plan, candidates, None if first is None else ordered[first][0]),
         "candidates": candidates,
         "smallest_passing": None
         if first is None
@@ -286,3 +290,104 @@ def judge(
             for name, row in smaller
         ],
     }
+
+
+#: The margins a verdict weighs, each in words: what the motor must do there.
+MARGIN_CASES = {
+    "tracking": "tracking: stepping from rest against the load at the worst instant",
+    "idle": "idle: holding at idle current against the wind at the worst instant",
+    "stow": "stowing: a stow move at the slew rate in the stow wind",
+}
+
+
+def governing_case(plan: SizingPlan, row: Mapping) -> dict:
+    """The least of a candidate's margins at one current (tracking, idle, stow) and where it is: the day,
+    the local time and the panel angle of the load budget's worst instant, or the stow move's angle."""
+    margins = {"tracking": row["tracking_margin"], "idle": row["idle_margin"], "stow": row.get("stow_margin")}
+    case, margin = min(((k, v) for k, v in margins.items() if v is not None), key=lambda item: item[1])
+    record = {"case": case, "what": MARGIN_CASES[case], "margin": margin, "safety_factor": plan.safety_factor}
+    if case == "stow":
+        stow = row["stow_load"]
+        return {**record, "panel_angle_deg": stow["panel_angle_deg"], "step_rate_per_s": stow["step_rate_per_s"]}
+    budget = row["load_budget"]
+    day = budget["day_of_year"]
+    window = day_windows(plan.scenario)[day - 1]
+    instant = None if window is None else window[0] + dt.timedelta(seconds=budget["time_s"])
+    return {
+        **record,
+        "day_of_year": day,
+        "date": date_of(plan.scenario.window.date.year, day).isoformat(),
+        "local_time": None if instant is None else instant.isoformat(timespec="seconds"),
+        "timezone": plan.scenario.site.timezone,
+        "time_s": budget["time_s"],
+        "panel_angle_deg": budget["panel_angle_deg"],
+        "load_Nm": budget["total_Nm"],
+    }
+
+
+def verdict_summary(plan: SizingPlan, candidates: list[dict], chosen: str | None) -> dict:
+    """The verdict in one paragraph's fields: the candidate and current chosen (None: none passes, then the
+    largest candidate at its highest current stands in), its governing case, and why the next smaller
+    candidate (at its highest current) fails; ``text``: the paragraph."""
+    names = [c["name"] for c in candidates]
+    if not candidates:
+        return {"candidate": None, "current_A": None, "governing": None, "next_smaller": None, "text": ""}
+    at = names.index(chosen) if chosen is not None else len(candidates) - 1
+    entry = candidates[at]
+    row = next((r for r in entry["currents"] if r["verdict"] == "pass"), entry["currents"][-1])
+    smaller = candidates[at - 1] if at > 0 else None
+    next_smaller = None
+    if smaller is not None:
+        best = smaller["currents"][-1]
+        next_smaller = {
+            "candidate": smaller["name"],
+            "current_A": best["current_A"],
+            "verdict": best["verdict"],
+            "governing": best["governing"],
+            "reasons": best["reasons"],
+        }
+    summary = {
+        "candidate": entry["name"] if chosen is not None else None,
+        "current_A": row["current_A"] if chosen is not None else None,
+        "judged": {"candidate": entry["name"], "current_A": row["current_A"], "verdict": row["verdict"]},
+        "governing": row["governing"],
+        "next_smaller": next_smaller,
+    }
+    return {**summary, "text": _verdict_text(summary, row["reasons"])}
+
+
+def _verdict_text(summary: Mapping, reasons: list[str]) -> str:
+    """The verdict paragraph: chosen (or none), the governing case with its margin, the next smaller one."""
+    judged, governing = summary["judged"], summary["governing"]
+    pair = f"{judged['candidate']} at {judged['current_A']:g} A"
+    if summary["candidate"] is not None:
+        head = f"Chosen: {pair}."
+    else:
+        head = f"No candidate passes; the largest tried, {pair}, fails: {'; '.join(reasons)}."
+    where = (
+        f"at {governing['panel_angle_deg']:.1f} deg panel angle ({governing['step_rate_per_s']:.3g} full steps/s)"
+        if governing["case"] == "stow"
+        else f"on day {governing['day_of_year']} ({governing['date']}) at {(governing['local_time'] or '-')[11:19]} "
+        f"{governing['timezone']}, {governing['time_s']:g} s into the window, panel at "
+        f"{governing['panel_angle_deg']:.1f} deg"
+    )
+    body = (
+        f" Governing case: {governing['what']}, {where}; margin {_margin(governing)} against the safety factor "
+        f"{governing['safety_factor']:g}."
+    )
+    smaller = summary["next_smaller"]
+    if smaller is None:
+        tail = " No smaller candidate was tried."
+    else:
+        why = "; ".join(smaller["reasons"]) or "no reason recorded"
+        fails = "fails" if smaller["verdict"] == "fail" else f"is {smaller['verdict']}"
+        case = f"its governing case {smaller['governing']['case']}, margin {_margin(smaller['governing'])}"
+        tail = (
+            f" The next smaller candidate, {smaller['candidate']} at {smaller['current_A']:g} A ({case}), "
+            f"{fails}: {why}."
+        )
+    return head + body + tail
+
+
+def _margin(governing: Mapping) -> str:
+    return "unbounded (no load)" if math.isinf(governing["margin"]) else f"{governing['margin']:.2f}"
