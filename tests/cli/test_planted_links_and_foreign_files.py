@@ -121,3 +121,13 @@ def test_geometry_keeps_a_file_an_old_manifest_lists_without_records(tmp_path):
     assert status == 0, err[-2000:]
     assert f"kept {name}" in err
     assert (out / name).read_text() == WORDS
+
+
+def test_size_refuses_a_link_planted_as_its_sheet_before_sizing(tmp_path, fmu_paths):
+    target, out = _target(tmp_path), tmp_path / "out"
+    out.mkdir()
+    (out / "sizing.json").symlink_to(target)
+    status, err = _run(["size", SCENARIO, "--design-gust", "30", "--candidate", "QSH4218-35-10-027", "--out", str(out)])
+    assert status == 2 and "sizing.json" in err and "Traceback" not in err
+    assert target.read_text() == WORDS and (out / "sizing.json").is_symlink()
+    assert sorted(p.name for p in out.iterdir()) == ["sizing.json"]  # nothing sized, nothing written
