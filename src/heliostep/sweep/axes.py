@@ -8,14 +8,18 @@ import datetime as dt
 import json
 import math
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from heliostep.errors import InputError
+from heliostep.scenario import Scenario, parse_yaml_value
+from heliostep.scenario.catalogue import load_catalogue, motor_overrides
 from heliostep.solar import N_FIELD_MIRRORS
 
 __all__ = [
+    "CATALOGUE_AXIS",
     "CENTRAL_MIRROR",
     "SHORTHAND_AXES",
     "SweepAxis",
@@ -23,7 +27,9 @@ __all__ = [
     "count_cases",
     "axis_hint",
     "axis_values",
+    "catalogue_path",
     "check_axis_key",
+    "make_axis",
     "setting_by_role",
     "show_value",
     "table_value",
@@ -49,6 +55,10 @@ _SHORTHAND_COLUMNS = {
     "current": "current_A",
     "wind_moment": "wind_moment_Nm",
 }
+
+
+#: The axis whose values are motor catalogue entries by name: each sets what ``heliostep run --motor`` sets.
+CATALOGUE_AXIS = "catalogue_motor"
 
 
 #: Index of the central mirror of the field (distance 0), whose law the shared primary follows.
@@ -79,10 +89,14 @@ class SweepAxis:
         As written in the sweep: a shorthand of :data:`SHORTHAND_AXES` or a dotted key.
     values : tuple
         The expanded values ("all" and ranges resolved), in order.
+    settings : tuple
+        (value, its (dotted key, value) settings) pairs, for an axis whose settings are worked out
+        beforehand (:data:`CATALOGUE_AXIS`); empty otherwise.
     """
 
     name: str
     values: tuple
+    settings: tuple = ()
 
     @property
     def column(self) -> str:
@@ -99,6 +113,8 @@ class SweepAxis:
         year : int
             Year of the base scenario's window (for ``day_of_year``).
         """
+        if self.settings:
+            return dict(self.settings)[value]
         if self.name == "day_of_year":
             return (("window.date", _date_of_day(year, value)),)
         if self.name == "mirror":
@@ -106,10 +122,49 @@ class SweepAxis:
         return ((SHORTHAND_AXES.get(self.name, self.name), value),)
 
 
+def make_axis(name, raw, year: int, where: str, base: Scenario, catalogue: Path | None) -> SweepAxis:
+    """One axis of the sweep, checked; ``base`` (the base scenario with the sweep's overrides) and ``catalogue``
+    (None: the shipped one) give :data:`CATALOGUE_AXIS`'s settings."""
+    name = check_axis_key(name, where)
+    values = axis_values(name, raw, year, f"{where}.{name}")
+    if name != CATALOGUE_AXIS:
+        return SweepAxis(name=name, values=values)
+    return SweepAxis(name=name, values=values, settings=_catalogue_settings(values, base, catalogue, f"{where}.{name}"))
+
+
+def _catalogue_settings(names: tuple, base: Scenario, catalogue: Path | None, where: str) -> tuple:
+    """Each catalogue motor's settings on ``base``: the ``--set`` items ``heliostep run --motor`` applies
+    (:func:`~heliostep.scenario.catalogue.motor_overrides`), read as ``--set`` reads them."""
+    for name in names:
+        if not isinstance(name, str):
+            raise InputError(f"{where}: {name!r}: expected a motor catalogue name (heliostep motors lists them)")
+    try:
+        candidates = load_catalogue(catalogue, names)  # unknown names refused with the close ones
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    pairs = [(c.name, [item.partition("=") for item in motor_overrides(base, c)]) for c in candidates]
+    return tuple((name, tuple((key, parse_yaml_value(text)) for key, _, text in items)) for name, items in pairs)
+
+
+def catalogue_path(sweep: Mapping, sweep_file: Path, where: str) -> Path | None:
+    """The sweep file's ``catalogue`` (relative to the sweep file) for its :data:`CATALOGUE_AXIS`, or None (the
+    shipped catalogue); refused without that axis."""
+    raw = sweep.get("catalogue")
+    if raw is None:
+        return None
+    if not isinstance(raw, str) or not raw.strip():
+        raise InputError(f"{where}: expected the path of a motor catalogue (relative to the sweep file), got {raw!r}")
+    axes = sweep.get("axes")
+    if not isinstance(axes, Mapping) or CATALOGUE_AXIS not in axes:
+        raise InputError(f"{where}: a catalogue is for the {CATALOGUE_AXIS} axis, which the sweep does not have")
+    path = Path(raw).expanduser()
+    return path if path.is_absolute() else sweep_file.absolute().parent / path
+
+
 def check_axis_key(key, where: str) -> str:
     if not isinstance(key, str) or not all(part.strip() for part in key.split(".")) or key != key.strip():
         raise InputError(
-            f"{where}: {key!r}: expected a shorthand ({', '.join(SHORTHAND_AXES)}) or a "
+            f"{where}: {key!r}: expected a shorthand ({', '.join([*SHORTHAND_AXES, CATALOGUE_AXIS])}) or a "
             f"dotted scenario key such as 'sequencer.current'"
         )
     return key

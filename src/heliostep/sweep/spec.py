@@ -27,9 +27,10 @@ from heliostep.sweep.axes import (
     SHORTHAND_AXES,
     SweepAxis,
     axis_hint,
-    axis_values,
+    catalogue_path,
     check_axis_key,
     check_case_count,
+    make_axis,
     setting_by_role,
     show_value,
     table_value,
@@ -77,7 +78,7 @@ def _primary_load(base: Mapping) -> list[tuple[str, Any]]:
 ROLES = ("drive", "shared-primary")
 
 
-_SWEEP_KEYS = ("name", "description", "base", "combine", "axes", "overrides", "shared_primary", "max_cases")
+_SWEEP_KEYS = tuple("name description base combine axes overrides shared_primary max_cases catalogue".split())
 
 #: The most cases a sweep may have unless its file says ``max_cases`` (each case is a run; the
 #: cases are counted from the axes before any is built).
@@ -219,6 +220,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
         description=data.get("description"),
         max_cases=data.get("max_cases", MAX_CASES),
         file=str(path.resolve()),
+        catalogue=catalogue_path(data, path, f"{source}: catalogue"),
     )
 
 
@@ -281,6 +283,7 @@ def _make_spec(
     description,
     max_cases=MAX_CASES,
     file=None,
+    catalogue=None,
 ) -> SweepSpec:
     if combine not in COMBINE_MODES:
         raise InputError(f"{source}: combine: expected one of {', '.join(COMBINE_MODES)}, got {combine!r}")
@@ -317,26 +320,20 @@ def _make_spec(
         max_cases=max_cases,
         file=file,
     )
-    year = _validated(spec, (), f"{source}: overrides").window.date.year
-
-    parsed = _parsed_axes(axes, source, year, combine, shared_primary)
+    scenario = _validated(spec, (), f"{source}: overrides")  # the base as the axes see it (its roles, its year)
+    parsed = _parsed_axes(axes, source, scenario, catalogue, combine, shared_primary)
     return dataclasses.replace(spec, axes=parsed)
 
 
-def _parsed_axes(axes, source: str, year: int, combine: str, shared_primary: bool) -> tuple[SweepAxis, ...]:
-    """The sweep's axes from their raw form, checked: at least one, no two setting one key, equal
-    lengths for ``zip``, a ``mirror`` axis for ``shared_primary``. *year*: the base window's."""
+def _parsed_axes(axes, source: str, base: Scenario, catalogue, combine: str, shared_primary: bool) -> tuple:
+    """The sweep's axes from their raw form (:func:`~heliostep.sweep.axes.make_axis`), checked: at least one, no
+    two setting one key, equal lengths for ``zip``, a ``mirror`` axis for ``shared_primary``."""
     if not isinstance(axes, Mapping) or not axes:
         raise InputError(
             f"{source}: axes: expected a mapping of at least one axis (e.g. day_of_year: [21, 172]), got {axes!r}"
         )
-    parsed = tuple(
-        SweepAxis(
-            name=check_axis_key(axis_name, f"{source}: axes"),
-            values=axis_values(axis_name, raw, year, f"{source}: axes.{axis_name}"),
-        )
-        for axis_name, raw in axes.items()
-    )
+    year = base.window.date.year
+    parsed = tuple(make_axis(name, raw, year, f"{source}: axes", base, catalogue) for name, raw in axes.items())
     owner: dict[str, str] = {}  # dotted key -> the axis that sets it
     for axis in parsed:
         for key, _ in axis.overrides(axis.values[0], year):
