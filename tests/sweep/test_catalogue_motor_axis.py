@@ -9,12 +9,12 @@ import yaml
 from distributed import Client, LocalCluster
 
 from catalogue_entries import QSH8618_65_AT_3A
-from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
 from heliostep.run import run_scenario
 from heliostep.scenario import load_scenario
 from heliostep.scenario.catalogue import load_catalogue, motor_overrides
 from heliostep.sweep import expand_cases, load_sweep, run_sweep
+from sweep_refusals import assert_refused_before_any_case
 
 BASE = scenarios_dir() / "jan21-central.yaml"
 SHORT_WINDOW = ("window.duration=20", "output.interval=0.5")
@@ -100,15 +100,7 @@ def test_the_sweep_files_catalogue_is_read_relative_to_it(tmp_path):
 )
 def test_a_bad_catalogue_motor_is_refused_naming_the_axis_before_any_case(client, tmp_path, content, words):
     sweep = write_sweep(tmp_path, **content)
-    results = tmp_path / "results.parquet"
-    ran = []
-    with pytest.raises(InputError) as error:
-        run_sweep(sweep, results, client=client, on_result=ran.append)
-    message = str(error.value)
-    assert str(sweep) in message
-    for word in words:
-        assert word in message
-    assert not ran and not results.exists()
+    assert_refused_before_any_case(sweep, tmp_path / "results.parquet", client, words)
 
 
 def test_a_sweep_over_two_catalogue_motors_gives_the_figures_of_run_motor(client, tmp_path):

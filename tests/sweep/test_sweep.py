@@ -25,6 +25,7 @@ from heliostep.paths import fmus_dir, scenarios_dir
 from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE, plot_sweep
 from heliostep.run import RunOptions, run_scenario
 from heliostep.sweep import expand_cases, load_sweep, read_results, run_sweep
+from sweep_refusals import assert_refused_before_any_case
 
 BASE = scenarios_dir() / "jan21-central.yaml"
 SMOKE = scenarios_dir() / "sweeps" / "smoke.yaml"
@@ -348,15 +349,7 @@ def test_killing_a_worker_mid_sweep_loses_nothing(fmu_paths, tmp_path):
 )
 def test_bad_sweep_gives_clear_error_before_any_case_runs(client, tmp_path, content, words):
     sweep = write_sweep(tmp_path, "bad", **content)
-    results = tmp_path / "results.parquet"
-    ran = []
-    with pytest.raises(InputError) as error:
-        run_sweep(sweep, results, client=client, on_result=ran.append)
-    message = str(error.value)
-    assert str(sweep) in message
-    for word in words:
-        assert word in message
-    assert not ran and not results.exists()
+    assert_refused_before_any_case(sweep, tmp_path / "results.parquet", client, words)
 
 
 def test_unreachable_scheduler_fails_fast(tmp_path):
