@@ -25,31 +25,12 @@ from heliostep.paths import fmus_dir, scenarios_dir
 from heliostep.plots.sweep import HEATMAPS, TORQUE_FILE, plot_sweep
 from heliostep.run import RunOptions, run_scenario
 from heliostep.sweep import expand_cases, load_sweep, read_results, run_sweep
-from sweep_refusals import assert_refused_before_any_case
+from sweep_checks import PLAIN_FIGURES, assert_refused_before_any_case
 
 BASE = scenarios_dir() / "jan21-central.yaml"
 SMOKE = scenarios_dir() / "sweeps" / "smoke.yaml"
 YEAR_FIELD = scenarios_dir() / "sweeps" / "year-field.yaml"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: Summary key -> table column, for the figures that are plain numbers.
-PLAIN_FIGURES = (
-    "max_tracking_error_deg",
-    "rms_tracking_error_deg",
-    "peak_torque_Nm",
-    "peak_phase_current_A",
-    "electrical_energy_J",
-    "steps_commanded",
-    "steps_executed",
-    "missed_steps",
-    "duration_s",
-    "light_energy_J",
-    "light_energy_ideal_J",
-    "light_lost_J",
-    "light_lost_stepping_J",
-    "light_lost_shared_primary_J",
-    "mean_intercept",
-    "drive_energy_per_day_J",
-)
 SHORT_WINDOW = {"window.duration": 20, "output.interval": 0.5}
 
 
