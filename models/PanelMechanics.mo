@@ -16,10 +16,11 @@ model PanelMechanics
   parameter Real J_m(unit = "kg.m2") = 1.4e-4 "Rotor inertia on the motor shaft (NEMA 34 class catalogue value)";
   // b: no sourced viscous friction for this drive; 0 by default (kept for studies).
   parameter Real b(unit = "N.m.s/rad") = 0 "Viscous damping on the panel axis (none sourced: 0)";
-  // B_m: viscous damping of the rotor in its bearings and air gap, on the motor shaft: the
-  // rotor damping B of MATLAB/Simscape Electrical's Stepper Motor block (J dw/dt + B w = Te),
-  // whose class value is 8e-4 N.m.s/rad; range and sources in docs/physics.md.
-  parameter Real B_m(unit = "N.m.s/rad") = 8e-4 "Viscous damping of the rotor on the motor shaft (Simscape class)";
+  // B_m: viscous damping of the rotor in its bearings and air gap, on the motor shaft, the
+  // rotor damping B of MATLAB/Simscape Electrical's Stepper Motor block (J dw/dt + B w = Te).
+  // No source read gives its number for this motor class: 0, with the band up to the block's
+  // quoted class value 8e-4 N.m.s/rad (docs/physics.md, "The motor's losses").
+  parameter Real B_m(unit = "N.m.s/rad") = 0 "Viscous damping of the rotor on the motor shaft (none sourced: 0)";
   // T_c: Coulomb friction of the reducer and the rack-and-pinion, referred to the motor shaft.
   // Source: a single planetary stage loses about 3 % of the torque it transmits (typical
   // catalogue efficiency 97 % per stage); at the motor's rated holding torque k_e*I = 2.75 N.m

@@ -7,7 +7,7 @@ model PanelMechanicsSmallAngle
   parameter Real J_p(unit = "kg.m2") = 3.37 "Panel inertia about its hinge, M/12 (l^2 + sp^2) [11] (Table 2)";
   parameter Real J_m(unit = "kg.m2") = 1.4e-4 "Rotor inertia on the motor shaft (NEMA 34 class catalogue value)";
   parameter Real b(unit = "N.m.s/rad") = 0 "Viscous damping on the panel axis (none sourced: 0)";
-  parameter Real B_m(unit = "N.m.s/rad") = 8e-4 "Viscous damping of the rotor on the motor shaft (Simscape class)";
+  parameter Real B_m(unit = "N.m.s/rad") = 0 "Viscous damping of the rotor on the motor shaft (none sourced: 0)";
   parameter Real T_c(unit = "N.m") = 0.08 "Coulomb friction of reducer + rack on the motor shaft";
   parameter Real M_c(unit = "N.m") = 3.3e-3 "Coulomb friction of the hinge bearings on the panel axis";
   parameter Real w_s(unit = "rad/s") = 1e-2 "Regularisation speed of the Coulomb friction (rotor speed)";

@@ -10,6 +10,11 @@ model StepperMotor
   parameter Real k_e(unit = "N.m/A") = 0.5 "Torque constant k_e (Table 3)";
   parameter Real N_c(unit = "1") = 50 "Number of rotor teeth N_c (Table 3)";
   parameter Real V_supply(unit = "V") = 3.1 "Chopper voltage limit dV (Table 3, rated voltage)";
+  // K_current: no datasheet gives the averaged loop's gain. The sourced crossover (a tenth of the
+  // TMC5160's 16-30 kHz chopper, 18-34 V/A for 1.8 mH) is the band's range, not the default: this
+  // loop has no feed-forward of R i and the back-EMF, so at such a gain it would hold K I / (K + R)
+  // and fall short by e / (K + R) under the back-EMF, errors a current-regulating chopper does not
+  // have; 100 V/A keeps them a quarter as large (docs/physics.md, the driver).
   parameter Real K_current(unit = "V/A") = 100 "Current-loop gain K of the averaged chopper";
   // The motor's losses, in the form of MATLAB/Simscape Electrical's Stepper Motor block
   // (mathworks.com/help/sps/ref/steppermotor.html: Te = Km (iA - eA/Rm) sin(Nr theta) +

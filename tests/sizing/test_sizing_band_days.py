@@ -42,7 +42,7 @@ def test_steps_lost_only_at_the_worst_corner_are_shown_beside_a_passing_verdict(
         (c.candidate, c.current, c.day_of_year) for c in nominal
     ]
     assert plan.cases == nominal + corner and all(c.key.endswith("/worst-corner") for c in corner)
-    assert all("parameters.motor.K_current=23.0" in c.overrides for c in corner)
+    assert all("parameters.motor.K_current=18.1" in c.overrides for c in corner)
     results = {case.key: _record(0) for case in nominal} | {case.key: _record(3) for case in corner}
     curve = SpeedTorqueCurve(6.2, 8.9, np.array([5.0, 1000.0]), np.array([7.9, 2.1]))
     sheet = judge(plan, results, {NAME: curve})

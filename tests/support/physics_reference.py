@@ -14,7 +14,7 @@ STEP_ANGLE = np.radians(1.8)  # [rad], Table 3 = pi / (2 N_c)
 #: The motor's losses (docs/physics.md, "The motor's losses"): rotor damping B_m [N.m.s/rad] on the
 #: shaft, iron-loss conductance G_m = 1/R_m [S] across each back-EMF, detent torque T_d [N.m] with
 #: 4 N_c periods per turn -- the terms of MATLAB/Simscape Electrical's Stepper Motor block.
-MOTOR_LOSSES = {"B_m": 8e-4, "G_m": 0.0, "T_d": 0.094}
+MOTOR_LOSSES = {"B_m": 0.0, "G_m": 0.0, "T_d": 0.094}
 
 #: Table 2 of the paper (panel), SI units.
 TABLE2_PANEL = {"J_p": 3.37, "r": 2.5e-3, "s": 0.3, "l": 1.5, "sp": 0.05, "M": 18.0}
@@ -70,7 +70,7 @@ def panel_mechanics(
     T_c=0.08,
     M_c=3.3e-3,
     w_s=1e-2,
-    B_m=8e-4,
+    B_m=0.0,
     karnopp=False,
     T_stick=1e-3,
 ):

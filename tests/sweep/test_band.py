@@ -68,11 +68,11 @@ def test_shipped_ranges_carry_the_sourced_driver_ranges():
     assert (damping.low, damping.high, damping.unit) == (0.0, 8e-4, "N.m.s/rad") and "Simscape" in damping.source
     bus, gain = ranges["parameters.motor.V_supply"], ranges["parameters.motor.K_current"]
     assert (bus.low, bus.high, bus.unit) == (24.0, 48.0, "V")
-    assert (gain.low, gain.high, gain.unit) == (23.0, 45.0, "V/A")
-    assert "Erickson" in gain.source and "SELV" in bus.source
-    # K = 2 pi f_c L for a 2-4 kHz crossover and L = 1.8 mH (Table 3): the range's ends
-    assert 2 * np.pi * 2e3 * 1.8e-3 == pytest.approx(gain.low, abs=0.5)
-    assert 2 * np.pi * 4e3 * 1.8e-3 == pytest.approx(gain.high, abs=0.5)
+    assert (gain.low, gain.high, gain.unit) == (18.1, 33.9, "V/A")
+    assert "Erickson" in gain.source and "TMC5160" in gain.source and "SELV" in bus.source
+    # K = 2 pi f_c L for a crossover at a tenth of the TMC5160's 16-30 kHz chopper and L = 1.8 mH (Table 3)
+    assert 2 * np.pi * 1.6e3 * 1.8e-3 == pytest.approx(gain.low, abs=0.05)
+    assert 2 * np.pi * 3.0e3 * 1.8e-3 == pytest.approx(gain.high, abs=0.05)
     friction = {"parameters.mechanics.T_c", "parameters.mechanics.M_c"}
     assert "T_c" in RANGES_FILE.read_text() and not friction & set(ranges)
 
@@ -94,12 +94,12 @@ def test_latin_hypercube_puts_one_sample_in_each_stratum(n, fmu_paths):
     assert np.array_equal(design.values, again.values)
     other = band_design(scenario, load_ranges(), n, seed=6, fmu_paths=paths)
     assert not np.array_equal(design.values, other.values)
-    # the nominal values are the FMUs' defaults (the scenario sets none): 3.1 V and 100 V/A, outside;
-    # the Simscape class damping 8e-4 N.m.s/rad, the range's top
+    # the nominal values are the FMUs' defaults (the scenario sets none): the paper's 3.1 V and 100 V/A, outside;
+    # no rotor damping, the range's bottom, inside
     assert design.nominal == {
         "parameters.motor.V_supply": 3.1,
         "parameters.motor.K_current": 100.0,
-        "parameters.mechanics.B_m": 8e-4,
+        "parameters.mechanics.B_m": 0.0,
     }
     assert [key["nominal_in_range"] for key in design.record()["keys"]] == [False, False, True]
 

@@ -30,11 +30,23 @@ def central(fmu_paths):
     return _run("jan21-central")
 
 
-def _assert_same_figures(a, b, rel):
+def _half_ring_period() -> float:
+    """Half the period of a step's ring [s], pi / omega_n: omega_n^2 = k / J with the detent's stiffness
+    k = N_c k_e I_h + 4 N_c T_d and the rotor with the panel J = J_m + J_p (r / s)^2 (docs/physics.md)."""
+    held = K_CURRENT * RATED_CURRENT / (K_CURRENT + TABLE3_MOTOR["R"])
+    stiffness = TABLE3_MOTOR["N_c"] * (TABLE3_MOTOR["k_e"] * held + 4 * MOTOR_LOSSES["T_d"])
+    inertia = 1.4e-4 + TABLE2_PANEL["J_p"] * (TABLE2_PANEL["r"] / TABLE2_PANEL["s"]) ** 2
+    return float(np.pi / np.sqrt(stiffness / inertia))
+
+
+def _assert_same_figures(a, b, rel, settling_abs=0.0):
+    """The figures within ``rel``; the settling times within ``rel`` or ``settling_abs`` [s]."""
     for key in FIGURES:
         assert a[key] == pytest.approx(b[key], rel=rel), key
     for key in ("max", "mean"):
-        assert a["settling_time_s"][key] == pytest.approx(b["settling_time_s"][key], rel=rel), f"settling {key}"
+        assert a["settling_time_s"][key] == pytest.approx(b["settling_time_s"][key], rel=rel, abs=settling_abs), (
+            f"settling {key}"
+        )
     for key in ("steps_commanded", "missed_steps", "steps_lost"):
         assert a[key] == b[key], key
 
@@ -47,8 +59,10 @@ def test_figures_do_not_depend_on_the_output_grid(central):
 
 
 def test_figures_are_converged_in_the_solver_tolerance(central):
+    # the settling time is where a ring's last peak leaves the 5 % band: a peak a tolerance moves across the
+    # band's edge moves it by up to half a ring period (4.9 ms; the ring decays by about 3 % a period)
     tight = _run("jan21-central", "solver.rtol=1e-8")
-    _assert_same_figures(tight.summary, central.summary, rel=1e-2)
+    _assert_same_figures(tight.summary, central.summary, rel=1e-2, settling_abs=_half_ring_period())
 
 
 def test_stored_run_recomputes_the_same_summary(central, tmp_path):
