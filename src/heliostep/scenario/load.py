@@ -152,9 +152,9 @@ def load_scenario(path, overrides: Sequence[str] = ()) -> Scenario:
     Raises
     ------
     InputError
-        Missing (a name: with the shipped scenarios' close names) or unreadable file, invalid YAML (with its line), a top level that is
-        not a mapping, a malformed override, or an invalid scenario (one line per
-        problem, each naming the file, the key path and what was expected).
+        Missing (a name: with the shipped scenarios' close names) or unreadable file, invalid YAML (with
+        its line), a top level that is not a mapping, a malformed override, or an invalid scenario (one
+        line per problem, each naming the file, the key path and what was expected).
     """
     if isinstance(overrides, str):
         raise TypeError("overrides must be a sequence of 'dotted.key=value' strings, not one string")
