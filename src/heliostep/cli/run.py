@@ -117,6 +117,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="also write the trace as trace.csv (default: only for windows up to "
         f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)",
     )
+    _add_fail_on_option(parser)
+    _add_supervision_options(parser)
+    add_band_options(parser)
+    parser.set_defaults(func=_run_command)
+
+
+def _add_fail_on_option(parser: argparse.ArgumentParser) -> None:
+    """--fail-on WHAT[,WHAT]: the summary's counts that make a complete run exit :data:`FAIL_ON_STATUS`."""
     parser.add_argument(
         "--fail-on",
         type=_fail_on,
@@ -125,9 +133,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f"exit {FAIL_ON_STATUS} when the complete run's summary counts any of these (after writing everything): "
         f"{', '.join(FAIL_ON)}",
     )
-    _add_supervision_options(parser)
-    add_band_options(parser)
-    parser.set_defaults(func=_run_command)
 
 
 def _add_supervision_options(parser: argparse.ArgumentParser) -> None:
