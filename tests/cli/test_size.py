@@ -50,34 +50,46 @@ def _catalogue(folder: Path, motors: dict) -> Path:
 
 
 class _Sheet(HTMLParser):
-    """The tables' header cells and the images' sources of an HTML page."""
+    """The tables' header cells, their body's rows of cells, and the images' sources of an HTML page."""
 
     def __init__(self):
         super().__init__()
         self.headers: list[list[str]] = []
+        self.rows: list[list[list[str]]] = []
         self.images: list[str] = []
-        self._in_th = False
+        self._cell: list[str] | None = None
         self.external: list[str] = []
 
     def handle_starttag(self, tag, attrs):
         attributes = dict(attrs)
         if tag == "table":
             self.headers.append([])
+            self.rows.append([])
         elif tag == "th":
-            self._in_th = True
-            self.headers[-1].append("")
+            self._cell = self.headers[-1]
+            self._cell.append("")
+        elif tag == "tr" and self.headers[-1]:
+            self.rows[-1].append([])
+        elif tag == "td":
+            self._cell = self.rows[-1][-1]
+            self._cell.append("")
         elif tag == "img":
             self.images.append(attributes.get("src", ""))
         elif tag in ("script", "link") or (tag != "img" and "src" in attributes):
             self.external.append(tag)
 
     def handle_endtag(self, tag):
-        if tag == "th":
-            self._in_th = False
+        if tag in ("th", "td"):
+            self._cell = None
 
     def handle_data(self, data):
-        if self._in_th:
-            self.headers[-1][-1] += data
+        if self._cell is not None:
+            self._cell[-1] += data
+
+    def table(self, *wanted: str) -> list[dict[str, str]]:
+        """The rows of the first table with the ``wanted`` headers, each as header -> cell."""
+        headers, rows = next((h, r) for h, r in zip(self.headers, self.rows) if set(wanted) <= set(h))
+        return [dict(zip(headers, row)) for row in rows]
 
 
 @pytest.fixture(scope="module")
@@ -277,6 +289,54 @@ def test_the_sheet_is_self_contained_html_with_pngs_and_units(sized):
             assert header.strip().endswith("]") and "[" in header, header
 
 
+def test_the_sheets_tables_give_numbers_4_significant_digits_and_energies_in_kJ(sized):
+    """Every number of the sheet's tables but the inputs' (which echo the scenario as given) has at most 4
+    significant digits, an exponent only below 1e-3 (not 28.569592882112254, not 1.196e+05); the drive energy
+    per day is in kJ with one decimal."""
+    _, out = sized
+    page = _Sheet()
+    page.feed((out / "sizing.html").read_text(encoding="utf-8"))
+    exact = ("[kJ]", "[steps]", "[count]", "[day of year]")  # fixed decimals, and whole counts
+    numbers = [
+        text
+        for headers, rows in zip(page.headers, page.rows)
+        if headers and headers[0] != "input [unit]"
+        for row in rows
+        for header, cell in zip(headers, row)
+        if not header.endswith(exact)
+        for text in (item.strip() for item in cell.split(","))
+        if _is_number(text)
+    ]
+    assert len(numbers) > 50
+    for text in numbers:
+        mantissa, _, exponent = text.lstrip("-").partition("e")
+        assert not exponent or abs(float(text)) < 1e-3, text
+        digits = mantissa.replace(".", "").lstrip("0")
+        assert len(digits if "." in mantissa else digits.rstrip("0")) <= 4, text
+    sheet = json.loads((out / "sizing.json").read_text())
+    verdicts = page.table("candidate [name]", "drive energy per day [kJ]")
+    for entry in sheet["candidates"]:
+        row = next(r for r in verdicts if r["candidate [name]"] == entry["name"])
+        energy = entry["currents"][0]["simulation"]["drive_energy_per_day_J"]
+        assert row["drive energy per day [kJ]"] == f"{energy / 1e3:.1f}"
+        assert row["light lost while stowed [kJ]"] == "0.0"  # no stow under a constant design moment
+    stowing = page.table("candidate [name]", "angles travelled [deg]")
+    assert stowing
+    for row in stowing:
+        low, high = (float(x) for x in row["angles travelled [deg]"].split(","))
+        assert 0.0 <= low < high <= 90.0
+    inputs = {row["input [unit]"]: row["value [in that unit]"] for row in page.table("input [unit]")}
+    assert inputs["days sized [day of year]"] == "21"  # the day's number, its reasons listed below the table
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def test_shipped_catalogue_has_three_or_more_complete_nema34_entries():
     candidates = load_catalogue()
     nema34 = [c for c in candidates if c.frame == "NEMA 34"]
@@ -412,3 +472,14 @@ def test_the_command_line_defaults_are_the_sizings():
     assert command.ALL_DAYS == sizing_days.ALL_DAYS
     assert command.DEFAULT_SAFETY_FACTOR == sizing.DEFAULT_SAFETY_FACTOR
     assert command.DEFAULT_CURVE_RATES == sizing.DEFAULT_CURVE_RATES
+
+
+def test_help_names_the_three_margins_as_docs_sizing_md_does(capsys):
+    with pytest.raises(SystemExit) as exited:
+        main(["size", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert exited.value.code == 0
+    assert "the three margins (tracking, idle, stowing) reach the safety factor" in text
+    assert "both margins" not in text
+    docs = " ".join((Path(__file__).parents[2] / "docs" / "sizing.md").read_text().split())
+    assert "the three margins (tracking, idle, stowing) reach the safety factor" in docs

@@ -25,6 +25,7 @@ COMMANDS = {
     "build-fmus": "heliostep.cli.build",
     "geometry": "heliostep.cli.geometry",
     "end-loss": "heliostep.cli.endloss",
+    "scenarios": "heliostep.cli.scenarios",
     "run": "heliostep.cli.run",
     "compare": "heliostep.cli.compare",
     "regress": "heliostep.cli.regress",

@@ -25,6 +25,12 @@ from heliostep.scenario import load_scenario
 #: Windows longer than this [s] get no CSV copy of the trace unless --csv is given.
 CSV_DEFAULT_MAX_DURATION = 3600.0
 
+#: --fail-on's names -> the summary.json count each one fails on (when above 0).
+FAIL_ON = {"lost-steps": "steps_lost", "missed-steps": "missed_steps"}
+
+#: The exit status of a run written in full whose summary shows what --fail-on names (no other status uses it).
+FAIL_ON_STATUS = 3
+
 
 RUN_DESCRIPTION = (
     "Co-simulate a scenario and write trace.parquet, trace.csv (see --csv), summary.json, "
@@ -45,11 +51,13 @@ RUN_DESCRIPTION = (
     "come) instead of holding it in memory.\n\n"
     "A window with the sun below the horizon throughout runs, with a warning on stderr "
     'and "night": true and a warning in summary.json.\n\n'
+    "--fail-on lost-steps,missed-steps makes a complete run whose summary counts steps lost or missed (any of "
+    "those named) exit 3, everything written as usual, for a CI job.\n\n"
     "Exit status: 0 complete; 1 the simulation failed part-way (an FMU crashed, hung or asked to terminate "
     "before the window's end included; the trace so far is "
     "written, complete: false) or the results could not be written; 2 bad input "
-    "(scenario, override, FMU, unusable --out, over the budget); 130 / 143 / 129 stopped by "
-    "SIGINT / SIGTERM / SIGHUP."
+    "(scenario, override, FMU, unusable --out, over the budget, an unknown --fail-on name); 3 complete and "
+    "written, with the steps --fail-on names lost or missed; 130 / 143 / 129 stopped by SIGINT / SIGTERM / SIGHUP."
 )
 
 
@@ -109,9 +117,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="also write the trace as trace.csv (default: only for windows up to "
         f"{CSV_DEFAULT_MAX_DURATION / 3600:g} h; trace.parquet is always written)",
     )
+    _add_fail_on_option(parser)
     _add_supervision_options(parser)
     add_band_options(parser)
     parser.set_defaults(func=_run_command)
+
+
+def _add_fail_on_option(parser: argparse.ArgumentParser) -> None:
+    """--fail-on WHAT[,WHAT]: the summary's counts that make a complete run exit :data:`FAIL_ON_STATUS`."""
+    parser.add_argument(
+        "--fail-on",
+        type=_fail_on,
+        default=(),
+        metavar="WHAT[,WHAT]",
+        help=f"exit {FAIL_ON_STATUS} when the complete run's summary counts any of these (after writing everything): "
+        f"{', '.join(FAIL_ON)}",
+    )
 
 
 def _add_supervision_options(parser: argparse.ArgumentParser) -> None:
@@ -141,6 +162,28 @@ def _positive_seconds(text: str) -> float:
     if not value > 0:  # (nan too)
         raise argparse.ArgumentTypeError(f"{text} s; expected a positive number of seconds")
     return value
+
+
+def _fail_on(text: str) -> tuple[str, ...]:
+    """--fail-on's comma list of names (argparse type: exit 2 naming an unknown one)."""
+    names = tuple(name.strip() for name in text.split(","))
+    unknown = [name for name in names if name not in FAIL_ON]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f"{', '.join(map(repr, unknown))}: expected a comma list of {', '.join(FAIL_ON)}"
+        )
+    return names
+
+
+def _failed_on(names: tuple[str, ...], summary: dict) -> int:
+    """0, or :data:`FAIL_ON_STATUS` when the summary counts any of ``names`` (said on stderr)."""
+    counts = {name: summary.get(FAIL_ON[name]) or 0 for name in dict.fromkeys(names)}
+    found = {name: count for name, count in counts.items() if count > 0}
+    if not found:
+        return 0
+    said = ", ".join(f"{count} {name.replace('-', ' ')}" for name, count in found.items())
+    print(f"heliostep run: --fail-on: {said} (exit {FAIL_ON_STATUS})", file=sys.stderr)
+    return FAIL_ON_STATUS
 
 
 def _run_command(args: argparse.Namespace) -> int:
@@ -232,7 +275,7 @@ def _run_in_folder(
             file=sys.stderr,
         )
         status = stop.exit_status
-    return status
+    return status or _failed_on(args.fail_on, result.summary)
 
 
 def _write_stopped(out_dir: Path, stop, stage: str, when: str) -> int:

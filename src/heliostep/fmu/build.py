@@ -210,36 +210,62 @@ def copy_fmu(fmu_path: Path, out_dir: Path) -> Path:
 
 
 def ensure_fmu(
-    name_or_path: str | Path, search: tuple[Path, ...] = (), fmus: Path | None = None, models: Path | None = None
+    name_or_path: str | Path, beside: Path | None = None, fmus: Path | None = None, models: Path | None = None
 ) -> Path:
     """The FMU for a variant name or a path, building it from the models when missing or stale.
 
-    A path to an ``.fmu`` file is returned as it is (after checking it exists). A bare name
-    is, in this order: a model of the models folder (built into the FMU cache; ``NAME-fmi3``:
-    model ``NAME`` as an FMI 3.0 FMU), an FMU
-    dropped into one of the ``search`` folders (e.g. ``fmus/`` beside the scenario and in the
-    current directory), or one in the FMU cache folder.
+    A path to an ``.fmu`` file is returned as it is (after checking it exists). A bare name is looked up
+    in the folders of :func:`variant_folders`, in their order: a model ``NAME.mo`` of a models folder
+    (built into the FMU cache; ``NAME-fmi3``: model ``NAME`` as an FMI 3.0 FMU), else an FMU ``NAME.fmu``
+    of an FMU folder. ``beside``: the scenario's folder, whose ``models/`` and ``fmus/`` come first.
     """
     fmus = Path(fmus or fmus_dir())
-    models = Path(models or models_dir())
     text = str(name_or_path)
     if not is_variant_name(text):
         path = Path(name_or_path)
         if not path.is_file():
             raise InputError(f"FMU file not found: {path}")
         return path
-    if (models / f"{text}.mo").exists():
-        return build_fmu(text, fmus, models)
-    if text.endswith(FMI3_SUFFIX) and (models / f"{text[: -len(FMI3_SUFFIX)]}.mo").exists():
-        return build_fmu(text[: -len(FMI3_SUFFIX)], fmus, models, fmi_version=3)
-    folders = [*search, fmus]
+    model_folders, fmu_folders = variant_folders(beside, fmus, models)
+    base, fmi_version = (text[: -len(FMI3_SUFFIX)], 3) if text.endswith(FMI3_SUFFIX) else (text, 2)
+    for folder in model_folders:
+        if (folder / f"{text}.mo").exists():
+            return build_fmu(text, fmus, folder)
+        if fmi_version == 3 and (folder / f"{base}.mo").exists():
+            return build_fmu(base, fmus, folder, fmi_version=3)
+    for folder in fmu_folders:
+        if (folder / f"{text}.fmu").is_file():
+            return folder / f"{text}.fmu"
+    raise InputError(_unknown_variant(text, model_folders, fmu_folders))
+
+
+def variant_folders(
+    beside: Path | None = None, fmus: Path | None = None, models: Path | None = None
+) -> tuple[list[Path], list[Path]]:
+    """Where a bare variant name is looked for, each folder once, in order: the models folders
+    (``beside/models``, then ``models``: default ``$HELIOSTEP_MODELS`` or the shipped models) and the FMU
+    folders (``beside/fmus``, the current folder's ``fmus``, then the FMU cache ``fmus``)."""
+    local = [] if beside is None else [Path(beside) / "models"]
+    dropped = [] if beside is None else [Path(beside) / "fmus", Path.cwd() / "fmus"]
+    return _once([*local, Path(models or models_dir())]), _once([*dropped, Path(fmus or fmus_dir())])
+
+
+def _once(folders: list[Path]) -> list[Path]:
+    """``folders`` without a repeat of one already listed (the same folder by another path included)."""
+    seen: dict[Path, Path] = {}
     for folder in folders:
-        dropped = Path(folder) / f"{text}.fmu"
-        if dropped.is_file():
-            return dropped
-    known = sorted(set(available_models(models)) | {p.stem for f in folders for p in Path(f).glob("*.fmu")})
-    looked = ", ".join(str(Path(f) / f"{text}.fmu") for f in folders)
-    raise InputError(
-        f"unknown FMU variant {text!r}: neither {models}/{text}.mo nor any of {looked} "
-        f"exists; known variants: {', '.join(known)}"
+        seen.setdefault(folder.resolve(), folder)
+    return list(seen.values())
+
+
+def _unknown_variant(text: str, model_folders: list[Path], fmu_folders: list[Path]) -> str:
+    """Why ``text`` names no variant: every path looked at (once), the variants there are, and how to add one."""
+    known = {p.stem for folder in model_folders for p in folder.glob("*.mo")}
+    known |= {p.stem for folder in fmu_folders for p in folder.glob("*.fmu")}
+    looked = [*(folder / f"{text}.mo" for folder in model_folders), *(folder / f"{text}.fmu" for folder in fmu_folders)]
+    return (
+        f"unknown FMU variant {text!r}: none of {', '.join(map(str, looked))} exists; known variants: "
+        f"{', '.join(sorted(known)) or 'none'}. A model is a NAME.mo in one of those models folders (built on "
+        f"first use, or ahead with `heliostep build-fmus --models DIR --model NAME`); an FMU is a NAME.fmu in one "
+        f"of those fmus folders"
     )

@@ -89,15 +89,28 @@ def margins_png(sheet: Mapping[str, Any]) -> bytes | None:
     return _png(figure)
 
 
+def number_text(value: float) -> str:
+    """A table's number: 4 significant digits, with an exponent only below 1e-3 (``1.298e-11``), never above
+    (``119600``, not ``1.196e+05``)."""
+    if math.isinf(value):
+        return "∞"
+    if not math.isfinite(value) or value == 0 or abs(value) < 1e4:
+        return f"{value:.4g}"
+    return f"{round(value, 3 - math.floor(math.log10(abs(value)))):.0f}"
+
+
+def kilo_text(value: float | None) -> str | None:
+    """An energy [J] in kJ with one decimal (``119.6``), for a column headed [kJ]; None stays None."""
+    return None if value is None else f"{value / 1e3:.1f}"
+
+
 def _cell(value: Any) -> str:
     if value is None:
         return "–"
     if isinstance(value, float):
-        if math.isinf(value):
-            return "∞"
-        return f"{value:.4g}"
+        return number_text(value)
     if isinstance(value, list | tuple):
-        return html.escape(", ".join(map(str, value)))
+        return ", ".join(map(_cell, value))
     return html.escape(str(value))
 
 
@@ -129,10 +142,10 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
         "steps lost [steps]",
         "steps missed [steps]",
         "worst tracking error [deg]",
-        "drive energy per day [J]",
+        "drive energy per day [kJ]",
         "drive energy per year [kWh]",
         "light change vs ideal tracking, stowed included [%]",
-        "light lost while stowed [J]",
+        "light lost while stowed [kJ]",
         "governing case [tracking/idle/stow]",
         "verdict [pass/fail]",
         "reasons [text]",
@@ -154,10 +167,10 @@ def _verdict_table(sheet: Mapping[str, Any]) -> str:
                     simulated["steps_lost"],
                     simulated["missed_steps"],
                     simulated["max_tracking_error_deg"],
-                    simulated["drive_energy_per_day_J"],
+                    kilo_text(simulated["drive_energy_per_day_J"]),
                     simulated.get("drive_energy_per_year_kWh"),
                     None if simulated.get("light_change_share") is None else 100.0 * simulated["light_change_share"],
-                    simulated.get("light_lost_stowed_J"),
+                    kilo_text(simulated.get("light_lost_stowed_J")),
                     (row.get("governing") or {}).get("case"),
                     row["verdict"],
                     "; ".join(row["reasons"]) or "passes",

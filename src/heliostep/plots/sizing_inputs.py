@@ -79,6 +79,8 @@ def _text(value: Any) -> str:
         return f"{value:.6g}"
     if isinstance(value, list | tuple):
         return ", ".join(map(_text, value))
+    if isinstance(value, Mapping) and "day_of_year" in value:  # a day sized: its number (its reasons below)
+        return str(value["day_of_year"])
     return str(value)
 
 

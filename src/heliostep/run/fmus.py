@@ -19,17 +19,17 @@ __all__ = ["fmu_records", "read_fmus", "resolve_fmus"]
 def resolve_fmus(scenario: Scenario) -> dict[str, Path]:
     """Instance -> FMU file of a scenario, built when it is a model (an error names ``fmus.NAME``).
 
-    A bare name is a model (built into the FMU cache) or an FMU in ``fmus/`` beside the scenario,
-    in ``fmus/`` of the current directory, or in the FMU cache. Each call hashes the models and
+    A bare name is a model in ``models/`` beside the scenario or in the models folder (built into the FMU
+    cache), or an FMU in ``fmus/`` beside the scenario, in ``fmus/`` of the current directory, or in the FMU
+    cache (:func:`~heliostep.fmu.build.variant_folders`). Each call hashes the models and
     asks the compiler its version: resolve once per run and pass the result on
     (``run_scenario(..., fmu_paths=...)``). An FMU that ships only its sources is compiled into the
     FMU cache on first use (:func:`~heliostep.fmu.sources.with_platform_binary`).
     """
-    search = (scenario.folder / "fmus", Path.cwd() / "fmus")
     paths = {}
     for name in scenario.fmus:
         try:
-            paths[name] = with_platform_binary(ensure_fmu(scenario.fmu_reference(name), search), fmus_dir())
+            paths[name] = with_platform_binary(ensure_fmu(scenario.fmu_reference(name), scenario.folder), fmus_dir())
         except InputError as exc:
             raise InputError(f"{scenario.source}: fmus.{name}: {exc}") from None
     return paths

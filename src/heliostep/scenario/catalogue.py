@@ -249,14 +249,15 @@ def _currents(where: str, value) -> tuple[float, ...]:
     return currents
 
 
-def close_names(name: str, names: Sequence[str]) -> list[str]:
-    """The names in ``names`` close to ``name`` (a mistyped catalogue name's suggestions): those that contain
-    it or that it contains, case aside, and those :func:`difflib.get_close_matches` finds."""
+def close_names(name: str, names: Sequence[str], cutoff: float = 0.5) -> list[str]:
+    """The names in ``names`` close to ``name`` (a mistyped name's suggestions): those that contain it or that
+    it contains, case aside, and those :func:`difflib.get_close_matches` finds at ``cutoff`` (a higher one for
+    names that share a long prefix, as the shipped scenarios' ``jan21-``)."""
     import difflib
 
     low = name.lower()
     contained = [n for n in names if low and (low in n.lower() or n.lower() in low)]
-    return list(dict.fromkeys([*contained, *difflib.get_close_matches(name, names, n=5, cutoff=0.5)]))
+    return list(dict.fromkeys([*contained, *difflib.get_close_matches(name, names, n=5, cutoff=cutoff)]))
 
 
 def role_instance(scenario, role: str, default: str) -> str:

@@ -87,15 +87,48 @@ def resolve_scenario_path(path: str | Path) -> Path:
     """``path`` if it exists, else the shipped scenario of that name.
 
     ``jan21-central``, ``jan21-central.yaml`` and ``scenarios/jan21-central.yaml`` (from any
-    directory) name the shipped ``jan21-central.yaml``; a path that is neither is returned as
-    it is (and reported missing by the reader).
+    directory) name the shipped ``jan21-central.yaml``. A path that is neither is an :class:`InputError`
+    naming it and, for a name, the close names of the shipped scenarios (``jan21-centrl``: ``jan21-central``).
     """
     path = Path(path)
-    if path.exists() or (path.parent != Path(".") and path.parent.name != "scenarios"):
+    name = _shipped_name(path)
+    if path.exists() or path.is_symlink():  # (a dangling link: its reader says so)
         return path
-    name = path.name if path.suffix in (".yaml", ".yml") else f"{path.name}.yaml"
-    shipped = shipped_scenario_dir() / name
-    return shipped if shipped.is_file() else path
+    shipped = shipped_scenario_dir() / f"{name}.yaml"
+    if name is not None and shipped.is_file():
+        return shipped
+    raise _missing_scenario(path, name)
+
+
+def _shipped_name(path: Path) -> str | None:
+    """The shipped scenario's name ``path`` would be (a bare name, with or without ``.yaml``, or one under a
+    ``scenarios`` folder), or None for a path elsewhere."""
+    if path.parent != Path(".") and path.parent.name != "scenarios":
+        return None
+    return path.stem if path.suffix in (".yaml", ".yml") else path.name
+
+
+def shipped_scenarios() -> dict[str, str]:
+    """The shipped scenarios, name (the file's, which ``run`` takes) -> description (on one line; "" without):
+    the shipped folder's ``*.yaml`` files that hold a ``name`` (not the tolerances of ``heliostep regress``)."""
+    shipped = {}
+    for path in sorted(shipped_scenario_dir().glob("*.yaml")):
+        data = read_yaml_file(path, "scenario")
+        if isinstance(data, Mapping) and "name" in data:
+            shipped[path.stem] = " ".join(str(data.get("description") or "").split())
+    return shipped
+
+
+def _missing_scenario(path: Path, name: str | None) -> InputError:
+    """A scenario file that is not there; for a ``name`` that could be a shipped scenario's, the close ones."""
+    error = f"{path}: scenario file not found"
+    if name is None:
+        return InputError(error)
+    from heliostep.scenario.catalogue import close_names
+
+    near = close_names(name, list(shipped_scenarios()), cutoff=0.75)
+    hint = f" (close: {', '.join(near)})" if near else ""
+    return InputError(f"{error}, nor a shipped scenario {name!r}{hint}; `heliostep scenarios` lists them")
 
 
 def load_scenario(path, overrides: Sequence[str] = ()) -> Scenario:
@@ -119,9 +152,9 @@ def load_scenario(path, overrides: Sequence[str] = ()) -> Scenario:
     Raises
     ------
     InputError
-        Missing or unreadable file, invalid YAML (with its line), a top level that is
-        not a mapping, a malformed override, or an invalid scenario (one line per
-        problem, each naming the file, the key path and what was expected).
+        Missing (a name: with the shipped scenarios' close names) or unreadable file, invalid YAML (with
+        its line), a top level that is not a mapping, a malformed override, or an invalid scenario (one
+        line per problem, each naming the file, the key path and what was expected).
     """
     if isinstance(overrides, str):
         raise TypeError("overrides must be a sequence of 'dotted.key=value' strings, not one string")

@@ -211,15 +211,15 @@ def _progress_bar(total: int, enabled: bool):
 
 
 def _ship_fmus(cases: Sequence[SweepCase]) -> tuple[list[SweepCase], dict[str, FmuPayload]]:
-    """Build (or find) every FMU the cases use, once, and read their bytes (a bare name: a model,
-    or an FMU in ``fmus/`` beside the base scenario or in the current folder, as ``run`` finds it)."""
+    """Build (or find) every FMU the cases use, once, and read their bytes (a bare name: a model in
+    ``models/`` beside the base scenario or the models folder, or an FMU in ``fmus/`` beside the base
+    scenario or in the current folder, as ``run`` finds it)."""
     paths: dict[str, Path] = {}
     for case in cases:
         for instance, reference in case.scenario["fmus"].items():
             if reference is not None and reference not in paths:  # None: a default instance dropped
-                search = (Path(case.folder) / "fmus", Path.cwd() / "fmus")  # where `run` looks too
-                try:
-                    paths[reference] = Path(ensure_fmu(reference, search))
+                try:  # where `run` looks too
+                    paths[reference] = Path(ensure_fmu(reference, Path(case.folder)))
                 except InputError as exc:
                     raise InputError(f"{case.source}: fmus.{instance}: {exc}") from None
     payloads, sha_of = {}, {}
