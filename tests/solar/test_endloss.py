@@ -301,11 +301,12 @@ def test_the_year_in_blocks_of_days_gives_the_figures_of_the_whole_grid_at_once(
 @pytest.mark.filterwarnings("ignore::Warning")
 def test_the_noon_gain_is_the_power_gain_at_the_days_highest_sun(tmp_path, capsys):
     # gain_noon: power, not energy; at the grid's highest sun (within 2.5 min of the transit, the losses
-    # interpolated there) it is the gain end_loss_power gives at the transit itself
+    # interpolated there: the shading step's bound of 5e-4 above) it is the gain end_loss_power gives at the
+    # transit itself
     days = end_loss_days(SITE, 2025, 100.0, H, ROWS, 0.6, 12.31, 0.646, days=[355], receiver_width=0.07)
     elevation, azimuth = _noon()
     at_transit = end_loss_power(elevation, azimuth, [900.0], 100.0, H, ROWS, 0.6, 12.31, receiver_width=0.07)
-    assert days.loc[355, "gain_noon"] == pytest.approx(at_transit["gain"][0], abs=1e-4)
+    assert days.loc[355, "gain_noon"] == pytest.approx(at_transit["gain"][0], abs=5e-4)
     assert days.loc[355, "gain_noon"] > days.loc[355, "gain"]  # the morning and evening lose less to the end
     # the command prints both, each named: README's 13.0 % at noon and the day's 10.0 %
     assert cli.main(["end-loss", "--days", "355", "--no-plots", "--out", str(tmp_path / "out")]) == 0
