@@ -93,7 +93,7 @@ def tracking_normals(elevation, azimuth, mirror_distances, tube_height, plant_az
 
 
 #: Instants of a grid whose losses are computed together (whole days, at least one): bounds the memory of
-#: the two-axis footprints, which take about 0.1 MB per coarse instant and row.
+#: the two-axis footprints (instants by rows by neighbours by corners), gigabytes for a year at once.
 BLOCK_INSTANTS = 2048
 
 
