@@ -281,8 +281,7 @@ def end_loss_days(
         The two-axis mirrors' shading and blocking (their polygons: the cost) every this many minutes
         of daylight, interpolated between (:func:`heliostep.solar.row_shading.interpolated_losses`;
         ``tests/solar/test_endloss.py`` bounds what this moves against every instant).
-    progress : callable, optional
-        Called with a number of days as their losses are done (the cost), in all with the number of days.
+    progress : callable, optional: called with a number of days as their losses (the cost) are done.
 
     Returns
     -------
@@ -296,23 +295,29 @@ def end_loss_days(
     sun = solar_position(times, site.latitude, site.longitude, site.altitude)
     elevation, azimuth = sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy()
     dni = clear_sky_dni(times, site).to_numpy()
-    losses = None
-    if shading:
-        every = max(1, int(round(check_positive(shading_step_minutes, "shading_step_minutes", "min") / step_minutes)))
-        geometry = (mirror_distances, tube_height, mirror_width, mirror_length, plant_azimuth, receiver_width)
-        losses = interpolated_losses(elevation, azimuth, labels, every, *geometry, progress=progress)
-    elif progress is not None:
-        progress(len(np.unique(labels)))
+    geometry = (mirror_distances, tube_height, mirror_width, mirror_length, plant_azimuth, receiver_width)
+    steps = (step_minutes, shading_step_minutes) if shading else None
+    losses = _grid_losses(elevation, azimuth, labels, geometry, steps, progress)
     plant = (plant_length, tube_height, mirror_distances, mirror_width, end_length, optical_efficiency)
     power = end_loss_power(
         elevation, azimuth, dni, *plant, plant_azimuth, mirror_length, shading, losses, receiver_width
     )
     frame = _power_frame(times, elevation, power)
-    table = pd.DataFrame([_day_row(day, group) for day, group in frame.groupby(labels, sort=True)]).set_index(
-        "day_of_year"
-    )
+    table = pd.DataFrame([_day_row(day, group) for day, group in frame.groupby(labels, sort=True)])
+    table = table.set_index("day_of_year")
     table.attrs["end_length_m"] = float(end_length)
     return table
+
+
+def _grid_losses(elevation, azimuth, labels, geometry, steps, progress):
+    """The rows' losses over the grid: :func:`heliostep.solar.row_shading.interpolated_losses` with ``steps``,
+    (step, shading step) [min]; None without shading (``steps`` None), ``progress`` then told of all the days."""
+    if steps is None:
+        if progress is not None:
+            progress(len(np.unique(labels)))
+        return None
+    every = max(1, int(round(check_positive(steps[1], "shading_step_minutes", "min") / steps[0])))
+    return interpolated_losses(elevation, azimuth, labels, every, *geometry, progress=progress)
 
 
 def _power_frame(times: pd.DatetimeIndex, elevation: np.ndarray, power: dict) -> pd.DataFrame:

@@ -108,6 +108,7 @@ def interpolated_losses(
     length,
     plant_azimuth,
     receiver_width,
+    *,
     progress: Callable[[int], object] | None = None,
 ):
     """:func:`shading_losses`: the two-axis neighbours' at every ``every``-th instant with the sun up (and each
