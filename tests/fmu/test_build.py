@@ -12,7 +12,7 @@ from heliostep.cli import main
 from heliostep.errors import InputError
 from heliostep.fmu.build import build_fmu, ensure_fmu, fmu_guid
 from heliostep.fmu.modelica import ModelicaError
-from heliostep.paths import models_dir
+from heliostep.paths import fmus_dir, models_dir
 
 MODELS = models_dir()
 
@@ -144,7 +144,8 @@ def test_cli_reports_a_failed_build_as_a_run_failure_with_exit_status_1(tmp_path
     assert issubclass(BuildError, RunFailure) and not issubclass(BuildError, InputError)
     status = main(["build-fmus", "--model", "StepperMotor", "--out", str(tmp_path / "out"), "--force"])
     assert status == 1
-    assert capsys.readouterr().err == "heliostep build-fmus: error: gcc failed: no space left on device\n"
+    building = f"heliostep: building StepperMotor.fmu (--force, cached in {fmus_dir()})\n"  # the build said first
+    assert capsys.readouterr().err == building + "heliostep build-fmus: error: gcc failed: no space left on device\n"
 
 
 @pytest.mark.parametrize("layer", ["fmi2_model_exchange.c", "fmi3_model_exchange.c"])

@@ -176,3 +176,14 @@ def test_regress_stopped_by_sigterm_leaves_nothing_in_tmpdir(fmu_paths, tmp_path
     assert process.returncode == 128 + signal.SIGTERM, stderr[-3000:]
     assert "Traceback" not in stderr
     assert sorted(p.name for p in private.iterdir()) == []
+
+
+def test_a_build_at_first_use_says_so_on_stderr_and_stdout_keeps_the_path_alone(tmp_path):
+    # a first build takes seconds: one line on stderr names the FMU and the cache; a second use says nothing
+    cache = tmp_path / "fmus"
+    first = _cli("build-fmus", "--model", SMALL_MODEL, env={"HELIOSTEP_FMUS": str(cache)})
+    assert first.returncode == 0, first.stderr[-3000:]
+    assert f"heliostep: building {SMALL_MODEL}.fmu (first use, cached in {cache})\n" in first.stderr
+    assert first.stdout == f"{next(cache.glob(f'*/{SMALL_MODEL}.fmu'))}\n"  # stdout: data, the path alone
+    again = _cli("build-fmus", "--model", SMALL_MODEL, env={"HELIOSTEP_FMUS": str(cache)})
+    assert again.returncode == 0 and "building" not in again.stderr and again.stdout == first.stdout

@@ -275,3 +275,40 @@ def test_the_tubes_shadow_takes_d_over_w_of_the_central_row_at_noon():
     assert tube["lost_single"][0, central] - bare["lost_single"][0, central] == pytest.approx(0.07 / 0.6, abs=2e-3)
     assert tube["power_single_W"][0] < bare["power_single_W"][0]
     assert cli.main(["end-loss", "--days", "355", "--receiver-width", "-1", "--out", "unused"]) == 2
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_the_year_in_blocks_of_days_gives_the_figures_of_the_whole_grid_at_once(monkeypatch):
+    # the losses are computed over blocks of whole days (bounded memory): a day per block against the whole
+    # grid in one block (all the instants at once) moves no figure beyond rounding (the two-axis
+    # footprints' areas are summed in batches of mirrors that the blocks regroup: parts in 1e-15)
+    from heliostep.solar import row_shading
+
+    args = (SITE, 2025, 100.0, H, ROWS, 0.6, 12.31, 0.646)
+    kwargs = {"days": [171, 172, 354, 355, 356], "step_minutes": 10, "receiver_width": 0.07}
+    done = []
+    monkeypatch.setattr(row_shading, "BLOCK_INSTANTS", 1)
+    blocks = end_loss_days(*args, progress=done.append, **kwargs)
+    assert done == [1] * 5  # a block per day, reported as done
+    monkeypatch.setattr(row_shading, "BLOCK_INSTANTS", 10**9)
+    whole = end_loss_days(*args, **kwargs)
+    for column in ("energy_single_J", "energy_two_axis_J", "end_spill_single_J", "gain", "gain_noon"):
+        assert blocks[column].to_numpy() == pytest.approx(whole[column].to_numpy(), rel=1e-13, abs=0), column
+    for column in ("unlit_length_noon_m", "lit_length_noon_m"):
+        assert np.array_equal(blocks[column].to_numpy(), whole[column].to_numpy()), column
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_the_noon_gain_is_the_power_gain_at_the_days_highest_sun(tmp_path, capsys):
+    # gain_noon: power, not energy; at the grid's highest sun (within 2.5 min of the transit, the losses
+    # interpolated there: the shading step's bound of 5e-4 above) it is the gain end_loss_power gives at the
+    # transit itself
+    days = end_loss_days(SITE, 2025, 100.0, H, ROWS, 0.6, 12.31, 0.646, days=[355], receiver_width=0.07)
+    elevation, azimuth = _noon()
+    at_transit = end_loss_power(elevation, azimuth, [900.0], 100.0, H, ROWS, 0.6, 12.31, receiver_width=0.07)
+    assert days.loc[355, "gain_noon"] == pytest.approx(at_transit["gain"][0], abs=5e-4)
+    assert days.loc[355, "gain_noon"] > days.loc[355, "gain"]  # the morning and evening lose less to the end
+    # the command prints both, each named: README's 13.0 % at noon and the day's 10.0 %
+    assert cli.main(["end-loss", "--days", "355", "--no-plots", "--out", str(tmp_path / "out")]) == 0
+    printed = capsys.readouterr().out
+    assert "21 December: dark length at noon 9.99 m, lit 90.01 m; gain 13.0 % at noon, 10.0 % over the day" in printed

@@ -10,6 +10,7 @@ import datetime as dt
 from pathlib import Path
 
 from heliostep.errors import InputError
+from heliostep.progress import progress_bar
 from heliostep.results.output.files import check_out_name
 from heliostep.results.output.folder import owned_folder, write_swapped
 from heliostep.scenario.model import FIRST_YEAR, LAST_YEAR, window_date_problem
@@ -105,7 +106,11 @@ def _end_loss_command(args: argparse.Namespace) -> int:
         raise InputError(f"--end-length {end:.3g} m: two end sections must be shorter than --length {args.length:g} m")
     from heliostep.plots.endloss import END_LOSS_FILE
 
-    with owned_folder(out, (DAYS_FILE, END_LOSS_FILE)):  # the folder's lock for the command's life
+    n_days = len(set(args.days)) if args.days else (dt.date(args.year + 1, 1, 1) - dt.date(args.year, 1, 1)).days
+    with (
+        owned_folder(out, (DAYS_FILE, END_LOSS_FILE)),  # the folder's lock for the command's life
+        progress_bar(n_days, "end loss", "day") as bar,
+    ):
         days = end_loss_days(
             site,
             args.year,
@@ -121,6 +126,7 @@ def _end_loss_command(args: argparse.Namespace) -> int:
             shading=not args.no_shading,
             shading_step_minutes=args.shading_step_minutes,
             receiver_width=args.receiver_width or None,
+            progress=bar.update,
         )
         written = list(write_swapped(out, lambda staging: _write_days(args, days, staging)).values())
     _print_totals(args, days, end, width)
@@ -155,5 +161,6 @@ def _print_totals(args: argparse.Namespace, days, end: float, width: float) -> N
         row = days.loc[december]
         print(
             f"  21 December: dark length at noon {row['unlit_length_noon_m']:.2f} m, "
-            f"lit {row['lit_length_noon_m']:.2f} m, gain {100 * row['gain']:.1f} %"
+            f"lit {row['lit_length_noon_m']:.2f} m; gain {100 * row['gain_noon']:.1f} % at noon, "
+            f"{100 * row['gain']:.1f} % over the day"
         )

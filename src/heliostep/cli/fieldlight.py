@@ -6,8 +6,10 @@ Details: docs/light.md, ``heliostep.cli.fieldlight``.
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 from pathlib import Path
 
+from heliostep.progress import progress_bar
 from heliostep.results.light.field import field_light_days
 from heliostep.results.output.files import check_out_name
 from heliostep.results.output.folder import owned_folder, write_swapped
@@ -57,13 +59,19 @@ def _field_light_command(args: argparse.Namespace) -> int:
     out_name = check_out_name(args.out) if args.out is not None else None  # "" refused before anything
     scenario = load_scenario(args.scenario, args.overrides)
     out = out_name or Path("out") / f"{scenario.name}-field-light"
-    with owned_folder(out, [DAYS_FILE, *(name for _, name, _, _ in HEATMAPS)]):  # the lock for the command's life
+    year = scenario.window.date.year
+    n_days = len(args.days) if args.days else (dt.date(year + 1, 1, 1) - dt.date(year, 1, 1)).days
+    with (
+        owned_folder(out, [DAYS_FILE, *(name for _, name, _, _ in HEATMAPS)]),  # the lock for the command's life
+        progress_bar(n_days, "field light", "day") as bar,
+    ):
         table = field_light_days(
             scenario,
             days=args.days,
             step_minutes=args.step_minutes,
             shading=not args.no_shading,
             shading_step_minutes=args.shading_step_minutes,
+            progress=bar.update,
         )
         written = list(write_swapped(out, lambda staging: _write_table(args, table, staging)).values())
     _print_year(scenario, table, shading=not args.no_shading)

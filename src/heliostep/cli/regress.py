@@ -11,6 +11,7 @@ from pathlib import Path
 from heliostep.cli.compare import add_annotations_option, annotations_wanted, check_output_dir, check_output_file
 from heliostep.cli.signals import stop_requests
 from heliostep.errors import InputError
+from heliostep.progress import over_bars, progress_bar
 from heliostep.results.compare.regress import (
     Outcome,
     check_against_reference,
@@ -105,35 +106,43 @@ def _run_regress(args: argparse.Namespace) -> int:
 def _regress_all(args: argparse.Namespace, scenarios, tolerances, stop, junit: Path | None) -> int:
     status = 0
     verdicts = []
-    for scenario in scenarios:
-        started = time.monotonic()
-        outcome, metadata = regress_one(scenario, tolerances, args.update, args.report, stop.is_set)
-        if stop.is_set():
-            print(f"{scenario}: stopped by {stop.name}; nothing compared or written", file=sys.stderr)
-            return stop.exit_status
-        if outcome.comparison is not None or outcome.problem:
-            verdicts.append(_verdict(scenario, outcome, metadata, time.monotonic() - started))
-        if outcome.problem:
-            print(f"{scenario}: FAIL: {outcome.problem}")
-            status = 1
-            continue
-        if outcome.comparison is None:
-            print(f"{scenario}: reference written ({reference_path(scenario).name})")
-            continue
-        verdict = "PASS" if outcome.passed else ("CHANGED" if args.update else "FAIL")
-        print(f"{scenario}: {verdict}")
-        if not outcome.passed or args.update:
-            print(format_table(outcome.comparison))
-        if args.update:
-            print(f"  reference rewritten: {reference_path(scenario).name}")
-        elif not outcome.passed:
-            status = 1
+    with progress_bar(len(scenarios), "regress", "scenario") as bar:
+        for scenario in scenarios:
+            started = time.monotonic()
+            bar.set_postfix_str(Path(scenario).stem, refresh=False)
+            outcome, metadata = regress_one(scenario, tolerances, args.update, args.report, stop.is_set)
+            if stop.is_set():
+                print(f"{scenario}: stopped by {stop.name}; nothing compared or written", file=sys.stderr)
+                return stop.exit_status
+            if outcome.comparison is not None or outcome.problem:
+                verdicts.append(_verdict(scenario, outcome, metadata, time.monotonic() - started))
+            with over_bars():
+                status = max(status, _report(scenario, outcome, args.update))
+            bar.update(1)
     if annotations_wanted(args.annotations) and not args.update:
         print("\n".join(github_annotations(verdicts)))
     if junit is not None:
         junit.write_text(junit_xml(verdicts, "heliostep regress"), encoding="utf-8")
         print(f"junit: {junit}")
     return status
+
+
+def _report(scenario: Path, outcome: Outcome, update: bool) -> int:
+    """A scenario's verdict on stdout (with its table when it failed or changed); 1 when it failed, else 0."""
+    if outcome.problem:
+        print(f"{scenario}: FAIL: {outcome.problem}")
+        return 1
+    if outcome.comparison is None:
+        print(f"{scenario}: reference written ({reference_path(scenario).name})")
+        return 0
+    verdict = "PASS" if outcome.passed else ("CHANGED" if update else "FAIL")
+    print(f"{scenario}: {verdict}")
+    if not outcome.passed or update:
+        print(format_table(outcome.comparison))
+    if update:
+        print(f"  reference rewritten: {reference_path(scenario).name}")
+        return 0
+    return 0 if outcome.passed else 1
 
 
 def _verdict(scenario: Path, outcome: Outcome, metadata: dict[str, str], seconds: float) -> SuiteVerdict:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from heliostep.errors import RunFailure
 from heliostep.paths import fmus_dir, private_cache
+from heliostep.progress import note
 from heliostep.toolchain import compiler_version, exclusive_lock
 
 __all__ = ["KernelBuildError", "compiled_library", "kernels_dir"]
@@ -49,6 +50,7 @@ def compiled_library(stem: str, what: str, sources: Sequence[Path], flags: Seque
     with exclusive_lock(folder / ".lock"):
         if path.exists():
             return path
+        note(f"heliostep: compiling {what} (first use, cached in {folder})")
         with tempfile.TemporaryDirectory(dir=folder) as work:
             copies = [Path(work) / source.name for source in sources]
             for copy, text in zip(copies, texts):  # compiled as hashed

@@ -26,6 +26,7 @@ from heliostep.fmu.export import FMI_LAYERS, LAYER_CORE, compiler, export_fmu
 from heliostep.fmu.modelica import available_models, load_model, model_files
 from heliostep.fmu.reference import is_variant_name
 from heliostep.paths import fmus_dir, models_dir, private_cache
+from heliostep.progress import note
 from heliostep.toolchain import compiler_version, exclusive_lock
 
 #: A variant name ``NAME-fmi3`` is model ``NAME`` built as an FMI 3.0 FMU (:func:`ensure_fmu`).
@@ -126,6 +127,8 @@ def build_fmu(
         if not force and verified(fmu_path):  # built by another process meanwhile
             return fmu_path
         _clear_dead_builds(scratch, model_name)
+        why = "--force" if force else "first use" if not fmu_path.exists() else "the cached copy failed its check"
+        note(f"heliostep: building {fmu_path.name} ({why}, cached in {out_dir})")  # a build takes seconds
         return _build(model_name, models, key, fmu_path, scratch, fmi_version)
 
 

@@ -24,6 +24,7 @@ from heliostep._version import __version__
 from heliostep.cosim import Connection, CoSimulation, FMUInfo, SimulationError, SolverOptions
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import InputError
+from heliostep.progress import bars_wanted
 from heliostep.results.figures.run_figures import FigureStream, RunFigures
 from heliostep.results.figures.run_summary import RunMetadata, RunStatus
 from heliostep.results.light.on_tube import load_weather
@@ -352,7 +353,7 @@ def _peak_rss_mb() -> float | None:
 
 def _progress_bar(duration: float):
     """A tqdm bar over simulated time when on a terminal and not in CI (shown after 2 s); else None."""
-    if not sys.stderr.isatty() or os.environ.get("CI"):
+    if not bars_wanted():
         return None
     from tqdm import tqdm
 

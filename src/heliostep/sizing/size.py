@@ -9,8 +9,6 @@ import copy
 import datetime as dt
 import hashlib
 import math
-import os
-import sys
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -20,6 +18,7 @@ import numpy as np
 from heliostep.cosim import read_fmu
 from heliostep.drive.wind import air_density, panel_wind_moment
 from heliostep.errors import InputError
+from heliostep.progress import progress_bar
 from heliostep.run import RunFailed, RunOptions, resolve_fmus, run_scenario
 from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
 from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
@@ -292,11 +291,8 @@ def run_sizing_cases(
     """Run the plan's cases (on Dask with ``scheduler``, else here, one after another); case key ->
     its record. Stopped part-way, it returns the cases finished so far. ``on_case(key, record)`` is
     called as each case finishes."""
-    from tqdm import tqdm
-
     results: dict[str, dict] = {}
-    quiet = not progress or not sys.stderr.isatty() or bool(os.environ.get("CI"))  # as the sweep's bar
-    bar = tqdm(total=len(plan.cases), desc="sizing cases", unit="case", disable=quiet, mininterval=0.5, file=sys.stderr)
+    bar = progress_bar(len(plan.cases), "sizing cases", "case", progress)
     source, folder = plan.scenario.source, str(plan.folder)
     try:
         if scheduler:

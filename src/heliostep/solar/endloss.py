@@ -9,6 +9,7 @@ Details: docs/light.md, ``heliostep.solar.endloss``.
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -262,6 +263,7 @@ def end_loss_days(
     shading: bool = True,
     shading_step_minutes: float = 30.0,
     receiver_width: float | None = None,
+    progress: Callable[[int], object] | None = None,
 ) -> pd.DataFrame:
     """Energy on the tube per day, single-axis plant vs two-axis end mirrors, clear sky (pvlib Ineichen).
 
@@ -279,33 +281,43 @@ def end_loss_days(
         The two-axis mirrors' shading and blocking (their polygons: the cost) every this many minutes
         of daylight, interpolated between (:func:`heliostep.solar.row_shading.interpolated_losses`;
         ``tests/solar/test_endloss.py`` bounds what this moves against every instant).
+    progress : callable, optional: called with a number of days as their losses (the cost) are done.
 
     Returns
     -------
     pandas.DataFrame
         Indexed by ``day_of_year``: ``date``, ``energy_single_J``, ``energy_two_axis_J``,
         ``end_spill_single_J`` [J], ``gain`` (energy_two_axis / energy_single - 1) [-],
-        ``unlit_length_noon_m`` and ``lit_length_noon_m`` at the day's highest sun [m].
+        ``unlit_length_noon_m`` and ``lit_length_noon_m`` at the day's highest sun [m], and ``gain_noon``
+        (power_two_axis / power_single - 1 at that instant) [-].
     """
     times, labels = _year_grid(site, year, step_minutes, days)
     sun = solar_position(times, site.latitude, site.longitude, site.altitude)
     elevation, azimuth = sun["apparent_elevation"].to_numpy(), sun["azimuth"].to_numpy()
     dni = clear_sky_dni(times, site).to_numpy()
-    losses = None
-    if shading:
-        every = max(1, int(round(check_positive(shading_step_minutes, "shading_step_minutes", "min") / step_minutes)))
-        geometry = (mirror_distances, tube_height, mirror_width, mirror_length, plant_azimuth, receiver_width)
-        losses = interpolated_losses(elevation, azimuth, labels, every, *geometry)
+    geometry = (mirror_distances, tube_height, mirror_width, mirror_length, plant_azimuth, receiver_width)
+    steps = (step_minutes, shading_step_minutes) if shading else None
+    losses = _grid_losses(elevation, azimuth, labels, geometry, steps, progress)
     plant = (plant_length, tube_height, mirror_distances, mirror_width, end_length, optical_efficiency)
     power = end_loss_power(
         elevation, azimuth, dni, *plant, plant_azimuth, mirror_length, shading, losses, receiver_width
     )
     frame = _power_frame(times, elevation, power)
-    table = pd.DataFrame([_day_row(day, group) for day, group in frame.groupby(labels, sort=True)]).set_index(
-        "day_of_year"
-    )
+    table = pd.DataFrame([_day_row(day, group) for day, group in frame.groupby(labels, sort=True)])
+    table = table.set_index("day_of_year")
     table.attrs["end_length_m"] = float(end_length)
     return table
+
+
+def _grid_losses(elevation, azimuth, labels, geometry, steps, progress):
+    """The rows' losses over the grid: :func:`heliostep.solar.row_shading.interpolated_losses` with ``steps``,
+    (step, shading step) [min]; None without shading (``steps`` None), ``progress`` then told of all the days."""
+    if steps is None:
+        if progress is not None:
+            progress(len(np.unique(labels)))
+        return None
+    every = max(1, int(round(check_positive(steps[1], "shading_step_minutes", "min") / steps[0])))
+    return interpolated_losses(elevation, azimuth, labels, every, *geometry, progress=progress)
 
 
 def _power_frame(times: pd.DatetimeIndex, elevation: np.ndarray, power: dict) -> pd.DataFrame:
@@ -331,6 +343,7 @@ def _day_row(day, group: pd.DataFrame) -> dict:
         for name in ("power_single", "power_two_axis", "end_spill_single")
     }
     noon = group.iloc[int(np.argmax(group["elevation"].to_numpy()))]
+    noon_single, noon_two = float(noon["power_single_W"]), float(noon["power_two_axis_W"])
     return {
         "day_of_year": int(day),
         "date": group.index[0].date().isoformat(),
@@ -340,4 +353,5 @@ def _day_row(day, group: pd.DataFrame) -> dict:
         "gain": energy["power_two_axis"] / energy["power_single"] - 1.0 if energy["power_single"] > 0 else np.nan,
         "unlit_length_noon_m": float(noon["unlit_length_m"]),
         "lit_length_noon_m": float(noon["lit_length_m"]),
+        "gain_noon": noon_two / noon_single - 1.0 if noon_single > 0 else np.nan,
     }

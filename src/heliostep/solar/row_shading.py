@@ -9,12 +9,14 @@ coarser step, interpolated (:func:`interpolated_losses`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from heliostep.solar.checks import as_float_array
 from heliostep.solar.field import PANEL_LENGTH
 from heliostep.solar.receiver_shadow import receiver_shadow_fraction
-from heliostep.solar.shading import interpolated_at_coarse_instants, row_losses
+from heliostep.solar.shading import coarse_instants, interpolated, row_losses
 from heliostep.solar.sun import sun_vector
 from heliostep.solar.tracking import single_axis_tilt, two_axis_normal
 
@@ -90,22 +92,62 @@ def tracking_normals(elevation, azimuth, mirror_distances, tube_height, plant_az
     return sun, normal_single, normal_two
 
 
+#: Instants of a grid whose losses are computed together (whole days, at least one): bounds the memory of
+#: the two-axis footprints (instants by rows by neighbours by corners), gigabytes for a year at once.
+BLOCK_INSTANTS = 2048
+
+
 def interpolated_losses(
-    elevation, azimuth, labels, every, distances, tube_height, width, length, plant_azimuth, receiver_width
+    elevation,
+    azimuth,
+    labels,
+    every,
+    distances,
+    tube_height,
+    width,
+    length,
+    plant_azimuth,
+    receiver_width,
+    *,
+    progress: Callable[[int], object] | None = None,
 ):
     """:func:`shading_losses`: the two-axis neighbours' at every ``every``-th instant with the sun up (and each
     day's first and last such instant), interpolated linearly in the instants' index between; the
-    single-axis rows and the receiver's shadow at every instant; 1 while the sun is down."""
+    single-axis rows and the receiver's shadow at every instant; 1 while the sun is down.
+
+    Computed over blocks of whole days (``labels``: a day label per instant, each day's instants together)
+    of about :data:`BLOCK_INSTANTS` instants; ``progress(days)`` is called after each block with the
+    number of days it held."""
     geometry = (distances, tube_height, width, length, plant_azimuth, receiver_width)
-    out = shading_losses(elevation, azimuth, *geometry, two_axis_neighbours=False)
+    elevation, azimuth = np.atleast_1d(as_float_array(elevation)), np.atleast_1d(as_float_array(azimuth))
+    labels = np.asarray(labels)
     up = np.flatnonzero(elevation > 0.0)
-    if up.size == 0:
-        return out
-    out["two_axis_neighbours"][up] = interpolated_at_coarse_instants(
-        up,
-        every,
-        lambda coarse: shading_losses(elevation[coarse], azimuth[coarse], *geometry)["two_axis_neighbours"],
-        labels,
-    )
-    out["two_axis"][up] = 1.0 - (1.0 - out["two_axis_neighbours"][up]) * (1.0 - out["two_axis_receiver"][up])
-    return out
+    coarse = coarse_instants(up, every, labels) if up.size else up  # over the whole grid: the step's phase kept
+    parts = []
+    for start, stop, days in _day_blocks(labels, BLOCK_INSTANTS):
+        out = shading_losses(elevation[start:stop], azimuth[start:stop], *geometry, two_axis_neighbours=False)
+        lit = up[(up >= start) & (up < stop)]
+        if lit.size:  # each day's first and last lit instants are coarse: no interpolation crosses a block
+            sampled = coarse[(coarse >= start) & (coarse < stop)]
+            neighbours = shading_losses(elevation[sampled], azimuth[sampled], *geometry)["two_axis_neighbours"]
+            at = lit - start
+            out["two_axis_neighbours"][at] = interpolated(lit, sampled, neighbours)
+            out["two_axis"][at] = 1.0 - (1.0 - out["two_axis_neighbours"][at]) * (1.0 - out["two_axis_receiver"][at])
+        parts.append(out)
+        if progress is not None:
+            progress(days)
+    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+
+def _day_blocks(labels: np.ndarray, size: int) -> list[tuple[int, int, int]]:
+    """(start, stop, days): consecutive runs of whole days of ``labels`` (a label per instant), each of at
+    most ``size`` instants unless one day alone has more."""
+    turns = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]]).tolist() + [labels.size]
+    blocks, start, days = [], 0, 0
+    for begin, end in zip(turns[:-1], turns[1:]):
+        if days and end - start > size:
+            blocks.append((start, begin, days))
+            start, days = begin, 0
+        days += 1
+    blocks.append((start, labels.size, days))
+    return blocks

@@ -16,7 +16,7 @@ from heliostep.solar.checks import as_float_array, check_positive
 from heliostep.solar.optics import mirror_axes
 from heliostep.solar.receiver_shadow import receiver_shadow_band
 
-__all__ = ["row_losses", "interpolated_at_coarse_instants"]
+__all__ = ["coarse_instants", "interpolated", "interpolated_at_coarse_instants", "row_losses"]
 
 
 def reflected_direction(sun, normal):
@@ -115,7 +115,7 @@ def footprints(direction, normals, mirror_distances, mirror_width, mirror_length
         The corners, in order, of each neighbour's footprint: its rectangle projected along
         ``direction`` onto the mirror's plane, a parallelogram (an affine image of a rectangle),
         exact, of the part of it ahead of the mirror (lambda > 0; up to 8 corners, some repeated);
-        NaN for no neighbour (outside the field) or none of it ahead.
+        NaN for the mirror itself or a neighbour none of which is ahead; K = N (2 ``reach`` + 1).
     """
     width = check_positive(mirror_width, "mirror_width", "m")
     length = check_positive(mirror_length, "mirror_length", "m")
@@ -145,10 +145,8 @@ def footprints(direction, normals, mirror_distances, mirror_width, mirror_length
 
 def _neighbours(D, normal, e_u, e_v, d, pitch: float, reach: int):
     """The neighbours :func:`footprints` projects: offsets of their centres from each mirror's [m]
-    (T, N, K, 3), their rows (T, N, K) and whether they exist (in the field, not the mirror itself)."""
-    rows = np.arange(-(d.size - 1), d.size)  # every other row
-    wanted = np.arange(d.size)[:, None] + rows[None, :]
-    j = np.clip(wanted, 0, d.size - 1)  # (N, R)
+    (T, N, K, 3), their rows (T, N, K) and whether they exist (not the mirror itself)."""
+    j = np.broadcast_to(np.arange(d.size), (d.size, d.size))  # (N, R): every row for each mirror, its own too
     n_t, u_t, v_t, D_t = (x[:, :, None, :] for x in (normal, e_u, e_v, D))
     with np.errstate(invalid="ignore", divide="ignore"):
         dn_t = np.sum(D_t * n_t, axis=-1)  # (T, N, 1)
@@ -166,9 +164,8 @@ def _neighbours(D, normal, e_u, e_v, d, pitch: float, reach: int):
     shape = m.shape[:2] + (m.shape[2] * m.shape[3],)
     m = m.reshape(shape)
     j_k = np.broadcast_to(np.repeat(j, 2 * reach + 1, axis=1)[None], shape)
-    exists = np.repeat(wanted == j, 2 * reach + 1, axis=1)[None] & ~(
-        (np.repeat(rows, 2 * reach + 1)[None, None, :] == 0) & (m == 0)
-    )  # in the field, and not the mirror itself
+    own_row = np.repeat(j == np.arange(d.size)[:, None], 2 * reach + 1, axis=1)[None]
+    exists = ~(own_row & (m == 0))  # not the mirror itself
     offset = np.zeros(shape + (3,))
     offset[..., 0] = d[j_k] - d[None, :, None]
     offset[..., 1] = m * pitch
@@ -188,10 +185,14 @@ def _ahead_part(u, v, lam) -> tuple[np.ndarray, np.ndarray]:
         slots_u = np.stack([np.where(lam > 0, u, np.nan), np.where(crossing, u + t * (nxt[0] - u), np.nan)], -1)
         slots_v = np.stack([np.where(lam > 0, v, np.nan), np.where(crossing, v + t * (nxt[1] - v), np.nan)], -1)
     slots_u, slots_v = slots_u.reshape(u.shape[:-1] + (8,)), slots_v.reshape(v.shape[:-1] + (8,))
+    empty = np.isnan(slots_u)
     for _ in range(8):  # fill the empty slots with the previous corner, round the polygon
-        empty = np.isnan(slots_u)
         slots_u = np.where(empty, np.roll(slots_u, 1, axis=-1), slots_u)
         slots_v = np.where(empty, np.roll(slots_v, 1, axis=-1), slots_v)
+        still = np.isnan(slots_u)
+        if np.array_equal(still, empty):  # nothing filled: nothing will be (all-empty polygons stay so)
+            break
+        empty = still
     return slots_u, slots_v
 
 
@@ -399,18 +400,28 @@ def _band_footprint(band, reach: float) -> tuple[np.ndarray, np.ndarray]:
     return uv[..., None, :, 0], uv[..., None, :, 1]
 
 
-def interpolated_at_coarse_instants(up, every: int, sample, labels=None) -> np.ndarray:
-    """Losses computed at coarse instants only and interpolated between: ``sample(coarse)`` (the
-    values, (K, N), at the instants of index ``coarse``) at every ``every``-th of the instants
-    ``up`` (indices, increasing: those with the sun up) and the first and last of each day
-    (``labels``: a day label per instant; one day without), linear in the instants' index to each
-    of ``up``. Returns (len(up), N)."""
+def coarse_instants(up, every: int, labels=None) -> np.ndarray:
+    """The instants :func:`interpolated_at_coarse_instants` computes: every ``every``-th of ``up`` (indices,
+    increasing: those with the sun up) and the first and last of each day (``labels``: a day label per
+    instant; one day without), sorted."""
     up = np.asarray(up)
     if labels is None:
-        coarse = np.unique(np.concatenate([up[::every], up[-1:]]))
-    else:
-        day = np.asarray(labels)[up]
-        turns = np.r_[True, day[1:] != day[:-1]]
-        coarse = np.unique(np.concatenate([up[::every], up[turns], up[np.r_[turns[1:], True]]]))
-    sampled = np.asarray(sample(coarse))
+        return np.unique(np.concatenate([up[::every], up[-1:]]))
+    day = np.asarray(labels)[up]
+    turns = np.r_[True, day[1:] != day[:-1]]
+    return np.unique(np.concatenate([up[::every], up[turns], up[np.r_[turns[1:], True]]]))
+
+
+def interpolated_at_coarse_instants(up, every: int, sample, labels=None) -> np.ndarray:
+    """Losses computed at coarse instants only and interpolated between: ``sample(coarse)`` (the
+    values, (K, N), at the instants of index ``coarse``: :func:`coarse_instants`), linear in the
+    instants' index to each of ``up``. Returns (len(up), N)."""
+    coarse = coarse_instants(up, every, labels)
+    return interpolated(up, coarse, sample(coarse))
+
+
+def interpolated(up, coarse, sampled) -> np.ndarray:
+    """``sampled`` (K, N) at the instants ``coarse`` interpolated linearly in the instants' index to each of
+    ``up``, (len(up), N)."""
+    sampled = np.asarray(sampled)
     return np.stack([np.interp(up, coarse, sampled[:, column]) for column in range(sampled.shape[1])], axis=-1)

@@ -8,7 +8,6 @@ import hashlib
 import logging
 import os
 import socket
-import sys
 import time as clock
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -18,6 +17,7 @@ import pandas as pd
 
 from heliostep.errors import InputError
 from heliostep.fmu.build import ensure_fmu
+from heliostep.progress import progress_bar
 from heliostep.sweep import local_worker
 from heliostep.sweep.spec import (
     SweepCase,
@@ -204,10 +204,7 @@ def _close_quietly(client, cluster) -> None:
 
 
 def _progress_bar(total: int, enabled: bool):
-    from tqdm import tqdm
-
-    quiet = not enabled or not sys.stderr.isatty() or bool(os.environ.get("CI"))
-    return tqdm(total=total, desc="cases", unit="case", disable=quiet, file=sys.stderr, mininterval=0.5)
+    return progress_bar(total, "cases", "case", enabled)
 
 
 def _ship_fmus(cases: Sequence[SweepCase]) -> tuple[list[SweepCase], dict[str, FmuPayload]]:

@@ -9,6 +9,7 @@ Details: docs/light.md, ``heliostep.results.light.field``.
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -31,6 +32,7 @@ def field_light_days(
     mirror_indices=None,
     shading: bool = True,
     shading_step_minutes: float = 30.0,
+    progress: Callable[[int], object] | None = None,
 ) -> pd.DataFrame:
     """Energy on the tube per day and mirror, ideal two-axis tracking vs the shared primary.
 
@@ -47,6 +49,8 @@ def field_light_days(
         Shading and blocking between the field's mirrors (every row, whichever are reported).
     shading_step_minutes : float, default 30  [min]
         Their time step, interpolated to ``step_minutes`` between.
+    progress : callable, optional
+        Called with 1 as each day is done.
 
     Returns
     -------
@@ -75,6 +79,8 @@ def field_light_days(
     for day in chosen:
         date = dt.date(year, 1, 1) + dt.timedelta(days=day - 1)
         rows += _day_rows(scenario, date, day, step_minutes, indices, weather, every)
+        if progress is not None:
+            progress(1)
     return pd.DataFrame(rows)
 
 
