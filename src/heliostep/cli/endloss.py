@@ -16,7 +16,7 @@ from heliostep.results.output.folder import owned_folder, write_swapped
 from heliostep.scenario.model import FIRST_YEAR, LAST_YEAR, window_date_problem
 from heliostep.solar import field_distances
 from heliostep.solar.endloss import end_loss_days, largest_shift
-from heliostep.solar.field import PANEL_LENGTH
+from heliostep.solar.field import DEFAULT_MIRROR_SPACING, PANEL_LENGTH, PANEL_WIDTH
 from heliostep.solar.optics import optical_chain
 from heliostep.solar.sun import Site
 
@@ -40,8 +40,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--length", type=float, default=100.0, help="[m] plant and tube length L (default 100)")
     parser.add_argument("--tube-height", type=float, default=5.0, help="[m] h (default 5, the paper's)")
     parser.add_argument("--rows", type=int, default=13, help="rows of mirrors across, odd (default 13)")
-    parser.add_argument("--spacing", type=float, default=0.6, help="[m] between rows (default 0.6, assumed)")
-    parser.add_argument("--mirror-width", type=float, help="[m] of each row (default: the spacing)")
+    spacing = f"[m] between rows (default {DEFAULT_MIRROR_SPACING:g}, the scenarios' field, assumed)"
+    parser.add_argument("--spacing", type=float, default=DEFAULT_MIRROR_SPACING, help=spacing)
+    width = f"[m] of each row (default {PANEL_WIDTH:.2g}, Table 2's panel, as the scenarios' mirrors)"
+    parser.add_argument("--mirror-width", type=float, default=PANEL_WIDTH, help=width)
     parser.add_argument(
         "--end-length",
         type=float,
@@ -97,7 +99,7 @@ def _end_loss_command(args: argparse.Namespace) -> int:
     out = check_out_name(args.out)
     site = Site(latitude=args.latitude, longitude=args.longitude, altitude=args.altitude, timezone=args.timezone)
     distances = field_distances(args.rows, args.spacing)
-    width = args.spacing if args.mirror_width is None else args.mirror_width
+    width = args.mirror_width
     efficiency = optical_chain(args.reflectivity, args.transmittance, args.absorptance)
     end = args.end_length
     if end is None:
