@@ -141,10 +141,17 @@ def test_a_runs_trace_csv_has_the_rest_of_its_metadata_in_the_metadata_json_besi
         read_trace(tmp_path / "trace.csv")
 
 
-def test_a_time_in_other_units_is_refused(tmp_path):
-    path = tmp_path / "ms.csv"
-    path.write_text("time [ms],x\n0,1\n")
-    with pytest.raises(InputError, match=r"ms\.csv: column 'time \[ms\]': the time is in seconds"):
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("time [ms],x\n0,1\n", r"bad\.csv: column 'time \[ms\]': the time is in seconds"),
+        ("# complete: true\ntime,x\n0,1\n", r"bad\.csv: no 'time' column"),  # a comment line is no header
+    ],
+)
+def test_a_time_in_other_units_and_a_comment_line_are_refused(tmp_path, text, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(InputError, match=message):
         read_trace(path)
 
 
@@ -229,13 +236,6 @@ def test_missing_and_unreadable_files(tmp_path):
         read_trace(garbage)
     with pytest.raises(InputError, match="unknown trace format"):
         read_trace(tmp_path / "trace.txt")
-
-
-def test_a_comment_line_is_no_header(tmp_path):
-    path = tmp_path / "bad.csv"
-    path.write_text("# complete: true\ntime,x\n0,1\n")
-    with pytest.raises(InputError, match=r"bad\.csv: no 'time' column"):
-        read_trace(path)
 
 
 @pytest.mark.parametrize("key", ["", "a:b", "a\nb", " a"])
