@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -91,9 +93,12 @@ def test_tolerance_options_and_file(traces, tmp_path, capsys):
 
 
 def test_incomplete_actual_exits_1(traces, tmp_path, capsys):
+    """The ``trace.csv`` of a run that failed: its metadata.json says so (``trace``: the trace's metadata)."""
     _, ref, signals = traces
-    act = tmp_path / "failed_run.csv"
-    write_trace(frame(**signals), act, {"complete": "false"})
+    act = tmp_path / "failed_run" / "trace.csv"
+    act.parent.mkdir()
+    write_trace(frame(**signals), act)
+    (act.parent / "metadata.json").write_text(json.dumps({"complete": False, "trace": {"complete": "false"}}))
     status, out, _ = run(capsys, act, ref)
     assert status == 1
     assert "complete: false" in out

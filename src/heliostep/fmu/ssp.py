@@ -15,6 +15,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from heliostep.errors import InputError
+from heliostep.file_modes import publish
 from heliostep.input_files import MAX_ARCHIVE_BYTES, read_input_bytes
 
 __all__ = ["FMU_TYPE", "SSPSystem", "read_ssp", "write_ssp"]
@@ -236,6 +237,7 @@ def write_ssp(
             for instance, fmu in fmus.items():
                 entry = zipfile.ZipInfo(f"resources/{instance}.fmu", _FIXED_TIME)
                 archive.writestr(entry, Path(fmu).read_bytes(), zipfile.ZIP_DEFLATED)
+        publish(partial)  # private while written (mkstemp), the user's umask's mode once in place
         os.replace(partial, out)
     finally:
         if os.path.exists(partial):

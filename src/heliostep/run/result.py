@@ -23,7 +23,9 @@ from heliostep.results.figures.solution import SolutionPlotData
 from heliostep.results.output.folder import check_foreign, hold_folder, manifest_files, write_swapped
 from heliostep.results.output.rescue import write_rescue
 from heliostep.results.output.run_files import run_file_names, write_run_records
+from heliostep.results.trace.csv_text import LOCAL_TIME
 from heliostep.results.trace.files import read_trace
+from heliostep.results.trace.format import local_times
 from heliostep.results.trace.frame import trace_metadata
 from heliostep.scenario import Scenario
 
@@ -151,9 +153,18 @@ class RunResult:
         trace_file = self._streamed_file()
         return self._with_unwritten(read_trace(trace_file, present_columns(trace_file, columns))[0])
 
-    def to_pandas(self) -> pd.DataFrame:
-        """The trace as a DataFrame (a copy)."""
-        return self.trace.copy()
+    def to_pandas(self, index: str | None = None) -> pd.DataFrame:
+        """The trace as a DataFrame (a copy), indexed by row (``index=None``) or, with
+        ``index="local_time"``, by each row's instant in the site's time zone: a time-zone-aware
+        DatetimeIndex named ``local_time`` (the window's start plus ``time``, to the nanosecond; as pvlib's
+        series are indexed), ``time`` [s from the start] kept as a column."""
+        frame = self.trace.copy()
+        if index is None:
+            return frame
+        if index != LOCAL_TIME:
+            raise ValueError(f"to_pandas: index {index!r}; expected None or {LOCAL_TIME!r}")
+        stamps = local_times(frame["time"].to_numpy(), self.metadata["window_start"], self.metadata["timezone"])
+        return frame.set_axis(stamps.rename(LOCAL_TIME), axis="index")
 
     def plot(self, out_dir: str | Path) -> list[Path]:
         """Write the paper's Figs. 8–14 and the power on the tube for this run into ``out_dir``

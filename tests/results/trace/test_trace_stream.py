@@ -71,8 +71,8 @@ def test_streamed_parquet_equals_the_trace_held_in_memory(held, fmu_paths, tmp_p
     streamed.write(out, plots=False, csv=True)
     assert not [p for p in out.iterdir() if p.name.startswith(".heliostep-tmp-")]
     assert streamed.trace_file == out / "trace.parquet"
-    csv_trace, csv_meta = read_trace(out / "trace.csv")
-    pd.testing.assert_frame_equal(csv_trace, held.trace, check_exact=True)
+    csv_trace, csv_meta = read_trace(out / "trace.csv")  # its metadata from the metadata.json beside it
+    pd.testing.assert_frame_equal(csv_trace, through_degrees(held.trace, csv_meta), check_exact=True)
     assert csv_meta == held.trace_metadata()
 
 
@@ -92,7 +92,19 @@ def test_csv_copy_in_small_batches_equals_the_parquet(held, tmp_path):
     held.write(tmp_path, plots=False, csv=False)
     parquet = tmp_path / "trace.parquet"
     copy_trace_to_csv(parquet, tmp_path / "t.csv", batch_rows=7)
-    pd.testing.assert_frame_equal(read_trace(tmp_path / "t.csv")[0], read_trace(parquet)[0], check_exact=True)
+    trace, meta = read_trace(parquet)
+    pd.testing.assert_frame_equal(read_trace(tmp_path / "t.csv")[0], through_degrees(trace, meta), check_exact=True)
+
+
+def through_degrees(trace: pd.DataFrame, meta: dict[str, str]) -> pd.DataFrame:
+    """``trace`` as its CSV reads back: every value bit for bit, but the angles (``rad``, ``rad/s``), which
+    the CSV holds in degrees (each the shortest text of ``np.degrees``): ``np.radians`` of those."""
+    out = trace.copy()
+    for column in out.columns:
+        unit = meta.get(f"unit.{column}", "")
+        if unit == "rad" or unit.startswith("rad/"):
+            out[column] = np.radians(np.degrees(out[column].to_numpy()))
+    return out
 
 
 def test_master_holds_at_most_one_block_of_the_sink(fmu_paths):

@@ -12,6 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from heliostep.errors import InputError
+from heliostep.file_modes import publish
 
 __all__ = ["TMP_PREFIX", "atomic_path", "check_out_dir", "check_out_name", "refuse_link", "write_text_atomic"]
 
@@ -24,15 +25,18 @@ PATH_MAX = 4096 - 256
 
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path`` (same suffix); on success rename it to ``path``.
+    """Yield a temporary file beside ``path`` (same suffix, made new and readable by its owner only);
+    on success give it the user's umask's mode (:func:`~heliostep.file_modes.publish`) and rename it to ``path``.
 
     On an exception the temporary file is removed and ``path`` is left as it was.
     """
     path = Path(path)
     tmp = path.with_name(f"{TMP_PREFIX}{uuid.uuid4().hex[:12]}-{path.name}")
     try:
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600))
         yield tmp
         refuse_link(path)  # a link planted meanwhile is not replaced (it is not heliostep's)
+        publish(tmp)
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -94,7 +98,7 @@ def check_out_dir(out_dir: str | Path) -> Path:
     probe = out_dir / f"{TMP_PREFIX}probe-{os.getpid()}"
     try:
         refuse_link(probe)
-        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o666)
         try:
             os.write(fd, b"probe")
         finally:

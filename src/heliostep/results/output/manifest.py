@@ -123,5 +123,5 @@ def write_manifest(folder: Path, records: Mapping[str, FileRecord], state: str) 
 def open_new(path: Path):
     """``path`` opened for writing text, never through a symbolic link (one there: InputError naming it)."""
     refuse_link(path)
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0), 0o666)
     return os.fdopen(fd, "w", encoding="utf-8")

@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from heliostep.results.output.files import write_text_atomic
-from heliostep.results.output.run_files import RunRecords, record_texts
+from heliostep.results.output.run_files import RunRecords, record_texts, trace_record
 from heliostep.results.trace.files import iter_trace_blocks, write_trace
 
 __all__ = ["file_size_limit", "rescue_folder", "write_rescue", "write_text_parts", "write_trace_parts"]
@@ -125,6 +125,6 @@ def write_rescue(folder: Path, run: RunRecords) -> list[Path]:
         else:
             raise RuntimeError("a run that holds no trace in memory has a trace file")
         written += write_trace_parts(folder, blocks, run.trace_metadata())
-    for name, text in record_texts(run.figures, run.status, run.metadata).items():
+    for name, text in record_texts(run.figures, run.status, run.metadata, trace_record(run)).items():
         written += write_text_parts(folder, name, text)
     return written

@@ -21,6 +21,7 @@ from heliostep.results.figures.run_summary import RunMetadata, RunStatus, RunSum
 from heliostep.results.output.files import TMP_PREFIX, atomic_path, write_text_atomic
 from heliostep.results.output.folder import staging_folder, swap_in, write_swapped
 from heliostep.results.trace.files import TraceWriter, copy_trace_to_csv, iter_trace_blocks, write_trace
+from heliostep.results.trace.format import RUN_METADATA_FILE, TRACE_METADATA_KEY
 
 __all__ = [
     "FIGURE_FILES",
@@ -31,6 +32,7 @@ __all__ = [
     "place_trace_file",
     "record_texts",
     "run_file_names",
+    "trace_record",
     "write_held_trace",
     "write_joined_trace",
     "write_records",
@@ -42,7 +44,7 @@ __all__ = [
 #: The trace files a run writes (Parquet always, CSV when asked), by the functions below.
 TRACE_FILES = ("trace.parquet", "trace.csv")
 #: The records a run writes (:func:`write_records`).
-RECORD_FILES = ("metadata.json", "summary.json")
+RECORD_FILES = (RUN_METADATA_FILE, "summary.json")
 #: The figures a run draws, in the order drawn: the paper's Figs. 8-14 (:mod:`heliostep.plots.run`), then the
 #: power on the tube (:mod:`heliostep.plots.light`). Named here, so that a run knows its files (and a
 #: ``--no-plots`` run checks its folder) without importing matplotlib.
@@ -116,8 +118,14 @@ def _write_staged(staging: Path, run: RunRecords, csv: bool) -> list[str]:
             run.trace_file = written["trace.parquet"]
         if csv:
             written.update(write_trace_csv(staging, written["trace.parquet"], metadata))
-    written.update(write_records(staging, run.figures, run.status, run.metadata))
+    written.update(write_records(staging, run.figures, run.status, run.metadata, trace_record(run)))
     return list(written)
+
+
+def trace_record(run: RunRecords) -> dict[str, str] | None:
+    """The trace's metadata as ``metadata.json`` holds it (what a Parquet trace's footer holds and a
+    CSV trace cannot: :mod:`heliostep.results.trace.csv_text`); None for a run that kept no trace."""
+    return run.trace_metadata() if run.trace_kept else None
 
 
 def _trace_file_after_swap(run: RunRecords, out_dir: Path, staging: Path, source: Path | None) -> None:
@@ -169,19 +177,29 @@ def write_trace_csv(out_dir: Path, trace_file: Path, metadata: Mapping[str, str]
     return {path.name: path}
 
 
-def record_texts(summary: RunSummary | None, status: RunStatus, metadata: Mapping) -> dict[str, str]:
-    """The text of ``metadata.json`` (the status, then ``metadata``) and ``summary.json`` (:func:`summary_record`;
+def record_texts(
+    summary: RunSummary | None, status: RunStatus, metadata: Mapping, trace: Mapping[str, str] | None = None
+) -> dict[str, str]:
+    """The text of ``metadata.json`` (the status, then ``metadata``, then the ``trace``'s metadata under
+    :data:`~heliostep.results.trace.format.TRACE_METADATA_KEY`) and ``summary.json`` (:func:`summary_record`;
     an incomplete run's also says the stage it reached, ``metadata``'s ``stage``, else ``simulating``)."""
     summary_content = summary_record(summary, status, metadata.get("terminated"))
     if not status.complete:
         summary_content = {**summary_content, "stage": metadata.get("stage", "simulating")}
-    contents = ({**status_record(status), **metadata}, summary_content)
+    traced = {TRACE_METADATA_KEY: dict(trace)} if trace is not None else {}
+    contents = ({**status_record(status), **metadata, **traced}, summary_content)
     return {name: json.dumps(content, indent=2, default=str) + "\n" for name, content in zip(RECORD_FILES, contents)}
 
 
-def write_records(out_dir: Path, summary: RunSummary | None, status: RunStatus, metadata: Mapping) -> dict[str, Path]:
+def write_records(
+    out_dir: Path,
+    summary: RunSummary | None,
+    status: RunStatus,
+    metadata: Mapping,
+    trace: Mapping[str, str] | None = None,
+) -> dict[str, Path]:
     """``metadata.json`` and ``summary.json`` (:func:`record_texts`), each renamed into place."""
-    texts = record_texts(summary, status, metadata)
+    texts = record_texts(summary, status, metadata, trace)
     return {name: write_text_atomic(out_dir / name, text) for name, text in texts.items()}
 
 

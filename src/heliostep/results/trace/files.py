@@ -1,22 +1,22 @@
-"""Reading and writing simulation traces: Parquet and CSV, both round-tripping values, duplicate
-time stamps and metadata; Modelica ``.mat`` files and OpenModelica's CSV read only.
+"""Reading and writing simulation traces: Parquet, round-tripping values, duplicate time stamps and
+metadata, and CSV, the same readable by anyone (:mod:`heliostep.results.trace.csv_text`: units in the
+column names, angles in degrees, the local time; its other metadata in a run's ``metadata.json``);
+Modelica ``.mat`` files and OpenModelica's CSV read only.
 
 Details: docs/compare.md, ``heliostep.results.trace.files``.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import BinaryIO
 
 import numpy as np
 import pandas as pd
 
 from heliostep.errors import InputError
-from heliostep.input_files import MAX_ARCHIVE_BYTES, MAX_CSV_BYTES, check_input_file, read_input_text
+from heliostep.input_files import MAX_ARCHIVE_BYTES, MAX_CSV_BYTES, check_input_file
+from heliostep.results.trace.csv_text import CsvLayout, read_csv_trace, write_csv_head, write_csv_rows
 from heliostep.results.trace.format import (
     ROW_GROUP_ROWS,
     SUFFIXES,
@@ -29,9 +29,6 @@ from heliostep.results.trace.format import (
 )
 from heliostep.results.trace.modelica import MAT_SUFFIX, read_modelica_mat
 from heliostep.results.trace.writer import TRACE_ENCODING, TraceWriteError, TraceWriter
-
-# pandas < 3 parses floats exactly only when asked; pandas 3 always does (and warns on the option).
-_EXACT_FLOATS = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
 
 __all__ = [
     "TIME",
@@ -81,7 +78,9 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
 
     The format follows the suffix (``.parquet`` or ``.csv``); ``time`` is written as
     the first column, every column as float64. *metadata* values that are ``bool``
-    become ``"true"``/``"false"``, numbers their ``str``. Returns the path.
+    become ``"true"``/``"false"``, numbers their ``str``; a CSV keeps of them only the
+    units (``unit.<column>``, in the header) and the window (``window_start`` and
+    ``timezone``, its local time column). Returns the path.
     """
     path = Path(path)
     fmt = trace_format(path)
@@ -99,30 +98,11 @@ def write_trace(df: pd.DataFrame, path: str | Path, metadata: Mapping[str, objec
             raise
         writer.close(meta)
     else:
+        layout = CsvLayout.of(list(table.columns), meta)
         with open(path, "wb") as fh:
-            _write_csv_head(fh, meta, list(table.columns))
-            _write_csv_rows(fh, [table[c].to_numpy() for c in table.columns])
+            write_csv_head(fh, layout)
+            write_csv_rows(fh, layout, [table[c].to_numpy() for c in table.columns])
     return path
-
-
-def _write_csv_head(fh: BinaryIO, meta: Mapping[str, object], names: list[str]) -> None:
-    """The metadata lines and the header line of a CSV trace (names quoted only where they must be)."""
-    header = io.StringIO()
-    csv.writer(header, lineterminator="\n").writerow(names)
-    lines = "".join(f"# {key}: {value}\n" for key, value in meta.items()) + header.getvalue()
-    fh.write(lines.encode("utf-8"))
-
-
-def _write_csv_rows(fh: BinaryIO, columns: list[np.ndarray]) -> None:
-    """Rows of float64 columns as CSV lines, by Arrow's CSV writer: each value in the shortest form that
-    reads back to the same double (``0.1``, ``0``, ``-0``, ``1e-100``, ``inf``), NaN as an empty field
-    (pandas' ``to_csv`` writes the same values, ``0.0`` for ``0``, many times slower)."""
-    import pyarrow as pa
-    import pyarrow.csv as pa_csv
-
-    arrays = [pa.array(values, type=pa.float64(), from_pandas=True) for values in columns]  # NaN: null, empty
-    table = pa.Table.from_arrays(arrays, names=[f"c{i}" for i in range(len(columns))])  # (names: in the head)
-    pa_csv.write_csv(table, fh, pa_csv.WriteOptions(include_header=False, quoting_style="none"))
 
 
 def read_trace_metadata(path: str | Path) -> dict[str, str]:
@@ -150,17 +130,19 @@ def copy_trace_to_csv(
     batch_rows: int = ROW_GROUP_ROWS,
 ) -> Path:
     """Write the CSV form of a Parquet trace, ``batch_rows`` rows at a time (never the whole
-    table in memory); the metadata is the Parquet file's unless ``metadata`` is given."""
+    table in memory); its units and window are the Parquet file's metadata's unless ``metadata`` is given."""
     import pyarrow.parquet as pq
 
     parquet, csv_path = Path(parquet), Path(csv_path)
     meta = clean_metadata(read_trace_metadata(parquet) if metadata is None else metadata)
     source = pq.ParquetFile(parquet)
-    names = list(source.schema_arrow.names)
+    layout = CsvLayout.of(list(source.schema_arrow.names), meta)
     with open(csv_path, "wb") as fh:
-        _write_csv_head(fh, meta, names)
+        write_csv_head(fh, layout)
         for batch in source.iter_batches(batch_size=batch_rows):
-            _write_csv_rows(fh, [batch.column(i).to_numpy(zero_copy_only=False) for i in range(len(names))])
+            write_csv_rows(
+                fh, layout, [batch.column(i).to_numpy(zero_copy_only=False) for i in range(len(layout.names))]
+            )
     return csv_path
 
 
@@ -187,7 +169,7 @@ def read_trace(path: str | Path, columns: list[str] | None = None) -> tuple[pd.D
         columns = [TIME] + [c for c in dict.fromkeys(columns) if c != TIME]
     if fmt == "parquet":
         return _read_parquet(path, columns), read_trace_metadata(path)
-    meta, frame = _read_csv(path)
+    frame, meta = read_csv_trace(path)
     return _to_float_frame(frame, str(path)), meta
 
 
@@ -272,56 +254,3 @@ def iter_trace_blocks(path: str | Path, columns: list[str] | None = None) -> Ite
         check_time(time if previous is None else np.concatenate([[previous], time]), str(path))
         previous = float(time[-1])
         yield pd.DataFrame(dict(zip(order, arrays)), columns=order, copy=False)
-
-
-def _read_csv(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
-    text = read_input_text(path, "trace", MAX_CSV_BYTES, "utf-8-sig")  # a byte order mark (Excel) is dropped
-    text = text.replace("\r\n", "\n").replace("\r", "\n")  # the universal newlines read_text gave
-    meta: dict[str, str] = {}
-    lines = text.splitlines(keepends=True)
-    start = len(lines)
-    for number, line in enumerate(lines):
-        stripped = line.rstrip("\r\n")
-        if not stripped.strip():
-            continue
-        if not stripped.startswith("#"):
-            start = number
-            break
-        key, sep, rest = stripped[1:].partition(":")
-        key = key.strip()
-        if not sep or not key:
-            raise InputError(f"{path}: line {number + 1}: expected '# key: value', got {stripped!r}")
-        if key in meta:
-            raise InputError(f"{path}: line {number + 1}: metadata key {key!r} given twice")
-        meta[key] = rest[1:] if rest.startswith(" ") else rest
-    body = "".join(lines[start:])
-    if not body.strip():
-        raise InputError(f"{path}: no header line (expected a {TIME!r} column)")
-    sep, decimal = _dialect(lines[start], lines[start + 1 : start + 50])
-    try:
-        names = [n.strip() for n in next(csv.reader(io.StringIO(lines[start]), delimiter=sep))]
-    except csv.Error as exc:
-        raise InputError(f"{path}: line {start + 1}: bad header: {exc}") from None
-    trailing = len(names) > 1 and names[-1] == ""  # OpenModelica ends every line with the separator
-    if trailing:
-        names[-1] = "\x00trailing"
-    dupes = sorted({c for c in names if names.count(c) > 1})
-    if dupes:
-        raise InputError(f"{path}: duplicate column(s) {', '.join(map(repr, dupes))}")
-    try:
-        frame = pd.read_csv(io.StringIO(body), header=0, names=names, sep=sep, decimal=decimal, **_EXACT_FLOATS)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read as CSV: {exc}") from None
-    if trailing:
-        if frame[names[-1]].notna().any():
-            raise InputError(f"{path}: the header ends with an empty column name but its rows have values there")
-        frame = frame.drop(columns=[names[-1]])
-    return meta, frame
-
-
-def _dialect(header: str, rows: list[str]) -> tuple[str, str]:
-    """Separator and decimal mark: ``,`` and ``.``, or (Excel in many locales) ``;`` with ``,``
-    or ``.`` decimals. ``;`` is taken when the header has a ``;`` and no ``,``."""
-    if ";" in header and "," not in header:
-        return ";", "," if any("," in row for row in rows) else "."
-    return ",", "."

@@ -1,6 +1,6 @@
 """The rules of the trace format that its reader and writer share (the format:
-:mod:`heliostep.results.trace.files`): the time column, the suffixes, the metadata's form and the
-Parquet row groups.
+:mod:`heliostep.results.trace.files`): the time column, the suffixes, the metadata's form, the
+Parquet row groups and the local time of a row (the window's start plus its time).
 """
 
 from __future__ import annotations
@@ -9,22 +9,31 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from heliostep.errors import InputError
 
 __all__ = [
     "ROW_GROUP_ROWS",
     "SUFFIXES",
+    "RUN_METADATA_FILE",
     "TIME",
+    "TRACE_METADATA_KEY",
     "check_parquet_keys",
     "check_time",
     "clean_metadata",
     "is_complete",
     "is_reserved_parquet_key",
+    "iso_texts",
+    "local_times",
     "trace_format",
 ]
 
 TIME = "time"
+#: The file beside a run's ``trace.csv`` that holds the rest of its metadata, under :data:`TRACE_METADATA_KEY`
+#: (the CSV's header holds the units, its ``local_time`` column the window).
+RUN_METADATA_FILE = "metadata.json"
+TRACE_METADATA_KEY = "trace"
 SUFFIXES = (".parquet", ".csv")
 _RESERVED_PARQUET_KEYS = ("pandas",)
 _RESERVED_PARQUET_PREFIX = "ARROW:"
@@ -100,3 +109,29 @@ def is_complete(metadata: Mapping[str, str]) -> bool:
     """False only when the metadata says ``complete: false`` (case-insensitive)."""
     value = metadata.get("complete")
     return not (isinstance(value, str) and value.strip().lower() == "false")
+
+
+def local_times(time: np.ndarray, window_start: str, timezone: str, resolution: str = "ns") -> pd.DatetimeIndex:
+    """The instants ``time`` [s from the window's start] as times of ``timezone`` (an IANA name), the
+    start an ISO 8601 text (``2025-01-21T10:00:00+01:00``; without an offset: local to ``timezone``);
+    each rounded to ``resolution`` (``"ns"`` or ``"us"``). :class:`InputError` for a start or zone
+    pandas does not know."""
+    per_second = {"ns": 10**9, "us": 10**6}[resolution]
+    try:
+        start = pd.Timestamp(window_start)
+        start = start.tz_localize(timezone) if start.tzinfo is None else start.tz_convert(timezone)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise InputError(f"window start {window_start!r} in time zone {timezone!r}: {exc}") from None
+    ticks = np.round(np.asarray(time, dtype=np.float64) * per_second).astype(np.int64)
+    return pd.DatetimeIndex(start + pd.to_timedelta(ticks, unit=resolution))
+
+
+def iso_texts(stamps: pd.DatetimeIndex) -> np.ndarray:
+    """Time-zone-aware ``stamps`` as ISO 8601 texts of their local time to the microsecond, with
+    their offset from UTC (``2025-01-21T10:00:09.373829+01:00``)."""
+    wall = stamps.tz_localize(None)
+    texts = np.datetime_as_string(wall.to_numpy().astype("datetime64[us]"), unit="us")
+    minutes = np.asarray((wall - stamps.tz_convert("UTC").tz_localize(None)) // pd.Timedelta(minutes=1))
+    offsets, which = np.unique(minutes.astype(np.int64), return_inverse=True)
+    names = np.array([f"{'-' if m < 0 else '+'}{abs(m) // 60:02d}:{abs(m) % 60:02d}" for m in offsets.tolist()])
+    return np.char.add(texts, names[which]) if len(texts) else texts
