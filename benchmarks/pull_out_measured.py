@@ -17,6 +17,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "support"))
 
+from heliostep.run.speed_torque import BENCH_LOAD_INERTIA, bench_fmus, speed_torque_curve  # noqa: E402
 from measured_pull_out import (  # noqa: E402
     BUSES,
     DETENT_BAND,
@@ -29,8 +30,6 @@ from measured_pull_out import (  # noqa: E402
     full_steps_per_s,
     measured_at,
 )
-
-from heliostep.run.speed_torque import BENCH_LOAD_INERTIA, bench_fmus, speed_torque_curve  # noqa: E402
 
 RATES = [full_steps_per_s(rpm) for rpm in MEASURED_RPM if 500 <= full_steps_per_s(rpm) <= 6000]
 
