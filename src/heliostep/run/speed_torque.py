@@ -236,15 +236,17 @@ def pull_out_torque(
     fmus: Mapping[str, Path] | None = None,
 ) -> float:
     """The pull-out torque [N.m] at ``step_rate`` [full steps/s]: the largest load torque on the shaft
-    against which every step is kept, bisected to ``tolerance`` of the holding torque."""
+    against which every step is kept, bisected to ``tolerance`` of the mode's holding torque (two phases
+    on: sqrt(2) times one phase's, the peak of the sum of the two phases' torques)."""
     paths = bench_fmus(fmus)
+    upper = drive.holding_torque(current) * (math.sqrt(2.0) if mode == "two-phase-on" else 1.0)
 
     def kept(load: float) -> bool:
         return steps_kept(
             drive, current, step_rate, load, mode=mode, microsteps=microsteps, load_inertia=load_inertia, fmus=paths
         )
 
-    return _bisect(kept, drive.holding_torque(current), tolerance)
+    return _bisect(kept, upper, tolerance)
 
 
 def speed_torque_curve(
