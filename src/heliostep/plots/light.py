@@ -170,7 +170,7 @@ def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, what: s
     factor, unit = si_scale(*(values for values, *_ in curves), unit="W")
     for values, label, color, style in curves:
         text = f"{label}: {_energy_text(values, time, given.get(FIGURE_OF[label]))}"
-        band = Band.of_rows(time, values * factor) if len(time) > 2 * ENVELOPE_BINS and style == "-" else None
+        band = Band.of_rows(time, values * factor) if len(time) > 2 * ENVELOPE_BINS else None
         if band is not None:
             draw_band(ax, clock.x, band, color, text, label)
         else:

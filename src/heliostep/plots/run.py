@@ -294,7 +294,7 @@ def _fig11(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
         return None
     wind, _ = _series(trace, solution, "m_ext")
     windy = wind is not None and bool(np.any(wind.low != 0.0) or np.any(wind.high != 0.0))
-    fig, axes = _figure(0.8, 2 if windy else 1, _TALL if windy else _WIDE)
+    fig, axes = _figure(0.95 if windy else 0.8, 2 if windy else 1, _TALL if windy else _WIDE)
     band, source = _series(trace, solution, column)
     _band(axes[0], clock, band, "C2", "motor torque", "torque", "N.m", worst=True)
     axes[0].axhline(0.0, color="0.5", linewidth=0.8)
@@ -303,7 +303,7 @@ def _fig11(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     if windy:
         _band(axes[1], clock, wind, "C4", "wind moment", "wind moment", "N.m", worst=True)
         axes[1].axhline(0.0, color="0.5", linewidth=0.8)
-        axes[1].set_ylabel("wind moment on\nthe panel axis [N.m]")
+        axes[1].set_ylabel("wind moment [N.m]")
     return _finish(fig, axes, clock)
 
 

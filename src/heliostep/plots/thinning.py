@@ -62,8 +62,10 @@ class Band:
     def _filled(cls, edges, low, high, mean, worst) -> Band:
         centres = (edges[:-1] + edges[1:]) / 2.0
         seen = np.isfinite(low) & np.isfinite(high)
-        fill = [np.interp(centres, centres[seen], a[seen]) if not seen.all() else a for a in (low, high, mean)]
-        return cls(np.asarray(edges, dtype=float), *fill, worst)
+        low, high, mean = (
+            np.interp(centres, centres[seen], a[seen]) if not seen.all() else a for a in (low, high, mean)
+        )
+        return cls(np.asarray(edges, dtype=float), low, high, mean, worst)
 
     def scaled(self, factor: float) -> Band:
         """The band with its values times ``factor`` (units)."""
