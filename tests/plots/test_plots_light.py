@@ -28,13 +28,18 @@ def _scenario(distance):
     )
 
 
+def _trace(scenario, distance):
+    """Ten minutes of a panel 1e-4 rad off its reference, every 5 s."""
+    seconds = np.arange(0.0, 601.0, 5.0)
+    times = pd.Timestamp("2025-01-21 10:00", tz="Europe/Rome") + pd.to_timedelta(seconds, unit="s")
+    ref = panel_angle_reference(times, scenario.site.to_site(), scenario.plant.to_plant(), distance).to_numpy()
+    return pd.DataFrame({"time": seconds, "panel_angle_ref": ref, "p": ref + 1e-4})
+
+
 @pytest.mark.filterwarnings("ignore::Warning")
 def test_power_on_the_tube_is_drawn_from_a_run(tmp_path):
     scenario = _scenario(-1.2)
-    seconds = np.arange(0.0, 601.0, 5.0)
-    times = pd.Timestamp("2025-01-21 10:00", tz="Europe/Rome") + pd.to_timedelta(seconds, unit="s")
-    ref = panel_angle_reference(times, scenario.site.to_site(), scenario.plant.to_plant(), -1.2).to_numpy()
-    trace = pd.DataFrame({"time": seconds, "panel_angle_ref": ref, "p": ref + 1e-4})
+    trace = _trace(scenario, -1.2)
     written = plot_light_run(trace, METADATA, scenario, tmp_path)
     assert [p.name for p in written] == [POWER_FILE]
     assert written[0].read_bytes().startswith(PNG_SIGNATURE) and written[0].stat().st_size > 20_000
@@ -50,10 +55,7 @@ def test_short_series_draws_nothing(tmp_path):
 def test_the_powers_axis_is_zoomed_and_the_differences_have_panels_of_their_own():
     # the central mirror: ideal, reference and actual differ by parts in 10^7; from 0 they were one line
     scenario = _scenario(0.0)
-    seconds = np.arange(0.0, 601.0, 5.0)
-    times = pd.Timestamp("2025-01-21 10:00", tz="Europe/Rome") + pd.to_timedelta(seconds, unit="s")
-    ref = panel_angle_reference(times, scenario.site.to_site(), scenario.plant.to_plant(), 0.0).to_numpy()
-    trace = pd.DataFrame({"time": seconds, "panel_angle_ref": ref, "p": ref + 1e-4})
+    trace = _trace(scenario, 0.0)
     series = light_timeseries(trace, METADATA, scenario)
     fig = light_figure(series, METADATA)
     top, sharing, stepping = fig.axes[:3]
@@ -109,12 +111,7 @@ def test_si_scale_picks_the_prefix_the_values_read_in():
 @pytest.mark.filterwarnings("ignore::Warning")
 def test_a_panel_the_summary_calls_not_meaningful_is_not_drawn():
     scenario = _scenario(0.0)
-    seconds = np.arange(0.0, 601.0, 5.0)
-    times = pd.Timestamp("2025-01-21 10:00", tz="Europe/Rome") + pd.to_timedelta(seconds, unit="s")
-    ref = panel_angle_reference(times, scenario.site.to_site(), scenario.plant.to_plant(), 0.0).to_numpy()
-    series = light_timeseries(
-        pd.DataFrame({"time": seconds, "panel_angle_ref": ref, "p": ref + 1e-4}), METADATA, scenario
-    )
+    series = light_timeseries(_trace(scenario, 0.0), METADATA, scenario)
     notes = [
         "light_lost_shared_primary_J is exactly 0: the central mirror's primary is the shared one",
         "light_lost_reference_law_J = 1e-9 J is below the sun grid's interpolation noise (1e-06 of the energy): not"
