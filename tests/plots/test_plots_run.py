@@ -12,7 +12,8 @@ import pytest
 
 from heliostep.errors import InputError
 from heliostep.plots import run as run_plots
-from heliostep.plots.thinning import thin
+from heliostep.plots.thinning import EDGE_GID, Band, min_max_line
+from heliostep.results.figures.plot_data import ENVELOPE_BINS, TRACKING_ERROR
 
 STEP_ANGLE = np.radians(1.8)  # [rad]
 METADATA = {"window_start": "2025-01-21T10:00:00+01:00", "timezone": "Europe/Rome", "scenario": "synthetic"}
@@ -170,19 +171,22 @@ def test_without_window_start_the_axis_is_in_seconds(trace, tmp_path):
     np.testing.assert_array_equal(clock.x(np.array([1.5])), [1.5])
 
 
-def test_thinning_keeps_extremes_order_and_bounds_the_points():
+def test_thinning_keeps_the_extremes_and_bounds_the_points():
     rng = np.random.default_rng(1)
     time = np.sort(rng.uniform(0.0, 100.0, 1_000_000))
     values = rng.normal(size=time.size)
     values[123_456] = 50.0
     values[654_321] = -50.0
     values[777] = np.nan
-    keep = thin(time, values, max_buckets=run_plots.MAX_BUCKETS)
-    assert keep.size <= 4 * run_plots.MAX_BUCKETS
-    assert np.all(np.diff(keep) > 0)
-    assert {0, time.size - 1, 123_456, 654_321} <= set(keep.tolist())
+    shown_time, shown = min_max_line(time, values)
+    assert shown.size == 2 * ENVELOPE_BINS and np.all(np.diff(shown_time) >= 0)
+    assert shown.max() == 50.0 and shown.min() == -50.0
+    band = Band.of_rows(time, values)
+    assert band is not None and band.high.max() == 50.0 and band.low.min() == -50.0
+    assert band.worst == (time[123_456], 50.0)  # the first of the largest magnitude
+    assert np.all((band.low <= band.mean) & (band.mean <= band.high))
     short = np.arange(100.0)
-    np.testing.assert_array_equal(thin(short, short, max_buckets=run_plots.MAX_BUCKETS), np.arange(100))
+    np.testing.assert_array_equal(min_max_line(short, short)[1], short)  # few rows: drawn as they are
 
 
 def test_bad_traces_are_input_errors(trace, tmp_path):
@@ -321,3 +325,81 @@ def test_the_fixed_layout_clips_nothing_and_panels_do_not_overlap(solved):
     series = light_timeseries(run.trace_columns(columns), run.metadata, run.scenario, run.weather)
     title = f" ({run.scenario.name}, {run.scenario.window.date}, mirror at d = 0 m, secondary driven)"
     _nothing_clipped_or_overlapping("power", light_figure(series, run.metadata, title))
+
+
+def _drawn_extremes(ax) -> tuple[float, float]:
+    """The least and largest value drawn on ``ax``: its Line2D and PolyCollection data (no horizontal line)."""
+    values = [np.asarray(line.get_ydata(), dtype=float) for line in ax.lines if len(set(line.get_ydata())) > 1]
+    values += [path.vertices[:, 1] for shade in ax.collections for path in shade.get_paths()]
+    drawn = np.concatenate(values)
+    return float(np.nanmin(drawn)), float(np.nanmax(drawn))
+
+
+def _legends_beside_the_data(name, fig):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        if legend is not None:
+            box, frame = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
+            assert box.x0 >= frame.x1 or box.y0 >= frame.y1 or box.y1 <= frame.y0, (name, "legend over the data")
+
+
+def test_the_tracking_error_drawn_is_the_summarys_and_legends_are_beside_the_data(solved):
+    """Fig. 13's error panel is drawn from every solver step: its extremes are summary.json's worst tracking
+    error exactly (the day's output rows reach 0.0068 deg of its 0.0116); no legend covers an axes' data."""
+    run, figures = solved
+    error = figures["fig13_panel_tracking.png"].axes[1]
+    low, high = _drawn_extremes(error)
+    assert max(abs(low), abs(high)) == run.summary["max_tracking_error_deg"]
+    (worst,) = _lines(figures["fig13_panel_tracking.png"], "largest |tracking error|", 1)
+    assert abs(float(worst.get_ydata()[0])) == run.summary["max_tracking_error_deg"]
+    torque = _drawn_extremes(figures["fig11_torque.png"].axes[0])
+    assert max(abs(torque[0]), abs(torque[1])) == run.summary["peak_torque_Nm"]
+    for name, fig in figures.items():
+        if fig is not None:
+            _legends_beside_the_data(name, fig)
+
+
+def test_the_envelope_of_the_solution_is_in_every_run_figure(solved):
+    run, figures = solved
+    assert TRACKING_ERROR in run.solution_plot.maximum
+    for name in ("fig10_phase_currents.png", "fig11_torque.png", "fig12_rotor_angle.png", "fig13_panel_tracking.png"):
+        edges = [line for ax in figures[name].axes for line in ax.lines if line.get_gid() == EDGE_GID]
+        assert edges, name
+        assert "every solver step" in figures[name].axes[0].get_title() or name == "fig12_rotor_angle.png"
+
+
+def test_a_multi_day_axis_carries_dates(tmp_path):
+    day = synthetic_trace(duration=20.0)
+    long = day.assign(time=day["time"] * 3 * 86400.0 / 20.0)  # the same rows over three days
+    figures = dict(run_plots.run_figures(long, METADATA))
+    fig = figures["fig13_panel_tracking.png"]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    labels = [tick.get_text() for tick in fig.axes[-1].get_xticklabels()]
+    assert any(label.startswith("Jan") or "Jan" in label for label in labels), labels
+    assert "2025-01-21 to 2025-01-24" in fig.axes[0].get_title()
+    short = dict(run_plots.run_figures(day, METADATA))["fig13_panel_tracking.png"]
+    FigureCanvasAgg(short).draw()
+    assert not any("Jan" in tick.get_text() for tick in short.axes[-1].get_xticklabels())
+
+
+def test_the_wind_has_a_panel_where_the_scenario_has_wind(fmu_paths):
+    from heliostep.paths import scenarios_dir
+    from heliostep.run import run_scenario
+
+    run = run_scenario(scenarios_dir() / "jan21-windy.yaml")
+    source = run.held_trace if run.held_trace is not None else run.trace_file
+    (fig,) = [
+        f for _, f in run_plots.run_figures(source, run.trace_metadata(), run.solution_plot, ["fig11_torque.png"])
+    ]
+    assert len(fig.axes) == 2 and "wind moment" in fig.axes[1].get_ylabel()
+    low, high = _drawn_extremes(fig.axes[1])
+    assert max(abs(low), abs(high)) > 0.5 * run.summary["wind_peak_moment_Nm"]
+    calm = dict(run_plots.run_figures(synthetic_trace(), METADATA))["fig11_torque.png"]  # m_ext all 0
+    assert len(calm.axes) == 1

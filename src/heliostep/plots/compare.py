@@ -20,7 +20,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from heliostep.plots.png import save_png
-from heliostep.plots.thinning import thin
+from heliostep.plots.thinning import Band, min_max_line
 from heliostep.results.compare.signal_map import signal_units
 from heliostep.results.compare.traces import ComparisonResult, SignalEvaluation, SignalResult, evaluate_signal
 from heliostep.results.compare.verdicts import failure_message
@@ -28,8 +28,8 @@ from heliostep.results.trace.files import TIME
 
 __all__ = ["failure_window", "png_name", "signal_figure", "write_report"]
 
-#: Drawn points per series and panel at most (extremes per time bin are kept).
-MAX_POINTS = 4000
+#: Time bins a long series is thinned to (its least and largest value in each drawn, :func:`min_max_line`).
+BINS = 1000
 
 
 def png_name(signal: str) -> str:
@@ -38,9 +38,15 @@ def png_name(signal: str) -> str:
     return f"{stem}.png"
 
 
-def _thin(t: np.ndarray, *series: np.ndarray) -> np.ndarray:
-    """At most :data:`MAX_POINTS` indices to draw (see :func:`heliostep.plots.thinning.thin`)."""
-    return thin(t, *series, max_buckets=max(1, MAX_POINTS // (2 + 2 * len(series))))
+def _tube(ax, t: np.ndarray, low: np.ndarray, up: np.ndarray, label: str) -> None:
+    """The tube between ``low`` and ``up``: over a long span, from the least of ``low`` to the largest of
+    ``up`` per bin."""
+    lower, upper = (Band.of_rows(t, low, BINS), Band.of_rows(t, up, BINS)) if len(t) > 2 * BINS else (None, None)
+    if lower is not None and upper is not None:
+        t, low, up = lower.edges, np.r_[lower.low, lower.low[-1]], np.r_[upper.high, upper.high[-1]]
+        ax.fill_between(t, low, up, step="post", color="tab:blue", alpha=0.2, linewidth=0, label=label)
+        return
+    ax.fill_between(t, low, up, color="tab:blue", alpha=0.2, linewidth=0, label=label)
 
 
 def _range(t: np.ndarray, lo: float, hi: float) -> slice:
@@ -55,10 +61,14 @@ def _outside(ax, t: np.ndarray, y: np.ndarray, excess: np.ndarray, label: str | 
     idx = np.flatnonzero(excess > 0)
     if not idx.size:
         return
-    idx = idx[_thin(t[idx], y[idx])]
-    gap = np.flatnonzero(np.diff(idx) > 1) + 1
-    ax.plot(np.insert(t[idx], gap, np.nan), np.insert(y[idx], gap, np.nan), color="red", linewidth=2.0)
-    ax.plot(t[idx], y[idx], "o", color="red", markersize=2.5, label=label)
+    if idx.size > 2 * BINS:  # thinned: the runs drawn as one line
+        shown_t, shown_y = min_max_line(t[idx], y[idx], BINS)
+        ax.plot(shown_t, shown_y, color="red", linewidth=2.0)
+    else:
+        gap = np.flatnonzero(np.diff(idx) > 1) + 1
+        shown_t, shown_y = t[idx], y[idx]
+        ax.plot(np.insert(shown_t, gap, np.nan), np.insert(shown_y, gap, np.nan), color="red", linewidth=2.0)
+    ax.plot(shown_t, shown_y, "o", color="red", markersize=2.5, label=label)
 
 
 def _draw_values(ax, ev: SignalEvaluation, ref, act, lo: float, hi: float) -> None:
@@ -66,13 +76,11 @@ def _draw_values(ax, ev: SignalEvaluation, ref, act, lo: float, hi: float) -> No
     if ev.time.size:
         es = _range(ev.time, lo, hi)
         et, low, up = ev.time[es], ev.lower[es], ev.upper[es]
-        k = _thin(et, low, up)
-        ax.fill_between(et[k], low[k], up[k], color="tab:blue", alpha=0.2, linewidth=0, label="tolerance tube")
+        _tube(ax, et, low, up, "tolerance tube")
     rs, as_ = _range(ref_t, lo, hi), _range(act_t, lo, hi)
-    k = _thin(ref_t[rs], ref_y[rs])
-    ax.plot(ref_t[rs][k], ref_y[rs][k], color="tab:blue", linewidth=1.0, label="reference")
-    k = _thin(act_t[as_], act_y[as_])
-    ax.plot(act_t[as_][k], act_y[as_][k], color="black", linewidth=0.8, linestyle="--", label="actual")
+    ax.plot(*min_max_line(ref_t[rs], ref_y[rs], BINS), color="tab:blue", linewidth=1.0, label="reference")
+    shown = min_max_line(act_t[as_], act_y[as_], BINS)
+    ax.plot(*shown, color="black", linewidth=0.8, linestyle="--", label="actual")
     if ev.time.size:
         _outside(ax, et, ev.actual[es], ev.excess[es], "outside tube")
     if hi > lo:
@@ -86,9 +94,8 @@ def _draw_difference(ax, ev: SignalEvaluation, lo: float, hi: float) -> None:
         es = _range(ev.time, lo, hi)
         et, ref = ev.time[es], ev.reference[es]
         below, above, diff = ev.lower[es] - ref, ev.upper[es] - ref, ev.actual[es] - ref
-        k = _thin(et, below, above, diff)
-        ax.fill_between(et[k], below[k], above[k], color="tab:blue", alpha=0.2, linewidth=0, label="tube - reference")
-        ax.plot(et[k], diff[k], color="black", linewidth=0.8, label="actual - reference")
+        _tube(ax, et, below, above, "tube - reference")
+        ax.plot(*min_max_line(et, diff, BINS), color="black", linewidth=0.8, label="actual - reference")
         _outside(ax, et, diff, ev.excess[es], None)
     ax.axhline(0.0, color="tab:blue", linewidth=0.6)
     if hi > lo:

@@ -16,10 +16,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from heliostep.errors import InputError
-from heliostep.plots.layout import fixed_axes
+from heliostep.plots.layout import LEGEND, RIGHT, fixed_axes, outside_legend
 from heliostep.plots.png import save_png
-from heliostep.plots.thinning import thin
-from heliostep.results.figures.solution import SolutionPlotData
+from heliostep.plots.thinning import EDGE_GID, Band, draw_band, min_max_line
+from heliostep.results.figures.plot_data import ROTOR_LAG, TRACKING_ERROR, SolutionPlotData
 from heliostep.results.output.run_files import (
     FIGURE_FILES,  # (PNG per figure, in the order drawn: named without matplotlib)
 )
@@ -27,8 +27,6 @@ from heliostep.scenario import RolesConfig
 
 __all__ = [
     "FIGURE_FILES",
-    "LINE_WITH_ENVELOPE_MAX_SPAN",
-    "MAX_BUCKETS",
     "TORQUE_ZOOM_LABEL",
     "ZOOM_HALF_WIDTH",
     "plot_run",
@@ -38,18 +36,17 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Time buckets per drawn line; each keeps at most 4 samples (first, last, min, max).
-MAX_BUCKETS = 2000
 #: Half width of the torque zoom around a step (Fig. 14) [s].
 ZOOM_HALF_WIDTH = 0.1
-#: Longest window [s] whose Figs. 10-11 draw the output rows' line over the solution's envelope.
-LINE_WITH_ENVELOPE_MAX_SPAN = 3600.0
 #: Label of Fig. 14's line drawn from the solution rows (every solver step).
 TORQUE_ZOOM_LABEL = "motor torque (every solver step)"
 
 _DPI = 120
-_WIDE = (9.0, 4.5)
-_TALL = (9.0, 6.5)
+_WIDE = (11.5, 4.5)
+_TALL = (11.5, 6.5)
+_DEGREES = 180.0 / np.pi
+#: Longest window [s] whose time axis shows clock times only (longer: dates too).
+_ONE_DAY = 86400.0
 
 
 # --------------------------------------------------------------------------- helpers
@@ -125,7 +122,12 @@ class _Clock:
         if self._origin is None:
             ax.set_xlabel("time from the window start [s]")
             return
-        ax.xaxis.set_major_locator(mdates.AutoDateLocator(tz=self.tz, minticks=4, maxticks=9))
+        locator = mdates.AutoDateLocator(tz=self.tz, minticks=4, maxticks=9)
+        ax.xaxis.set_major_locator(locator)
+        if self.span > _ONE_DAY:  # dates on the axis: each day's first tick names it
+            ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator, tz=self.tz, show_offset=False))
+            ax.set_xlabel(f"local date and time ({self.tz})")
+            return
         pattern = "%H:%M:%S" if self.span <= 3600.0 else "%H:%M"
         ax.xaxis.set_major_formatter(mdates.DateFormatter(pattern, tz=self.tz))
         shown = "hh:mm:ss" if pattern == "%H:%M:%S" else "hh:mm"
@@ -200,19 +202,23 @@ class _Trace:
 
 
 def _line(ax, clock: _Clock, time: np.ndarray, values: np.ndarray, *args, **kwargs) -> None:
-    keep = thin(time, values, max_buckets=MAX_BUCKETS)
-    ax.plot(clock.x(time[keep]), values[keep], *args, **kwargs)
+    """A curve of the output rows (a reference, the commanded angle), thinned to the pixels."""
+    shown_time, shown = min_max_line(time, values)
+    ax.plot(clock.x(shown_time), shown, *args, **kwargs)
 
 
-def _figure(left: float, rows: int = 1, size=_WIDE):
-    """A figure of ``rows`` panels sharing their time axis, ``left`` [in] for the y labels (a fixed layout)."""
-    fig, axes = fixed_axes(size, rows, left)
+def _figure(left: float, rows: int = 1, size=_WIDE, right: float = LEGEND):
+    """A figure of ``rows`` panels sharing their time axis, ``left`` [in] for the y labels, ``right`` [in]
+    for the legends beside them (a fixed layout)."""
+    fig, axes = fixed_axes(size, rows, left, right=right)
     for ax in axes:
         ax.grid(True, alpha=0.3)
     return fig, axes
 
 
 def _finish(fig: Figure, axes, clock: _Clock) -> Figure:
+    for ax in axes:
+        outside_legend(ax, EDGE_GID)
     clock.format_axis(axes[-1])
     return fig
 
@@ -222,33 +228,33 @@ def _title(what: str, figure_number: int, context: str) -> str:
 
 
 # --------------------------------------------------------------------------- figures
-def _envelope(ax, clock: _Clock, solution: SolutionPlotData | None, column: str, color, what: str, unit: str) -> bool:
-    """Draw ``column``'s per-bin min and max over every solver step, its largest magnitude marked
-    (False, nothing drawn: no envelope of that column)."""
-    if solution is None or solution.edges is None or column not in solution.maximum:
-        return False
-    x = clock.x(solution.edges)
-    low, high = solution.minimum[column], solution.maximum[column]
-    low, high = np.r_[low, low[-1]], np.r_[high, high[-1]]  # the last bin drawn to its end
-    width = float(solution.edges[1] - solution.edges[0])
-    ax.fill_between(x, low, high, step="post", color=color, alpha=0.35, linewidth=0.0)
-    ax.plot(x, high, drawstyle="steps-post", color=color, linewidth=0.7, label=f"{what}: max per {width:.3g} s bin")
-    ax.plot(x, low, drawstyle="steps-post", color=color, linewidth=0.7, label=f"{what}: min per {width:.3g} s bin")
-    time, value = solution.worst[column]
-    label = f"largest |{what}| = {abs(value):.4g} {unit} at {clock.label(time)}"
-    ax.plot(clock.x(np.array([time])), [value], "o", color="C3", markersize=5, zorder=4, label=label)
-    return True
+def _band(ax, clock: _Clock, band: Band | None, color, label: str, what: str, unit: str, worst: bool, **style):
+    """Draw a series' envelope (nothing: None), with its largest magnitude marked when ``worst``."""
+    if band is None:
+        return None
+    draw_band(ax, clock.x, band, color, label, what, **style)
+    if worst:
+        time, value = band.worst
+        text = f"largest |{what}| = {abs(value):.4g} {unit} at {clock.label(time)}"
+        ax.plot(clock.x(np.array([time])), [value], "o", color="C3", markersize=5, zorder=4, label=text)
+    return band
 
 
-def _with_rows(solution: SolutionPlotData | None, clock: _Clock) -> bool:
-    """Whether the output rows are drawn too: without an envelope, or over a short window."""
-    return solution is None or solution.edges is None or clock.span <= LINE_WITH_ENVELOPE_MAX_SPAN
+def _series(trace: _Trace, solution: SolutionPlotData | None, column: str, rows=None, scale: float = 1.0):
+    """A series' envelope: of every solver step where the solution has it, else of the output rows
+    (``rows``: the values, else the trace's ``column``); times ``scale``; and where it comes from."""
+    band = Band.of_solution(solution, column)
+    if band is not None:
+        return band.scaled(scale) if scale != 1.0 else band, "every solver step"
+    values = rows if rows is not None else trace[column] if trace.has(column) else None
+    band = None if values is None else Band.of_rows(trace.time, values)
+    return (None if band is None else band.scaled(scale) if scale != 1.0 else band), "the output rows"
 
 
 def _fig08(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has("panel_angle_ref"):
         return None
-    fig, axes = _figure(0.95)
+    fig, axes = _figure(0.95, right=RIGHT)
     _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), color="C0")
     axes[0].set_ylabel("panel angle reference [deg]")
     axes[0].set_title(_title("panel angle reference", 8, context))
@@ -258,7 +264,7 @@ def _fig08(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
 def _fig09(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
     if not trace.has("rotor_angle_ref"):
         return None
-    fig, axes = _figure(0.85)
+    fig, axes = _figure(0.85, right=RIGHT)
     _line(axes[0], clock, trace.time, trace.degrees("rotor_angle_ref"), color="C1")
     axes[0].set_ylabel("rotor angle reference [deg]")
     axes[0].set_title(_title("rotor angle reference (0 at the window start)", 9, context))
@@ -269,19 +275,16 @@ def _fig10(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     if not trace.has(trace.col("current_a"), trace.col("current_b")):
         return None
     fig, axes = _figure(0.7, 2, _TALL)
-    for ax, phase, color in zip(axes, ("a", "b"), ("C0", "C3")):
-        column = trace.col(f"current_{phase}")
-        enveloped = _envelope(ax, clock, solution, column, "C0" if phase == "a" else "C9", f"i_{phase}", "A")
-        if not enveloped or _with_rows(solution, clock):
-            _line(ax, clock, trace.time, trace[column], "-", color=color, linewidth=1.0, label=f"actual i_{phase}")
+    source = ""
+    for ax, phase, color in zip(axes, ("a", "b"), ("C0", "C9")):
+        band, source = _series(trace, solution, trace.col(f"current_{phase}"))
+        _band(ax, clock, band, color, f"actual i_{phase}", f"i_{phase}", "A", worst=True)
         if trace.has(f"i_{phase}_ref"):
             _line(
                 ax, clock, trace.time, trace[f"i_{phase}_ref"], "--", color="k", linewidth=0.8, label=f"i_{phase},ref"
             )
         ax.set_ylabel(f"phase {phase.upper()} current [A]")
-        ax.legend(loc="best", fontsize="small")
-    what = "per-bin envelopes of every solver step" if solution is not None and solution.edges is not None else ""
-    axes[0].set_title(_title(f"phase currents{', ' + what if what else ''}", 10, context))
+    axes[0].set_title(_title(f"phase currents, envelopes of {source}", 10, context))
     return _finish(fig, axes, clock)
 
 
@@ -289,16 +292,18 @@ def _fig11(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     column = trace.col("torque")
     if not trace.has(column):
         return None
-    fig, axes = _figure(0.8)
-    enveloped = _envelope(axes[0], clock, solution, column, "C2", "torque", "N.m")
-    if not enveloped or _with_rows(solution, clock):
-        _line(axes[0], clock, trace.time, trace[column], color="C2", linewidth=1.0, label="output rows")
+    wind, _ = _series(trace, solution, "m_ext")
+    windy = wind is not None and bool(np.any(wind.low != 0.0) or np.any(wind.high != 0.0))
+    fig, axes = _figure(0.95 if windy else 0.8, 2 if windy else 1, _TALL if windy else _WIDE)
+    band, source = _series(trace, solution, column)
+    _band(axes[0], clock, band, "C2", "motor torque", "torque", "N.m", worst=True)
     axes[0].axhline(0.0, color="0.5", linewidth=0.8)
     axes[0].set_ylabel("motor torque [N.m]")
-    what = ", per-bin envelope of every solver step" if enveloped else ""
-    axes[0].set_title(_title(f"motor torque{what}", 11, context))
-    if enveloped:
-        axes[0].legend(loc="best", fontsize="small")
+    axes[0].set_title(_title(f"motor torque, envelope of {source}", 11, context))
+    if windy:
+        _band(axes[1], clock, wind, "C4", "wind moment", "wind moment", "N.m", worst=True)
+        axes[1].axhline(0.0, color="0.5", linewidth=0.8)
+        axes[1].set_ylabel("wind moment [N.m]")
     return _finish(fig, axes, clock)
 
 
@@ -309,38 +314,40 @@ def _fig12(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     commanded = trace.has("rotor_angle_cmd")
     fig, axes = _figure(0.9, 2 if commanded else 1, _TALL if commanded else _WIDE)
     ax = axes[0]
-    actual = trace.degrees(rotor)
     if trace.has("rotor_angle_ref"):
         _line(
             ax, clock, trace.time, trace.degrees("rotor_angle_ref"), ":", color="0.4", linewidth=1.0, label="reference"
         )
-    _line(ax, clock, trace.time, actual, "-", color="C0", linewidth=2.2, alpha=0.6, label="actual", zorder=2)
+    band, _ = _series(trace, solution, rotor, scale=_DEGREES)
+    _band(ax, clock, band, "C0", "actual", "rotor angle", "deg", worst=False, linewidth=2.2, alpha=0.6)
     if commanded:  # a step line, thin and dashed on top of the actual one
         cmd = trace.degrees("rotor_angle_cmd")
         _line(ax, clock, trace.time, cmd, "--", color="C3", linewidth=1.0, label="commanded (sequencer)", zorder=3)
-        _line(axes[1], clock, trace.time, actual - cmd, "-", color="C3", linewidth=0.9)
+        lag, _ = _series(trace, solution, ROTOR_LAG, trace.degrees(rotor) - cmd, _DEGREES)
+        _band(axes[1], clock, lag, "C3", "actual - commanded", "actual - commanded", "deg", worst=True)
         axes[1].axhline(0.0, color="0.5", linewidth=0.8)
         axes[1].set_ylabel("actual - commanded [deg]")
     ax.set_ylabel("rotor angle [deg]")
     ax.set_title(_title("rotor angle, commanded and actual", 12, context))
-    ax.legend(loc="best")
     return _finish(fig, axes, clock)
 
 
 def _fig13(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
-    if not trace.has(trace.col("panel_angle"), "panel_angle_ref"):
+    panel = trace.col("panel_angle")
+    if not trace.has(panel, "panel_angle_ref"):
         return None
-    fig, axes = _figure(0.95, 2, _TALL)
-    desired, actual = trace.degrees("panel_angle_ref"), trace.degrees(trace.col("panel_angle"))
-    _line(axes[0], clock, trace.time, desired, "--", color="k", linewidth=1.2, label="desired (reference)")
-    _line(axes[0], clock, trace.time, actual, "-", color="C0", linewidth=1.0, label="actual")
+    fig, axes = _figure(1.15, 2, _TALL)
+    desired = trace.degrees("panel_angle_ref")
+    _line(axes[0], clock, trace.time, desired, "--", color="k", linewidth=1.2, label="desired (reference)", zorder=3)
+    band, source = _series(trace, solution, panel, scale=_DEGREES)
+    _band(axes[0], clock, band, "C0", "actual", "panel angle", "deg", worst=False)
     axes[0].set_ylabel("panel angle [deg]")
-    axes[0].set_title(_title("panel tracking", 13, context))
-    axes[0].legend(loc="best")
-    error = trace.degrees("panel_angle_error") if trace.has("panel_angle_error") else actual - desired
-    _line(axes[1], clock, trace.time, error, color="C3", linewidth=1.0)
+    axes[0].set_title(_title(f"panel tracking, envelopes of {source}", 13, context))
+    error = trace.degrees("panel_angle_error") if trace.has("panel_angle_error") else trace.degrees(panel) - desired
+    band, _ = _series(trace, solution, TRACKING_ERROR, error)
+    _band(axes[1], clock, band, "C3", "tracking error", "tracking error", "deg", worst=True)
     axes[1].axhline(0.0, color="0.5", linewidth=0.8)
-    axes[1].set_ylabel("tracking error, actual - desired [deg]")
+    axes[1].set_ylabel("tracking error,\nactual - desired [deg]")
     return _finish(fig, axes, clock)
 
 
@@ -359,8 +366,7 @@ def _fig14(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     lo = np.searchsorted(time, centre - ZOOM_HALF_WIDTH, side="left")
     hi = np.searchsorted(time, centre + ZOOM_HALF_WIDTH, side="right")
     window_time, window_torque = time[lo:hi], torque[lo:hi]
-    keep = thin(window_time, window_torque, max_buckets=MAX_BUCKETS)
-    shown = window_time[keep], window_torque[keep]
+    shown = min_max_line(window_time, window_torque)
     nearby = steps[(steps >= window_time[0]) & (steps <= window_time[-1])]
     title = f"torque around step {step + 1} of {steps.size}, the largest |torque| of the output rows"
     return _zoom(clock, context, title, centre, shown, nearby, (time[peak], torque[peak]), "motor torque (output rows)")
@@ -379,7 +385,7 @@ def _solution_zoom(solution: SolutionPlotData, clock: _Clock, context: str) -> F
 
 def _zoom(clock: _Clock, context: str, title: str, centre: float, shown, steps: np.ndarray, peak, label: str) -> Figure:
     """Fig. 14: torque against the time from ``centre`` [ms], the step instants and the peak marked."""
-    fig, (ax,) = fixed_axes(_WIDE, 1, 0.8)
+    fig, (ax,) = fixed_axes(_WIDE, 1, 0.8, right=LEGEND)
     ax.grid(True, alpha=0.3)
     time, torque = shown
     style = ".-" if time.size <= 400 else "-"
@@ -395,7 +401,7 @@ def _zoom(clock: _Clock, context: str, title: str, centre: float, shown, steps: 
     ax.set_xlabel(f"time from the {origin} at {clock.label(centre)} [ms]")
     ax.set_ylabel("motor torque [N.m]")
     ax.set_title(_title(title, 14, context), fontsize="medium")
-    ax.legend(loc="best")
+    outside_legend(ax)
     return fig
 
 
@@ -427,7 +433,9 @@ def run_figures(
     clock = _Clock(metadata, columns.time)
     parts = [str(metadata["scenario"])] if metadata.get("scenario") else []
     if clock.start is not None:
-        parts.append(f"{clock.start:%Y-%m-%d}")
+        end = clock.start + pd.Timedelta(seconds=clock.span)
+        days = f"{clock.start:%Y-%m-%d}" + (f" to {end:%Y-%m-%d}" if end.date() != clock.start.date() else "")
+        parts.append(days)
     context = f" ({', '.join(parts)})" if parts else ""
     for file_name, draw in _FIGURES:
         if only is not None and file_name not in only:
@@ -466,10 +474,12 @@ def plot_run(
     solution : SolutionPlotData, optional
         What the run's solution recorder kept of every solver step (``RunResult.solution_plot``):
         Fig. 14 then draws the solution rows around the largest |torque| (its peak is
-        ``summary.json``'s ``peak_torque_Nm``) and Figs. 10-11 the per-bin envelopes (min and
-        max over the solver steps in each bin, the largest magnitude marked), with the output
-        rows' line over windows up to :data:`LINE_WITH_ENVELOPE_MAX_SPAN`. Without it (a stored
-        trace) they draw the trace's rows.
+        ``summary.json``'s ``peak_torque_Nm``) and Figs. 10-13 the per-bin envelopes of the
+        torque, currents, wind moment, rotor and panel angles, the rotor's lag and the tracking
+        error (least, largest and mean over the solver steps in each of about one bin per pixel
+        column, the largest magnitude marked: ``summary.json``'s figure). Without it (a stored
+        trace) they draw the envelopes of the trace's rows. References and the commanded angle
+        are drawn from the trace's rows.
 
     Returns
     -------

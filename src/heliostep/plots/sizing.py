@@ -62,7 +62,7 @@ def speed_torque_png(sheet: Mapping[str, Any]) -> bytes | None:
     axes.set_ylabel("torque on the motor shaft [N.m]")
     axes.set_title("speed-torque curves at each candidate's largest current (dotted: holding torque)")
     axes.grid(True, alpha=0.3)
-    axes.legend(fontsize=7)
+    axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)  # beside the data
     return _png(figure)
 
 
@@ -85,7 +85,7 @@ def margins_png(sheet: Mapping[str, Any]) -> bytes | None:
     axes.set_xticks(list(positions), [name for name, _ in rows], fontsize=7, rotation=90)
     axes.set_ylabel(f"margin to slip [1] (capped at {cap:g})")
     axes.set_title("margins: torque the motor has / load it must carry")
-    axes.legend(fontsize=7)
+    axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)  # beside the data
     return _png(figure)
 
 

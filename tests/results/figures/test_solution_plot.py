@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from heliostep.results.figures.plot_data import ROTOR_LAG
 from heliostep.results.figures.solution import PEAK_WINDOW_HALF_WIDTH, PeakWindow, SolutionRecorder
 from heliostep.results.trace.frame import drive_from_metadata
 from heliostep.scenario import RolesConfig
@@ -143,4 +144,5 @@ def test_without_a_span_there_are_no_envelopes_and_without_torque_no_window():
     )
     bare = SolutionRecorder(["time", "mechanics.theta"], RolesConfig().present(), *drive, None, span=(0.0, 1.0))
     bare(np.array([[0.0, 0.0], [1.0, 0.0]]))
-    assert bare.plot_data().peak_rows is None and bare.plot_data().edges is None
+    assert bare.plot_data().peak_rows is None  # without torque no window; the rotor's angle and lag enveloped
+    assert set(bare.plot_data().minimum) == {"mechanics.theta", ROTOR_LAG}

@@ -6,7 +6,6 @@ not grow with the run, and what the plots get of them (:class:`SolutionPlotData`
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
 
 import numpy as np
 
@@ -15,18 +14,25 @@ __all__ = [
     "PEAK_WINDOW_HALF_WIDTH",
     "PEAK_WINDOW_MAX_ROWS",
     "Envelope",
+    "ROTOR_LAG",
+    "TRACKING_ERROR",
     "PeakWindow",
     "SolutionPlotData",
     "largest",
 ]
 
 
+#: The envelope's name of the tracking error, actual - reference panel angle [deg] (``summary.json``'s).
+TRACKING_ERROR = "tracking_error_deg"
+#: The envelope's name of the rotor's actual - commanded angle [rad].
+ROTOR_LAG = "rotor_angle_minus_cmd"
 #: Half width of the solution rows held around the peak |torque| (Fig. 14's zoom) [s].
 PEAK_WINDOW_HALF_WIDTH = 0.1
 #: Most solution rows held around the peak (beyond it the window is thinned, the peak row kept).
 PEAK_WINDOW_MAX_ROWS = 20_000
-#: Time bins of the solution's envelopes over the window (Figs. 10-11).
-ENVELOPE_BINS = 2000
+#: Time bins of an envelope over its span: at least one per pixel column of a run figure's axes (under
+#: 1000 px wide at 120 dpi), so the envelope drawn is the curve of every row as the pixels show it.
+ENVELOPE_BINS = 1000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,9 +45,11 @@ class SolutionPlotData:
     [N.m], signed: its magnitude is ``summary.json``'s ``peak_torque_Nm``); ``steps`` the step
     instants [s] within those rows' span, ``peak_step`` the 1-based number of the step owning the
     peak (0: before the first step) and ``step_count`` the steps up to the last row.
-    ``edges`` [s] bound the envelope's bins; ``minimum`` and ``maximum`` map each enveloped column
-    (torque, currents) to its least and largest value per bin (NaN: no row in the bin), ``worst``
-    to the (time [s], value) of its largest magnitude.
+    ``edges`` [s] bound the envelope's bins; ``minimum``, ``maximum`` and ``mean`` map each enveloped
+    series (the torque, currents, rotor and panel angles and the wind moment by the master's names,
+    and :data:`TRACKING_ERROR` [deg] and :data:`ROTOR_LAG` [rad]) to its least, largest and
+    time-weighted mean value per bin (NaN: no row in the bin), ``worst`` to the (time [s], value) of
+    its largest magnitude.
     """
 
     columns: list[str]
@@ -56,6 +64,7 @@ class SolutionPlotData:
     minimum: dict[str, np.ndarray]
     maximum: dict[str, np.ndarray]
     worst: dict[str, tuple[float, float]]
+    mean: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def column(self, name: str) -> np.ndarray:
         """A column of ``peak_rows`` by its name (empty without a window)."""
@@ -112,35 +121,70 @@ class PeakWindow:
 
 
 class Envelope:
-    """The least and largest value of some columns per time bin (``bins`` bins over ``span`` [s]),
-    and each column's largest magnitude and its time, over every row fed (rows outside the span
-    count in the first or last bin). Memory: ``2 * bins`` values per column."""
+    """The least, largest and time-weighted mean value of some series per time bin (``bins`` bins over
+    ``span`` [s]), and each series' largest magnitude and its time, over every row fed in time order
+    (rows outside the span count in the first or last bin): the one way heliostep thins a curve for
+    drawing, fed the solution in blocks or an array whole. Memory: ``4 * bins`` values per series.
 
-    def __init__(self, columns: Sequence[int], span: tuple[float, float], bins: int = ENVELOPE_BINS):
+    The mean is the trapezoid's integral of the series' linear pieces over the time they cover, each
+    piece counted in its later row's bin; a bin whose rows cover no time has the mean of its least and
+    largest.
+    """
+
+    def __init__(self, count: int, span: tuple[float, float], bins: int = ENVELOPE_BINS):
         start, end = span
         if not end > start or bins < 1:
             raise ValueError(f"an envelope needs a span with end > start and bins >= 1, not {span}, {bins}")
-        self.columns, self.start, self.end, self.bins = list(columns), float(start), float(end), bins
+        self.count, self.start, self.end, self.bins = count, float(start), float(end), bins
         self.edges = np.linspace(self.start, self.end, bins + 1)
-        self.low = np.full((len(self.columns), bins), np.nan)
-        self.high = np.full((len(self.columns), bins), np.nan)
-        self.worst = np.full(len(self.columns), -np.inf)
-        self.worst_at = np.full((len(self.columns), 2), np.nan)  # (time, value)
+        self.low = np.full((count, bins), np.nan)
+        self.high = np.full((count, bins), np.nan)
+        self.area = np.zeros((count, bins))  # the integral of each series per bin [unit s]
+        self.weight = np.zeros((count, bins))  # the time it covers [s]
+        self.worst = np.full(count, -np.inf)
+        self.worst_at = np.full((count, 2), np.nan)  # (time, value)
+        self.last: np.ndarray | None = None  # the last row fed: its time, then its values
 
-    def __call__(self, rows: np.ndarray) -> None:
-        time = rows[:, 0]
-        where = np.clip(np.floor((time - self.start) / (self.end - self.start) * self.bins), 0, self.bins - 1)
-        where = where.astype(int)
+    def __call__(self, time: np.ndarray, values: np.ndarray) -> None:
+        """Feed rows: ``time`` [s] (n,), ``values`` (n, count), not earlier than the rows fed before."""
+        if not len(time):
+            return
+        values = np.asarray(values, dtype=float).reshape(len(time), self.count)
+        where = self.bin_of(time)
         starts = np.flatnonzero(np.r_[True, where[1:] != where[:-1]])  # rows in time order: one run per bin
         bins = where[starts]
-        for j, column in enumerate(self.columns):
-            values = rows[:, column]
-            self.low[j, bins] = np.fmin(self.low[j, bins], np.fmin.reduceat(values, starts))
-            self.high[j, bins] = np.fmax(self.high[j, bins], np.fmax.reduceat(values, starts))
-            magnitude = np.abs(values)
+        self.low[:, bins] = np.fmin(self.low[:, bins], np.fmin.reduceat(values, starts, axis=0).T)
+        self.high[:, bins] = np.fmax(self.high[:, bins], np.fmax.reduceat(values, starts, axis=0).T)
+        if self.last is not None:
+            t, v = np.r_[self.last[0], time], np.vstack([self.last[1:], values])
+        else:
+            t, v, where = time, values, where[1:]
+        middle = (v[:-1] + v[1:]) / 2.0
+        covered = np.isfinite(middle)
+        width = np.diff(t)[:, None] * covered
+        runs = np.flatnonzero(np.r_[True, where[1:] != where[:-1]]) if len(where) else where
+        touched = where[runs]
+        for j in range(self.count):
+            # summed one piece after the other from the bin's total so far: the same whatever the blocks
+            for total, pieces in ((self.area[j], np.where(covered[:, j], middle[:, j], 0.0) * width[:, j]),
+                                  (self.weight[j], width[:, j].copy())):  # fmt: skip
+                pieces[runs] += total[touched]
+                total[touched] = np.bincount(where, pieces, self.bins)[touched]
+            magnitude = np.abs(values[:, j])
             k = largest(magnitude, finite_only=False)
             if k >= 0 and magnitude[k] > self.worst[j]:
-                self.worst[j], self.worst_at[j] = magnitude[k], (time[k], values[k])
+                self.worst[j], self.worst_at[j] = magnitude[k], (time[k], values[k, j])
+        self.last = np.r_[time[-1], values[-1]]
+
+    def bin_of(self, time: np.ndarray) -> np.ndarray:
+        """The bin of each time [s] (the first or the last outside the span)."""
+        where = np.clip(np.floor((time - self.start) / (self.end - self.start) * self.bins), 0, self.bins - 1)
+        return where.astype(int)
+
+    def mean(self) -> np.ndarray:
+        """The time-weighted mean per series and bin (NaN: no row in the bin)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.weight > 0, self.area / self.weight, (self.low + self.high) / 2.0)
 
 
 def largest(magnitude: np.ndarray, finite_only: bool = True) -> int:

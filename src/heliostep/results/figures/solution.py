@@ -17,6 +17,8 @@ from heliostep.drive.sequencer import Sequencer, StepSchedule
 from heliostep.results.figures.plot_data import (
     ENVELOPE_BINS,
     PEAK_WINDOW_HALF_WIDTH,
+    ROTOR_LAG,
+    TRACKING_ERROR,
     Envelope,
     PeakWindow,
     SolutionPlotData,
@@ -28,6 +30,7 @@ from heliostep.results.figures.steps import (
     lost_between,
     outcome_records,
 )
+from heliostep.results.trace.frame import step_indices
 
 __all__ = [
     "ENVELOPE_BINS",
@@ -195,10 +198,12 @@ class SolutionRecorder:
             dict.fromkeys([0, *self._torque, *([self._rotor] if self._rotor is not None else []), *self._currents])
         )
         self.peak_window = PeakWindow(1) if self._torque else None  # the torque is the second kept column
-        enveloped = self._torque + self._currents
-        self.envelope = (
-            Envelope(enveloped, span, bins) if span is not None and span[1] > span[0] and enveloped else None
-        )
+        # enveloped for the plots: the master's columns drawn, then the tracking error and the rotor's lag
+        angles = [c for c in (self._rotor, self._panel, index.get("m_ext")) if c is not None]
+        self._enveloped = list(dict.fromkeys(self._torque + self._currents + angles))
+        self._derived = [TRACKING_ERROR] * self._tracking + [ROTOR_LAG] * (self._rotor is not None)
+        count = len(self._enveloped) + len(self._derived)
+        self.envelope = Envelope(count, span, bins) if span is not None and span[1] > span[0] and count else None
 
     @property
     def max_held(self) -> int:
@@ -242,9 +247,7 @@ class SolutionRecorder:
             running["window"] = dict(vars(self.peak_window))
         if self.envelope is not None:
             envelope = self.envelope
-            running["envelope"] = tuple(
-                a.copy() for a in (envelope.low, envelope.high, envelope.worst, envelope.worst_at)
-            )
+            running["envelope"] = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in vars(envelope).items()}
         self._sent = (len(steps.outcomes), len(track.marks))
         return RecorderTotals(
             running,
@@ -271,8 +274,7 @@ class SolutionRecorder:
         if self.peak_window is not None:
             vars(self.peak_window).update(running["window"])
         if self.envelope is not None:
-            envelope = self.envelope
-            envelope.low, envelope.high, envelope.worst, envelope.worst_at = running["envelope"]
+            vars(self.envelope).update(running["envelope"])
 
     def _take(self) -> None:
         if self._pending is None or not self._pending_rows:
@@ -296,14 +298,13 @@ class SolutionRecorder:
             self._peak_current = max(self._peak_current, float(np.abs(data[:, self._currents]).max()))
         if self._power is not None:
             self._take_energy(data, time, times)
-        if self._tracking:
-            self._take_error(data, time, times)
+        error = self._take_error(data, time, times) if self._tracking else None
         if self._rotor is not None:
             self.steps(time, data[:, self._rotor])
         if self.peak_window is not None:
             self.peak_window(data[:, self._plotted])
         if self.envelope is not None:
-            self.envelope(data)
+            self._take_envelope(data, time, error)
         self._last = data[-1].copy()
         self.count += len(data)
 
@@ -315,7 +316,20 @@ class SolutionRecorder:
             t = time
         self._energy = _running_sum(self._energy, np.diff(t) * (power[:-1] + power[1:]) / 2.0)
 
-    def _take_error(self, data: np.ndarray, time: np.ndarray, times: np.ndarray) -> None:
+    def _take_envelope(self, data: np.ndarray, time: np.ndarray, error: np.ndarray | None) -> None:
+        """The block's rows to the envelope: its columns, the tracking error [deg] (the one of the figures)
+        and the rotor's actual - commanded angle [rad]."""
+        series = [data[:, self._enveloped]]
+        if error is not None:
+            series.append(error[:, None])
+        if self._rotor is not None:
+            previous = None if self._last is None else float(self._last[0])
+            commanded = self.sequencer.position(step_indices(time, self.schedule, previous))
+            series.append((data[:, self._rotor] - commanded)[:, None])
+        if self.envelope is not None:
+            self.envelope(time, np.hstack(series))
+
+    def _take_error(self, data: np.ndarray, time: np.ndarray, times: np.ndarray) -> np.ndarray:
         if self._error is not None:
             error = np.degrees(data[:, self._error])
         elif self._panel is not None and self.reference is not None:
@@ -333,6 +347,7 @@ class SolutionRecorder:
         self._last_error = float(error[-1])
         panel = data[:, self._panel] if self._panel is not None else np.full(len(time), np.nan)
         self._error_track(time, np.diff(t) * (e0 + e1) / 2.0, square_areas, len(e) > len(error), error, panel)
+        return error
 
     def figures(self) -> dict:
         """The figures of every row shown, as stored in ``metadata['solution_figures']`` (the
@@ -387,13 +402,13 @@ class SolutionRecorder:
             rows, peak_time, peak_torque = window.rows.copy(), float(window.peak_time), float(window.peak_value)
             steps = times[(times >= rows[0, 0]) & (times <= rows[-1, 0])]
             peak_step = int(np.searchsorted(times, peak_time, side="right"))
-        envelope, low, high, worst = self.envelope, {}, {}, {}
+        envelope, low, high, mean, worst = self.envelope, {}, {}, {}, {}
         edges = None
         if envelope is not None and self.count:
             edges = envelope.edges.copy()
-            for j, column in enumerate(envelope.columns):
-                name = self.columns[column]
-                low[name], high[name] = envelope.low[j].copy(), envelope.high[j].copy()
+            means = envelope.mean()
+            for j, name in enumerate([self.columns[c] for c in self._enveloped] + self._derived):
+                low[name], high[name], mean[name] = envelope.low[j].copy(), envelope.high[j].copy(), means[j]
                 worst[name] = (float(envelope.worst_at[j, 0]), float(envelope.worst_at[j, 1]))
         return SolutionPlotData(
             names,
@@ -408,6 +423,7 @@ class SolutionRecorder:
             low,
             high,
             worst,
+            mean,
         )
 
 
