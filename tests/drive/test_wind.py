@@ -22,7 +22,7 @@ def _moment_here(speed, angle_deg, area, chord, density, gust):
     return math.copysign(1.0, angle_deg) * normal * (0.5 - centre) * 0.5 * density * (gust * speed) ** 2 * area * chord
 
 
-@pytest.mark.parametrize("speed", [0.0, 5.0, 12.0, 20.0, 40.0])
+@pytest.mark.parametrize("speed", [0.0, 5.0, 12.0, 15.0, 20.0, 25.0, 40.0])
 @pytest.mark.parametrize("angle_deg", [-60.0, -25.0, -3.0, 0.0, 3.0, 25.0, 45.0, 89.0])
 def test_moment_is_the_formula(speed, angle_deg):
     area, chord, density, gust = 0.45, 0.3, 1.1, 1.52
