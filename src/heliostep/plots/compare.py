@@ -310,8 +310,9 @@ def _markdown(result, pngs, units, actual_meta, reference_meta) -> str:
 
 
 _STYLE = (
-    "body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-    "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}td:first-child,td:nth-child(2){text-align:left}"
+    "body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;font-size:0.85em}"
+    "td,th{border:1px solid #ccc;padding:3px 6px;text-align:right}td:first-child,td:nth-child(2){text-align:left}"
+    "th,td:first-child,td:nth-child(2){overflow-wrap:anywhere}"
     ".fail{background:#fdd}.pass{background:#dfd}img{max-width:100%}"
 )
 

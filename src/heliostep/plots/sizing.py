@@ -345,7 +345,8 @@ def _energy_note(sheet: Mapping[str, Any]) -> str:
 
 _STYLE = (
     "body{font-family:sans-serif;margin:2em;max-width:90em}table{border-collapse:collapse;margin:1em 0}"
-    "th,td{border:1px solid #999;padding:0.25em 0.5em;font-size:0.85em;vertical-align:top}th{background:#eee}"
+    "th,td{border:1px solid #999;padding:0.25em 0.5em;font-size:0.85em;vertical-align:top;overflow-wrap:anywhere}"
+    "th{background:#eee}img{max-width:100%;height:auto}"
 )
 
 
