@@ -388,6 +388,7 @@ def _report(result: RunResult, out_dir: Path) -> str:
         ("missed_steps", "missed steps", "{}"),
         ("steps_lost", "steps lost", "{}"),
         ("drive_energy_per_day_J", "drive energy per day [J]", "{:.0f}"),
+        ("drive_energy_24h_J", "  over 24 h, with the night [J]", "{:.0f}"),
         ("idle_holding_margin", "idle holding / wind moment", "{:.2f}"),
         ("light_energy_J", "light on the tube [J]", "{:.4g}"),
         ("light_energy_ideal_J", "  with ideal tracking [J]", "{:.4g}"),

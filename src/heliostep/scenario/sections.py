@@ -213,6 +213,17 @@ class SequencerConfig(Section):
         1.0, gt=0.0, le=1.0, description="[-], current held after idle_delay without a step; 1: no reduction"
     )
     idle_delay: Real = Field(0.0, ge=0.0, description="[s] after each step before the idle current reduction")
+    night: Literal["hold", "idle", "off"] = Field(
+        "idle",
+        description="the drive from sunset to sunrise: hold at the current, idle at idle_current_fraction of it, "
+        "or off (a self-locking drive)",
+    )
+
+    @field_validator("night", mode="before")
+    @classmethod
+    def _yaml_off(cls, value):
+        """YAML 1.1 reads an unquoted ``off`` as false: that is the ``off`` policy."""
+        return "off" if value is False else value
 
 
 class SecondaryConfig(Section):

@@ -55,6 +55,7 @@ FIGURE_COLUMNS = {
     "mean_intercept": "float64",
     "max_transverse_miss_m": "float64",
     "drive_energy_per_day_J": "float64",
+    "drive_energy_24h_J": "float64",
     "idle_holding_moment_Nm": "float64",
     "idle_holding_margin": "float64",
 }

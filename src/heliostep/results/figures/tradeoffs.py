@@ -163,14 +163,44 @@ def energy_per_day(summary: Mapping, scenario) -> dict:
     -------
     dict
         ``drive_power_mean_W`` [W] = energy / duration and ``drive_energy_per_day_J`` [J] = that
-        times the daylight of the window's date; None when not known.
+        times the daylight of the window's date; ``night_power_W`` [W] (:func:`night_power`) and
+        ``drive_energy_24h_J`` [J], the day's energy plus the night's at that power; None when not known.
     """
     energy, duration = summary.get("electrical_energy_J"), summary.get("duration_s")
+    night = night_power(scenario)
+    unknown = {"drive_power_mean_W": None, "drive_energy_per_day_J": None, "drive_energy_24h_J": None}
     if energy is None or not duration:
-        return {"drive_power_mean_W": None, "drive_energy_per_day_J": None}
+        return {**unknown, "night_power_W": night}
     power = float(energy) / float(duration)
     daylight = daylight_seconds(scenario.window.date, scenario.site.to_site())
-    return {"drive_power_mean_W": power, "drive_energy_per_day_J": None if daylight is None else power * daylight}
+    if daylight is None:
+        return {**unknown, "drive_power_mean_W": power, "night_power_W": night}
+    return {
+        "drive_power_mean_W": power,
+        "drive_energy_per_day_J": power * daylight,
+        "night_power_W": night,
+        "drive_energy_24h_J": power * daylight + night * (SECONDS_PER_DAY - daylight),
+    }
+
+
+#: Phases carrying the current at rest, by sequencer mode: two for two-phase-on, two at half-step's
+#: two-phase positions (the larger), one otherwise (sine/cosine microsteps: i_a^2 + i_b^2 = I^2).
+PHASES_AT_REST = {"one-phase-on": 1, "two-phase-on": 2, "half-step": 2}
+SECONDS_PER_DAY = 86400.0
+
+
+def night_power(scenario) -> float:
+    """The drive's electrical power at night [W] by ``sequencer.night``: the windings' R i^2 at rest, the
+    held current i = K I / (K + R) (:func:`heliostep.drive.inputs.held_current`) on the phases the mode keeps
+    on (:data:`PHASES_AT_REST`); ``idle``: at ``idle_current_fraction`` of it; ``off``: 0 (a self-locking drive,
+    e.g. a worm gear, holds the panel without current)."""
+    sequencer = scenario.sequencer
+    if sequencer.night == "off":
+        return 0.0
+    fraction = sequencer.idle_current_fraction if sequencer.night == "idle" else 1.0
+    current = held_current(scenario, fraction * sequencer.current)
+    resistance = float(_motor_constants(scenario)["R"])
+    return PHASES_AT_REST.get(sequencer.mode, 1) * resistance * current**2  # R i^2 per phase on
 
 
 def tradeoff_figures_at(ratio: float, metadata: Mapping, scenario, summary: Mapping) -> dict:
