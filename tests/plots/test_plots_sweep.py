@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from heliostep.plots.sweep import HEATMAPS, MAX_ANNOTATED_CELLS, heatmap_figure, plot_heatmap
 
@@ -46,8 +47,13 @@ def test_cells_print_their_values_and_no_steps():
     expected -= {f"{1.0 + 172 / 100 + 2 / 10:.3g}", f"{1.0 + 80 / 100 + 3 / 10:.3g}"}  # no steps, failed
     assert sorted(t for t in texts if t != "no steps") == sorted(expected)
     assert "0" not in texts and "0.0" not in texts
-    legend = fig.axes[0].get_legend()
-    assert legend is not None and [t.get_text() for t in legend.get_texts()] == ["no steps"]
+    (legend,) = fig.legends
+    assert [t.get_text() for t in legend.get_texts()] == ["no steps"]
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    box = legend.get_window_extent(renderer)
+    for artist in (fig.axes[0], fig.axes[0].title, fig.axes[0].xaxis.label):  # over no cell, title or axis label
+        assert not box.overlaps(artist.get_window_extent(renderer))
     where = next(t for t in fig.axes[0].texts if t.get_text() == "no steps").get_position()
     assert where == (2, 1)  # day 172 (third column), mirror 2 (second row)
 
@@ -57,7 +63,7 @@ def test_a_stepless_case_has_its_value_in_figures_that_do_not_need_steps():
     texts = _texts(fig)
     assert "no steps" not in texts and texts.count("0.02") == 3  # mirror 2 on every day, day 172 without steps too
     assert texts.count("0.03") == 2  # mirror 3: day 80 failed
-    assert fig.axes[0].get_legend() is None
+    assert fig.axes[0].get_legend() is None and not fig.legends
 
 
 def test_a_peak_missing_is_no_steps_and_big_maps_are_not_annotated(tmp_path):

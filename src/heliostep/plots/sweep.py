@@ -155,8 +155,10 @@ def heatmap_figure(table: pd.DataFrame, column: str, label: str, scale: float = 
     image = ax.imshow(values, origin="lower", aspect="auto", interpolation="nearest", cmap=colormap)
     if none.any():
         ax.imshow(np.ma.masked_where(~none, none), origin="lower", aspect="auto", interpolation="nearest", cmap=_WHITE)
-        ax.legend(
-            handles=[Patch(facecolor="w", edgecolor="0.5", label="no steps")], loc="upper right", fontsize="small"
+        fig.legend(  # below the figure, never over a cell or the title
+            handles=[Patch(facecolor="w", edgecolor="0.5", label="no steps")],
+            loc="outside lower right",
+            fontsize="small",
         )
     _annotate(ax, values, none, image)
     x_ticks, y_ticks = _ticks(len(days)), _ticks(len(mirrors))
