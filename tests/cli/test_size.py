@@ -436,7 +436,7 @@ def test_an_interrupted_sizing_keeps_the_cases_it_finished_and_names_the_rest(tm
 def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
     """--scheduler: the cases on a local cluster whose workers can neither build nor find an FMU (the FMUs
     are shipped), the same figures as the local run's, bit for bit."""
-    from distributed import Client, LocalCluster
+    from loopback_cluster import loopback_client
 
     _, local_out = sized
     empty = tmp_path / "no-models"
@@ -444,15 +444,9 @@ def test_on_dask_the_cases_give_the_local_figures(sized, tmp_path):
     catalogue = _catalogue(tmp_path, {"small": SMALL, "large": LARGE})
     out = tmp_path / "out"
     env = {"HELIOSTEP_MODELS": str(empty), "HELIOSTEP_FMUS": str(empty)}
-    with (
-        LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0", env=env
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        client.wait_for_workers(2)
+    with loopback_client(**env) as client:
         argv = ["size", SCENARIO, "--catalogue", str(catalogue), *ARGS, "--out", str(out)]
-        assert main([*argv, "--scheduler", cluster.scheduler_address]) == 0
+        assert main([*argv, "--scheduler", client.scheduler.address]) == 0
     local = json.loads((local_out / "sizing.json").read_text())
     remote = json.loads((out / "sizing.json").read_text())
     for mine, theirs in zip(local["candidates"], remote["candidates"]):

@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from distributed import Client, LocalCluster
 
 from heliostep import cli
 from heliostep.errors import InputError
@@ -26,6 +25,7 @@ from heliostep.run import RunOptions, resolve_fmus, run_scenario
 from heliostep.scenario import load_scenario
 from heliostep.sweep.band import RANGES_FILE, band_design, load_ranges
 from heliostep.sweep.band_run import band_record, run_band, run_figures
+from loopback_cluster import loopback_client
 
 HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
@@ -39,13 +39,7 @@ def client(fmu_paths, tmp_path_factory):
     """A client of a 2-worker local cluster whose workers cannot build or find FMUs themselves."""
     empty = tmp_path_factory.mktemp("no-models")
     env = {"HELIOSTEP_MODELS": str(empty), "HELIOSTEP_FMUS": str(empty)}
-    with (
-        LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0", env=env
-        ) as cluster,
-        Client(cluster) as dask_client,
-    ):
-        dask_client.wait_for_workers(2)
+    with loopback_client(**env) as dask_client:
         yield dask_client
 
 

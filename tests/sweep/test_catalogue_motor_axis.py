@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import pytest
 import yaml
-from distributed import Client, LocalCluster
 
 from catalogue_entries import QSH8618_65_AT_3A
 from heliostep.paths import scenarios_dir
@@ -14,6 +13,7 @@ from heliostep.run import run_scenario
 from heliostep.scenario import load_scenario
 from heliostep.scenario.catalogue import load_catalogue, motor_overrides
 from heliostep.sweep import expand_cases, load_sweep, run_sweep
+from loopback_cluster import loopback_client
 from sweep_checks import PLAIN_FIGURES, assert_refused_before_any_case
 
 BASE = scenarios_dir() / "jan21-central.yaml"
@@ -40,13 +40,7 @@ def run_items(name: str, catalogue=None, current: float | None = None) -> list[s
 @pytest.fixture(scope="module")
 def client():
     """A client of a 2-worker loopback cluster."""
-    with (
-        LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
-        ) as cluster,
-        Client(cluster) as dask_client,
-    ):
-        dask_client.wait_for_workers(2)
+    with loopback_client() as dask_client:
         yield dask_client
 
 

@@ -11,13 +11,13 @@ import numpy as np
 import pandas as pd
 import pvlib
 import pytest
-from distributed import Client, LocalCluster
 
 from heliostep.drive.inputs import reference_times
 from heliostep.paths import scenarios_dir
 from heliostep.scenario import load_scenario, validate_scenario
 from heliostep.solar import two_axis_angles
 from heliostep.sweep import expand_cases, field_sharing_errors, primary_sharing_error, run_field, sweep_from_scenario
+from loopback_cluster import loopback_client
 from receiver_tracer import trace
 
 BASE = scenarios_dir() / "jan21-central.yaml"
@@ -28,13 +28,7 @@ DISTANCES = (np.arange(13) - 6) * SPACING  # [m], mirror index 0 .. 12
 
 @pytest.fixture(scope="module")
 def client(fmu_paths):
-    with (
-        LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
-        ) as cluster,
-        Client(cluster) as dask_client,
-    ):
-        dask_client.wait_for_workers(2)
+    with loopback_client() as dask_client:
         yield dask_client
 
 

@@ -7,12 +7,13 @@ from pathlib import Path
 
 import pytest
 import yaml
-from distributed import Client, LocalCluster
+from distributed import Client
 
 from heliostep import cli
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
 from heliostep.sweep import read_results, run_sweep
+from loopback_cluster import loopback_client
 
 BASE = scenarios_dir() / "jan21-central.yaml"
 SHORT_WINDOW = {"window.duration": 20, "output.interval": 0.5}
@@ -20,13 +21,7 @@ SHORT_WINDOW = {"window.duration": 20, "output.interval": 0.5}
 
 @pytest.fixture(scope="module")
 def address(fmu_paths):
-    with (
-        LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        client.wait_for_workers(2)
+    with loopback_client() as client:
         yield client.scheduler.address
 
 
