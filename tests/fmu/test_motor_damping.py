@@ -29,9 +29,8 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-from physics_reference import MOTOR_LOSSES, RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
+from physics_reference import K_CURRENT, MOTOR_LOSSES, RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
 
-K_CURRENT = 100.0  # [V/A], the motor FMU's default loop gain
 J_ROTOR = 1.4e-4  # [kg.m2], NEMA 34 catalogue class (docs/physics.md)
 #: The textbook single-step damping ratio of hybrid steppers (Hughes & Drury, Electric Motors and Drives,
 #: on the transient performance of steppers): about 0.3-0.4 depending on the drive circuit and friction.

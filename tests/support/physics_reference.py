@@ -10,6 +10,10 @@ import numpy as np
 TABLE3_MOTOR = {"L": 1.8e-3, "R": 0.1, "k_e": 0.5, "N_c": 50.0, "V_supply": 3.1}
 RATED_CURRENT = 5.5  # [A], Table 3
 STEP_ANGLE = np.radians(1.8)  # [rad], Table 3 = pi / (2 N_c)
+#: The averaged chopper's loop gain K [V/A] (the motor FMU's default, docs/physics.md, the driver) and the
+#: current it holds for the rated reference: L di/dt = K (I - i) - R i = 0 at i = K I / (K + R).
+K_CURRENT = 100.0
+HELD_CURRENT = K_CURRENT * RATED_CURRENT / (K_CURRENT + TABLE3_MOTOR["R"])
 
 #: The motor's losses (docs/physics.md, "The motor's losses"): rotor damping B_m [N.m.s/rad] on the
 #: shaft, iron-loss conductance G_m = 1/R_m [S] across each back-EMF, detent torque T_d [N.m] with

@@ -8,9 +8,8 @@ from scipy.optimize import brentq
 
 from heliostep.paths import scenarios_dir
 from heliostep.run import run_scenario
-from physics_reference import MOTOR_LOSSES, RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
+from physics_reference import K_CURRENT, MOTOR_LOSSES, RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
 
-K_CURRENT = 100.0  # [V/A] loop gain of the averaged chopper (StepperMotor's default)
 COARSE = ("output.interval=30", "output.step_detail=0.01", "output.step_interval=0.005")
 FIGURES = (
     "max_tracking_error_deg",

@@ -8,10 +8,7 @@ import pytest
 from heliostep.errors import InputError
 from heliostep.paths import scenarios_dir
 from heliostep.run import run_scenario
-from physics_reference import RATED_CURRENT, TABLE3_MOTOR
-
-K_CURRENT = 100.0  # [V/A] the averaged chopper's loop gain (StepperMotor's default)
-HELD = K_CURRENT * RATED_CURRENT / (K_CURRENT + TABLE3_MOTOR["R"])  # the held current, K I / (K + R)
+from physics_reference import HELD_CURRENT, TABLE3_MOTOR
 
 
 def _summary(*overrides):
@@ -40,7 +37,7 @@ def test_a_held_drives_24h_energy_is_what_a_day_and_a_night_co_simulated_draw(fm
 )
 def test_the_nights_power_is_r_i_squared_of_the_phases_held(fmu_paths, overrides, phases, fraction):
     summary = _summary("window.duration=30", *overrides)
-    expected = phases * TABLE3_MOTOR["R"] * (fraction * HELD) ** 2  # R i^2 per phase on, i = K f I / (K + R)
+    expected = phases * TABLE3_MOTOR["R"] * (fraction * HELD_CURRENT) ** 2  # R i^2 per phase on, i = K f I / (K + R)
     assert summary["night_power_W"] == pytest.approx(expected, rel=1e-12, abs=1e-15)
     daylight = summary["drive_energy_per_day_J"] / summary["drive_power_mean_W"]
     night = summary["drive_energy_24h_J"] - summary["drive_energy_per_day_J"]

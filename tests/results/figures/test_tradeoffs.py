@@ -11,10 +11,15 @@ from scipy.optimize import brentq
 from heliostep.paths import scenarios_dir
 from heliostep.results.figures.tradeoffs import holding_torque
 from heliostep.run import run_scenario
-from physics_reference import MOTOR_LOSSES, RATED_CURRENT, STEP_ANGLE, TABLE2_PANEL, TABLE3_MOTOR
+from physics_reference import (
+    HELD_CURRENT,
+    MOTOR_LOSSES,
+    RATED_CURRENT,
+    STEP_ANGLE,
+    TABLE2_PANEL,
+    TABLE3_MOTOR,
+)
 
-K_CURRENT = 100.0  # [V/A] the averaged chopper's loop gain (StepperMotor's default)
-HELD = K_CURRENT * RATED_CURRENT / (K_CURRENT + TABLE3_MOTOR["R"])  # L di/dt = K (I - i) - R i = 0
 IDLE = (
     "window.duration=1.0",
     "sequencer.idle_current_fraction=0.3",
@@ -58,7 +63,7 @@ def test_microstep_currents_hold_with_one_phase_torque():
 def _idle_moment(panel_angle_ref):
     """g f k_e I on the panel axis, g = s / (r cos^2 theta_p) ([paper], eqs. 9, 15), smallest over the window."""
     g = TABLE2_PANEL["s"] / (TABLE2_PANEL["r"] * np.cos(panel_angle_ref) ** 2)
-    return float(np.min(g)) * 0.3 * TABLE3_MOTOR["k_e"] * HELD
+    return float(np.min(g)) * 0.3 * TABLE3_MOTOR["k_e"] * HELD_CURRENT
 
 
 def test_idle_current_holds_a_wind_moment_below_its_holding_moment(fmu_paths):
@@ -75,7 +80,7 @@ def test_idle_current_holds_a_wind_moment_below_its_holding_moment(fmu_paths):
     # = M ([9] with the detent torque; f k_e I sin x + T_d sin 4x rises over [0, pi/2] here)
     last = trace.iloc[-1]
     g = TABLE2_PANEL["s"] / (TABLE2_PANEL["r"] * np.cos(last["mechanics.theta_p"]) ** 2)
-    holding, detent = 0.3 * TABLE3_MOTOR["k_e"] * HELD, MOTOR_LOSSES["T_d"]
+    holding, detent = 0.3 * TABLE3_MOTOR["k_e"] * HELD_CURRENT, MOTOR_LOSSES["T_d"]
     x = brentq(lambda x: holding * np.sin(x) + detent * np.sin(4 * x) - 100.0 / g, 0.0, np.pi / 2, xtol=1e-15)
     lag = x / TABLE3_MOTOR["N_c"]
     # (within 3 %: 0.8 s after the drop the rotor still creeps in through the tanh friction's viscous band;
@@ -83,7 +88,7 @@ def test_idle_current_holds_a_wind_moment_below_its_holding_moment(fmu_paths):
     # here, the detent torque making the restoring slope 0.32 instead of 0.37 N.m/rad electrical)
     assert last["rotor_angle_cmd"] - last["mechanics.theta"] == pytest.approx(lag, rel=0.03)
     # the FMU sees the idle current (less the creeping rotor's back-EMF share, k_e omega / (K + R): 1e-5 of it)
-    assert last["motor.i_a"] == pytest.approx(0.3 * HELD, rel=1e-5)
+    assert last["motor.i_a"] == pytest.approx(0.3 * HELD_CURRENT, rel=1e-5)
 
 
 def test_idle_current_below_the_wind_moment_slips(fmu_paths):
@@ -104,7 +109,7 @@ def test_drive_energy_per_day_is_the_holding_power_over_daylight(fmu_paths):
     run = _run("window.duration=60", "output.interval=0.5")
     sun = sun_rise_set_transit_spa(pd.DatetimeIndex([pd.Timestamp("2025-01-21", tz="Europe/Rome")]), 40.0, 14.25)
     daylight = (sun["sunset"].iloc[0] - sun["sunrise"].iloc[0]).total_seconds()
-    bound = TABLE3_MOTOR["R"] * HELD**2 * daylight  # one phase on, all day: R i^2 (each step adds ~0.03 J)
+    bound = TABLE3_MOTOR["R"] * HELD_CURRENT**2 * daylight  # one phase on, all day: R i^2 (each step adds ~0.03 J)
     assert run.summary["drive_energy_per_day_J"] == pytest.approx(bound, rel=0.01)
     for key in ("peak_torque_Nm", "max_tracking_error_deg", "light_lost_J", "steps_lost"):  # the trade-off figures
         assert run.summary[key] is not None, key
