@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 
 import pytest
 
@@ -14,8 +13,7 @@ from heliostep.input_files import MAX_YAML_BYTES, check_input_file, open_input, 
 from heliostep.paths import scenarios_dir
 from heliostep.results.trace.files import read_trace
 from heliostep.scenario import load_scenario
-
-HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
+from heliostep_process import HELIOSTEP
 
 
 def test_a_fifo_is_refused_without_waiting_for_a_writer(tmp_path):

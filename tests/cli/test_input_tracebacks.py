@@ -12,9 +12,9 @@ import pytest
 
 from heliostep.cli import main
 from heliostep.paths import scenarios_dir
+from heliostep_process import HELIOSTEP
 
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
-HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 
 
 def _one_line_error(capsys) -> str:

@@ -6,11 +6,11 @@ from __future__ import annotations
 import re
 import shlex
 import subprocess
-import sys
 from pathlib import Path
 
+from heliostep_process import HELIOSTEP
+
 PROJECT = Path(__file__).resolve().parents[2]
-HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 
 
 def _compare_block() -> list[str]:

@@ -21,8 +21,7 @@ import pandas as pd
 import pytest
 
 from heliostep.results.trace.files import read_trace
-
-HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
+from heliostep_process import HELIOSTEP
 
 
 def _run(args: list[str], tmp: Path, limit: int | None = None) -> subprocess.CompletedProcess:

@@ -11,7 +11,6 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -20,8 +19,8 @@ import yaml
 
 from heliostep.paths import scenarios_dir
 from heliostep.sweep import read_results
+from heliostep_process import HELIOSTEP
 
-HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 DAYS = [21, 60, 111, 172, 200, 264, 300, 350]
 #: Bound on each wait for a state of the sweep [s] (cluster start and a 20 s window's case on a busy machine).
 WAIT = 300.0

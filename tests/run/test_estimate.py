@@ -9,7 +9,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -20,8 +19,8 @@ from heliostep.paths import scenarios_dir
 from heliostep.run import HELD_TRACE_MAX_DURATION, run_scenario
 from heliostep.run.estimate import estimate_run
 from heliostep.scenario import load_scenario
+from heliostep_process import HELIOSTEP
 
-HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 SHORT_SCENARIOS = [
     "jan21-central",
     "jan21-paper-literal",

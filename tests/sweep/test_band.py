@@ -12,7 +12,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,9 +24,9 @@ from heliostep.run import RunOptions, resolve_fmus, run_scenario
 from heliostep.scenario import load_scenario
 from heliostep.sweep.band import RANGES_FILE, band_design, load_ranges
 from heliostep.sweep.band_run import band_record, run_band, run_figures
+from heliostep_process import HELIOSTEP
 from loopback_cluster import loopback_client
 
-HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
 SHORT = ["window.duration=30", "output.interval=0.5"]
 #: Inside the shipped ranges (24-48 V, 23-45 V/A): the middle of each.
