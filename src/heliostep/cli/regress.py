@@ -22,6 +22,7 @@ from heliostep.results.compare.regress import (
 from heliostep.results.compare.traces import format_table, load_tolerances
 from heliostep.results.compare.verdicts import SuiteVerdict, github_annotations, junit_xml
 from heliostep.run import RunFailed, RunOptions, run_scenario
+from heliostep.scenario import resolve_scenario_path
 
 
 def regress_one(
@@ -68,7 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         nargs="*",
         type=Path,
         metavar="SCENARIO",
-        help="scenario files (default: every shipped scenario with a reference)",
+        help="scenario files or shipped scenarios' names (default: every shipped scenario with a reference)",
     )
     parser.add_argument("--update", action="store_true", help="rewrite the reference traces (and say what changed)")
     parser.add_argument(
@@ -90,7 +91,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run_regress(args: argparse.Namespace) -> int:
-    scenarios = args.scenarios or shipped_scenarios()
+    scenarios = [resolve_scenario_path(path) for path in args.scenarios] or shipped_scenarios()
     if not scenarios:
         raise InputError(
             "no shipped scenario has a reference trace; create them with heliostep regress --update SCENARIO"

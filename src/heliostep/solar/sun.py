@@ -231,20 +231,30 @@ def sun_events(date, site: Site) -> dict[str, pd.Timestamp | None]:
         ``"sunrise"``, ``"transit"``, ``"sunset"``: timezone-aware timestamps in the site's
         timezone, ``None`` where the sun does not rise or set that day (polar day or night).
     """
-    noon = pd.DatetimeIndex([pd.Timestamp(dt.datetime.combine(date, dt.time(12)))]).tz_localize(site.timezone)
-    columns = ("sunrise", "transit", "sunset")
+    instants = _sun_event_instants(date, site.latitude, site.longitude, site.timezone)
+    return {
+        column: None if value is None else pd.Timestamp(value, tz="UTC").tz_convert(site.timezone)
+        for column, value in zip(_SUN_EVENTS, instants)
+    }
 
-    def compute() -> pd.DataFrame:  # the instants as int64 ns since the epoch (UTC), NaT's value where none
+
+_SUN_EVENTS = ("sunrise", "transit", "sunset")
+
+
+@functools.lru_cache(maxsize=4096)
+def _sun_event_instants(date, latitude: float, longitude: float, timezone: str) -> tuple[int | None, ...]:
+    """:func:`sun_events`' instants as int64 ns since the epoch (UTC), None where there is none; kept
+    per process too, since a sweep validates the same few hundred dates for thousands of cases."""
+    noon = pd.DatetimeIndex([pd.Timestamp(dt.datetime.combine(date, dt.time(12)))]).tz_localize(timezone)
+
+    def compute() -> pd.DataFrame:  # NaT's value where none
         import pvlib.solarposition  # (see solar_position)
 
-        events = pvlib.solarposition.sun_rise_set_transit_spa(noon, site.latitude, site.longitude)
-        stamps = [events[column].iloc[0] for column in columns]
-        values = {c: [pd.NaT.value if pd.isna(s) else pd.Timestamp(s).value] for c, s in zip(columns, stamps)}
+        events = pvlib.solarposition.sun_rise_set_transit_spa(noon, latitude, longitude)
+        stamps = [events[column].iloc[0] for column in _SUN_EVENTS]
+        values = {c: [pd.NaT.value if pd.isna(s) else pd.Timestamp(s).value] for c, s in zip(_SUN_EVENTS, stamps)}
         return pd.DataFrame(values, index=noon)
 
-    events = cached_frame("sun_events", noon, ("spa", site.latitude, site.longitude), compute)
-    found = {}
-    for column in columns:
-        value = int(events[column].iloc[0])
-        found[column] = None if value == pd.NaT.value else pd.Timestamp(value, tz="UTC").tz_convert(site.timezone)
-    return found
+    events = cached_frame("sun_events", noon, ("spa", latitude, longitude), compute)
+    values = (int(events[column].iloc[0]) for column in _SUN_EVENTS)
+    return tuple(None if value == pd.NaT.value else value for value in values)

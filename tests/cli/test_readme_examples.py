@@ -1,0 +1,91 @@
+"""README's examples followed as written, from a folder of the user's, block by block and in order
+within a block: every ``heliostep`` line exits 0, and the Python API block runs.
+
+Four lines take minutes as written; they run here in the smaller form :data:`SMALLER` adds to them
+(one day, one candidate, one scenario, the cases listed), their figures tested where README names them."""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from heliostep_process import HELIOSTEP
+
+PROJECT = Path(__file__).resolve().parents[2]
+README = (PROJECT / "README.md").read_text()
+
+#: What a line of the command (by its first two words) gets added to run within the suite's time.
+SMALLER = {
+    ("heliostep", "end-loss"): ["--days", "355"],  # 21 December; the year: tests/solar/test_endloss.py
+    ("heliostep", "field-light"): ["--days", "355"],  # the year: tests/results/light/test_field_light.py
+    ("heliostep", "regress"): ["jan21-central"],  # every scenario: tests/results/compare/test_regress.py
+    ("heliostep", "size"): ["--days", "21", "--no-band-days", "--candidate", "QSH5718-51-28-101"],
+}
+#: The year-field sweep (5,110 cases, hours of CPU) is listed, not run: its file and cases are checked.
+LISTED_ONLY = "scenarios/sweeps/year-field.yaml"
+
+
+def _blocks() -> list[tuple[str, str, str]]:
+    """(heading, language, text) of every ``sh`` and ``python`` block, in README's order."""
+    found = []
+    for match in re.finditer(r"^```(sh|python)\n(.*?)^```", README, re.S | re.M):
+        heading = re.findall(r"^#+ (.*)$", README[: match.start()], re.M)[-1]
+        found.append((heading, match.group(1), match.group(2)))
+    return found
+
+
+def _commands(text: str) -> list[list[str]]:
+    """The ``heliostep`` command lines of a shell block, comments dropped; of an install line, the
+    command after its last ``&&`` (the test suite's own line is not run from within it)."""
+    commands = []
+    for line in text.splitlines():
+        words = shlex.split(line.split("&&")[-1], comments=True)
+        if words and Path(words[0]).name == "heliostep":
+            commands.append(["heliostep", *words[1:]])
+    return commands
+
+
+def _local(word: str) -> str:
+    return str(PROJECT / word) if word.startswith("scenarios/") else word
+
+
+BLOCKS = _blocks()
+
+
+def test_readme_examples_are_all_found():
+    headings = [heading for heading, _, _ in BLOCKS]
+    assert headings[0] == "Two commands" and headings[-1] == "Python API"
+    run_lines = [words for _, language, text in BLOCKS if language == "sh" for words in _commands(text)]
+    assert len(run_lines) == 12, run_lines  # README's twelve heliostep lines
+    used = {tuple(words[:2]) for words in run_lines}
+    assert set(SMALLER) <= used, set(SMALLER) - used  # every smaller form still names a README line
+
+
+@pytest.mark.parametrize(("heading", "language", "text"), BLOCKS, ids=[f"{i}-{b[0]}" for i, b in enumerate(BLOCKS)])
+def test_readme_block_passes_when_followed_in_order(heading, language, text, tmp_path, fmu_paths):
+    if language == "python":
+        code = text.replace('"scenarios/', f'"{PROJECT}/scenarios/')
+        done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-3000:]
+        assert {"trace.parquet", "summary.json", "metadata.json"} <= {p.name for p in (tmp_path / "out/api").iterdir()}
+        return
+    environment = {**os.environ, "HELIOSTEP_FMUS": str(tmp_path / "fmus")} if "build-fmus" in text else None
+    for words in _commands(text):
+        line = [_local(word) for word in words] + SMALLER.get((words[0], words[1]), [])
+        if str(PROJECT / LISTED_ONLY) in line:
+            line = [word.replace("HOST", "127.0.0.1") for word in line] + ["--list"]
+        done = subprocess.run([*HELIOSTEP, *line[1:]], cwd=tmp_path, capture_output=True, text=True, env=environment)
+        assert done.returncode == 0, (shlex.join(words), done.stdout[-2000:], done.stderr[-2000:])
+        if "--out" in line:
+            out = tmp_path / line[line.index("--out") + 1]
+            assert out.is_dir() and any(out.iterdir()), shlex.join(words)
+        if "--list" in line:
+            assert len(done.stdout.splitlines()) == 1 + 365 * 14  # a header, the year's days x (13 mirrors + primary)
+        if words[1] == "compare":
+            assert (tmp_path / "report").is_dir()
