@@ -7,4 +7,5 @@ MODELS = (
     "PanelMechanicsSmallAngle",
     "PanelMechanicsKarnopp",
     "DriveSystem",
+    "SunSensor",
 )

@@ -179,29 +179,32 @@ def _scalar_variable(v: Variable, vr: int, state_index: dict[str, int]) -> tuple
 
 
 def _model_structure(root: ET.Element, model: FlatModel, layout: Layout, deps: dict[str, list[int]]) -> None:
-    """``ModelStructure``: outputs and derivatives with their dependencies, the initial unknowns."""
+    """``ModelStructure``: outputs and derivatives with their dependencies, the initial unknowns; a list
+    with nothing in it is left out (FMI 2.0's schema wants at least one ``Unknown`` in each, so a model
+    without states has no ``Derivatives``)."""
     structure = ET.SubElement(root, "ModelStructure")
-    outputs = ET.SubElement(structure, "Outputs")
+    outputs = []
     for v in layout.variables:
         if v.is_output:
             index = layout.vr(v.name) + 1
             dependencies = [index] if v.kind == "state" else deps[v.name]
-            ET.SubElement(outputs, "Unknown", {"index": str(index), "dependencies": " ".join(map(str, dependencies))})
-    derivatives = ET.SubElement(structure, "Derivatives")
-    for v in model.derivatives:
-        ET.SubElement(
-            derivatives,
-            "Unknown",
-            {"index": str(layout.vr(v.name) + 1), "dependencies": " ".join(map(str, deps[v.name]))},
-        )
-    initial = ET.SubElement(structure, "InitialUnknowns")
-    for vr, v in enumerate(layout.variables):
-        if (
-            (v.is_output and not (v.kind == "state" and v.start is not None))
-            or v.kind in ("derivative", "calculated_parameter")
-            or (v.kind == "state" and v.start is None)
-        ):
-            ET.SubElement(initial, "Unknown", {"index": str(vr + 1)})
+            outputs.append({"index": str(index), "dependencies": " ".join(map(str, dependencies))})
+    derivatives = [
+        {"index": str(layout.vr(v.name) + 1), "dependencies": " ".join(map(str, deps[v.name]))}
+        for v in model.derivatives
+    ]
+    initial = [
+        {"index": str(vr + 1)}
+        for vr, v in enumerate(layout.variables)
+        if (v.is_output and not (v.kind == "state" and v.start is not None))
+        or v.kind in ("derivative", "calculated_parameter")
+        or (v.kind == "state" and v.start is None)
+    ]
+    for name, unknowns in (("Outputs", outputs), ("Derivatives", derivatives), ("InitialUnknowns", initial)):
+        if unknowns:
+            element = ET.SubElement(structure, name)
+            for attributes in unknowns:
+                ET.SubElement(element, "Unknown", attributes)
 
 
 # ---------------------------------------------------------------- FMI 3.0
