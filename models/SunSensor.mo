@@ -18,8 +18,9 @@ model SunSensor
   // 2 (theta_ref - theta_p): a mirror turning by x turns its reflected ray by 2x, and the ray meets
   // the receiver exactly at the tracking law, whatever the sun's position (the normal bisects sun
   // and receiver). A sensor that sights the sun directly from a fixed mount on a linear Fresnel
-  // mirror reads theta_p - theta_ref plus half the sun's transverse angle, a zero that moves through
-  // the day: so 2 fits the linear Fresnel mirror (1 is a collector that faces the sun, as seed 001's).
+  // mirror reads theta_ref - theta_p plus half the angle between the sun and the receiver (less its
+  // mount's angle), a zero that moves through the day: so 2 fits the linear Fresnel mirror (1 is a
+  // collector that faces the sun, as seed 001's).
   parameter Real k_ray(unit = "1") = 2 "Sensor angle per panel angle: 2 sighting the reflected ray (linear Fresnel mirror)";
   // fov: Solar MEMS, SSOC-D60 Technical specification (Doc. SSOCD60-14-MAN-119 rev. 1.19), page 1,
   // Specifications: field of view +-60 deg.
