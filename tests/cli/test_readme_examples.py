@@ -1,5 +1,5 @@
-"""README's examples followed as written, from a folder of the user's, block by block and in order
-within a block: every ``heliostep`` line exits 0, and the Python API block runs.
+"""README's command examples followed as written, from a folder of the user's, block by block and in order
+within a block: every ``heliostep`` line exits 0 (its Python API block: ``tests/test_docs_examples.py``).
 
 Four lines take minutes as written; they run here in the smaller form :data:`SMALLER` adds to them
 (one day, one candidate, one scenario, the cases listed), their figures tested where README names them."""
@@ -10,7 +10,6 @@ import os
 import re
 import shlex
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -31,12 +30,12 @@ SMALLER = {
 LISTED_ONLY = "scenarios/sweeps/year-field.yaml"
 
 
-def _blocks() -> list[tuple[str, str, str]]:
-    """(heading, language, text) of every ``sh`` and ``python`` block, in README's order."""
+def _blocks() -> list[tuple[str, str]]:
+    """(heading, text) of every ``sh`` block, in README's order."""
     found = []
-    for match in re.finditer(r"^```(sh|python)\n(.*?)^```", README, re.S | re.M):
+    for match in re.finditer(r"^```sh\n(.*?)^```", README, re.S | re.M):
         heading = re.findall(r"^#+ (.*)$", README[: match.start()], re.M)[-1]
-        found.append((heading, match.group(1), match.group(2)))
+        found.append((heading, match.group(1)))
     return found
 
 
@@ -59,22 +58,15 @@ BLOCKS = _blocks()
 
 
 def test_readme_examples_are_all_found():
-    headings = [heading for heading, _, _ in BLOCKS]
-    assert headings[0] == "Two commands" and headings[-1] == "Python API"
-    run_lines = [words for _, language, text in BLOCKS if language == "sh" for words in _commands(text)]
+    assert BLOCKS[0][0] == "Two commands"
+    run_lines = [words for _, text in BLOCKS for words in _commands(text)]
     assert len(run_lines) == 12, run_lines  # README's twelve heliostep lines
     used = {tuple(words[:2]) for words in run_lines}
     assert set(SMALLER) <= used, set(SMALLER) - used  # every smaller form still names a README line
 
 
-@pytest.mark.parametrize(("heading", "language", "text"), BLOCKS, ids=[f"{i}-{b[0]}" for i, b in enumerate(BLOCKS)])
-def test_readme_block_passes_when_followed_in_order(heading, language, text, tmp_path, fmu_paths):
-    if language == "python":
-        code = text.replace('"scenarios/', f'"{PROJECT}/scenarios/')
-        done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True)
-        assert done.returncode == 0, done.stderr[-3000:]
-        assert {"trace.parquet", "summary.json", "metadata.json"} <= {p.name for p in (tmp_path / "out/api").iterdir()}
-        return
+@pytest.mark.parametrize(("heading", "text"), BLOCKS, ids=[f"{i}-{b[0]}" for i, b in enumerate(BLOCKS)])
+def test_readme_block_passes_when_followed_in_order(heading, text, tmp_path, fmu_paths):
     environment = {**os.environ, "HELIOSTEP_FMUS": str(tmp_path / "fmus")} if "build-fmus" in text else None
     for words in _commands(text):
         line = [_local(word) for word in words] + SMALLER.get((words[0], words[1]), [])

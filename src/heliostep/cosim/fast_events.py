@@ -203,6 +203,15 @@ class FastEvents:
         args.t, args.input_time, args.new_inputs, args.prepare = t, input_time, bool(new_inputs), prepare
         return self._call(self._kernel_address, self._events_address, self._args_address)
 
+    def refresh(self, inputs: list) -> None:
+        """The kernel's view of the inputs' changes after a controller appended some (their arrays may have
+        moved when they grew)."""
+        times, counts, values = self._keep[1][0:3]
+        for k, item in enumerate(inputs):
+            buffers = getattr(item, "buffers", None)
+            if buffers is not None:  # a ScheduledInput
+                times[k], counts[k], values[k] = buffers[0].ctypes.data, len(item.times), buffers[1].ctypes.data
+
     def modes_after_failure(self) -> None:
         """The instances' modes as far as the failed call got (then the error sets the failing one's)."""
         for k, unit in enumerate(self.system.unit_list):

@@ -21,6 +21,7 @@ import numpy as np
 
 from heliostep.cosim import fast_events as events
 from heliostep.cosim.connections import ConnectionGraph
+from heliostep.cosim.controller import ControllerSamples, SampledController
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
@@ -66,6 +67,9 @@ class CoSimulation(ConnectionGraph):
         Master-side inputs and the FMU inputs they drive.
     parameters : mapping of str to mapping of str to float, optional
         Parameter values per instance.
+    controller : SampledController, optional
+        Sampled while simulating: it reads FMU outputs and appends changes to the inputs it drives
+        (:mod:`heliostep.cosim.controller`).
     """
 
     def __init__(
@@ -75,8 +79,10 @@ class CoSimulation(ConnectionGraph):
         inputs: Sequence[PiecewiseConstant] = (),
         parameters: Mapping[str, Mapping[str, float]] | None = None,
         communication_intervals: Mapping[str, float] | None = None,
+        controller: SampledController | None = None,
     ):
         parameters = parameters or {}
+        self.controller = controller
         unknown = set(parameters) - set(fmus)
         if unknown:
             raise InputError(
@@ -87,7 +93,10 @@ class CoSimulation(ConnectionGraph):
         )  # Co-Simulation FMUs: sampled components, their outputs master inputs of the Model Exchange system
         parameters = {name: values for name, values in parameters.items() if name in fmus}
         signals = self.sampled.signals if self.sampled is not None else []
-        super().__init__(fmus, connections, [*inputs, *signals])  # type: ignore[list-item]
+        scheduled = list(controller.inputs) if controller is not None else []
+        super().__init__(fmus, connections, [*inputs, *signals, *scheduled])  # type: ignore[list-item]
+        if controller is not None:
+            _check_controller(self, controller)
         self.parameters = {name: dict(parameters.get(name, {})) for name in fmus}
         for name, values in self.parameters.items():  # every value must fit its type, up front
             info = self.fmus[name]
@@ -174,6 +183,7 @@ class _Run:
         self.texts: TextOutputs | None = None  # the String and Binary outputs, if any
         self._no_outputs = np.zeros(0)
         self.fast_events: events.FastEvents | None = None  # the events in one call of the kernel, where allowed
+        self.samples: ControllerSamples | None = None  # the controller's, from the start of execute
 
     # --------------------------------------------------------------- results
     def statistics(self) -> dict:
@@ -276,6 +286,7 @@ class _Run:
             unit.fmu.enter_continuous_time_mode()
         if sampled is not None:
             sampled.bind(system)
+        self.samples = ControllerSamples(self.graph.controller, system, start_time, stop_time)  # its sets given
         self.record(start_time)
         return system
 
@@ -324,6 +335,8 @@ class _Run:
         kernel = getattr(integrator, "kernel", None)
         self.fast_events = events.compiled_events(self, system, integrator, kernel)
         interpolate = self.monitor is not None  # output rows from CVODE's interpolating polynomial
+        samples = self.samples
+        assert samples is not None
         t = start_time
         next_output = next_change = 0
         while True:
@@ -347,9 +360,9 @@ class _Run:
             t_change = change_times[next_change] if next_change < len(change_times) else np.inf
             t_time_event = min(time_events) if time_events else np.inf
             if interpolate:  # output times between internal steps come from interpolation
-                t_next = min(t_change, t_time_event, stop_time)
+                t_next = min(t_change, t_time_event, samples.next_time, stop_time)
             else:
-                t_next = min(t_output, t_change, t_time_event, stop_time)
+                t_next = min(t_output, t_change, t_time_event, samples.next_time, stop_time)
             t_next = _to_time_event(t_next, t_time_event)
             self.counts["integrator_calls"] += 1
             state_event, t, next_output, t_output = self._integrate(
@@ -359,6 +372,11 @@ class _Run:
             if input_event:
                 next_change += 1
             self._after_step(system, integrator, t, t_output, state_event, input_event, t >= t_time_event)
+            if samples.due(t) and samples.take(t):  # the controller appended changes: merged with the rest
+                change_times = np.unique(np.concatenate([change_times[next_change:], samples.changes_after(t)]))
+                next_change = 0
+                if self.fast_events is not None:
+                    self.fast_events.refresh(self.graph.inputs)
 
     def _integrate(
         self,
@@ -424,6 +442,22 @@ class _Run:
             self.progress(t)
         if self.should_stop is not None and self.should_stop():
             raise Interrupted()
+
+
+def _check_controller(graph: CoSimulation, controller: SampledController) -> None:
+    """InputError for a controller's reading that is no output, or a given input whose change a derivative
+    could see (its FMU has continuous states, or outputs connected to another FMU)."""
+    for name in controller.reads:
+        graph._variable(name, "controller reading", "output")
+    for name in controller.sets:
+        instance, _ = graph._variable(name, "controller input", "input")
+        feeding = [c.target for c in graph.connections if c.source.startswith(f"{instance}.")]
+        states = len(graph.fmus[instance].states)
+        if states or feeding:
+            raise InputError(
+                f"controller input {name!r}: given between events, so {instance} must have no continuous state "
+                f"(it has {states}) and feed no other FMU (it feeds {', '.join(feeding) or 'none'})"
+            )
 
 
 def _to_time_event(t_next: float, t_time_event: float) -> float:

@@ -21,6 +21,7 @@ from heliostep.drive.sequencer import (
 )
 from heliostep.drive.stow import StowMove, StowPlan, plan_stow, stowed_spans
 from heliostep.drive.wind_load import WindKnots, WindSignal, commanded_panel_angle, moment_signal, wind_speed_knots
+from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.solar import panel_angle_reference, rotor_angle_from_panel
 
@@ -155,7 +156,7 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     )  # [paper], eq. 14, rotor at 0 at the start
     sequencer = scenario_sequencer(scenario)
     schedule = schedule_steps(
-        reference_interpolant(times, np.asarray(rotor)),
+        reference_interpolant(times, commanded_rotor_angle(scenario, index, panel, rotor, plan is not None)),
         sequencer,
         trigger=scenario.sequencer.trigger,
         should_stop=should_stop,
@@ -185,6 +186,23 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
         wind_signal=signal,
         stow_moves=() if plan is None else plan.moves,
         stowed_spans=() if plan is None else plan.stowed,
+    )
+
+
+def commanded_rotor_angle(scenario: Scenario, index: pd.DatetimeIndex, panel, rotor, stows: bool) -> np.ndarray:
+    """The rotor angle [rad] the sequencer steps to: the reference's, or with ``faults.clock_offset`` the
+    reference the controller's clock reads (the sun's position that many seconds later), through the
+    same transmission from the true start."""
+    offset = scenario.faults.clock_offset
+    if offset == 0.0:
+        return np.asarray(rotor, dtype=float)
+    if stows:
+        raise InputError(f"{scenario.source}: faults.clock_offset is not applied to stow moves; give no wind speed")
+    shifted = scenario_panel_angle(scenario, index + pd.to_timedelta(offset, unit="s"))
+    transmission = scenario.transmission
+    return np.asarray(
+        rotor_angle_from_panel(shifted, panel[0], transmission.pinion_radius, transmission.lever_arm, rotor_angle0=0.0),
+        dtype=float,
     )
 
 

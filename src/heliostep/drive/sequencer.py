@@ -379,3 +379,23 @@ def holding_energy(times, current_a, current_b, end: float, resistance: float) -
     durations = np.diff(np.concatenate([times, [end]]))
     power = resistance * (np.asarray(current_a) ** 2 + np.asarray(current_b) ** 2)  # Joule's law, R i^2 per phase
     return float(np.sum(power * durations))
+
+
+def stuck_currents(times: np.ndarray, values: list[np.ndarray], span: tuple[float, float] | None):
+    """Phase-current changes of a driver stuck over ``span`` (start, end) [s]: the changes in it are dropped,
+    and where any was, the currents then in force are applied at its end (the driver takes up the sequence
+    where it stands, and the rotor jumps to the nearest detent of that phase: steps are lost in whole
+    electrical periods). ``times`` [s]: the changes; ``values``: arrays with one value before them, then one
+    from each. Returns (times, values) the same way."""
+    if span is None:
+        return times, values
+    times = np.asarray(times, dtype=float)
+    first = int(np.searchsorted(times, span[0], side="left"))  # the changes first:cut are in the span
+    cut = int(np.searchsorted(times, span[1], side="left"))
+    if cut == first:
+        return times, values
+    kept = [
+        np.concatenate([value[: first + 1], [value[cut]], value[cut + 1 :]])  # value[cut]: from the last dropped on
+        for value in (np.asarray(v, dtype=float) for v in values)
+    ]
+    return np.concatenate([times[:first], [span[1]], times[cut:]]), kept

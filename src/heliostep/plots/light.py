@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 
 from heliostep.plots.layout import LEGEND, fixed_axes, outside_legend
 from heliostep.plots.png import save_png
-from heliostep.plots.run import _Clock
+from heliostep.plots.run_trace import TraceClock
 from heliostep.plots.thinning import EDGE_GID, Band, draw_band, min_max_line
 from heliostep.plots.units import si_scale
 from heliostep.results.figures.plot_data import ENVELOPE_BINS
@@ -95,7 +95,7 @@ def light_figure(
     time = np.asarray(series["time"], dtype=float)
     if len(time) < 2:
         return None
-    clock = _Clock(metadata, time)
+    clock = TraceClock(metadata, time)
     ideal, reference = (np.asarray(series[key], dtype=float) for key in ("power_ideal_W", "power_reference_W"))
     shared = np.asarray(series["power_shared_W"], dtype=float) if "power_shared_W" in series else ideal
     actual = np.asarray(series["power_actual_W"], dtype=float) if "power_actual_W" in series else None
@@ -140,7 +140,7 @@ def _meaningful(curves: list, given: Mapping) -> list:
 
 def _draw_power(
     top,
-    clock: _Clock,
+    clock: TraceClock,
     time: np.ndarray,
     ideal: np.ndarray,
     reference: np.ndarray,
@@ -164,7 +164,7 @@ def _draw_power(
     top.set_title(f"Light absorbed by the tube{title}", fontsize="medium")  # (a long scenario name fits)
 
 
-def _draw_differences(ax, clock: _Clock, time: np.ndarray, curves: list, what: str, given: Mapping) -> None:
+def _draw_differences(ax, clock: TraceClock, time: np.ndarray, curves: list, what: str, given: Mapping) -> None:
     """A panel of power differences [W] (values, label, colour, style), each with its energy, in the unit
     they read in; a curve of more rows than a figure has pixel columns drawn as its envelope."""
     factor, unit = si_scale(*(values for values, *_ in curves), unit="W")

@@ -6,11 +6,9 @@ Details: docs/running.md, ``heliostep.plots.run``.
 from __future__ import annotations
 
 import logging
-import zoneinfo
 from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
 
-import matplotlib.dates as mdates
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
@@ -18,6 +16,7 @@ from matplotlib.figure import Figure
 from heliostep.errors import InputError
 from heliostep.plots.layout import LEGEND, RIGHT, fixed_axes, outside_legend
 from heliostep.plots.png import save_png
+from heliostep.plots.run_trace import TraceClock, TraceColumns, step_times
 from heliostep.plots.thinning import EDGE_GID, Band, draw_band, min_max_line
 from heliostep.results.figures.plot_data import ROTOR_LAG, TRACKING_ERROR, SolutionPlotData
 from heliostep.results.output.run_files import (
@@ -45,33 +44,9 @@ _DPI = 120
 _WIDE = (11.5, 4.5)
 _TALL = (11.5, 6.5)
 _DEGREES = 180.0 / np.pi
-#: Longest window [s] whose time axis shows clock times only (longer: dates too).
-_ONE_DAY = 86400.0
 
 
 # --------------------------------------------------------------------------- helpers
-def step_times(trace: pd.DataFrame) -> np.ndarray:
-    """Instants at which the sequencer steps: where ``step_index`` changes.
-
-    Parameters
-    ----------
-    trace : pandas.DataFrame
-        Columns ``time`` [s] and ``step_index``.
-
-    Returns
-    -------
-    numpy.ndarray  [s]
-        Time of the first row with the new index (empty without steps or without
-        a ``step_index`` column).
-    """
-    if "step_index" not in trace or "time" not in trace:
-        return np.empty(0)
-    index = trace["step_index"].to_numpy(dtype=float)
-    changed = np.flatnonzero(np.diff(index) != 0.0) + 1
-    changed = changed[np.isfinite(index[changed]) & np.isfinite(index[changed - 1])]
-    return trace["time"].to_numpy(dtype=float)[changed]
-
-
 def _largest_torque_step(time: np.ndarray, torque: np.ndarray, steps: np.ndarray) -> tuple[int, int] | None:
     """(position in ``steps``, row of the peak) of the step followed by the largest |torque|.
 
@@ -89,119 +64,7 @@ def _largest_torque_step(time: np.ndarray, torque: np.ndarray, steps: np.ndarray
     return step, peak
 
 
-class _Clock:
-    """Maps the trace's time [s from the window start] to the x axis: local clock time."""
-
-    def __init__(self, metadata: Mapping, time: np.ndarray):
-        self.start = None
-        self.tz = None
-        start_text = metadata.get("window_start")
-        timezone = metadata.get("timezone")
-        if start_text is not None:
-            try:
-                start = pd.Timestamp(start_text)
-            except (TypeError, ValueError) as exc:
-                raise InputError(f"metadata window_start {start_text!r} is not a date/time: {exc}") from None
-            try:
-                tz = zoneinfo.ZoneInfo(timezone) if timezone else None
-            except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-                raise InputError(f"metadata timezone {timezone!r} is not an IANA name") from None
-            if start.tzinfo is None:
-                start = start.tz_localize(tz or "UTC")
-            self.start = start.tz_convert(tz) if tz is not None else start
-            self.tz = self.start.tzinfo
-        self.span = float(time[-1] - time[0]) if time.size else 0.0
-        self._origin = None if self.start is None else mdates.date2num(self.start.to_pydatetime())
-
-    def x(self, time: np.ndarray) -> np.ndarray:
-        """x values (matplotlib dates, or seconds without a window start) of times [s]."""
-        return time if self._origin is None else self._origin + time / 86400.0
-
-    def format_axis(self, ax) -> None:
-        """Ticks and label of a time axis."""
-        if self._origin is None:
-            ax.set_xlabel("time from the window start [s]")
-            return
-        locator = mdates.AutoDateLocator(tz=self.tz, minticks=4, maxticks=9)
-        ax.xaxis.set_major_locator(locator)
-        if self.span > _ONE_DAY:  # dates on the axis: each day's first tick names it
-            ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator, tz=self.tz, show_offset=False))
-            ax.set_xlabel(f"local date and time ({self.tz})")
-            return
-        pattern = "%H:%M:%S" if self.span <= 3600.0 else "%H:%M"
-        ax.xaxis.set_major_formatter(mdates.DateFormatter(pattern, tz=self.tz))
-        shown = "hh:mm:ss" if pattern == "%H:%M:%S" else "hh:mm"
-        ax.set_xlabel(f"local time ({self.tz}) [{shown}]")
-
-    def label(self, time: float) -> str:
-        """A trace time as local clock time (or seconds)."""
-        if self.start is None:
-            return f"t = {time:.4f} s"
-        return (self.start + pd.Timedelta(seconds=float(time))).strftime("%H:%M:%S.%f")[:-3]
-
-
-class _Trace:
-    """Columns of a trace as float arrays, fetched on demand; FMU columns found by role.
-
-    The trace is a DataFrame or a Parquet trace file; from a file only the columns a figure
-    draws are read, and :meth:`release` drops them once it is drawn (a long trace is never
-    loaded whole).
-    """
-
-    def __init__(self, source: pd.DataFrame | Path, roles: Mapping[str, str]):
-        self.roles = dict(roles)
-        self._cache: dict[str, np.ndarray] = {}
-        if isinstance(source, pd.DataFrame):
-            self.frame, self.path = source, None
-            self.columns = [str(c) for c in source.columns]
-            self.time = source["time"].to_numpy(dtype=float)
-        else:
-            import pyarrow.parquet as pq
-
-            self.frame, self.path = None, Path(source)
-            try:
-                self.columns = list(pq.read_schema(self.path).names)
-            except Exception as exc:  # pyarrow raises several types for bad files
-                raise InputError(f"{self.path}: cannot read as Parquet: {exc}") from None
-            if "time" not in self.columns:
-                raise InputError(f"{self.path}: trace has no 'time' column")
-            self.time = self._read("time")
-
-    def _read(self, column: str) -> np.ndarray:
-        if self.frame is not None:
-            return self.frame[column].to_numpy(dtype=float)
-        import pyarrow.parquet as pq
-
-        # ParquetFile.read takes the name as it is (read_table would split "motor.tau" at the dot)
-        return pq.ParquetFile(self.path).read(columns=[column]).column(0).to_numpy().astype(float, copy=False)
-
-    def release(self) -> None:
-        """Forget the columns read from a file (a DataFrame's stay: they cost nothing)."""
-        if self.path is not None:
-            self._cache = {}
-
-    def step_times(self) -> np.ndarray:
-        if not self.has("step_index"):
-            return np.empty(0)
-        return step_times(pd.DataFrame({"time": self.time, "step_index": self["step_index"]}))
-
-    def col(self, role: str) -> str:
-        """The column of a role (a name no trace has when the role is absent)."""
-        return self.roles.get(role, f"<no {role}>")
-
-    def has(self, *columns: str) -> bool:
-        return all(column in self.columns for column in columns)
-
-    def __getitem__(self, column: str) -> np.ndarray:
-        if column not in self._cache:
-            self._cache[column] = self._read(column)
-        return self._cache[column]
-
-    def degrees(self, column: str) -> np.ndarray:
-        return np.degrees(self[column])
-
-
-def _line(ax, clock: _Clock, time: np.ndarray, values: np.ndarray, *args, **kwargs) -> None:
+def _line(ax, clock: TraceClock, time: np.ndarray, values: np.ndarray, *args, **kwargs) -> None:
     """A curve of the output rows (a reference, the commanded angle), thinned to the pixels."""
     shown_time, shown = min_max_line(time, values)
     ax.plot(clock.x(shown_time), shown, *args, **kwargs)
@@ -216,7 +79,7 @@ def _figure(left: float, rows: int = 1, size=_WIDE, right: float = LEGEND):
     return fig, axes
 
 
-def _finish(fig: Figure, axes, clock: _Clock) -> Figure:
+def _finish(fig: Figure, axes, clock: TraceClock) -> Figure:
     for ax in axes:
         outside_legend(ax, EDGE_GID)
     clock.format_axis(axes[-1])
@@ -228,7 +91,7 @@ def _title(what: str, figure_number: int, context: str) -> str:
 
 
 # --------------------------------------------------------------------------- figures
-def _band(ax, clock: _Clock, band: Band | None, color, label: str, what: str, unit: str, worst: bool, **style):
+def _band(ax, clock: TraceClock, band: Band | None, color, label: str, what: str, unit: str, worst: bool, **style):
     """Draw a series' envelope (nothing: None), with its largest magnitude marked when ``worst``."""
     if band is None:
         return None
@@ -240,7 +103,7 @@ def _band(ax, clock: _Clock, band: Band | None, color, label: str, what: str, un
     return band
 
 
-def _series(trace: _Trace, solution: SolutionPlotData | None, column: str, rows=None, scale: float = 1.0):
+def _series(trace: TraceColumns, solution: SolutionPlotData | None, column: str, rows=None, scale: float = 1.0):
     """A series' envelope: of every solver step where the solution has it, else of the output rows
     (``rows``: the values, else the trace's ``column``); times ``scale``; and where it comes from."""
     band = Band.of_solution(solution, column)
@@ -251,7 +114,7 @@ def _series(trace: _Trace, solution: SolutionPlotData | None, column: str, rows=
     return (None if band is None else band.scaled(scale) if scale != 1.0 else band), "the output rows"
 
 
-def _fig08(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+def _fig08(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
     if not trace.has("panel_angle_ref"):
         return None
     fig, axes = _figure(0.95, right=RIGHT)
@@ -261,7 +124,7 @@ def _fig08(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     return _finish(fig, axes, clock)
 
 
-def _fig09(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+def _fig09(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
     if not trace.has("rotor_angle_ref"):
         return None
     fig, axes = _figure(0.85, right=RIGHT)
@@ -271,7 +134,7 @@ def _fig09(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     return _finish(fig, axes, clock)
 
 
-def _fig10(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+def _fig10(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
     if not trace.has(trace.col("current_a"), trace.col("current_b")):
         return None
     fig, axes = _figure(0.7, 2, _TALL)
@@ -288,7 +151,7 @@ def _fig10(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     return _finish(fig, axes, clock)
 
 
-def _fig11(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+def _fig11(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
     column = trace.col("torque")
     if not trace.has(column):
         return None
@@ -307,7 +170,7 @@ def _fig11(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     return _finish(fig, axes, clock)
 
 
-def _fig12(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+def _fig12(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
     rotor = trace.col("rotor_angle")
     if not trace.has(rotor):
         return None
@@ -332,7 +195,7 @@ def _fig12(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     return _finish(fig, axes, clock)
 
 
-def _fig13(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+def _fig13(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
     panel = trace.col("panel_angle")
     if not trace.has(panel, "panel_angle_ref"):
         return None
@@ -351,7 +214,7 @@ def _fig13(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     return _finish(fig, axes, clock)
 
 
-def _fig14(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure | None:
+def _fig14(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
     if solution is not None and solution.peak_rows is not None and solution.peak_torque is not None:
         return _solution_zoom(solution, clock, context) if solution.step_count else None
     if not trace.has(trace.col("torque")):
@@ -372,7 +235,7 @@ def _fig14(trace: _Trace, clock: _Clock, context: str, solution=None) -> Figure 
     return _zoom(clock, context, title, centre, shown, nearby, (time[peak], torque[peak]), "motor torque (output rows)")
 
 
-def _solution_zoom(solution: SolutionPlotData, clock: _Clock, context: str) -> Figure:
+def _solution_zoom(solution: SolutionPlotData, clock: TraceClock, context: str) -> Figure:
     """Fig. 14 from the solution rows around the peak |torque| (its peak is ``summary.json``'s)."""
     time, torque = solution.column("time"), solution.column(solution.columns[1])
     peak = (float(solution.peak_time or 0.0), float(solution.peak_torque or 0.0))
@@ -383,7 +246,9 @@ def _solution_zoom(solution: SolutionPlotData, clock: _Clock, context: str) -> F
     return _zoom(clock, context, title, centre, (time, torque), solution.steps, peak, TORQUE_ZOOM_LABEL)
 
 
-def _zoom(clock: _Clock, context: str, title: str, centre: float, shown, steps: np.ndarray, peak, label: str) -> Figure:
+def _zoom(
+    clock: TraceClock, context: str, title: str, centre: float, shown, steps: np.ndarray, peak, label: str
+) -> Figure:
     """Fig. 14: torque against the time from ``centre`` [ms], the step instants and the peak marked."""
     fig, (ax,) = fixed_axes(_WIDE, 1, 0.8, right=LEGEND)
     ax.grid(True, alpha=0.3)
@@ -405,8 +270,27 @@ def _zoom(clock: _Clock, context: str, title: str, centre: float, shown, steps: 
     return fig
 
 
+def _tracking_loop(trace: TraceColumns, clock: TraceClock, context: str, solution=None) -> Figure | None:
+    """A closed or hybrid loop: the law's and the panel's angle, the error, the sensor's signal and light."""
+    panel = trace.col("panel_angle")
+    if not trace.has("sensor.signal", "sensor.irradiance", "panel_angle_ref", "panel_angle_error", panel):
+        return None
+    fig, axes = _figure(1.0, rows=4, size=_TALL)
+    _line(axes[0], clock, trace.time, trace.degrees("panel_angle_ref"), color="C0", label="tracking law")
+    _line(axes[0], clock, trace.time, trace.degrees(panel), color="C1", label="panel")
+    axes[0].set_ylabel("panel angle [deg]")
+    _line(axes[1], clock, trace.time, trace.degrees("panel_angle_error"), color="C3", label="panel - law")
+    axes[1].set_ylabel("error [deg]")
+    _line(axes[2], clock, trace.time, trace["sensor.signal"], color="C2", label="(A - B) / (A + B)")
+    axes[2].set_ylabel("sensor signal [-]")
+    _line(axes[3], clock, trace.time, trace["sensor.irradiance"], color="C4", label="A + B")
+    axes[3].set_ylabel("on the sensor [W/m2]")
+    axes[0].set_title(f"Tracking loop: the law, the panel, the sun sensor{context}")
+    return _finish(fig, axes, clock)
+
+
 _FIGURES: tuple[tuple[str, Callable], ...] = tuple(
-    zip(FIGURE_FILES, (_fig08, _fig09, _fig10, _fig11, _fig12, _fig13, _fig14))
+    zip(FIGURE_FILES, (_fig08, _fig09, _fig10, _fig11, _fig12, _fig13, _fig14, _tracking_loop))
 )
 
 
@@ -425,12 +309,12 @@ def run_figures(
         raise InputError("trace must be a pandas DataFrame with a 'time' column [s] or a Parquet trace file")
     metadata = {} if metadata is None else metadata
     roles = {**RolesConfig().present(), **{k[5:]: v for k, v in metadata.items() if str(k).startswith("role.")}}
-    columns = _Trace(trace, roles)
+    columns = TraceColumns(trace, roles)
     if not columns.time.size:
         raise InputError("trace is empty: nothing to plot")
     if np.any(np.diff(columns.time) < 0.0) or not np.all(np.isfinite(columns.time)):
         raise InputError("trace time must be finite and non-decreasing")
-    clock = _Clock(metadata, columns.time)
+    clock = TraceClock(metadata, columns.time)
     parts = [str(metadata["scenario"])] if metadata.get("scenario") else []
     if clock.start is not None:
         end = clock.start + pd.Timedelta(seconds=clock.span)

@@ -12,7 +12,7 @@ import numpy as np
 
 from heliostep.cosim import FMUInfo, PiecewiseConstant
 from heliostep.drive.inputs import DriveInputs
-from heliostep.drive.sequencer import idle_currents
+from heliostep.drive.sequencer import idle_currents, stuck_currents
 from heliostep.errors import InputError
 from heliostep.run.interface import check_interface
 from heliostep.scenario import INPUT_ROLES, OUTPUT_ROLES, PARAMETER_ROLES, REQUIRED_ROLES, Scenario
@@ -79,16 +79,20 @@ def parameters(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str], i
     return values
 
 
-def signals(inputs: DriveInputs, roles: dict[str, str]) -> list[PiecewiseConstant]:
+def signals(
+    inputs: DriveInputs, roles: dict[str, str], stuck: tuple[float, float] | None = None
+) -> list[PiecewiseConstant]:
     """The drive's commands as the master's input signals, into the FMU inputs their roles name.
 
     With idle current reduction the currents also drop to their idle fraction a set time after
-    each step (:func:`heliostep.drive.sequencer.idle_currents`); those instants are events too.
+    each step (:func:`heliostep.drive.sequencer.idle_currents`); those instants are events too. A driver
+    ``stuck`` over (start, end) [s] ignores the changes meanwhile (:func:`~heliostep.drive.sequencer.stuck_currents`).
     """
     steps, current_a, current_b = inputs.schedule.times, inputs.current_a_ref, inputs.current_b_ref
     if inputs.sequencer.idle_current_fraction != 1.0:
         times, current_a, current_b = idle_currents(inputs.schedule, inputs.sequencer, inputs.duration)
         steps = np.asarray(times[1:], dtype=float)
+    steps, (current_a, current_b) = stuck_currents(steps, [current_a, current_b], stuck)
     result = [
         PiecewiseConstant("i_a_ref", roles["current_a_ref"], steps, np.asarray(current_a, dtype=float)),
         PiecewiseConstant("i_b_ref", roles["current_b_ref"], steps, np.asarray(current_b, dtype=float)),

@@ -6,6 +6,7 @@ interrupted part-way still returns (and writes) the trace so far, marked incompl
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import platform
@@ -22,6 +23,7 @@ import numpy as np
 
 from heliostep._version import __version__
 from heliostep.cosim import Connection, CoSimulation, FMUInfo, SimulationError, SolverOptions
+from heliostep.drive.closed_loop import TrackingLoop
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import InputError
 from heliostep.progress import bars_wanted
@@ -33,6 +35,7 @@ from heliostep.results.trace.frame import UNITS, TraceAssembler, drive_metadata,
 from heliostep.results.trace.sinks import HeldTrace, RowSink
 from heliostep.results.trace.stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
+from heliostep.run.closed_loop import NoRows, decided_inputs, sensor_parameters, tracking_loop
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
 from heliostep.run.options import RunOptions
@@ -40,6 +43,7 @@ from heliostep.run.result import RunFailed, RunResult
 from heliostep.run.supervision.allocator import restore_dynamic_heap
 from heliostep.run.supervision.supervisor import simulate_supervised
 from heliostep.scenario import Scenario, load_scenario
+from heliostep.scenario.tracking import SENSOR_INSTANCE
 
 __all__ = ["HELD_TRACE_MAX_DURATION", "SINK_ROWS", "VERSIONED_PACKAGES", "run_scenario", "run_versions"]
 
@@ -68,6 +72,10 @@ class _PreparedRun:
     meta: RunMetadata  # the run's metadata, completed by the simulation
     started: float  # [s] perf_counter at the start of run_scenario
     weather: object  # the weather file already read (None: clear sky)
+    infos: dict[str, FMUInfo]
+    values: dict  # the FMUs' parameters
+    fmu_paths: dict[str, Path]
+    loop: TrackingLoop | None = None  # a closed or hybrid loop's controller, deciding its steps
 
     @property
     def columns(self) -> list[str]:
@@ -111,6 +119,8 @@ def run_scenario(
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, tuple(overrides))
     prepared = _prepare(scenario, options.fmu_paths, clock.perf_counter(), options.should_stop, options.keep_trace)
+    if prepared.loop is not None:  # its steps decided while simulating; the run then goes on those steps
+        prepared = _decided(prepared, options)
     figures = _run_figures(prepared, options.row_group_rows, options.light_first_order)
     sink, temporary = _row_sink(prepared, figures, options)
     try:
@@ -160,16 +170,11 @@ def _prepare(
         raise InputError(f"{scenario.source}: optics.{exc}") from None
     inputs = prepare_inputs(scenario, should_stop)
     values = parameters(scenario, inputs, roles, infos)
-    try:  # connections (types, units, loops), parameter names and values, checked before simulating
-        system = CoSimulation(
-            infos,
-            [Connection(s, t) for s, t in scenario.connection_pairs()],
-            signals(inputs, roles),
-            values,
-            communication_intervals=scenario.communication_interval,
-        )
-    except InputError as exc:
-        raise InputError(f"{scenario.source}: {exc}") from None
+    loop = None
+    if scenario.tracking.mode != "open_loop":
+        values[SENSOR_INSTANCE] = sensor_parameters(scenario)
+        loop = tracking_loop(scenario, inputs, roles)
+    system = _system(scenario, infos, inputs, values, roles, loop)
     solver = SolverOptions(
         rtol=scenario.solver.rtol,
         atol=scenario.solver.atol,
@@ -177,7 +182,48 @@ def _prepare(
         max_num_steps=scenario.solver.max_num_steps,
     )
     meta = _metadata(scenario, fmu_paths, infos, values, roles, inputs)
-    return _PreparedRun(scenario, system, inputs, solver, roles, meta, started, weather)
+    return _PreparedRun(scenario, system, inputs, solver, roles, meta, started, weather, infos, values, fmu_paths, loop)
+
+
+def _system(scenario: Scenario, infos, inputs: DriveInputs, values: dict, roles: dict, loop) -> CoSimulation:
+    """The coupled system: connections (types, units, loops), parameter names and values, checked before
+    simulating; a controller's inputs in place of the schedule's phase currents while it decides them."""
+    given = signals(inputs, roles, scenario.faults.stuck)
+    if loop is not None and loop.decide:
+        given = [item for item in given if item.name not in ("i_a_ref", "i_b_ref")]
+    try:
+        return CoSimulation(
+            infos,
+            [Connection(s, t) for s, t in scenario.connection_pairs()],
+            given,
+            values,
+            communication_intervals=scenario.communication_interval,
+            controller=loop,
+        )
+    except InputError as exc:
+        raise InputError(f"{scenario.source}: {exc}") from None
+
+
+def _decided(prepared: _PreparedRun, options: RunOptions) -> _PreparedRun:
+    """The run set up again on the steps its controller decides (:mod:`heliostep.run.closed_loop`)."""
+    assert prepared.loop is not None
+    simulate = prepared.system.simulate
+    if options.supervise:
+        simulate = functools.partial(
+            simulate_supervised, prepared.system, watchdog=options.watchdog, start_method=options.start_method
+        )
+    duration = prepared.inputs.duration
+    try:
+        outputs = np.array([0.0, duration])
+        trace = simulate(0.0, duration, outputs, prepared.solver, monitor=NoRows(), should_stop=options.should_stop)
+        trace = trace.trace
+    except SimulationError as exc:  # the steps decided up to there: the run on them ends there too
+        trace = exc.trace
+    scenario, roles = prepared.scenario, prepared.roles
+    inputs = decided_inputs(prepared.inputs, trace, scenario)
+    system = _system(scenario, prepared.infos, inputs, prepared.values, roles, prepared.loop.replay())
+    meta = _metadata(scenario, prepared.fmu_paths, prepared.infos, prepared.values, roles, inputs)
+    return dataclasses.replace(prepared, inputs=inputs, system=system, meta=meta)
 
 
 def run_versions() -> dict:

@@ -43,6 +43,13 @@ from heliostep.scenario.sections import (
     WindConfig,
     WindowConfig,
 )
+from heliostep.scenario.tracking import (
+    FaultsConfig,
+    TrackingConfig,
+    tracking_problems,
+    with_sensor,
+    with_sensor_connection,
+)
 from heliostep.solar import sun_events
 
 #: FMU instances of a scenario without ``fmus``: instance name -> variant name.
@@ -75,6 +82,8 @@ _DEFAULTED_KEYS = (
     "optics",
     "budget",
     "band",
+    "tracking",
+    "faults",
 )
 
 
@@ -169,6 +178,8 @@ class Scenario(Section):
     output: OutputConfig = Field(default_factory=OutputConfig)
     budget: BudgetConfig = Field(default_factory=BudgetConfig)
     band: BandConfig = Field(default_factory=BandConfig)
+    tracking: TrackingConfig = Field(default_factory=TrackingConfig)
+    faults: FaultsConfig = Field(default_factory=FaultsConfig)
 
     _folder: Path = PrivateAttr(default_factory=Path.cwd)
     _source: str = PrivateAttr(default="<scenario>")
@@ -180,6 +191,7 @@ class Scenario(Section):
         if not isinstance(data, Mapping):
             return data
         data = {key: value for key, value in data.items() if not (value is None and key in _DEFAULTED_KEYS)}
+        data = with_sensor(data)  # a closed or hybrid loop's sun sensor
         if isinstance(data.get("parameters"), Mapping):
             data["parameters"] = {
                 instance: {} if values is None else values for instance, values in data["parameters"].items()
@@ -256,41 +268,10 @@ class Scenario(Section):
         for instance in self.parameters:
             if instance not in self.fmus:
                 problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
-        if self.connections is None:
-            missing = sorted(
-                {endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair} - set(self.fmus)
-            )
-            if missing:
-                problems.append(
-                    (
-                        ("connections",),
-                        f"the default connections use FMU instance(s) "
-                        f"{', '.join(missing)}, not in fmus ({instances}); "
-                        f"give 'connections' explicitly ([] for none)",
-                    )
-                )
-        else:
-            targets: dict[str, int] = {}
-            for position, (source, target) in enumerate(self.connections):
-                for side, endpoint in enumerate((source, target)):
-                    instance = endpoint.partition(".")[0]
-                    if instance not in self.fmus:
-                        problems.append(
-                            (
-                                ("connections", position, side),
-                                f"{endpoint!r}: unknown FMU instance {instance!r}; instances in fmus: {instances}",
-                            )
-                        )
-                if target in targets:
-                    problems.append(
-                        (
-                            ("connections", position),
-                            f"{target!r} is already the target of "
-                            f"connections[{targets[target]}]; an input has one source",
-                        )
-                    )
-                targets.setdefault(target, position)
-        problems += self._role_problems()
+        problems += _connection_problems(self, instances)
+        problems += _role_problems(self) + tracking_problems(
+            self.tracking, self.wind, self.sequencer.idle_current_fraction
+        )
         date_problem = window_date_problem(self.window.date, self.site.timezone)
         if date_problem:
             problems.append((("window", "date"), date_problem))
@@ -321,6 +302,7 @@ class Scenario(Section):
             (source, target) as "instance.variable".
         """
         pairs = DEFAULT_CONNECTIONS if self.connections is None else self.connections
+        pairs = with_sensor_connection(pairs, self.tracking, self.roles.panel_angle)
         return [cast("tuple[str, str]", tuple(pair)) for pair in pairs]
 
     def resolved_roles(self) -> dict[str, str]:
@@ -335,33 +317,6 @@ class Scenario(Section):
             for role, target in self.roles.present().items()
             if role in given or target.partition(".")[0] in self.fmus
         }
-
-    def _role_problems(self) -> list:
-        problems: list[tuple[tuple, str]] = []
-        given = self.roles.model_fields_set
-        instances = ", ".join(self.fmus)
-        for role, target in self.roles.model_dump().items():
-            if target is None:
-                if role in REQUIRED_ROLES:
-                    problems.append((("roles", role), "this role is required: give the 'instance.variable' it is"))
-                continue
-            problem = _endpoint_problem(target)
-            instance = target.partition(".")[0]
-            if role in given and problem:
-                problems.append((("roles", role), problem))
-            elif role in given and instance not in self.fmus:
-                problems.append(
-                    (("roles", role), f"{target!r}: unknown FMU instance {instance!r}; instances in fmus: {instances}")
-                )
-            elif role not in given and instance not in self.fmus and role in REQUIRED_ROLES:
-                problems.append(
-                    (
-                        ("roles", role),
-                        f"the default {target!r} uses FMU instance {instance!r}, not in "
-                        f"fmus ({instances}); give roles.{role} explicitly",
-                    )
-                )
-        return problems
 
     def fmu_reference(self, instance: str) -> str | Path:
         """What ``fmus[instance]`` refers to.
@@ -418,6 +373,9 @@ class Scenario(Section):
         data["connections"] = [list(pair) for pair in self.connection_pairs()]
         if not self.band.pinned:  # the default: left out, so resolved scenarios (and case ids) stay as they were
             del data["band"]
+        for key, default in (("tracking", TrackingConfig()), ("faults", FaultsConfig())):
+            if getattr(self, key) == default:  # (likewise)
+                del data[key]
         return data
 
     @property
@@ -429,6 +387,74 @@ class Scenario(Section):
     def folder(self) -> Path:
         """Folder that relative FMU paths are resolved against."""
         return self._folder
+
+
+def _connection_problems(self: Scenario, instances: str) -> list:
+    """``connections`` (or the default ones) naming an instance ``fmus`` has not, or driving an input twice."""
+    problems: list[tuple[tuple, str]] = []
+    if self.connections is None:
+        missing = sorted(
+            {endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair} - set(self.fmus)
+        )
+        if missing:
+            problems.append(
+                (
+                    ("connections",),
+                    f"the default connections use FMU instance(s) "
+                    f"{', '.join(missing)}, not in fmus ({instances}); "
+                    f"give 'connections' explicitly ([] for none)",
+                )
+            )
+    else:
+        targets: dict[str, int] = {}
+        for position, (source, target) in enumerate(self.connections):
+            for side, endpoint in enumerate((source, target)):
+                instance = endpoint.partition(".")[0]
+                if instance not in self.fmus:
+                    problems.append(
+                        (
+                            ("connections", position, side),
+                            f"{endpoint!r}: unknown FMU instance {instance!r}; instances in fmus: {instances}",
+                        )
+                    )
+            if target in targets:
+                problems.append(
+                    (
+                        ("connections", position),
+                        f"{target!r} is already the target of connections[{targets[target]}]; an input has one source",
+                    )
+                )
+            targets.setdefault(target, position)
+    return problems
+
+
+def _role_problems(self: Scenario) -> list:
+    """The ``roles`` that name no variable of the scenario's FMUs, or none where one is required."""
+    problems: list[tuple[tuple, str]] = []
+    given = self.roles.model_fields_set
+    instances = ", ".join(self.fmus)
+    for role, target in self.roles.model_dump().items():
+        if target is None:
+            if role in REQUIRED_ROLES:
+                problems.append((("roles", role), "this role is required: give the 'instance.variable' it is"))
+            continue
+        problem = _endpoint_problem(target)
+        instance = target.partition(".")[0]
+        if role in given and problem:
+            problems.append((("roles", role), problem))
+        elif role in given and instance not in self.fmus:
+            problems.append(
+                (("roles", role), f"{target!r}: unknown FMU instance {instance!r}; instances in fmus: {instances}")
+            )
+        elif role not in given and instance not in self.fmus and role in REQUIRED_ROLES:
+            problems.append(
+                (
+                    ("roles", role),
+                    f"the default {target!r} uses FMU instance {instance!r}, not in "
+                    f"fmus ({instances}); give roles.{role} explicitly",
+                )
+            )
+    return problems
 
 
 def _window_bounds(window: WindowConfig, site: SiteConfig) -> tuple[pd.Timestamp, pd.Timestamp]:

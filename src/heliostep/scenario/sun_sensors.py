@@ -20,6 +20,7 @@ __all__ = [
     "SunSensorPreset",
     "load_sun_sensors",
     "shipped_sun_sensors_path",
+    "sun_sensor",
     "sun_sensor_noise_std",
     "sun_sensor_preset",
     "sun_sensor_signal_noise_std",
@@ -90,21 +91,22 @@ def sun_sensor_preset(name: str, path: str | Path | None = None) -> dict[str, fl
     InputError
         No such preset: naming the file and the presets it has (or a bad file, :func:`load_sun_sensors`).
     """
-    return dict(_named(name, path).parameters)
+    return dict(sun_sensor(name, path).parameters)
 
 
 def sun_sensor_noise_std(name: str, path: str | Path | None = None) -> float:
     """The standard deviation of preset ``name``'s random error in the sensor's own angle [rad]."""
-    return _named(name, path).noise_std
+    return sun_sensor(name, path).noise_std
 
 
 def sun_sensor_signal_noise_std(name: str, path: str | Path | None = None) -> float:
     """Preset ``name``'s random error as the FMU's ``noise`` input [1], near balance in clear sky
     (:attr:`SunSensorPreset.signal_noise_std`)."""
-    return _named(name, path).signal_noise_std
+    return sun_sensor(name, path).signal_noise_std
 
 
-def _named(name: str, path: str | Path | None) -> SunSensorPreset:
+def sun_sensor(name: str, path: str | Path | None = None) -> SunSensorPreset:
+    """Preset ``name`` of the file (default: the shipped one); InputError naming the presets when there is none."""
     source = Path(path) if path is not None else shipped_sun_sensors_path()
     presets = load_sun_sensors(source)
     if name not in presets:

@@ -37,7 +37,20 @@ _SUN_COLUMNS_READ = ("apparent_zenith", "zenith", "apparent_elevation")
 
 
 def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Series:
-    """Clear-sky DNI at the site (Ineichen & Perez 2002, as implemented by pvlib).
+    """Clear-sky DNI at the site (Ineichen & Perez 2002, as implemented by pvlib): the ``dni`` of
+    :func:`clear_sky_irradiance`.
+
+    Returns
+    -------
+    pandas.Series  [W/m^2]
+        Named ``dni``, indexed by ``times``; 0 while the sun is down.
+    """
+    return clear_sky_irradiance(times, site, sun)["dni"]
+
+
+def clear_sky_irradiance(times, site: Site, sun: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Clear-sky direct normal and diffuse horizontal irradiance at the site (Ineichen & Perez 2002, as
+    implemented by pvlib).
 
     Parameters
     ----------
@@ -50,8 +63,8 @@ def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Seri
 
     Returns
     -------
-    pandas.Series  [W/m^2]
-        Named ``dni``, indexed by ``times``; 0 while the sun is down. Kept by content
+    pandas.DataFrame  [W/m^2]
+        ``dni`` and ``dhi``, indexed by ``times``; 0 while the sun is down. Kept by content
         (:mod:`heliostep.solar.sun_cache`): the same grid again is read back, pvlib not imported.
     """
     times = check_times(times)
@@ -63,12 +76,12 @@ def clear_sky_dni(times, site: Site, sun: pd.DataFrame | None = None) -> pd.Seri
         with warnings.catch_warnings():  # pvlib's pandas deprecations are not ours to fix
             warnings.simplefilter("ignore")
             sky = location.get_clearsky(times, model="ineichen", solar_position=sun)  # Ineichen & Perez (2002)
-        return sky["dni"].fillna(0.0).clip(lower=0.0).rename("dni").to_frame()
+        return sky[["dni", "dhi"]].fillna(0.0).clip(lower=0.0)
 
     # kept by content (heliostep.solar.sun_cache): every input of the model, the given sun's columns it reads too
     given = () if sun is None else tuple(sun[column].to_numpy(dtype=float) for column in _SUN_COLUMNS_READ)
     parameters = ("ineichen", site.latitude, site.longitude, site.timezone, site.altitude, sun is None, *given)
-    return cached_frame("clear_sky_dni", times, parameters, compute)["dni"]
+    return cached_frame("clear_sky", times, parameters, compute)
 
 
 def _check_site(path: Path, meta, site: Site, max_offset: float) -> None:

@@ -56,6 +56,7 @@ FIGURE_FILES = (
     "fig12_rotor_angle.png",
     "fig13_panel_tracking.png",
     "fig14_torque_zoom.png",
+    "tracking_loop.png",  # a closed or hybrid loop's
 )
 POWER_FILE = "power_on_tube.png"
 

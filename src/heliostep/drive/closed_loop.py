@@ -1,0 +1,237 @@
+"""Closed-loop tracking: a controller that samples the sun sensor and steps the drive on what it sees.
+
+The controller is a :class:`~heliostep.cosim.controller.SampledController`: every ``sample_period`` it
+gives the sensor its view of the sun (the ideal panel angle, DNI, diffuse, the reading's noise), reads the
+sensor's signal, and appends the steps it decides to the phase-current inputs of the motor, so its steps
+enter the drive as the open-loop ones do. Modes:
+
+- ``closed_loop``: on a lit sensor whose error estimate is beyond the dead band, steps towards balance (as
+  many as the estimate asks, or a fixed move, seed 001's Δβ); dark, it holds. A reading while the last
+  move is still being stepped decides nothing.
+- ``hybrid``: the open-loop schedule (the astronomical reference), shifted by a correction the lit sensor
+  adjusts as ``closed_loop`` does; dark, it follows the reference with the correction it had.
+
+Details: docs/tracking.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from heliostep.drive.sequencer import Sequencer, StepSchedule
+
+__all__ = ["ChangeLog", "LoopLaw", "SensorView", "TrackingLoop", "realized_schedule"]
+
+#: The traced master input that carries the commanded step index (it drives no FMU).
+STEP_INDEX = "step_index"
+
+
+class ChangeLog(Protocol):
+    """A master input whose changes the controller appends while simulating (the master's
+    :class:`~heliostep.cosim.controller.ScheduledInput`)."""
+
+    @property
+    def times(self) -> np.ndarray: ...
+
+    def append(self, time: float, value: float) -> None: ...
+
+
+@dataclass(frozen=True)
+class LoopLaw:
+    """How the controller steps on what the sensor says.
+
+    Attributes
+    ----------
+    mode : {'closed_loop', 'hybrid'}
+    sample_period : float
+        Between two readings of the sensor [s].
+    dead_band : float
+        Panel-angle error [rad] the controller leaves alone.
+    step_rate : float
+        Rate of the steps it commands [sequencer increments/s].
+    latency : float
+        From a reading to the first step it commands [s].
+    move : float or None
+        A fixed move per reading [rad of panel angle] (seed 001's Δβ); None: the steps the estimate asks.
+    """
+
+    mode: str
+    sample_period: float
+    dead_band: float
+    step_rate: float
+    latency: float
+    move: float | None = None
+
+
+@dataclass(frozen=True)
+class SensorView:
+    """What the controller knows of its sensor: its angle per panel angle ``k_ray`` [-] and the half field of
+    view ``fov`` [rad] of its linear range."""
+
+    k_ray: float
+    fov: float
+
+
+class TrackingLoop:
+    """The closed-loop (or hybrid) controller of one run.
+
+    Parameters
+    ----------
+    law : LoopLaw
+    sequencer : Sequencer
+    sensor : SensorView
+    sensor_instance : str
+        The FMU instance whose signal it reads.
+    initial_index : int
+        The step index held at the start.
+    panel_of_index : callable
+        Commanded panel angle [rad] of step indices (through the transmission, [paper], eq. 14).
+    index_of_panel : callable
+        The (real-valued) step index at which the panel stands at a panel angle [rad].
+    sample_times : ndarray
+        [s] from the run's start.
+    views : ndarray
+        What the sensor is given at the start and at each sample (a row each): the ideal panel angle [rad]
+        (the sun as it is), DNI and diffuse horizontal irradiance [W/m2], the reading's noise [-].
+    open_loop : StepSchedule, optional
+        The astronomical schedule ``hybrid`` follows.
+    stuck : (float, float), optional
+        A span [s] over which the driver ignores the steps (``faults.stuck``); its end must be a sample time.
+    inputs : sequence of ChangeLog
+        The phase currents' references i_a, i_b [A] and the step index it commands (traced), each holding
+        its value at the start; none: it decides nothing (the run replayed on its steps).
+    """
+
+    def __init__(
+        self,
+        law: LoopLaw,
+        sequencer: Sequencer,
+        sensor: SensorView,
+        sensor_instance: str,
+        initial_index: int,
+        panel_of_index: Callable[[float], float],
+        index_of_panel: Callable[[float], float],
+        sample_times: np.ndarray,
+        views: np.ndarray,
+        open_loop: StepSchedule | None = None,
+        stuck: tuple[float, float] | None = None,
+        inputs: Sequence[ChangeLog] = (),
+    ):
+        self.law, self.sequencer, self.sensor = law, sequencer, sensor
+        self.panel_of_index, self.index_of_panel = panel_of_index, index_of_panel
+        self.sample_times = np.asarray(sample_times, dtype=float)
+        self.views = np.asarray(views, dtype=float)
+        if self.views.shape != (len(self.sample_times) + 1, 4):
+            raise ValueError(f"views: expected {len(self.sample_times) + 1} rows of 4, got {self.views.shape}")
+        self.open_loop = open_loop if law.mode == "hybrid" else None
+        self.inputs, self.decide, self.stuck = tuple(inputs), bool(inputs), stuck
+        self._held = False  # steps the stuck driver ignored, not yet taken up at the span's end
+        self.reads = (f"{sensor_instance}.signal", f"{sensor_instance}.lit")
+        self.sets = tuple(f"{sensor_instance}.{name}" for name in ("theta_ref", "dni", "dhi", "noise"))
+        self.index, self.correction = initial_index, 0
+        self._followed = 0  # open-loop steps taken up to (hybrid)
+        self._moving_until = -np.inf  # the last step of the last move the sensor asked for [s]
+        self.readings: list[tuple[float, float, float]] = []  # (time, signal, lit)
+        if self.decide and self.open_loop is not None:
+            self._follow(0.0, self._next_sample(0.0))
+
+    def replay(self) -> TrackingLoop:
+        """The same sensor view at the same samples, deciding nothing (the run replayed on its steps)."""
+        twin = object.__new__(TrackingLoop)
+        twin.__dict__.update(self.__dict__)
+        twin.decide, twin.inputs, twin.readings = False, (), []
+        return twin
+
+    # ------------------------------------------------------------ what the master asks
+    def setting(self, time: float) -> np.ndarray:
+        return self.views[int(np.searchsorted(self.sample_times, time + 1e-9, side="right"))]  # its row
+
+    def sample(self, time: float, readings: np.ndarray) -> None:
+        signal, lit = float(readings[0]), float(readings[1])
+        self.readings.append((time, signal, lit))
+        if not self.decide:
+            return
+        if self._held and self.stuck is not None and time >= self.stuck[1]:
+            self._take_up(self.index)
+        end = self._next_sample(time)
+        wanted = self._wanted_steps(signal) if lit > 0.5 and time >= self._moving_until else 0
+        if self.open_loop is None:
+            self._move(time + self.law.latency, wanted)
+            return
+        self.correction += wanted  # hybrid: the reference's steps, shifted by the correction
+        self._follow(time, end, first=(time + self.law.latency, wanted))
+
+    # ------------------------------------------------------------ the law
+    def _wanted_steps(self, signal: float) -> int:
+        """Steps towards balance for a reading: the panel error the signal says, beyond the dead band."""
+        law, sensor = self.law, self.sensor
+        ratio = float(np.clip(signal, -1.0, 1.0))
+        error = float(np.arctan(ratio * np.tan(sensor.fov))) / sensor.k_ray  # panel error [rad], within the view
+        if abs(error) <= law.dead_band:
+            return 0
+        commanded = self.panel_of_index(self.index)
+        aim = commanded + (np.sign(error) * law.move if law.move is not None else error)
+        return int(np.rint(self.index_of_panel(aim) - self.index))
+
+    def _move(self, start: float, steps: int) -> None:
+        """``steps`` (signed) from ``start`` at the law's rate."""
+        if not steps:
+            return
+        direction = int(np.sign(steps))
+        self._moving_until = start + (abs(steps) - 1) / self.law.step_rate
+        for k in range(abs(steps)):
+            self._step(start + k / self.law.step_rate, self.index + direction)
+
+    def _follow(self, time: float, end: float, first: tuple[float, int] | None = None) -> None:
+        """Hybrid: the open-loop steps up to ``end``, each shifted by the correction, after a correction move."""
+        assert self.open_loop is not None
+        if first is not None and first[1]:
+            self._move(*first)
+        times, indices = self.open_loop.times, self.open_loop.indices
+        last = float(self.inputs[0].times[-1]) if len(self.inputs[0].times) else time  # after the correction
+        while self._followed < len(times) and times[self._followed] <= end:
+            at = max(float(times[self._followed]), last)
+            self._step(at, int(indices[self._followed]) + self.correction)
+            last = at
+            self._followed += 1
+
+    def _step(self, time: float, index: int) -> None:
+        """The step to ``index`` at ``time``: commanded (traced), and taken by the driver unless it is stuck
+        then (:func:`~heliostep.drive.sequencer.stuck_currents`, the same rule)."""
+        if index == self.index:
+            return
+        stuck = self.stuck is not None and self.stuck[0] <= time < self.stuck[1]
+        if self._held and not stuck:
+            self._take_up(self.index)
+        self.index = index
+        self.inputs[2].append(time, float(index))
+        if stuck:
+            self._held = True
+            return
+        i_a, i_b = self.sequencer.reference_currents(index)
+        self.inputs[0].append(time, float(i_a))
+        self.inputs[1].append(time, float(i_b))
+
+    def _take_up(self, index: int) -> None:
+        """The stuck driver's currents at the span's end: those of ``index``, the step commanded then."""
+        assert self.stuck is not None
+        i_a, i_b = self.sequencer.reference_currents(index)
+        self.inputs[0].append(self.stuck[1], float(i_a))
+        self.inputs[1].append(self.stuck[1], float(i_b))
+        self._held = False
+
+    def _next_sample(self, time: float) -> float:
+        k = int(np.searchsorted(self.sample_times, time + 1e-9, side="right"))
+        return float(self.sample_times[k]) if k < len(self.sample_times) else np.inf
+
+
+def realized_schedule(times: np.ndarray, step_index: np.ndarray, initial_index: int) -> StepSchedule:
+    """The steps a controller commanded, from the traced ``step_index`` column (time order, both sides of
+    each change): the instants where it changes and the index from each on."""
+    times, step_index = np.asarray(times, dtype=float), np.rint(np.asarray(step_index)).astype(int)
+    changes = np.flatnonzero(np.diff(step_index)) + 1
+    return StepSchedule(times[changes], step_index[changes], initial_index)

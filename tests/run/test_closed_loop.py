@@ -1,0 +1,167 @@
+"""Closed-loop and hybrid tracking through the co-simulation (``tracking:``), against figures computed here.
+
+The tracking law is :func:`heliostep.solar.panel_angle_reference` (checked against the paper elsewhere); what
+is under test is the loop: the panel angle the FMUs reach with the steps the controller decides from the sun
+sensor's FMU, and the bounds first principles put on its error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from heliostep.run import RunOptions, run_scenario
+from heliostep.scenario import load_scenario
+from heliostep.solar import panel_angle_reference
+
+SCENARIO = "jan21-central"
+#: The paper's transmission (Table 2) and the sequencer's full step.
+PINION, LEVER, STEP = 2.5e-3, 0.3, np.radians(1.8)
+
+
+def _run(*overrides: str):
+    scenario = load_scenario(SCENARIO, ("output.step_detail=0", "output.interval=0.5", *overrides))
+    return scenario, run_scenario(scenario, RunOptions(supervise=False))
+
+
+def _ideal(scenario, times: np.ndarray) -> np.ndarray:
+    """The tracking law's panel angle [rad] at run times [s], computed here from the window's start."""
+    start, _ = scenario.window_bounds()
+    index = start + pd.to_timedelta(times, unit="s")
+    site, plant = scenario.site.to_site(), scenario.plant.to_plant()
+    return panel_angle_reference(
+        index, site, plant, scenario.mirror.mirror_distance, axis=scenario.mirror.axis
+    ).to_numpy()
+
+
+def _panel_step(panel: np.ndarray) -> np.ndarray:
+    """One full step of the rotor as panel angle [rad]: d theta_p = (r / s) cos^2(theta_p) d theta ([paper], eq. 14)."""
+    return PINION / LEVER * np.cos(panel) ** 2 * STEP
+
+
+def _errors_at_samples(scenario, result, period: float, after: float = 10.0):
+    """Tracking law minus the panel's angle [rad] just before each sample instant after ``after`` [s]
+    (the rings of the steps decided at the previous sample decayed), and one panel step there."""
+    rows = result.trace.drop_duplicates("time", keep="first").set_index("time")
+    times = np.arange(after, scenario.window.duration, period) - 1e-3
+    panel = np.interp(times, rows.index.to_numpy(), rows["mechanics.theta_p"].to_numpy())
+    return _ideal(scenario, times) - panel, _panel_step(panel)
+
+
+@pytest.mark.parametrize("dead_band", [0.005, 0.02])
+def test_a_perfect_sensor_keeps_the_closed_loop_within_its_dead_band_and_one_panel_step(dead_band, fmu_paths):
+    scenario, result = _run(
+        "tracking.mode=closed_loop",
+        "tracking.noise_std=0",
+        f"tracking.dead_band={dead_band}",
+        "tracking.sample_period=2",
+    )
+    error, step = _errors_at_samples(scenario, result, scenario.tracking.sample_period)
+    times = np.arange(0.0, scenario.window.duration, 10.0)
+    drift = np.abs(_ideal(scenario, times + scenario.tracking.sample_period) - _ideal(scenario, times))
+    assert drift.max() < 0.5 * step.min()  # the law moves less than half a step between readings: the bound holds
+    assert np.all(np.abs(error) <= np.radians(dead_band) + step), np.degrees(np.abs(error).max())
+    assert result.summary["steps_commanded"] > 0 and result.summary["steps_lost"] == 0
+
+
+def test_a_clock_offset_costs_open_loop_the_rate_times_the_offset_and_the_closed_loops_nothing(fmu_paths):
+    offset, dead_band = 120.0, 0.005  # [s], [deg]
+    scenario, open_loop = _run(f"faults.clock_offset={offset}")
+    # open loop steps to the law's angle offset seconds later: its error is the law's rate times the offset
+    times = np.arange(10.0, scenario.window.duration, 5.0)
+    rate = (_ideal(scenario, times + 1.0) - _ideal(scenario, times - 1.0)) / 2.0  # [rad/s], differentiated here
+    rows = open_loop.trace.drop_duplicates("time", keep="first").set_index("time")
+    panel = np.interp(times, rows.index.to_numpy(), rows["mechanics.theta_p"].to_numpy())
+    error = _ideal(scenario, times) - panel
+    assert np.all(np.abs(error - (-rate * offset)) <= _panel_step(panel)), np.degrees(error + rate * offset)
+    assert np.abs(rate * offset).min() > 5 * _panel_step(panel).max()  # a lag the loop must remove
+    for mode in ("closed_loop", "hybrid"):
+        scenario, closed = _run(
+            f"faults.clock_offset={offset}",
+            f"tracking.mode={mode}",
+            "tracking.noise_std=0",
+            f"tracking.dead_band={dead_band}",
+        )
+        error, step = _errors_at_samples(scenario, closed, scenario.tracking.sample_period, after=30.0)
+        assert np.all(np.abs(error) <= np.radians(dead_band) + step), (mode, np.degrees(np.abs(error).max()))
+
+
+def test_seed_001s_scheme_keeps_the_error_within_half_its_move_once_balanced(fmu_paths):
+    move = 10.0  # [deg], seed 001's delta beta; balanced within half of it
+    scenario, result = _run(
+        "tracking.mode=closed_loop",
+        "tracking.sensor=cross-001",
+        f"tracking.move={move}",
+        f"tracking.dead_band={move / 2}",
+        "faults.mounting_offset=12",  # the sensor mounted 12 deg off: the loop moves until it reads balance
+        "window.duration=120",
+    )
+    error, step = _errors_at_samples(scenario, result, scenario.tracking.sample_period, after=60.0)
+    # the sensor's zero is 12 deg off the law, so the panel settles within move / 2 of 12 deg / k_ray (1)
+    assert np.all(np.abs(np.abs(error) - np.radians(12.0)) <= np.radians(move / 2) + step)
+    assert result.summary["steps_commanded"] >= round(np.radians(move) * LEVER / PINION / STEP * 0.9)
+    assert result.summary["steps_lost"] == 0  # moves at the default step rate, from rest
+
+
+def test_a_stuck_driver_costs_open_loop_its_steps_in_whole_periods_and_the_closed_loop_one_sample(fmu_paths):
+    span = (60.0, 200.0)  # [s] the driver ignores the steps
+    scenario, open_loop = _run(f"faults.stuck=[{span[0]}, {span[1]}]")
+    steps = np.asarray(open_loop.metadata["drive"]["step_times"])
+    ignored = int(np.sum((steps >= span[0]) & (steps < span[1])))
+    # taken up at the span's end, the rotor goes to the nearest detent of the phase commanded then: it
+    # moves by the ignored steps less whole electrical periods (4 full steps, one-phase-on)
+    moved = (ignored + 2) % 4 - 2
+    assert ignored >= 4 and open_loop.summary["steps_lost"] == ignored - moved
+    rows = open_loop.trace.drop_duplicates("time", keep="first").set_index("time")
+    after = np.arange(span[1] + 5.0, scenario.window.duration, 5.0)
+    panel = np.interp(after, rows.index.to_numpy(), rows["mechanics.theta_p"].to_numpy())
+    behind = (_ideal(scenario, after) - panel) / _panel_step(panel)  # [panel steps]
+    assert np.all(np.abs(behind - (ignored - moved)) <= 1.0), behind
+    loop = ("tracking.mode=closed_loop", "tracking.noise_std=0", "tracking.dead_band=0.005", "tracking.sample_period=2")
+    scenario, closed = _run(f"faults.stuck=[{span[0]}, {span[1]}]", *loop)
+    assert closed.summary["steps_lost"] > 0  # the loop went on stepping while the driver was stuck
+    error, step = _errors_at_samples(scenario, closed, 2.0, after=span[1] + 2.0 + 2.0)  # one sample and its move
+    assert np.all(np.abs(error) <= np.radians(0.005) + step), np.degrees(np.abs(error).max())
+
+
+def test_under_a_cloud_the_closed_loop_holds_and_catches_up_and_the_hybrid_follows_the_law(fmu_paths):
+    cloud = (60.0, 240.0)  # [s] the direct irradiance cut to 5 %: the sensor is dark (under its threshold)
+    loop = ("tracking.noise_std=0", "tracking.dead_band=0.005", "tracking.sample_period=2")
+    clouds = f"tracking.clouds=[{{start: {cloud[0]}, end: {cloud[1]}, dni_fraction: 0.05}}]"
+    scenario, open_loop = _run()
+    law_steps = np.asarray(open_loop.metadata["drive"]["step_times"])
+    under = (law_steps >= cloud[0]) & (law_steps < cloud[1])
+    assert under.sum() >= 3  # the law moves the panel by steps under the cloud
+    for mode in ("closed_loop", "hybrid"):
+        scenario, result = _run(f"tracking.mode={mode}", clouds, *loop)
+        steps = np.asarray(result.metadata["drive"]["step_times"])
+        during = int(np.sum((steps >= cloud[0] + scenario.tracking.sample_period) & (steps < cloud[1])))
+        if mode == "closed_loop":  # dark: it holds its angle, the error grows as the law moves on
+            assert during == 0
+            error, _ = _errors_at_samples(scenario, result, 2.0, after=cloud[1] - 10.0)
+            assert abs(error[0]) > 2 * np.radians(0.005)
+        else:  # dark: it follows the law's steps
+            assert during == int(np.sum((law_steps >= cloud[0] + 2.0) & (law_steps < cloud[1])))
+        # once the sun is back, within a sample and its move, the error is within the dead band and a step
+        error, step = _errors_at_samples(scenario, result, 2.0, after=cloud[1] + 4.0)
+        assert np.all(np.abs(error) <= np.radians(0.005) + step), (mode, np.degrees(np.abs(error).max()))
+
+
+def test_the_tracking_loop_figure_draws_the_law_the_panel_the_error_the_signal_and_the_light(fmu_paths):
+    from heliostep.plots.run import run_figures
+
+    scenario, result = _run("tracking.mode=closed_loop", "tracking.sample_period=2")
+    (name, figure), *_ = run_figures(result.trace, result.metadata, only={"tracking_loop.png"})
+    assert name == "tracking_loop.png" and figure is not None
+    angles, error, signal, light = figure.axes[:4]
+    trace = result.trace
+    drawn = {line.get_label(): line.get_ydata() for ax in (angles, error, signal, light) for line in ax.get_lines()}
+    for label, column, scale in (
+        ("panel - law", "panel_angle_error", np.degrees(1.0)),
+        ("(A - B) / (A + B)", "sensor.signal", 1.0),
+        ("A + B", "sensor.irradiance", 1.0),
+    ):  # every row's extremes drawn (thinned to the pixels, never cut)
+        values = trace[column].to_numpy() * scale
+        assert np.max(drawn[label]) == pytest.approx(values.max()) and np.min(drawn[label]) == pytest.approx(
+            values.min()
+        )
