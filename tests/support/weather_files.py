@@ -24,11 +24,18 @@ class WeatherDay:
     wind_of_hour: Callable[[int], float] = lambda h: 0.0  # [m/s]
     direction_of_hour: Callable[[int], float] = lambda h: 0.0  # [deg]
     timezone_hours: float = 1.0  # [h] east of UTC
+    dhi_of_hour: Callable[[int], float] = lambda h: 0.0  # [W/m^2]
 
-    def hours(self) -> Iterator[tuple[int, float, float, float]]:
-        """(hour 1..24, DNI, wind direction, wind speed) of each hour, the hour ending then."""
+    def hours(self) -> Iterator[tuple[int, float, float, float, float]]:
+        """(hour 1..24, DNI, wind direction, wind speed, DHI) of each hour, the hour ending then."""
         for hour in range(1, 25):
-            yield hour, self.dni_of_hour(hour), self.direction_of_hour(hour), self.wind_of_hour(hour)
+            yield (
+                hour,
+                self.dni_of_hour(hour),
+                self.direction_of_hour(hour),
+                self.wind_of_hour(hour),
+                self.dhi_of_hour(hour),
+            )
 
 
 def write_epw(path, **day):
@@ -45,8 +52,8 @@ def write_epw(path, **day):
         f"DATA PERIODS,1,1,Data,Sunday, {d.month}/{d.day},{d.month}/{d.day}",
     ]
     rows = []
-    for hour, dni, direction, wind in d.hours():  # EPW hours 1..24 label the hour ending then
-        values = [1999, d.month, d.day, hour, 0, "?", 10.0, 5.0, 60, 95000, 0, 0, 300, 0, dni, 0]
+    for hour, dni, direction, wind, dhi in d.hours():  # EPW hours 1..24 label the hour ending then
+        values = [1999, d.month, d.day, hour, 0, "?", 10.0, 5.0, 60, 95000, 0, 0, 300, 0, dni, dhi]
         values += [0, 0, 0, 0, direction, wind]  # fields 17-22: illuminances, wind
         values += [0] * (35 - len(values))
         rows.append(",".join(str(v) for v in values))
@@ -56,13 +63,13 @@ def write_epw(path, **day):
 
 def write_tmy3(path, year=1999, **day):
     """A TMY3 file (header line, column line, 24 hourly rows 01:00 .. 24:00 of one day of ``year``) with the
-    columns heliostep reads: date, time, DNI [W/m^2], wind direction [deg] and speed [m/s]."""
+    columns heliostep reads: date, time, DNI and DHI [W/m^2], wind direction [deg] and speed [m/s]."""
     d = WeatherDay(**day)
     lines = [
         f"000000,'TEST',XX,{d.timezone_hours},{d.latitude},{d.longitude},600",
         "Date (MM/DD/YYYY),Time (HH:MM),GHI (W/m^2),DNI (W/m^2),DHI (W/m^2),Wdir (degrees),Wspd (m/s)",
     ]
-    for hour, dni, direction, wind in d.hours():
-        lines.append(f"{d.month:02d}/{d.day:02d}/{year},{hour:02d}:00,0,{dni},0,{direction},{wind}")
+    for hour, dni, direction, wind, dhi in d.hours():
+        lines.append(f"{d.month:02d}/{d.day:02d}/{year},{hour:02d}:00,0,{dni},{dhi},{direction},{wind}")
     path.write_text("\n".join(lines) + "\n")
     return path

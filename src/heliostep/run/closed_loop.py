@@ -19,10 +19,11 @@ import pandas as pd
 from heliostep.cosim.controller import ScheduledInput
 from heliostep.drive.closed_loop import STEP_INDEX, LoopLaw, SensorView, TrackingLoop, realized_schedule
 from heliostep.drive.inputs import DriveInputs, output_grid
+from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.scenario.sun_sensors import sun_sensor
 from heliostep.scenario.tracking import SENSOR_INSTANCE
-from heliostep.solar import clear_sky_irradiance
+from heliostep.solar import clear_sky_irradiance, cloud_fraction
 
 __all__ = ["decided_inputs", "sensor_parameters", "NoRows", "tracking_loop"]
 
@@ -54,24 +55,33 @@ class _Transmission:
         return float((rotor - self.sequencer.offset) / self.sequencer.increment)
 
 
-def sensor_views(scenario: Scenario, inputs: DriveInputs, sample_times: np.ndarray, noise_std: float) -> np.ndarray:
-    """What the sensor is given at the start and at each sample (rows): the ideal panel angle [rad], the
-    clear sky's DNI (cut by the scenario's clouds) and diffuse horizontal irradiance [W/m2], and a reading's
-    noise [-] (normal, ``noise_std``, seeded by ``tracking.seed``)."""
+def sensor_views(
+    scenario: Scenario, inputs: DriveInputs, sample_times: np.ndarray, noise_std: float, weather=None
+) -> np.ndarray:
+    """What the sensor is given at the start and at each sample (rows): the ideal panel angle [rad], the DNI
+    (cut by the scenario's clouds) and the diffuse horizontal irradiance [W/m2] of the weather file (already
+    read) or the clear sky, and a reading's noise [-] (normal, ``noise_std``, seeded by ``tracking.seed``)."""
     times = np.concatenate([[0.0], sample_times])
     grid = np.asarray(inputs.reference_times, dtype=float)
-    sky = clear_sky_irradiance(inputs.window_start + pd.to_timedelta(grid, unit="s"), scenario.site.to_site())
-    dni = np.interp(times, grid, sky["dni"].to_numpy(dtype=float))
-    for cloud in scenario.tracking.clouds:
-        dni[(times >= cloud.start) & (times < cloud.end)] *= cloud.dni_fraction
+    instants = inputs.window_start + pd.to_timedelta(grid, unit="s")
+    if weather is not None:
+        try:
+            sky = pd.DataFrame({"dni": weather.at(instants), "dhi": weather.diffuse_at(instants)})
+        except InputError as exc:
+            raise InputError(f"{scenario.source}: optics.{exc}") from None
+    else:
+        sky = clear_sky_irradiance(instants, scenario.site.to_site())
+    clouds = cloud_fraction(times, scenario.tracking.cloud_spans)
+    dni = np.interp(times, grid, sky["dni"].to_numpy(dtype=float)) * clouds
     dhi = np.interp(times, grid, sky["dhi"].to_numpy(dtype=float))
     noise = np.random.default_rng(scenario.tracking.seed).normal(0.0, noise_std, len(times)) if noise_std else 0 * times
     noise[0] = 0.0
     return np.column_stack([inputs.panel_reference()(times), dni, dhi, noise])
 
 
-def tracking_loop(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str]) -> TrackingLoop:
-    """The scenario's controller (``tracking`` not ``open_loop``), deciding its steps."""
+def tracking_loop(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str], weather=None) -> TrackingLoop:
+    """The scenario's controller (``tracking`` not ``open_loop``), deciding its steps; ``weather``: the
+    scenario's weather file already read (its DNI and diffuse reach the sensor), None: the clear sky."""
     tracking = scenario.tracking
     preset = sun_sensor(tracking.sensor)
     values = sensor_parameters(scenario)
@@ -105,7 +115,7 @@ def tracking_loop(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str]
         panel_of_index=transmission.panel_of_index,
         index_of_panel=transmission.index_of_panel,
         sample_times=sample_times,
-        views=sensor_views(scenario, inputs, sample_times, noise / np.tan(fov)),  # the signal's, near balance
+        views=sensor_views(scenario, inputs, sample_times, noise / np.tan(fov), weather),  # the signal's, near balance
         open_loop=inputs.schedule,
         stuck=stuck,
         inputs=_commands(sequencer, inputs.schedule.initial_index, roles),

@@ -173,7 +173,7 @@ def _prepare(
     loop = None
     if scenario.tracking.mode != "open_loop":
         values[SENSOR_INSTANCE] = sensor_parameters(scenario)
-        loop = tracking_loop(scenario, inputs, roles)
+        loop = tracking_loop(scenario, inputs, roles, weather)
     system = _system(scenario, infos, inputs, values, roles, loop)
     solver = SolverOptions(
         rtol=scenario.solver.rtol,

@@ -53,6 +53,11 @@ class TrackingConfig(Section):
     seed: int = Field(0, ge=0, description="of the readings' noise")
     clouds: list[CloudConfig] = Field(default_factory=list, description="spans with less direct irradiance")
 
+    @property
+    def cloud_spans(self) -> list[tuple[float, float, float]]:
+        """The clouds as (start [s], end [s], DNI fraction [-])."""
+        return [(c.start, c.end, c.dni_fraction) for c in self.clouds]
+
     @field_validator("sensor")
     @classmethod
     def _a_preset(cls, name: str) -> str:

@@ -138,9 +138,10 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Da
     Returns
     -------
     pandas.DataFrame
-        Indexed by the record's end (the file's stamp, in its standard time): ``dni`` [W/m^2], the
-        mean over the hour ending then; ``wind_speed`` [m/s] and ``wind_direction`` [deg from north,
-        clockwise], measured then (NaN where the file has none or marks them missing);
+        Indexed by the record's end (the file's stamp, in its standard time): ``dni`` and ``dhi`` (diffuse
+        horizontal; NaN where the file has none) [W/m^2], the means over the hour ending then;
+        ``wind_speed`` [m/s] and ``wind_direction`` [deg from north, clockwise], measured then (NaN
+        where the file has none or marks them missing);
         ``temp_air`` [degC], the dry-bulb temperature then (NaN likewise).
 
     Raises
@@ -173,7 +174,14 @@ def read_weather(path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> pd.Da
     # pvlib indexes an EPW record of hour h at h - 1 (its start), a TMY3 record at its stamp (its end)
     end = data.index + RECORD if epw else data.index
     speed, direction = _wind(data, epw)
-    frame = {"dni": dni.to_numpy(float), "wind_speed": speed, "wind_direction": direction}
+    diffuse = next((data[c] for c in ("dhi", "DHI") if c in data), pd.Series(np.nan, index=data.index))
+    diffuse = pd.to_numeric(diffuse, errors="coerce").where(lambda v: v >= 0)  # missing or negative: NaN
+    frame = {
+        "dni": dni.to_numpy(float),
+        "dhi": diffuse.to_numpy(float),
+        "wind_speed": speed,
+        "wind_direction": direction,
+    }
     return pd.DataFrame({**frame, "temp_air": _air_temperature(data)}, index=end)
 
 
@@ -213,6 +221,7 @@ class WeatherFile:
     table: pd.Series  # mean DNI [W/m^2] of the hour starting at the key, placed at key + 30 min
     timezone: object  # the file's timezone (None: naive local time)
     wind: pd.DataFrame | None = None  # wind_speed [m/s], its components wind_u, wind_v [m/s] at the key
+    diffuse: pd.Series | None = None  # mean diffuse horizontal irradiance [W/m^2], keyed as ``table``
 
     @classmethod
     def read(cls, path, site: Site, max_offset: float = MAX_SITE_OFFSET) -> WeatherFile:
@@ -221,6 +230,7 @@ class WeatherFile:
         end = pd.DatetimeIndex(hourly.index)
         # the hour's mean at its middle, end - 30 min: keyed by the hour it starts, end - 1 h
         table = pd.Series(hourly["dni"].to_numpy(), index=_hour_key(end - RECORD)).groupby(level=0).mean()
+        diffuse = pd.Series(hourly["dhi"].to_numpy(), index=_hour_key(end - RECORD)).groupby(level=0).mean()
         rad = np.radians(hourly["wind_direction"].to_numpy())
         speed = hourly["wind_speed"].to_numpy()
         wind = pd.DataFrame(
@@ -232,7 +242,7 @@ class WeatherFile:
             },
             index=_hour_key(end),
         )
-        return cls(Path(path), table.rename("dni"), end.tz, wind.groupby(level=0).mean())
+        return cls(Path(path), table.rename("dni"), end.tz, wind.groupby(level=0).mean(), diffuse.rename("dhi"))
 
     def _interpolate(self, times, table: pd.DataFrame, shift: pd.Timedelta, name: str) -> dict[str, np.ndarray]:
         """``table``'s columns at ``times``, linear between its points, at key + ``shift``."""
@@ -258,6 +268,16 @@ class WeatherFile:
         not cover them."""
         values = self._interpolate(times, self.table.to_frame(), MID_RECORD, "dni")["dni"]
         return pd.Series(values, index=check_times(times), name="dni")
+
+    def diffuse_at(self, times) -> pd.Series:
+        """Diffuse horizontal irradiance [W/m^2] at ``times``, as :meth:`at` places and interpolates DNI;
+        InputError (key ``dhi``) when the file gives none there."""
+        if self.diffuse is None:
+            raise InputError(f"weather_file {self.path}: no dhi column")
+        values = self._interpolate(times, self.diffuse.to_frame(), MID_RECORD, "dhi")["dhi"]
+        if np.isnan(values).any():
+            raise InputError(f"weather_file {self.path}: dhi missing within the window (key: dhi)")
+        return pd.Series(values, index=check_times(times), name="dhi")
 
     def series(self, times) -> WeatherSeries:
         """DNI (:meth:`at`) and the wind at ``times``, on their UTC index; InputError (key
@@ -319,3 +339,13 @@ def weather_series(times, site: Site, weather_file=None, sun: pd.DataFrame | Non
         return WeatherSeries(dni=clear_sky_dni(times, site, sun).set_axis(times.tz_convert("UTC")))
     weather = weather_file if isinstance(weather_file, WeatherFile) else WeatherFile.read(weather_file, site)
     return weather.series(times)
+
+
+def cloud_fraction(seconds, clouds) -> np.ndarray:
+    """The share of the direct irradiance left at ``seconds`` [s from the window's start] under ``clouds``,
+    (start [s], end [s], fraction [-]) each: the fraction within [start, end), 1 elsewhere."""
+    seconds = np.asarray(seconds, dtype=float)
+    left = np.ones_like(seconds)
+    for start, end, fraction in clouds:
+        left[(seconds >= start) & (seconds < end)] *= fraction
+    return left

@@ -143,11 +143,17 @@ def sun_grid(grid_s: np.ndarray, metadata: Mapping, scenario, weather) -> dict:
         "time": grid_s,
         "elevation": elevation,
         "sun": np.stack(sun_vector(elevation, azimuth, plant.azimuth)),
-        "dni": irradiance.dni(grid, site, weather, sun=position).to_numpy(),
+        "dni": irradiance.dni(grid, site, weather, sun=position).to_numpy() * _clouds(scenario, grid_s),
         "ideal_primary": np.asarray(ideal_primary),
         "ideal_secondary": np.asarray(ideal_secondary),
         "sharing": np.nan_to_num(sharing),
     }
+
+
+def _clouds(scenario, seconds: np.ndarray) -> np.ndarray:
+    """The share of the DNI the scenario's clouds (``tracking.clouds``) leave at ``seconds``."""
+    tracking = getattr(scenario, "tracking", None)
+    return irradiance.cloud_fraction(seconds, tracking.cloud_spans if tracking is not None else [])
 
 
 def _grid_slice(grid: dict, start: int, stop: int) -> dict:
