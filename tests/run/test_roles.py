@@ -142,4 +142,6 @@ def test_the_command_line_refuses_a_vendor_motor_with_exit_2_and_the_block(vendo
     err = capsys.readouterr().err
     assert "Traceback" not in err and "heliostep run: error:" in err
     assert "\nconnections:\n  - [motor.tauEl, mechanics.tau]\n" in err and "\n  torque: motor.tauEl\n" in err
+    # the last line, which logs and CI show, names the file and the exit status too
+    assert err.strip().splitlines()[-1].startswith(f"heliostep run: error (exit 2) above: {vendor_scenario}: ")
     assert not out.exists()  # refused before anything was written

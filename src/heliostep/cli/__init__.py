@@ -91,8 +91,11 @@ def _run(command: str, args: argparse.Namespace) -> int:
         _check_current_folder()
         return int(args.func(args) or 0)
     except HeliostepError as exc:
+        status = 1 if isinstance(exc, RunFailure) else 2
         print(f"{command}: error: {exc}", file=sys.stderr)
-        return 1 if isinstance(exc, RunFailure) else 2
+        if "\n" in str(exc).strip():  # logs and CI show the last line: it names the error's subject too
+            print(f"{command}: error (exit {status}) above: {_subject(str(exc))}", file=sys.stderr)
+        return status
     except KeyboardInterrupt:
         print(f"{command}: interrupted", file=sys.stderr)
         return 130
@@ -106,6 +109,12 @@ def _run(command: str, args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return forced.exit_status
+
+
+def _subject(message: str) -> str:
+    """A long error's first line, shortened to what it names: its file or key and the start of its reason."""
+    first = message.strip().splitlines()[0]
+    return first if len(first) <= 160 else first[:157] + "..."
 
 
 def _forced_stop(exc: BaseException | None) -> ForcedStop | None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -105,6 +106,13 @@ def add_annotations_option(parser: argparse.ArgumentParser) -> None:
         default="auto",
         help="print GitHub Actions '::error' annotations for failing signals (auto: when GITHUB_ACTIONS=true)",
     )
+    parser.add_argument(
+        "--annotations-root",
+        type=Path,
+        metavar="DIR",
+        help="the annotations' file paths relative to this folder, the repository's root on GitHub "
+        "(default: the git top level of the current folder, else the current folder)",
+    )
 
 
 def _tolerance_option(value: str | None, option: str) -> float | None:
@@ -169,6 +177,20 @@ def check_output_file(value: str | Path, option: str) -> Path:
     if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise InputError(f"{option} {path}: not writable")
     return path
+
+
+def annotations_root(given: Path | None) -> Path:
+    """``--annotations-root``, else ``git rev-parse --show-toplevel`` of the current folder, else the folder."""
+    if given is not None:
+        if not given.is_dir():
+            raise InputError(f"--annotations-root {given}: not a folder")
+        return given.resolve()
+    try:
+        done = subprocess.run(["git", "rev-parse", "--show-toplevel"], capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):  # no git: the current folder
+        return Path.cwd()
+    top = done.stdout.strip()
+    return Path(top).resolve() if done.returncode == 0 and top else Path.cwd()
 
 
 def annotations_wanted(choice: str) -> bool:
@@ -277,7 +299,7 @@ def run(args: argparse.Namespace) -> int:
         "compare", result, units, complete=not incomplete, seconds=time.monotonic() - started, file=str(args.reference)
     )
     if annotations_wanted(args.annotations):
-        print("\n".join(github_annotations([verdict])))
+        print("\n".join(github_annotations([verdict], annotations_root(args.annotations_root))))
     if junit is not None:
         junit.write_text(junit_xml([verdict]), encoding="utf-8")
         print(f"junit: {junit}")

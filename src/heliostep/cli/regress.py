@@ -8,7 +8,13 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from heliostep.cli.compare import add_annotations_option, annotations_wanted, check_output_dir, check_output_file
+from heliostep.cli.compare import (
+    add_annotations_option,
+    annotations_root,
+    annotations_wanted,
+    check_output_dir,
+    check_output_file,
+)
 from heliostep.cli.signals import stop_requests
 from heliostep.errors import InputError
 from heliostep.progress import over_bars, progress_bar
@@ -121,7 +127,7 @@ def _regress_all(args: argparse.Namespace, scenarios, tolerances, stop, junit: P
                 status = max(status, _report(scenario, outcome, args.update))
             bar.update(1)
     if annotations_wanted(args.annotations) and not args.update:
-        print("\n".join(github_annotations(verdicts)))
+        print("\n".join(github_annotations(verdicts, annotations_root(args.annotations_root))))
     if junit is not None:
         junit.write_text(junit_xml(verdicts, "heliostep regress"), encoding="utf-8")
         print(f"junit: {junit}")

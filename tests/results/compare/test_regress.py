@@ -1,6 +1,7 @@
 """heliostep.results.compare.regress: the shipped scenarios against their reference traces (the CI regression)."""
 
 import shutil
+from pathlib import Path
 
 import junitparser
 import pytest
@@ -83,6 +84,14 @@ def test_junit_has_a_suite_per_scenario_and_a_case_per_signal(short_scenario, fm
     assert "motor.tau" in failed and all(f"{name}" in out for name in failed)
     (failure,) = next(case for case in suites["changed"] if case.name == "motor.tau").result
     assert "outside the tube by" in failure.message and "tube half-width there" in failure.message
+    # valid against Apache Ant's JUnit schema (tests/data/junit), the suites numbered, the command their package
+    from lxml import etree
+
+    schema = etree.XMLSchema(etree.parse(str(Path(__file__).parents[2] / "data" / "junit" / "ant-junit.xsd")))
+    document = etree.parse(str(junit))
+    assert schema.validate(document), schema.error_log
+    numbered = [(suite.get("id"), suite.get("package")) for suite in document.getroot()]
+    assert numbered == [("0", "heliostep regress"), ("1", "heliostep regress")]
 
 
 def test_an_unusable_junit_path_is_refused_before_any_run(short_scenario, tmp_path, capsys):

@@ -11,6 +11,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from pathlib import Path
 
 from heliostep.results.compare.traces import ComparisonResult, SignalResult
 
@@ -71,8 +72,10 @@ def _details(result: SignalResult, unit: str | None, match: str) -> str:
     )
 
 
-def _suite(parent: ET.Element, verdict: SuiteVerdict, timestamp: str, hostname: str) -> tuple[int, int, int]:
-    suite = ET.SubElement(parent, "testsuite", name=verdict.name, timestamp=timestamp, hostname=hostname)
+def _suite(parent: ET.Element, verdict: SuiteVerdict, timestamp: str, hostname: str, package: str, number: int) -> None:
+    suite = ET.SubElement(
+        parent, "testsuite", name=verdict.name, timestamp=timestamp, hostname=hostname, package=package, id=str(number)
+    )
     properties = ET.SubElement(suite, "properties")
     comparison = verdict.comparison
     if comparison is not None:
@@ -102,26 +105,29 @@ def _suite(parent: ET.Element, verdict: SuiteVerdict, timestamp: str, hostname: 
     suite.set("tests", str(tests))
     suite.set("failures", str(failures))
     suite.set("errors", str(errors))
-    suite.set("skipped", "0")
     suite.set("time", f"{verdict.seconds:.3f}")
-    return tests, failures, errors
 
 
 def junit_xml(verdicts: Sequence[SuiteVerdict], name: str = "heliostep") -> str:
-    """The JUnit XML document of *verdicts* (see the module for its structure)."""
+    """The JUnit XML document of *verdicts* (see the module for its structure): ``name`` is each suite's
+    ``package``; the ``testsuites`` element has no attributes (Apache Ant's JUnit schema allows none)."""
     timestamp = datetime.now(UTC).replace(tzinfo=None).isoformat(timespec="seconds")
     hostname = socket.gethostname() or "localhost"
-    root = ET.Element("testsuites", name=name)
-    totals = [0, 0, 0]
-    for verdict in verdicts:
-        counts = _suite(root, verdict, timestamp, hostname)
-        totals = [a + b for a, b in zip(totals, counts)]
-    root.set("tests", str(totals[0]))
-    root.set("failures", str(totals[1]))
-    root.set("errors", str(totals[2]))
-    root.set("time", f"{sum(v.seconds for v in verdicts):.3f}")
+    root = ET.Element("testsuites")
+    for number, verdict in enumerate(verdicts):
+        _suite(root, verdict, timestamp, hostname, name, number)
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _from_root(file: str, root: Path | None) -> str:
+    """``file`` as a path from ``root`` where it lies under it, else as given."""
+    if root is None:
+        return file
+    try:
+        return Path(file).resolve().relative_to(root).as_posix()
+    except (ValueError, OSError):
+        return file
 
 
 def _escape_data(text: str) -> str:
@@ -132,13 +138,14 @@ def _escape_property(text: str) -> str:
     return _escape_data(text).replace(":", "%3A").replace(",", "%2C")
 
 
-def github_annotations(verdicts: Sequence[SuiteVerdict]) -> list[str]:
+def github_annotations(verdicts: Sequence[SuiteVerdict], root: Path | None = None) -> list[str]:
     """One GitHub Actions ``::error`` workflow command per failing signal, run failure or
-    incomplete trace, naming the file (the reference, or the scenario) and the signal."""
+    incomplete trace, naming the file (the reference, or the scenario) and the signal; a file under
+    ``root`` (the repository's root) by its path from there, as GitHub attaches annotations."""
     lines = []
     for verdict in verdicts:
         file = verdict.file or (verdict.comparison.reference_name if verdict.comparison else verdict.name)
-        where = f"file={_escape_property(file)}"
+        where = f"file={_escape_property(_from_root(file, root))}"
         if verdict.problem is not None:
             title = _escape_property(f"{verdict.name}: run failed")
             lines.append(f"::error {where},title={title}::{_escape_data(verdict.problem)}")
