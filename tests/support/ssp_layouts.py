@@ -45,35 +45,36 @@ def connection(start: str, end: str, inner: str = "", extra: str = "") -> str:
 GEOMETRY = '<ssd:ElementGeometry x1="10.0" y1="-10.0" x2="30.0" y2="10.0" rotation="0.0"/>'
 
 
+def component(name: str, model: str, connectors: list[tuple[str, str, str]], binding: str = "") -> str:
+    """An FMU component (``resources/MODEL.fmu``) with its connectors (name, kind, unit) and binding."""
+    return (
+        f'<ssd:Component name="{name}" type="application/x-fmu-sharedlibrary" source="resources/{model}.fmu">'
+        f"<ssd:Connectors>{''.join(connector(*c) for c in connectors)}</ssd:Connectors>"
+        f"{GEOMETRY}{binding}</ssd:Component>"
+    )
+
+
 def nested_ssd(motor_binding: str = "", tau_transform: str = "", load_tau_unit: str = "N.cm") -> str:
     """The drive as OMSimulator nests it: top system ``Root`` > system ``drive`` (the motor) > system ``load``
     (the panel mechanics), the torque through ``load``'s connector ``tau`` (in N.cm) and the angle and speed
     out through its ``theta`` and ``omega``; ``load``'s parameter connector ``friction`` feeds the
     mechanics' ``T_c``."""
-    motor = (
-        '<ssd:Component name="motor" type="application/x-fmu-sharedlibrary" source="resources/StepperMotor.fmu">'
-        "<ssd:Connectors>"
-        + connector("i_a_ref", "input", "A")
-        + connector("i_b_ref", "input", "A")
-        + connector("theta", "input", "rad")
-        + connector("omega", "input", "rad/s")
-        + connector("tau", "output", "N.m")
-        + connector("R", "parameter", "Ohm")
-        + "</ssd:Connectors>"
-        + GEOMETRY
-        + motor_binding
-        + "</ssd:Component>"
+    motor = component(
+        "motor",
+        "StepperMotor",
+        [("i_a_ref", "input", "A"), ("i_b_ref", "input", "A"), ("theta", "input", "rad"), ("omega", "input", "rad/s")]
+        + [("tau", "output", "N.m"), ("R", "parameter", "Ohm")],
+        motor_binding,
     )
-    mechanics = (
-        '<ssd:Component name="mechanics" type="application/x-fmu-sharedlibrary"'
-        ' source="resources/PanelMechanics.fmu"><ssd:Connectors>'
-        + connector("tau", "input", "N.m")
-        + connector("theta", "output", "rad")
-        + connector("omega", "output", "rad/s")
-        + connector("T_c", "parameter", "N.m")
-        + "</ssd:Connectors>"
-        + GEOMETRY
-        + "</ssd:Component>"
+    mechanics = component(
+        "mechanics",
+        "PanelMechanics",
+        [
+            ("tau", "input", "N.m"),
+            ("theta", "output", "rad"),
+            ("omega", "output", "rad/s"),
+            ("T_c", "parameter", "N.m"),
+        ],
     )
     load = (
         '<ssd:System name="load"><ssd:Connectors>'
