@@ -31,5 +31,7 @@ def _run_export(args: argparse.Namespace) -> int:
     refuse_link(out)  # a link there is not heliostep's: neither written through nor replaced
     scenario = load_scenario(args.scenario, args.overrides)
     fmus = resolve_fmus(scenario)  # built or found, as a run would
-    print(write_ssp(out, scenario.name, fmus, scenario.connection_pairs(), scenario.parameters))
+    pairs = scenario.connection_pairs()
+    transformations = {t: transform for _, t in pairs if (transform := scenario.transformation(t)) is not None}
+    print(write_ssp(out, scenario.name, fmus, pairs, scenario.parameters, transformations))
     return 0

@@ -60,16 +60,24 @@ class VariableAccess:
         refs = list(value_references)
         return (fmi2ValueReference * len(refs))(*refs), len(refs)
 
-    def link(self, outputs: list[str], target: VariableAccess, inputs: list[str]) -> Callable[[], None]:
+    def link(
+        self,
+        outputs: list[str],
+        target: VariableAccess,
+        inputs: list[str],
+        transforms: list[tuple[float, float] | None] | None = None,
+    ) -> Callable[[], None]:
         """A call that copies this instance's ``outputs`` to ``target``'s ``inputs``.
 
         Real variables go through one buffer with the hot-path calls; the others in groups of one
         (source type, target type), each end with the calls of its type (fmi2Get/SetInteger,
         fmi2Get/SetBoolean, fmi2Get/SetString; an FMI 3.0 instance's own typed calls), the values
         converted by numpy as they are copied (the caller has checked that connected variables
-        have compatible types).
+        have compatible types). ``transforms`` (per pair, None for none) are (factor, offset) applied to
+        a Real value on its way: ``factor * value + offset``.
         """
         types = [self.info.variable(name).type for name in outputs]
+        transform = _transformer(transforms or [None] * len(outputs))
         if all(t == "Real" for t in types):
             source_vrs = np.array(self.value_references(outputs), dtype=np.uint32)
             target_vrs = np.array(target.value_references(inputs), dtype=np.uint32)
@@ -82,6 +90,8 @@ class VariableAccess:
             def copy() -> None:
                 watch.note(source_index, "fmi2GetReal", self.time)
                 self._check("fmi2GetReal", self._hot["fmi2GetReal"](self._component, source_address, n, buffer_address))
+                if transform is not None:
+                    transform(buffer)
                 watch.note(target_index, "fmi2SetReal", target.time)
                 target._check(
                     "fmi2SetReal", target._hot["fmi2SetReal"](target._component, target_address, n, buffer_address)
@@ -94,12 +104,17 @@ class VariableAccess:
         kinds = list(zip(types, [target.info.variable(name).type for name in inputs]))
         for kind in dict.fromkeys(kinds):  # one group per (source type, target type)
             pairs = [(o, i) for o, i, k in zip(outputs, inputs, kinds) if k == kind]
-            groups.append((self._typed(kind[0], [o for o, _ in pairs]), target._typed(kind[1], [i for _, i in pairs])))
+            scaled = _transformer([t for t, k in zip(transforms or [None] * len(kinds), kinds) if k == kind])
+            groups.append(
+                (self._typed(kind[0], [o for o, _ in pairs]), target._typed(kind[1], [i for _, i in pairs]), scaled)
+            )
 
         def copy_typed() -> None:
-            for (get, _, get_buffer), (_, put, put_buffer) in groups:
+            for (get, _, get_buffer), (_, put, put_buffer), scaled in groups:
                 get()
                 put_buffer[:] = get_buffer
+                if scaled is not None:  # (Real ends only: the connection graph checks it)
+                    scaled(put_buffer)
                 put()
 
         return copy_typed
@@ -292,3 +307,20 @@ class VariableAccess:
                 put()
 
         return write
+
+
+def _transformer(transforms: list[tuple[float, float] | None]) -> Callable[[np.ndarray], None] | None:
+    """What applies ``transforms`` (per value: (factor, offset), or None) to a buffer of Real values in place:
+    ``factor * value + offset`` at the transformed places only (the others, and (1, 0), left as they are);
+    None when nothing is transformed."""
+    places = [k for k, t in enumerate(transforms) if t is not None and t != (1.0, 0.0)]
+    if not places:
+        return None
+    index = np.array(places)
+    factors = np.array([transforms[k][0] for k in places])  # type: ignore[index]
+    offsets = np.array([transforms[k][1] for k in places])  # type: ignore[index]
+
+    def transform(buffer: np.ndarray) -> None:
+        buffer[index] = factors * buffer[index] + offsets
+
+    return transform

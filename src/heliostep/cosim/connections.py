@@ -116,6 +116,13 @@ class ConnectionGraph:
                     f"connection {c.source} -> {c.target}: {problem} "
                     f"({c.source} is {type_label(source)}, {c.target} is {type_label(target)})"
                 )
+            if c.transform is not None:
+                if source.type != "Real" or target.type != "Real":
+                    raise InputError(
+                        f"connection {c.source} -> {c.target}: a linear transformation needs Real ends "
+                        f"({c.source} is {type_label(source)}, {c.target} is {type_label(target)})"
+                    )
+                continue  # the transformation converts between the ends' units
             if source.unit and target.unit and source.unit != target.unit:
                 raise InputError(
                     f"connection {c.source} -> {c.target}: units differ ({source.unit!r} vs {target.unit!r})"

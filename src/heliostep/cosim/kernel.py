@@ -83,6 +83,8 @@ class Link(ctypes.Structure):
         ("source_vrs", ctypes.c_void_p),
         ("target_vrs", ctypes.c_void_p),
         ("buffer", ctypes.c_void_p),
+        ("factor", ctypes.c_void_p),
+        ("offset", ctypes.c_void_p),
     ]
 
 
@@ -198,8 +200,8 @@ def describe(name: str) -> int:
 #: (FMI type, value reference, column of the row)).
 KernelUnit = tuple["ModelExchangeBase", int, int, Sequence[tuple[str, int, int]]]
 #: One continuous Real connection group: (source unit index, target unit index, source value
-#: references, target value references).
-KernelLink = tuple[int, int, Sequence[int], Sequence[int]]
+#: references, target value references, per connection its (factor, offset) or None; None for none).
+KernelLink = tuple[int, int, Sequence[int], Sequence[int], Sequence[tuple[float, float] | None] | None]
 #: The algebraic loops for the kernel: the Python solver (its names, tolerances, iteration bound
 #: and guess ``v``, shared), per torn connection (target unit index, target value reference,
 #: source unit index, source value reference), and the index of the first of the kernel's links
@@ -270,17 +272,7 @@ class Kernel:
         self._units = (Unit * max(1, len(units)))()
         for k, unit in enumerate(units):
             self._fill_unit(self._units[k], *unit)
-        self._links = (Link * max(1, len(links)))()
-        for k, (source, target, source_vrs, target_vrs) in enumerate(links):
-            arrays = (
-                np.array(source_vrs, dtype=np.uint32),
-                np.array(target_vrs, dtype=np.uint32),
-                np.zeros(len(source_vrs)),
-            )
-            self._keep.append(arrays)
-            link = self._links[k]
-            link.source, link.target, link.n = source, target, len(source_vrs)
-            link.source_vrs, link.target_vrs, link.buffer = (a.ctypes.data for a in arrays)
+        self._links = self._fill_links(links)
         self.state = KernelState()
         self.state.n_units, self.state.units = len(units), self._units
         self.state.n_links, self.state.links = len(links), self._links
@@ -313,6 +305,25 @@ class Kernel:
         self._library = library()
         self.rhs = sundials.function_address(self._library, "hs_rhs")
         self.root = sundials.function_address(self._library, "hs_root")
+
+    def _fill_links(self, links: Sequence[KernelLink]) -> Any:
+        """kernel.h ``hs_link`` of each link, its arrays kept alive in ``_keep``."""
+        filled = (Link * max(1, len(links)))()
+        for k, (source, target, source_vrs, target_vrs, transforms) in enumerate(links):
+            arrays: tuple[np.ndarray, ...] = (
+                np.array(source_vrs, dtype=np.uint32),
+                np.array(target_vrs, dtype=np.uint32),
+                np.zeros(len(source_vrs)),
+            )
+            link = filled[k]
+            link.source, link.target, link.n = source, target, len(source_vrs)
+            link.source_vrs, link.target_vrs, link.buffer = (a.ctypes.data for a in arrays)
+            if transforms is not None:  # per value (factor, offset); NULL: copied as they are
+                scale = np.array([t if t is not None else (1.0, 0.0) for t in transforms], dtype=float).T.copy()
+                arrays += (scale,)
+                link.factor, link.offset = scale[0].ctypes.data, scale[1].ctypes.data
+            self._keep.append(arrays)
+        return filled
 
     def _fill_loop(self, solver: LoopSolver, torn: Sequence[tuple[int, int, int, int]], first_link: int) -> None:
         """The C loop solver's structure: its torn connections, and the Python solver's guess and settings."""

@@ -285,8 +285,8 @@ def split_sampled(
 ) -> tuple[dict[str, FMUInfo], list[Connection], SampledSystem | None]:
     """The Model Exchange FMUs and connections, and the sampled system of the Co-Simulation FMUs
     (None without any); InputError for what a sampled component cannot do: an instance read for
-    Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real
-    connection, an algebraic loop through it (named, with the loop)."""
+    Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real or
+    transformed connection, an algebraic loop through it (named, with the loop)."""
     sampled = {name for name, info in fmus.items() if info.co_simulation}
     for name in sampled ^ set(intervals):
         raise InputError(
@@ -311,6 +311,11 @@ def split_sampled(
             )
     ends = [c for c in connections if {split_name(c.source, "s")[0], split_name(c.target, "t")[0]} & sampled]
     for c in ends:
+        if c.transform is not None:
+            raise InputError(
+                f"connection {c.source} -> {c.target}: a transformation on a Co-Simulation FMU's connection is not"
+                " supported (use the FMU as Model Exchange)"
+            )
         for end in (c.source, c.target):
             instance, variable = split_name(end, "connection end")
             if instance in sampled and fmus[instance].variables[variable].type != "Real":

@@ -11,10 +11,13 @@ from heliostep.errors import InputError
 
 @dataclass(frozen=True)
 class Connection:
-    """An FMU output feeding an FMU input, both as ``instance.variable``."""
+    """An FMU output feeding an FMU input, both as ``instance.variable``; with a ``transform`` (factor,
+    offset) the input gets ``factor * output + offset`` (Real ends, whose units may then differ: the
+    transformation converts them), (1.0, 0.0) copying the value as it is."""
 
     source: str
     target: str
+    transform: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -109,8 +109,9 @@ class CoupledSystem:
                     continue
                 outputs = [split_name(c.source, "source")[1] for c in members]
                 inputs = [split_name(c.target, "target")[1] for c in members]
+                transforms = [c.transform for c in members]
                 source_fmu, target_fmu = self.units[source].fmu, self.units[target].fmu
-                link = source_fmu.link(outputs, target_fmu, inputs)
+                link = source_fmu.link(outputs, target_fmu, inputs, transforms)
                 self.event_links.append(link)
                 if discrete:
                     continue
@@ -125,6 +126,7 @@ class CoupledSystem:
                             index[target],
                             source_fmu.value_references(outputs),
                             target_fmu.value_references(inputs),
+                            transforms if any(t not in (None, (1.0, 0.0)) for t in transforms) else None,
                         )
                     )
                 else:
@@ -137,13 +139,15 @@ class CoupledSystem:
         ends = [(split_name(c.target, "target"), split_name(c.source, "source")) for c in self.graph.torn]
         writers = [self.units[i].fmu.writer([v]) for (i, v), _ in ends]
         readers = [self.units[i].fmu.reader([v]) for _, (i, v) in ends]
+        transforms = [c.transform if c.transform not in (None, (1.0, 0.0)) else None for c in self.graph.torn]
 
         def write(values: np.ndarray) -> None:
             for put, value in zip(writers, values):
                 put([value])
 
-        def read() -> np.ndarray:
-            return np.array([get()[0] for get in readers])
+        def read() -> np.ndarray:  # the torn sources' outputs as their inputs get them
+            values = [get()[0] for get in readers]
+            return np.array([v if t is None else t[0] * v + t[1] for v, t in zip(values, transforms)])
 
         return LoopSolver([c.target for c in self.graph.torn], write, read)
 
@@ -257,7 +261,8 @@ class CoupledSystem:
 
     def kernel_loop(self) -> tuple[list[KernelLink], KernelLoop] | None:
         """The continuous links and the algebraic loops for :class:`~heliostep.cosim.kernel.Kernel`, or
-        None when there are no loops, a continuous connection is not Real or a torn one is not Real to Real.
+        None when there are no loops, a continuous connection is not Real or a torn one is not Real to Real
+        or transforms its value.
 
         The loops: the solver, per torn connection (target unit index, target value reference, source
         unit index, source value reference) and the index of the first link that depends on the torn
@@ -271,7 +276,7 @@ class CoupledSystem:
         for c in self.graph.torn:
             (target, input_), (source, output) = split_name(c.target, "target"), split_name(c.source, "source")
             ends = self.units[target].info.variable(input_), self.units[source].info.variable(output)
-            if any(end.type != "Real" for end in ends):
+            if any(end.type != "Real" for end in ends) or c.transform not in (None, (1.0, 0.0)):
                 return None
             torn.append((index[target], ends[0].value_reference, index[source], ends[1].value_reference))
         reached = {target for target, _, _, _ in torn}

@@ -194,7 +194,7 @@ def _system(scenario: Scenario, infos, inputs: DriveInputs, values: dict, roles:
     try:
         return CoSimulation(
             infos,
-            [Connection(s, t) for s, t in scenario.connection_pairs()],
+            [Connection(s, t, scenario.transformation(t)) for s, t in scenario.connection_pairs()],
             given,
             values,
             communication_intervals=scenario.communication_interval,

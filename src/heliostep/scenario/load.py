@@ -53,8 +53,9 @@ def validate_scenario(data: Mapping, *, source: str = "<scenario>", folder=None)
 
 def _with_ssp_system(data: dict, source: str, folder: Path) -> dict:
     """``system: FILE.ssp`` (relative to the scenario's folder): its components become ``fmus`` (the
-    default instances dropped), its connections ``connections`` unless the scenario gives them, its
-    parameter bindings ``parameters`` under the scenario's own (which win)."""
+    default instances dropped), its connections ``connections`` (their transformations
+    ``transformations``) unless the scenario gives them, its parameter bindings ``parameters`` under
+    the scenario's own (which win)."""
     reference = data.get("system")
     if reference is None:
         return data
@@ -71,6 +72,8 @@ def _with_ssp_system(data: dict, source: str, folder: Path) -> dict:
     data["fmus"] = {**dict.fromkeys(DEFAULT_FMUS), **{k: str(v) for k, v in system.fmus.items()}, **given}
     if data.get("connections") is None:
         data["connections"] = [list(pair) for pair in system.connections]
+        transforms = {target: {"factor": f, "offset": o} for target, (f, o) in system.transformations.items()}
+        data["transformations"] = {**transforms, **(data.get("transformations") or {})}
     parameters = {instance: dict(values) for instance, values in system.parameters.items()}
     for instance, values in (data.get("parameters") or {}).items():
         parameters.setdefault(instance, {}).update(values or {})

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import datetime as dt
 import os
-import re
 import zoneinfo
 from collections.abc import Mapping
 from pathlib import Path
@@ -25,6 +24,14 @@ from pydantic import (
 from heliostep.errors import InputError
 from heliostep.fmu.reference import is_variant_name
 from heliostep.scenario.keys import KeyProblems, dotted
+from heliostep.scenario.links import (
+    DEFAULT_CONNECTIONS,
+    INSTANCE_NAME,
+    LinearTransformation,
+    connection_pair,
+    connection_problems,
+    endpoint_problem,
+)
 from heliostep.scenario.roles import REQUIRED_ROLES, RolesConfig
 from heliostep.scenario.sections import (
     SUNRISE,
@@ -54,12 +61,6 @@ from heliostep.solar import sun_events
 
 #: FMU instances of a scenario without ``fmus``: instance name -> variant name.
 DEFAULT_FMUS = {"motor": "StepperMotor", "mechanics": "PanelMechanics"}
-#: Connections used when a scenario gives no ``connections``: (source, target).
-DEFAULT_CONNECTIONS = [
-    ("motor.tau", "mechanics.tau"),
-    ("mechanics.theta", "motor.theta"),
-    ("mechanics.omega", "motor.omega"),
-]
 
 #: A parameter value of any FMI 2.0 type; the master checks it against the variable's declared type
 #: (a Boolean must be true/false, an Integer a whole number, a String quoted text).
@@ -68,7 +69,6 @@ ParameterValue = Annotated[
     Field(union_mode="left_to_right"),
 ]
 
-_INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 #: Top-level keys whose null value means "the defaults".
 _DEFAULTED_KEYS = (
     "transmission",
@@ -93,19 +93,6 @@ def _merge_default_fmus(value):
         return value
     merged = {**DEFAULT_FMUS, **value}
     return {name: variant for name, variant in merged.items() if variant is not None}
-
-
-def _connection_pair(value):
-    if isinstance(value, (list, tuple)) and len(value) == 2 and all(isinstance(v, str) for v in value):
-        return tuple(value)
-    raise ValueError(f"expected a [source, target] pair of 'instance.variable' strings, got {value!r}")
-
-
-def _endpoint_problem(endpoint: str) -> str | None:
-    instance, dot, variable = endpoint.partition(".")
-    if not dot or not variable or not _INSTANCE_NAME.fullmatch(instance):
-        return f"expected 'instance.variable' (e.g. 'motor.tau'), got {endpoint!r}"
-    return None
 
 
 # --------------------------------------------------------------------------- scenario
@@ -164,8 +151,11 @@ class Scenario(Section):
         description="instance name -> {parameter name: value (Real, Integer, Boolean or "
         "String, as the FMU declares it)}",
     )
-    connections: list[Annotated[tuple[str, str], BeforeValidator(_connection_pair)]] | None = Field(
+    connections: list[Annotated[tuple[str, str], BeforeValidator(connection_pair)]] | None = Field(
         None, description="[source, target] pairs 'instance.variable'; null: the default connections"
+    )
+    transformations: dict[str, LinearTransformation] = Field(
+        default_factory=dict, description="connection target 'instance.variable' -> {factor, offset} its value takes"
     )
     communication_interval: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = Field(
         default_factory=dict, description="instance -> [s]: that FMU runs as Co-Simulation, sampled at this interval"
@@ -220,7 +210,7 @@ class Scenario(Section):
         if not fmus:
             problems.append(((), "at least one FMU instance is needed"))
         for instance, variant in fmus.items():
-            if not _INSTANCE_NAME.fullmatch(instance):
+            if not INSTANCE_NAME.fullmatch(instance):
                 problems.append(
                     ((instance,), "instance names are identifiers (letters, digits, '_', not starting with a digit)")
                 )
@@ -238,7 +228,7 @@ class Scenario(Section):
         problems: list[tuple[tuple, str]] = []
         for position, pair in enumerate(connections):
             for side, endpoint in enumerate(pair):
-                problem = _endpoint_problem(endpoint)
+                problem = endpoint_problem(endpoint)
                 if problem:
                     problems.append(((position, side), problem))
             if pair[0] == pair[1]:
@@ -268,7 +258,7 @@ class Scenario(Section):
         for instance in self.parameters:
             if instance not in self.fmus:
                 problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
-        problems += _connection_problems(self, instances)
+        problems += connection_problems(self.connections, self.fmus, self.transformations, instances)
         problems += _role_problems(self) + tracking_problems(
             self.tracking, self.wind, self.sequencer.idle_current_fraction
         )
@@ -304,6 +294,11 @@ class Scenario(Section):
         pairs = DEFAULT_CONNECTIONS if self.connections is None else self.connections
         pairs = with_sensor_connection(pairs, self.tracking, self.roles.panel_angle)
         return [cast("tuple[str, str]", tuple(pair)) for pair in pairs]
+
+    def transformation(self, target: str) -> tuple[float, float] | None:
+        """The (factor, offset) of the connection driving ``target`` ('instance.variable'), None without."""
+        given = self.transformations.get(target)
+        return None if given is None else (given.factor, given.offset)
 
     def resolved_roles(self) -> dict[str, str]:
         """Role -> ``instance.variable`` for this scenario's FMUs.
@@ -371,6 +366,8 @@ class Scenario(Section):
         data["fmus"] = {**{name: None for name in DEFAULT_FMUS if name not in self.fmus}, **data["fmus"]}
         data["roles"] = self.resolved_roles()  # only the roles its FMUs can play (defaults of dropped instances go)
         data["connections"] = [list(pair) for pair in self.connection_pairs()]
+        if not self.transformations:  # (likewise)
+            del data["transformations"]
         if not self.band.pinned:  # the default: left out, so resolved scenarios (and case ids) stay as they were
             del data["band"]
         for key, default in (("tracking", TrackingConfig()), ("faults", FaultsConfig())):
@@ -389,45 +386,6 @@ class Scenario(Section):
         return self._folder
 
 
-def _connection_problems(self: Scenario, instances: str) -> list:
-    """``connections`` (or the default ones) naming an instance ``fmus`` has not, or driving an input twice."""
-    problems: list[tuple[tuple, str]] = []
-    if self.connections is None:
-        missing = sorted(
-            {endpoint.partition(".")[0] for pair in DEFAULT_CONNECTIONS for endpoint in pair} - set(self.fmus)
-        )
-        if missing:
-            problems.append(
-                (
-                    ("connections",),
-                    f"the default connections use FMU instance(s) "
-                    f"{', '.join(missing)}, not in fmus ({instances}); "
-                    f"give 'connections' explicitly ([] for none)",
-                )
-            )
-    else:
-        targets: dict[str, int] = {}
-        for position, (source, target) in enumerate(self.connections):
-            for side, endpoint in enumerate((source, target)):
-                instance = endpoint.partition(".")[0]
-                if instance not in self.fmus:
-                    problems.append(
-                        (
-                            ("connections", position, side),
-                            f"{endpoint!r}: unknown FMU instance {instance!r}; instances in fmus: {instances}",
-                        )
-                    )
-            if target in targets:
-                problems.append(
-                    (
-                        ("connections", position),
-                        f"{target!r} is already the target of connections[{targets[target]}]; an input has one source",
-                    )
-                )
-            targets.setdefault(target, position)
-    return problems
-
-
 def _role_problems(self: Scenario) -> list:
     """The ``roles`` that name no variable of the scenario's FMUs, or none where one is required."""
     problems: list[tuple[tuple, str]] = []
@@ -438,7 +396,7 @@ def _role_problems(self: Scenario) -> list:
             if role in REQUIRED_ROLES:
                 problems.append((("roles", role), "this role is required: give the 'instance.variable' it is"))
             continue
-        problem = _endpoint_problem(target)
+        problem = endpoint_problem(target)
         instance = target.partition(".")[0]
         if role in given and problem:
             problems.append((("roles", role), problem))

@@ -67,6 +67,15 @@ static int copy_links(hs_kernel *k, double t, long first, long end) {
         hs_link *l = &k->links[j];
         hs_unit *s = &k->units[l->source], *d = &k->units[l->target];
         CHECK(s->get_real(s->component, l->source_vrs, (size_t)l->n, l->buffer), l->source, F_GET_REAL);
+        if (l->factor) {
+            long i;
+            for (i = 0; i < l->n; i++) {
+                /* (factor, offset) = (1, 0) leaves the value as it is; no fused multiply-add (the Python
+                   link rounds the product first too): volatile keeps the product a double */
+                volatile double product = l->factor[i] * l->buffer[i];
+                if (l->factor[i] != 1.0 || l->offset[i] != 0.0) l->buffer[i] = product + l->offset[i];
+            }
+        }
         CHECK(d->set_real(d->component, l->target_vrs, (size_t)l->n, l->buffer), l->target, F_SET_REAL);
     }
     return 0;
@@ -372,7 +381,7 @@ static const struct { const char *name; long value; } layout[] = {
     SIZE(hs_where), FIELD(hs_where, unit), FIELD(hs_where, function), FIELD(hs_where, calls),
     FIELD(hs_where, stop), FIELD(hs_where, time),
     SIZE(hs_link), FIELD(hs_link, source), FIELD(hs_link, target), FIELD(hs_link, n), FIELD(hs_link, source_vrs),
-    FIELD(hs_link, target_vrs), FIELD(hs_link, buffer),
+    FIELD(hs_link, target_vrs), FIELD(hs_link, buffer), FIELD(hs_link, factor), FIELD(hs_link, offset),
     SIZE(hs_kernel), FIELD(hs_kernel, n_units), FIELD(hs_kernel, units), FIELD(hs_kernel, n_links),
     FIELD(hs_kernel, links), FIELD(hs_kernel, data), FIELD(hs_kernel, discrete), FIELD(hs_kernel, nx),
     FIELD(hs_kernel, rhs_count), FIELD(hs_kernel, status), FIELD(hs_kernel, failed_unit),

@@ -54,6 +54,8 @@ typedef struct {
     long source, target, n;
     const unsigned int *source_vrs, *target_vrs;
     double *buffer;
+    const double *factor, *offset;  /* per value, buffer[i] = factor[i] * buffer[i] + offset[i] on its way
+                                       (a connection's linear transformation); NULL: copied as they are */
 } hs_link;
 
 /* The torn inputs of a system's algebraic loops, solved at every propagation (kernel.c, solve_loop):
