@@ -122,6 +122,40 @@ def test_a_time_event_a_rounding_error_after_an_output_time_is_handled_at_its_ow
     assert trace["c.x"].iloc[-1] == pytest.approx(0.5 * 10 + 0.4 * 5, abs=1e-6)
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("interpolate", [False, True])
+@pytest.mark.parametrize("side", ["before", "after"])
+def test_time_events_that_change_no_state_keep_the_run_going(infos, monkeypatch, compiled, interpolate, side):
+    """A periodic time event that changes no state while the state moves (FMPy issue 882's case: a
+    Modelica sample(0.2, 0.2) counting in a discrete variable, der(x) = 1; CVODE, restarted after each
+    event, was asked for an output time within rounding of the restart and stopped with CV_TOO_CLOSE).
+    Here the Counter with ``enabled`` false only ticks at its events every 0.2 s ((k + 1) 0.2: 0.6000000000000001
+    s, 1.2000000000000002 s, ...) and x has der(x) = rate = 1; the output times k / 10 fall a rounding
+    error before some events, or are moved a rounding error after each. The run goes on to the end on
+    either path: every event at its own instant, a row on each side with the same x, x = t throughout."""
+    monkeypatch.setattr(integrator, "compiled_kernel", compiled_kernel if compiled else (lambda *args: None))
+    events = np.array([(k + 1.0) * 0.2 for k in range(10)])
+    grid = np.array([k / 10 for k in range(21)])
+    assert grid[6] < events[2] and grid[12] < events[5] and grid[14] < events[6]  # 1 ulp before
+    if side == "after":
+        grid = np.union1d(grid, np.nextafter(events[:-1], np.inf))  # 1 ulp after each event but the last
+    parameters = {"c": {"period": 0.2, "enabled": False, "rate": 1.0, "t_stop": 100.0}}
+    result = CoSimulation({"c": infos["Counter"]}, parameters=parameters).simulate(
+        0.0, 2.0, grid, monitor=(lambda rows: None) if interpolate else None
+    )
+    stats, trace = result.statistics, result.trace
+    assert stats["compiled_rhs"] == compiled and not result.terminated
+    assert stats["time_events"] == 10 and trace["time"].iloc[-1] == 2.0
+    times = trace["time"].to_numpy()
+    for t in events[:-1]:  # the row before and the row after each event, at the event's own instant
+        assert np.count_nonzero(times == t) >= 2
+        assert np.ptp(trace.loc[times == t, "c.x"]) == 0.0  # the event changed no state
+    # every output time has its row (one within rounding of an event: the event's own rows)
+    assert all(np.min(np.abs(times - t)) <= 1e-12 for t in grid)
+    np.testing.assert_allclose(trace["c.x"], times, rtol=0, atol=1e-12)
+    assert (trace["c.count"] == 0).all()
+
+
 def test_integer_and_boolean_parameters_are_set_with_their_own_functions(infos):
     grid = np.array([0.0, 3.5])
     doubled = CoSimulation({"c": infos["Counter"]}, parameters={"c": {"step": 2, "t_stop": 4.0}})
@@ -330,7 +364,8 @@ def test_algebraic_loop_of_two_fmus_is_solved_to_its_closed_form(gain):
 
 
 def test_algebraic_loop_without_solution_fails_clearly(gain):
-    with pytest.raises(SimulationError, match=r"algebraic loop through b.u at t = 0 s: singular Jacobian"):
+    # found at the loop's first solve, at initialization before any row: bad input (exit 2)
+    with pytest.raises(InputError, match=r"algebraic loop through b.u at t = 0 s: singular Jacobian"):
         gain_loop(gain, 1.0, 1.0, 1.0, 1.0).simulate(0.0, 1.0)  # u = u + 2: no solution
 
 
@@ -338,7 +373,7 @@ def test_a_singular_loop_solved_from_the_start_is_refused_not_accepted(gain):
     # issue #24: y = u fed back to u (k = 1, b = 0): r(v) = y(v) - v is 0 for every v, so Newton's first
     # residual is already 0 and the loop was accepted with 0 iterations; it has no unique solution
     system = CoSimulation({"a": gain}, [Connection("a.y", "a.u")], parameters={"a": {"k": 1.0, "b": 0.0}})
-    with pytest.raises(SimulationError, match=r"algebraic loop through a.u at t = 0 s: singular Jacobian"):
+    with pytest.raises(InputError, match=r"algebraic loop through a.u at t = 0 s: singular Jacobian"):
         system.simulate(0.0, 1.0)
     # the same FMU with k = 0.5 loops on itself to the unique u = b / (1 - k)
     fine = CoSimulation({"a": gain}, [Connection("a.y", "a.u")], parameters={"a": {"k": 0.5, "b": 1.0}})

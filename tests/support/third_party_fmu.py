@@ -83,6 +83,7 @@ MINI_FMUS = {
             ("step", "Integer", "parameter", "fixed", 1, None),
             ("enabled", "Boolean", "parameter", "fixed", True, None),
             ("ticks", "Integer", "local", "discrete", None, None),
+            ("rate", "Real", "parameter", "fixed", 0.0, None),
         ],
     ),
     "PassThrough": (
@@ -128,6 +129,8 @@ MINI_FMUS = {
             ("b", "Real", "parameter", "fixed", 1.0, None),
             ("s", "Real", "output", "continuous", 0.0, None),
             ("der(s)", "Real", "local", "continuous", None, "s"),
+            ("a", "Real", "parameter", "fixed", 0.0, None),
+            ("c", "Real", "input", "continuous", 0.0, None),
         ],
     ),
     "Rescale": (
@@ -183,10 +186,10 @@ MINI_FMUS = {
         ],
     ),
 }
-#: direct feedthrough: model -> output -> the input it depends on
+#: direct feedthrough: model -> output -> the inputs it depends on (space-separated)
 _FEEDTHROUGH = {
     "PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"},
-    "Gain": {"y": "u"},
+    "Gain": {"y": "u c"},
     "Lag": {"e": "u"},
     "LagStop": {"e": "u"},
 }
@@ -221,8 +224,8 @@ def _model_description(name: str) -> str:
         lines.append(f"    <ScalarVariable {attributes}><{type_}{element}/></ScalarVariable>")
     lines += ["  </ModelVariables>", "  <ModelStructure>", "    <Outputs>"]
     for var, *_ in (v for v in variables if v[2] == "output"):
-        source = _FEEDTHROUGH.get(name, {}).get(var)
-        deps = f' dependencies="{index[source]}"' if source else ' dependencies=""'
+        sources = _FEEDTHROUGH.get(name, {}).get(var, "").split()
+        deps = f' dependencies="{" ".join(str(index[source]) for source in sources)}"'
         lines.append(f'      <Unknown index="{index[var]}"{deps}/>')
     lines += ["    </Outputs>", "    <Derivatives>"]
     derivatives = [v for v in variables if v[5]]

@@ -130,8 +130,8 @@ class LoopState(ctypes.Structure):
             for name in ("target_units", "source_units", "target_vrs", "source_vrs", "v", "work")
         ]
         + [("rtol", ctypes.c_double), ("atol", ctypes.c_double)]
-        + [(name, ctypes.c_long) for name in ("max_iterations", "checked", "solves", "iterations", "most_iterations")]
-        + [("failure", ctypes.c_long), ("failed_time", ctypes.c_double), ("failed_residual", ctypes.c_double)]
+        + [(name, ctypes.c_long) for name in ("max_iterations", "solves", "iterations", "most_iterations")]
+        + [("failure", ctypes.c_long), ("failed_time", ctypes.c_double)]
     )
 
 
@@ -333,9 +333,10 @@ class Kernel:
             np.array([c[2] for c in torn], dtype=np.int64),
             np.array([c[1] for c in torn], dtype=np.uint32),
             np.array([c[3] for c in torn], dtype=np.uint32),
-            np.zeros(3 * n * n + 4 * n),  # kernel.h hs_loop.work,
+            np.zeros(n * n + 4 * n),  # kernel.h hs_loop.work: v, r, two more vectors, the Jacobian
         )
         self._keep.append(arrays)
+        self._loop_work = arrays[4]  # after a solve that failed: its last iterate and residual
         state = self.loop_state
         state.n, state.first_link = n, first_link
         state.target_units, state.source_units, state.target_vrs, state.source_vrs, state.work = (
@@ -442,8 +443,9 @@ class Kernel:
             loop, self.state.status = self.loop_state, 0
             time = float(loop.failed_time)
             if loop.failure == LOOP_SINGULAR:
-                return self.loop_solver.singular(time), time
-            return self.loop_solver.no_convergence(time, float(loop.failed_residual)), time
+                return self.loop_solver.breakdown(time), time
+            n, work = int(loop.n), self._loop_work
+            return self.loop_solver.no_convergence(time, work[:n].copy(), work[n : 2 * n].copy()), time
         fmu = self.instances[self.state.failed_unit]
         time = float(self.state.failed_time)
         fmu.time = time

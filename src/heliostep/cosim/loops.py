@@ -6,6 +6,13 @@ iteration variable ``v`` and the loop is solved when the torn source output ``y(
 forward-difference Jacobian from the previous solution; the last evaluation at the accepted ``v``, so
 every FMU is left consistent). The compiled kernel solves the same loops the same way in C from the
 same guess :attr:`LoopSolver.v`; this class solves them at events and on the Python path.
+
+The first solve, at initialization before any row, also checks that the loop has a unique solution:
+a singular Jacobian there (at the start or at a Newton step) is bad input, :class:`SingularLoop` (an
+:class:`~heliostep.errors.InputError`, exit 2), whatever entry point runs it; later, a run failure. A
+loop Newton cannot solve (no real solution, or its tolerances ``loop_rtol`` and ``loop_atol`` of
+:class:`~heliostep.cosim.signals.SolverOptions` out of reach) is a :class:`LoopError` naming its torn
+inputs, their last values and residuals, and the time.
 """
 
 from __future__ import annotations
@@ -14,11 +21,16 @@ from collections.abc import Callable
 
 import numpy as np
 
-from heliostep.errors import RunFailure
+from heliostep.cosim.signals import SolverOptions
+from heliostep.errors import InputError, RunFailure
 
 
 class LoopError(RunFailure):
     """Newton's method found no solution of an algebraic loop (a run failure, raised while simulating)."""
+
+
+class SingularLoop(InputError):
+    """An algebraic loop without a unique solution, found at its first solve, at initialization (exit 2)."""
 
 
 class LoopSolver:
@@ -33,8 +45,8 @@ class LoopSolver:
         names: list[str],
         write: Callable[[np.ndarray], None],
         read: Callable[[], np.ndarray],
-        rtol: float = 1e-10,
-        atol: float = 1e-12,
+        rtol: float = SolverOptions.loop_rtol,
+        atol: float = SolverOptions.loop_atol,
         max_iterations: int = 50,
     ):
         self.names = names
@@ -70,24 +82,29 @@ class LoopSolver:
                 break
             try:
                 step = np.linalg.solve(self._jacobian(v, r, propagate), -r)
-            except np.linalg.LinAlgError:
-                raise self.singular(time) from None
+            except np.linalg.LinAlgError:  # at the first solve, initialization: a loop without a unique solution
+                raise (SingularLoop(self.singular(time)) if self.solves == 1 else self.breakdown(time)) from None
             v = v + step
             r = self._residual(v, propagate)
-        raise self.no_convergence(time, float(np.max(np.abs(r))))
+        raise self.no_convergence(time, v, r)
 
-    def no_convergence(self, time: float, residual: float) -> LoopError:
-        """The error of a loop not solved in ``max_iterations`` at ``time`` [s], its largest residual left."""
+    def no_convergence(self, time: float, v: np.ndarray, r: np.ndarray) -> LoopError:
+        """The error of a loop not solved in ``max_iterations`` at ``time`` [s]: each torn input's last
+        value ``v`` and residual ``r`` = y(v) - v, and the tolerance they missed."""
+        residuals = ", ".join(f"{abs(ri):.3g} at {name} = {vi:.9g}" for name, vi, ri in zip(self.names, v, r))
         return LoopError(
-            f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: no "
-            f"convergence in {self.max_iterations} Newton iterations (residual {residual:.3g})"
+            f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: no convergence in "
+            f"{self.max_iterations} Newton iterations, residual {residuals} (solved when |residual| <= "
+            f"solver.loop_atol + solver.loop_rtol |value| = {self.atol:.3g} + {self.rtol:.3g} |value|)"
         )
 
     def _jacobian(self, v: np.ndarray, r: np.ndarray, propagate: Callable[[], None]) -> np.ndarray:
-        """Forward differences of r at v (one evaluation per torn input)."""
+        """Forward differences of r at v (one evaluation per torn input), each step 1e-7 of the larger of
+        v and y(v) = v + r (and of 1): a step below rounding of a large y would leave r unchanged (from
+        the first guess 0 of a loop whose values are large, a Jacobian of exactly 0)."""
         jacobian = np.empty((len(v), len(v)))
         for j in range(len(v)):
-            h = 1e-7 * max(1.0, abs(v[j]))
+            h = 1e-7 * max(1.0, abs(v[j]), abs(v[j] + r[j]))
             perturbed = v.copy()
             perturbed[j] += h
             jacobian[:, j] = (self._residual(perturbed, propagate) - r) / h
@@ -95,13 +112,18 @@ class LoopSolver:
 
     def _check_unique(self, v: np.ndarray, r: np.ndarray, propagate: Callable[[], None], time: float) -> None:
         """A loop whose Jacobian is singular (e.g. y = u fed back to u: every v solves it) has no unique
-        solution: refused, naming the loop, rather than accepted at whatever v it starts from."""
+        solution: refused as bad input, naming the loop, rather than accepted at whatever v it starts from."""
         jacobian = self._jacobian(v, r, propagate)
         if not np.all(np.isfinite(jacobian)) or np.linalg.cond(jacobian) > 1e12:
-            raise self.singular(time)
+            raise SingularLoop(self.singular(time))
 
-    def singular(self, time: float) -> LoopError:
-        return LoopError(
+    def breakdown(self, time: float) -> LoopError:
+        """The error of a singular Jacobian met by Newton at ``time`` [s] (a run failure)."""
+        return LoopError(self.singular(time))
+
+    def singular(self, time: float) -> str:
+        """What a singular Jacobian at ``time`` [s] says about the loop."""
+        return (
             f"algebraic loop through {', '.join(self.names)} at t = {time:.9g} s: "
             "singular Jacobian (the loop has no unique solution)"
         )

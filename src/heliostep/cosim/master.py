@@ -271,7 +271,7 @@ class _Run:
             sampled.start(start_time, stop_time)
             self.input_values[:] = [item.values[0] for item in self.graph.inputs]
         self.system = system = CoupledSystem(
-            self.graph, self.graph.parameters, start_time, self.input_values, self.options, lambda: self.time
+            self.graph, self.graph.parameters, start_time, self.input_values, self.options
         )
         system.apply_inputs()
         system.propagate_at_event()

@@ -46,12 +46,19 @@ class PiecewiseConstant:
 @dataclass(frozen=True)
 class SolverOptions:
     """CVODE settings: relative tolerance, absolute tolerance [state units] (default
-    ``rtol`` × the FMU's nominal), largest step [s] and most internal steps per output."""
+    ``rtol`` × the FMU's nominal), largest step [s] and most internal steps per output; and the
+    tolerances of the algebraic loops' Newton (:class:`~heliostep.cosim.loops.LoopSolver`): a loop
+    is solved when every torn input v has |y(v) - v| <= ``loop_atol`` + ``loop_rtol`` |v| [v's unit].
+    The relative part is what large values need: rounding alone leaves |y(v) - v| near 1e-16 |v|,
+    above any fixed absolute tolerance once |v| is large enough (1e4 for 1e-12).
+    """
 
     rtol: float = 1e-6
     atol: float | None = None
     max_step: float = np.inf  # no limit: inputs change only where CVODE restarts anyway
     max_num_steps: int = 100_000
+    loop_rtol: float = 1e-10
+    loop_atol: float = 1e-12
 
 
 def cvode_failure(error_info: tuple | None, flag: int) -> RuntimeError:

@@ -47,8 +47,9 @@ class CoupledSystem:
     """The instances of ``graph``'s FMUs in initialization mode at ``start_time`` [s], connected.
 
     ``parameters`` are the values per instance, ``input_values`` the array the master keeps its
-    inputs' current values in (changed in place), ``now()`` the master's current time [s] (for
-    the loop solver's messages). An error while instantiating frees the instances made so far.
+    inputs' current values in (changed in place). ``time`` is the FMUs' time [s], as last set (the
+    time of the evaluation an algebraic loop is solved for). An error while instantiating frees the
+    instances made so far.
     """
 
     def __init__(
@@ -58,9 +59,8 @@ class CoupledSystem:
         start_time: float,
         input_values: np.ndarray,
         options: SolverOptions,
-        now: Callable[[], float],
     ):
-        self.graph, self.options, self.now = graph, options, now
+        self.graph, self.options, self.time = graph, options, start_time
         self.input_values = input_values
         self.units: dict[str, Unit] = {}
         self.rhs_evaluations = 0  # get_dx calls (the Python right-hand side)
@@ -149,7 +149,8 @@ class CoupledSystem:
             values = [get()[0] for get in readers]
             return np.array([v if t is None else t[0] * v + t[1] for v, t in zip(values, transforms)])
 
-        return LoopSolver([c.target for c in self.graph.torn], write, read)
+        options = self.options
+        return LoopSolver([c.target for c in self.graph.torn], write, read, options.loop_rtol, options.loop_atol)
 
     # --------------------------------------------------------------- inputs and propagation
     def apply_inputs(self) -> None:
@@ -160,7 +161,7 @@ class CoupledSystem:
     def propagate(self) -> None:
         """Continuous-time connections (continuous-time mode: every model evaluation)."""
         if self.loop is not None:
-            self.loop.solve(self._copy_continuous, self.now())
+            self.loop.solve(self._copy_continuous, self.time)
             return
         for copy in self.links:
             copy()
@@ -172,7 +173,7 @@ class CoupledSystem:
     def propagate_at_event(self) -> None:
         """Every connection, discrete ones included (initialization and event mode only)."""
         if self.loop is not None:
-            self.loop.solve(self._copy_all, self.now())
+            self.loop.solve(self._copy_all, self.time)
             return
         for copy in self.event_links:
             copy()
@@ -229,6 +230,7 @@ class CoupledSystem:
         nominals[:] = self.nominals
 
     def set_time(self, t: float) -> None:
+        self.time = t
         for unit in self.unit_list:
             unit.fmu.set_time(t)
 

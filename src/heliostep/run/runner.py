@@ -180,6 +180,8 @@ def _prepare(
         atol=scenario.solver.atol,
         max_step=scenario.solver.max_step or float("inf"),
         max_num_steps=scenario.solver.max_num_steps,
+        loop_rtol=scenario.solver.loop_rtol,
+        loop_atol=scenario.solver.loop_atol,
     )
     meta = _metadata(scenario, fmu_paths, infos, values, roles, inputs)
     return _PreparedRun(scenario, system, inputs, solver, roles, meta, started, weather, infos, values, fmu_paths, loop)

@@ -400,6 +400,16 @@ class SolverConfig(Section):
     atol: Real | None = Field(None, gt=0.0, description="absolute tolerance, null: the solver's default")
     max_step: Real | None = Field(None, gt=0.0, description="[s], null: no limit")
     max_num_steps: Count = Field(SolverOptions.max_num_steps, gt=0, description="solver steps at most")
+    loop_rtol: Real = Field(
+        SolverOptions.loop_rtol,
+        ge=0.0,
+        le=0.1,
+        description="relative tolerance of the algebraic loops' Newton: solved when |y(v) - v| <= "
+        "loop_atol + loop_rtol |v| for every torn input v",
+    )
+    loop_atol: Real = Field(
+        SolverOptions.loop_atol, gt=0.0, description="absolute tolerance of the algebraic loops' Newton [v's unit]"
+    )
 
 
 class OutputConfig(Section):

@@ -85,14 +85,13 @@ static int copy_links(hs_kernel *k, double t, long first, long end) {
  * Newton's method on the torn inputs, the twin of heliostep/cosim/loops.py LoopSolver.solve: the
  * same evaluations of r, the same convergence test and step size of the differences. It copies the
  * connections that do not depend on v once per solve, not in each evaluation (the same values).
- * Two differences, both rounding: the linear solve is Gaussian elimination with partial pivoting
- * here (LAPACK's gesv there: the same for one torn input), and the first solve's uniqueness test
- * takes the 1-norm condition number (the 2-norm there; they differ by at most a factor n). */
+ * One difference, rounding: the linear solve is Gaussian elimination with partial pivoting here
+ * (LAPACK's gesv there: the same for one torn input). The check that a loop has a unique solution
+ * is the Python solver's alone: its first solve, at initialization, comes before this kernel runs. */
 
-static int loop_fail(hs_kernel *k, long failure, double t, double residual) {
+static int loop_fail(hs_kernel *k, long failure, double t) {
     k->loop->failure = failure;
     k->loop->failed_time = t;
-    k->loop->failed_residual = residual;
     return fail(k, LOOP_FAILED, -1, -1, t);
 }
 
@@ -113,11 +112,14 @@ static int loop_residual(hs_kernel *k, double t, const double *v, double *r) {
     return 0;
 }
 
-/* forward differences of r at v into J (column-major: J[i + n j] = dr_i / dv_j) */
+/* forward differences of r at v into J (column-major: J[i + n j] = dr_i / dv_j), each step 1e-7 of the
+ * larger of |v|, |y(v)| = |v + r| and 1 */
 static int loop_jacobian(hs_kernel *k, double t, const double *v, const double *r, double *J, double *vp, double *rp) {
     long n = k->loop->n, i, j;
     for (j = 0; j < n; j++) {
-        double h = 1e-7 * (fabs(v[j]) > 1.0 ? fabs(v[j]) : 1.0);
+        double size = fabs(v[j]) > 1.0 ? fabs(v[j]) : 1.0, h;
+        if (fabs(v[j] + r[j]) > size) size = fabs(v[j] + r[j]);
+        h = 1e-7 * size;
         memcpy(vp, v, (size_t)n * sizeof(double));
         vp[j] += h;
         if (loop_residual(k, t, vp, rp)) return -1;
@@ -126,12 +128,10 @@ static int loop_jacobian(hs_kernel *k, double t, const double *v, const double *
     return 0;
 }
 
-/* A (n x n, column-major, overwritten) times x = b (overwritten with x), partial pivoting; with
- * `inverse` (n x n, or NULL) also A's inverse. Returns 0, or -1 for a zero pivot (singular). */
-static int gauss(double *A, double *b, double *inverse, long n) {
+/* A (n x n, column-major, overwritten) times x = b (overwritten with x), partial pivoting.
+ * Returns 0, or -1 for a zero pivot (singular). */
+static int gauss(double *A, double *b, long n) {
     long i, j, c, p;
-    if (inverse)
-        for (i = 0; i < n * n; i++) inverse[i] = (i % (n + 1)) == 0 ? 1.0 : 0.0;
     for (c = 0; c < n; c++) {
         for (p = c, i = c + 1; i < n; i++)
             if (fabs(A[i + n * c]) > fabs(A[p + n * c])) p = i;
@@ -139,25 +139,14 @@ static int gauss(double *A, double *b, double *inverse, long n) {
         if (p != c) {
             for (j = 0; j < n; j++) {
                 double s = A[c + n * j]; A[c + n * j] = A[p + n * j]; A[p + n * j] = s;
-                if (inverse) { s = inverse[c + n * j]; inverse[c + n * j] = inverse[p + n * j]; inverse[p + n * j] = s; }
             }
-            if (b) { double s = b[c]; b[c] = b[p]; b[p] = s; }
+            { double s = b[c]; b[c] = b[p]; b[p] = s; }
         }
-        for (i = 0; i < n; i++) {
-            double f;
-            if (i == c || (!inverse && i < c)) continue;
-            f = A[i + n * c] / A[c + n * c];
+        for (i = c + 1; i < n; i++) {
+            double f = A[i + n * c] / A[c + n * c];
             for (j = c; j < n; j++) A[i + n * j] -= f * A[c + n * j];
-            if (inverse) for (j = 0; j < n; j++) inverse[i + n * j] -= f * inverse[c + n * j];
-            if (b) b[i] -= f * b[c];
+            b[i] -= f * b[c];
         }
-    }
-    if (inverse) { /* Gauss-Jordan: A is diagonal now */
-        for (i = 0; i < n; i++) {
-            for (j = 0; j < n; j++) inverse[i + n * j] /= A[i + n * i];
-            if (b) b[i] /= A[i + n * i];
-        }
-        return 0;
     }
     for (i = n - 1; i >= 0; i--) { /* back substitution */
         for (j = i + 1; j < n; j++) b[i] -= A[i + n * j] * b[j];
@@ -166,40 +155,14 @@ static int gauss(double *A, double *b, double *inverse, long n) {
     return 0;
 }
 
-static double norm1(const double *A, long n) {
-    double most = 0.0;
-    long i, j;
-    for (j = 0; j < n; j++) {
-        double sum = 0.0;
-        for (i = 0; i < n; i++) sum += fabs(A[i + n * j]);
-        if (sum > most || !isfinite(sum)) most = sum;
-    }
-    return most;
-}
-
-/* A loop whose Jacobian is singular (y = u fed back to u: every v solves it) has no unique solution */
-static int loop_unique(const double *J, double *A, double *inverse, long n) {
-    double size = norm1(J, n);
-    memcpy(A, J, (size_t)(n * n) * sizeof(double));
-    if (!isfinite(size) || gauss(A, NULL, inverse, n)) return 0;
-    return size * norm1(inverse, n) <= 1e12;
-}
-
 static int solve_loop(hs_kernel *k, double t) {
     hs_loop *L = k->loop;
     long n = L->n, i, iteration;
-    double *v = L->work, *r = v + n, *vp = r + n, *rp = vp + n, *J = rp + n, *A = J + n * n, *inverse = A + n * n;
-    double most = 0.0;
+    double *v = L->work, *r = v + n, *vp = r + n, *rp = vp + n, *J = rp + n;
     memcpy(v, L->v, (size_t)n * sizeof(double));
     L->solves++;
     if (copy_links(k, t, 0, L->first_link)) return -1; /* the connections that do not depend on v */
     if (loop_residual(k, t, v, r)) return -1;
-    if (!L->checked) { /* the first solve checks the loop has a unique solution, even one met at once */
-        if (loop_jacobian(k, t, v, r, J, vp, rp)) return -1;
-        if (!loop_unique(J, A, inverse, n)) return loop_fail(k, LOOP_SINGULAR, t, 0.0);
-        L->checked = 1;
-        if (loop_residual(k, t, v, r)) return -1; /* every FMU left evaluated at v */
-    }
     for (iteration = 0; iteration <= L->max_iterations; iteration++) {
         int converged = 1, finite = 1;
         for (i = 0; i < n; i++) {
@@ -215,13 +178,11 @@ static int solve_loop(hs_kernel *k, double t) {
         if (iteration == L->max_iterations || !finite) break;
         if (loop_jacobian(k, t, v, r, J, vp, rp)) return -1;
         memcpy(rp, r, (size_t)n * sizeof(double));
-        if (gauss(J, rp, NULL, n)) return loop_fail(k, LOOP_SINGULAR, t, 0.0);
+        if (gauss(J, rp, n)) return loop_fail(k, LOOP_SINGULAR, t);
         for (i = 0; i < n; i++) v[i] = v[i] + -rp[i];
         if (loop_residual(k, t, v, r)) return -1;
     }
-    for (i = 0; i < n; i++)
-        if (fabs(r[i]) > most || !isfinite(r[i])) most = fabs(r[i]);
-    return loop_fail(k, LOOP_NO_CONVERGENCE, t, most);
+    return loop_fail(k, LOOP_NO_CONVERGENCE, t); /* v and r: the last iterate and its residual */
 }
 
 /* the continuous Real connections, with the loops solved when the system has any */
@@ -391,9 +352,9 @@ static const struct { const char *name; long value; } layout[] = {
     FIELD(hs_kernel, prepare), FIELD(hs_kernel, prepare_user), FIELD(hs_kernel, where), FIELD(hs_kernel, loop),
     SIZE(hs_loop), FIELD(hs_loop, n), FIELD(hs_loop, first_link), FIELD(hs_loop, target_units), FIELD(hs_loop, source_units),
     FIELD(hs_loop, target_vrs), FIELD(hs_loop, source_vrs), FIELD(hs_loop, v), FIELD(hs_loop, work),
-    FIELD(hs_loop, rtol), FIELD(hs_loop, atol), FIELD(hs_loop, max_iterations), FIELD(hs_loop, checked),
+    FIELD(hs_loop, rtol), FIELD(hs_loop, atol), FIELD(hs_loop, max_iterations),
     FIELD(hs_loop, solves), FIELD(hs_loop, iterations), FIELD(hs_loop, most_iterations), FIELD(hs_loop, failure),
-    FIELD(hs_loop, failed_time), FIELD(hs_loop, failed_residual),
+    FIELD(hs_loop, failed_time),
     SIZE(hs_advance_args), FIELD(hs_advance_args, cvode_mem), FIELD(hs_advance_args, y),
     FIELD(hs_advance_args, dky), FIELD(hs_advance_args, t_stop), FIELD(hs_advance_args, grid),
     FIELD(hs_advance_args, n_grid), FIELD(hs_advance_args, interpolate), FIELD(hs_advance_args, rows),

@@ -61,7 +61,9 @@ typedef struct {
 /* The torn inputs of a system's algebraic loops, solved at every propagation (kernel.c, solve_loop):
  * Newton's method on r(v) = y(v) - v, v the torn inputs (set with fmi2SetReal), y the torn
  * sources' outputs (read with fmi2GetReal after the connections that depend on v are copied), a forward-
- * difference Jacobian, starting from the last solution (v, shared with heliostep/cosim/loops.py). */
+ * difference Jacobian, starting from the last solution (v, shared with heliostep/cosim/loops.py, whose
+ * first solve at initialization checked the loop has a unique solution). A failed solve leaves its last
+ * iterate and residual in work[0 .. n) and work[n .. 2 n). */
 typedef struct {
     long n;                                   /* torn inputs */
     long first_link;                          /* hs_kernel.links[first_link...] depend on them: copied
@@ -69,13 +71,12 @@ typedef struct {
     const long *target_units, *source_units;  /* per torn connection: its target's and source's unit */
     const unsigned int *target_vrs, *source_vrs;
     double *v;                                /* the torn inputs: the starting guess, then the solution */
-    double *work;                             /* 3 n n + 4 n doubles */
+    double *work;                             /* n n + 4 n doubles */
     double rtol, atol;                        /* converged when |r| <= atol + rtol |v| */
     long max_iterations;
-    long checked;                             /* the first solve's check of a unique solution done */
     long solves, iterations, most_iterations;
     long failure;                             /* 0, LOOP_NO_CONVERGENCE or LOOP_SINGULAR */
-    double failed_time, failed_residual;
+    double failed_time;
 } hs_loop;
 
 /* a supervisor's record of the FMI call in progress (heliostep/cosim/watch.py, Record) */
