@@ -21,6 +21,7 @@ from pydantic import (
     model_validator,
 )
 
+from heliostep.cosim.signals import SolverOptions
 from heliostep.errors import InputError
 from heliostep.fmu.reference import is_variant_name
 from heliostep.scenario.keys import KeyProblems, dotted
@@ -366,13 +367,18 @@ class Scenario(Section):
         data["fmus"] = {**{name: None for name in DEFAULT_FMUS if name not in self.fmus}, **data["fmus"]}
         data["roles"] = self.resolved_roles()  # only the roles its FMUs can play (defaults of dropped instances go)
         data["connections"] = [list(pair) for pair in self.connection_pairs()]
-        if not self.transformations:  # (likewise)
+        # sections and keys added since resolved scenarios were first written, at their defaults, are left out,
+        # so that resolved scenarios (and sweep case ids) stay as they were
+        if not self.transformations:
             del data["transformations"]
-        if not self.band.pinned:  # the default: left out, so resolved scenarios (and case ids) stay as they were
+        if not self.band.pinned:
             del data["band"]
         for key, default in (("tracking", TrackingConfig()), ("faults", FaultsConfig())):
-            if getattr(self, key) == default:  # (likewise)
+            if getattr(self, key) == default:
                 del data[key]
+        for key in ("loop_rtol", "loop_atol"):
+            if data["solver"][key] == getattr(SolverOptions, key):
+                del data["solver"][key]
         return data
 
     @property
