@@ -64,4 +64,5 @@ def test_compare_python_api_example_runs_on_the_shipped_reference_and_a_vendor_n
     assert result.passed and len(result.signals) == 7
     assert result.match_of("motor.tau").describe() == "Drive.tauElectrical -> motor.tau (by role torque)"
     root = ET.fromstring(namespace["xml"].split("\n", 1)[1])
-    assert (root.get("tests"), root.get("failures")) == ("7", "0")
+    (suite,) = root
+    assert (suite.get("tests"), suite.get("failures")) == ("7", "0")
