@@ -58,7 +58,8 @@ def main() -> None:
     if coarse:
         helio_x = best[smallest][0] / best[coarse[0]][0]
         cosim_x = best[smallest][1] / best[coarse[0]][1]
-        print(f"10x the points ({coarse[0]:g} s -> {smallest:g} s): heliostep {helio_x:.1f} x, libcosim {cosim_x:.1f} x")
+        span = f"{coarse[0]:g} s -> {smallest:g} s"
+        print(f"10x the points ({span}): heliostep {helio_x:.1f} x, libcosim {cosim_x:.1f} x")
     helio, cosim = best[smallest]
     print(
         f"cs: h {smallest:g} heliostep {helio:.3f} s, libcosim {cosim:.3f} s, ratio {helio / cosim:.2f}; "

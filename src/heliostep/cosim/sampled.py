@@ -65,7 +65,8 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         """The error of an FMI call that returned ``status`` (worse than fmi2Warning), worded as fmpy words it."""
         from fmpy.fmi1 import FMICallException
 
-        return FMIError(function, self.name, f"failure ({FMICallException(function, status)})", self.messages, self.time)
+        said = FMICallException(function, status)
+        return FMIError(function, self.name, f"failure ({said})", self.messages, self.time)
 
     def _values_call(self, function: str, names: Sequence[str]) -> tuple[Callable[[], int], ctypes.Array]:
         """``function`` (fmi2GetReal, fmi2SetReal) bound to the value references of ``names`` and a buffer of
@@ -73,7 +74,8 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         refs = (ctypes.c_uint32 * len(names))(*(self.info.variables[n].value_reference for n in names))
         values = (ctypes.c_double * len(names))()
         call = VALUES_CALL((function, self._slave.dll))
-        bound = functools.partial(call, self._slave.component, ctypes.addressof(refs), len(names), ctypes.addressof(values))
+        component = self._slave.component
+        bound = functools.partial(call, component, ctypes.addressof(refs), len(names), ctypes.addressof(values))
         self._buffers.append(refs)
         return bound, values
 
@@ -93,7 +95,7 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         call, values = self._values_call("fmi2SetReal", names)
 
         def write(given: Sequence[float]) -> None:
-            values[:] = given
+            values[:] = list(given)
             self.messages.clear()
             status = call()
             if status > FMI2_WARNING:
