@@ -162,6 +162,7 @@ class SampledComponent:
         self.parameters = dict(parameters)
         self.outputs = [v for v in info.outputs if info.variables[v].type == "Real"]
         self.held = {v: float(info.variables[v].start or 0.0) for v in self.outputs}  # before the start: starts
+        self.current = {v: np.array([value]) for v, value in self.held.items()}  # the same, as arrays kept
         self.times: np.ndarray = np.zeros(0)  # the communication points after the start, up to the stop time
         self.steps = 0
         self.instance: CoSimulationInstanceBase | None = None
@@ -197,6 +198,8 @@ class SampledComponent:
     def _read(self) -> None:
         if self.outputs:
             self.held = dict(zip(self.outputs, self._outputs()))
+            for variable, value in self.held.items():
+                self.current[variable][0] = value
 
     def due(self, time: float) -> bool:
         """Whether ``time`` [s] is a communication point this component has not stepped to yet: a point
@@ -224,20 +227,18 @@ class SampledComponent:
 class SampledSignal:
     """A sampled component's output as a master input of the Model Exchange system (duck-typed like
     :class:`~heliostep.cosim.signals.PiecewiseConstant`): it changes at the component's communication
-    points, to the value the component's step gives (asked of ``group`` when the master asks)."""
+    points, to the value the component's step gives (asked of ``group`` when the master asks).
+
+    As a piecewise-constant signal it has no change time of its own (the master stops at the
+    component's points, :attr:`SampledComponent.times`) and one value, the one held now: the array
+    the component updates in place at each step, which the compiled kernel reads at an event."""
 
     def __init__(self, group: SampledSystem, component: SampledComponent, variable: str, target: str):
         self.group, self.component, self.variable = group, component, variable
         self.name = f"{component.name}.{variable}"
         self.target = target
-
-    @property
-    def times(self) -> np.ndarray:
-        return self.component.times
-
-    @property
-    def values(self) -> np.ndarray:
-        return np.array([self.component.held[self.variable]])
+        self.times = np.zeros(0)
+        self.values = component.current[variable]
 
     def value_at(self, time: float) -> float:
         stop = self.group.communicate(time)  # the master communicates first: nothing due here, normally
@@ -360,7 +361,7 @@ def split_sampled(
     Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real
     connection, an algebraic loop through it (named, with the loop)."""
     sampled = {name for name, info in fmus.items() if info.co_simulation}
-    for name in sampled ^ set(intervals):
+    for name in sorted(sampled ^ set(intervals)):
         raise InputError(
             f"FMU instance {name!r}: communication_interval.{name} and its FMU read for Co-Simulation go together"
         )
@@ -390,6 +391,7 @@ def split_sampled(
                     f"connection {c.source} -> {c.target}: only Real variables of a Co-Simulation FMU connect"
                 )
     values = parameters or {}
-    components = {name: SampledComponent(name, fmus[name], intervals[name], values.get(name, {})) for name in sampled}
+    ordered = [name for name in fmus if name in sampled]  # in the order of the instances (the trace's columns)
+    components = {name: SampledComponent(name, fmus[name], intervals[name], values.get(name, {})) for name in ordered}
     me_fmus = {name: info for name, info in fmus.items() if name not in sampled}
     return me_fmus, [c for c in connections if c not in ends], SampledSystem(components, ends)
