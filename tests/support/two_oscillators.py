@@ -40,8 +40,8 @@ def build(out: Path) -> dict[str, Path]:
 
 
 def run_heliostep(fmus: Mapping[str, Path], h: float, stop: float) -> tuple[float, np.ndarray, np.ndarray]:
-    """heliostep's run: (wall time of ``simulate`` [s], the communication points k h [s], the outputs
-    there: one column per :data:`OUTPUTS`, the values after each point's step)."""
+    """heliostep's run: (wall time of ``simulate`` [s], the communication points k h [s] (k = 1, 2, ...),
+    the outputs there: one column per :data:`OUTPUTS`, the values after each point's step)."""
     from heliostep.cosim import Connection, CoSimulation, read_fmu
 
     system = CoSimulation(
@@ -55,7 +55,7 @@ def run_heliostep(fmus: Mapping[str, Path], h: float, stop: float) -> tuple[floa
     wall = time.perf_counter() - started
     trace = result.trace
     times = trace["time"].to_numpy()
-    last = np.r_[times[1:] != times[:-1], True]  # the row after each point's event
+    last = np.r_[times[1:] != times[:-1], True] & (times > 0.0)  # the row after each point's event
     return wall, times[last], trace.loc[last, list(OUTPUTS)].to_numpy()
 
 
@@ -90,8 +90,8 @@ def run_libcosim(fmus: Mapping[str, Path], h: float, stop: float) -> tuple[float
     execution.simulate_until(round(stop * 1e9))
     wall = time.perf_counter() - started
     values = []
-    for slave, ref in columns:
-        nanos_at, _, samples = observer.time_series_real_samples(slave, ref, from_step=0, sample_count=steps + 1)
+    for slave, ref in columns:  # from step 1: libcosimpy drops a sample per step number 0 it returns
+        nanos_at, _, samples = observer.time_series_real_samples(slave, ref, from_step=1, sample_count=steps)
         values.append(samples)
     return wall, np.asarray(nanos_at) * 1e-9, np.array(values).T
 
