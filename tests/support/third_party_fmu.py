@@ -265,6 +265,17 @@ def build_mini_fmu(name: str, out_dir: Path, platform: str = "linux64") -> Path:
     )
 
 
+def build_cs_only_mini_fmu(name: str, out_dir: Path, step_size: float | None) -> Path:
+    """The mini FMU ``name`` (one of :data:`CO_SIMULATION`) as an FMU from a tool that exports Co-Simulation
+    only, its DefaultExperiment suggesting ``step_size`` [s] (None: no DefaultExperiment), in ``out_dir``."""
+    description = _model_description(name).replace(f'  <ModelExchange modelIdentifier="{name}"/>\n', "")
+    if step_size is not None:
+        description = description.replace(
+            "  <ModelVariables>", f'  <DefaultExperiment startTime="0" stepSize="{step_size!r}"/>\n  <ModelVariables>'
+        )
+    return _compile_and_pack(name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], description, out_dir)
+
+
 def _compile_and_pack(
     identifier: str, sources, includes, model_description: str, out_dir: Path, platform: str = "linux64"
 ) -> Path:

@@ -243,13 +243,7 @@ class _Run:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after. An input
         change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``). The
         sampled components step first where the kernel takes the event (they change none of the row before)."""
-        stop = None
-        if self.fast_events is not None and self.graph.sampled is not None:
-            try:
-                stop = self.graph.sampled.communicate(t)
-            except BaseException:
-                self.record(t)  # the trace ends with the row before the event, as on the Python path
-                raise
+        stop = _sampled_first(self, t) if self.fast_events is not None and self.graph.sampled is not None else None
         if self.fast_events is not None and stop is None:  # in one call of the kernel (Python after it where asked)
             return events.fast_event(self, t, new_inputs, t if input_time is None else max(t, input_time))
         self.record(t)
@@ -468,6 +462,17 @@ def _check_controller(graph: CoSimulation, controller: SampledController) -> Non
                 f"controller input {name!r}: given between events, so {instance} must have no continuous state "
                 f"(it has {states}) and feed no other FMU (it feeds {', '.join(feeding) or 'none'})"
             )
+
+
+def _sampled_first(run: _Run, t: float) -> Terminated | None:
+    """The sampled components' communication at ``t`` [s] before the kernel takes the event there (they change
+    none of the row before); on a failure the trace ends with the row before, as on the Python path."""
+    assert run.graph.sampled is not None
+    try:
+        return run.graph.sampled.communicate(t)
+    except BaseException:
+        run.record(t)
+        raise
 
 
 def _to_time_event(t_next: float, t_time_event: float) -> float:
