@@ -164,6 +164,8 @@ class CVodeIntegrator:
         self.nx = 1 if self.discrete else nx
         self.nz = nz
         self.cvode_mem: int | None = None
+        self._reached = ctypes.c_double(0.0)  # where CVode's call got to, a buffer kept for every call
+        self._reached_at = ctypes.byref(self._reached)
         self._create(rhs, root, user_data, start_time, options)
 
     def _create(self, rhs: int, root: int, user_data: int | None, start_time: float, options: SolverOptions) -> None:
@@ -219,8 +221,8 @@ class CVodeIntegrator:
     def step(self, t_next: float) -> tuple[bool, float]:
         if not self.discrete:
             self.states.get_x(self.px)
-        reached = ctypes.c_double(0.0)
-        flag = sundials.CVode(self.cvode_mem, t_next, self.x, ctypes.byref(reached), sundials.CV_NORMAL)
+        reached = self._reached
+        flag = sundials.CVode(self.cvode_mem, t_next, self.x, self._reached_at, sundials.CV_NORMAL)
         if flag < 0:  # (the FMUs are not touched: an FMU in its error state keeps its messages)
             raise cvode_failure(self.error_info, flag)
         if not self.discrete:
