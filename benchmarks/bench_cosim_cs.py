@@ -51,7 +51,7 @@ def main() -> None:
             n = min(len(ours), len(theirs))
             diff = float(np.max(np.abs(ours[:n] - theirs[:n])))
             ratio = best[h][0] / best[h][1]
-            print(f"{h:8.2g} {len(times) - 1:7d} {best[h][0]:14.3f} {best[h][1]:13.3f} {ratio:6.2f} {diff:11.2g}")
+            print(f"{h:8.2g} {len(times):7d} {best[h][0]:14.3f} {best[h][1]:13.3f} {ratio:6.2f} {diff:11.2g}")
     smallest = min(steps)
     coarse = [h for h in steps if np.isclose(h, 10 * smallest)]
     helio_x = cosim_x = float("nan")

@@ -161,6 +161,7 @@ class CVodeIntegrator:
         self.error_info: tuple | None = None
         self.reltol = options.rtol
         self.discrete = nx == 0
+        self.idle = self.discrete and nz == 0  # nothing to integrate, no root to find: CVode(t) would say t
         self.nx = 1 if self.discrete else nx
         self.nz = nz
         self.cvode_mem: int | None = None
@@ -219,6 +220,8 @@ class CVodeIntegrator:
 
     # ------------------------------------------------------------------ the protocol
     def step(self, t_next: float) -> tuple[bool, float]:
+        if self.idle:  # (a system of sampled components only, say: CVODE's one-state stand-in is not stepped)
+            return False, float(t_next)
         if not self.discrete:
             self.states.get_x(self.px)
         reached = self._reached
