@@ -95,35 +95,3 @@ def run_libcosim(fmus: Mapping[str, Path], h: float, stop: float) -> tuple[float
         values.append(samples)
     return wall, np.asarray(nanos_at) * 1e-9, np.array(values).T
 
-
-def run_floor(fmus: Mapping[str, Path], h: float, stop: float) -> float:
-    """The floor of a master in Python: heliostep's FMI 2.0 Co-Simulation instances stepped at h in a bare
-    loop (per point: both ``fmi2DoStep``, both outputs read, both inputs set, two trace rows written),
-    nothing else; its wall time [s]."""
-    from heliostep.cosim import read_fmu
-    from heliostep.cosim.sampled import CoSimulationInstance
-
-    instances = {}
-    for name, path in fmus.items():
-        instances[name] = CoSimulationInstance(read_fmu(path, co_simulation=True), name, PARAMETERS[name])
-        instances[name].initialize(0.0, stop, {})
-    outputs = {n: [s.split(".")[1] for s, _ in CONNECTIONS if s.startswith(f"{n}.")] for n in instances}
-    inputs = {n: [t.split(".")[1] for _, t in CONNECTIONS if t.startswith(f"{n}.")] for n in instances}
-    read = {n: instances[n].real_reader(outputs[n]) for n in instances}
-    write = {n: instances[n].real_writer(inputs[n]) for n in instances}
-    points = (h * np.arange(1, round(stop / h) + 1)).tolist()
-    rows = np.zeros((2 * len(points), 1 + len(CONNECTIONS)))
-    started = time.perf_counter()
-    held = {n: dict(zip(outputs[n], read[n]())) for n in instances}
-    for k, t in enumerate(points):
-        rows[2 * k] = [t, held["a"]["x"], held["a"]["v"], held["b"]["F_c"]]
-        for name, instance in instances.items():
-            instance.do_step(t)
-            held[name] = dict(zip(outputs[name], read[name]()))
-        write["a"]([held["b"]["F_c"]])
-        write["b"]([held["a"]["x"], held["a"]["v"]])
-        rows[2 * k + 1] = [t, held["a"]["x"], held["a"]["v"], held["b"]["F_c"]]
-    wall = time.perf_counter() - started
-    for instance in instances.values():
-        instance.close()
-    return wall
