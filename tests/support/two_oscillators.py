@@ -94,4 +94,3 @@ def run_libcosim(fmus: Mapping[str, Path], h: float, stop: float) -> tuple[float
         nanos_at, _, samples = observer.time_series_real_samples(slave, ref, from_step=1, sample_count=steps)
         values.append(samples)
     return wall, np.asarray(nanos_at) * 1e-9, np.array(values).T
-
