@@ -185,16 +185,38 @@ MINI_FMUS = {
             ("says_terminated", "Integer", "parameter", "fixed", 1, None),
         ],
     ),
+    "Oscillator": (  # a mass on a spring, pushed by F, with a coupling force F_c to another: two make a system
+        "oscillator.c",
+        "{c0a7e1f2-0009-4000-8000-000000000009}",
+        0,
+        [
+            ("F", "Real", "input", "continuous", 0.0, None),
+            ("x_in", "Real", "input", "continuous", 0.0, None),
+            ("v_in", "Real", "input", "continuous", 0.0, None),
+            ("x", "Real", "output", "continuous", None, None),
+            ("v", "Real", "output", "continuous", 0.0, None),
+            ("F_c", "Real", "output", "continuous", None, None),
+            ("der(x)", "Real", "local", "continuous", None, "x"),
+            ("der(v)", "Real", "local", "continuous", None, "v"),
+            ("m", "Real", "parameter", "fixed", 1.0, None),
+            ("c", "Real", "parameter", "fixed", 100.0, None),
+            ("d", "Real", "parameter", "fixed", 0.0, None),
+            ("c_c", "Real", "parameter", "fixed", 0.0, None),
+            ("d_c", "Real", "parameter", "fixed", 0.0, None),
+            ("x0", "Real", "parameter", "fixed", 0.0, None),
+        ],
+    ),
 }
-#: direct feedthrough: model -> output -> the inputs it depends on (space-separated)
+#: direct feedthrough: model -> output -> the inputs it depends on
 _FEEDTHROUGH = {
-    "PassThrough": {"y_c": "u_c", "y_d": "u_d", "y_i": "u_i", "y_b": "u_b"},
-    "Gain": {"y": "u c"},
-    "Lag": {"e": "u"},
-    "LagStop": {"e": "u"},
+    "PassThrough": {"y_c": ("u_c",), "y_d": ("u_d",), "y_i": ("u_i",), "y_b": ("u_b",)},
+    "Gain": {"y": ("u", "c")},
+    "Lag": {"e": ("u",)},
+    "LagStop": {"e": ("u",)},
+    "Oscillator": {"F_c": ("x_in", "v_in")},
 }
 #: the mini FMUs whose modelDescription.xml also declares Co-Simulation (fmi2DoStep in mini_fmu.h)
-CO_SIMULATION = {"Lag", "LagStop"}
+CO_SIMULATION = {"Lag", "LagStop", "Oscillator"}
 
 
 def _model_description(name: str) -> str:
@@ -224,7 +246,7 @@ def _model_description(name: str) -> str:
         lines.append(f"    <ScalarVariable {attributes}><{type_}{element}/></ScalarVariable>")
     lines += ["  </ModelVariables>", "  <ModelStructure>", "    <Outputs>"]
     for var, *_ in (v for v in variables if v[2] == "output"):
-        sources = _FEEDTHROUGH.get(name, {}).get(var, "").split()
+        sources = _FEEDTHROUGH.get(name, {}).get(var, ())
         deps = f' dependencies="{" ".join(str(index[source]) for source in sources)}"'
         lines.append(f'      <Unknown index="{index[var]}"{deps}/>')
     lines += ["    </Outputs>", "    <Derivatives>"]
@@ -244,6 +266,17 @@ def build_mini_fmu(name: str, out_dir: Path, platform: str = "linux64") -> Path:
     return _compile_and_pack(
         name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], _model_description(name), out_dir, platform
     )
+
+
+def build_cs_only_mini_fmu(name: str, out_dir: Path, step_size: float | None) -> Path:
+    """The mini FMU ``name`` (one of :data:`CO_SIMULATION`) as an FMU from a tool that exports Co-Simulation
+    only, its DefaultExperiment suggesting ``step_size`` [s] (None: no DefaultExperiment), in ``out_dir``."""
+    description = _model_description(name).replace(f'  <ModelExchange modelIdentifier="{name}"/>\n', "")
+    if step_size is not None:
+        description = description.replace(
+            "  <ModelVariables>", f'  <DefaultExperiment startTime="0" stepSize="{step_size!r}"/>\n  <ModelVariables>'
+        )
+    return _compile_and_pack(name, [MINI_DIR / MINI_FMUS[name][0]], [MINI_DIR], description, out_dir)
 
 
 def _compile_and_pack(

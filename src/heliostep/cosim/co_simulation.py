@@ -98,33 +98,47 @@ class CoSimulationInstanceBase:
             [value],
         )
 
-    def set_real(self, names: Sequence[str], values: Sequence[float]) -> None:
-        """Set Real (FMI 3.0: Float64) variables by name."""
+    def real_writer(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
+        """A setter of the Real (FMI 3.0: Float64) variables ``names``: called with their values, in that order."""
         refs = [self.info.variables[n].value_reference for n in names]
-        self._do(
-            f"{self._FMI}Set{self._REAL}", getattr(self._slave, f"set{self._REAL}"), refs, [float(v) for v in values]
-        )
+        setter = getattr(self._slave, f"set{self._REAL}")
+        function = f"{self._FMI}Set{self._REAL}"
 
-    def get_real(self, names: Sequence[str]) -> list[float]:
-        """The values of Real (FMI 3.0: Float64) variables by name."""
+        def write(values: Sequence[float]) -> None:
+            self._do(function, setter, refs, [float(v) for v in values])
+
+        return write
+
+    def real_reader(self, names: Sequence[str]) -> Callable[[], list[float]]:
+        """A getter of the Real (FMI 3.0: Float64) variables ``names``: their values, in that order."""
         refs = [self.info.variables[n].value_reference for n in names]
-        return list(self._do(f"{self._FMI}Get{self._REAL}", getattr(self._slave, f"get{self._REAL}"), refs))
+        getter = getattr(self._slave, f"get{self._REAL}")
+        function = f"{self._FMI}Get{self._REAL}"
+
+        def read() -> list[float]:
+            return list(self._do(function, getter, refs))
+
+        return read
 
     def do_step(self, to_time: float) -> bool:
         """DoStep from the instance's time to ``to_time`` [s]; whether the FMU asks to terminate the simulation."""
         raise NotImplementedError
 
     def close(self) -> None:
-        """Terminate (errors ignored: the run's own error, if any, is what counts) and FreeInstance."""
+        """Terminate and FreeInstance (errors ignored: the run's own error, if any, is what counts), the
+        binary unloaded once: fmpy's ``freeInstance`` unloads it itself, so only where that failed is it
+        unloaded here (a second unload would take it from another instance of the same FMU)."""
         slave, self._slave = self._slave, None
         if slave is None:
             return
-        for call in (slave.terminate, slave.freeInstance):
-            try:
-                call()
-            except Exception:  # noqa: BLE001 - closing after a failure must not hide it
-                pass
         try:
-            slave.freeLibrary()
-        except Exception:  # noqa: BLE001
+            slave.terminate()
+        except Exception:  # noqa: BLE001 - closing after a failure must not hide it
             pass
+        try:
+            slave.freeInstance()
+        except Exception:  # noqa: BLE001
+            try:
+                slave.freeLibrary()
+            except Exception:  # noqa: BLE001
+                pass

@@ -8,6 +8,7 @@ exporting the kind's functions) and returns an :class:`FMUInfo` with every varia
 from __future__ import annotations
 
 import atexit
+import math
 import shutil
 import tempfile
 import zipfile
@@ -107,6 +108,12 @@ class FMUInfo:
     def parameters(self) -> list[str]:
         return self.names("parameter")
 
+    @property
+    def default_step(self) -> float | None:
+        """The communication step the FMU suggests [s] (its DefaultExperiment ``stepSize``); None where it
+        gives no positive finite one."""
+        return default_step(self.description)
+
     def variable(self, name: str) -> VariableInfo:
         try:
             return self.variables[name]
@@ -123,13 +130,24 @@ def _unit(variable) -> str:
     return getattr(declared, "unit", None) or ""
 
 
+def default_step(description: object) -> float | None:
+    """The DefaultExperiment ``stepSize`` [s] of fmpy's model ``description``, where positive and finite."""
+    text = getattr(getattr(description, "defaultExperiment", None), "stepSize", None)
+    try:
+        step = float(text) if text is not None else math.nan
+    except ValueError:
+        return None
+    return step if math.isfinite(step) and step > 0 else None
+
+
 def read_fmu(
-    path: str | Path, co_simulation: bool = False, max_unpacked_bytes: int = DEFAULT_MAX_UNPACKED_BYTES
+    path: str | Path, co_simulation: bool | None = False, max_unpacked_bytes: int = DEFAULT_MAX_UNPACKED_BYTES
 ) -> FMUInfo:
     """Read and check an FMU of a kind heliostep runs (FMI 2.0 or 3.0): Model Exchange, or with
     ``co_simulation`` Co-Simulation (a sampled component, :mod:`heliostep.cosim.sampled`); else
-    :class:`InputError`. Its archive is checked first (:func:`~heliostep.cosim.archive.check_fmu_archive`:
-    entry names, at most ``max_unpacked_bytes`` unpacked)."""
+    :class:`InputError`. ``co_simulation=None``: as the FMU offers, Model Exchange where it has it, else
+    Co-Simulation where it suggests a step (its :attr:`FMUInfo.default_step`). Its archive is checked first
+    (:func:`~heliostep.cosim.archive.check_fmu_archive`: entry names, at most ``max_unpacked_bytes`` unpacked)."""
     from fmpy import read_model_description
 
     path = Path(path)
@@ -140,6 +158,8 @@ def read_fmu(
         description = read_model_description(str(path), validate=False)
     except Exception as exc:
         raise InputError(f"{path}: not a readable FMU ({exc})") from None
+    if co_simulation is None:
+        co_simulation = getattr(description, "modelExchange", None) is None and default_step(description) is not None
     kind = kind_of(description.fmiVersion, co_simulation)
     if kind is None:
         raise InputError(f"{path}: FMI version {description.fmiVersion}; heliostep needs FMI {versions()}")

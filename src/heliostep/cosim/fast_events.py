@@ -117,7 +117,7 @@ def describe(name: str) -> int:
 
 def fast_events(system: CoupledSystem, kernel: Kernel | None, compiled: bool, served: bool) -> bool:
     """Whether the run's events can go through :c:func:`hs_event` (see the module's docstring); ``served``:
-    no sampled components, no text outputs."""
+    no text outputs."""
     if not (compiled and served) or kernel is None or kernel.state.prepare:
         return False
     if system.loop is not None or system.native_links is None or len(system.event_links) != len(system.links):
@@ -224,7 +224,7 @@ class FastEvents:
 def compiled_events(run: Any, system: CoupledSystem, integrator: Any, kernel: Kernel | None) -> FastEvents | None:
     """The run's :class:`FastEvents` where :func:`fast_events` allows them (``run``: the master's ``_Run``;
     ``integrator``: its CVODE on ``kernel``), the integrator's states then read and set by the kernel too."""
-    served = run.graph.sampled is None and run.texts is None
+    served = run.texts is None
     if kernel is None or not fast_events(system, kernel, integrator.compiled, served):
         return None
     fast = FastEvents(system, kernel, run.graph.inputs, run.input_values, integrator.cvode_mem, integrator.x)
@@ -305,14 +305,14 @@ class CompiledStates:
         self.get_nominals = system.get_nominals
         self._call = fast._library.hs_event_states
         self._kernel, self._events = fast._kernel_address, fast._events_address
-        self._first = system.unit_list[0].fmu
+        self._units = system.unit_list  # (none: a system of sampled components only, whose states are never read)
 
     def get_x(self, address: int) -> None:
-        if self._call(self._kernel, self._events, address, 0, self._first.time):
+        if self._call(self._kernel, self._events, address, 0, self._units[0].fmu.time):
             self._raise()
 
     def set_x(self, address: int) -> None:
-        if self._call(self._kernel, self._events, address, 1, self._first.time):
+        if self._call(self._kernel, self._events, address, 1, self._units[0].fmu.time):
             self._raise()
 
     def _raise(self) -> None:

@@ -161,9 +161,12 @@ class CVodeIntegrator:
         self.error_info: tuple | None = None
         self.reltol = options.rtol
         self.discrete = nx == 0
+        self.idle = self.discrete and nz == 0  # nothing to integrate, no root to find: CVode(t) would say t
         self.nx = 1 if self.discrete else nx
         self.nz = nz
         self.cvode_mem: int | None = None
+        self._reached = ctypes.c_double(0.0)  # where CVode's call got to, a buffer kept for every call
+        self._reached_at = ctypes.byref(self._reached)
         self._create(rhs, root, user_data, start_time, options)
 
     def _create(self, rhs: int, root: int, user_data: int | None, start_time: float, options: SolverOptions) -> None:
@@ -217,10 +220,12 @@ class CVodeIntegrator:
 
     # ------------------------------------------------------------------ the protocol
     def step(self, t_next: float) -> tuple[bool, float]:
+        if self.idle:  # (a system of sampled components only, say: CVODE's one-state stand-in is not stepped)
+            return False, float(t_next)
         if not self.discrete:
             self.states.get_x(self.px)
-        reached = ctypes.c_double(0.0)
-        flag = sundials.CVode(self.cvode_mem, t_next, self.x, ctypes.byref(reached), sundials.CV_NORMAL)
+        reached = self._reached
+        flag = sundials.CVode(self.cvode_mem, t_next, self.x, self._reached_at, sundials.CV_NORMAL)
         if flag < 0:  # (the FMUs are not touched: an FMU in its error state keeps its messages)
             raise cvode_failure(self.error_info, flag)
         if not self.discrete:

@@ -222,13 +222,14 @@ class _Run:
             raise Interrupted()
 
     # --------------------------------------------------------------- events
-    def _event_iteration(self, system: CoupledSystem, t: float, new_inputs: bool, input_time: float) -> None:
+    def _event_iteration(
+        self, system: CoupledSystem, t: float, new_inputs: bool, input_time: float, stop: Terminated | None = None
+    ) -> None:
         """Event mode at ``t``: set inputs (their values from ``input_time`` on), iterate discrete states
-        to a fixed point."""
+        to a fixed point (``stop``: what the sampled components said, where they stepped already)."""
         self.counts["events"] += 1
-        stop = None
         if self.graph.sampled is not None:  # at a communication point the sampled components step
-            stop = self.graph.sampled.communicate(t)  # a CS FMU's terminateSimulation: after the new inputs
+            stop = self.graph.sampled.communicate(t) or stop  # a CS FMU's terminateSimulation: after the new inputs
         new_values = [item.value_at(input_time) for item in self.graph.inputs] if new_inputs else None
         event_iteration(system, self.input_values, new_values, self.time)
         if self.texts is not None:
@@ -240,11 +241,13 @@ class _Run:
         self, system: CoupledSystem, integrator: Integrator, t: float, new_inputs: bool, input_time: float | None = None
     ) -> None:
         """Record the row before, handle the event at ``t``, restart CVODE, record the row after. An input
-        change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``)."""
-        if self.fast_events is not None:  # in one call of the kernel (the Python path after it where asked)
+        change within rounding after ``t`` is handled at ``t`` with its new values (``input_time``). The
+        sampled components step first where the kernel takes the event (they change none of the row before)."""
+        stop = _sampled_first(self, t) if self.fast_events is not None and self.graph.sampled is not None else None
+        if self.fast_events is not None and stop is None:  # in one call of the kernel (Python after it where asked)
             return events.fast_event(self, t, new_inputs, t if input_time is None else max(t, input_time))
         self.record(t)
-        self._event_iteration(system, t, new_inputs, t if input_time is None else max(t, input_time))
+        self._event_iteration(system, t, new_inputs, t if input_time is None else max(t, input_time), stop)
         try:
             integrator.reset(t)  # re-reads the states (changed or not) and restarts CVODE
         except BaseException:
@@ -415,7 +418,8 @@ class _Run:
     ) -> None:
         """At the time reached: the FMUs' completed step, then the event there or the output row."""
         self.time = t
-        prepare = self.fast_events is not None and not system.needs_step_call  # then in the kernel's event call
+        # the time set and the connections copied in the kernel's event call, unless sampled components read them
+        prepare = self.fast_events is not None and not system.needs_step_call and self.graph.sampled is None
         if not (prepare and (state_event or input_event or time_event)):
             system.set_time(t)
             system.propagate()
@@ -458,6 +462,17 @@ def _check_controller(graph: CoSimulation, controller: SampledController) -> Non
                 f"controller input {name!r}: given between events, so {instance} must have no continuous state "
                 f"(it has {states}) and feed no other FMU (it feeds {', '.join(feeding) or 'none'})"
             )
+
+
+def _sampled_first(run: _Run, t: float) -> Terminated | None:
+    """The sampled components' communication at ``t`` [s] before the kernel takes the event there (they change
+    none of the row before); on a failure the trace ends with the row before, as on the Python path."""
+    assert run.graph.sampled is not None
+    try:
+        return run.graph.sampled.communicate(t)
+    except BaseException:
+        run.record(t)
+        raise
 
 
 def _to_time_event(t_next: float, t_time_event: float) -> float:

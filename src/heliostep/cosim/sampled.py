@@ -11,6 +11,8 @@ FMU asks to terminate ends the run at that point (:class:`~heliostep.cosim.event
 
 from __future__ import annotations
 
+import bisect
+import ctypes
 import functools
 import math
 import re
@@ -24,22 +26,26 @@ from heliostep.cosim.connections import ConnectionGraph, split_name
 from heliostep.cosim.description import FMUInfo
 from heliostep.cosim.events import Terminated
 from heliostep.cosim.fmi import _callbacks
-from heliostep.cosim.instance import FMIError
+from heliostep.cosim.instance import VALUES_CALL, FMIError
 from heliostep.cosim.signals import Connection, PiecewiseConstant
 from heliostep.errors import InputError
 
 if TYPE_CHECKING:
     from heliostep.cosim.system import CoupledSystem
 
-#: fmi2Status fmi2Discard and fmi2StatusKind fmi2LastSuccessfulTime, fmi2Terminated (fmi2FunctionTypes.h)
-FMI2_DISCARD, FMI2_LAST_SUCCESSFUL_TIME, FMI2_TERMINATED = 2, 2, 3
+#: fmi2Status fmi2Warning, fmi2Discard and fmi2StatusKind fmi2LastSuccessfulTime, fmi2Terminated (fmi2FunctionTypes.h)
+FMI2_WARNING, FMI2_DISCARD, FMI2_LAST_SUCCESSFUL_TIME, FMI2_TERMINATED = 1, 2, 2, 3
+#: fmi2DoStep(c, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint)
+_DO_STEP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int)
 
 __all__ = ["CoSimulationInstance", "SampledComponent", "SampledSignal", "SampledSystem", "split_sampled"]
 
 
 class CoSimulationInstance(CoSimulationInstanceBase):
     """One instance of an FMI 2.0 Co-Simulation FMU (fmpy's ``FMU2Slave``), every FMI error an
-    :class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time and the FMU's messages."""
+    :class:`~heliostep.cosim.fmi.FMIError` naming the instance, the function, the time and the FMU's messages.
+    The calls of every communication point (``fmi2DoStep``, ``fmi2GetReal``, ``fmi2SetReal``) are bound with
+    heliostep's own prototypes on buffers kept per caller (fmpy's per-call wrapper costs more than the call)."""
 
     _FMI, _REAL = "fmi2", "Real"
     TERMINATION = "fmi2DoStep: fmi2Discard, then fmi2Terminated"
@@ -52,6 +58,50 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         slave = self._new_slave(FMU2Slave)
         self._do("fmi2Instantiate", slave.instantiate, callbacks=self._callbacks)
         self._slave = slave
+        self._step = functools.partial(_DO_STEP(("fmi2DoStep", slave.dll)), slave.component)
+        self._buffers: list[ctypes.Array] = []  # the value references the bound calls point to
+
+    def _failure(self, function: str, status: int) -> FMIError:
+        """The error of an FMI call that returned ``status`` (worse than fmi2Warning), worded as fmpy words it."""
+        from fmpy.fmi1 import FMICallException
+
+        said = FMICallException(function, status)
+        return FMIError(function, self.name, f"failure ({said})", self.messages, self.time)
+
+    def _values_call(self, function: str, names: Sequence[str]) -> tuple[Callable[[], int], ctypes.Array]:
+        """``function`` (fmi2GetReal, fmi2SetReal) bound to the value references of ``names`` and a buffer of
+        their values: (the call, the buffer)."""
+        refs = (ctypes.c_uint32 * len(names))(*(self.info.variables[n].value_reference for n in names))
+        values = (ctypes.c_double * len(names))()
+        call = VALUES_CALL((function, self._slave.dll))
+        component = self._slave.component
+        bound = functools.partial(call, component, ctypes.addressof(refs), len(names), ctypes.addressof(values))
+        self._buffers.append(refs)
+        return bound, values
+
+    def real_reader(self, names: Sequence[str]) -> Callable[[], list[float]]:
+        call, values = self._values_call("fmi2GetReal", names)
+
+        def read() -> list[float]:
+            self.messages.clear()
+            status = call()
+            if status > FMI2_WARNING:
+                raise self._failure("fmi2GetReal", status)
+            return values[:]
+
+        return read
+
+    def real_writer(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
+        call, values = self._values_call("fmi2SetReal", names)
+
+        def write(given: Sequence[float]) -> None:
+            values[:] = list(given)
+            self.messages.clear()
+            status = call()
+            if status > FMI2_WARNING:
+                raise self._failure("fmi2SetReal", status)
+
+        return write
 
     def _enter_initialization_mode(self, start_time: float, stop_time: float) -> None:
         """fmi2SetupExperiment (start and stop time [s]) and fmi2EnterInitializationMode."""
@@ -75,11 +125,10 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         communication points are fixed, so heliostep does not retry with a shorter step.
         """
         self.messages.clear()
-        try:
-            self._slave.doStep(self.time, to_time - self.time)
-        except Exception as exc:  # fmpy's FMICallException (its status) and the like
-            if getattr(exc, "status", None) != FMI2_DISCARD:
-                raise FMIError("fmi2DoStep", self.name, f"failure ({exc})", self.messages, self.time) from None
+        status = self._step(self.time, to_time - self.time, True)
+        if status > FMI2_WARNING:
+            if status != FMI2_DISCARD:
+                raise self._failure("fmi2DoStep", status)
             if not self._discarded_because_terminated(to_time):
                 detail = (
                     f"fmi2Discard without fmi2Terminated (the step from t = {self.time:g} s to {to_time:g} s; a "
@@ -113,9 +162,13 @@ class SampledComponent:
         self.parameters = dict(parameters)
         self.outputs = [v for v in info.outputs if info.variables[v].type == "Real"]
         self.held = {v: float(info.variables[v].start or 0.0) for v in self.outputs}  # before the start: starts
+        self.current = {v: np.array([value]) for v, value in self.held.items()}  # the same, as arrays kept
         self.times: np.ndarray = np.zeros(0)  # the communication points after the start, up to the stop time
         self.steps = 0
         self.instance: CoSimulationInstanceBase | None = None
+        self._points: list[float] = []  # the times as floats; the next one not stepped to at _next
+        self._next = 0
+        self._outputs: Callable[[], list[float]] = list
 
     def start(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
         count = math.floor((stop_time - start_time) / self.interval * (1.0 + 1e-12))
@@ -124,8 +177,11 @@ class SampledComponent:
             self._check_shorter_step(stop_time - start_time)
             self.times = np.append(self.times, stop_time)  # the last point at the stop time
         self.steps = 0
+        self._points, self._next = self.times.tolist(), 0
         self.instance = self.info.kind.instance_class()(self.info, self.name, self.parameters)
         self.instance.initialize(start_time, stop_time, inputs)
+        if self.outputs:
+            self._outputs = self.instance.real_reader(self.outputs)
         self._read()
 
     def _check_shorter_step(self, window: float) -> None:
@@ -140,22 +196,30 @@ class SampledComponent:
             )
 
     def _read(self) -> None:
-        assert self.instance is not None
         if self.outputs:
-            self.held = dict(zip(self.outputs, self.instance.get_real(self.outputs)))
+            self.held = dict(zip(self.outputs, self._outputs()))
+            for variable, value in self.held.items():
+                self.current[variable][0] = value
 
     def due(self, time: float) -> bool:
-        """Whether ``time`` [s] is a communication point this component has not stepped to yet."""
+        """Whether ``time`` [s] is a communication point this component has not stepped to yet: a point
+        within 1e-9 relative of it (the next one first, else found by bisection: the points are sorted)."""
         assert self.instance is not None
-        return time > self.instance.time + 1e-12 * max(1.0, abs(time)) and bool(
-            np.any(np.abs(self.times - time) <= 1e-9 * max(1.0, abs(time)))
-        )
+        scale = max(1.0, abs(time))
+        if not time > self.instance.time + 1e-12 * scale:
+            return False
+        points, tolerance = self._points, 1e-9 * scale
+        if self._next < len(points) and abs(points[self._next] - time) <= tolerance:
+            return True
+        k = bisect.bisect_left(points, time - tolerance)
+        return any(abs(points[j] - time) <= tolerance for j in (k - 1, k) if 0 <= j < len(points))
 
     def step_to(self, time: float) -> bool:
         """Step to ``time`` [s] and read the outputs; whether the FMU asks to terminate the simulation."""
         assert self.instance is not None
         terminate = self.instance.do_step(time)
         self.steps += 1
+        self._next = bisect.bisect_right(self._points, time, lo=self._next)
         self._read()
         return terminate
 
@@ -163,20 +227,18 @@ class SampledComponent:
 class SampledSignal:
     """A sampled component's output as a master input of the Model Exchange system (duck-typed like
     :class:`~heliostep.cosim.signals.PiecewiseConstant`): it changes at the component's communication
-    points, to the value the component's step gives (asked of ``group`` when the master asks)."""
+    points, to the value the component's step gives (asked of ``group`` when the master asks).
+
+    As a piecewise-constant signal it has no change time of its own (the master stops at the
+    component's points, :attr:`SampledComponent.times`) and one value, the one held now: the array
+    the component updates in place at each step, which the compiled kernel reads at an event."""
 
     def __init__(self, group: SampledSystem, component: SampledComponent, variable: str, target: str):
         self.group, self.component, self.variable = group, component, variable
         self.name = f"{component.name}.{variable}"
         self.target = target
-
-    @property
-    def times(self) -> np.ndarray:
-        return self.component.times
-
-    @property
-    def values(self) -> np.ndarray:
-        return np.array([self.component.held[self.variable]])
+        self.times = np.zeros(0)
+        self.values = component.current[variable]
 
     def value_at(self, time: float) -> float:
         stop = self.group.communicate(time)  # the master communicates first: nothing due here, normally
@@ -204,7 +266,8 @@ class SampledSystem:
                     if k:  # the same value driving a second input: a column of its own name
                         signal.name = f"{signal.name} -> {target}"
                     self.signals.append(signal)
-        self._readers: list[tuple[SampledComponent, str, Callable[[], float]]] = []
+        self._inputs: dict[str, tuple[list[Callable[[], float]], Callable[[Sequence[float]], None]]] = {}
+        self._communicated = math.nan  # the time of the last communication (asked again there: nothing due)
 
     def start(self, start_time: float, stop_time: float) -> None:
         """Every component instantiated and initialized (its inputs at their start values)."""
@@ -221,7 +284,7 @@ class SampledSystem:
     def bind(self, system: CoupledSystem) -> None:
         """The readers of each sampled component's inputs: Model Exchange outputs of ``system``, or
         another component's held output; then every input sampled (the start)."""
-        self._readers = []
+        readers: dict[str, list[tuple[str, Callable[[], float]]]] = {}
         for c in self.connections:
             target, variable = split_name(c.target, "target")
             if target not in self.components:
@@ -231,20 +294,30 @@ class SampledSystem:
                 read: Callable[[], float] = functools.partial(_held_value, self.components[source], output)
             else:
                 read = functools.partial(_first_value, system.units[source].fmu.reader([output]))
-            self._readers.append((self.components[target], variable, read))
+            readers.setdefault(target, []).append((variable, read))
+        self._inputs = {}
+        for name, pairs in readers.items():
+            instance = self.components[name].instance
+            if instance is not None:
+                self._inputs[name] = ([p[1] for p in pairs], instance.real_writer([p[0] for p in pairs]))
         self._sample(list(self.components.values()))
 
     def _sample(self, components: list[SampledComponent]) -> None:
         for component in components:
-            pairs = [(variable, read()) for owner, variable, read in self._readers if owner is component]
-            if pairs and component.instance is not None:
-                component.instance.set_real([p[0] for p in pairs], [p[1] for p in pairs])
+            inputs = self._inputs.get(component.name)
+            if inputs is not None:
+                reads, write = inputs
+                write([read() for read in reads])
 
     def communicate(self, time: float) -> Terminated | None:
         """At a communication point: the components due step to it with the inputs they held, then
         their inputs are sampled (the Model Exchange system at ``time``, before its event). A
         :class:`~heliostep.cosim.events.Terminated` to raise once the event is handled (the held outputs
-        passed on) when a component asked to terminate the simulation, else None."""
+        passed on) when a component asked to terminate the simulation, else None. Asked again at the
+        same time (each signal's value asks), nothing is due: answered at once."""
+        if time == self._communicated:
+            return None
+        self._communicated = time
         due = [component for component in self.components.values() if component.due(time)]
         stop = [component.name for component in due if component.step_to(time)]
         self._sample(due)
@@ -288,7 +361,7 @@ def split_sampled(
     Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real or
     transformed connection, an algebraic loop through it (named, with the loop)."""
     sampled = {name for name, info in fmus.items() if info.co_simulation}
-    for name in sampled ^ set(intervals):
+    for name in sorted(sampled ^ set(intervals)):
         raise InputError(
             f"FMU instance {name!r}: communication_interval.{name} and its FMU read for Co-Simulation go together"
         )
@@ -323,6 +396,7 @@ def split_sampled(
                     f"connection {c.source} -> {c.target}: only Real variables of a Co-Simulation FMU connect"
                 )
     values = parameters or {}
-    components = {name: SampledComponent(name, fmus[name], intervals[name], values.get(name, {})) for name in sampled}
+    ordered = [name for name in fmus if name in sampled]  # in the order of the instances (the trace's columns)
+    components = {name: SampledComponent(name, fmus[name], intervals[name], values.get(name, {})) for name in ordered}
     me_fmus = {name: info for name, info in fmus.items() if name not in sampled}
     return me_fmus, [c for c in connections if c not in ends], SampledSystem(components, ends)

@@ -37,7 +37,7 @@ from heliostep.results.trace.stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
 from heliostep.run.closed_loop import NoRows, decided_inputs, sensor_parameters, tracking_loop
 from heliostep.run.estimate import check_budget, estimate_run
-from heliostep.run.fmus import fmu_records, read_fmus, resolve_fmus
+from heliostep.run.fmus import communication_intervals, fmu_records, read_fmus, resolve_fmus
 from heliostep.run.options import RunOptions
 from heliostep.run.result import RunFailed, RunResult
 from heliostep.run.supervision.allocator import restore_dynamic_heap
@@ -199,7 +199,7 @@ def _system(scenario: Scenario, infos, inputs: DriveInputs, values: dict, roles:
             [Connection(s, t, scenario.transformation(t)) for s, t in scenario.connection_pairs()],
             given,
             values,
-            communication_intervals=scenario.communication_interval,
+            communication_intervals={name: h for name, (h, _) in communication_intervals(scenario, infos).items()},
             controller=loop,
         )
     except InputError as exc:
@@ -250,7 +250,7 @@ def _metadata(
     units = dict(UNITS)
     for name, info in infos.items():
         units.update({f"{name}.{v}": info.variables[v].unit for v in info.outputs if info.variables[v].unit})
-    return RunMetadata(
+    meta = RunMetadata(
         **run_versions(),
         scenario=scenario.resolved_dict(),
         fmus=fmu_records(fmu_paths, infos),
@@ -261,6 +261,10 @@ def _metadata(
         timezone=scenario.site.timezone,
         units=units,
     )
+    intervals = communication_intervals(scenario, infos)  # the sampled components': each interval and its source
+    if intervals:
+        meta["communication_intervals"] = {n: {"interval_s": h, "from": came} for n, (h, came) in intervals.items()}
+    return meta
 
 
 def _row_sink(prepared: _PreparedRun, figures: RunFigures, options: RunOptions) -> tuple[RowSink, Path | None]:

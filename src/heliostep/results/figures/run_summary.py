@@ -180,6 +180,7 @@ class RunMetadata(TypedDict, total=False):
     packages: dict[str, str]  # package -> version
     scenario: dict[str, Any]  # the resolved scenario
     fmus: dict[str, dict[str, str]]  # instance -> path, sha256, guid
+    communication_intervals: dict[str, dict[str, Any]]  # sampled instance -> interval_s, from (scenario or FMU)
     parameters: dict[str, dict[str, Any]]  # instance -> name -> value
     roles: dict[str, str]  # role -> trace column
     drive: dict[str, Any]  # results.trace.drive_metadata
