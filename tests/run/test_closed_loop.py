@@ -195,3 +195,23 @@ def test_a_weather_files_direct_and_diffuse_light_reach_the_sensor(tmp_path, fmu
     diffuse_view = sun_sensor("ssoc-d60").parameters["diffuse_view"]
     seen = rows["sensor.irradiance"].reindex(samples + 1.0, method="nearest").to_numpy()  # given at each sample
     np.testing.assert_allclose(seen, expected_dni + 2.0 * diffuse_view * expected_dhi, rtol=1e-9)  # A + B
+
+
+def test_the_loops_figures_do_not_move_with_the_output_grid_nor_its_steps_with_the_tolerance(fmu_paths):
+    """The readings come from the solution at the sample instants, not from the output rows: another grid
+    gives the same steps and figures; a tighter tolerance the same steps (the figures within the solver's)."""
+    options = RunOptions(supervise=False, keep_trace=False)
+    runs = {
+        setting: run_scenario("jan21-closed-loop", options, overrides=overrides).summary
+        for setting, overrides in (
+            ("default", ()),
+            ("coarse", ("output.interval=1", "output.step_detail=0")),
+            ("tight", ("solver.rtol=1e-8",)),
+        )
+    }
+    for key in ("steps_commanded", "max_tracking_error_deg", "peak_torque_Nm"):
+        assert runs["coarse"][key] == runs["default"][key], key
+    # an integral over the solution's rows, which take the output rows too: within 1e-6, as open loop's (docs/sweep.md)
+    assert runs["coarse"]["electrical_energy_J"] == pytest.approx(runs["default"]["electrical_energy_J"], rel=1e-6)
+    assert runs["tight"]["steps_commanded"] == runs["default"]["steps_commanded"] > 0
+    assert runs["tight"]["max_tracking_error_deg"] == pytest.approx(runs["default"]["max_tracking_error_deg"], rel=1e-6)
