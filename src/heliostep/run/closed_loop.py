@@ -23,7 +23,7 @@ from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.scenario.sun_sensors import sun_sensor
 from heliostep.scenario.tracking import SENSOR_INSTANCE
-from heliostep.solar import clear_sky_irradiance, cloud_fraction
+from heliostep.solar import clear_sky_irradiance, cloud_fraction, panel_angle_from_rotor, rotor_angle_from_panel
 
 __all__ = ["decided_inputs", "sensor_parameters", "NoRows", "tracking_loop"]
 
@@ -40,19 +40,20 @@ def sensor_parameters(scenario: Scenario) -> dict[str, float]:
 
 
 class _Transmission:
-    """Step index <-> commanded panel angle through the rack and pinion ([paper], eq. 14): the rotor at 0 at
-    the reference's first panel angle ``panel0`` [rad]."""
+    """Step index <-> commanded panel angle through the rack and pinion ([paper], eq. 14,
+    :mod:`heliostep.solar.transmission`): the rotor at 0 at the reference's first panel angle [rad]."""
 
     def __init__(self, inputs: DriveInputs, pinion_radius: float, lever_arm: float):
         self.sequencer, self.panel0 = inputs.sequencer, float(inputs.panel_angle_ref[0])
-        self.ratio = pinion_radius / lever_arm
+        self.pinion_radius, self.lever_arm = pinion_radius, lever_arm
 
     def panel_of_index(self, index: float) -> float:
-        return float(np.arctan(np.tan(self.panel0) + float(self.sequencer.position(index)) * self.ratio))
+        rotor = float(self.sequencer.position(index))
+        return float(panel_angle_from_rotor(rotor, self.panel0, self.pinion_radius, self.lever_arm))
 
     def index_of_panel(self, panel: float) -> float:
-        rotor = (np.tan(panel) - np.tan(self.panel0)) / self.ratio
-        return float((rotor - self.sequencer.offset) / self.sequencer.increment)
+        rotor = float(rotor_angle_from_panel(panel, self.panel0, self.pinion_radius, self.lever_arm))
+        return (rotor - self.sequencer.offset) / self.sequencer.increment
 
 
 def sensor_views(
