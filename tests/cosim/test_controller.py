@@ -19,6 +19,7 @@ SEQUENCER = Sequencer()
 TARGET_STEPS = 5
 SAMPLE = 0.02  # [s]
 LATENCY = 0.005  # [s] from the sample to the step it commands
+DETAIL = np.array([0.0, 0.001, 0.0025])  # [s] after each step it commands, the output rows it asks for
 
 
 class StepToTarget:
@@ -35,7 +36,7 @@ class StepToTarget:
             ScheduledInput("i_a_ref", "motor.i_a_ref", float(i_a), capacity=2),  # grows while simulating
             ScheduledInput("i_b_ref", "motor.i_b_ref", float(i_b), capacity=2),
         )
-        self.index, self.samples = 0, []
+        self.index, self.samples, self.decided = 0, [], 0
         self.target = SEQUENCER.position(TARGET_STEPS)
 
     def setting(self, time: float) -> np.ndarray:
@@ -43,12 +44,16 @@ class StepToTarget:
 
     def sample(self, time: float, readings: np.ndarray) -> None:
         self.samples.append((time, float(readings[0])))
+        self.decided = len(self.inputs[0].times)
         error = self.target - readings[0]
         if abs(error) > 0.5 * SEQUENCER.increment:
             self.index += int(np.sign(error))
             i_a, i_b = SEQUENCER.reference_currents(self.index)
             for item, value in zip(self.inputs, (i_a, i_b)):
                 item.append(time + LATENCY, float(value))
+
+    def outputs_after(self, time: float) -> np.ndarray:
+        return (self.inputs[0].times[self.decided :, None] + DETAIL[None, :]).ravel()
 
 
 def _closed_loop(drive, stop=0.5, **simulate):
@@ -68,6 +73,10 @@ def test_a_rotor_stepped_to_its_target_stops_within_half_a_step_having_taken_the
         np.isin(np.round(steps - LATENCY, 9), np.round(SAMPLE * np.arange(1, 26), 9))
     )
     assert [round(t, 9) for t, _ in controller.samples] == [round(t, 9) for t in controller.sample_times]
+    # the output rows it asked for after each step, at their instants
+    times = result.trace["time"].to_numpy()
+    wanted = (steps[:, None] + DETAIL[None, :]).ravel()
+    assert np.abs(times[np.searchsorted(times, wanted - 1e-12)] - wanted).max() < 1e-12
     # the trace carries the commanded currents at their instants
     rows = result.trace.drop_duplicates("time", keep="last").set_index("time")
     i_a, _ = SEQUENCER.reference_currents(TARGET_STEPS)
@@ -80,6 +89,7 @@ def test_the_same_changes_given_before_the_simulation_give_the_same_trace_bit_fo
     options = SolverOptions(rtol=rtol)
     controller, closed = _closed_loop(drive, output_times=grid, solver=options)
     given = [PiecewiseConstant(i.name, i.target, i.times.copy(), i.values.copy()) for i in controller.inputs]
+    grid = np.union1d(grid, (controller.inputs[0].times[:, None] + DETAIL[None, :]).ravel())  # the rows it asked for
     replay = CoSimulation(drive, DRIVE_CONNECTIONS, given).simulate(0.0, 0.5, grid, options)
     assert closed.statistics["compiled_events"] > 0  # the appended changes went through the compiled kernel
     assert closed.trace.columns.tolist() == replay.trace.columns.tolist()

@@ -97,6 +97,11 @@ class SampledController(Protocol):
         decided to :attr:`inputs` (at ``time`` or later)."""
         ...
 
+    def outputs_after(self, time: float) -> np.ndarray:
+        """The output rows [s] wanted for the changes decided at the sample ``time`` (the run's grid gets
+        those later than ``time``)."""
+        ...
+
 
 class ControllerSamples:
     """A run's sample instants of its controller in the window (none without one), and the samples taken."""
@@ -150,3 +155,11 @@ class ControllerSamples:
         if np.any(added < t - 1e-12 * max(1.0, abs(t))):
             raise RuntimeError(f"the controller sampled at t = {t:.9g} s appended a change before that instant")
         return added
+
+    def outputs_after(self, t: float, grid: np.ndarray, stop: float) -> np.ndarray:
+        """The output times still to come (``grid``, increasing) with those the controller wants for the
+        changes it decided at ``t``, up to ``stop``."""
+        assert self.controller is not None
+        wanted = np.asarray(self.controller.outputs_after(t), dtype=float)
+        wanted = wanted[(wanted > t) & (wanted <= stop)]
+        return np.union1d(grid, wanted) if len(wanted) else grid

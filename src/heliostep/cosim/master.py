@@ -378,6 +378,7 @@ class _Run:
             if samples.due(t) and samples.take(t):  # the controller appended changes: merged with the rest
                 change_times = np.unique(np.concatenate([change_times[next_change:], samples.changes_after(t)]))
                 next_change = 0
+                grid, next_output = samples.outputs_after(t, grid[next_output:], stop_time), 0
                 if self.fast_events is not None:
                     self.fast_events.refresh(self.graph.inputs)
 

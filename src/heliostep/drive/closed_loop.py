@@ -24,7 +24,7 @@ import numpy as np
 
 from heliostep.drive.sequencer import Sequencer, StepSchedule
 
-__all__ = ["ChangeLog", "LoopLaw", "SensorView", "TrackingLoop", "realized_schedule"]
+__all__ = ["ChangeLog", "DecidedSchedule", "LoopLaw", "SensorView", "TrackingLoop", "realized_schedule"]
 
 #: The traced master input that carries the commanded step index (it drives no FMU).
 STEP_INDEX = "step_index"
@@ -37,7 +37,40 @@ class ChangeLog(Protocol):
     @property
     def times(self) -> np.ndarray: ...
 
+    @property
+    def values(self) -> np.ndarray: ...
+
     def append(self, time: float, value: float) -> None: ...
+
+
+class DecidedSchedule(StepSchedule):
+    """The steps a controller has decided so far, read from its step-index input (``log``) at each look:
+    a schedule that grows while simulating. Steps decided for one instant count as one, to the last index
+    (the input's value from that instant on)."""
+
+    log: ChangeLog
+
+    def __init__(self, log: ChangeLog, initial_index: int):
+        object.__setattr__(self, "log", log)
+        object.__setattr__(self, "initial_index", int(initial_index))
+        object.__setattr__(self, "_cache", (-1, np.zeros(0), np.zeros(0, dtype=int)))
+
+    def _read(self) -> tuple[np.ndarray, np.ndarray]:
+        count, times, indices = self._cache  # type: ignore[attr-defined]
+        if count != len(self.log.times):
+            times, values = self.log.times.copy(), self.log.values[1:]
+            last = np.append(times[1:] != times[:-1], True)[: len(times)]  # the last change of each instant
+            times, indices = times[last], np.rint(values[last]).astype(int)
+            object.__setattr__(self, "_cache", (len(self.log.times), times, indices))
+        return times, indices
+
+    @property
+    def times(self) -> np.ndarray:
+        return self._read()[0]
+
+    @property
+    def indices(self) -> np.ndarray:
+        return self._read()[1]
 
 
 @dataclass(frozen=True)
@@ -103,7 +136,15 @@ class TrackingLoop:
         A span [s] over which the driver ignores the steps (``faults.stuck``); its end must be a sample time.
     inputs : sequence of ChangeLog
         The phase currents' references i_a, i_b [A] and the step index it commands (traced), each holding
-        its value at the start; none: it decides nothing (the run replayed on its steps).
+        its value at the start.
+    step_detail : ndarray, optional
+        Offsets [s] after each step it decides at which the run wants output rows (the fine grid of
+        ``output.step_detail``).
+
+    Attributes
+    ----------
+    schedule : DecidedSchedule
+        The steps decided so far.
     """
 
     def __init__(
@@ -120,6 +161,7 @@ class TrackingLoop:
         open_loop: StepSchedule | None = None,
         stuck: tuple[float, float] | None = None,
         inputs: Sequence[ChangeLog] = (),
+        step_detail: np.ndarray | None = None,
     ):
         self.law, self.sequencer, self.sensor = law, sequencer, sensor
         self.panel_of_index, self.index_of_panel = panel_of_index, index_of_panel
@@ -128,7 +170,12 @@ class TrackingLoop:
         if self.views.shape != (len(self.sample_times) + 1, 4):
             raise ValueError(f"views: expected {len(self.sample_times) + 1} rows of 4, got {self.views.shape}")
         self.open_loop = open_loop if law.mode == "hybrid" else None
-        self.inputs, self.decide, self.stuck = tuple(inputs), bool(inputs), stuck
+        self.inputs, self.stuck = tuple(inputs), stuck
+        if len(self.inputs) != 3:
+            raise ValueError(f"inputs: expected i_a, i_b and the step index, got {len(self.inputs)}")
+        self.schedule = DecidedSchedule(self.inputs[2], initial_index)
+        self.step_detail = np.zeros(0) if step_detail is None else np.asarray(step_detail, dtype=float)
+        self._steps_before = 0  # the steps decided before the last sample
         self._held = False  # steps the stuck driver ignored, not yet taken up at the span's end
         self.reads = (f"{sensor_instance}.signal", f"{sensor_instance}.lit")
         self.sets = tuple(f"{sensor_instance}.{name}" for name in ("theta_ref", "dni", "dhi", "noise"))
@@ -136,15 +183,8 @@ class TrackingLoop:
         self._followed = 0  # open-loop steps taken up to (hybrid)
         self._moving_until = -np.inf  # the last step of the last move the sensor asked for [s]
         self.readings: list[tuple[float, float, float]] = []  # (time, signal, lit)
-        if self.decide and self.open_loop is not None:
+        if self.open_loop is not None:
             self._follow(0.0, self._next_sample(0.0))
-
-    def replay(self) -> TrackingLoop:
-        """The same sensor view at the same samples, deciding nothing (the run replayed on its steps)."""
-        twin = object.__new__(TrackingLoop)
-        twin.__dict__.update(self.__dict__)
-        twin.decide, twin.inputs, twin.readings = False, (), []
-        return twin
 
     # ------------------------------------------------------------ what the master asks
     def setting(self, time: float) -> np.ndarray:
@@ -153,8 +193,7 @@ class TrackingLoop:
     def sample(self, time: float, readings: np.ndarray) -> None:
         signal, lit = float(readings[0]), float(readings[1])
         self.readings.append((time, signal, lit))
-        if not self.decide:
-            return
+        self._steps_before = len(self.inputs[2].times)
         if self._held and self.stuck is not None and time >= self.stuck[1]:
             self._take_up(self.index)
         end = self._next_sample(time)
@@ -164,6 +203,15 @@ class TrackingLoop:
             return
         self.correction += wanted  # hybrid: the reference's steps, shifted by the correction
         self._follow(time, end, first=(time + self.law.latency, wanted))
+
+    def outputs_after(self, time: float) -> np.ndarray:
+        """The output rows [s] the steps decided at the last sample ask for (:attr:`step_detail` after each)."""
+        steps = self.inputs[2].times[self._steps_before :]
+        return (steps[:, None] + self.step_detail[None, :]).ravel()
+
+    def outputs_decided(self) -> np.ndarray:
+        """The output rows [s] of the steps decided so far (those decided before simulating, at the start)."""
+        return (self.inputs[2].times[:, None] + self.step_detail[None, :]).ravel()
 
     # ------------------------------------------------------------ the law
     def _wanted_steps(self, signal: float) -> int:

@@ -1,10 +1,9 @@
 """A closed or hybrid tracking loop in a run: the controller of the scenario, and the steps it decides.
 
 The controller (:class:`~heliostep.drive.closed_loop.TrackingLoop`) decides the steps while the system is
-simulated. The run then goes on as an open-loop run does, on the steps it decided: the same system
-simulated again on them, its solver stopping at the same instants (the sensor's samples), gives the same
-solution bit for bit (``tests/cosim/test_controller.py``), and every figure, trace column and plot of an
-open-loop run follows from it unchanged.
+simulated, once: the solver-step figures follow its steps as they are decided, the output rows wait until
+the run ends and are then assembled on the steps decided (:func:`decided_inputs`), so every figure, trace
+column and plot of an open-loop run follows unchanged.
 
 Details: docs/tracking.md.
 """
@@ -25,7 +24,7 @@ from heliostep.scenario.sun_sensors import sun_sensor
 from heliostep.scenario.tracking import SENSOR_INSTANCE
 from heliostep.solar import clear_sky_irradiance, cloud_fraction, panel_angle_from_rotor, rotor_angle_from_panel
 
-__all__ = ["decided_inputs", "sensor_parameters", "NoRows", "tracking_loop"]
+__all__ = ["decided_inputs", "loop_inputs", "sensor_parameters", "tracking_loop"]
 
 #: Standard deviations of a reading's noise the default dead band spans: a still panel steps on noise
 #: alone in 0.3 % of its readings (a normal distribution's two-sided 3-sigma tail).
@@ -120,6 +119,7 @@ def tracking_loop(scenario: Scenario, inputs: DriveInputs, roles: dict[str, str]
         open_loop=inputs.schedule,
         stuck=stuck,
         inputs=_commands(sequencer, inputs.schedule.initial_index, roles),
+        step_detail=np.arange(0.0, scenario.output.step_detail, scenario.output.step_interval),
     )
 
 
@@ -134,25 +134,18 @@ def _commands(sequencer, initial_index: int, roles: dict[str, str]) -> tuple[Sch
     )
 
 
-class NoRows:
-    """The solution monitor of the simulation that decides the steps: with one, the solver stops where the
-    run's own (monitored) simulation stops, so that one repeats it; it keeps nothing (in a supervised child
-    too: no totals)."""
-
-    def __call__(self, rows: np.ndarray) -> None:
-        return None
-
-    def totals(self) -> None:
-        return None
-
-    def take_totals(self, totals: object) -> None:
-        return None
+def loop_inputs(inputs: DriveInputs, loop: TrackingLoop, scenario: Scenario) -> DriveInputs:
+    """The run's inputs while its controller decides the steps: its schedule (growing while simulating) and
+    the output grid of the steps decided before the start (the rest join the grid as they are decided)."""
+    out = scenario.output
+    grid = output_grid(inputs.duration, out.interval, loop.schedule.times, out.step_detail, out.step_interval)
+    return dataclasses.replace(inputs, schedule=loop.schedule, output_times=grid)
 
 
 def decided_inputs(inputs: DriveInputs, trace: pd.DataFrame, scenario: Scenario) -> DriveInputs:
     """The run's inputs on the steps a controller decided, read from the ``trace`` of the simulation it
-    decided them in (its ``step_index`` column; a failed or stopped one gives the steps up to there): the
-    schedule, the phase currents and the output grid of those steps."""
+    decided them in (its ``time`` and ``step_index`` columns; a failed or stopped one gives the steps up to
+    there): the schedule, the phase currents and the output grid of those steps."""
     schedule = realized_schedule(trace["time"].to_numpy(), trace[STEP_INDEX].to_numpy(), inputs.schedule.initial_index)
     indices = np.concatenate([[schedule.initial_index], schedule.indices])
     i_a, i_b = inputs.sequencer.reference_currents(indices)

@@ -1,11 +1,13 @@
 """``run_scenario``: a run set up, simulated once and summarized.
 
-Its rows go in one pass to the run's figures and to its row sink; a run that fails or is
-interrupted part-way still returns (and writes) the trace so far, marked incomplete.
+Its rows go in one pass to the run's figures and to its row sink (a closed loop's output rows once its
+steps are decided, :mod:`heliostep.run.closed_loop`); a run that fails or is interrupted part-way still
+returns (and writes) the trace so far, marked incomplete.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import os
@@ -23,19 +25,20 @@ import numpy as np
 
 from heliostep._version import __version__
 from heliostep.cosim import Connection, CoSimulation, FMUInfo, SimulationError, SolverOptions
-from heliostep.drive.closed_loop import TrackingLoop
+from heliostep.drive.closed_loop import STEP_INDEX, TrackingLoop
 from heliostep.drive.inputs import DriveInputs, prepare_inputs
 from heliostep.errors import InputError
 from heliostep.progress import bars_wanted
-from heliostep.results.figures.run_figures import FigureStream, RunFigures
+from heliostep.results.figures.run_figures import FigureStream, RunFigures, solution_recorder
 from heliostep.results.figures.run_summary import RunMetadata, RunStatus
+from heliostep.results.figures.solution import SolutionRecorder
 from heliostep.results.light.on_tube import load_weather
 from heliostep.results.output.files import TMP_PREFIX
 from heliostep.results.trace.frame import UNITS, TraceAssembler, drive_metadata, figure_columns, trace_metadata
-from heliostep.results.trace.sinks import HeldTrace, RowSink
+from heliostep.results.trace.sinks import HeldTrace, KeptRows, RowSink
 from heliostep.results.trace.stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
-from heliostep.run.closed_loop import NoRows, decided_inputs, sensor_parameters, tracking_loop
+from heliostep.run.closed_loop import decided_inputs, loop_inputs, sensor_parameters, tracking_loop
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import communication_intervals, fmu_records, read_fmus, resolve_fmus
 from heliostep.run.options import RunOptions
@@ -81,9 +84,21 @@ class _PreparedRun:
     def columns(self) -> list[str]:
         """The master's trace columns."""
         columns = ["time"] + [item.name for item in self.system.inputs]
-        return columns + [
-            f"{name}.{output}" for name, info in self.system.fmus.items() for output in info.traced_outputs
-        ]
+        return columns + self._outputs
+
+    @property
+    def trace_columns(self) -> list[str]:
+        """The master's columns the run's sink takes: a loop's phase currents first, as an open-loop run's,
+        and not its step index (the assembler derives it from the steps decided)."""
+        if self.loop is None:
+            return self.columns
+        names = [item.name for item in self.system.inputs if item.name != STEP_INDEX]
+        currents = [name for name in ("i_a_ref", "i_b_ref") if name in names]
+        return ["time", *currents, *[name for name in names if name not in currents], *self._outputs]
+
+    @property
+    def _outputs(self) -> list[str]:
+        return [f"{name}.{output}" for name, info in self.system.fmus.items() for output in info.traced_outputs]
 
 
 def run_scenario(
@@ -119,34 +134,53 @@ def run_scenario(
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario, tuple(overrides))
     prepared = _prepare(scenario, options.fmu_paths, clock.perf_counter(), options.should_stop, options.keep_trace)
-    if prepared.loop is not None:  # its steps decided while simulating; the run then goes on those steps
-        prepared = _decided(prepared, options)
-    figures = _run_figures(prepared, options.row_group_rows, options.light_first_order)
-    sink, temporary = _row_sink(prepared, figures, options)
-    try:
-        run = _simulate_and_summarize(prepared, figures, sink, temporary, options)
-    except BaseException:  # no result (a bug, bad input found late, a forced stop): its stream goes too
-        sink.abort()
-        if temporary is not None:
-            shutil.rmtree(temporary, ignore_errors=True)
-        raise
+    if prepared.loop is None:
+        figures = _run_figures(prepared, options)
+        sink, temporary = _row_sink(prepared, figures, options)
+        with _discarded_on_error(sink, temporary):
+            simulated = _co_simulate(prepared, figures.solution, sink, options)
+    else:  # the output rows kept until the steps are decided, the solver steps' figures on them as they come
+        recorder = solution_recorder(prepared.columns, prepared.inputs, prepared.roles)
+        kept = KeptRows(prepared.columns)
+        with _discarded_on_error(kept, None):
+            simulated = _co_simulate(prepared, recorder, kept, options)
+        prepared, figures = _on_decided_steps(prepared, recorder, kept, options)
+        sink, temporary = _row_sink(prepared, figures, options)
+        with _discarded_on_error(sink, temporary):
+            kept.replay(sink, prepared.trace_columns, SINK_ROWS)
+    with _discarded_on_error(sink, temporary):
+        run = _summarize(prepared, figures, sink, temporary, simulated)
     if not run.complete:
         raise RunFailed(run.error or run.reason or "failed", run)
     return run
 
 
-def _run_figures(prepared: _PreparedRun, row_group_rows: int, light_first_order: bool = True) -> RunFigures:
-    """The run's one figure accumulator, fed while simulating."""
+@contextlib.contextmanager
+def _discarded_on_error(sink, temporary: Path | None):
+    """No result (a bug, bad input found late, a forced stop): what ``sink`` kept goes, and ``temporary``."""
+    try:
+        yield
+    except BaseException:
+        sink.abort()
+        if temporary is not None:
+            shutil.rmtree(temporary, ignore_errors=True)
+        raise
+
+
+def _run_figures(prepared: _PreparedRun, options: RunOptions, solution: SolutionRecorder | None = None) -> RunFigures:
+    """The run's one figure accumulator, fed while simulating (``solution``: its solver steps' recorder,
+    if they are already recorded)."""
     return RunFigures.of_run(
-        prepared.columns,
+        prepared.trace_columns,
         prepared.inputs,
         prepared.roles,
         figure_columns(prepared.roles),
         prepared.meta,
         prepared.scenario,
         prepared.weather,
-        row_group_rows,
-        light_first_order=light_first_order,
+        options.row_group_rows,
+        light_first_order=options.light_first_order,
+        solution=solution,
     )
 
 
@@ -175,6 +209,8 @@ def _prepare(
         values[SENSOR_INSTANCE] = sensor_parameters(scenario)
         loop = tracking_loop(scenario, inputs, roles, weather)
     system = _system(scenario, infos, inputs, values, roles, loop)
+    if loop is not None:
+        inputs = loop_inputs(inputs, loop, scenario)
     solver = SolverOptions(
         rtol=scenario.solver.rtol,
         atol=scenario.solver.atol,
@@ -189,9 +225,9 @@ def _prepare(
 
 def _system(scenario: Scenario, infos, inputs: DriveInputs, values: dict, roles: dict, loop) -> CoSimulation:
     """The coupled system: connections (types, units, loops), parameter names and values, checked before
-    simulating; a controller's inputs in place of the schedule's phase currents while it decides them."""
+    simulating; a controller's inputs in place of the schedule's phase currents."""
     given = signals(inputs, roles, scenario.faults.stuck)
-    if loop is not None and loop.decide:
+    if loop is not None:
         given = [item for item in given if item.name not in ("i_a_ref", "i_b_ref")]
     try:
         return CoSimulation(
@@ -206,26 +242,17 @@ def _system(scenario: Scenario, infos, inputs: DriveInputs, values: dict, roles:
         raise InputError(f"{scenario.source}: {exc}") from None
 
 
-def _decided(prepared: _PreparedRun, options: RunOptions) -> _PreparedRun:
-    """The run set up again on the steps its controller decides (:mod:`heliostep.run.closed_loop`)."""
-    assert prepared.loop is not None
-    simulate = prepared.system.simulate
-    if options.supervise:
-        simulate = functools.partial(
-            simulate_supervised, prepared.system, watchdog=options.watchdog, start_method=options.start_method
-        )
-    duration = prepared.inputs.duration
-    try:
-        outputs = np.array([0.0, duration])
-        trace = simulate(0.0, duration, outputs, prepared.solver, monitor=NoRows(), should_stop=options.should_stop)
-        trace = trace.trace
-    except SimulationError as exc:  # the steps decided up to there: the run on them ends there too
-        trace = exc.trace
-    scenario, roles = prepared.scenario, prepared.roles
-    inputs = decided_inputs(prepared.inputs, trace, scenario)
-    system = _system(scenario, prepared.infos, inputs, prepared.values, roles, prepared.loop.replay())
-    meta = _metadata(scenario, prepared.fmu_paths, prepared.infos, prepared.values, roles, inputs)
-    return dataclasses.replace(prepared, inputs=inputs, system=system, meta=meta)
+def _on_decided_steps(
+    prepared: _PreparedRun, recorder: SolutionRecorder, kept: KeptRows, options: RunOptions
+) -> tuple[_PreparedRun, RunFigures]:
+    """The run on the steps its controller decided (read from the rows kept): its inputs, metadata and
+    figures, the solver steps' recorder told the steps it recorded on."""
+    scenario = prepared.scenario
+    inputs = decided_inputs(prepared.inputs, kept.frame(["time", STEP_INDEX]), scenario)
+    meta = _metadata(scenario, prepared.fmu_paths, prepared.infos, prepared.values, prepared.roles, inputs)
+    prepared = dataclasses.replace(prepared, inputs=inputs, meta=meta)
+    recorder.steps_decided(inputs.schedule)
+    return prepared, _run_figures(prepared, options, recorder)
 
 
 def run_versions() -> dict:
@@ -270,7 +297,7 @@ def _metadata(
 def _row_sink(prepared: _PreparedRun, figures: RunFigures, options: RunOptions) -> tuple[RowSink, Path | None]:
     """Where the master's rows go (all feed ``figures``): not kept, held, or streamed to a file
     (with the temporary folder made for it, without ``options.trace_dir``)."""
-    columns, assembler = prepared.columns, TraceAssembler(prepared.inputs, prepared.roles)
+    columns, assembler = prepared.trace_columns, TraceAssembler(prepared.inputs, prepared.roles)
     if not options.keep_trace:
         return FigureStream(columns, assembler, figures), None
     stream, trace_dir = options.stream, options.trace_dir
@@ -297,9 +324,9 @@ def _ended_status(result, duration: float) -> RunStatus:
     return RunStatus(True)
 
 
-def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, options: RunOptions):
-    """The co-simulation, its rows to ``figures`` and ``sink``: (status, the master's empty
-    trace frame, its statistics); in a supervised child process with ``options.supervise``."""
+def _co_simulate(prepared: _PreparedRun, monitor: SolutionRecorder | None, sink, options: RunOptions):
+    """The co-simulation, its solver steps to ``monitor`` and its output rows to ``sink``: (status, the
+    master's empty trace frame, its statistics); in a supervised child process with ``options.supervise``."""
     inputs = prepared.inputs
     bar = _progress_bar(inputs.duration) if options.progress else None
     simulate = prepared.system.simulate
@@ -315,7 +342,7 @@ def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, opt
             prepared.solver,
             progress=bar.update_to if bar else None,
             should_stop=options.should_stop,
-            monitor=figures.solution,  # every solver step, for the figures
+            monitor=monitor,  # every solver step, for the figures
             sink=sink,
             sink_rows=SINK_ROWS,
         )  # the trace rows, in blocks
@@ -332,12 +359,13 @@ def _co_simulate(prepared: _PreparedRun, figures: RunFigures, sink: RowSink, opt
             bar.close()
 
 
-def _simulate_and_summarize(
-    prepared: _PreparedRun, figures: RunFigures, sink: RowSink, temporary: Path | None, options: RunOptions
+def _summarize(
+    prepared: _PreparedRun, figures: RunFigures, sink: RowSink, temporary: Path | None, simulated: tuple
 ) -> RunResult:
-    """The co-simulation, the trace (held, or finished in its stream) and the figures, as a RunResult."""
+    """The co-simulation's outcome (``simulated``, :func:`_co_simulate`'s), the trace (held, or finished in its
+    stream) and the figures, as a RunResult."""
     scenario, meta = prepared.scenario, prepared.meta
-    status, raw, statistics = _co_simulate(prepared, figures, sink, options)
+    status, raw, statistics = simulated
     status = sink.finish(status)  # the last rows kept (a streamed trace that cannot be written fails the run)
     meta["statistics"] = {
         **statistics,

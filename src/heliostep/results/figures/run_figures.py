@@ -26,7 +26,15 @@ from heliostep.results.light.on_tube import LightIntegrals
 from heliostep.results.trace.files import ROW_GROUP_ROWS, iter_trace_blocks
 from heliostep.results.trace.frame import TraceAssembler, drive_from_metadata, master_block
 
-__all__ = ["FigureStream", "RunFigures", "TraceSource", "present_columns", "run_figures", "trace_blocks"]
+__all__ = [
+    "FigureStream",
+    "RunFigures",
+    "TraceSource",
+    "present_columns",
+    "run_figures",
+    "solution_recorder",
+    "trace_blocks",
+]
 
 #: A trace: held in memory (a frame), or a Parquet trace file read by row groups.
 TraceSource: TypeAlias = pd.DataFrame | Path
@@ -115,17 +123,12 @@ class RunFigures:
         weather=None,
         block_rows: int = ROW_GROUP_ROWS,
         light_first_order: bool = True,
+        solution: SolutionRecorder | None = None,
     ) -> RunFigures:
         """The figures of a run about to simulate: the master's ``master_columns``, the output rows'
-        ``columns`` (those of the figures, :func:`~heliostep.results.trace.frame.figure_columns`)."""
-        solution = SolutionRecorder(
-            master_columns,
-            roles,
-            inputs.sequencer,
-            inputs.schedule,
-            inputs.panel_reference(),
-            span=(0.0, inputs.duration),  # the envelopes' bins span the window
-        )
+        ``columns`` (those of the figures, :func:`~heliostep.results.trace.frame.figure_columns`);
+        ``solution``: the recorder of its solver steps, if it has begun (:func:`solution_recorder`)."""
+        solution = solution if solution is not None else solution_recorder(master_columns, inputs, roles)
         present = _present(TraceAssembler(inputs, dict(roles)).columns(master_columns), columns)
         window = (inputs.window_start, inputs.duration)
         return cls(present, metadata, scenario, weather, block_rows, solution, window, light_first_order)
@@ -220,6 +223,18 @@ def run_figures(
     for block in trace_blocks(source, present):
         figures(block)
     return figures
+
+
+def solution_recorder(master_columns: list[str], inputs: DriveInputs, roles: Mapping[str, str]) -> SolutionRecorder:
+    """The recorder of a run's solver steps (the master's ``master_columns``) on its inputs' steps."""
+    return SolutionRecorder(
+        master_columns,
+        roles,
+        inputs.sequencer,
+        inputs.schedule,
+        inputs.panel_reference(),
+        span=(0.0, inputs.duration),  # the envelopes' bins span the window
+    )
 
 
 class FigureStream:

@@ -48,14 +48,15 @@ class ErrorTrack:
     """The tracking error e [deg] over the solution's rows, for the light between the output rows
     (:mod:`heliostep.results.light.rows`): its running integral and that of e^2 (linear pieces; running sums one
     row after the other) to the last row and at the first row at or after each of
-    ``step_times`` [s], and per interval between those marks (the first row, each step) the rows of its
-    largest and least value (t, e, panel [s, deg, rad], the first of equal ones)."""
+    the ``schedule``'s steps [s], and per interval between those marks (the first row, each step) the rows of
+    its largest and least value (t, e, panel [s, deg, rad], the first of equal ones). The schedule may grow
+    while the rows come (a controller's steps), never before the rows taken."""
 
-    def __init__(self, step_times: Sequence[float] | np.ndarray):
-        self.step_times = np.asarray(step_times, dtype=float)
+    def __init__(self, schedule: StepSchedule):
+        self.schedule = schedule
         self.integral = 0.0
         self.marks: list[float] = []
-        self.extremes = np.full((len(self.step_times) + 1, 6), np.nan)
+        self.extremes = np.full((len(schedule.times) + 1, 6), np.nan)
         self.square = 0.0  # the integral of e^2 [deg^2 s], one row after the other, and at the marks
         self.square_marks: list[float] = []
 
@@ -71,19 +72,21 @@ class ErrorTrack:
         """The block's rows: their times, the trapezoid's areas of e and of e^2 (linear pieces) since the row before
         (``continued``: from the previous block's last row, one area per row; else one fewer), the error and the
         panel angle."""
+        self.grow(len(self.schedule.times))
         at_rows = _running_sums(self.integral, areas, continued)
         self.integral = float(at_rows[-1])
         squares_at_rows = _running_sums(self.square, square_areas, continued)
         self.square = float(squares_at_rows[-1])
-        steps = self.step_times[len(self.marks) :]
+        step_times = np.asarray(self.schedule.times, dtype=float)
+        steps = step_times[len(self.marks) :]
         steps = steps[steps <= time[-1]]
         if len(steps):
             where = np.searchsorted(time, steps, side="left")
             self.marks.extend(at_rows[where].tolist())
             self.square_marks.extend(squares_at_rows[where].tolist())
         # the rows in time order: runs of one interval (a row's: the number of steps at or before it)
-        first, last = np.searchsorted(self.step_times, time[[0, -1]], side="right")
-        bounds = np.searchsorted(time, self.step_times[first:last], side="left")
+        first, last = np.searchsorted(step_times, time[[0, -1]], side="right")
+        bounds = np.searchsorted(time, step_times[first:last], side="left")
         starts = np.unique(np.concatenate([[0], bounds]))
         intervals = first + np.searchsorted(bounds, starts, side="right")
         lengths = np.diff(np.append(starts, len(time)))
@@ -96,6 +99,12 @@ class ErrorTrack:
             take = np.isnan(held) | better(error[k], held)
             k = k[take]
             self.extremes[intervals[valid][take], column : column + 3] = np.column_stack([time[k], error[k], panel[k]])
+
+    def grow(self, steps: int) -> None:
+        """Room for the extremes of ``steps`` steps' intervals (the schedule grew)."""
+        if steps + 1 > len(self.extremes):
+            more = np.full((max(steps + 1, 2 * len(self.extremes)) - len(self.extremes), 6), np.nan)
+            self.extremes = np.concatenate([self.extremes, more])
 
     def figures(self) -> dict:
         """``error_integral_deg_s`` and ``error_sq_integral_deg2_s`` with their values ``..._at_steps_...`` at the
@@ -189,7 +198,7 @@ class SolutionRecorder:
         self._error_max = 0.0
         self._error_sq_sum = 0.0  # sum of e^2
         # the error's integrals (of e^2, linear pieces, for the rms; of e, for the light between the output rows)
-        self._error_track = ErrorTrack(schedule.times)
+        self._error_track = ErrorTrack(schedule)
         self._energy = 0.0
         self._peak_torque = self._peak_current = 0.0
         self._last_error: float | None = None
@@ -270,11 +279,17 @@ class SolutionRecorder:
         track.integral, track.square = running["track"]
         track.marks.extend(totals.marks)
         track.square_marks.extend(totals.square_marks)
+        track.grow(totals.extremes_from + len(totals.extremes))
         track.extremes[totals.extremes_from : totals.extremes_from + len(totals.extremes)] = totals.extremes
         if self.peak_window is not None:
             vars(self.peak_window).update(running["window"])
         if self.envelope is not None:
             vars(self.envelope).update(running["envelope"])
+
+    def steps_decided(self, schedule: StepSchedule) -> None:
+        """The steps the rows were simulated on, known at the end (a controller decided them while simulating)."""
+        self._take()
+        self.schedule = self.steps.schedule = self._error_track.schedule = schedule
 
     def _take(self) -> None:
         if self._pending is None or not self._pending_rows:

@@ -16,7 +16,7 @@ import pandas as pd
 from heliostep.results.figures.run_summary import RunStatus
 from heliostep.results.trace.frame import TraceAssembler, master_block
 
-__all__ = ["HeldTrace", "RowSink"]
+__all__ = ["HeldTrace", "KeptRows", "RowSink"]
 
 
 class RowSink(Protocol):
@@ -101,3 +101,38 @@ class HeldTrace:
     @property
     def held_trace(self) -> pd.DataFrame | None:
         return self._trace
+
+
+class KeptRows:
+    """The master's rows kept as they come, to be handed to the run's sink once what they are assembled
+    with is known (a controller's steps, decided while simulating): :meth:`replay`."""
+
+    def __init__(self, master_columns: list[str]) -> None:
+        self.master_columns = list(master_columns)
+        self._blocks: list[np.ndarray] = []
+        self.rows = 0
+        self.last_time: float | None = None
+
+    def __call__(self, block: np.ndarray) -> None:
+        block = master_block(block, self.master_columns, "the rows kept")
+        if len(block):
+            self._blocks.append(block.copy())
+            self.rows += len(block)
+            self.last_time = float(block[-1, 0])
+
+    def frame(self, columns: list[str]) -> pd.DataFrame:
+        """The rows kept so far, of ``columns``."""
+        index = [self.master_columns.index(c) for c in columns]
+        data = np.concatenate(self._blocks) if self._blocks else np.zeros((0, len(self.master_columns)))
+        return pd.DataFrame(data[:, index], columns=columns)
+
+    def replay(self, sink: Callable[[np.ndarray], None], columns: list[str], rows: int = 4096) -> None:
+        """The rows kept, of ``columns``, to ``sink`` in blocks of at most ``rows``; none kept after."""
+        index = [self.master_columns.index(c) for c in columns]
+        blocks, self._blocks = self._blocks, []
+        for block in blocks:
+            for start in range(0, len(block), rows):
+                sink(np.ascontiguousarray(block[start : start + rows, index]))
+
+    def abort(self) -> None:
+        self._blocks = []
