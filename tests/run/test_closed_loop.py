@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from heliostep.run import RunOptions, run_scenario
+from heliostep.run import RunFailed, RunOptions, run_scenario
 from heliostep.scenario import load_scenario
 from heliostep.scenario.sun_sensors import sun_sensor
 from heliostep.solar import panel_angle_reference
@@ -215,3 +215,23 @@ def test_the_loops_figures_do_not_move_with_the_output_grid_nor_its_steps_with_t
     assert runs["coarse"]["electrical_energy_J"] == pytest.approx(runs["default"]["electrical_energy_J"], rel=1e-6)
     assert runs["tight"]["steps_commanded"] == runs["default"]["steps_commanded"] > 0
     assert runs["tight"]["max_tracking_error_deg"] == pytest.approx(runs["default"]["max_tracking_error_deg"], rel=1e-6)
+
+
+def test_a_closed_loop_run_that_fails_keeps_its_rows_and_the_steps_it_decided_up_to_there(fmu_paths):
+    # 2 A against 110 N.m: every step slips a whole electrical period back, the loop steps on, the wind
+    # turns the panel out of the transmission's range and the mechanics FMU stops the run
+    scenario = load_scenario(
+        "jan21-weak-motor",
+        ("tracking.mode=closed_loop", "tracking.noise_std=0", "tracking.dead_band=0.005", "tracking.sample_period=2"),
+    )
+    with pytest.raises(RunFailed) as caught:
+        run_scenario(scenario, RunOptions(supervise=False))
+    run = caught.value.result
+    assert not run.complete and run.reason == "failed" and 0 < run.time_reached < scenario.window.duration
+    trace = run.trace
+    assert trace["time"].iloc[-1] == pytest.approx(run.time_reached, abs=1e-9)
+    steps = np.asarray(run.metadata["drive"]["step_times"])
+    assert len(steps) > 0 and steps.max() <= run.time_reached
+    indices = run.metadata["drive"]["step_indices"]
+    assert trace["step_index"].iloc[-1] == indices[-1]  # the trace ends on the last step decided
+    assert run.summary["steps_lost"] >= 4 * (len(steps) // 2)  # most steps slip a whole period (4 full steps)
