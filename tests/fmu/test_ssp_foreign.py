@@ -95,6 +95,36 @@ def test_heliostep_runs_the_nested_file_as_libcosim_runs_the_flat_one(written, l
     assert np.max(np.abs(ours - theirs[:, :-1])) <= 1e-12
 
 
+#: a loop of direct feedthrough between the two Co-Simulation FMUs (F_c depends on x_in at once), and the
+#: positions pushing each other through the force inputs
+LOOP = [("a.F_c", "b.x_in"), ("b.F_c", "a.x_in"), ("a.x", "b.F"), ("b.x", "a.F")]
+LOOP_PARAMETERS = {"a": {"m": 1.0, "c": 100.0, "x0": 0.1, "c_c": 0.5}, "b": {"m": 2.0, "c": 60.0, "c_c": 0.5}}
+
+
+def _no_units(ssd, system) -> None:
+    """The connectors without units (the loop joins a force to a position, which heliostep would convert)."""
+    from pyssp_standard.common_content_ssc import TypeReal
+
+    for element in system.elements:
+        for connector in element.connectors:
+            connector.type_ = TypeReal(None)
+
+
+def test_a_loop_of_co_simulation_fmus_runs_as_libcosim_runs_it(written, tmp_path):
+    """Jacobi: each FMU steps with the other's outputs of the point before, so the loop needs nothing solved."""
+    pytest.importorskip("libcosimpy", reason="libcosimpy (libcosim's PyPI package) does not install on this platform")
+    path = foreign_ssp.write_flat(
+        tmp_path / "loop.ssp", written["fmus"], LOOP_PARAMETERS, change=_no_units, connections=LOOP
+    )
+    outputs = ("a.x", "a.F_c", "b.x", "b.F_c")
+    theirs_at, theirs = foreign_ssp.run_libcosim(path, H, STOP, (*outputs, "a.x_in"))
+    assert np.array_equal(theirs[1:, -1], theirs[:-1, outputs.index("b.F_c")])  # the loop's value a point late
+    ours_at, ours = foreign_ssp.run_heliostep(path, tmp_path, H, STOP, outputs)
+    assert np.max(np.abs(ours_at - theirs_at)) <= 1e-12
+    assert np.max(np.abs(ours - theirs[:, :-1])) <= 1e-12
+    assert np.max(np.abs(ours[:, 1])) > 0.01  # the coupling force moves
+
+
 def test_units_after_the_default_experiment_are_refused_naming_the_element_and_the_file(written, tmp_path):
     """pyssp-standard writes ``ssd:Units`` after ``ssd:DefaultExperiment``; SSP 1.0's schema has them before."""
     path = foreign_ssp.write_flat(tmp_path / "units.ssp", written["fmus"], two_oscillators.PARAMETERS, units=True)

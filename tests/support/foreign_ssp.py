@@ -153,24 +153,29 @@ def _write(out: Path, fmus: dict[str, Path], build) -> Path:
 
 
 def write_flat(
-    out: Path, fmus: dict[str, Path], parameters: dict[str, dict[str, float]], units: bool = False, change=None
+    out: Path,
+    fmus: dict[str, Path],
+    parameters: dict[str, dict[str, float]],
+    units: bool = False,
+    change=None,
+    connections=CONNECTIONS,
 ) -> Path:
-    """The flat file (libcosim's subset): components ``a`` and ``b``, :data:`CONNECTIONS`, the force transformed,
-    a default experiment; with ``units``, ``ssd:Units`` too, which pyssp-standard writes after the experiment
-    (SSP 1.0's schema has them before it); ``change(pyssp_standard.ssd, system)`` changes the system before
-    it is written."""
+    """The flat file (libcosim's subset): components ``a`` and ``b``, ``connections`` (output, input), the one
+    into ``a.F`` transformed by :data:`FORCE`, a default experiment; with ``units``, ``ssd:Units`` too, which
+    pyssp-standard writes after the experiment (SSP 1.0's schema has them before it); ``change(pyssp_standard.ssd,
+    system)`` changes the system before it is written."""
     ssd, connection = _pyssp()
+    ports = {name: [end.split(".")[1] for pair in connections for end in pair if end[0] == name] for name in "ab"}
 
     def build(archive, ssd_file) -> None:
         system = ssd.System(name="oscillators")
         a_set = ssd.ParameterBinding(source=_parameter_file(archive, "a.ssv", parameters["a"]))
-        a_ports = ["F", "x", "v", *parameters["a"]]
-        b_ports = ["x_in", "v_in", "F_c", *parameters["b"]]
         system.elements = [
-            _component(ssd, "a", f"resources/{fmus['a'].name}", a_ports, a_set),
-            _component(ssd, "b", f"resources/{fmus['b'].name}", b_ports, _inline(ssd, parameters["b"], "b")),
+            _component(ssd, "a", f"resources/{fmus['a'].name}", [*ports["a"], *parameters["a"]], a_set),
+            _component(ssd, "b", f"resources/{fmus['b'].name}", [*ports["b"], *parameters["b"]]),
         ]
-        for source, target in CONNECTIONS:
+        system.elements[1].parameter_bindings = [_inline(ssd, parameters["b"], "b")]
+        for source, target in connections:
             (s, sc), (t, tc) = source.split("."), target.split(".")
             link = connection(start_element=s, start_connector=sc, end_element=t, end_connector=tc)
             if target == "a.F":

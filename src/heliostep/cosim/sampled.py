@@ -5,7 +5,8 @@ A sampled component steps (``DoStep``) at a fixed communication interval (the sc
 outputs held between points (loose coupling: a delay of up to one interval). Each communication point
 is a time event of the Model Exchange system, and the component's outputs are master inputs of it
 (:class:`SampledSignal`), so the compiled kernel stays in use. An algebraic loop through a component is
-refused up front (:func:`split_sampled`); only Real (FMI 3.0: Float64) variables connect, a connection into a
+refused up front (:func:`split_sampled`), unless it is made of components only (each steps with the others'
+outputs of the point before: nothing to solve); only Real (FMI 3.0: Float64) variables connect, a connection into a
 component with its transformation applied to the value sampled (``factor * value + offset``). A step whose
 FMU asks to terminate ends the run at that point (:class:`~heliostep.cosim.events.Terminated`).
 """
@@ -367,7 +368,8 @@ def split_sampled(
     """The Model Exchange FMUs and connections, and the sampled system of the Co-Simulation FMUs
     (None without any); InputError for what a sampled component cannot do: an instance read for
     Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real connection, a
-    transformed one from it into a Model Exchange FMU, an algebraic loop through it (named, with the loop)."""
+    transformed one from it into a Model Exchange FMU, an algebraic loop through it and a Model Exchange FMU
+    (named, with the loop)."""
     sampled = {name for name, info in fmus.items() if info.co_simulation}
     for name in sorted(sampled ^ set(intervals)):
         raise InputError(
@@ -383,8 +385,9 @@ def split_sampled(
             )
     graph = ConnectionGraph(fmus, connections)  # every end checked (units, types); loops found over all FMUs
     for loop in graph.loops:
-        inside = sorted(name for name in sampled if re.search(rf"(?<![\w.]){re.escape(name)}\.", loop))
-        if inside:
+        named = {name for name in fmus if re.search(rf"(?<![\w.]){re.escape(name)}\.", loop)}
+        inside = sorted(named & sampled)
+        if inside and named - sampled:  # (a loop of sampled components only: each steps with the held values)
             raise InputError(
                 f"the Co-Simulation FMU {inside[0]!r} ({fmus[inside[0]].path.name}) is in an algebraic loop: {loop}; "
                 "a sampled component's outputs are held between communication points, so the loop cannot be solved "
