@@ -99,6 +99,39 @@ def test_a_cs_fmu_in_an_algebraic_loop_is_refused_naming_it_and_the_loop(fmus):
         )
 
 
+def test_a_transformed_connection_into_a_cs_fmu_is_sampled_then_transformed(fmus):
+    """The ramp into the lag through (factor, offset) = (2, 1): u_k = 2 t_k + 1 held over each step, so
+    y_(k+1) = u_k + (y_k - u_k) exp(-h / T) at the points (the recurrence written here)."""
+    h, factor, offset = 0.1, 2.0, 1.0
+    system = CoSimulation(
+        {"ramp": read_fmu(fmus["Gain"]), "lag": read_fmu(fmus["Lag"], co_simulation=True)},
+        [Connection("ramp.s", "lag.u", (factor, offset))],
+        parameters={"ramp": {"k": 0.0, "b": 1.0}, "lag": {"T": T_LAG}},
+        communication_intervals={"lag": h},
+    )
+    trace = system.simulate(0.0, 1.0, np.linspace(0.0, 1.0, 101), SolverOptions(rtol=1e-9)).trace
+    points = np.arange(11) * h
+    y = np.zeros(11)
+    for k in range(10):
+        u = factor * points[k] + offset
+        y[k + 1] = u + (y[k] - u) * np.exp(-h / T_LAG)
+    mid = trace[np.isclose((trace["time"] / h) % 1.0, 0.5, atol=1e-6)]  # half-way between points: held
+    k = np.floor(mid["time"].to_numpy() / h + 1e-9).astype(int)
+    assert len(mid) == 10
+    assert np.max(np.abs(mid["lag.y"].to_numpy() - y[k])) < 1e-9
+
+
+def test_a_transformed_connection_from_a_cs_fmu_into_model_exchange_is_refused(fmus):
+    with pytest.raises(
+        InputError, match=r"connection lag\.y -> gain\.u: a transformation on a connection from a Co-Sim"
+    ):
+        CoSimulation(
+            {"lag": read_fmu(fmus["Lag"], co_simulation=True), "gain": read_fmu(fmus["Gain"])},
+            [Connection("lag.y", "gain.u", (2.0, 0.0))],
+            communication_intervals={"lag": 0.1},
+        )
+
+
 def test_a_co_simulation_fmu_read_without_an_interval_is_refused():
     with pytest.raises(InputError, match=r"communication_interval\.lag"):
         from heliostep.cosim.sampled import split_sampled

@@ -5,7 +5,9 @@ A sampled component steps (``DoStep``) at a fixed communication interval (the sc
 outputs held between points (loose coupling: a delay of up to one interval). Each communication point
 is a time event of the Model Exchange system, and the component's outputs are master inputs of it
 (:class:`SampledSignal`), so the compiled kernel stays in use. An algebraic loop through a component is
-refused up front (:func:`split_sampled`); only Real (FMI 3.0: Float64) variables connect. A step whose
+refused up front (:func:`split_sampled`), unless it is made of components only (each steps with the others'
+outputs of the point before: nothing to solve); only Real (FMI 3.0: Float64) variables connect, a connection into a
+component with its transformation applied to the value sampled (``factor * value + offset``). A step whose
 FMU asks to terminate ends the run at that point (:class:`~heliostep.cosim.events.Terminated`).
 """
 
@@ -294,6 +296,8 @@ class SampledSystem:
                 read: Callable[[], float] = functools.partial(_held_value, self.components[source], output)
             else:
                 read = functools.partial(_first_value, system.units[source].fmu.reader([output]))
+            if c.transform is not None and c.transform != (1.0, 0.0):
+                read = functools.partial(_transformed, *c.transform, read)
             readers.setdefault(target, []).append((variable, read))
         self._inputs = {}
         for name, pairs in readers.items():
@@ -349,6 +353,11 @@ def _first_value(reader: Callable[[], np.ndarray]) -> float:
     return float(reader()[0])
 
 
+def _transformed(factor: float, offset: float, read: Callable[[], float]) -> float:
+    """The value ``read`` gives, transformed as the connection says (the product rounded before the sum)."""
+    return factor * read() + offset
+
+
 def split_sampled(
     fmus: Mapping[str, FMUInfo],
     connections: Sequence[Connection],
@@ -358,8 +367,9 @@ def split_sampled(
 ) -> tuple[dict[str, FMUInfo], list[Connection], SampledSystem | None]:
     """The Model Exchange FMUs and connections, and the sampled system of the Co-Simulation FMUs
     (None without any); InputError for what a sampled component cannot do: an instance read for
-    Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real or
-    transformed connection, an algebraic loop through it (named, with the loop)."""
+    Co-Simulation without an interval (or the reverse), a master input driving it, a non-Real connection, a
+    transformed one from it into a Model Exchange FMU, an algebraic loop through it and a Model Exchange FMU
+    (named, with the loop)."""
     sampled = {name for name, info in fmus.items() if info.co_simulation}
     for name in sorted(sampled ^ set(intervals)):
         raise InputError(
@@ -375,8 +385,9 @@ def split_sampled(
             )
     graph = ConnectionGraph(fmus, connections)  # every end checked (units, types); loops found over all FMUs
     for loop in graph.loops:
-        inside = sorted(name for name in sampled if re.search(rf"(?<![\w.]){re.escape(name)}\.", loop))
-        if inside:
+        named = {name for name in fmus if re.search(rf"(?<![\w.]){re.escape(name)}\.", loop)}
+        inside = sorted(named & sampled)
+        if inside and named - sampled:  # (a loop of sampled components only: each steps with the held values)
             raise InputError(
                 f"the Co-Simulation FMU {inside[0]!r} ({fmus[inside[0]].path.name}) is in an algebraic loop: {loop}; "
                 "a sampled component's outputs are held between communication points, so the loop cannot be solved "
@@ -384,10 +395,11 @@ def split_sampled(
             )
     ends = [c for c in connections if {split_name(c.source, "s")[0], split_name(c.target, "t")[0]} & sampled]
     for c in ends:
-        if c.transform is not None:
+        if c.transform is not None and split_name(c.target, "target")[0] not in sampled:
             raise InputError(
-                f"connection {c.source} -> {c.target}: a transformation on a Co-Simulation FMU's connection is not"
-                " supported (use the FMU as Model Exchange)"
+                f"connection {c.source} -> {c.target}: a transformation on a connection from a Co-Simulation FMU"
+                " into a Model Exchange FMU is not supported (use the source as Model Exchange, or move the"
+                " transformation into the FMU)"
             )
         for end in (c.source, c.target):
             instance, variable = split_name(end, "connection end")
