@@ -209,10 +209,6 @@ class TrackingLoop:
         steps = self.inputs[2].times[self._steps_before :]
         return (steps[:, None] + self.step_detail[None, :]).ravel()
 
-    def outputs_decided(self) -> np.ndarray:
-        """The output rows [s] of the steps decided so far (those decided before simulating, at the start)."""
-        return (self.inputs[2].times[:, None] + self.step_detail[None, :]).ravel()
-
     # ------------------------------------------------------------ the law
     def _wanted_steps(self, signal: float) -> int:
         """Steps towards balance for a reading: the panel error the signal says, beyond the dead band."""
