@@ -12,16 +12,14 @@ from heliostep.scenario.sun_sensors import (
     PARAMETER_KEYS,
     load_sun_sensors,
     shipped_sun_sensors_path,
-    sun_sensor_noise_std,
-    sun_sensor_preset,
-    sun_sensor_signal_noise_std,
+    sun_sensor,
 )
 
 
 def test_the_datasheet_preset_has_the_datasheet_s_values():
     """Solar MEMS SSOC-D60 (Doc. SSOCD60-14-MAN-119 rev. 1.19, page 1): field of view +-60 deg, precision
     0.05 deg; the mounting (k_ray 2), the WMO threshold and the isotropic-sky share as the file says."""
-    preset = sun_sensor_preset("ssoc-d60")
+    preset = dict(sun_sensor("ssoc-d60").parameters)
     assert preset == {
         "k_ray": 2.0,
         "fov": pytest.approx(math.radians(60.0), rel=1e-15),
@@ -29,15 +27,15 @@ def test_the_datasheet_preset_has_the_datasheet_s_values():
         "threshold": 120.0,
         "diffuse_view": pytest.approx(2 / math.pi * math.sin(math.pi / 3) * math.atan(math.sin(math.pi / 3))),
     }
-    assert sun_sensor_noise_std("ssoc-d60") == pytest.approx(math.radians(0.05), rel=1e-15)
-    assert sun_sensor_signal_noise_std("ssoc-d60") == pytest.approx(math.radians(0.05) / math.sqrt(3.0))
+    assert sun_sensor("ssoc-d60").noise_std == pytest.approx(math.radians(0.05), rel=1e-15)
+    assert sun_sensor("ssoc-d60").signal_noise_std == pytest.approx(math.radians(0.05) / math.sqrt(3.0))
 
 
 def test_the_seed_001_cross_faces_the_sun():
-    preset = sun_sensor_preset("cross-001")
+    preset = dict(sun_sensor("cross-001").parameters)
     assert preset["k_ray"] == 1.0 and preset["fov"] == pytest.approx(math.pi / 4)
     assert preset["diffuse_view"] == pytest.approx(math.sqrt(2.0) / 4) and preset["threshold"] == 120.0
-    assert sun_sensor_noise_std("cross-001") == 0.01
+    assert sun_sensor("cross-001").noise_std == 0.01
 
 
 def test_every_preset_sets_the_fmu_s_parameters_with_a_source(fmu_paths):
@@ -58,12 +56,12 @@ def test_every_preset_sets_the_fmu_s_parameters_with_a_source(fmu_paths):
 
 def test_an_unknown_name_names_the_file_and_the_presets():
     with pytest.raises(InputError) as raised:
-        sun_sensor_preset("ssoc")
+        dict(sun_sensor("ssoc").parameters)
     message = str(raised.value)
     assert str(shipped_sun_sensors_path()) in message and "'ssoc'" in message
     assert "close: ssoc-d60" in message and "the presets are: ssoc-d60, cross-001" in message
     with pytest.raises(InputError, match="unknown sun sensor 'nope'"):
-        sun_sensor_noise_std("nope")
+        sun_sensor("nope")
 
 
 def test_values_come_from_the_file(tmp_path):
@@ -74,8 +72,8 @@ def test_values_come_from_the_file(tmp_path):
     )
     path = tmp_path / "sensors.yaml"
     path.write_text(text)
-    assert sun_sensor_preset("ssoc-d60", path)["threshold"] == 80.0
-    assert sun_sensor_preset("cross-001", path)["threshold"] == 120.0
+    assert sun_sensor("ssoc-d60", path).parameters["threshold"] == 80.0
+    assert sun_sensor("cross-001", path).parameters["threshold"] == 120.0
 
 
 @pytest.mark.parametrize(

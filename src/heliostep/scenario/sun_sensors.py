@@ -6,6 +6,7 @@ Details: docs/physics.md ("The sun sensor"), ``heliostep.scenario.sun_sensors``.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -21,9 +22,6 @@ __all__ = [
     "load_sun_sensors",
     "shipped_sun_sensors_path",
     "sun_sensor",
-    "sun_sensor_noise_std",
-    "sun_sensor_preset",
-    "sun_sensor_signal_noise_std",
 ]
 
 #: The SunSensor FMU's parameters a preset sets, with their units (``models/SunSensor.mo``).
@@ -75,34 +73,21 @@ def load_sun_sensors(path: str | Path | None = None) -> dict[str, SunSensorPrese
         value: naming the file and the dotted key.
     """
     source = Path(path) if path is not None else shipped_sun_sensors_path()
+    try:
+        stamp = source.stat()
+    except OSError:  # read_yaml_file says what is wrong, naming the file
+        return _read_presets(source, (0, 0))
+    return dict(_read_presets(source, (stamp.st_mtime_ns, stamp.st_size)))
+
+
+@functools.lru_cache(maxsize=8)
+def _read_presets(source: Path, stamp: tuple[int, int]) -> dict[str, SunSensorPreset]:
+    """The presets of ``source`` as it is at ``stamp`` (modified [ns], size [B]): read once per version."""
     document = read_yaml_file(source, "sun sensor presets")
     presets = document.get("sun_sensors") if isinstance(document, Mapping) else None
     if not isinstance(presets, Mapping) or not presets:
         raise InputError(f"{source}: sun_sensors: expected a mapping of preset name -> parameters")
     return {str(name): _preset(source, str(name), entry) for name, entry in presets.items()}
-
-
-def sun_sensor_preset(name: str, path: str | Path | None = None) -> dict[str, float]:
-    """The SunSensor FMU's parameters of preset ``name`` (k_ray [1], fov [rad], offset [rad], threshold
-    [W/m2], diffuse_view [1]).
-
-    Raises
-    ------
-    InputError
-        No such preset: naming the file and the presets it has (or a bad file, :func:`load_sun_sensors`).
-    """
-    return dict(sun_sensor(name, path).parameters)
-
-
-def sun_sensor_noise_std(name: str, path: str | Path | None = None) -> float:
-    """The standard deviation of preset ``name``'s random error in the sensor's own angle [rad]."""
-    return sun_sensor(name, path).noise_std
-
-
-def sun_sensor_signal_noise_std(name: str, path: str | Path | None = None) -> float:
-    """Preset ``name``'s random error as the FMU's ``noise`` input [1], near balance in clear sky
-    (:attr:`SunSensorPreset.signal_noise_std`)."""
-    return sun_sensor(name, path).signal_noise_std
 
 
 def sun_sensor(name: str, path: str | Path | None = None) -> SunSensorPreset:
