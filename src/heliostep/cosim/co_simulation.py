@@ -11,6 +11,8 @@ from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 from heliostep.cosim.description import FMUInfo, _extract, convert_value
 from heliostep.cosim.instance import FMIError, _by_environment, _environment_ids
 from heliostep.errors import InputError
@@ -119,6 +121,25 @@ class CoSimulationInstanceBase:
             return list(self._do(function, getter, refs))
 
         return read
+
+    def real_getter(self, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
+        """A getter of the Real (FMI 3.0: Float64) variables ``names`` into ``values`` (a float64 vector, in place)."""
+        read = self.real_reader(names)
+
+        def get() -> None:
+            values[:] = read()
+
+        return get
+
+    def real_setter(self, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
+        """A setter of the Real (FMI 3.0: Float64) variables ``names`` from ``values`` (a float64 vector, read at
+        each call)."""
+        write = self.real_writer(names)
+
+        def put() -> None:
+            write(values.tolist())
+
+        return put
 
     def do_step(self, to_time: float) -> bool:
         """DoStep from the instance's time to ``to_time`` [s]; whether the FMU asks to terminate the simulation."""

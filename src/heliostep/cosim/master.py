@@ -20,6 +20,7 @@ from typing import Protocol
 import numpy as np
 
 from heliostep.cosim import fast_events as events
+from heliostep.cosim.communication import CommunicationLoop
 from heliostep.cosim.connections import ConnectionGraph
 from heliostep.cosim.controller import ControllerSamples, SampledController
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
@@ -295,15 +296,24 @@ class _Run:
 
     # --------------------------------------------------------------- main loop
     def execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:
-        """Run the integration; an FMU's terminateSimulation ends it normally at that time."""
+        """Run the integration (a system of Co-Simulation FMUs alone: its communication points,
+        :mod:`~heliostep.cosim.communication`); an FMU's terminateSimulation ends it normally at that time."""
+        sampled = self.graph.sampled
+        if sampled is not None and not self.graph.fmus and self.graph.controller is None:
+            CommunicationLoop(self, sampled).execute(start_time, stop_time, grid)
+            return
         try:
             self._execute(start_time, stop_time, grid)
         except Terminated as stop:
-            self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
-            self.termination_instances = list(stop.instances)
+            self.ended(stop)
             if self.texts is not None:
                 self.texts.sample(stop.time)
             self.record(stop.time)
+
+    def ended(self, stop: Terminated) -> None:
+        """The run ended normally at ``stop.time`` [s]: an FMU asked to terminate the simulation."""
+        self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
+        self.termination_instances = list(stop.instances)
 
     def _advance(
         self, integrator: Integrator, t_next: float, outputs: np.ndarray | None = None, k: int = 0

@@ -70,16 +70,38 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         said = FMICallException(function, status)
         return FMIError(function, self.name, f"failure ({said})", self.messages, self.time)
 
-    def _values_call(self, function: str, names: Sequence[str]) -> tuple[Callable[[], int], ctypes.Array]:
+    def _values_call(
+        self, function: str, names: Sequence[str], values: ctypes.Array | np.ndarray | None = None
+    ) -> tuple[Callable[[], int], ctypes.Array | np.ndarray]:
         """``function`` (fmi2GetReal, fmi2SetReal) bound to the value references of ``names`` and a buffer of
-        their values: (the call, the buffer)."""
+        their values (``values``, a C-contiguous float64 vector, or one of its own): (the call, the buffer)."""
         refs = (ctypes.c_uint32 * len(names))(*(self.info.variables[n].value_reference for n in names))
-        values = (ctypes.c_double * len(names))()
+        if values is None:
+            values = (ctypes.c_double * len(names))()
+        where = values.ctypes.data if isinstance(values, np.ndarray) else ctypes.addressof(values)
         call = VALUES_CALL((function, self._slave.dll))
-        component = self._slave.component
-        bound = functools.partial(call, component, ctypes.addressof(refs), len(names), ctypes.addressof(values))
-        self._buffers.append(refs)
+        bound = functools.partial(call, self._slave.component, ctypes.addressof(refs), len(names), where)
+        self._buffers += [refs, values]
         return bound, values
+
+    def _checked(self, function: str, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
+        """``function`` bound to ``names`` and ``values`` (:meth:`_values_call`), its failure an FMIError."""
+        call, _ = self._values_call(function, names, values)
+        messages = self.messages
+
+        def checked() -> None:
+            messages.clear()
+            status = call()
+            if status > FMI2_WARNING:
+                raise self._failure(function, status)
+
+        return checked
+
+    def real_getter(self, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
+        return self._checked("fmi2GetReal", names, values)
+
+    def real_setter(self, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
+        return self._checked("fmi2SetReal", names, values)
 
     def real_reader(self, names: Sequence[str]) -> Callable[[], list[float]]:
         call, values = self._values_call("fmi2GetReal", names)
@@ -216,12 +238,17 @@ class SampledComponent:
         k = bisect.bisect_left(points, time - tolerance)
         return any(abs(points[j] - time) <= tolerance for j in (k - 1, k) if 0 <= j < len(points))
 
-    def step_to(self, time: float) -> bool:
-        """Step to ``time`` [s] and read the outputs; whether the FMU asks to terminate the simulation."""
+    def step(self, time: float) -> bool:
+        """Step to ``time`` [s] (the outputs not read); whether the FMU asks to terminate the simulation."""
         assert self.instance is not None
         terminate = self.instance.do_step(time)
         self.steps += 1
         self._next = bisect.bisect_right(self._points, time, lo=self._next)
+        return terminate
+
+    def step_to(self, time: float) -> bool:
+        """Step to ``time`` [s] and read the outputs; whether the FMU asks to terminate the simulation."""
+        terminate = self.step(time)
         self._read()
         return terminate
 
@@ -325,16 +352,18 @@ class SampledSystem:
         due = [component for component in self.components.values() if component.due(time)]
         stop = [component.name for component in due if component.step_to(time)]
         self._sample(due)
-        if not stop:
-            return None
+        return self.terminated(stop, time) if stop else None
+
+    def terminated(self, names: Sequence[str], time: float) -> Terminated:
+        """What ends the run at ``time`` [s] when the components ``names`` asked to terminate at that point."""
         said = []
-        for name in stop:
+        for name in names:
             instance = self.components[name].instance
             assert instance is not None
             reached = instance.last_successful_time
             at = f", its last successful time {reached:.9g} s" if reached is not None and reached != time else ""
             said.append(f"{name} asked to terminate the simulation ({instance.TERMINATION}{at})")
-        return Terminated("; ".join(said), time, stop)
+        return Terminated("; ".join(said), time, list(names))
 
     def statistics(self) -> dict[str, dict[str, float]]:
         return {name: {"interval_s": c.interval, "steps": c.steps} for name, c in self.components.items()}
