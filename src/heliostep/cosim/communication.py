@@ -16,10 +16,12 @@ from typing import Protocol
 
 import numpy as np
 
+from heliostep.cosim.connections import split_name
 from heliostep.cosim.events import Terminated
 from heliostep.cosim.outcome import Interrupted
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.sampled import SampledComponent, SampledSystem
+from heliostep.cosim.signals import Connection
 
 __all__ = ["CommunicationLoop"]
 
@@ -30,15 +32,52 @@ BLOCK_ROWS = 4096
 class Run(Protocol):
     """What the loop needs of the master's run (:class:`heliostep.cosim.master._Run`)."""
 
-    rows: RowBuffer
-    monitor: Callable[[np.ndarray], None] | None
-    progress: Callable[[float], None] | None
-    should_stop: Callable[[], bool] | None
     time: float
-    counts: dict[str, int]
+
+    @property
+    def rows(self) -> RowBuffer: ...
+
+    @property
+    def monitor(self) -> Callable[[np.ndarray], None] | None: ...
+
+    @property
+    def progress(self) -> Callable[[float], None] | None: ...
+
+    @property
+    def should_stop(self) -> Callable[[], bool] | None: ...
+
+    @property
+    def counts(self) -> dict[str, int]: ...
 
     def ended(self, stop: Terminated) -> None:
         """Note that the run ended normally at ``stop.time`` because an FMU asked to terminate."""
+
+
+class _Bound:
+    """A component's FMI calls bound once: its outputs' getter (into the row), its inputs' setter (from
+    ``inputs``, taken from the row's columns ``sources``, or a slice of the row itself where they lie side by
+    side there: ``sources`` None), and whether it stepped at the last point."""
+
+    __slots__ = ("component", "get", "put", "inputs", "sources", "stepped")
+
+    def __init__(self, component: SampledComponent, row: np.ndarray, columns: list[str], ends: list[Connection]):
+        instance, outputs = component.instance, component.outputs
+        assert instance is not None
+        self.component, self.stepped = component, False
+        self.get: Callable[[], None] | None = None
+        if outputs:
+            first = columns.index(f"{component.name}.{outputs[0]}")
+            assert columns[first : first + len(outputs)] == [f"{component.name}.{v}" for v in outputs]
+            held = row[first : first + len(outputs)]
+            held[:] = [component.held[v] for v in outputs]
+            self.get = instance.real_getter(outputs, held)
+        sources = [columns.index(c.source) for c in ends]
+        self.sources: np.ndarray | None = np.array(sources, dtype=np.intp)
+        self.inputs = np.zeros(len(ends))
+        if sources and sources == list(range(sources[0], sources[0] + len(sources))):  # side by side in the row:
+            self.inputs, self.sources = row[sources[0] : sources[0] + len(sources)], None  # set from it as it is
+        targets = [split_name(c.target, "target")[1] for c in ends]
+        self.put: Callable[[], None] | None = instance.real_setter(targets, self.inputs) if ends else None
 
 
 class CommunicationLoop:
@@ -52,32 +91,19 @@ class CommunicationLoop:
         self.block = np.empty((size, len(columns)))
         self.filled = 0
         self.communicated = np.nan  # the last time communicated (asked again there: nothing due)
-        #: per component: it, its outputs' getter (into the row), its inputs' setter, the columns they are read from
-        self.parts: list[tuple[SampledComponent, Callable[[], None] | None, Callable[[], None] | None, np.ndarray]] = []
-        self.inputs: dict[str, np.ndarray] = {}
+        self.parts: list[_Bound] = []
 
     def _bind(self) -> None:
-        """Every component's FMI calls bound onto the row (its outputs' columns, the held values there) and
-        onto a vector of its inputs; every input set (the start)."""
+        """Every component's FMI calls bound onto the row and its inputs; every input set (the start)."""
         columns = self.run.rows.columns
-        for component in self.sampled.components.values():
-            assert component.instance is not None
-            instance, outputs, getter = component.instance, component.outputs, None
-            if outputs:
-                first = columns.index(f"{component.name}.{outputs[0]}")
-                assert columns[first : first + len(outputs)] == [f"{component.name}.{v}" for v in outputs]
-                values = self.row[first : first + len(outputs)]
-                values[:] = [component.held[v] for v in outputs]
-                getter = instance.real_getter(outputs, values)
-            ends = [c for c in self.sampled.connections if c.target.split(".", 1)[0] == component.name]
-            sources = np.array([columns.index(c.source) for c in ends], dtype=np.intp)
-            inputs = self.inputs[component.name] = np.zeros(len(ends))
-            setter = instance.real_setter([c.target.split(".", 1)[1] for c in ends], inputs) if ends else None
-            self.parts.append((component, getter, setter, sources))
-        for component, _, setter, sources in self.parts:
-            if setter is not None:
-                np.take(self.row, sources, out=self.inputs[component.name])
-                setter()
+        for name, component in self.sampled.components.items():
+            ends = [c for c in self.sampled.connections if split_name(c.target, "target")[0] == name]
+            self.parts.append(_Bound(component, self.row, columns, ends))
+        for part in self.parts:
+            if part.put is not None:
+                if part.sources is not None:
+                    self.row.take(part.sources, out=part.inputs)
+                part.put()
 
     def communicate(self, t: float) -> Terminated | None:
         """At a communication point ``t`` [s]: the components due step to it with the inputs they held and their
@@ -85,16 +111,21 @@ class CommunicationLoop:
         if t == self.communicated:
             return None
         self.communicated = t
-        due = [part for part in self.parts if part[0].due(t)]
-        stop = [part[0].name for part in due if part[0].step(t)]
-        for _, getter, _, _ in due:
-            if getter is not None:
-                getter()
-        inputs = self.inputs
-        for component, _, setter, sources in due:
-            if setter is not None:
-                np.take(self.row, sources, out=inputs[component.name])
-                setter()
+        stop: list[str] = []
+        for part in self.parts:
+            component = part.component
+            part.stepped = component.due(t)
+            if part.stepped:
+                if component.step(t):
+                    stop.append(component.name)
+                if part.get is not None:
+                    part.get()
+        row = self.row
+        for part in self.parts:
+            if part.stepped and part.put is not None:
+                if part.sources is not None:
+                    row.take(part.sources, out=part.inputs)
+                part.put()
         return self.sampled.terminated(stop, t) if stop else None
 
     def record(self, t: float) -> None:

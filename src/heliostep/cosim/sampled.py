@@ -61,7 +61,7 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         self._do("fmi2Instantiate", slave.instantiate, callbacks=self._callbacks)
         self._slave = slave
         self._step = functools.partial(_DO_STEP(("fmi2DoStep", slave.dll)), slave.component)
-        self._buffers: list[ctypes.Array] = []  # the value references the bound calls point to
+        self._buffers: list[ctypes.Array | np.ndarray] = []  # what the bound calls point to
 
     def _failure(self, function: str, status: int) -> FMIError:
         """The error of an FMI call that returned ``status`` (worse than fmi2Warning), worded as fmpy words it."""
@@ -70,60 +70,46 @@ class CoSimulationInstance(CoSimulationInstanceBase):
         said = FMICallException(function, status)
         return FMIError(function, self.name, f"failure ({said})", self.messages, self.time)
 
-    def _values_call(
-        self, function: str, names: Sequence[str], values: ctypes.Array | np.ndarray | None = None
-    ) -> tuple[Callable[[], int], ctypes.Array | np.ndarray]:
-        """``function`` (fmi2GetReal, fmi2SetReal) bound to the value references of ``names`` and a buffer of
-        their values (``values``, a C-contiguous float64 vector, or one of its own): (the call, the buffer)."""
+    def _values_call(self, function: str, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
+        """``function`` (fmi2GetReal, fmi2SetReal) bound to the value references of ``names`` and to ``values``
+        (a C-contiguous float64 vector, kept alive here), its failure an FMIError."""
         refs = (ctypes.c_uint32 * len(names))(*(self.info.variables[n].value_reference for n in names))
-        if values is None:
-            values = (ctypes.c_double * len(names))()
-        where = values.ctypes.data if isinstance(values, np.ndarray) else ctypes.addressof(values)
         call = VALUES_CALL((function, self._slave.dll))
-        bound = functools.partial(call, self._slave.component, ctypes.addressof(refs), len(names), where)
+        bound = functools.partial(call, self._slave.component, ctypes.addressof(refs), len(names), values.ctypes.data)
         self._buffers += [refs, values]
-        return bound, values
-
-    def _checked(self, function: str, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
-        """``function`` bound to ``names`` and ``values`` (:meth:`_values_call`), its failure an FMIError."""
-        call, _ = self._values_call(function, names, values)
         messages = self.messages
 
         def checked() -> None:
             messages.clear()
-            status = call()
+            status = bound()
             if status > FMI2_WARNING:
                 raise self._failure(function, status)
 
         return checked
 
     def real_getter(self, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
-        return self._checked("fmi2GetReal", names, values)
+        return self._values_call("fmi2GetReal", names, values)
 
     def real_setter(self, names: Sequence[str], values: np.ndarray) -> Callable[[], None]:
-        return self._checked("fmi2SetReal", names, values)
+        return self._values_call("fmi2SetReal", names, values)
 
     def real_reader(self, names: Sequence[str]) -> Callable[[], list[float]]:
-        call, values = self._values_call("fmi2GetReal", names)
+        values = np.zeros(len(names))
+        get = self.real_getter(names, values)
 
         def read() -> list[float]:
-            self.messages.clear()
-            status = call()
-            if status > FMI2_WARNING:
-                raise self._failure("fmi2GetReal", status)
-            return values[:]
+            get()
+            return values.tolist()
 
         return read
 
     def real_writer(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
-        call, values = self._values_call("fmi2SetReal", names)
+        values = np.zeros(len(names))
+        put = self.real_setter(names, values)
 
         def write(given: Sequence[float]) -> None:
-            values[:] = list(given)
-            self.messages.clear()
-            status = call()
-            if status > FMI2_WARNING:
-                raise self._failure("fmi2SetReal", status)
+            values[:] = given
+            put()
 
         return write
 
