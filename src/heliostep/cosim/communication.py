@@ -18,7 +18,7 @@ import numpy as np
 
 from heliostep.cosim.connections import split_name
 from heliostep.cosim.events import Terminated
-from heliostep.cosim.outcome import Interrupted
+from heliostep.cosim.outcome import Interrupted, ended
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.sampled import SampledComponent, SampledSystem
 from heliostep.cosim.signals import Connection
@@ -48,9 +48,6 @@ class Run(Protocol):
 
     @property
     def counts(self) -> dict[str, int]: ...
-
-    def ended(self, stop: Terminated) -> None:
-        """Note that the run ended normally at ``stop.time`` because an FMU asked to terminate."""
 
 
 class _Bound:
@@ -111,13 +108,13 @@ class CommunicationLoop:
         if t == self.communicated:
             return None
         self.communicated = t
-        stop: list[str] = []
+        stop: list[str] | None = None  # the components that asked to terminate (a list only then)
         for part in self.parts:
             component = part.component
             part.stepped = component.due(t)
             if part.stepped:
                 if component.step(t):
-                    stop.append(component.name)
+                    stop = [*(stop or []), component.name]
                 if part.get is not None:
                     part.get()
         row = self.row
@@ -153,7 +150,7 @@ class CommunicationLoop:
         stop = self.communicate(t)
         self.record(t)
         if stop is not None:
-            self.run.ended(stop)
+            ended(self.run, stop)
         return stop is not None
 
     def execute(self, start_time: float, stop_time: float, grid: np.ndarray) -> None:

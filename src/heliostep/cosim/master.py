@@ -8,7 +8,8 @@ watches), call ``CompletedIntegratorStep`` where the FMU asks for it, and at an 
 state or step event record the row before, run event mode (:mod:`~heliostep.cosim.events`, or
 :mod:`~heliostep.cosim.fast_events` in one call of the kernel), restart CVODE and record the row after.
 An FMU's ``terminateSimulation`` ends the run normally there; every instance is terminated (where
-allowed) and freed on every path (:mod:`~heliostep.cosim.outcome`).
+allowed) and freed on every path (:mod:`~heliostep.cosim.outcome`). A system of Co-Simulation FMUs alone
+has nothing to integrate: its run is its communication points (:mod:`~heliostep.cosim.communication`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from heliostep.cosim.controller import ControllerSamples, SampledController
 from heliostep.cosim.events import Terminated, discrete_fixed_point, event_iteration
 from heliostep.cosim.fmi import FMUInfo, convert_value
 from heliostep.cosim.integrator import Integrator, make_integrator
-from heliostep.cosim.outcome import Interrupted, MasterResult, SimulationError, completed, statistics
+from heliostep.cosim.outcome import Interrupted, MasterResult, SimulationError, completed, ended
 from heliostep.cosim.rows import RowBuffer
 from heliostep.cosim.sampled import split_sampled
 from heliostep.cosim.signals import Connection, PiecewiseConstant, SolverOptions
@@ -187,9 +188,6 @@ class _Run:
         self.samples: ControllerSamples | None = None  # the controller's, from the start of execute
 
     # --------------------------------------------------------------- results
-    def statistics(self) -> dict:
-        return statistics(self)
-
     def close(self) -> None:
         """fmi2Terminate (where allowed) and fmi2FreeInstance for every instance, on every path;
         CVODE's memory freed."""
@@ -305,15 +303,10 @@ class _Run:
         try:
             self._execute(start_time, stop_time, grid)
         except Terminated as stop:
-            self.ended(stop)
+            ended(self, stop)
             if self.texts is not None:
                 self.texts.sample(stop.time)
             self.record(stop.time)
-
-    def ended(self, stop: Terminated) -> None:
-        """The run ended normally at ``stop.time`` [s]: an FMU asked to terminate the simulation."""
-        self.terminated, self.termination_reason, self.termination_time = True, stop.reason, stop.time
-        self.termination_instances = list(stop.instances)
 
     def _advance(
         self, integrator: Integrator, t_next: float, outputs: np.ndarray | None = None, k: int = 0

@@ -9,9 +9,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from heliostep.cosim.events import Terminated
 from heliostep.errors import HeliostepError, InputError, RunFailure
 
-__all__ = ["Interrupted", "MasterResult", "SimulationError", "completed", "statistics"]
+__all__ = ["Interrupted", "MasterResult", "SimulationError", "completed", "ended", "statistics"]
 
 
 class SimulationError(RunFailure):
@@ -79,6 +80,12 @@ def completed(run: Any, start_time: float, stop_time: float, grid: np.ndarray) -
         termination_reason=run.termination_reason,
         termination_time=run.termination_time,
     )
+
+
+def ended(run: Any, stop: Terminated) -> None:
+    """``run`` ended normally at ``stop.time`` [s]: an FMU asked to terminate the simulation."""
+    run.terminated, run.termination_reason, run.termination_time = True, stop.reason, stop.time
+    run.termination_instances = list(stop.instances)
 
 
 def failure(run: Any, exc: BaseException) -> SimulationError:

@@ -4,7 +4,8 @@ A sampled component steps (``DoStep``) at a fixed communication interval (the sc
 ``communication_interval.NAME``); its inputs are sampled at each communication point and held, its
 outputs held between points (loose coupling: a delay of up to one interval). Each communication point
 is a time event of the Model Exchange system, and the component's outputs are master inputs of it
-(:class:`SampledSignal`), so the compiled kernel stays in use. An algebraic loop through a component is
+(:class:`SampledSignal`), so the compiled kernel stays in use (a system of them alone runs its points in a
+loop of its own: :mod:`~heliostep.cosim.communication`). An algebraic loop through a component is
 refused up front (:func:`split_sampled`), unless it is made of components only (each steps with the others'
 outputs of the point before: nothing to solve); only Real (FMI 3.0: Float64) variables connect, a connection into a
 component with its transformation applied to the value sampled (``factor * value + offset``). A step whose
