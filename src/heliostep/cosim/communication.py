@@ -52,10 +52,11 @@ class Run(Protocol):
 
 class _Bound:
     """A component's FMI calls bound once: its outputs' getter (into the row), its inputs' setter (from
-    ``inputs``, taken from the row's columns ``sources``, or a slice of the row itself where they lie side by
-    side there: ``sources`` None), and whether it stepped at the last point."""
+    ``inputs``, taken from the row's columns ``sources`` and transformed as their connections say, or a slice
+    of the row itself where they lie side by side there untransformed: ``sources`` None), and whether it
+    stepped at the last point."""
 
-    __slots__ = ("component", "get", "put", "inputs", "sources", "stepped")
+    __slots__ = ("component", "get", "put", "inputs", "sources", "factors", "offsets", "stepped")
 
     def __init__(self, component: SampledComponent, row: np.ndarray, columns: list[str], ends: list[Connection]):
         instance, outputs = component.instance, component.outputs
@@ -71,10 +72,26 @@ class _Bound:
         sources = [columns.index(c.source) for c in ends]
         self.sources: np.ndarray | None = np.array(sources, dtype=np.intp)
         self.inputs = np.zeros(len(ends))
-        if sources and sources == list(range(sources[0], sources[0] + len(sources))):  # side by side in the row:
-            self.inputs, self.sources = row[sources[0] : sources[0] + len(sources)], None  # set from it as it is
+        transforms = [c.transform if c.transform is not None else (1.0, 0.0) for c in ends]
+        self.factors: np.ndarray | None = np.array([f for f, _ in transforms])
+        self.offsets = np.array([o for _, o in transforms])
+        if all(t == (1.0, 0.0) for t in transforms):  # (as copied: no product, no sum, the sign of a zero kept)
+            self.factors = None
+            if sources and sources == list(range(sources[0], sources[0] + len(sources))):  # set from the row as it is
+                self.inputs, self.sources = row[sources[0] : sources[0] + len(sources)], None
         targets = [split_name(c.target, "target")[1] for c in ends]
         self.put: Callable[[], None] | None = instance.real_setter(targets, self.inputs) if ends else None
+
+    def set_inputs(self, row: np.ndarray) -> None:
+        """The inputs set from the outputs held in ``row`` (``factor * value + offset``: the product rounded first)."""
+        if self.put is None:
+            return
+        if self.sources is not None:
+            row.take(self.sources, out=self.inputs)
+            if self.factors is not None:
+                np.multiply(self.inputs, self.factors, out=self.inputs)
+                np.add(self.inputs, self.offsets, out=self.inputs)
+        self.put()
 
 
 class CommunicationLoop:
@@ -97,10 +114,7 @@ class CommunicationLoop:
             ends = [c for c in self.sampled.connections if split_name(c.target, "target")[0] == name]
             self.parts.append(_Bound(component, self.row, columns, ends))
         for part in self.parts:
-            if part.put is not None:
-                if part.sources is not None:
-                    self.row.take(part.sources, out=part.inputs)
-                part.put()
+            part.set_inputs(self.row)
 
     def communicate(self, t: float) -> Terminated | None:
         """At a communication point ``t`` [s]: the components due step to it with the inputs they held and their
@@ -119,10 +133,8 @@ class CommunicationLoop:
                     part.get()
         row = self.row
         for part in self.parts:
-            if part.stepped and part.put is not None:
-                if part.sources is not None:
-                    row.take(part.sources, out=part.inputs)
-                part.put()
+            if part.stepped:
+                part.set_inputs(row)
         return self.sampled.terminated(stop, t) if stop else None
 
     def record(self, t: float) -> None:
