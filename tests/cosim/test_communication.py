@@ -137,3 +137,17 @@ def test_rows_handed_to_a_sink_are_the_trace_and_a_stop_asked_for_ends_it_there(
     assert stopped.value.reason == "interrupted" and stopped.value.time == pytest.approx(0.15)
     assert np.array_equal(stopped.value.trace.to_numpy(), held.to_numpy()[: len(stopped.value.trace)])
     assert stopped.value.trace["time"].iloc[-1] == pytest.approx(0.15)
+
+
+def test_the_last_point_is_at_the_stop_time_where_k_h_rounds_past_it(fmus):
+    # 3 x 0.1 is 0.30000000000000004 in floating point: the components still step to the stop time, 0.3
+    h, stop = 0.1, 0.3
+    result = CoSimulation(
+        {"a": read_fmu(fmus["Oscillator"], co_simulation=True)},
+        [],
+        parameters={"a": OSCILLATOR},
+        communication_intervals={"a": h},
+    ).simulate(0.0, stop, np.array([0.0, stop]))
+    assert result.statistics["sampled_components"]["a"]["steps"] == 3
+    last = result.trace.iloc[-1]
+    assert last["time"] == stop and last["a.x"] == pytest.approx(oscillation(np.array([stop]))[0], abs=1e-7)

@@ -183,7 +183,7 @@ class SampledComponent:
 
     def start(self, start_time: float, stop_time: float, inputs: Mapping[str, float]) -> None:
         count = math.floor((stop_time - start_time) / self.interval * (1.0 + 1e-12))
-        self.times = start_time + self.interval * np.arange(1, count + 1)
+        self.times = np.minimum(start_time + self.interval * np.arange(1, count + 1), stop_time)  # k h rounded past it
         if not len(self.times) or self.times[-1] < stop_time * (1.0 - 1e-12):
             self._check_shorter_step(stop_time - start_time)
             self.times = np.append(self.times, stop_time)  # the last point at the stop time
