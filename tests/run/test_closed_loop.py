@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from heliostep.errors import InputError
 from heliostep.run import RunFailed, RunOptions, run_scenario
 from heliostep.scenario import load_scenario
 from heliostep.scenario.sun_sensors import sun_sensor
@@ -235,3 +236,54 @@ def test_a_closed_loop_run_that_fails_keeps_its_rows_and_the_steps_it_decided_up
     indices = run.metadata["drive"]["step_indices"]
     assert trace["step_index"].iloc[-1] == indices[-1]  # the trace ends on the last step decided
     assert run.summary["steps_lost"] >= 4 * (len(steps) // 2)  # most steps slip a whole period (4 full steps)
+
+
+GUST = (100.0, 130.0)  # [s] the wind at 30 m/s (20 before and after, 2 s ramps)
+#: A drive at 0.5 A, stepping against the wind in the afternoon: it holds 20 m/s and slips under 30 m/s (and
+#: at 20 m/s too when stepped at the loop's default 50 steps/s: its moves back go at 10).
+WINDY = (
+    "window.start=15:00",
+    "window.duration=400",
+    "sequencer.current=0.5",
+    "wind.stow_speed=null",
+    f"wind.profile=[[0, 20], [{GUST[0]}, 20], [{GUST[0] + 2}, 30], [{GUST[1]}, 30], [{GUST[1] + 2}, 20], [400, 20]]",
+)
+
+
+def test_a_gust_costs_open_loop_its_lost_steps_for_good_and_the_closed_loop_the_move_back(fmu_paths):
+    scenario, open_loop = _run(*WINDY)
+    lost = open_loop.summary["steps_lost"]  # signed: steps the wind took in its own direction
+    assert abs(lost) >= 4
+    rows = open_loop.trace.drop_duplicates("time", keep="first").set_index("time")
+    after = np.arange(GUST[1] + 10.0, scenario.window.duration, 5.0)
+    panel = np.interp(after, rows.index.to_numpy(), rows["mechanics.theta_p"].to_numpy())
+    behind = (np.tan(_ideal(scenario, after)) - np.tan(panel)) * LEVER / PINION / STEP  # [full steps], eq. 14
+    assert np.all(np.abs(behind - lost) <= 1.0), behind  # the error the lost steps make, for good
+    loop = ("tracking.mode=closed_loop", "tracking.noise_std=0", "tracking.dead_band=0.005", "tracking.sample_period=2")
+    collimated = "parameters.sensor.diffuse_view=0"  # no diffuse light: a reading's error estimate is exact
+    scenario, closed = _run(*WINDY, *loop, "tracking.step_rate=10", collimated)
+    # the wind's moment on the panel where the loop keeps it: the open loop's, whose commanded angle is within
+    # a step of the law (the closed loop's commanded index took up the steps that slipped)
+    later = np.arange(GUST[1] + 70.0, scenario.window.duration, 10.0)
+    moments = [np.interp(later, r["time"].to_numpy(), r["m_ext"].to_numpy()) for r in (open_loop.trace, closed.trace)]
+    assert np.allclose(moments[1], moments[0], rtol=0.01), moments
+    # the gust over, the loop steps the panel back at its step rate without slipping: the steps it needs from
+    # the panel's angle then (eq. 14), a reading before and one after; then each reading takes off most of the
+    # rest, at least 40 % (its commanded index took up the slipped steps, so it converts the error at another
+    # transmission ratio than the panel's) until the error is within the dead band and a step for good
+    rows = closed.trace.drop_duplicates("time", keep="first").set_index("time")
+    end = GUST[1] + 2.0
+    panel = np.interp(end, rows.index.to_numpy(), rows["mechanics.theta_p"].to_numpy())
+    needed = abs(np.tan(_ideal(scenario, np.array([end]))[0]) - np.tan(panel)) * LEVER / PINION / STEP
+    assert needed > 100  # the loop slipped under the gust too
+    back = end + needed / scenario.tracking.step_rate + 2 * scenario.tracking.sample_period
+    errors, step = _errors_at_samples(scenario, closed, 2.0, after=np.ceil(back / 2.0) * 2.0)
+    within = np.abs(errors) <= np.radians(0.005) + step
+    first = int(np.argmax(within))
+    assert np.all(within[first:]) and first < len(within) // 2, np.degrees(errors)
+    assert np.all(np.abs(errors[1 : first + 1]) < 0.6 * np.abs(errors[:first]))
+
+
+def test_a_loop_in_a_wind_that_stows_the_panel_is_refused_naming_the_key(fmu_paths):
+    with pytest.raises(InputError, match="wind.stow_speed"):
+        _run("tracking.mode=closed_loop", "wind.speed=15")  # above the stow speed, 12 m/s

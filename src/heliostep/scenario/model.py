@@ -260,9 +260,7 @@ class Scenario(Section):
             if instance not in self.fmus:
                 problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
         problems += connection_problems(self.connections, self.fmus, self.transformations, instances)
-        problems += _role_problems(self) + tracking_problems(
-            self.tracking, self.wind, self.sequencer.idle_current_fraction
-        )
+        problems += _role_problems(self) + tracking_problems(self.tracking, self.sequencer.idle_current_fraction)
         date_problem = window_date_problem(self.window.date, self.site.timezone)
         if date_problem:
             problems.append((("window", "date"), date_problem))

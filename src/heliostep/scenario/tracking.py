@@ -116,16 +116,12 @@ def with_sensor_connection(pairs, tracking: TrackingConfig, panel_angle: str | N
     return [*pairs, (panel_angle or "mechanics.theta_p", sensor)]
 
 
-def tracking_problems(tracking: TrackingConfig, wind, idle_current_fraction: float) -> list:
-    """What a closed or hybrid loop cannot take yet, as (key path, message) pairs: a wind given by its speed
-    (its moment and stow moves follow the open-loop schedule), an idle current reduction."""
+def tracking_problems(tracking: TrackingConfig, idle_current_fraction: float) -> list:
+    """What a closed or hybrid loop cannot take yet, as (key path, message) pairs: an idle current reduction
+    (a wind that stows the panel in the window is refused once the window's wind is read)."""
     if tracking.mode == "open_loop":
         return []
     problems: list[tuple[tuple, str]] = []
-    source = next((key for key in ("speed", "weather_file", "profile") if getattr(wind, key) is not None), None)
-    if source is not None:
-        message = f"a wind speed acts on the open-loop schedule; with tracking.mode {tracking.mode} give wind.moment"
-        problems.append((("wind", source), message))
     if idle_current_fraction != 1.0:
         message = f"expected 1 with tracking.mode {tracking.mode} (no idle reduction)"
         problems.append((("sequencer", "idle_current_fraction"), message))
