@@ -1,0 +1,336 @@
+"""Step families, a feasibility study: year-field cases composed from single-step transients, against full runs.
+
+    .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirror 0] [--angles 13] [--window 0.5]
+
+Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the end mirror ``--mirror``'s secondary drive,
+and the shared primary of each day) in full (``run_scenario``, no trace kept, in this process). For each kind
+of drive (secondary, shared primary: their FMUs and parameters) it co-simulates a step family through the same
+master (:class:`heliostep.cosim.CoSimulation` built as ``run_scenario`` builds it): one step from the settled
+detent, ``--window`` seconds, at ``--angles`` panel angles over the range the cases visit x the four phase
+transitions x both directions, and the holding run without a step per phase. From the family and each case's
+step schedule (``prepare_inputs``, no simulation) it composes the case's figures: peak torque and phase
+current (largest per-step peak, linear in the panel angle), electrical energy (holding power x time + each
+step's transient energy), maximum tracking error (reference minus the stepped panel angle, the step's
+overshoot added after it), light on the tube (``light_figures`` on the stepped angle on the case's grid),
+steps missed and lost (the family's outcomes).
+
+Prints per case and figure: full run, composed, relative deviation, the issue's tolerance and whether it
+holds; per case the CPU seconds of the full run and of the composition, the shortest step interval against
+the family's ring; per family its CPU seconds and transients, the spread of each figure over the phase
+transitions; then the year-field's cost extrapolated both ways (line ``year-field: ...``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+SWEEP = ROOT / "scenarios" / "sweeps" / "year-field.yaml"
+STEP_AT = 0.02  # [s] the family's step, after this much holding
+PHASES = 4  # one-phase-on: the four phase transitions of a full-step cycle
+#: The issue's tolerances: relative deviation (0 = exact).
+TOLERANCES = {
+    "peak_torque_Nm": 0.005,
+    "peak_phase_current_A": 0.005,
+    "electrical_energy_J": 0.001,
+    "max_tracking_error_deg": 0.01,
+    "light_energy_J": 0.001,
+    "missed_steps": 0.0,
+    "steps_lost": 0.0,
+}
+FIELDS = ("peak_torque", "peak_current", "energy", "overshoot", "overshoot_time", "missed", "lost", "ring")
+
+
+def study_cases(days: list[int], mirror: int) -> list:
+    """The year-field's cases of ``days`` x ``mirror`` and each day's shared primary, as the sweep builds them."""
+    from heliostep.sweep.axes import SweepAxis
+    from heliostep.sweep.spec import expand_cases, load_sweep
+
+    spec = load_sweep(SWEEP)
+    axes = (SweepAxis("day_of_year", tuple(days)), SweepAxis("mirror", (mirror,)))
+    return expand_cases(dataclasses.replace(spec, axes=axes))
+
+
+def case_scenario(case):
+    from heliostep.scenario import validate_scenario
+
+    return validate_scenario(case.scenario, source=case.source, folder=case.folder)
+
+
+def full_run(scenario) -> tuple[dict, float]:
+    """(summary, CPU seconds) of the case run in full, as a sweep's worker runs it but in this process."""
+    from heliostep.run import RunOptions, run_scenario
+
+    started = time.process_time()
+    result = run_scenario(scenario, RunOptions(keep_trace=False, supervise=False, light_first_order=False))
+    return result.summary, time.process_time() - started
+
+
+class _Watch:
+    """The master's monitor for one transient: the run's figures, and the panel's farthest swing past
+    the new detent in the step's direction after the step (and its time)."""
+
+    def __init__(self, recorder, panel: int, target: float, direction: int):
+        self.recorder, self.panel, self.target, self.direction = recorder, panel, target, direction
+        self.swing, self.at, self.last_move = -np.inf, 0.0, 0.0
+
+    def __call__(self, rows: np.ndarray) -> None:
+        self.recorder(rows)
+        rows = np.atleast_2d(rows)
+        after = rows[rows[:, 0] > STEP_AT]
+        if not len(after):
+            return
+        past = self.direction * (after[:, self.panel] - self.target)
+        k = int(np.argmax(past))
+        if past[k] > self.swing:
+            self.swing, self.at = float(past[k]), float(after[k, 0])
+        off = np.abs(past) > 0.05 * abs(self.target - self.start)  # outside 5 % of the panel's step
+        if off.any():
+            self.last_move = max(self.last_move, float(after[off, 0].max()))
+
+    start = 0.0
+
+
+def transient(prep, angle: float, index: int, direction: int, window: float) -> dict:
+    """One step (``direction`` 0: none) from index ``index`` held at panel angle ``angle`` [rad], simulated
+    over ``window`` [s] through the master as ``run_scenario`` sets it up: its figures."""
+    from heliostep.drive.inputs import implied_parameters
+    from heliostep.drive.sequencer import StepSchedule
+    from heliostep.results.figures.solution import SolutionRecorder
+    from heliostep.run.bindings import parameters
+    from heliostep.run.runner import _system
+
+    scenario, sequencer = prep.scenario, prep.inputs.sequencer
+    r, s = scenario.transmission.pinion_radius, scenario.transmission.lever_arm
+    steps = [index + direction] if direction else []
+    schedule = StepSchedule(np.array([STEP_AT] if direction else [], dtype=float), np.array(steps, dtype=int), index)
+    current_a, current_b = sequencer.reference_currents(np.array([index, *steps]))
+    start = float(np.arctan(np.tan(angle) - sequencer.position(index) * r / s))  # the panel at rotor 0
+    implied = implied_parameters(scenario, sequencer, schedule, (current_a[0], current_b[0]), start, None)
+    end = index + direction
+    target = float(np.arctan(np.tan(start) + sequencer.position(end) * r / s))
+    inputs = dataclasses.replace(
+        prep.inputs,
+        duration=window,
+        reference_times=np.array([0.0, window]),
+        panel_angle_ref=np.full(2, target),
+        rotor_angle_ref=np.full(2, float(sequencer.position(end))),
+        schedule=schedule,
+        current_a_ref=current_a,
+        current_b_ref=current_b,
+        output_times=np.array([0.0, window]),
+        implied_parameters=implied,
+    )
+    values = parameters(scenario, inputs, prep.roles, prep.infos)
+    system = _system(scenario, prep.infos, inputs, values, prep.roles, None)
+    outputs = [f"{name}.{output}" for name, info in system.fmus.items() for output in info.traced_outputs]
+    columns = ["time", *[item.name for item in system.inputs], *outputs]
+    recorder = SolutionRecorder(columns, prep.roles, sequencer, schedule, None)
+    watch = _Watch(recorder, columns.index(prep.roles["panel_angle"]), target, direction or 1)
+    watch.start = float(implied["panel_angle_start"])
+    system.simulate(0.0, window, np.array([0.0, window]), prep.solver, monitor=watch)
+    figures = recorder.figures()
+    step = abs(target - watch.start) if direction else 1.0
+    return {
+        "peak_torque": figures["peak_torque_Nm"],
+        "peak_current": figures["peak_phase_current_A"],
+        "energy": figures["electrical_energy_J"],
+        "overshoot": watch.swing / step,  # past the new detent, in panel steps
+        "overshoot_time": watch.at - STEP_AT,
+        "missed": figures["missed_steps"] if direction else 0,
+        "lost": figures["steps_lost"],
+        "ring": watch.last_move - STEP_AT,
+    }
+
+
+@dataclasses.dataclass
+class Family:
+    """A drive's step family: each figure per (panel angle, direction -1/+1, phase), the holding energy rate."""
+
+    angles: np.ndarray
+    table: dict
+    holding_power: np.ndarray  # [W] per phase
+    cpu_s: float
+    transients: int
+
+    def at(self, name: str, angle: np.ndarray, direction: np.ndarray, phase: np.ndarray) -> np.ndarray:
+        """The figure at each step's condition, linear in the panel angle."""
+        values = self.table[name]
+        out = np.empty(len(angle))
+        for d in (0, 1):
+            for p in range(PHASES):
+                pick = (direction == (2 * d - 1)) & (phase == p)
+                out[pick] = np.interp(angle[pick], self.angles, values[:, d, p])
+        return out
+
+
+def short_prepared(scenario):
+    """The case's run set up (FMUs, roles, parameters, solver) on a one-second window, for its transients."""
+    from heliostep.run.runner import _prepare
+    from heliostep.scenario import validate_scenario
+
+    data = scenario.resolved_dict()
+    data["window"] = {"date": data["window"]["date"], "start": "12:00", "duration": 1.0}
+    short = validate_scenario(data, source=scenario.source, folder=scenario.folder)
+    return _prepare(short, None, time.perf_counter(), keep_trace=False)
+
+
+def build_family(scenario, angles: np.ndarray, window: float) -> Family:
+    """The step family of the case's drive over ``angles`` [rad]."""
+    started = time.process_time()
+    prep = short_prepared(scenario)
+    table = {name: np.zeros((len(angles), 2, PHASES)) for name in FIELDS}
+    holding = np.array([transient(prep, 0.0, p, 0, window)["energy"] / window for p in range(PHASES)])
+    for i, angle in enumerate(angles):
+        for d, direction in enumerate((-1, 1)):
+            for p in range(PHASES):
+                figures = transient(prep, float(angle), p, direction, window)
+                figures["energy"] -= holding[p] * window
+                for name in FIELDS:
+                    table[name][i, d, p] = figures[name]
+    count = PHASES + len(angles) * 2 * PHASES
+    return Family(angles, table, holding, time.process_time() - started, count)
+
+
+def stepped(inputs, scenario) -> tuple[np.ndarray, np.ndarray]:
+    """(index held, panel angle held [rad]) from the start and after each step: the transmission from the start."""
+    schedule, sequencer = inputs.schedule, inputs.sequencer
+    held = np.concatenate([[schedule.initial_index], schedule.indices])
+    r, s = scenario.transmission.pinion_radius, scenario.transmission.lever_arm
+    return held, np.arctan(np.tan(inputs.panel_angle_ref[0]) + sequencer.position(held) * r / s)
+
+
+def compose(scenario, family: Family) -> tuple[dict, float, float]:
+    """(composed figures, CPU seconds, the shortest step interval [s]) of a case from its family."""
+    from heliostep.drive.inputs import prepare_inputs
+
+    started = time.process_time()
+    inputs = prepare_inputs(scenario)
+    times = inputs.schedule.times
+    held, panel = stepped(inputs, scenario)
+    direction, phase, angle = np.diff(held), np.mod(held[:-1], PHASES), panel[:-1]
+    at = {name: family.at(name, angle, direction, phase) for name in FIELDS}
+    bounds = np.concatenate([[0.0], times, [inputs.duration]])
+    energy = float(np.sum(family.holding_power[np.mod(held, PHASES)] * np.diff(bounds)) + at["energy"].sum())
+    reference = inputs.panel_reference()
+    swing = direction * at["overshoot"] * np.abs(np.diff(panel))
+    errors = np.concatenate(
+        [
+            panel - reference(bounds[:-1]),  # the interval's start (before each step's swing)
+            panel - reference(bounds[1:]),  # its end: the reference at the next step's trigger
+            panel[1:] + swing - reference(times + at["overshoot_time"]),  # each step's swing past its detent
+            panel[np.searchsorted(times, inputs.reference_times, side="right")] - inputs.panel_angle_ref,  # turns
+        ]
+    )
+    figures = {
+        "peak_torque_Nm": float(at["peak_torque"].max(initial=0.0)),
+        "peak_phase_current_A": float(at["peak_current"].max(initial=0.0)),
+        "electrical_energy_J": energy,
+        "max_tracking_error_deg": float(np.degrees(np.abs(errors).max())),
+        "missed_steps": int(np.rint(at["missed"]).sum()),
+        "steps_lost": int(np.rint(at["lost"]).sum()),
+    }
+    figures["light_energy_J"] = composed_light(scenario, inputs, panel)
+    shortest = float(np.diff(times).min()) if len(times) > 1 else float("inf")
+    return figures, time.process_time() - started, shortest
+
+
+def composed_light(scenario, inputs, panel: np.ndarray) -> float:
+    """``light_energy_J`` of heliostep's light figures on the stepped panel angle over the case's output grid."""
+    from heliostep.results.light.on_tube import light_figures
+    from heliostep.results.trace.frame import drive_metadata
+
+    roles = scenario.resolved_roles()
+    grid = inputs.output_times
+    held = np.searchsorted(inputs.schedule.times, grid, side="right")
+    trace = pd.DataFrame(
+        {"time": grid, "panel_angle_ref": inputs.panel_reference()(grid), roles["panel_angle"]: panel[held]}
+    )
+    metadata = {"window_start": inputs.window_start.isoformat(), "roles": roles, "drive": drive_metadata(inputs)}
+    return float(light_figures(trace, metadata, scenario)["light_energy_J"])
+
+
+def deviation(full, composed, name: str) -> float:
+    if name in ("missed_steps", "steps_lost"):
+        return float(abs(composed - full))
+    return abs(composed - full) / abs(full) if full else float(abs(composed))
+
+
+def print_case(label: str, summary: dict, composed: dict, costs: tuple[float, float], shortest: float, ring: float):
+    print(f"\n{label}: full {costs[0]:.2f} s CPU, composed {costs[1]:.3f} s CPU ({costs[0] / costs[1]:.0f}x); "
+          f"shortest step interval {shortest:.3f} s, family ring {ring:.3f} s")
+    print(f"  {'figure':24} {'full':>14} {'composed':>14} {'deviation':>10} {'tolerance':>9}  holds")
+    for name, tolerance in TOLERANCES.items():
+        full, mine = summary[name], composed[name]
+        dev = deviation(full, mine, name)
+        print(f"  {name:24} {full:14.7g} {mine:14.7g} {dev:10.2e} {tolerance:9.1e}  {'yes' if dev <= tolerance else 'NO'}")
+
+
+def panel_range(scenarios) -> tuple[float, float]:
+    """The smallest and largest panel angle held [rad] over the cases' steps."""
+    from heliostep.drive.inputs import prepare_inputs
+
+    held = [stepped(prepare_inputs(scenario), scenario)[1] for scenario in scenarios]
+    return float(min(p.min() for p in held)), float(max(p.max() for p in held))
+
+
+def print_family(kind: str, family: Family) -> None:
+    print(f"family {kind}: {family.transients} transients, {family.cpu_s:.2f} s CPU, "
+          f"panel {np.degrees(family.angles[0]):.2f} .. {np.degrees(family.angles[-1]):.2f} deg, "
+          f"holding {family.holding_power.mean():.5f} W")
+    for name in FIELDS:
+        values = family.table[name]
+        spread = np.ptp(values, axis=2).max()  # over the phase transitions, at the same angle and direction
+        print(f"  {name:16} min {values.min():11.5g} max {values.max():11.5g} phase spread {spread:9.3g}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--days", type=int, nargs="+", default=[80, 172, 355])
+    parser.add_argument("--mirror", type=int, default=0)
+    parser.add_argument("--angles", type=int, default=13)
+    parser.add_argument("--window", type=float, default=0.5)
+    args = parser.parse_args()
+    cases = study_cases(args.days, args.mirror)
+    kinds: dict[str, list] = {}
+    for case in cases:
+        kinds.setdefault(case.columns["role"], []).append(case)
+    families, full_cpu, composed_cpu, worst = {}, {}, {}, dict.fromkeys(TOLERANCES, 0.0)
+    for kind, members in kinds.items():
+        scenarios = [case_scenario(case) for case in members]
+        low, high = panel_range(scenarios)
+        margin = 0.02 * (high - low) + 1e-3
+        families[kind] = build_family(scenarios[0], np.linspace(low - margin, high + margin, args.angles), args.window)
+        print_family(kind, families[kind])
+        for case, scenario in zip(members, scenarios, strict=True):
+            summary, full_s = full_run(scenario)
+            composed, cost, shortest = compose(scenario, families[kind])
+            ring = float(families[kind].table["ring"].max())
+            label = f"day {case.columns['day_of_year']} {kind} mirror {case.columns['mirror_index']}"
+            print_case(label, summary, composed, (full_s, cost), shortest, ring)
+            full_cpu.setdefault(kind, []).append(full_s)
+            composed_cpu.setdefault(kind, []).append(cost)
+            for name in TOLERANCES:
+                worst[name] = max(worst[name], deviation(summary[name], composed[name], name))
+    print_year(families, full_cpu, composed_cpu, worst)
+
+
+def print_year(families: dict, full_cpu: dict, composed_cpu: dict, worst: dict) -> None:
+    """The year-field (365 days x 13 mirrors + 365 shared primaries) extrapolated from the cases' mean CPU."""
+    counts = {"drive": 365 * 13, "shared-primary": 365}
+    full = sum(counts[k] * np.mean(v) for k, v in full_cpu.items()) / 3600
+    composed = sum(counts[k] * np.mean(v) for k, v in composed_cpu.items()) / 3600
+    family = sum(f.cpu_s for f in families.values()) / 3600
+    print("\nworst deviation: " + ", ".join(f"{k} {v:.2e}" for k, v in worst.items()))
+    print(f"year-field: {family + composed:.3f} core-hours (families {family * 60:.1f} min + composition "
+          f"{composed * 60:.1f} min), {full:.2f} core-hours (full)")
+
+
+if __name__ == "__main__":
+    main()
