@@ -1,6 +1,7 @@
 """Step families, a feasibility study: year-field cases composed from single-step transients, against full runs.
 
     .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirror 0] [--angles 13] [--window 0.5]
+        [--light-every 10]
 
 Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the end mirror ``--mirror``'s secondary drive,
 and the shared primary of each day) in full (``run_scenario``, no trace kept, in this process). For each kind
@@ -11,7 +12,8 @@ transitions x both directions, and the holding run without a step per phase. Fro
 step schedule (``prepare_inputs``, no simulation) it composes the case's figures: peak torque and phase
 current (largest per-step peak, linear in the panel angle), electrical energy (holding power x time + each
 step's transient energy), maximum tracking error (reference minus the stepped panel angle, the step's
-overshoot added after it), light on the tube (``light_figures`` on the stepped angle on the case's grid),
+overshoot added after it), light on the tube (``LightIntegrals`` on the stepped angle, on the case's output
+grid taken every ``--light-every`` seconds),
 steps missed and lost (the family's outcomes).
 
 Prints per case and figure: full run, composed, relative deviation, the issue's tolerance and whether it
@@ -206,12 +208,14 @@ def stepped(inputs, scenario) -> tuple[np.ndarray, np.ndarray]:
     return held, np.arctan(np.tan(inputs.panel_angle_ref[0]) + sequencer.position(held) * r / s)
 
 
-def compose(scenario, family: Family) -> tuple[dict, float, float]:
-    """(composed figures, CPU seconds, the shortest step interval [s]) of a case from its family."""
+def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, float]:
+    """(composed figures, CPU seconds of the schedule, the figures and the light, the shortest step interval
+    [s]) of a case from its family."""
     from heliostep.drive.inputs import prepare_inputs
 
     started = time.process_time()
     inputs = prepare_inputs(scenario)
+    prepared = time.process_time()
     times = inputs.schedule.times
     held, panel = stepped(inputs, scenario)
     direction, phase, angle = np.diff(held), np.mod(held[:-1], PHASES), panel[:-1]
@@ -236,24 +240,30 @@ def compose(scenario, family: Family) -> tuple[dict, float, float]:
         "missed_steps": int(np.rint(at["missed"]).sum()),
         "steps_lost": int(np.rint(at["lost"]).sum()),
     }
-    figures["light_energy_J"] = composed_light(scenario, inputs, panel)
+    composed = time.process_time()
+    figures["light_energy_J"] = composed_light(scenario, inputs, panel, light_every)
     shortest = float(np.diff(times).min()) if len(times) > 1 else float("inf")
-    return figures, time.process_time() - started, shortest
+    done = time.process_time()
+    return figures, (prepared - started, composed - prepared, done - composed), shortest
 
 
-def composed_light(scenario, inputs, panel: np.ndarray) -> float:
-    """``light_energy_J`` of heliostep's light figures on the stepped panel angle over the case's output grid."""
-    from heliostep.results.light.on_tube import light_figures
+def composed_light(scenario, inputs, panel: np.ndarray, every: float) -> float:
+    """``light_energy_J`` of heliostep's light figures (as a sweep's case: no first-order terms) on the stepped
+    panel angle, on the case's output grid taken every ``every`` seconds (and its last row)."""
+    from heliostep.results.light.on_tube import LightIntegrals
     from heliostep.results.trace.frame import drive_metadata
 
     roles = scenario.resolved_roles()
     grid = inputs.output_times
+    grid = np.unique(np.concatenate([grid[:: max(1, round(every / scenario.output.interval))], grid[-1:]]))
     held = np.searchsorted(inputs.schedule.times, grid, side="right")
     trace = pd.DataFrame(
         {"time": grid, "panel_angle_ref": inputs.panel_reference()(grid), roles["panel_angle"]: panel[held]}
     )
     metadata = {"window_start": inputs.window_start.isoformat(), "roles": roles, "drive": drive_metadata(inputs)}
-    return float(light_figures(trace, metadata, scenario)["light_energy_J"])
+    light = LightIntegrals(metadata, scenario, first_order=False)
+    light(trace)
+    return float(light.figures()["light_energy_J"])
 
 
 def deviation(full, composed, name: str) -> float:
@@ -262,14 +272,19 @@ def deviation(full, composed, name: str) -> float:
     return abs(composed - full) / abs(full) if full else float(abs(composed))
 
 
-def print_case(label: str, summary: dict, composed: dict, costs: tuple[float, float], shortest: float, ring: float):
-    print(f"\n{label}: full {costs[0]:.2f} s CPU, composed {costs[1]:.3f} s CPU ({costs[0] / costs[1]:.0f}x); "
-          f"shortest step interval {shortest:.3f} s, family ring {ring:.3f} s")
+def print_case(label: str, summary: dict, composed: dict, full_s: float, costs: tuple, shortest: float, ring: float):
+    print(
+        f"\n{label}: full {full_s:.2f} s CPU, composed {sum(costs):.3f} s CPU ({full_s / sum(costs):.0f}x: "
+        f"schedule {costs[0]:.3f}, figures {costs[1]:.3f}, light {costs[2]:.3f}); "
+        f"shortest step interval {shortest:.3f} s, family ring {ring:.3f} s"
+    )
     print(f"  {'figure':24} {'full':>14} {'composed':>14} {'deviation':>10} {'tolerance':>9}  holds")
     for name, tolerance in TOLERANCES.items():
         full, mine = summary[name], composed[name]
         dev = deviation(full, mine, name)
-        print(f"  {name:24} {full:14.7g} {mine:14.7g} {dev:10.2e} {tolerance:9.1e}  {'yes' if dev <= tolerance else 'NO'}")
+        print(
+            f"  {name:24} {full:14.7g} {mine:14.7g} {dev:10.2e} {tolerance:9.1e}  {'yes' if dev <= tolerance else 'NO'}"
+        )
 
 
 def panel_range(scenarios) -> tuple[float, float]:
@@ -281,9 +296,11 @@ def panel_range(scenarios) -> tuple[float, float]:
 
 
 def print_family(kind: str, family: Family) -> None:
-    print(f"family {kind}: {family.transients} transients, {family.cpu_s:.2f} s CPU, "
-          f"panel {np.degrees(family.angles[0]):.2f} .. {np.degrees(family.angles[-1]):.2f} deg, "
-          f"holding {family.holding_power.mean():.5f} W")
+    print(
+        f"family {kind}: {family.transients} transients, {family.cpu_s:.2f} s CPU, "
+        f"panel {np.degrees(family.angles[0]):.2f} .. {np.degrees(family.angles[-1]):.2f} deg, "
+        f"holding {family.holding_power.mean():.5f} W"
+    )
     for name in FIELDS:
         values = family.table[name]
         spread = np.ptp(values, axis=2).max()  # over the phase transitions, at the same angle and direction
@@ -296,6 +313,7 @@ def main() -> None:
     parser.add_argument("--mirror", type=int, default=0)
     parser.add_argument("--angles", type=int, default=13)
     parser.add_argument("--window", type=float, default=0.5)
+    parser.add_argument("--light-every", type=float, default=10.0)
     args = parser.parse_args()
     cases = study_cases(args.days, args.mirror)
     kinds: dict[str, list] = {}
@@ -310,12 +328,12 @@ def main() -> None:
         print_family(kind, families[kind])
         for case, scenario in zip(members, scenarios, strict=True):
             summary, full_s = full_run(scenario)
-            composed, cost, shortest = compose(scenario, families[kind])
+            composed, costs, shortest = compose(scenario, families[kind], args.light_every)
             ring = float(families[kind].table["ring"].max())
             label = f"day {case.columns['day_of_year']} {kind} mirror {case.columns['mirror_index']}"
-            print_case(label, summary, composed, (full_s, cost), shortest, ring)
+            print_case(label, summary, composed, full_s, costs, shortest, ring)
             full_cpu.setdefault(kind, []).append(full_s)
-            composed_cpu.setdefault(kind, []).append(cost)
+            composed_cpu.setdefault(kind, []).append(sum(costs))
             for name in TOLERANCES:
                 worst[name] = max(worst[name], deviation(summary[name], composed[name], name))
     print_year(families, full_cpu, composed_cpu, worst)
@@ -328,8 +346,10 @@ def print_year(families: dict, full_cpu: dict, composed_cpu: dict, worst: dict) 
     composed = sum(counts[k] * np.mean(v) for k, v in composed_cpu.items()) / 3600
     family = sum(f.cpu_s for f in families.values()) / 3600
     print("\nworst deviation: " + ", ".join(f"{k} {v:.2e}" for k, v in worst.items()))
-    print(f"year-field: {family + composed:.3f} core-hours (families {family * 60:.1f} min + composition "
-          f"{composed * 60:.1f} min), {full:.2f} core-hours (full)")
+    print(
+        f"year-field: {family + composed:.3f} core-hours (families {family * 60:.1f} min + composition "
+        f"{composed * 60:.1f} min), {full:.2f} core-hours (full)"
+    )
 
 
 if __name__ == "__main__":
