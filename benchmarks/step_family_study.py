@@ -1,20 +1,21 @@
 """Step families, a feasibility study: year-field cases composed from single-step transients, against full runs.
 
-    .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirror 0] [--angles 13] [--window 0.5]
-        [--light-every 10]
+    .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirrors 0 9] [--angles 13] [--window 0.5]
+        [--light-every 10] [--set KEY=VALUE ...]
 
-Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the end mirror ``--mirror``'s secondary drive,
-and the shared primary of each day) in full (``run_scenario``, no trace kept, in this process). For each kind
+Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the secondary drives of ``--mirrors``, and
+the shared primary of each day) in full (``run_scenario``, no trace kept, in this process). For each kind
 of drive (secondary, shared primary: their FMUs and parameters) it co-simulates a step family through the same
 master (:class:`heliostep.cosim.CoSimulation` built as ``run_scenario`` builds it): one step from the settled
 detent, ``--window`` seconds, at ``--angles`` panel angles over the range the cases visit x the four phase
 transitions x both directions, and the holding run without a step per phase. From the family and each case's
 step schedule (``prepare_inputs``, no simulation) it composes the case's figures: peak torque and phase
-current (largest per-step peak, linear in the panel angle), electrical energy (holding power x time + each
-step's transient energy), maximum tracking error (reference minus the stepped panel angle, the step's
+current (largest per-step peak, a cubic spline in the panel angle), electrical energy (holding power x time +
+each step's transient energy), maximum tracking error (reference minus the stepped panel angle, the step's
 overshoot added after it), light on the tube (``LightIntegrals`` on the stepped angle, on the case's output
-grid taken every ``--light-every`` seconds),
-steps missed and lost (the family's outcomes).
+grid taken every ``--light-every`` seconds), steps missed and lost (the family's outcomes, the worse of the
+two family angles around each step's). ``--set`` adds a setting to every case (a weak motor: ``--set
+sequencer.current=2 --set wind.moment=110``).
 
 Prints per case and figure: full run, composed, relative deviation, the issue's tolerance and whether it
 holds; per case the CPU seconds of the full run and of the composition, the shortest step interval against
@@ -49,14 +50,18 @@ TOLERANCES = {
 FIELDS = ("peak_torque", "peak_current", "energy", "overshoot", "overshoot_time", "missed", "lost", "ring")
 
 
-def study_cases(days: list[int], mirror: int) -> list:
-    """The year-field's cases of ``days`` x ``mirror`` and each day's shared primary, as the sweep builds them."""
+def study_cases(days: list[int], mirrors: list[int], settings: list[str]) -> list:
+    """The year-field's cases of ``days`` x ``mirrors`` and each day's shared primary, as the sweep builds them,
+    with ``settings`` (``KEY=VALUE``, a YAML value) added to the sweep's overrides."""
+    import yaml
+
     from heliostep.sweep.axes import SweepAxis
     from heliostep.sweep.spec import expand_cases, load_sweep
 
     spec = load_sweep(SWEEP)
-    axes = (SweepAxis("day_of_year", tuple(days)), SweepAxis("mirror", (mirror,)))
-    return expand_cases(dataclasses.replace(spec, axes=axes))
+    axes = (SweepAxis("day_of_year", tuple(days)), SweepAxis("mirror", tuple(mirrors)))
+    more = tuple((key, yaml.safe_load(value)) for key, _, value in (item.partition("=") for item in settings))
+    return expand_cases(dataclasses.replace(spec, axes=axes, overrides=spec.overrides + more))
 
 
 def case_scenario(case):
@@ -162,14 +167,17 @@ class Family:
     transients: int
 
     def at(self, name: str, angle: np.ndarray, direction: np.ndarray, phase: np.ndarray) -> np.ndarray:
-        """The figure at each step's condition, linear in the panel angle."""
-        values = self.table[name]
-        out = np.empty(len(angle))
-        for d in (0, 1):
-            for p in range(PHASES):
-                pick = (direction == (2 * d - 1)) & (phase == p)
-                out[pick] = np.interp(angle[pick], self.angles, values[:, d, p])
-        return out
+        """The figure at each step's condition: a cubic spline in the panel angle (a peak's maximum is smooth);
+        an outcome (missed, lost) the worse of the two family angles around the step's."""
+        from scipy.interpolate import CubicSpline
+
+        table = self.table[name]
+        if name in ("missed", "lost"):
+            right = np.clip(np.searchsorted(self.angles, angle), 1, len(self.angles) - 1)
+            values = np.maximum(table[right - 1], table[right])  # (steps, direction, phase)
+        else:
+            values = CubicSpline(self.angles, table, axis=0)(angle)  # (steps, direction, phase)
+        return values[np.arange(len(angle)), (direction > 0).astype(int), phase]
 
 
 def short_prepared(scenario):
@@ -310,12 +318,13 @@ def print_family(kind: str, family: Family) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--days", type=int, nargs="+", default=[80, 172, 355])
-    parser.add_argument("--mirror", type=int, default=0)
+    parser.add_argument("--mirrors", type=int, nargs="+", default=[0, 9])
     parser.add_argument("--angles", type=int, default=13)
     parser.add_argument("--window", type=float, default=0.5)
     parser.add_argument("--light-every", type=float, default=10.0)
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
-    cases = study_cases(args.days, args.mirror)
+    cases = study_cases(args.days, args.mirrors, args.set)
     kinds: dict[str, list] = {}
     for case in cases:
         kinds.setdefault(case.columns["role"], []).append(case)
