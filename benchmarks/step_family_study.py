@@ -47,7 +47,7 @@ TOLERANCES = {
     "missed_steps": 0.0,
     "steps_lost": 0.0,
 }
-FIELDS = ("peak_torque", "peak_current", "energy", "overshoot", "overshoot_time", "missed", "lost", "ring")
+FIELDS = ("peak_torque", "peak_current", "energy", "overshoot", "overshoot_time", "rest", "missed", "lost", "ring")
 
 
 def study_cases(days: list[int], mirrors: list[int], settings: list[str]) -> list:
@@ -90,11 +90,12 @@ class _Watch:
 
     def __init__(self, recorder, panel: int, target: float, direction: int, step: float):
         self.recorder, self.panel, self.target, self.direction, self.step = recorder, panel, target, direction, step
-        self.swing, self.at, self.last_move = -np.inf, 0.0, 0.0
+        self.swing, self.at, self.last_move, self.last_panel = -np.inf, 0.0, 0.0, target
 
     def __call__(self, rows: np.ndarray) -> None:
         self.recorder(rows)
         rows = np.atleast_2d(rows)
+        self.last_panel = float(rows[-1, self.panel])
         after = rows[rows[:, 0] > STEP_AT]
         if not len(after):
             return
@@ -156,6 +157,7 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
         "energy": figures["electrical_energy_J"],
         "overshoot": watch.swing / step,  # past the new detent, in panel steps
         "overshoot_time": watch.at - STEP_AT,
+        "rest": watch.last_panel - target,  # [rad] where the panel rests off its detent at the end (a load's lag)
         "missed": figures["missed_steps"] if direction else 0,
         "lost": figures["steps_lost"],
         "ring": watch.last_move - STEP_AT,
@@ -233,18 +235,20 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
     inputs = prepare_inputs(scenario)
     prepared = time.process_time()
     times = inputs.schedule.times
-    held, panel = stepped(inputs, scenario)
-    direction, phase, angle = np.diff(held), np.mod(held[:-1], PHASES), panel[:-1]
+    held, detents = stepped(inputs, scenario)
+    direction, phase, angle = np.diff(held), np.mod(held[:-1], PHASES), detents[:-1]
     at = {name: family.at(name, angle, direction, phase) for name in FIELDS}
+    rest = at["rest"]  # [rad] where the panel rests off each detent (a load's lag): the first one as the next
+    panel = detents + np.concatenate([rest[:1] if len(rest) else [0.0], rest])
     bounds = np.concatenate([[0.0], times, [inputs.duration]])
     energy = float(np.sum(family.holding_power[np.mod(held, PHASES)] * np.diff(bounds)) + at["energy"].sum())
     reference = inputs.panel_reference()
-    swing = direction * at["overshoot"] * np.abs(np.diff(panel))
+    swing = direction * at["overshoot"] * np.abs(np.diff(detents))
     errors = np.concatenate(
         [
             panel - reference(bounds[:-1]),  # the interval's start (before each step's swing)
             panel - reference(bounds[1:]),  # its end: the reference at the next step's trigger
-            panel[1:] + swing - reference(times + at["overshoot_time"]),  # each step's swing past its detent
+            detents[1:] + swing - reference(times + at["overshoot_time"]),  # each step's swing past its detent
             panel[np.searchsorted(times, inputs.reference_times, side="right")] - inputs.panel_angle_ref,  # turns
         ]
     )
