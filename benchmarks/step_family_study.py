@@ -252,7 +252,7 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
             panel[np.searchsorted(times, inputs.reference_times, side="right")] - inputs.panel_angle_ref,  # turns
         ]
     )
-    figures = {
+    figures: dict = {
         "peak_torque_Nm": float(at["peak_torque"].max(initial=0.0)),
         "peak_phase_current_A": float(at["peak_current"].max(initial=0.0)),
         "electrical_energy_J": energy,
@@ -356,7 +356,10 @@ def main() -> None:
     kinds: dict[str, list] = {}
     for case in cases:
         kinds.setdefault(case.columns["role"], []).append(case)
-    families, full_cpu, composed_cpu, worst = {}, {}, {}, dict.fromkeys(TOLERANCES, 0.0)
+    families: dict[str, Family] = {}
+    full_cpu: dict[str, list[float]] = {}
+    composed_cpu: dict[str, list[float]] = {}
+    worst = dict.fromkeys(TOLERANCES, 0.0)
     for kind, members in kinds.items():
         scenarios = [case_scenario(case) for case in members]
         low, high = panel_range(scenarios)
