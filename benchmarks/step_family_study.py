@@ -47,6 +47,7 @@ TOLERANCES = {
     "missed_steps": 0.0,
     "steps_lost": 0.0,
 }
+PEAKS = {"peak_torque_Nm": "peak_torque", "peak_phase_current_A": "peak_current"}  # figure -> family field
 FIELDS = ("peak_torque", "peak_current", "energy", "overshoot", "overshoot_time", "rest", "missed", "lost", "ring")
 
 
@@ -241,17 +242,19 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
     rest = at["rest"]  # [rad] where the panel rests off each detent (a load's lag): the first one as the next
     panel = detents + np.concatenate([rest[:1] if len(rest) else [0.0], rest])
     bounds = np.concatenate([[0.0], times, [inputs.duration]])
-    energy = float(np.sum(family.holding_power[np.mod(held, PHASES)] * np.diff(bounds)) + at["energy"].sum())
+    holding = float(np.sum(family.holding_power[np.mod(held, PHASES)] * np.diff(bounds)))
+    energy = holding + float(at["energy"].sum())
     reference = inputs.panel_reference()
     swing = direction * at["overshoot"] * np.abs(np.diff(detents))
-    errors = np.concatenate(
-        [
-            panel - reference(bounds[:-1]),  # the interval's start (before each step's swing)
-            panel - reference(bounds[1:]),  # its end: the reference at the next step's trigger
-            detents[1:] + swing - reference(times + at["overshoot_time"]),  # each step's swing past its detent
-            panel[np.searchsorted(times, inputs.reference_times, side="right")] - inputs.panel_angle_ref,  # turns
-        ]
-    )
+    parts = {
+        "interval start": panel - reference(bounds[:-1]),  # before each step's swing
+        "trigger": panel - reference(bounds[1:]),  # the interval's end: the reference at the next step's trigger
+        "swing": detents[1:] + swing - reference(times + at["overshoot_time"]),  # each step's swing past its detent
+        "reference turn": panel[np.searchsorted(times, inputs.reference_times, side="right")] - inputs.panel_angle_ref,
+    }
+    errors = np.concatenate(list(parts.values()))
+    worst = int(np.argmax(np.abs(errors)))
+    part = next(name for name, n in zip(parts, np.cumsum([len(v) for v in parts.values()]), strict=True) if worst < n)
     figures: dict = {
         "peak_torque_Nm": float(at["peak_torque"].max(initial=0.0)),
         "peak_phase_current_A": float(at["peak_current"].max(initial=0.0)),
@@ -261,6 +264,10 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
         "steps_lost": int(np.rint(at["lost"]).sum()),
     }
     figures["fallback"] = fallback(family, angle, np.diff(bounds), at)
+    top = {name: int(np.argmax(at[key])) if len(angle) else 0 for name, key in PEAKS.items()}
+    figures["decided"] = {name: f"step at {np.degrees(angle[k]):.1f} deg" for name, k in top.items() if len(angle)}
+    figures["decided"]["max_tracking_error_deg"] = part
+    figures["decided"]["electrical_energy_J"] = f"holding {holding / energy:.6f}, steps {1 - holding / energy:.1e}"
     composed = time.process_time()
     figures["light_energy_J"] = composed_light(scenario, inputs, panel, light_every)
     shortest = float(np.diff(times).min()) if len(times) > 1 else float("inf")
@@ -315,12 +322,13 @@ def print_case(label: str, summary: dict | None, composed: dict, full_s: float, 
         f"schedule {costs[0]:.3f}, figures {costs[1]:.3f}, light {costs[2]:.3f}); "
         f"shortest step interval {shortest:.3f} s; fall back: {composed['fallback']}"
     )
-    print(f"  {'figure':24} {'full':>14} {'composed':>14} {'deviation':>10} {'tolerance':>9}  holds")
+    print(f"  {'figure':24} {'full':>14} {'composed':>14} {'deviation':>10} {'tolerance':>9}  holds  composed from")
     for name, tolerance in TOLERANCES.items():
         full, mine = np.nan if summary is None else summary[name], composed[name]
         dev = deviation(full, mine, name)
         holds = "-" if np.isnan(dev) else "yes" if dev <= tolerance else "NO"
-        print(f"  {name:24} {full:14.7g} {mine:14.7g} {dev:10.2e} {tolerance:9.1e}  {holds}")
+        where = composed["decided"].get(name, "")
+        print(f"  {name:24} {full:14.7g} {mine:14.7g} {dev:10.2e} {tolerance:9.1e}  {holds:5}  {where}")
 
 
 def panel_range(scenarios) -> tuple[float, float]:
