@@ -11,16 +11,18 @@ detent, ``--window`` seconds, at ``--angles`` panel angles over the range the ca
 transitions x both directions, and the holding run without a step per phase. From the family and each case's
 step schedule (``prepare_inputs``, no simulation) it composes the case's figures: peak torque and phase
 current (largest per-step peak, a cubic spline in the panel angle), electrical energy (holding power x time +
-each step's transient energy), maximum tracking error (reference minus the stepped panel angle, the step's
-overshoot added after it), light on the tube (``LightIntegrals`` on the stepped angle, on the case's output
-grid taken every ``--light-every`` seconds), steps missed and lost (the family's outcomes, the worse of the
-two family angles around each step's). ``--set`` adds a setting to every case (a weak motor: ``--set
-sequencer.current=2 --set wind.moment=110``).
+each step's transient energy), maximum tracking error (reference minus the panel at rest, its detent plus the
+family's rest offset under a load, the step's swing past its detent added after it), light on the tube
+(``LightIntegrals`` on that panel angle, on the case's output grid taken every ``--light-every`` seconds),
+steps missed and lost (the family's outcomes, the worse of the two family angles around each step's).
+``--set`` adds a setting to every case (a weak drive: ``--set sequencer.current=2 --set wind.moment=60``).
 
-Prints per case and figure: full run, composed, relative deviation, the issue's tolerance and whether it
-holds; per case the CPU seconds of the full run and of the composition, the shortest step interval against
-the family's ring; per family its CPU seconds and transients, the spread of each figure over the phase
-transitions; then the year-field's cost extrapolated both ways (line ``year-field: ...``).
+Prints per family its CPU seconds and transients and each field's range and spread over the phase
+transitions; per case the CPU seconds of the full run and of the composition (schedule, figures, light), the
+shortest step interval, where the case leaves what the family assumes (fall back), and per figure: full run,
+composed, relative deviation (missed and lost: the difference), the issue's tolerance, whether it holds, and
+what the composed figure comes from; then the largest deviations and the year-field's cost extrapolated
+from the cases' mean CPU both ways (line ``year-field: ...``).
 """
 
 from __future__ import annotations
@@ -38,15 +40,8 @@ SWEEP = ROOT / "scenarios" / "sweeps" / "year-field.yaml"
 STEP_AT = 0.02  # [s] the family's step, after this much holding
 PHASES = 4  # one-phase-on: the four phase transitions of a full-step cycle
 #: The issue's tolerances: relative deviation (0 = exact).
-TOLERANCES = {
-    "peak_torque_Nm": 0.005,
-    "peak_phase_current_A": 0.005,
-    "electrical_energy_J": 0.001,
-    "max_tracking_error_deg": 0.01,
-    "light_energy_J": 0.001,
-    "missed_steps": 0.0,
-    "steps_lost": 0.0,
-}
+TOLERANCES = dict(peak_torque_Nm=5e-3, peak_phase_current_A=5e-3, electrical_energy_J=1e-3)
+TOLERANCES |= dict(max_tracking_error_deg=1e-2, light_energy_J=1e-3, missed_steps=0.0, steps_lost=0.0)
 PEAKS = {"peak_torque_Nm": "peak_torque", "peak_phase_current_A": "peak_current"}  # figure -> family field
 FIELDS = ("peak_torque", "peak_current", "energy", "overshoot", "overshoot_time", "rest", "missed", "lost", "ring")
 
