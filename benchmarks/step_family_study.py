@@ -1,6 +1,6 @@
 """Step families, a feasibility study: year-field cases composed from single-step transients, against full runs.
 
-    .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirrors 0 9] [--angles 13] [--window 0.5]
+    .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirrors 0 9] [--angles 13] [--window 1]
         [--light-every 10] [--set KEY=VALUE ...]
 
 Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the secondary drives of ``--mirrors``, and
@@ -81,27 +81,32 @@ def full_run(scenario) -> tuple[dict | None, float]:
 
 
 class _Watch:
-    """The master's monitor for one transient: the run's figures, and the panel's farthest swing past
-    the new detent in the step's direction after the step (and its time)."""
+    """The master's monitor for one transient: the run's figures, and the panel's rows after the step."""
 
-    def __init__(self, recorder, panel: int, target: float, direction: int, step: float):
-        self.recorder, self.panel, self.target, self.direction, self.step = recorder, panel, target, direction, step
-        self.swing, self.at, self.last_move, self.last_panel = -np.inf, 0.0, 0.0, target
+    def __init__(self, recorder, panel: int):
+        self.recorder, self.panel, self.rows = recorder, panel, [np.zeros((0, 2))]
 
     def __call__(self, rows: np.ndarray) -> None:
         self.recorder(rows)
         rows = np.atleast_2d(rows)
-        self.last_panel = float(rows[-1, self.panel])
-        after = rows[rows[:, 0] > STEP_AT]
-        if not len(after):
-            return
-        past = self.direction * (after[:, self.panel] - self.target)
+        self.rows.append(rows[rows[:, 0] > STEP_AT][:, [0, self.panel]].copy())
+
+    def motion(self, target: float, direction: int, step: float) -> dict:
+        """The swing past the new detent ``target`` [rad] in ``direction`` (in panel steps ``step`` [rad]) and
+        its time after the step [s], where the panel rests at the end off the detent [rad] (a load's lag), and
+        the ring: the last time after the step it is farther than 5 % of a step from that rest [s]."""
+        time, panel = np.concatenate(self.rows).T
+        if not len(time):
+            return {"overshoot": 0.0, "overshoot_time": 0.0, "rest": 0.0, "ring": 0.0}
+        past = direction * (panel - target)
         k = int(np.argmax(past))
-        if past[k] > self.swing:
-            self.swing, self.at = float(past[k]), float(after[k, 0])
-        off = np.abs(past) > 0.05 * self.step  # outside 5 % of the panel's step
-        if off.any():
-            self.last_move = max(self.last_move, float(after[off, 0].max()))
+        off = np.abs(panel - panel[-1]) > 0.05 * step
+        return {
+            "overshoot": float(past[k]) / step,
+            "overshoot_time": float(time[k]) - STEP_AT,
+            "rest": float(panel[-1]) - target,
+            "ring": float(time[off].max(initial=STEP_AT)) - STEP_AT,
+        }
 
 
 def transient(prep, angle: float, index: int, direction: int, window: float) -> dict:
@@ -141,7 +146,7 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
     columns = ["time", *[item.name for item in system.inputs], *outputs]
     recorder = SolutionRecorder(columns, prep.roles, sequencer, schedule, None)
     step = abs(target - angle) if direction else 1.0  # the panel's step between the two detents
-    watch = _Watch(recorder, columns.index(prep.roles["panel_angle"]), target, direction or 1, step)
+    watch = _Watch(recorder, columns.index(prep.roles["panel_angle"]))
     try:
         system.simulate(0.0, window, np.array([0.0, window]), prep.solver, monitor=watch)
     except SimulationError:  # the drive runs away: an outcome the family cannot give (a full run must)
@@ -151,12 +156,9 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
         "peak_torque": figures["peak_torque_Nm"],
         "peak_current": figures["peak_phase_current_A"],
         "energy": figures["electrical_energy_J"],
-        "overshoot": watch.swing / step,  # past the new detent, in panel steps
-        "overshoot_time": watch.at - STEP_AT,
-        "rest": watch.last_panel - target,  # [rad] where the panel rests off its detent at the end (a load's lag)
+        **watch.motion(target, direction or 1, step),
         "missed": figures["missed_steps"] if direction else 0,
         "lost": figures["steps_lost"],
-        "ring": watch.last_move - STEP_AT,
     }
 
 
@@ -351,7 +353,7 @@ def main() -> None:
     parser.add_argument("--days", type=int, nargs="+", default=[80, 172, 355])
     parser.add_argument("--mirrors", type=int, nargs="+", default=[0, 9])
     parser.add_argument("--angles", type=int, default=13)
-    parser.add_argument("--window", type=float, default=0.5)
+    parser.add_argument("--window", type=float, default=1.0)
     parser.add_argument("--light-every", type=float, default=10.0)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
