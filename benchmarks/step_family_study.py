@@ -1,7 +1,7 @@
 """Step families, a feasibility study: year-field cases composed from single-step transients, against full runs.
 
     .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirrors 0 9] [--angles 13] [--window 1]
-        [--light-every 10] [--set KEY=VALUE ...]
+        [--light-every 10] [--set KEY=VALUE ...] [--scenario FILE]
 
 Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the secondary drives of ``--mirrors``, and
 the shared primary of each day) in full (``run_scenario``, no trace kept, in this process). For each kind
@@ -15,7 +15,8 @@ each step's transient energy), maximum tracking error (reference minus the panel
 family's rest offset under a load, the step's swing past its detent added after it), light on the tube
 (``LightIntegrals`` on that panel angle, on the case's output grid taken every ``--light-every`` seconds),
 steps missed and lost (the family's outcomes, the worse of the two family angles around each step's).
-``--set`` adds a setting to every case (a weak drive: ``--set sequencer.current=2 --set wind.moment=60``).
+``--set`` adds a setting to every case (a weak drive: ``--set sequencer.current=2 --set wind.moment=85``);
+``--scenario`` studies one scenario file instead (``scenarios/jan21-weak-motor.yaml``: steps missed and lost).
 
 Prints per family its CPU seconds and transients and each field's range and spread over the phase
 transitions; per case the CPU seconds of the full run and of the composition (schedule, figures, light), the
@@ -43,7 +44,18 @@ PHASES = 4  # one-phase-on: the four phase transitions of a full-step cycle
 TOLERANCES = dict(peak_torque_Nm=5e-3, peak_phase_current_A=5e-3, electrical_energy_J=1e-3)
 TOLERANCES |= dict(max_tracking_error_deg=1e-2, light_energy_J=1e-3, missed_steps=0.0, steps_lost=0.0)
 PEAKS = {"peak_torque_Nm": "peak_torque", "peak_phase_current_A": "peak_current"}  # figure -> family field
-FIELDS = ("peak_torque", "peak_current", "energy", "overshoot", "overshoot_time", "rest", "missed", "lost", "ring")
+FIELDS = (
+    "peak_torque",
+    "peak_current",
+    "energy",
+    "overshoot",
+    "overshoot_time",
+    "rest",
+    "slip",
+    "missed",
+    "lost",
+    "ring",
+)
 
 
 def study_cases(days: list[int], mirrors: list[int], settings: list[str]) -> list:
@@ -58,12 +70,6 @@ def study_cases(days: list[int], mirrors: list[int], settings: list[str]) -> lis
     axes = (SweepAxis("day_of_year", tuple(days)), SweepAxis("mirror", tuple(mirrors)))
     more = tuple((key, yaml.safe_load(value)) for key, _, value in (item.partition("=") for item in settings))
     return expand_cases(dataclasses.replace(spec, axes=axes, overrides=spec.overrides + more))
-
-
-def case_scenario(case):
-    from heliostep.scenario import validate_scenario
-
-    return validate_scenario(case.scenario, source=case.source, folder=case.folder)
 
 
 def full_run(scenario) -> tuple[dict | None, float]:
@@ -93,18 +99,21 @@ class _Watch:
 
     def motion(self, target: float, direction: int, step: float) -> dict:
         """The swing past the new detent ``target`` [rad] in ``direction`` (in panel steps ``step`` [rad]) and
-        its time after the step [s], where the panel rests at the end off the detent [rad] (a load's lag), and
-        the ring: the last time after the step it is farther than 5 % of a step from that rest [s]."""
+        its time after the step [s], where the panel rests at the end off the detent: whole steps (``slip``, lost)
+        and the rest [rad] (a load's lag), and the ring: the last time after the step it is farther than 5 % of a
+        step from where it rests [s]."""
         time, panel = np.concatenate(self.rows).T
         if not len(time):
-            return {"overshoot": 0.0, "overshoot_time": 0.0, "rest": 0.0, "ring": 0.0}
+            return {"overshoot": 0.0, "overshoot_time": 0.0, "rest": 0.0, "slip": 0.0, "ring": 0.0}
         past = direction * (panel - target)
         k = int(np.argmax(past))
         off = np.abs(panel - panel[-1]) > 0.05 * step
+        slip = PHASES * float(np.rint((panel[-1] - target) / step / PHASES))  # whole electrical periods off (lost)
         return {
             "overshoot": float(past[k]) / step,
             "overshoot_time": float(time[k]) - STEP_AT,
-            "rest": float(panel[-1]) - target,
+            "rest": float(panel[-1]) - target - slip * step,
+            "slip": slip,
             "ring": float(time[off].max(initial=STEP_AT)) - STEP_AT,
         }
 
@@ -178,7 +187,9 @@ class Family:
         from scipy.interpolate import CubicSpline
 
         table = self.table[name]
-        if name in ("missed", "lost"):
+        if name == "slip":  # signed whole steps: the nearest family angle's
+            values = table[np.rint(np.interp(angle, self.angles, np.arange(len(self.angles)))).astype(int)]
+        elif name in ("missed", "lost"):
             right = np.clip(np.searchsorted(self.angles, angle), 1, len(self.angles) - 1)
             values = np.maximum(table[right - 1], table[right])  # (steps, direction, phase)
         else:  # a transient that failed (nan) falls back anyway: its neighbours' largest value stands in
@@ -216,12 +227,13 @@ def build_family(scenario, angles: np.ndarray, window: float) -> Family:
     return Family(angles, table, holding, time.process_time() - started, count)
 
 
-def stepped(inputs, scenario) -> tuple[np.ndarray, np.ndarray]:
-    """(index held, panel angle held [rad]) from the start and after each step: the transmission from the start."""
+def stepped(inputs, scenario, slip=0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(index held, panel angle held [rad]) from the start and after each step: the transmission from the start,
+    the rotor ``slip`` whole steps (lost) off the index's detent."""
     schedule, sequencer = inputs.schedule, inputs.sequencer
     held = np.concatenate([[schedule.initial_index], schedule.indices])
     r, s = scenario.transmission.pinion_radius, scenario.transmission.lever_arm
-    return held, np.arctan(np.tan(inputs.panel_angle_ref[0]) + sequencer.position(held) * r / s)
+    return held, np.arctan(np.tan(inputs.panel_angle_ref[0]) + sequencer.position(held + slip) * r / s)
 
 
 def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, float]:
@@ -233,20 +245,23 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
     inputs = prepare_inputs(scenario)
     prepared = time.process_time()
     times = inputs.schedule.times
-    held, detents = stepped(inputs, scenario)
-    direction, phase, angle = np.diff(held), np.mod(held[:-1], PHASES), detents[:-1]
+    held, commanded = stepped(inputs, scenario)
+    direction, phase, angle = np.diff(held), np.mod(held[:-1], PHASES), commanded[:-1]
     at = {name: family.at(name, angle, direction, phase) for name in FIELDS}
+    lost = np.concatenate([[0.0], np.cumsum(at["slip"])])  # the whole steps lost so far, after each step
+    detents = stepped(inputs, scenario, lost)[1]
+    targets = stepped(inputs, scenario, np.concatenate([lost[:1], lost[:-1]]))[1][1:]  # each step's, as it starts
     rest = at["rest"]  # [rad] where the panel rests off each detent (a load's lag): the first one as the next
     panel = detents + np.concatenate([rest[:1] if len(rest) else [0.0], rest])
     bounds = np.concatenate([[0.0], times, [inputs.duration]])
     holding = float(np.sum(family.holding_power[np.mod(held, PHASES)] * np.diff(bounds)))
     energy = holding + float(at["energy"].sum())
     reference = inputs.panel_reference()
-    swing = direction * at["overshoot"] * np.abs(np.diff(detents))
+    swing = direction * at["overshoot"] * np.abs(np.diff(commanded))
     parts = {
         "interval start": panel - reference(bounds[:-1]),  # before each step's swing
         "trigger": panel - reference(bounds[1:]),  # the interval's end: the reference at the next step's trigger
-        "swing": detents[1:] + swing - reference(times + at["overshoot_time"]),  # each step's swing past its detent
+        "swing": targets + swing - reference(times + at["overshoot_time"]),  # each step's swing past its target
         "reference turn": panel[np.searchsorted(times, inputs.reference_times, side="right")] - inputs.panel_angle_ref,
     }
     errors = np.concatenate(list(parts.values()))
@@ -299,7 +314,8 @@ def composed_light(scenario, inputs, panel: np.ndarray, every: float) -> float:
     trace = pd.DataFrame(
         {"time": grid, "panel_angle_ref": inputs.panel_reference()(grid), roles["panel_angle"]: panel[held]}
     )
-    metadata = {"window_start": inputs.window_start.isoformat(), "roles": roles, "drive": drive_metadata(inputs)}
+    drive = {**drive_metadata(inputs), "step_times": []}  # no marks: no solution to correct between the rows with
+    metadata = {"window_start": inputs.window_start.isoformat(), "roles": roles, "drive": drive}
     light = LightIntegrals(metadata, scenario, first_order=False)
     light(trace)
     return float(light.figures()["light_energy_J"])
@@ -356,31 +372,45 @@ def main() -> None:
     parser.add_argument("--window", type=float, default=1.0)
     parser.add_argument("--light-every", type=float, default=10.0)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--scenario", help="a scenario file studied alone instead of the year-field's cases")
     args = parser.parse_args()
-    cases = study_cases(args.days, args.mirrors, args.set)
-    kinds: dict[str, list] = {}
-    for case in cases:
-        kinds.setdefault(case.columns["role"], []).append(case)
+    kinds = study_kinds(args)
     families: dict[str, Family] = {}
     full_cpu: dict[str, list[float]] = {}
     composed_cpu: dict[str, list[float]] = {}
     worst = dict.fromkeys(TOLERANCES, 0.0)
     for kind, members in kinds.items():
-        scenarios = [case_scenario(case) for case in members]
-        low, high = panel_range(scenarios)
+        low, high = panel_range([scenario for _, scenario in members])
         margin = 0.02 * (high - low) + 1e-3
-        families[kind] = build_family(scenarios[0], np.linspace(low - margin, high + margin, args.angles), args.window)
+        families[kind] = build_family(members[0][1], np.linspace(low - margin, high + margin, args.angles), args.window)
         print_family(kind, families[kind])
-        for case, scenario in zip(members, scenarios, strict=True):
+        for label, scenario in members:
             summary, full_s = full_run(scenario)
             composed, costs, shortest = compose(scenario, families[kind], args.light_every)
-            label = f"day {case.columns['day_of_year']} {kind} mirror {case.columns['mirror_index']}"
             print_case(label, summary, composed, full_s, costs, shortest)
             full_cpu.setdefault(kind, []).append(full_s)
             composed_cpu.setdefault(kind, []).append(sum(costs))
             for name in TOLERANCES:
                 worst[name] = max(worst[name], deviation(summary and summary[name], composed[name], name))
-    print_year(families, full_cpu, composed_cpu, worst)
+    if args.scenario is None:
+        print_year(families, full_cpu, composed_cpu, worst)
+
+
+def study_kinds(args) -> dict[str, list]:
+    """The studied cases by kind of drive: (label, scenario) of the year-field's cases, or ``--scenario``'s."""
+    from heliostep.scenario import load_scenario, validate_scenario
+
+    if args.scenario is not None:
+        scenario = load_scenario(args.scenario, overrides=tuple(args.set))
+        return {"scenario": [(scenario.name, scenario)]}
+    kinds: dict[str, list] = {}
+    for case in study_cases(args.days, args.mirrors, args.set):
+        kind, columns = case.columns["role"], case.columns
+        scenario = validate_scenario(case.scenario, source=case.source, folder=case.folder)
+        kinds.setdefault(kind, []).append(
+            (f"day {columns['day_of_year']} {kind} mirror {columns['mirror_index']}", scenario)
+        )
+    return kinds
 
 
 def print_year(families: dict, full_cpu: dict, composed_cpu: dict, worst: dict) -> None:
