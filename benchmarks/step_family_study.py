@@ -44,18 +44,7 @@ PHASES = 4  # one-phase-on: the four phase transitions of a full-step cycle
 TOLERANCES = dict(peak_torque_Nm=5e-3, peak_phase_current_A=5e-3, electrical_energy_J=1e-3)
 TOLERANCES |= dict(max_tracking_error_deg=1e-2, light_energy_J=1e-3, missed_steps=0.0, steps_lost=0.0)
 PEAKS = {"peak_torque_Nm": "peak_torque", "peak_phase_current_A": "peak_current"}  # figure -> family field
-FIELDS = (
-    "peak_torque",
-    "peak_current",
-    "energy",
-    "overshoot",
-    "overshoot_time",
-    "rest",
-    "slip",
-    "missed",
-    "lost",
-    "ring",
-)
+FIELDS = tuple("peak_torque peak_current energy overshoot overshoot_time rest slip missed lost failed ring".split())
 
 
 def study_cases(days: list[int], mirrors: list[int], settings: list[str]) -> list:
@@ -159,7 +148,7 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
     try:
         system.simulate(0.0, window, np.array([0.0, window]), prep.solver, monitor=watch)
     except SimulationError:  # the drive runs away: an outcome the family cannot give (a full run must)
-        return {**dict.fromkeys(FIELDS, np.nan), "missed": 1.0, "lost": 1.0, "ring": window}
+        return {**dict.fromkeys(FIELDS, np.nan), "missed": 1.0, "lost": 1.0, "failed": 1.0, "ring": window}
     figures = recorder.figures()
     return {
         "peak_torque": figures["peak_torque_Nm"],
@@ -168,6 +157,7 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
         **watch.motion(target, direction or 1, step),
         "missed": figures["missed_steps"] if direction else 0,
         "lost": figures["steps_lost"],
+        "failed": 0.0,
     }
 
 
@@ -183,13 +173,13 @@ class Family:
 
     def at(self, name: str, angle: np.ndarray, direction: np.ndarray, phase: np.ndarray) -> np.ndarray:
         """The figure at each step's condition: a cubic spline in the panel angle (a peak's maximum is smooth);
-        an outcome (missed, lost) the worse of the two family angles around the step's."""
+        an outcome (missed, lost, failed) the worse of the two family angles around the step's."""
         from scipy.interpolate import CubicSpline
 
         table = self.table[name]
         if name == "slip":  # signed whole steps: the nearest family angle's
             values = table[np.rint(np.interp(angle, self.angles, np.arange(len(self.angles)))).astype(int)]
-        elif name in ("missed", "lost"):
+        elif name in ("missed", "lost", "failed"):
             right = np.clip(np.searchsorted(self.angles, angle), 1, len(self.angles) - 1)
             values = np.maximum(table[right - 1], table[right])  # (steps, direction, phase)
         else:  # a transient that failed (nan) falls back anyway: its neighbours' largest value stands in
@@ -247,9 +237,12 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
     times = inputs.schedule.times
     held, commanded = stepped(inputs, scenario)
     direction, phase, angle = np.diff(held), np.mod(held[:-1], PHASES), commanded[:-1]
-    at = {name: family.at(name, angle, direction, phase) for name in FIELDS}
-    lost = np.concatenate([[0.0], np.cumsum(at["slip"])])  # the whole steps lost so far, after each step
-    detents = stepped(inputs, scenario, lost)[1]
+    lost = np.zeros(len(held))
+    for _ in range(2):  # the steps' angles with the steps lost before them, from the commanded ones on
+        at = {name: family.at(name, angle, direction, phase) for name in FIELDS}
+        lost = np.concatenate([[0.0], np.cumsum(at["slip"])])  # the whole steps lost so far, after each step
+        detents = stepped(inputs, scenario, lost)[1]
+        angle = detents[:-1]
     targets = stepped(inputs, scenario, np.concatenate([lost[:1], lost[:-1]]))[1][1:]  # each step's, as it starts
     rest = at["rest"]  # [rad] where the panel rests off each detent (a load's lag): the first one as the next
     panel = detents + np.concatenate([rest[:1] if len(rest) else [0.0], rest])
@@ -289,15 +282,15 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
 
 def fallback(family: Family, angle: np.ndarray, intervals: np.ndarray, at: dict) -> str:
     """Where the case leaves what a family assumes (a production module co-simulates those stretches in full):
-    a step outside the family's angles, a step before the previous one's ring has died out, a step the family
-    misses or loses; "none" when it stays within."""
+    a step outside the family's angles, a step before the previous one's ring has died out, a step whose transient
+    failed; "none" when it stays within (steps missed and lost are composed: the family's outcomes)."""
     reasons = []
     if len(angle) and (angle.min() < family.angles[0] or angle.max() > family.angles[-1]):
         reasons.append("outside the family's angles")
     if len(angle) and np.any(intervals[1:-1] < at["ring"][1:]):
         reasons.append(f"{int(np.sum(intervals[1:-1] < at['ring'][1:]))} steps within the ring")
-    if np.any(at["missed"] > 0) or np.any(at["lost"] > 0):
-        reasons.append(f"{int(np.sum((at['missed'] > 0) | (at['lost'] > 0)))} steps missed or lost in the family")
+    if np.any(at["failed"] > 0):
+        reasons.append(f"{int(np.sum(at['failed'] > 0))} steps the family could not simulate (the drive runs away)")
     return "; ".join(reasons) or "none"
 
 
@@ -381,7 +374,7 @@ def main() -> None:
     worst = dict.fromkeys(TOLERANCES, 0.0)
     for kind, members in kinds.items():
         low, high = panel_range([scenario for _, scenario in members])
-        margin = 0.02 * (high - low) + 1e-3
+        margin = 0.02 * (high - low) + np.radians(1.0)
         families[kind] = build_family(members[0][1], np.linspace(low - margin, high + margin, args.angles), args.window)
         print_family(kind, families[kind])
         for label, scenario in members:
