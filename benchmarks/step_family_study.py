@@ -3,27 +3,24 @@
     .venv/bin/python benchmarks/step_family_study.py [--days 80 172 355] [--mirrors 0 9] [--angles 13] [--window 1]
         [--light-every 10] [--set KEY=VALUE ...] [--scenario FILE]
 
-Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the secondary drives of ``--mirrors``, and
-the shared primary of each day) in full (``run_scenario``, no trace kept, in this process). For each kind
-of drive (secondary, shared primary: their FMUs and parameters) it co-simulates a step family through the same
-master (:class:`heliostep.cosim.CoSimulation` built as ``run_scenario`` builds it): one step from the settled
-detent, ``--window`` seconds, at ``--angles`` panel angles over the range the cases visit x the four phase
-transitions x both directions, and the holding run without a step per phase. From the family and each case's
-step schedule (``prepare_inputs``, no simulation) it composes the case's figures: peak torque and phase
-current (largest per-step peak, a cubic spline in the panel angle), electrical energy (holding power x time +
-each step's transient energy), maximum tracking error (reference minus the panel at rest, its detent plus the
-family's rest offset under a load, the step's swing past its detent added after it), light on the tube
-(``LightIntegrals`` on that panel angle, on the case's output grid taken every ``--light-every`` seconds),
-steps missed and lost (the family's outcomes, the worse of the two family angles around each step's).
-``--set`` adds a setting to every case (a weak drive: ``--set sequencer.current=2 --set wind.moment=85``);
-``--scenario`` studies one scenario file instead (``scenarios/jan21-weak-motor.yaml``: steps missed and lost).
+Runs cases of ``scenarios/sweeps/year-field.yaml`` (``--days`` x the secondary drives of ``--mirrors``, and each
+day's shared primary; ``--set`` added to every case, e.g. a weak drive ``--set sequencer.current=2 --set
+wind.moment=85``; or one ``--scenario`` file, e.g. ``scenarios/jan21-weak-motor.yaml``) in full (``run_scenario``,
+no trace kept, in this process). For each kind of drive it co-simulates a step family of its FMUs through the same
+master (:class:`heliostep.cosim.CoSimulation` as ``run_scenario`` builds it): one step from the settled (loaded)
+detent over ``--window`` seconds at ``--angles`` panel angles over the cases' range x the four phase transitions x
+both directions, and the holding without a step. From the family and each case's step schedule (``prepare_inputs``,
+no simulation) it composes the case's figures: peak torque and phase current (the largest per-step peak, a cubic
+spline in the panel angle), electrical energy (holding power x time + each step's transient energy), maximum
+tracking error (reference minus the panel at rest: its detent, the whole steps lost so far and a load's lag, the
+step's swing past its target added after it), light on the tube (``LightIntegrals`` on that angle, on the case's
+output grid every ``--light-every`` seconds), steps missed and lost (the family's outcomes).
 
-Prints per family its CPU seconds and transients and each field's range and spread over the phase
-transitions; per case the CPU seconds of the full run and of the composition (schedule, figures, light), the
-shortest step interval, where the case leaves what the family assumes (fall back), and per figure: full run,
-composed, relative deviation (missed and lost: the difference), the issue's tolerance, whether it holds, and
-what the composed figure comes from; then the largest deviations and the year-field's cost extrapolated
-from the cases' mean CPU both ways (line ``year-field: ...``).
+Prints per family its CPU seconds and each field's range and spread over the phase transitions; per case the CPU
+seconds of the full run and of the composition (schedule, figures, light), the shortest step interval, where the
+case leaves what the family assumes (fall back), and per figure: full, composed, deviation (relative; missed and
+lost: the difference), the issue's tolerance, whether it holds, what the composed figure comes from; then the
+largest deviations and the year-field's cost extrapolated from the cases' mean CPU (line ``year-field: ...``).
 """
 
 from __future__ import annotations
@@ -45,20 +42,6 @@ TOLERANCES = dict(peak_torque_Nm=5e-3, peak_phase_current_A=5e-3, electrical_ene
 TOLERANCES |= dict(max_tracking_error_deg=1e-2, light_energy_J=1e-3, missed_steps=0.0, steps_lost=0.0)
 PEAKS = {"peak_torque_Nm": "peak_torque", "peak_phase_current_A": "peak_current"}  # figure -> family field
 FIELDS = tuple("peak_torque peak_current energy overshoot overshoot_time rest slip missed lost failed ring".split())
-
-
-def study_cases(days: list[int], mirrors: list[int], settings: list[str]) -> list:
-    """The year-field's cases of ``days`` x ``mirrors`` and each day's shared primary, as the sweep builds them,
-    with ``settings`` (``KEY=VALUE``, a YAML value) added to the sweep's overrides."""
-    import yaml
-
-    from heliostep.sweep.axes import SweepAxis
-    from heliostep.sweep.spec import expand_cases, load_sweep
-
-    spec = load_sweep(SWEEP)
-    axes = (SweepAxis("day_of_year", tuple(days)), SweepAxis("mirror", tuple(mirrors)))
-    more = tuple((key, yaml.safe_load(value)) for key, _, value in (item.partition("=") for item in settings))
-    return expand_cases(dataclasses.replace(spec, axes=axes, overrides=spec.overrides + more))
 
 
 def full_run(scenario) -> tuple[dict | None, float]:
@@ -126,18 +109,12 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
     implied = implied_parameters(scenario, sequencer, schedule, (current_a[0], current_b[0]), start, None)
     end = index + direction
     target = float(np.arctan(np.tan(start) + sequencer.position(end) * r / s))
-    inputs = dataclasses.replace(
-        prep.inputs,
-        duration=window,
-        reference_times=np.array([0.0, window]),
-        panel_angle_ref=np.full(2, target),
-        rotor_angle_ref=np.full(2, float(sequencer.position(end))),
-        schedule=schedule,
-        current_a_ref=current_a,
-        current_b_ref=current_b,
-        output_times=np.array([0.0, window]),
-        implied_parameters=implied,
+    ends, references = np.array([0.0, window]), (np.full(2, target), np.full(2, float(sequencer.position(end))))
+    timing = dict(
+        duration=window, reference_times=ends, output_times=ends, schedule=schedule, implied_parameters=implied
     )
+    drive = dict(panel_angle_ref=references[0], rotor_angle_ref=references[1], current_a_ref=current_a)
+    inputs = dataclasses.replace(prep.inputs, **timing, **drive, current_b_ref=current_b)
     values = parameters(scenario, inputs, prep.roles, prep.infos)
     system = _system(scenario, prep.infos, inputs, values, prep.roles, None)
     outputs = [f"{name}.{output}" for name, info in system.fmus.items() for output in info.traced_outputs]
@@ -146,7 +123,7 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
     step = abs(target - angle) if direction else 1.0  # the panel's step between the two detents
     watch = _Watch(recorder, columns.index(prep.roles["panel_angle"]))
     try:
-        system.simulate(0.0, window, np.array([0.0, window]), prep.solver, monitor=watch)
+        system.simulate(0.0, window, ends, prep.solver, monitor=watch)
     except SimulationError:  # the drive runs away: an outcome the family cannot give (a full run must)
         return {**dict.fromkeys(FIELDS, np.nan), "missed": 1.0, "lost": 1.0, "failed": 1.0, "ring": window}
     figures = recorder.figures()
@@ -188,21 +165,17 @@ class Family:
         return values[np.arange(len(angle)), (direction > 0).astype(int), phase]
 
 
-def short_prepared(scenario):
-    """The case's run set up (FMUs, roles, parameters, solver) on a one-second window, for its transients."""
+def build_family(scenario, angles: np.ndarray, window: float) -> Family:
+    """The step family of the case's drive over ``angles`` [rad], its run set up (FMUs, roles, parameters,
+    solver) as ``run_scenario`` sets it up, on a one-second window."""
     from heliostep.run.runner import _prepare
     from heliostep.scenario import validate_scenario
 
+    started = time.process_time()
     data = scenario.resolved_dict()
     data["window"] = {"date": data["window"]["date"], "start": "12:00", "duration": 1.0}
     short = validate_scenario(data, source=scenario.source, folder=scenario.folder)
-    return _prepare(short, None, time.perf_counter(), keep_trace=False)
-
-
-def build_family(scenario, angles: np.ndarray, window: float) -> Family:
-    """The step family of the case's drive over ``angles`` [rad]."""
-    started = time.process_time()
-    prep = short_prepared(scenario)
+    prep = _prepare(short, None, time.perf_counter(), keep_trace=False)
     table = {name: np.zeros((len(angles), 2, PHASES)) for name in FIELDS}
     middle = float(angles[len(angles) // 2])
     holding = np.array([transient(prep, middle, p, 0, window)["energy"] / window for p in range(PHASES)])
@@ -390,14 +363,22 @@ def main() -> None:
 
 
 def study_kinds(args) -> dict[str, list]:
-    """The studied cases by kind of drive: (label, scenario) of the year-field's cases, or ``--scenario``'s."""
+    """The studied cases by kind of drive: (label, scenario) of the year-field's cases (``--days`` x ``--mirrors``
+    and each day's shared primary, as the sweep builds them, ``--set`` added to its overrides), or ``--scenario``'s."""
+    import yaml
+
     from heliostep.scenario import load_scenario, validate_scenario
+    from heliostep.sweep.axes import SweepAxis
+    from heliostep.sweep.spec import expand_cases, load_sweep
 
     if args.scenario is not None:
         scenario = load_scenario(args.scenario, overrides=tuple(args.set))
         return {"scenario": [(scenario.name, scenario)]}
+    spec = load_sweep(SWEEP)
+    axes = (SweepAxis("day_of_year", tuple(args.days)), SweepAxis("mirror", tuple(args.mirrors)))
+    more = tuple((key, yaml.safe_load(value)) for key, _, value in (item.partition("=") for item in args.set))
     kinds: dict[str, list] = {}
-    for case in study_cases(args.days, args.mirrors, args.set):
+    for case in expand_cases(dataclasses.replace(spec, axes=axes, overrides=spec.overrides + more)):
         kind, columns = case.columns["role"], case.columns
         scenario = validate_scenario(case.scenario, source=case.source, folder=case.folder)
         kinds.setdefault(kind, []).append(
@@ -413,10 +394,8 @@ def print_year(families: dict, full_cpu: dict, composed_cpu: dict, worst: dict) 
     composed = sum(counts[k] * np.mean(v) for k, v in composed_cpu.items()) / 3600
     family = sum(f.cpu_s for f in families.values()) / 3600
     print("\nworst deviation: " + ", ".join(f"{k} {v:.2e}" for k, v in worst.items()))
-    print(
-        f"year-field: {family + composed:.3f} core-hours (families {family * 60:.1f} min + composition "
-        f"{composed * 60:.1f} min), {full:.2f} core-hours (full)"
-    )
+    minutes = f"families {family * 60:.1f} min + composition {composed * 60:.1f} min"
+    print(f"year-field: {family + composed:.3f} core-hours ({minutes}), {full:.2f} core-hours (full)")
 
 
 if __name__ == "__main__":
