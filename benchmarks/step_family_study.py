@@ -125,7 +125,7 @@ def transient(prep, angle: float, index: int, direction: int, window: float) -> 
     try:
         system.simulate(0.0, window, ends, prep.solver, monitor=watch)
     except SimulationError:  # the drive runs away: an outcome the family cannot give (a full run must)
-        return {**dict.fromkeys(FIELDS, np.nan), "missed": 1.0, "lost": 1.0, "failed": 1.0, "ring": window}
+        return {**dict.fromkeys(FIELDS, np.nan), "slip": 0.0, "missed": 1.0, "lost": 1.0, "failed": 1.0, "ring": window}
     figures = recorder.figures()
     return {
         "peak_torque": figures["peak_torque_Nm"],
