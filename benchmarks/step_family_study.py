@@ -241,7 +241,10 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
         "missed_steps": int(np.rint(at["missed"]).sum()),
         "steps_lost": int(np.rint(at["lost"]).sum()),
     }
-    figures["fallback"] = fallback(family, angle, np.diff(bounds), at)
+    offset = np.abs(at["rest"] - family.at("rest", angle, -direction, phase)) / np.abs(np.diff(commanded))
+    figures["fallback"] = fallback(
+        family, angle, np.diff(bounds), at, offset * (np.diff(direction, prepend=direction[:1]) != 0)
+    )
     top = {name: int(np.argmax(at[key])) if len(angle) else 0 for name, key in PEAKS.items()}
     figures["decided"] = {name: f"step at {np.degrees(angle[k]):.1f} deg" for name, k in top.items() if len(angle)}
     figures["decided"]["max_tracking_error_deg"] = part
@@ -253,11 +256,17 @@ def compose(scenario, family: Family, light_every: float) -> tuple[dict, tuple, 
     return figures, (prepared - started, composed - prepared, done - composed), shortest
 
 
-def fallback(family: Family, angle: np.ndarray, intervals: np.ndarray, at: dict) -> str:
+def fallback(family: Family, angle: np.ndarray, intervals: np.ndarray, at: dict, reversal: np.ndarray) -> str:
     """Where the case leaves what a family assumes (a production module co-simulates those stretches in full):
     a step outside the family's angles, a step before the previous one's ring has died out, a step whose transient
-    failed; "none" when it stays within (steps missed and lost are composed: the family's outcomes)."""
+    failed, a step after a reversal that starts off the family's settled start by over 1 % of a step (``reversal``:
+    the family's rests after the two directions apart, in steps: friction that sticks, a creep cut short); "none"
+    when it stays within (steps missed and lost are composed: the family's outcomes)."""
     reasons = []
+    if np.any(reversal > 0.01):
+        reasons.append(
+            f"{int(np.sum(reversal > 0.01))} reversals start off the detent by {reversal.max():.1%} of a step"
+        )
     if len(angle) and (angle.min() < family.angles[0] or angle.max() > family.angles[-1]):
         reasons.append("outside the family's angles")
     if len(angle) and np.any(intervals[1:-1] < at["ring"][1:]):
