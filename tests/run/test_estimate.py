@@ -144,3 +144,13 @@ def test_a_stop_request_while_the_inputs_are_prepared_is_honoured_at_once(tmp_pa
     assert sorted(p.name for p in Path(out).iterdir()) == [".heliostep-manifest.json", "metadata.json", "summary.json"]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["complete"] is False and summary["stage"] == "preparing_inputs"
+
+
+def test_a_loops_rows_count_in_memory_whatever_the_window():
+    """A closed loop keeps its output rows in memory until its steps are decided: a week's are held, and
+    the memory grows by them (their number times the trace's columns)."""
+    week = ("window.duration=604800", "output.step_detail=0")
+    open_loop = estimate_run(load_scenario("jan21-central", week), HELD_TRACE_MAX_DURATION)
+    closed = estimate_run(load_scenario("jan21-central", (*week, "tracking.mode=closed_loop")), HELD_TRACE_MAX_DURATION)
+    assert not open_loop.held and closed.held and closed.rows == open_loop.rows
+    assert closed.memory_bytes > open_loop.memory_bytes + closed.rows * 10 * 8  # at least ten 8-byte columns a row

@@ -88,8 +88,9 @@ def estimate_run(
     scenario: Scenario, held_max_duration: float, keep_trace: bool = True, csv: bool | None = None
 ) -> RunEstimate:
     """Steps, events, rows, memory [bytes] and disk [bytes] of ``scenario``'s run; a window up to
-    ``held_max_duration`` [s] holds its trace in memory. ``csv``: a CSV copy written (None: for
-    windows up to an hour, as ``heliostep run`` does)."""
+    ``held_max_duration`` [s] holds its trace in memory, a closed or hybrid loop's its rows whatever the
+    window (until its steps are decided). ``csv``: a CSV copy written (None: for windows up to an hour, as
+    ``heliostep run`` does)."""
     start, end = scenario.window_bounds()
     duration = (end - start).total_seconds()
     steps = estimate_steps(scenario, duration, start)
@@ -101,7 +102,7 @@ def estimate_run(
         fine_built = _finite(steps * per_step)  # before the duplicates go
         after_steps = min(fine_built, _finite(duration / out.step_interval)) + steps  # and the row at each step
     rows = regular + after_steps
-    held = keep_trace and duration <= held_max_duration
+    held = (keep_trace and duration <= held_max_duration) or scenario.tracking.mode != "open_loop"
     memory = BASE_MEMORY + (regular + fine_built) * GRID_BYTES_PER_ROW + steps * STEP_BYTES
     memory += rows * TRACE_COLUMNS * HELD_BYTES_PER_VALUE if held else 0.0
     disk = 0.0
