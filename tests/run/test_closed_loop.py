@@ -287,3 +287,39 @@ def test_a_gust_costs_open_loop_its_lost_steps_for_good_and_the_closed_loop_the_
 def test_a_loop_in_a_wind_that_stows_the_panel_is_refused_naming_the_key(fmu_paths):
     with pytest.raises(InputError, match="wind.stow_speed"):
         _run("tracking.mode=closed_loop", "wind.speed=15")  # above the stow speed, 12 m/s
+
+
+def test_a_loop_with_idle_current_reduction_drops_each_steps_current_after_the_delay_and_tracks_as_before(fmu_paths):
+    loop = ("tracking.mode=closed_loop", "tracking.noise_std=0", "tracking.dead_band=0.005", "tracking.sample_period=2")
+    scenario, result = _run(*loop, "sequencer.idle_current_fraction=0.5", "sequencer.idle_delay=0.5")
+    delay, full = scenario.sequencer.idle_delay, scenario.sequencer.current
+    trace = result.trace
+    steps = np.asarray(result.metadata["drive"]["step_times"])
+    assert len(steps) >= 5 and np.all(np.diff(steps) > delay)  # every step rests longer than the delay
+    # the reference currents' magnitude: full from each step (and the start) for the delay, then half
+    magnitude = np.hypot(trace["i_a_ref"].to_numpy(), trace["i_b_ref"].to_numpy())
+    time = trace["time"].to_numpy()
+    since = time - np.concatenate([[0.0], steps])[np.searchsorted(steps, time, side="right")]
+    later = (since > delay + 1e-9) & np.r_[True, time[1:] != time[:-1]]  # the first row at a repeated time
+    sooner = (since < delay - 1e-9) & np.r_[time[1:] != time[:-1], True]  # the last row at a repeated time
+    assert np.allclose(magnitude[later], 0.5 * full) and np.allclose(magnitude[sooner], full)
+    error, step = _errors_at_samples(scenario, result, 2.0)
+    assert np.all(np.abs(error) <= np.radians(0.005) + step) and result.summary["steps_lost"] == 0
+
+
+def test_a_loops_currents_under_idle_reduction_and_a_stuck_driver_are_open_loops_on_the_same_steps(fmu_paths):
+    """The rules of heliostep.drive.sequencer (idle drops, then the stuck span's changes ignored and the last
+    taken up at its end; tested there against their definitions) applied to the steps the hybrid decided."""
+    from heliostep.drive.sequencer import idle_currents, stuck_currents
+
+    loop = ("tracking.mode=hybrid", "tracking.sample_period=2", "faults.stuck=[60, 140]")
+    scenario, result = _run(*loop, "sequencer.idle_current_fraction=0.5", "sequencer.idle_delay=0.5")
+    inputs = result.inputs
+    times, i_a, i_b = idle_currents(inputs.schedule, inputs.sequencer, inputs.duration)
+    changes, (i_a, i_b) = stuck_currents(np.asarray(times[1:]), [i_a, i_b], scenario.faults.stuck)
+    time = result.trace["time"].to_numpy()
+    between = ~np.isin(np.round(time, 9), np.round(changes, 9))  # rows not at a change (one side or the other)
+    expected = np.searchsorted(changes, time[between], side="right")
+    assert result.summary["steps_lost"] > 0 and len(changes) > 2 * len(inputs.schedule) // 3
+    assert np.array_equal(result.trace["i_a_ref"].to_numpy()[between], np.asarray(i_a)[expected])
+    assert np.array_equal(result.trace["i_b_ref"].to_numpy()[between], np.asarray(i_b)[expected])

@@ -14,7 +14,6 @@ from heliostep.scenario import load_scenario
         (("tracking.mode=closed_loop", "tracking.sensor=ssoc-d6"), ["tracking.sensor", "close: ssoc-d60"]),
         (("tracking.mode=sensor",), ["tracking.mode", "closed_loop"]),
         (("tracking.sample_period=1", "tracking.latency=1"), ["tracking.latency", "less than sample_period"]),
-        (("tracking.mode=closed_loop", "sequencer.idle_current_fraction=0.5"), ["sequencer.idle_current_fraction"]),
         (("faults.stuck=[30, 10]",), ["faults.stuck", "start < end"]),
         (("tracking.clouds=[{start: 10, end: 5}]",), ["tracking.clouds[0].end", "after start"]),
         (("tracking.sample_rate=1",), ["tracking.sample_rate"]),

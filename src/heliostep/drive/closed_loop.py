@@ -176,7 +176,8 @@ class TrackingLoop:
         self.schedule = DecidedSchedule(self.inputs[2], initial_index)
         self.step_detail = np.zeros(0) if step_detail is None else np.asarray(step_detail, dtype=float)
         self._steps_before = 0  # the steps decided before the last sample
-        self._held = False  # steps the stuck driver ignored, not yet taken up at the span's end
+        self._held: tuple[float, float] | None = None  # the currents a stuck driver ignored, taken up at its end
+        self._last_step, self._dropped = 0.0, False  # the drive's last step (the start) [s], its idle drop made
         self.reads = (f"{sensor_instance}.signal", f"{sensor_instance}.lit")
         self.sets = tuple(f"{sensor_instance}.{name}" for name in ("theta_ref", "dni", "dhi", "noise"))
         self.index, self.correction = initial_index, 0
@@ -185,6 +186,7 @@ class TrackingLoop:
         self.readings: list[tuple[float, float, float]] = []  # (time, signal, lit)
         if self.open_loop is not None:
             self._follow(0.0, self._next_sample(0.0))
+        self._drop_before(self._next_sample(0.0))
 
     # ------------------------------------------------------------ what the master asks
     def setting(self, time: float) -> np.ndarray:
@@ -194,15 +196,16 @@ class TrackingLoop:
         signal, lit = float(readings[0]), float(readings[1])
         self.readings.append((time, signal, lit))
         self._steps_before = len(self.inputs[2].times)
-        if self._held and self.stuck is not None and time >= self.stuck[1]:
-            self._take_up(self.index)
+        if self._held is not None and self.stuck is not None and time >= self.stuck[1]:
+            self._take_up()
         end = self._next_sample(time)
         wanted = self._wanted_steps(signal) if lit > 0.5 and time >= self._moving_until else 0
         if self.open_loop is None:
             self._move(time + self.law.latency, wanted)
-            return
-        self.correction += wanted  # hybrid: the reference's steps, shifted by the correction
-        self._follow(time, end, first=(time + self.law.latency, wanted))
+        else:
+            self.correction += wanted  # hybrid: the reference's steps, shifted by the correction
+            self._follow(time, end, first=(time + self.law.latency, wanted))
+        self._drop_before(end)  # every later step comes at the next sample or after
 
     def outputs_after(self, time: float) -> np.ndarray:
         """The output rows [s] the steps decided at the last sample ask for (:attr:`step_detail` after each)."""
@@ -236,7 +239,7 @@ class TrackingLoop:
         if first is not None and first[1]:
             self._move(*first)
         times, indices = self.open_loop.times, self.open_loop.indices
-        last = float(self.inputs[0].times[-1]) if len(self.inputs[0].times) else time  # after the correction
+        last = float(self.inputs[2].times[-1]) if len(self.inputs[2].times) else time  # after the correction
         while self._followed < len(times) and times[self._followed] <= end:
             at = max(float(times[self._followed]), last)
             self._step(at, int(indices[self._followed]) + self.correction)
@@ -244,29 +247,43 @@ class TrackingLoop:
             self._followed += 1
 
     def _step(self, time: float, index: int) -> None:
-        """The step to ``index`` at ``time``: commanded (traced), and taken by the driver unless it is stuck
-        then (:func:`~heliostep.drive.sequencer.stuck_currents`, the same rule)."""
+        """The step to ``index`` at ``time``: commanded (traced), its full currents to the driver (after the
+        last step's idle drop, where due before it)."""
         if index == self.index:
             return
-        stuck = self.stuck is not None and self.stuck[0] <= time < self.stuck[1]
-        if self._held and not stuck:
-            self._take_up(self.index)
+        self._drop_before(time)
         self.index = index
         self.inputs[2].append(time, float(index))
-        if stuck:
-            self._held = True
-            return
         i_a, i_b = self.sequencer.reference_currents(index)
+        self._drive(time, float(i_a), float(i_b))
+        self._last_step, self._dropped = time, False
+
+    def _drop_before(self, time: float) -> None:
+        """The last step's currents dropped to their idle fraction ``idle_delay`` after it, where that comes
+        before ``time`` (:func:`~heliostep.drive.sequencer.idle_currents`, the same rule)."""
+        fraction, drop = self.sequencer.idle_current_fraction, self._last_step + self.sequencer.idle_delay
+        if fraction < 1.0 and not self._dropped and drop < time:
+            i_a, i_b = self.sequencer.reference_currents(self.index)
+            self._drive(drop, float(fraction * i_a), float(fraction * i_b))
+            self._dropped = True
+
+    def _drive(self, time: float, i_a: float, i_b: float) -> None:
+        """The phase currents from ``time`` on, unless the driver is stuck then: it ignores them, and takes up
+        the last it ignored at the span's end (:func:`~heliostep.drive.sequencer.stuck_currents`, the same rule)."""
+        if self.stuck is not None and self.stuck[0] <= time < self.stuck[1]:
+            self._held = (float(i_a), float(i_b))
+            return
+        if self._held is not None:
+            self._take_up()
         self.inputs[0].append(time, float(i_a))
         self.inputs[1].append(time, float(i_b))
 
-    def _take_up(self, index: int) -> None:
-        """The stuck driver's currents at the span's end: those of ``index``, the step commanded then."""
-        assert self.stuck is not None
-        i_a, i_b = self.sequencer.reference_currents(index)
-        self.inputs[0].append(self.stuck[1], float(i_a))
-        self.inputs[1].append(self.stuck[1], float(i_b))
-        self._held = False
+    def _take_up(self) -> None:
+        """The stuck driver's currents at the span's end: the last it ignored."""
+        assert self.stuck is not None and self._held is not None
+        held, self._held = self._held, None
+        self.inputs[0].append(self.stuck[1], held[0])
+        self.inputs[1].append(self.stuck[1], held[1])
 
     def _next_sample(self, time: float) -> float:
         k = int(np.searchsorted(self.sample_times, time + 1e-9, side="right"))

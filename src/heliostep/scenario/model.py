@@ -54,7 +54,6 @@ from heliostep.scenario.sections import (
 from heliostep.scenario.tracking import (
     FaultsConfig,
     TrackingConfig,
-    tracking_problems,
     with_sensor,
     with_sensor_connection,
 )
@@ -260,7 +259,7 @@ class Scenario(Section):
             if instance not in self.fmus:
                 problems.append((("parameters", instance), f"unknown FMU instance; instances in fmus: {instances}"))
         problems += connection_problems(self.connections, self.fmus, self.transformations, instances)
-        problems += _role_problems(self) + tracking_problems(self.tracking, self.sequencer.idle_current_fraction)
+        problems += _role_problems(self)
         date_problem = window_date_problem(self.window.date, self.site.timezone)
         if date_problem:
             problems.append((("window", "date"), date_problem))

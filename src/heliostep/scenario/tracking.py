@@ -114,15 +114,3 @@ def with_sensor_connection(pairs, tracking: TrackingConfig, panel_angle: str | N
     if tracking.mode == "open_loop" or any(target == sensor for _, target in pairs):
         return list(pairs)
     return [*pairs, (panel_angle or "mechanics.theta_p", sensor)]
-
-
-def tracking_problems(tracking: TrackingConfig, idle_current_fraction: float) -> list:
-    """What a closed or hybrid loop cannot take yet, as (key path, message) pairs: an idle current reduction
-    (a wind that stows the panel in the window is refused once the window's wind is read)."""
-    if tracking.mode == "open_loop":
-        return []
-    problems: list[tuple[tuple, str]] = []
-    if idle_current_fraction != 1.0:
-        message = f"expected 1 with tracking.mode {tracking.mode} (no idle reduction)"
-        problems.append((("sequencer", "idle_current_fraction"), message))
-    return problems
