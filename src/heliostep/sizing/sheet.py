@@ -71,7 +71,8 @@ def size(
             plan, scheduler=scheduler, progress=progress, should_stop=should_stop, on_case=on_case
         )
         stopped = len(results) < len(plan.cases)
-        sheet = judge_candidates(plan, results, curves=not stopped)
+        sheet = judge_candidates(plan, results, curves=not stopped, should_stop=should_stop)
+        stopped = stopped or (should_stop is not None and should_stop())  # the curves too, if asked meanwhile
         sheet = {
             "scenario": plan.scenario.name,
             "source": plan.scenario.source,

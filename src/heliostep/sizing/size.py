@@ -20,12 +20,12 @@ from heliostep.drive.wind import air_density, panel_wind_moment
 from heliostep.errors import InputError
 from heliostep.progress import progress_bar
 from heliostep.run import RunFailed, RunOptions, resolve_fmus, run_scenario
-from heliostep.run.speed_torque import SpeedTorqueCurve, speed_torque_curve
 from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
 from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_instance, shipped_catalogue_path
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
+from heliostep.sizing.curves import CurveTask, co_simulated_curves
 from heliostep.sizing.days import date_of, select_days
 from heliostep.sizing.inputs import check_wind_given, file_digest, sizing_inputs
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario, check_case_count, check_cases
@@ -343,27 +343,36 @@ def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_st
                 on_case(key, results[key])
 
 
-def _curves(plan: SizingPlan, worst: bool = False, angles: np.ndarray | None = None) -> dict[str, SpeedTorqueCurve]:
-    """Each candidate's speed-torque curve at its largest current, on its bus (co-simulated); ``worst``: at
+def _curve_tasks(plan: SizingPlan, worst: bool = False, angles: np.ndarray | None = None) -> dict[str, CurveTask]:
+    """Each candidate's speed-torque curve at its largest current, on its bus, to co-simulate; ``worst``: at
     the ranges' worst corner (:func:`heliostep.sizing.band.worst_corner`); ``angles``: a stow move's
     panel angles [rad], whose highest step rate joins the curve's rates (the stow margin's point)."""
     mode, microsteps = plan.scenario.sequencer.mode, plan.scenario.sequencer.microsteps
     motor = _instance(plan.scenario, "torque", "motor")
     corner = worst_corner(plan.ranges) if worst else {}
-    curves = {}
+    tasks = {}
     for c in plan.candidates:
         stow_rates = stow_step_rates(plan, c, angles)
         rates = sorted({*plan.curve_rates, *([float(np.max(stow_rates))] if len(stow_rates) else [])})
-        drive = drive_at(c.drive(), corner, motor)
-        curves[c.name] = speed_torque_curve(drive, c.currents[-1], rates, mode=mode, microsteps=microsteps)
-    return curves
+        tasks[c.name] = CurveTask(drive_at(c.drive(), corner, motor), c.currents[-1], tuple(rates), mode, microsteps)
+    return tasks
 
 
-def judge_candidates(plan: SizingPlan, results: Mapping[str, dict], curves: bool = True) -> dict:
+def judge_candidates(
+    plan: SizingPlan, results: Mapping[str, dict], curves: bool = True, should_stop: Callable[[], bool] | None = None
+) -> dict:
     """The sizing sheet's content: per candidate and current, the figures and the verdict; with ``curves``
-    each candidate's speed-torque curve, nominal and at the ranges' worst corner."""
+    each candidate's speed-torque curve, nominal and at the ranges' worst corner (co-simulated on every core,
+    :mod:`heliostep.sizing.curves`; none when ``should_stop`` says so before they are all done)."""
     if not curves:
         return judge(plan, results, {}, {})
     angles = stow_angles(plan)  # the worst corner's curve too is co-simulated at the stow rate, not interpolated
-    worst = _curves(plan, worst=True, angles=angles) if plan.ranges else {}
-    return judge(plan, results, _curves(plan, angles=angles), worst, angles)
+    tasks = {("nominal", name): task for name, task in _curve_tasks(plan, angles=angles).items()}
+    if plan.ranges:
+        tasks.update({("worst", name): task for name, task in _curve_tasks(plan, True, angles).items()})
+    done = co_simulated_curves({f"{kind} {name}": task for (kind, name), task in tasks.items()}, should_stop)
+    if done is None:
+        return judge(plan, results, {}, {})
+    nominal = {name: done[f"nominal {name}"] for kind, name in tasks if kind == "nominal"}
+    worst = {name: done[f"worst {name}"] for kind, name in tasks if kind == "worst"}
+    return judge(plan, results, nominal, worst, angles)
