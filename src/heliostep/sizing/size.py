@@ -25,10 +25,10 @@ from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_i
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
-from heliostep.sizing.curves import CurveTask, co_simulated_curves
 from heliostep.sizing.days import date_of, select_days
 from heliostep.sizing.inputs import check_wind_given, file_digest, sizing_inputs
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario, check_case_count, check_cases
+from heliostep.sizing.pool import CurveTask, on_every_core
 from heliostep.sizing.stow import stow_angles, stow_step_rates
 from heliostep.sizing.verdict import judge
 from heliostep.sweep.band import load_ranges
@@ -363,16 +363,16 @@ def judge_candidates(
 ) -> dict:
     """The sizing sheet's content: per candidate and current, the figures and the verdict; with ``curves``
     each candidate's speed-torque curve, nominal and at the ranges' worst corner (co-simulated on every core,
-    :mod:`heliostep.sizing.curves`; none when ``should_stop`` says so before they are all done)."""
+    :func:`~heliostep.sizing.pool.on_every_core`; none when ``should_stop`` says so before they are all done)."""
     if not curves:
         return judge(plan, results, {}, {})
     angles = stow_angles(plan)  # the worst corner's curve too is co-simulated at the stow rate, not interpolated
     tasks = {("nominal", name): task for name, task in _curve_tasks(plan, angles=angles).items()}
     if plan.ranges:
         tasks.update({("worst", name): task for name, task in _curve_tasks(plan, True, angles).items()})
-    done = co_simulated_curves({f"{kind} {name}": task for (kind, name), task in tasks.items()}, should_stop)
-    if done is None:
+    done, stopped = on_every_core(tasks, should_stop)
+    if stopped:
         return judge(plan, results, {}, {})
-    nominal = {name: done[f"nominal {name}"] for kind, name in tasks if kind == "nominal"}
-    worst = {name: done[f"worst {name}"] for kind, name in tasks if kind == "worst"}
+    nominal = {name: done[kind, name] for kind, name in tasks if kind == "nominal"}
+    worst = {name: done[kind, name] for kind, name in tasks if kind == "worst"}
     return judge(plan, results, nominal, worst, angles)

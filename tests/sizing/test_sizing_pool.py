@@ -1,14 +1,13 @@
-"""heliostep.sizing.curves: the sheet's speed-torque curves co-simulated in a pool of processes are the curves
-co-simulated here one after another (the same bench simulations), and a stop request ends the pool."""
+"""heliostep.sizing.pool: the sheet's speed-torque curves co-simulated in a pool of processes are the curves
+co-simulated here one after another (the same bench simulations); a stop request ends the pool, the curves
+under way kept."""
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 
 from heliostep.scenario.catalogue import load_catalogue
-from heliostep.sizing.curves import CurveTask, co_simulated_curves
+from heliostep.sizing.pool import CurveTask, on_every_core
 
 NAME = "QSH8618-65-59-340"  # currents 3, 4.5, 5.9 A
 
@@ -20,9 +19,8 @@ def _tasks() -> dict[str, CurveTask]:
 
 
 def test_the_curves_of_a_pool_are_those_co_simulated_one_after_another(fmu_paths):
-    here = co_simulated_curves(_tasks(), workers=1)
-    pooled = co_simulated_curves(_tasks(), workers=2)
-    assert here is not None and pooled is not None and here.keys() == pooled.keys()
+    (here, stopped), (pooled, stopped_too) = on_every_core(_tasks(), workers=1), on_every_core(_tasks(), workers=2)
+    assert not stopped and not stopped_too and here.keys() == pooled.keys()
     for key, curve in here.items():
         assert curve.holding_torque == pooled[key].holding_torque
         assert np.array_equal(curve.pull_out_torques, pooled[key].pull_out_torques)
@@ -32,7 +30,8 @@ def test_the_curves_of_a_pool_are_those_co_simulated_one_after_another(fmu_paths
     assert np.all(np.diff(high.pull_out_torques) < 0)
 
 
-def test_a_stop_request_ends_the_pool_without_the_curves(fmu_paths):
-    tasks = {f"{k}": task for k, task in enumerate(list(_tasks().values()) * 3)}  # six curves on two processes
-    started = time.perf_counter()
-    assert co_simulated_curves(tasks, should_stop=lambda: time.perf_counter() - started > 1.0, workers=2) is None
+def test_a_stop_request_ends_the_pool_keeping_the_curves_under_way(fmu_paths):
+    tasks = {k: task for k, task in enumerate(list(_tasks().values()) * 3)}  # six curves on two processes
+    seen: list[int] = []  # the stop request comes once a curve is done: the other one under way finishes, kept
+    done, stopped = on_every_core(tasks, lambda: bool(seen), workers=2, on_done=lambda k, v: seen.append(k))
+    assert stopped and sorted(done) == sorted(seen) == [0, 1]
