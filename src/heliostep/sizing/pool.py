@@ -5,7 +5,8 @@ nominal and at the ranges' worst corner) go to a pool of processes started by th
 server, one curve a task; a curve is the same whichever process computes it. (The day cases, short, gain
 nothing measurable there: they run one after another, or on Dask.)
 The children ignore SIGINT: a stop request is the parent's, which begins no task more and keeps those under way
-once finished.
+once finished. A script that calls the sizing needs ``if __name__ == "__main__":`` around it, as any user of
+multiprocessing's fork server does (its children import the script's main module).
 """
 
 from __future__ import annotations
@@ -67,6 +68,7 @@ def on_every_core(
             take(key, task())
         return done, False
     context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload([CurveTask.__module__])  # imported once by the server, not by every child
     stopped = False
     with ProcessPoolExecutor(workers, mp_context=context, initializer=_ignore_interrupts) as pool:
         running: dict[Future, K] = {}
