@@ -149,6 +149,7 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     knots = wind_speed_knots(scenario, start, duration)
     plan = stow_plan(scenario, knots, times, panel, duration)
     if plan is not None:
+        _refuse_a_loops_stow(scenario)  # before the schedule: bad input found early
         times, panel = plan.times, plan.panel_angle
     transmission = scenario.transmission
     rotor = rotor_angle_from_panel(
@@ -166,9 +167,11 @@ def prepare_inputs(scenario: Scenario, should_stop: Callable[[], bool] | None = 
     i_a_ref, i_b_ref = sequencer.reference_currents(indices)
     out = scenario.output
     grid = output_grid(duration, out.interval, schedule.times, out.step_detail, out.step_interval)
-    signal = (
-        None if knots is None else wind_moment_signal(scenario, knots, sequencer, schedule, float(panel[0]), duration)
-    )
+    signal = None
+    if knots is not None and scenario.tracking.mode != "open_loop":
+        signal = loop_wind_signal(scenario, knots, PchipInterpolator(times, panel, extrapolate=True), duration)
+    elif knots is not None:
+        signal = wind_moment_signal(scenario, knots, sequencer, schedule, float(panel[0]), duration)
     implied = implied_parameters(scenario, sequencer, schedule, (i_a_ref[0], i_b_ref[0]), float(panel[0]), signal)
     return DriveInputs(
         window_start=start,
@@ -247,6 +250,24 @@ def stow_plan(scenario: Scenario, knots: WindKnots | None, times, panel, duratio
         return None
     tracking = PchipInterpolator(times, panel, extrapolate=True)
     return plan_stow(times, tracking, found, np.radians(wind.stow_angle), np.radians(wind.slew_rate), duration)
+
+
+def _refuse_a_loops_stow(scenario: Scenario) -> None:
+    """InputError for a closed or hybrid loop in a window whose wind stows the panel (the stow moves are planned
+    on the open-loop schedule)."""
+    if scenario.tracking.mode != "open_loop":
+        raise InputError(
+            f"{scenario.source}: wind.stow_speed: the wind goes above {scenario.wind.stow_speed:g} m/s in the window "
+            f"and stows the panel, planned on the open-loop schedule; with tracking.mode {scenario.tracking.mode} "
+            "give wind.stow_speed: null, or a wind that stays below it"
+        )
+
+
+def loop_wind_signal(scenario: Scenario, knots: WindKnots, law, duration: float) -> WindSignal:
+    """A closed or hybrid loop's ``m_ext`` signal: the wind's on the tracking law's panel angle ``law`` [rad of
+    s], where the loop keeps the panel (its commanded index takes up the steps that slip, so the commanded
+    angle open loop's moment follows can leave the panel for good)."""
+    return moment_signal(scenario, knots, np.zeros(0), law, duration)
 
 
 def wind_moment_signal(

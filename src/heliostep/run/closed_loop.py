@@ -17,15 +17,14 @@ import pandas as pd
 
 from heliostep.cosim.controller import ScheduledInput
 from heliostep.drive.closed_loop import STEP_INDEX, LoopLaw, SensorView, TrackingLoop, realized_schedule
-from heliostep.drive.inputs import DriveInputs, implied_parameters, output_grid
-from heliostep.drive.wind_load import moment_signal, wind_speed_knots
+from heliostep.drive.inputs import DriveInputs, output_grid
 from heliostep.errors import InputError
 from heliostep.scenario import Scenario
 from heliostep.scenario.sun_sensors import sun_sensor
 from heliostep.scenario.tracking import SENSOR_INSTANCE
 from heliostep.solar import clear_sky_irradiance, cloud_fraction, panel_angle_from_rotor, rotor_angle_from_panel
 
-__all__ = ["decided_inputs", "loop_inputs", "sensor_parameters", "tracking_loop", "wind_on_the_law"]
+__all__ = ["decided_inputs", "loop_inputs", "sensor_parameters", "tracking_loop"]
 
 #: Standard deviations of a reading's noise the default dead band spans: a still panel steps on noise
 #: alone in 0.3 % of its readings (a normal distribution's two-sided 3-sigma tail).
@@ -133,28 +132,6 @@ def _commands(sequencer, initial_index: int, roles: dict[str, str]) -> tuple[Sch
         ScheduledInput("i_b_ref", roles["current_b_ref"], float(i_b)),
         ScheduledInput(STEP_INDEX, "", float(initial_index)),
     )
-
-
-def wind_on_the_law(scenario: Scenario, inputs: DriveInputs) -> DriveInputs:
-    """A loop's inputs with the wind's moment (a wind given by its speed) on the tracking law's panel angle,
-    where the controller keeps the panel: its commanded index takes up the steps that slip, so the commanded
-    angle, which open loop's moment follows, can leave the panel for good. The start's equilibrium under it.
-    A window in which the wind stows the panel is refused (its moves are planned on the open-loop schedule)."""
-    if inputs.wind_signal is None:
-        return inputs
-    if inputs.stow_moves:
-        raise InputError(
-            f"{scenario.source}: wind.stow_speed: the wind goes above {scenario.wind.stow_speed:g} m/s in the window "
-            f"and stows the panel, planned on the open-loop schedule; with tracking.mode {scenario.tracking.mode} "
-            "give wind.stow_speed: null, or a wind that stays below it"
-        )
-    knots = wind_speed_knots(scenario, inputs.window_start, inputs.duration)
-    assert knots is not None  # a wind given by its speed
-    signal = moment_signal(scenario, knots, np.zeros(0), inputs.panel_reference(), inputs.duration)
-    currents = (float(inputs.current_a_ref[0]), float(inputs.current_b_ref[0]))
-    panel_start = float(inputs.panel_angle_ref[0])
-    implied = implied_parameters(scenario, inputs.sequencer, inputs.schedule, currents, panel_start, signal)
-    return dataclasses.replace(inputs, wind_signal=signal, implied_parameters=implied)
 
 
 def loop_inputs(inputs: DriveInputs, loop: TrackingLoop, scenario: Scenario) -> DriveInputs:

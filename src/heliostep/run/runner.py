@@ -38,7 +38,7 @@ from heliostep.results.trace.frame import UNITS, TraceAssembler, drive_metadata,
 from heliostep.results.trace.sinks import HeldTrace, KeptRows, RowSink
 from heliostep.results.trace.stream import TraceStream
 from heliostep.run.bindings import parameters, present_roles, signals
-from heliostep.run.closed_loop import decided_inputs, loop_inputs, sensor_parameters, tracking_loop, wind_on_the_law
+from heliostep.run.closed_loop import decided_inputs, loop_inputs, sensor_parameters, tracking_loop
 from heliostep.run.estimate import check_budget, estimate_run
 from heliostep.run.fmus import communication_intervals, fmu_records, read_fmus, resolve_fmus
 from heliostep.run.options import RunOptions
@@ -203,8 +203,6 @@ def _prepare(
     except InputError as exc:
         raise InputError(f"{scenario.source}: optics.{exc}") from None
     inputs = prepare_inputs(scenario, should_stop)
-    if scenario.tracking.mode != "open_loop":
-        inputs = wind_on_the_law(scenario, inputs)
     values = parameters(scenario, inputs, roles, infos)
     loop = None
     if scenario.tracking.mode != "open_loop":
