@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -16,8 +17,19 @@ PROJECT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
-    """heliostep installed non-editable into a folder of its own (its dependencies: this venv's)."""
+    """heliostep installed non-editable into a folder of its own (its dependencies: this venv's).
+
+    Built from a copy of the checkout: setuptools builds in the source tree (``build/``), where the
+    suite's two workers, each with this module's fixture, would collide, and the checkout is not the
+    test's to write in.
+    """
     target = tmp_path_factory.mktemp("site")
+    source = tmp_path_factory.mktemp("checkout")
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy2(PROJECT / name, source / name)
+    skip = shutil.ignore_patterns("__pycache__", "*.egg-info")
+    for name in ("src", "models", "scenarios"):
+        shutil.copytree(PROJECT / name, source / name, ignore=skip)
     result = subprocess.run(
         [
             sys.executable,
@@ -30,7 +42,7 @@ def installed(tmp_path_factory) -> Path:
             "--no-index",
             "--target",
             str(target),
-            str(PROJECT),
+            str(source),
         ],
         capture_output=True,
         text=True,
