@@ -19,6 +19,7 @@ from heliostep.errors import InputError
 from heliostep.fmu.build import ensure_fmu
 from heliostep.progress import progress_bar
 from heliostep.sweep import local_worker
+from heliostep.sweep.composed import CERTIFICATE_CASES, run_with_families
 from heliostep.sweep.spec import (
     SweepCase,
     SweepSpec,
@@ -252,8 +253,14 @@ def execute_cases(
     on_result: Callable[[dict], None] | None = None,
     metadata: Mapping | None = None,
     replace: bool = False,
+    exact: bool = False,
+    certify: int = CERTIFICATE_CASES,
+    seed: int = 0,
 ) -> SweepOutcome:
     """Run the cases not yet in the results table on Dask, writing each row as it finishes.
+
+    Cases that share a drive are composed from its step family and certified against full co-simulations
+    of a sample of them (:mod:`heliostep.sweep.composed`); ``exact`` co-simulates every case in full.
 
     Parameters
     ----------
@@ -279,6 +286,12 @@ def execute_cases(
         Stored in the table's Parquet metadata (``heliostep.sweep``): the sweep's identity.
     replace : bool, default False
         Run even when the table holds another sweep's rows (they are dropped); refused otherwise.
+    exact : bool, default False
+        Co-simulate every case in full (no step families).
+    certify : int, default :data:`~heliostep.sweep.composed.CERTIFICATE_CASES`
+        Cases co-simulated in full to certify the composed ones (each family's share, at least two).
+    seed : int, default 0
+        Draws the certificate's cases.
 
     Returns
     -------
@@ -295,7 +308,9 @@ def execute_cases(
     if client is None and scheduler:
         _probe_scheduler(scheduler, connect_timeout)
     table, to_run = _table_and_cases_to_run(cases, results_path, metadata, retry_failed)
-    dask = _DaskSettings(client, scheduler, n_workers, connect_timeout, progress, on_result)
+    if certify < 1:
+        raise InputError(f"certify: expected at least 1 case, got {certify}")
+    dask = _DaskSettings(client, scheduler, n_workers, connect_timeout, progress, on_result, exact, certify, seed)
     table, executed = _run_and_consolidate(to_run, cases, payloads, results_path, metadata, table, dask)
     failed, skipped = int((table["status"] == "failed").sum()), len(cases) - len(to_run)
     return SweepOutcome(table=table, results_path=results_path, executed=executed, skipped=skipped, failed=failed)
@@ -311,6 +326,9 @@ class _DaskSettings:
     connect_timeout: float
     progress: bool
     on_result: Callable[[dict], None] | None
+    exact: bool = False
+    certify: int = CERTIFICATE_CASES
+    seed: int = 0
 
 
 def _run_and_consolidate(
@@ -363,44 +381,56 @@ def _run_on_dask(
     run_id: str,
     dask: _DaskSettings,
 ) -> int:
-    from distributed import as_completed
-
     with _dask_client(dask.client, dask.scheduler, dask.n_workers, dask.connect_timeout) as dask_client:
         shipped = {
             sha: dask_client.submit(_fmu_payload, payload, key=f"heliostep-fmu-{sha[:16]}-{run_id}", pure=False)
             for sha, payload in payloads.items()
             if any(sha in case.fmu_sha256.values() for case in cases)
         }
-        futures = {}
-        for case in cases:
-            needed = {sha: shipped[sha] for sha in set(case.fmu_sha256.values())}
-            future = dask_client.submit(
-                run_case, case, needed, run_id, pure=False, key=f"heliostep-case-{case.case_id}-{run_id}"
-            )
-            futures[future] = case
-        done = failed = 0
         last_merge = clock.monotonic()
         with _progress_bar(len(cases), dask.progress) as bar:
-            for future in as_completed(futures):
-                case = futures.pop(future)
-                try:
-                    row = future.result()
-                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: record, go on
-                    row = _lost_case_row(case, exc, run_id)
-                future.release()
+            tally = {"done": 0, "failed": 0}
+
+            def record(row: dict) -> None:
+                nonlocal last_merge
                 _write_part(row, results_path)
-                done += 1
-                failed += row["status"] == "failed"
-                bar.set_postfix(done=done, failed=failed, remaining=len(cases) - done, refresh=False)
+                tally["done"] += 1
+                tally["failed"] += row["status"] == "failed"
+                bar.set_postfix(**tally, remaining=len(cases) - tally["done"], refresh=False)
                 bar.update(1)
                 if dask.on_result is not None:
                     dask.on_result(row)
                 if clock.monotonic() - last_merge > CONSOLIDATE_EVERY:
                     _consolidate(results_path, metadata)
                     last_merge = clock.monotonic()
+
+            if dask.exact:
+                done = _run_in_full(dask_client, cases, shipped, run_id, record)
+            else:
+                done = run_with_families(dask_client, cases, shipped, record, run_id, dask.certify, dask.seed)
         for future in shipped.values():
             future.release()
     return done
+
+
+def _run_in_full(client, cases: Sequence[SweepCase], shipped: Mapping, run_id: str, record) -> int:
+    """Every case co-simulated (``shipped``: SHA-256 -> the FMU payload's future); each row to ``record``."""
+    from distributed import as_completed
+
+    futures = {}
+    for case in cases:
+        needed = {sha: shipped[sha] for sha in set(case.fmu_sha256.values())}
+        key = f"heliostep-case-{case.case_id}-{run_id}"
+        futures[client.submit(run_case, case, needed, run_id, pure=False, key=key)] = case
+    for future in as_completed(futures):
+        case = futures.pop(future)
+        try:
+            row = future.result()
+        except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: record, go on
+            row = _lost_case_row(case, exc, run_id)
+        future.release()
+        record(row)
+    return len(cases)
 
 
 def run_sweep(

@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 
 from heliostep.errors import InputError
 from heliostep.results.trace.writer import arrow_path
+from heliostep.run.step_family import CERTIFIED_FIGURES
 from heliostep.sweep.spec import SweepCase, SweepSpec
 
 logger = logging.getLogger(__name__)
@@ -89,6 +90,12 @@ RUN_COLUMNS = {
     "run_id": "string",
     "worker": "string",
     "fmu_sha256": "string",
+    # how the figures came: "full" (co-simulated), "composed" (from the step family of the case's drive:
+    # heliostep.run.step_family) or "certificate" (co-simulated, compared with its composition); "fallback":
+    # why a case that could have been composed was co-simulated
+    "method": "string",
+    "fallback": "string",
+    **{f"deviation_{name}": "float64" for name in CERTIFIED_FIGURES},  # a certificate row's (relative; counts: steps)
 }
 
 

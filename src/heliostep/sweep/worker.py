@@ -21,7 +21,7 @@ from pathlib import Path
 import pandas as pd
 
 from heliostep.cosim.fmi import read_fmu
-from heliostep.drive.inputs import prepare_inputs, reference_times
+from heliostep.drive.inputs import DriveInputs, prepare_inputs, reference_times
 from heliostep.errors import HeliostepError
 from heliostep.run import RunOptions, run_scenario
 from heliostep.run.load_budget import load_budget, mechanics_values, step_limit_of_holding, wind_moment_at
@@ -124,14 +124,17 @@ def summary_figures(summary: Mapping) -> dict:
     return figures
 
 
-def load_figures(scenario: Scenario, local: Mapping[str, Path], held: float | None) -> dict:
+def load_figures(
+    scenario: Scenario, local: Mapping[str, Path], held: float | None, inputs: DriveInputs | None = None
+) -> dict:
     """``load_torque_Nm``: the load budget on the motor shaft at the case's worst instant
     (:func:`heliostep.run.load_budget.load_budget`: wind, friction, inertia [N.m]); ``tracking_margin``:
     the static step limit of the holding torque ``held`` (k_e x I [N.m],
-    :func:`~heliostep.run.load_budget.step_limit_of_holding`) over that load (inf without a load)."""
+    :func:`~heliostep.run.load_budget.step_limit_of_holding`) over that load (inf without a load).
+    ``inputs``: the case's :func:`~heliostep.drive.inputs.prepare_inputs`, computed when not given."""
     mechanics = scenario.roles.instance_of("wind_moment") or "mechanics"
     values = mechanics_values(scenario, mechanics, local.get(mechanics))
-    inputs = prepare_inputs(scenario)
+    inputs = prepare_inputs(scenario) if inputs is None else inputs
     budget = load_budget(scenario, inputs, wind_moment_at(inputs), values, values["J_m"])
     sequencer = scenario.sequencer
     limit = None if held is None else step_limit_of_holding(held, sequencer.mode, sequencer.microsteps)
@@ -179,6 +182,7 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
     """
     started = clock.perf_counter()
     row = {**case.columns, **dict.fromkeys(FIGURE_COLUMNS), "status": "ok", "error_type": None, "error": None}
+    row.update(method="full", fallback=None)
     scenario = None
     try:
         data = copy.deepcopy(case.scenario)
@@ -236,6 +240,7 @@ def _lost_case_row(case: SweepCase, exc: BaseException, run_id: str) -> dict:
         "run_id": run_id,
         "worker": None,
         "fmu_sha256": _fmu_key(case.fmu_sha256),
+        "method": "full",
     }
 
 

@@ -1,0 +1,324 @@
+"""A sweep's cases composed from step families (:mod:`heliostep.run.step_family`) on Dask, certified.
+
+The cases that share a drive share a family: one task co-simulates it, tasks of :data:`COMPOSE_CHUNK`
+cases compose their rows from it. A certificate, a sample of each family's cases spread over the sweep
+(reproducible by seed), is also run in full; its rows carry each certified figure's deviation. A family
+whose certificate exceeds a tolerance, or that cannot be built, has its cases run in full, as has every
+case whose steps leave what a family assumes (its row's ``fallback`` says why). Method: docs/sweep.md.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import os
+import socket
+import time as clock
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+from heliostep.drive.inputs import prepare_inputs
+from heliostep.run.step_family import (
+    CERTIFIED_FIGURES,
+    StepFamily,
+    build_family,
+    compose_case,
+    deviation,
+    family_key,
+    not_composable,
+)
+from heliostep.scenario import Scenario, validate_scenario
+from heliostep.sweep.spec import SweepCase
+from heliostep.sweep.store import FIGURE_COLUMNS
+from heliostep.sweep.worker import (
+    FmuPayload,
+    _error_text,
+    _fmu_key,
+    _holding_torque,
+    _local_fmu,
+    _lost_case_row,
+    _now,
+    load_figures,
+    primary_sharing_error,
+    run_case,
+)
+
+#: Cases composed per Dask task.
+COMPOSE_CHUNK = 25
+#: Cases of the sweep run in full as its certificate, at the least (spread over its families).
+CERTIFICATE_CASES = 20
+
+
+@dataclasses.dataclass(frozen=True)
+class FamilyPlan:
+    """How a sweep's cases run: ``full`` ones (case id -> why), and per family key its cases and the
+    sample of them that certifies it."""
+
+    full: dict[str, str]
+    families: dict[str, list[SweepCase]]
+    certificate: dict[str, list[SweepCase]]
+
+
+def plan_families(cases: Sequence[SweepCase], certify: int = CERTIFICATE_CASES, seed: int = 0) -> FamilyPlan:
+    """Group ``cases`` (FMUs shipped: ``fmu_sha256`` set) by drive and draw each group's certificate: its
+    share of ``certify`` cases, at least two, one at random in each of as many equal runs of its cases in
+    sweep order (so spread over the days and mirrors), by ``seed``. A group no bigger than its certificate
+    runs in full, as does a case :func:`~heliostep.run.step_family.not_composable` refuses."""
+    full: dict[str, str] = {}
+    groups: dict[str, list[SweepCase]] = {}
+    for case in cases:
+        scenario = validate_scenario(case.scenario, source=case.source, folder=case.folder)
+        reason = not_composable(scenario)
+        if reason is not None:
+            full[case.case_id] = reason
+        else:
+            groups.setdefault(family_key(scenario, case.fmu_sha256), []).append(case)
+    composable = sum(len(group) for group in groups.values())
+    random = np.random.default_rng(seed)
+    families, certificate = {}, {}
+    for key, group in groups.items():
+        count = max(2, int(np.ceil(certify * len(group) / composable)))
+        if len(group) <= count:
+            full.update({case.case_id: "a family no bigger than its certificate" for case in group})
+            continue
+        runs = np.array_split(np.arange(len(group)), count)
+        families[key], certificate[key] = group, [group[int(random.choice(run))] for run in runs]
+    return FamilyPlan(full, families, certificate)
+
+
+def family_task(case: SweepCase, payloads: Mapping[str, FmuPayload]) -> StepFamily:
+    """The Dask task that builds the family of ``case``'s drive (its FMUs from ``payloads``)."""
+    return build_family(_scenario(case, payloads), fmu_digests=case.fmu_sha256)
+
+
+def compose_task(cases: Sequence[SweepCase], family: StepFamily, payloads: Mapping[str, FmuPayload], run_id: str):
+    """The Dask task that composes ``cases`` from ``family``: per case its table row (method
+    "composed"), or (case, why) when it falls back."""
+    rows, fallbacks = [], []
+    for case in cases:
+        started = clock.perf_counter()
+        try:
+            scenario, local = _scenario(case, payloads), _local_fmus(case, payloads)
+            inputs = prepare_inputs(scenario)
+            composed = compose_case(scenario, family, inputs, case.fmu_sha256)
+        except Exception as exc:  # noqa: BLE001 - the case runs in full, which reports what is wrong
+            fallbacks.append((case, f"not composed: {_error_text(exc)[:200]}"))
+            continue
+        if composed.fallback is not None:
+            fallbacks.append((case, composed.fallback))
+            continue
+        row = {**case.columns, **dict.fromkeys(FIGURE_COLUMNS), **composed.figures}
+        motor = scenario.roles.instance_of("torque")
+        row["holding_torque_Nm"] = _holding_torque(scenario, motor, local.get(motor) if motor else None)
+        row.update(load_figures(scenario, local, row["holding_torque_Nm"], inputs))
+        row.update(primary_sharing_error(scenario))
+        rows.append(_finished(row, case, run_id, started, "composed"))
+    return rows, fallbacks
+
+
+def _scenario(case: SweepCase, payloads: Mapping[str, FmuPayload]) -> Scenario:
+    """The case's scenario on its FMUs written locally."""
+    data = copy.deepcopy(case.scenario)
+    dropped = {instance: None for instance, reference in data["fmus"].items() if reference is None}
+    local = {instance: str(path) for instance, path in _local_fmus(case, payloads).items()}
+    data["fmus"] = {**dropped, **local}
+    return validate_scenario(data, source=case.source, folder=case.folder)
+
+
+def _local_fmus(case: SweepCase, payloads: Mapping[str, FmuPayload]) -> dict:
+    return {instance: _local_fmu(payloads[sha]) for instance, sha in case.fmu_sha256.items()}
+
+
+def _finished(row: dict, case: SweepCase, run_id: str, started: float, method: str, fallback=None) -> dict:
+    row.update(
+        status="ok",
+        error_type=None,
+        error=None,
+        wall_time_s=clock.perf_counter() - started,
+        finished_at=_now(),
+        run_id=run_id,
+        worker=f"{socket.gethostname()}:{os.getpid()}",
+        fmu_sha256=_fmu_key(case.fmu_sha256),
+        method=method,
+        fallback=fallback,
+    )
+    return row
+
+
+def certified_row(full: dict, composed: Mapping | None) -> dict:
+    """A certificate case's full row with each certified figure's deviation of the composed one."""
+    row = {**full, "method": "certificate"}
+    for name in CERTIFIED_FIGURES:
+        row[f"deviation_{name}"] = float("nan") if composed is None else deviation(full[name], composed[name], name)
+    return row
+
+
+def failed_figures(rows: Sequence[Mapping]) -> list[str]:
+    """The certified figures whose largest deviation over a family's certificate ``rows`` exceeds its
+    tolerance (a certificate case that failed, or was not composed, certifies nothing: its figure fails)."""
+    failed = []
+    for name, tolerance in CERTIFIED_FIGURES.items():
+        values = [row.get(f"deviation_{name}") for row in rows]
+        if not values or any(v is None or not np.isfinite(v) or v > tolerance for v in values):
+            failed.append(name)
+    return failed
+
+
+def run_with_families(
+    client,
+    cases: Sequence[SweepCase],
+    shipped: Mapping,
+    record: Callable[[dict], None],
+    run_id: str,
+    certify: int,
+    seed: int,
+) -> int:
+    """Run ``cases`` on ``client`` through their families (``shipped``: SHA-256 -> the FMU payload's
+    future); each finished row goes to ``record``. Returns the cases recorded."""
+    from distributed import as_completed
+
+    plan = plan_families(cases, certify, seed)
+    run = _Submitter(client, shipped, run_id, cases)
+    by_id = run.cases
+    pending = as_completed()
+    for case_id, reason in plan.full.items():
+        pending.add(run.full(by_id[case_id], reason))
+    for key in plan.families:  # the certificate's full runs first: the longest tasks
+        for case in plan.certificate[key]:
+            pending.add(run.full(case, None, certificate=True))
+    for key, group in plan.families.items():
+        family = run.family(group[0])
+        for start in range(0, len(group), COMPOSE_CHUNK):
+            pending.add(run.compose(group[start : start + COMPOSE_CHUNK], family, key))
+    return _Collector(run, plan, pending, record).collect()
+
+
+class _Submitter:
+    """Submits a sweep's tasks, each future tagged with what it is."""
+
+    def __init__(self, client, shipped: Mapping, run_id: str, cases: Sequence[SweepCase]):
+        self.client, self.shipped, self.run_id = client, shipped, run_id
+        self.tags: dict = {}
+        self.cases = {case.case_id: case for case in cases}
+
+    def _needed(self, cases: Sequence[SweepCase]) -> dict:
+        return {sha: self.shipped[sha] for case in cases for sha in case.fmu_sha256.values()}
+
+    def full(self, case: SweepCase, reason: str | None, certificate: bool = False):
+        future = self.client.submit(
+            run_case,
+            case,
+            self._needed([case]),
+            self.run_id,
+            pure=False,
+            key=f"heliostep-case-{case.case_id}-{self.run_id}",
+        )
+        self.tags[future] = ("full", case, reason, certificate)
+        return future
+
+    def family(self, case: SweepCase):
+        key = f"heliostep-family-{case.case_id}-{self.run_id}"
+        return self.client.submit(family_task, case, self._needed([case]), pure=False, key=key)
+
+    def compose(self, cases: Sequence[SweepCase], family, key: str):
+        name = f"heliostep-compose-{cases[0].case_id}-{self.run_id}"
+        future = self.client.submit(compose_task, cases, family, self._needed(cases), self.run_id, pure=False, key=name)
+        self.tags[future] = ("compose", cases, key, None)
+        return future
+
+
+@dataclasses.dataclass
+class _Family:
+    """A family's progress: compose tasks and certificate cases not back yet, rows held until certified."""
+
+    key: str
+    chunks: int
+    waiting: set
+    composed: dict = dataclasses.field(default_factory=dict)  # case id -> composed row, held
+    full: dict = dataclasses.field(default_factory=dict)  # certificate case id -> its full row
+    fallen: dict = dataclasses.field(default_factory=dict)  # certificate case id -> why it was not composed
+    certified: list = dataclasses.field(default_factory=list)
+    settled: bool = False
+
+
+class _Collector:
+    """Records each finished task's rows: a family's composed rows once its certificate holds, else its
+    cases run in full."""
+
+    def __init__(self, run: _Submitter, plan: FamilyPlan, pending, record: Callable[[dict], None]):
+        self.run, self.pending, self.record, self.recorded = run, pending, record, 0
+        self.states = {
+            key: _Family(key, -(-len(group) // COMPOSE_CHUNK), {case.case_id for case in plan.certificate[key]})
+            for key, group in plan.families.items()
+        }
+        self.sample = {case.case_id: key for key, group in plan.certificate.items() for case in group}
+
+    def _record(self, row: dict) -> None:
+        self.record(row)
+        self.recorded += 1
+
+    def collect(self) -> int:
+        for future in self.pending:
+            kind, cases, extra, certificate = self.run.tags.pop(future)
+            try:
+                result = future.result()
+            except Exception as exc:  # noqa: BLE001 - a lost worker, a family that could not be built
+                result = exc
+            future.release()
+            if kind == "full":
+                self._full(cases, result, extra, certificate)
+            else:
+                self._composed(cases, result, self.states[extra])
+        return self.recorded
+
+    def _full(self, case: SweepCase, result, reason: str | None, certificate: bool) -> None:
+        row = result if isinstance(result, dict) else _lost_case_row(case, result, self.run.run_id)
+        row.update(method="full", fallback=reason)
+        state = self.states[self.sample[case.case_id]] if certificate else None
+        if state is None or case.case_id in state.fallen:
+            if state is not None:
+                row["fallback"] = state.fallen.pop(case.case_id)
+            self._record(row)
+            return
+        state.full[case.case_id] = row
+        self._certify(state)
+
+    def _composed(self, cases: Sequence[SweepCase], result, state: _Family) -> None:
+        state.chunks -= 1
+        if isinstance(result, Exception):
+            rows, fallbacks = [], [(case, f"no family: {_error_text(result)[:200]}") for case in cases]
+        else:
+            rows, fallbacks = result
+        state.composed.update({row["case_id"]: row for row in rows})
+        for case, reason in fallbacks:
+            if case.case_id in state.waiting:  # its full run is under way: recorded as a fallback, certifies nothing
+                state.waiting.discard(case.case_id)
+                if case.case_id in state.full:
+                    self._record({**state.full.pop(case.case_id), "fallback": reason})
+                else:
+                    state.fallen[case.case_id] = reason
+            else:
+                self.pending.add(self.run.full(case, reason))
+        self._certify(state)
+
+    def _certify(self, state: _Family) -> None:
+        """Record the certificate rows whose full and composed figures are both back; once the family's
+        are all back, its composed rows (the certificate holds) or their full runs (it does not)."""
+        for case_id in [c for c in state.waiting if c in state.full and c in state.composed]:
+            state.waiting.discard(case_id)
+            row = certified_row(state.full.pop(case_id), state.composed.pop(case_id))
+            state.certified.append(row)
+            self._record(row)
+        if state.settled or state.chunks or state.waiting:
+            return
+        state.settled = True
+        failed = failed_figures(state.certified)
+        if not failed:
+            for row in state.composed.values():
+                self._record(row)
+        else:
+            reason = f"the family's certificate fails on {', '.join(failed)}"
+            for row in state.composed.values():
+                self.pending.add(self.run.full(self.run.cases[row["case_id"]], reason))
+        state.composed.clear()
