@@ -31,6 +31,7 @@ from heliostep.sweep import (
     read_results,
     sweep_metadata,
 )
+from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES
 from heliostep.sweep.local_worker import silence_distributed_logs
 
 __all__ = ["register"]
@@ -82,6 +83,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="run even when the folder's results.parquet holds another sweep's rows, dropping them (refused otherwise)",
     )
+    parser.add_argument(
+        "--exact",
+        action="store_true",
+        help="co-simulate every case in full (default: cases that share a drive are composed from its step family, "
+        "certified against full runs of a sample)",
+    )
+    parser.add_argument(
+        "--certify",
+        type=int,
+        default=CERTIFICATE_CASES,
+        metavar="N",
+        help=f"cases run in full to certify the composed ones, spread over the sweep (default: {CERTIFICATE_CASES})",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, metavar="N", help="seed of the certificate's random cases (default: 0)"
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--list", action="store_true", help="list the cases and whether each is done; run nothing")
     parser.set_defaults(func=_run_command)
@@ -90,6 +107,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _run_command(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers must be >= 1, got {args.workers}")
+    if args.certify < 1:
+        raise InputError(f"--certify must be >= 1 case, got {args.certify}")
     if args.connect_timeout <= 0:
         raise InputError(f"--connect-timeout must be > 0 s, got {args.connect_timeout}")
     out_name = check_out_name(str(args.out)) if args.out is not None else None  # "" refused before anything
@@ -148,6 +167,9 @@ def _sweep_in_folder(args: argparse.Namespace, spec, cases, out_dir: Path) -> tu
                 progress=True,
                 metadata=sweep_metadata(spec),
                 replace=args.replace,
+                exact=args.exact,
+                certify=args.certify,
+                seed=args.seed,
             )
 
         def draw(staging: Path) -> list[Path]:
@@ -237,6 +259,7 @@ def _report(name: str, outcome: SweepOutcome, plots: list[Path]) -> str:
         lines.append(
             f"  {'holding torque k_e x I [N.m]':36s} {', '.join(f'{h:.4g}' for h in sorted(holding.unique()))}"
         )
+    lines += _certificate_lines(table)
     failed = table[table["status"] == "failed"]
     for row in failed.head(5).itertuples(index=False):
         first_line = (row.error or "").splitlines()[0] if row.error else ""
@@ -246,3 +269,22 @@ def _report(name: str, outcome: SweepOutcome, plots: list[Path]) -> str:
     for path in plots:
         lines.append(f"  plot: {path}")
     return "\n".join(lines)
+
+
+def _certificate_lines(table: pd.DataFrame) -> list[str]:
+    """How the rows were made (full, composed, certificate) and, with composed rows, each certified figure's
+    largest deviation on the certificate rows against its tolerance."""
+    methods = table["method"].fillna("full").value_counts()
+    lines = ["  rows: " + ", ".join(f"{count} {method}" for method, count in methods.items())]
+    fallbacks = table["fallback"].dropna()
+    if len(fallbacks):
+        reason, count = fallbacks.value_counts().index[0], int(fallbacks.value_counts().iloc[0])
+        lines.append(f"  run in full instead of composed: {len(fallbacks)} (most often: {reason}, {count})")
+    if not methods.get("composed", 0):
+        return lines
+    lines.append("  certified max deviation (tolerance):")
+    certified = table[table["method"] == "certificate"]
+    for name, tolerance in CERTIFIED_FIGURES.items():
+        worst = certified[f"deviation_{name}"].max()
+        lines.append(f"    {name:28s} {worst:.2e} ({tolerance:.1e})")
+    return lines

@@ -32,28 +32,14 @@ from heliostep.run.runner import _prepare, _system
 from heliostep.scenario import Scenario, validate_scenario
 
 __all__ = [
-    "CERTIFIED_FIGURES",
     "ComposedCase",
     "StepFamily",
     "build_family",
-    "certificate",
     "compose_case",
-    "deviation",
     "family_key",
     "not_composable",
 ]
 
-#: The figures a family composes, each with the largest deviation from the full co-simulation a sweep's
-#: certificate accepts: relative, and 0 for the step counts (exact).
-CERTIFIED_FIGURES = {
-    "peak_torque_Nm": 5e-3,
-    "peak_phase_current_A": 5e-3,
-    "electrical_energy_J": 1e-3,
-    "max_tracking_error_deg": 1e-2,
-    "light_energy_J": 1e-3,
-    "missed_steps": 0.0,
-    "steps_lost": 0.0,
-}
 #: The family's panel angles [deg]: a linear Fresnel mirror's span while the sun is up, every 5 deg.
 FAMILY_ANGLES_DEG = np.linspace(-60.0, 60.0, 25)
 #: A transient: held this long [s] at its detent, then stepped, then watched until the window's end [s]
@@ -116,8 +102,9 @@ class StepFamily:
 
 @dataclasses.dataclass(frozen=True)
 class ComposedCase:
-    """A case's figures composed from its family (:data:`CERTIFIED_FIGURES` with ``steps_commanded``,
-    ``steps_executed`` and ``duration_s``), or ``fallback``: why the case must be run in full."""
+    """A case's figures composed from its family (peak torque and phase current, electrical energy, maximum
+    tracking error, light on the tube, steps missed, lost, commanded and executed, the duration), or
+    ``fallback``: why the case must be run in full."""
 
     figures: dict
     fallback: str | None = None
@@ -376,24 +363,3 @@ def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> float:
     light = LightIntegrals(metadata, scenario, first_order=False)
     light(trace)
     return float(light.figures()["light_energy_J"])
-
-
-def deviation(full: float | None, composed: float | None, name: str) -> float:
-    """How far a composed figure is from the full co-simulation's: relative, or the difference of a step
-    count (nan where either is missing)."""
-    if full is None or composed is None or not np.isfinite(full):
-        return float("nan")
-    if CERTIFIED_FIGURES[name] == 0.0:
-        return float(abs(composed - full))
-    return abs(composed - full) / abs(full) if full else float(abs(composed))
-
-
-def certificate(pairs: list[tuple[Mapping, Mapping]]) -> dict:
-    """Per certified figure: the largest deviation over ``pairs`` of (full figures, composed figures),
-    its tolerance and whether it holds."""
-    report = {}
-    for name, tolerance in CERTIFIED_FIGURES.items():
-        values = [deviation(full.get(name), composed.get(name), name) for full, composed in pairs]
-        worst = float(np.nanmax(values)) if np.any(np.isfinite(values)) else float("nan")
-        report[name] = {"max_deviation": worst, "tolerance": tolerance, "holds": bool(worst <= tolerance)}
-    return report

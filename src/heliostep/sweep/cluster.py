@@ -19,7 +19,8 @@ from heliostep.errors import InputError
 from heliostep.fmu.build import ensure_fmu
 from heliostep.progress import progress_bar
 from heliostep.sweep import local_worker
-from heliostep.sweep.composed import CERTIFICATE_CASES, run_with_families
+from heliostep.sweep.certificate import CERTIFICATE_CASES
+from heliostep.sweep.composed import run_with_families
 from heliostep.sweep.spec import (
     SweepCase,
     SweepSpec,

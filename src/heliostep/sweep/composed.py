@@ -19,16 +19,9 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from heliostep.drive.inputs import prepare_inputs
-from heliostep.run.step_family import (
-    CERTIFIED_FIGURES,
-    StepFamily,
-    build_family,
-    compose_case,
-    deviation,
-    family_key,
-    not_composable,
-)
+from heliostep.run.step_family import StepFamily, build_family, compose_case, family_key, not_composable
 from heliostep.scenario import Scenario, validate_scenario
+from heliostep.sweep.certificate import CERTIFICATE_CASES, certified_row, failed_figures
 from heliostep.sweep.spec import SweepCase
 from heliostep.sweep.store import FIGURE_COLUMNS
 from heliostep.sweep.worker import (
@@ -46,8 +39,6 @@ from heliostep.sweep.worker import (
 
 #: Cases composed per Dask task.
 COMPOSE_CHUNK = 25
-#: Cases of the sweep run in full as its certificate, at the least (spread over its families).
-CERTIFICATE_CASES = 20
 
 
 @dataclasses.dataclass(frozen=True)
@@ -144,25 +135,6 @@ def _finished(row: dict, case: SweepCase, run_id: str, started: float, method: s
         fallback=fallback,
     )
     return row
-
-
-def certified_row(full: dict, composed: Mapping | None) -> dict:
-    """A certificate case's full row with each certified figure's deviation of the composed one."""
-    row = {**full, "method": "certificate"}
-    for name in CERTIFIED_FIGURES:
-        row[f"deviation_{name}"] = float("nan") if composed is None else deviation(full[name], composed[name], name)
-    return row
-
-
-def failed_figures(rows: Sequence[Mapping]) -> list[str]:
-    """The certified figures whose largest deviation over a family's certificate ``rows`` exceeds its
-    tolerance (a certificate case that failed, or was not composed, certifies nothing: its figure fails)."""
-    failed = []
-    for name, tolerance in CERTIFIED_FIGURES.items():
-        values = [row.get(f"deviation_{name}") for row in rows]
-        if not values or any(v is None or not np.isfinite(v) or v > tolerance for v in values):
-            failed.append(name)
-    return failed
 
 
 def run_with_families(

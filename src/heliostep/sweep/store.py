@@ -17,7 +17,7 @@ import pyarrow.parquet as pq
 
 from heliostep.errors import InputError
 from heliostep.results.trace.writer import arrow_path
-from heliostep.run.step_family import CERTIFIED_FIGURES
+from heliostep.sweep.certificate import CERTIFIED_FIGURES
 from heliostep.sweep.spec import SweepCase, SweepSpec
 
 logger = logging.getLogger(__name__)

@@ -1,0 +1,53 @@
+"""A sweep's certificate: the figures composed cases carry, how far from the full co-simulation each may be.
+
+Details: docs/sweep.md, ``heliostep.sweep.composed``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+#: Cases of a sweep co-simulated in full to certify its composed ones, at the least.
+CERTIFICATE_CASES = 20
+#: The figures a step family composes, each with the largest deviation from the full co-simulation a
+#: certificate accepts: relative, and 0 for the step counts (exact).
+CERTIFIED_FIGURES = {
+    "peak_torque_Nm": 5e-3,
+    "peak_phase_current_A": 5e-3,
+    "electrical_energy_J": 1e-3,
+    "max_tracking_error_deg": 1e-2,
+    "light_energy_J": 1e-3,
+    "missed_steps": 0.0,
+    "steps_lost": 0.0,
+}
+
+
+def deviation(full: float | None, composed: float | None, name: str) -> float:
+    """How far a composed figure ``name`` is from the full co-simulation's: relative, or the difference of
+    a step count (nan where either is missing)."""
+    if full is None or composed is None or not np.isfinite(full):
+        return float("nan")
+    if CERTIFIED_FIGURES[name] == 0.0:
+        return float(abs(composed - full))
+    return float(abs(composed - full) / abs(full)) if full else float(abs(composed))
+
+
+def certified_row(full: Mapping, composed: Mapping | None) -> dict:
+    """A certificate case's full row with each certified figure's deviation of the composed one."""
+    row = {**full, "method": "certificate"}
+    for name in CERTIFIED_FIGURES:
+        row[f"deviation_{name}"] = float("nan") if composed is None else deviation(full[name], composed[name], name)
+    return row
+
+
+def failed_figures(rows: Sequence[Mapping]) -> list[str]:
+    """The certified figures whose largest deviation over a family's certificate ``rows`` exceeds its
+    tolerance (a certificate case that failed certifies nothing: its figures fail)."""
+    failed = []
+    for name, tolerance in CERTIFIED_FIGURES.items():
+        values = [row.get(f"deviation_{name}") for row in rows]
+        if not values or any(v is None or not np.isfinite(v) or v > tolerance for v in values):
+            failed.append(name)
+    return failed
