@@ -10,7 +10,7 @@ from heliostep.paths import scenarios_dir
 from heliostep.run import RunFailed, RunOptions, run_scenario
 from heliostep.run.step_family import build_family, compose_case, family_key, not_composable
 from heliostep.scenario import load_scenario
-from heliostep.sweep.certificate import CERTIFIED_FIGURES, deviation
+from heliostep.sweep.certificate import CERTIFIED_FIGURES, row_deviation
 
 #: Half an hour of the paper's morning: about 60 steps on the full grid's figures, as a sweep's case.
 HALF_HOUR = ("window.start=10:00", "window.duration=1800", "output.interval=1.0", "output.step_detail=0")
@@ -22,7 +22,7 @@ def _full(scenario) -> dict:
 
 def _assert_within_tolerances(full: dict, composed: dict) -> None:
     for name, tolerance in CERTIFIED_FIGURES.items():
-        assert deviation(full[name], composed[name], name) <= tolerance, (name, full[name], composed[name])
+        assert row_deviation(full, composed, name) <= tolerance, (name, full[name], composed[name])
 
 
 def test_a_motor_variant_builds_its_own_family_and_moves_as_the_full_cosimulation(fmu_paths):

@@ -446,6 +446,9 @@ def run_sweep(
     progress: bool = False,
     on_result: Callable[[dict], None] | None = None,
     replace: bool = False,
+    exact: bool = False,
+    certify: int = CERTIFICATE_CASES,
+    seed: int = 0,
 ) -> SweepOutcome:
     """Run a sweep: validate every case, then run the unfinished ones on Dask.
 
@@ -455,7 +458,7 @@ def run_sweep(
         A sweep, or the path of a sweep file.
     results_path : str or Path, optional
         Default :func:`default_results_path`.
-    client, scheduler, n_workers, connect_timeout, retry_failed, progress, on_result, replace
+    client, scheduler, n_workers, connect_timeout, retry_failed, progress, on_result, replace, exact, certify, seed
         See :func:`execute_cases`.
 
     Returns
@@ -483,4 +486,7 @@ def run_sweep(
         on_result=on_result,
         metadata=sweep_metadata(spec),
         replace=replace,
+        exact=exact,
+        certify=certify,
+        seed=seed,
     )

@@ -1,0 +1,78 @@
+"""A sweep composed from step families against the same sweep co-simulated in full (``exact``), on a real
+two-worker Dask cluster: figure by figure within the certificate's tolerances, the certificate's rows the
+full runs' own."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from distributed import Client, LocalCluster
+
+from heliostep.paths import scenarios_dir
+from heliostep.sweep import run_sweep
+from heliostep.sweep.certificate import CERTIFIED_FIGURES, row_deviation
+
+#: 3 days x 3 end mirrors, half an hour each (7 to 60 steps a case), on a sweep case's grid.
+SWEEP = {
+    "name": "composed",
+    "base": str(scenarios_dir() / "jan21-central.yaml"),
+    "combine": "product",
+    "axes": {"day_of_year": [80, 172, 355], "mirror": [0, 9, 12]},
+    "overrides": {"window.start": "10:00", "window.duration": 1800, "output.interval": 1.0, "output.step_detail": 0},
+}
+
+
+@pytest.fixture(scope="module")
+def client(fmu_paths):
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
+        ) as cluster,
+        Client(cluster) as dask_client,
+    ):
+        dask_client.wait_for_workers(2)
+        yield dask_client
+
+
+@pytest.fixture(scope="module")
+def both_ways(client, tmp_path_factory) -> dict:
+    folder = tmp_path_factory.mktemp("composed")
+    path = folder / "composed.yaml"
+    path.write_text(yaml.safe_dump(SWEEP, sort_keys=False))
+    return {
+        exact: run_sweep(path, folder / f"exact-{exact}.parquet", client=client, exact=exact, certify=3).table
+        for exact in (True, False)
+    }
+
+
+def test_a_composed_sweep_agrees_with_the_full_one_figure_by_figure(both_ways):
+    exact, composed = (both_ways[way].set_index("case_id") for way in (True, False))
+    assert set(exact["method"]) == {"full"} and (exact["status"] == "ok").all()
+    assert composed["method"].value_counts().to_dict() == {"composed": 6, "certificate": 3}
+    for case_id, row in composed.iterrows():
+        full = exact.loc[case_id]
+        assert row["steps_commanded"] == full["steps_commanded"] > 0
+        for name, tolerance in CERTIFIED_FIGURES.items():
+            assert row_deviation(full, row, name) <= tolerance, (case_id, name, full[name], row[name])
+        for name in ("load_torque_Nm", "holding_torque_Nm", "primary_sharing_error_max_deg", "duration_s"):
+            assert row[name] == full[name], name  # computed from the scenario, without simulating, as in full
+
+
+def test_the_certificate_rows_are_full_runs_and_carry_their_deviations(both_ways):
+    exact, composed = (both_ways[way].set_index("case_id") for way in (True, False))
+    certificate = composed[composed["method"] == "certificate"]
+    assert certificate["day_of_year"].nunique() + certificate["mirror_index"].nunique() >= 4  # spread over both axes
+    for case_id, row in certificate.iterrows():
+        for name, tolerance in CERTIFIED_FIGURES.items():
+            assert row[name] == exact.loc[case_id, name]  # co-simulated in full
+            assert 0.0 <= row[f"deviation_{name}"] <= tolerance
+    others = composed[composed["method"] != "certificate"]
+    assert others.filter(like="deviation_").isna().all().all()
+
+
+def test_a_rerun_of_a_composed_sweep_skips_every_case(client, both_ways, tmp_path_factory):
+    folder = Path(tmp_path_factory.getbasetemp()) / "composed0"
+    outcome = run_sweep(folder / "composed.yaml", folder / "exact-False.parquet", client=client)
+    assert outcome.executed == 0 and outcome.skipped == 9
