@@ -78,7 +78,9 @@ def worker_cpu_seconds() -> float:
     return total
 
 
-def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> tuple[float, float, object, float]:
+def timed_sweep(
+    sweep: Path, folder: Path, n_workers: int, repeat: int = 1, exact: bool = True
+) -> tuple[float, float, object, float]:
     """(validation time [s], median execution wall time [s], last outcome, the workers' CPU time over the
     last run, their simulation children's included [s]) of a sweep.
 
@@ -107,7 +109,8 @@ def timed_sweep(sweep: Path, folder: Path, n_workers: int, repeat: int = 1) -> t
             cases = expand_cases(load_sweep(sweep))
             validated = clock.perf_counter()
             cpu_before = sum(client.run(worker_cpu_seconds).values())
-            outcome = execute_cases(cases, folder / f"results-{n_workers}-{attempt}.parquet", client=client)
+            results = folder / f"results-{n_workers}-{attempt}-{'exact' if exact else 'families'}.parquet"
+            outcome = execute_cases(cases, results, client=client, exact=exact)
             walls.append(clock.perf_counter() - validated)
             cpu_seconds = sum(client.run(worker_cpu_seconds).values()) - cpu_before
             validations.append(validated - started)
@@ -177,18 +180,23 @@ def main(argv: list[str] | None = None) -> None:
                 changed = dict(item.split("=", 1) for item in args.baseline_set)
                 label = ", ".join(f"{key}={value}" for key, value in changed.items())
                 values = {key: parse_yaml_value(value) for key, value in changed.items()}  # as --set reads them
-                baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **values}, label)
-            core_seconds = full_day(folder, min(args.workers), shipped, "as shipped")
-            # the one line a script reads: the year-field estimate, in core-hours and on 2 workers
+                baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **values}, label)[0]
+            core_seconds, table = full_day(folder, min(args.workers), shipped, "as shipped")
+            families, worst = with_families(folder, min(args.workers), table, core_seconds / YEAR_FIELD_CASES)
+            # the lines a script reads: the year-field estimate, in core-hours and on 2 workers
             print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
+            print(
+                f"year-field: {families / 3600:.3f} core-hours (families), {core_seconds / 3600:.2f} core-hours "
+                f"(full), certified max deviation {worst[0]} {worst[1]:.2e}"
+            )
             if args.baseline_set:
                 ratio = core_seconds / baseline
                 print(f"  baseline ({label}): {baseline / 3600:.2f} core-hours; shipped / baseline {ratio:.2f}")
 
 
-def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> float:
+def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> tuple[float, object]:
     """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml with ``overrides`` (its
-    own, or changed): the core-seconds of the whole sweep (see the module docstring)."""
+    own, or changed): the core-seconds of the whole sweep (see the module docstring), and the cases' table."""
     folder.mkdir(parents=True, exist_ok=True)
     days = write_sweep(
         folder,
@@ -237,7 +245,38 @@ def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> float
         f"  (were every case as slow as the longest day's slowest, {longest:.2f} s of CPU: "
         f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)"
     )
-    return core_seconds
+    return core_seconds, table
+
+
+def with_families(folder: Path, n_workers: int, exact, per_full: float) -> tuple[float, tuple[str, float]]:
+    """The same cases composed from their step families: each figure's largest deviation from the full runs
+    (``exact``) over every case, and year-field.yaml's core-seconds with families: the sample's families and
+    tasks (its CPU time less its cases'), the certificate's cases at a full case's mean CPU ``per_full`` [s],
+    the rest at the composed cases' mean."""
+    from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES, row_deviation
+
+    days = folder / "days.yaml"
+    _, wall, outcome, cpu_seconds = timed_sweep(days, folder / "families", n_workers, exact=False)
+    table = outcome.table.set_index("case_id")
+    full = exact.set_index("case_id")
+    methods = table["method"].value_counts().to_dict()
+    print(f"\nthe same {len(table)} cases with step families: {wall:.1f} s on {n_workers} worker(s), rows {methods}")
+    ratios = {}
+    for name, tolerance in CERTIFIED_FIGURES.items():
+        values = [row_deviation(full.loc[case_id], row, name) for case_id, row in table.iterrows()]
+        ratios[name] = max(values)
+        print(f"  {name:24s} largest deviation over every case {max(values):.2e} (tolerance {tolerance:.1e})")
+    composed = table[table["method"] == "composed"]
+    per_composed = composed["wall_time_s"].mean()
+    in_full = int((table["method"] != "composed").sum())
+    family_seconds = max(0.0, cpu_seconds - in_full * per_full - composed["wall_time_s"].sum())
+    core_seconds = family_seconds + CERTIFICATE_CASES * per_full + (YEAR_FIELD_CASES - CERTIFICATE_CASES) * per_composed
+    print(
+        f"  the families and the tasks' overhead {family_seconds:.1f} s of CPU; a composed case {per_composed:.3f} s, "
+        f"a full one {per_full:.2f} s"
+    )
+    worst = max(ratios, key=lambda name: ratios[name] / (CERTIFIED_FIGURES[name] or 1.0))
+    return core_seconds, (worst, ratios[worst])
 
 
 if __name__ == "__main__":
