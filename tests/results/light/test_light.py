@@ -166,6 +166,64 @@ def test_without_the_first_order_terms_every_other_light_figure_is_the_same_bit_
     assert any("not computed" in note for note in figures[False]["light_notes"])
 
 
+def _stepped_run(scenario):
+    """A stepped trace of ``scenario`` (0.006 deg steps every 60 s about the reference), with a stowed
+    span and the step times in its metadata, and a solution's swing (``error_extremes_deg``)."""
+    trace, metadata, _ = _trace(scenario)
+    held = trace["panel_angle_ref"].to_numpy()[(trace["time"].to_numpy() // 60.0 * 60.0).astype(int)]
+    trace[PANEL_COLUMN] = held + np.radians(0.006)
+    drive = {"step_times": list(np.arange(60.0, 1800.0, 60.0)), "stowed_spans_s": [[1500.0, 1600.0]]}
+    swing = [[t, 0.01, held[int(t)] + 1e-3] for t in (630.0, 1230.0)]
+    return trace, {**metadata, "drive": drive}, {"error_extremes_deg": swing}
+
+
+@pytest.mark.parametrize("axis", ["secondary", "primary"])
+def test_each_figure_asked_for_alone_is_the_same_bit_for_bit_as_among_all(axis):
+    """``wanted`` (a sweep asking for ``light_energy_J`` alone): each figure computed alone, its attitudes'
+    light alone at the rows (FIGURE_NEEDS), is the one computed with every figure, bit for bit; and
+    ``light_energy_J`` alone takes the actual attitude's light alone at the trace's rows."""
+    from heliostep.results.light import on_tube
+
+    scenario = _scenario(2.4, axis=axis)
+    trace, metadata, solution = _stepped_run(scenario)
+
+    def figures(wanted=None):
+        integrals = LightIntegrals(metadata, scenario, wanted=wanted)
+        for start in range(0, len(trace), 700):  # in blocks, as a run feeds them
+            integrals(trace.iloc[start : start + 700])
+        return integrals.figures(solution)
+
+    every = figures()
+    assert every.keys() == on_tube.FIGURE_NEEDS.keys()
+    assert every["light_lost_stowed_J"] != 0 and every["max_transverse_miss_m"] > 0
+    for name in every:
+        assert figures([name]) == {name: every[name]}, name
+    assert figures(["light_energy_J", "mean_intercept"]) == {k: every[k] for k in ("light_energy_J", "mean_intercept")}
+    rows = []
+    original = on_tube.attitude_light
+
+    def counting(sun, *args, **kwargs):
+        rows.append(sun.shape[1])
+        return original(sun, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(on_tube, "attitude_light", counting)
+        figures(["light_energy_J"])
+        # the actual attitude's alone: at each of the three blocks' rows, and turned by +-COSINE_STEP at the
+        # first row and each step's (their slopes, :mod:`heliostep.results.light.rows`)
+        assert len(rows) == 3 + 3 and sum(rows) == len(trace) + 3 * (1 + 29)
+        rows.clear()
+        figures()
+        # every attitude's (no shared one for a driven primary), the first order's two, the turned rows;
+        # and the ideal and actual at the swing
+        assert len(rows) == 3 * (6 if axis == "primary" else 7) + 2
+
+
+def test_an_unknown_light_figure_is_an_error_naming_it():
+    with pytest.raises(ValueError, match="light_energy_W"):
+        LightIntegrals({}, _scenario(), wanted=["light_energy_J", "light_energy_W"])
+
+
 def test_secondary_stepping_error_moves_light_along_the_tube():
     scenario = _scenario(0.0)
     delta = np.radians(0.006)  # the measured stepping error of the secondary

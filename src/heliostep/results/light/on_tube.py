@@ -9,7 +9,7 @@ Details: docs/light.md, ``heliostep.results.light.on_tube``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -19,23 +19,13 @@ import pandas as pd
 from heliostep.results.light.mirror_power import attitude_light
 from heliostep.results.light.notes import light_notes
 from heliostep.results.light.rows import RowMarks, corrections, swing_rows
+from heliostep.results.light.sun_grid import SUN_GRID_S, grid_slice, grid_span, sun_grid, window_sun_grid
 from heliostep.results.light.sun_grid_image import interpolated_image
 from heliostep.solar import irradiance
-from heliostep.solar.field import sharing_errors
-from heliostep.solar.sun import solar_position, sun_vector
-from heliostep.solar.tracking import two_axis_angles
 
-#: Sampling step of the sun's position and the DNI before interpolation onto the rows [s].
-SUN_GRID_S = 10.0
 #: Step of the central difference of the cosine in the driven angle [rad]: its error is
 #: eps^2/6 of the third derivative (< 1e-12), its rounding 1e-16 / eps (1e-10), both far below the figure.
 COSINE_STEP = 1e-6
-
-
-def _row_times(trace: pd.DataFrame, metadata: Mapping) -> pd.DatetimeIndex:
-    start = pd.Timestamp(metadata["window_start"])
-    start = start if start.tzinfo is not None else start.tz_localize(metadata.get("timezone", "UTC"))
-    return start + pd.to_timedelta(trace["time"].to_numpy(), unit="s")
 
 
 def _weather_path(scenario):
@@ -112,54 +102,6 @@ def light_timeseries(trace: pd.DataFrame, metadata: Mapping, scenario, weather=N
     )
 
 
-def _grid_span(seconds: np.ndarray, origin: float) -> tuple[int, int]:
-    """The first and last index k of the grid points ``origin + k SUN_GRID_S`` that bracket ``seconds``."""
-    first = max(int(np.floor((seconds[0] - origin) / SUN_GRID_S)), 0)
-    last = int(np.ceil((seconds[-1] - origin) / SUN_GRID_S))
-    if origin + last * SUN_GRID_S < seconds[-1]:
-        last += 1
-    return first, max(last, first + 1)
-
-
-def sun_grid(grid_s: np.ndarray, metadata: Mapping, scenario, weather) -> dict:
-    """What the light at the rows interpolates, at the grid times ``grid_s`` [s from the window's
-    start]: ``time`` [s], ``elevation`` [deg], ``sun`` (3, n) [-] (plant frame), ``dni``
-    [W/m^2], the ideal two-axis angles ``ideal_primary`` and ``ideal_secondary`` and the shared
-    primary's ``sharing`` error (0 while the sun is down, and everywhere for the central mirror,
-    d = 0) [rad]. Every value is a function of its grid time alone."""
-    site, plant = scenario.site.to_site(), scenario.plant.to_plant()
-    distance, h = scenario.mirror.mirror_distance, plant.tube_height
-    grid = _row_times(pd.DataFrame({"time": grid_s}), metadata)
-    position = solar_position(grid, site.latitude, site.longitude, site.altitude)
-    elevation, azimuth = position["apparent_elevation"].to_numpy(), position["azimuth"].to_numpy()
-    ideal_primary, ideal_secondary = two_axis_angles(elevation, azimuth, distance, h, plant.azimuth)
-    # the shared primary: the central mirror's law plus a mounting offset exact at solar noon; the
-    # central mirror's (d = 0) own primary is the shared one: its error is 0 by definition
-    if distance == 0.0:
-        sharing = np.zeros(len(grid_s))
-    else:
-        sharing = sharing_errors(grid, site, plant, scenario.window.date, [distance], sun=position)[:, 0]
-    return {
-        "time": grid_s,
-        "elevation": elevation,
-        "sun": np.stack(sun_vector(elevation, azimuth, plant.azimuth)),
-        "dni": irradiance.dni(grid, site, weather, sun=position).to_numpy() * _clouds(scenario, grid_s),
-        "ideal_primary": np.asarray(ideal_primary),
-        "ideal_secondary": np.asarray(ideal_secondary),
-        "sharing": np.nan_to_num(sharing),
-    }
-
-
-def _clouds(scenario, seconds: np.ndarray) -> np.ndarray:
-    """The share of the DNI the scenario's clouds (``tracking.clouds``) leave at ``seconds``."""
-    tracking = getattr(scenario, "tracking", None)
-    return irradiance.cloud_fraction(seconds, tracking.cloud_spans if tracking is not None else [])
-
-
-def _grid_slice(grid: dict, start: int, stop: int) -> dict:
-    return {key: value[..., start:stop] for key, value in grid.items()}
-
-
 def _light_rows(
     trace: pd.DataFrame,
     metadata: Mapping,
@@ -168,21 +110,21 @@ def _light_rows(
     origin: float,
     window_grid: dict | None = None,
     first_order: bool = True,
-    only: str | None = None,
+    only: Collection[str] | None = None,
 ) -> dict:
     """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
     one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
     points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
     trace gives. ``window_grid``: :func:`sun_grid` at the points k = 0, 1, ... already computed (used
-    where it covers the block's points); ``first_order``: with the stepping's first-order columns; ``only``:
-    that attitude's columns alone (and ``time``, ``dni``)."""
+    where it covers the block's points); ``first_order``: with the stepping's first-order columns (where the
+    reference's are); ``only``: those attitudes' columns alone (and ``time``, ``dni``; None: every one's)."""
     conf = scenario.optics
     distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
     h = scenario.plant.to_plant().tube_height
     seconds = trace["time"].to_numpy(dtype=float)
-    first, last = _grid_span(seconds, origin)
+    first, last = grid_span(seconds, origin)
     if window_grid is not None and last < len(window_grid["time"]):
-        points = _grid_slice(window_grid, first, last + 1)
+        points = grid_slice(window_grid, first, last + 1)
     else:
         points = sun_grid(origin + np.arange(first, last + 1) * SUN_GRID_S, metadata, scenario, weather)
     grid_s = points["time"]
@@ -193,7 +135,7 @@ def _light_rows(
     attitudes, on_grid, driven = _attitudes(trace, metadata, axis, points, seconds)
     out = {"time": seconds, "dni": dni}
     for name, (primary, secondary) in attitudes.items():
-        if only is not None and name != only:  # one attitude's columns (the light's slopes at a few rows)
+        if only is not None and name not in only:  # the columns of the figures asked for alone
             continue
         image = None
         if name in on_grid:  # a sun-alone attitude: its image from the sun grid
@@ -209,7 +151,7 @@ def _light_rows(
                 f"longitudinal_miss_{name}_m": light["longitudinal_miss_m"],
             }
         )
-    if driven["actual"] is not None and first_order and only is None:
+    if driven["actual"] is not None and first_order and "power_reference_W" in out:
         light_of = lambda p, q: attitude_light(sun, dni, up, p, q, distance, h, conf)  # noqa: E731
         out.update(_first_order_stepping(light_of, attitudes["reference"], axis, out, driven))
     return out
@@ -268,17 +210,56 @@ def _first_order_stepping(light_of, reference, axis: str, out: dict, driven: dic
     }
 
 
+_EVERY = ("ideal", "shared", "reference", "actual", "first_order")
+
+#: What each of :func:`light_figures`' figures takes: the attitudes whose light it integrates (a driven
+#: primary has no ``shared``) and ``first_order``, the stepping's first-order terms.
+FIGURE_NEEDS: dict[str, tuple[str, ...]] = {
+    "light_energy_ideal_J": ("ideal",),
+    "light_energy_reference_J": ("reference",),
+    "light_lost_shared_primary_J": ("ideal", "shared"),
+    "light_lost_reference_law_J": ("ideal", "shared", "reference"),
+    "light_lost_stowed_J": ("ideal", "actual"),
+    "light_lost_stowed_share": ("ideal", "actual"),
+    "light_energy_J": ("actual",),
+    **dict.fromkeys(
+        ("light_lost_stepping_J", "light_lost_stepping_fraction", "light_stepping_change_J"), ("reference", "actual")
+    ),
+    **dict.fromkeys(
+        ("light_stepping_first_order_J", "light_stepping_first_order_cosine_J", "light_stepping_mean_error_rad"),
+        ("reference", "actual", "first_order"),
+    ),
+    **dict.fromkeys(
+        ("light_lost_J", "light_lost_fraction", "mean_intercept", "max_transverse_miss_m", "max_longitudinal_miss_m"),
+        ("ideal", "actual"),
+    ),
+    "dni_source": (),
+    "light_notes": _EVERY,  # (:func:`light_notes`: of the figures above)
+}
+
+
 class LightIntegrals:
     """:func:`light_figures` accumulated over a trace's rows taken in blocks, in time order
     (each block a frame with :func:`light_timeseries`'s columns): trapezoids carried across the
     blocks by the previous block's last row, the intercept's weighted sums, the largest misses.
     It holds one block's rows (``max_block_rows``, the largest block) and nothing that grows with
     the trace. ``weather``: see :func:`light_timeseries`. ``first_order=False``: without the
-    stepping's first-order terms (their figures None; two attitudes' light fewer at every row)."""
+    stepping's first-order terms (their figures None; two attitudes' light fewer at every row).
+    ``wanted``: the names of the figures to compute (:data:`FIGURE_NEEDS`; None: all), the light of
+    the attitudes they need alone computed at the rows (each figure the same bit for bit as among all)."""
 
-    def __init__(self, metadata: Mapping, scenario, weather=None, first_order: bool = True):
+    def __init__(
+        self, metadata: Mapping, scenario, weather=None, first_order: bool = True, wanted: Collection[str] | None = None
+    ):
         self.metadata, self.scenario = metadata, scenario
+        self.wanted = None if wanted is None else frozenset(wanted)
+        unknown = sorted(set(self.wanted or ()) - set(FIGURE_NEEDS))
+        if unknown:
+            raise ValueError(f"no light figures {unknown}: the light figures are {sorted(FIGURE_NEEDS)}")
+        needs = set(_EVERY) if self.wanted is None else {n for name in self.wanted for n in FIGURE_NEEDS[name]}
         self.first_order = first_order
+        self._first_order_rows = first_order and "first_order" in needs
+        self._attitudes = needs - {"first_order"}
         self._weather = _weather(scenario, weather)
         self._origin: float | None = None
         self._previous: dict | None = None  # the last row so far: time and power of each attitude
@@ -290,26 +271,24 @@ class LightIntegrals:
         self._window_grid: dict | None = None  # sun_grid over the whole window, from the first row
         self._marks = RowMarks(self.metadata.get("drive", {}).get("step_times", []))  # the rows' side (light_rows)
 
-    def _whole_window_grid(self, origin: float) -> dict | None:
-        """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the
-        window's end, computed once (per block it would pay pvlib's fixed overheads each time); None
-        when the first row is at or past the window's end. A block past it computes its own points."""
-        start, end = self.scenario.window_bounds()
-        duration = (end - start).total_seconds()
-        if not duration > origin:
-            return None
-        _, last = _grid_span(np.array([duration]), origin)
-        return sun_grid(origin + np.arange(last + 1) * SUN_GRID_S, self.metadata, self.scenario, self._weather)
-
     def __call__(self, block: pd.DataFrame) -> None:
         if not len(block):
             return
         seconds = block["time"].to_numpy(dtype=float)
         if self._origin is None:
             self._origin = float(seconds[0])
-            self._window_grid = self._whole_window_grid(self._origin)
+            start, end = self.scenario.window_bounds()
+            duration = (end - start).total_seconds()
+            self._window_grid = window_sun_grid(self._origin, duration, self.metadata, self.scenario, self._weather)
         series = _light_rows(
-            block, self.metadata, self.scenario, self._weather, self._origin, self._window_grid, self.first_order
+            block,
+            self.metadata,
+            self.scenario,
+            self._weather,
+            self._origin,
+            self._window_grid,
+            self._first_order_rows,
+            self._attitudes,
         )
         powers = {key[len("power_") : -len("_W")]: value for key, value in series.items() if key.startswith("power_")}
         if "stepping_first_order_W" in series:
@@ -317,11 +296,13 @@ class LightIntegrals:
             powers["first_order_cosine"] = series["stepping_first_order_cosine_W"]
             # the error weighted by the power in time (rows cluster at the steps: a sum over rows is biased)
             powers["error_weighted"] = series["power_reference_W"] * series["driven_error_rad"]
-        if "intercept_actual" in series:  # the actual intercept weighted by the ideal power in time
+        if "intercept_actual" in series and "power_ideal_W" in series:
+            # the actual intercept weighted by the ideal power in time
             powers["intercept_weighted"] = series["power_ideal_W"] * series["intercept_actual"]
         spans = self.metadata.get("drive", {}).get("stowed_spans_s")
         stowed = None
-        if spans and "power_actual_W" in series:  # the light while stowed (off tracking, heliostep.drive.stow)
+        if spans and "power_actual_W" in series and "power_ideal_W" in series:
+            # the light while stowed (off tracking, heliostep.drive.stow)
             stowed = np.zeros(len(seconds), dtype=bool)
             for a, b in spans:
                 stowed |= (seconds >= a) & (seconds <= b)
@@ -336,7 +317,7 @@ class LightIntegrals:
                 power = np.concatenate([[self._previous[name]], power])
             self._energy[name] = self._energy.get(name, 0.0) + _energy(power, time)
         self._previous = {"time": float(seconds[-1]), **{n: float(p[-1]) for n, p in powers.items()}}
-        if "power_actual_W" in series:
+        if "power_actual_W" in series and "power_ideal_W" in series:
             weight = series["power_ideal_W"]
             lit = weight > 0
             self._lit += int(np.count_nonzero(lit))
@@ -356,7 +337,7 @@ class LightIntegrals:
         def slopes(marked: np.ndarray) -> dict:
             rows = block.iloc[np.repeat(marked, 3)].copy()  # each row turned by +, 0 and - COSINE_STEP, in order
             rows[panel] = rows[panel].to_numpy(dtype=float) + np.tile([COSINE_STEP, 0.0, -COSINE_STEP], len(marked))
-            power = self._light_at(rows, only="actual")["power_actual_W"]
+            power = self._light_at(rows, ("actual",))["power_actual_W"]
             up, at, down = power[0::3], power[1::3], power[2::3]
             actual = (up - down) / (2.0 * COSINE_STEP)  # the actual attitude's slope in its angle, its curvature
             out = {"actual": actual, "actual''": (up - 2.0 * at + down) / COSINE_STEP**2}
@@ -371,17 +352,18 @@ class LightIntegrals:
 
         self._marks(seconds, error, reference, slopes)
 
-    def _light_at(self, rows: pd.DataFrame, only: str | None = None) -> dict:
+    def _light_at(self, rows: pd.DataFrame, attitudes: Collection[str]) -> dict:
         """:func:`_light_rows` of a few rows besides the trace's (turned, the swing's), on the window's sun grid."""
         origin = 0.0 if self._origin is None else self._origin
-        return _light_rows(rows, self.metadata, self.scenario, self._weather, origin, self._window_grid, False, only)
+        grid = self._window_grid
+        return _light_rows(rows, self.metadata, self.scenario, self._weather, origin, grid, False, attitudes)
 
     def _swing_misses(self, solution: Mapping | None) -> dict[str, float]:
         """The actual attitude's largest misses (lit) at the solution's swing (:func:`.light_rows.swing_rows`)."""
         rows = swing_rows(solution, self.metadata.get("roles", {}).get("panel_angle"))
         if rows is None:
             return {}
-        series = self._light_at(rows)
+        series = self._light_at(rows, ("ideal", "actual"))
         lit = series["power_ideal_W"] > 0  # lit as the rows are: by the ideal attitude
         if not lit.any():
             return {}
@@ -424,12 +406,21 @@ class LightIntegrals:
             figures["light_lost_fraction"] = (ideal - actual) / ideal if ideal > 0 else 0.0
             intercepted = energy.get("intercept_weighted", 0.0)
             figures["mean_intercept"] = intercepted / ideal if ideal > 0 else None
-            swing = self._swing_misses(solution)  # the rows' largest misses, or larger ones at the swing
+            # the rows' largest misses, or larger ones at the swing
+            swing = (
+                self._swing_misses(solution) if self._wants("max_transverse_miss_m", "max_longitudinal_miss_m") else {}
+            )
             for key, value in self._max_miss.items():
                 figures[f"max_{key}_miss_m"] = float(np.fmax(value, swing.get(key, np.nan))) if self._lit else None
         figures["dni_source"] = str(self.scenario.optics.weather_file or "clear sky (Ineichen-Perez, pvlib)")
-        figures["light_notes"] = light_notes(figures, self.scenario.mirror.axis, self.scenario.mirror.mirror_distance)
-        return figures
+        if self._wants("light_notes"):
+            figures["light_notes"] = light_notes(
+                figures, self.scenario.mirror.axis, self.scenario.mirror.mirror_distance
+            )
+        return figures if self.wanted is None else {name: v for name, v in figures.items() if name in self.wanted}
+
+    def _wants(self, *names: str) -> bool:
+        return self.wanted is None or not self.wanted.isdisjoint(names)
 
 
 def _energy(power: np.ndarray, time: np.ndarray) -> float:
