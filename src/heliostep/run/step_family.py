@@ -360,6 +360,6 @@ def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> float:
     )
     drive = {**drive_metadata(inputs), "step_times": []}  # no solver steps to correct the rows with
     metadata = {"window_start": inputs.window_start.isoformat(), "roles": roles, "drive": drive}
-    light = LightIntegrals(metadata, scenario, first_order=False)
+    light = LightIntegrals(metadata, scenario, first_order=False, wanted=["light_energy_J"])
     light(trace)
     return float(light.figures()["light_energy_J"])
