@@ -83,6 +83,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="run even when the folder's results.parquet holds another sweep's rows, dropping them (refused otherwise)",
     )
+    _add_family_options(parser)
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--list", action="store_true", help="list the cases and whether each is done; run nothing")
+    parser.set_defaults(func=_run_command)
+
+
+def _add_family_options(parser: argparse.ArgumentParser) -> None:
+    """``--exact``, ``--certify`` and ``--seed``: how the step families compose the cases (docs/sweep.md)."""
     parser.add_argument(
         "--exact",
         action="store_true",
@@ -99,9 +107,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--seed", type=int, default=0, metavar="N", help="seed of the certificate's random cases (default: 0)"
     )
-    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    parser.add_argument("--list", action="store_true", help="list the cases and whether each is done; run nothing")
-    parser.set_defaults(func=_run_command)
 
 
 def _run_command(args: argparse.Namespace) -> int:

@@ -260,39 +260,27 @@ def execute_cases(
 ) -> SweepOutcome:
     """Run the cases not yet in the results table on Dask, writing each row as it finishes.
 
-    Cases that share a drive are composed from its step family and certified against full co-simulations
-    of a sample of them (:mod:`heliostep.sweep.composed`); ``exact`` co-simulates every case in full.
-
     Parameters
     ----------
     cases : sequence of SweepCase
         From :func:`expand_cases` (validated).
     results_path : str or Path
         The Parquet table; its part files go to ``<results_path>.parts/``.
-    client : distributed.Client, optional
-        Use this client (and its cluster) as it is.
-    scheduler : str, optional
-        Else connect to this scheduler (``tcp://HOST:PORT``); else start a local cluster.
-    n_workers : int, optional
-        Workers of the local cluster; default: the cores of this machine.
-    connect_timeout : float, default 5  [s]
-        How long to try reaching ``scheduler``.
-    retry_failed : bool, default False
-        Run again the cases whose row says "failed" (they are skipped otherwise).
-    progress : bool, default False
-        Show a progress bar (cases done / failed / remaining) when stderr is a terminal and ``CI`` is not set.
-    on_result : callable, optional
-        Called in the client with each finished case's row.
+    client, scheduler, n_workers, connect_timeout
+        Use ``client`` (and its cluster) as it is; else connect to ``scheduler`` (``tcp://HOST:PORT``, trying for
+        ``connect_timeout`` [s], default 5); else start a local cluster of ``n_workers`` (default: the cores).
+    retry_failed, replace : bool, default False
+        Run again the cases whose row says "failed" (else skipped); run even when the table holds another
+        sweep's rows, dropping them (else refused).
+    progress, on_result
+        A progress bar (cases done / failed / remaining) when stderr is a terminal and ``CI`` is not set; a
+        callable given each finished case's row, in the client.
     metadata : Mapping, optional
         Stored in the table's Parquet metadata (``heliostep.sweep``): the sweep's identity.
-    replace : bool, default False
-        Run even when the table holds another sweep's rows (they are dropped); refused otherwise.
-    exact : bool, default False
-        Co-simulate every case in full (no step families).
-    certify : int, default :data:`~heliostep.sweep.composed.CERTIFICATE_CASES`
-        Cases co-simulated in full to certify the composed ones (each family's share, at least two).
-    seed : int, default 0
-        Draws the certificate's cases.
+    exact, certify, seed
+        Co-simulate every case in full (``exact``), else compose each drive's cases from its step family,
+        certified by ``certify`` cases (default 20, two a family at least) drawn by ``seed`` and run in full
+        (:mod:`heliostep.sweep.composed`).
 
     Returns
     -------
@@ -303,14 +291,14 @@ def execute_cases(
     InputError
         Before any case runs: a table of another sweep's rows, an FMU not found or built, no scheduler.
     """
+    if certify < 1:
+        raise InputError(f"certify: expected at least 1 case, got {certify}")
     results_path, metadata = Path(results_path), dict(metadata or {})
     check_results_owner(results_path, metadata, replace)
     cases, payloads = _ship_fmus(cases)
     if client is None and scheduler:
         _probe_scheduler(scheduler, connect_timeout)
     table, to_run = _table_and_cases_to_run(cases, results_path, metadata, retry_failed)
-    if certify < 1:
-        raise InputError(f"certify: expected at least 1 case, got {certify}")
     dask = _DaskSettings(client, scheduler, n_workers, connect_timeout, progress, on_result, exact, certify, seed)
     table, executed = _run_and_consolidate(to_run, cases, payloads, results_path, metadata, table, dask)
     failed, skipped = int((table["status"] == "failed").sum()), len(cases) - len(to_run)
