@@ -265,7 +265,7 @@ def execute_cases(
     cases : sequence of SweepCase
         From :func:`expand_cases` (validated).
     results_path : str or Path
-        The Parquet table; its part files go to ``<results_path>.parts/``.
+        The Parquet table (its part files: ``<results_path>.parts/``).
     client, scheduler, n_workers, connect_timeout
         Use ``client`` (and its cluster) as it is; else connect to ``scheduler`` (``tcp://HOST:PORT``, trying for
         ``connect_timeout`` [s], default 5); else start a local cluster of ``n_workers`` (default: the cores).
@@ -273,14 +273,12 @@ def execute_cases(
         Run again the cases whose row says "failed" (else skipped); run even when the table holds another
         sweep's rows, dropping them (else refused).
     progress, on_result
-        A progress bar (cases done / failed / remaining) when stderr is a terminal and ``CI`` is not set; a
-        callable given each finished case's row, in the client.
+        A progress bar when stderr is a terminal and ``CI`` is not set; a callable given each finished row.
     metadata : Mapping, optional
         Stored in the table's Parquet metadata (``heliostep.sweep``): the sweep's identity.
     exact, certify, seed
-        Co-simulate every case in full (``exact``), else compose each drive's cases from its step family,
-        certified by ``certify`` cases (default 20, two a family at least) drawn by ``seed`` and run in full
-        (:mod:`heliostep.sweep.composed`).
+        Every case in full (``exact``), else each drive's cases composed from its step family, certified by
+        ``certify`` cases drawn by ``seed`` and run in full (:mod:`heliostep.sweep.composed`).
 
     Returns
     -------
