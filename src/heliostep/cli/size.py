@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from heliostep.cli.signals import stop_requests
+from heliostep.cli.sweep import add_family_options
 
 #: The defaults of heliostep.sizing.size (imported when the command runs: every command's start stays short).
 ALL_DAYS = "all"
@@ -96,6 +97,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="N",
         help="refuse a sizing of more cases than this, before any runs (default: as many as a sweep may have)",
     )
+    add_family_options(parser)
     parser.add_argument("--out", default=None, help="output folder (default out/<scenario>-sizing)")
     parser.add_argument("--scheduler", default=None, metavar="ADDR", help="Dask scheduler (tcp://HOST:PORT)")
     parser.set_defaults(func=main)
@@ -148,7 +150,17 @@ def main(args: argparse.Namespace) -> int:
     )
     out = out_name or Path("out") / f"{plan.scenario.name}-sizing"
     with stop_requests() as stop:
-        sheet = size(plan, out, scheduler=args.scheduler, progress=True, should_stop=stop.is_set, catalogue=catalogue)
+        sheet = size(
+            plan,
+            out,
+            scheduler=args.scheduler,
+            progress=True,
+            should_stop=stop.is_set,
+            catalogue=catalogue,
+            exact=args.exact,
+            certify=args.certify,
+            seed=args.seed,
+        )
     best = sheet["smallest_passing"]
     print(f"sizing sheet: {out / 'sizing.html'}, {out / 'sizing.json'}")
     if not sheet["complete"]:

@@ -34,7 +34,7 @@ from heliostep.sweep import (
 from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES
 from heliostep.sweep.local_worker import silence_distributed_logs
 
-__all__ = ["register"]
+__all__ = ["add_family_options", "register"]
 
 RESULTS_FILE = "results.parquet"
 
@@ -83,14 +83,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="run even when the folder's results.parquet holds another sweep's rows, dropping them (refused otherwise)",
     )
-    _add_family_options(parser)
+    add_family_options(parser)
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--list", action="store_true", help="list the cases and whether each is done; run nothing")
     parser.set_defaults(func=_run_command)
 
 
-def _add_family_options(parser: argparse.ArgumentParser) -> None:
-    """``--exact``, ``--certify`` and ``--seed``: how the step families compose the cases (docs/sweep.md)."""
+def _case_count(text: str) -> int:
+    """``--certify``: a whole number of cases, at least one."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number of cases >= 1")
+    return value
+
+
+def add_family_options(parser: argparse.ArgumentParser) -> None:
+    """``--exact``, ``--certify`` and ``--seed``: how the step families compose the cases (docs/sweep.md);
+    ``heliostep size`` takes them too."""
     parser.add_argument(
         "--exact",
         action="store_true",
@@ -99,7 +111,7 @@ def _add_family_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--certify",
-        type=int,
+        type=_case_count,
         default=CERTIFICATE_CASES,
         metavar="N",
         help=f"cases run in full to certify the composed ones, spread over the sweep (default: {CERTIFICATE_CASES})",
@@ -112,8 +124,6 @@ def _add_family_options(parser: argparse.ArgumentParser) -> None:
 def _run_command(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers must be >= 1, got {args.workers}")
-    if args.certify < 1:
-        raise InputError(f"--certify must be >= 1 case, got {args.certify}")
     if args.connect_timeout <= 0:
         raise InputError(f"--connect-timeout must be > 0 s, got {args.connect_timeout}")
     out_name = check_out_name(str(args.out)) if args.out is not None else None  # "" refused before anything

@@ -25,6 +25,7 @@ from heliostep.cosim import SimulationError
 from heliostep.drive.inputs import DriveInputs, implied_parameters, prepare_inputs
 from heliostep.drive.sequencer import PATTERNS, StepSchedule
 from heliostep.results.figures.solution import SolutionRecorder
+from heliostep.results.figures.tradeoffs import energy_per_day
 from heliostep.results.light.on_tube import LightIntegrals
 from heliostep.results.trace.frame import drive_metadata
 from heliostep.run.bindings import parameters
@@ -47,6 +48,8 @@ FAMILY_ANGLES_DEG = np.linspace(-60.0, 60.0, 25)
 STEP_AT, WINDOW = 0.02, 1.0
 #: The light on the tube composed on the case's output grid taken every this many seconds.
 LIGHT_EVERY = 10.0
+#: The light figures a composed case carries (:class:`~heliostep.results.light.on_tube.LightIntegrals`'s).
+LIGHT_FIGURES = ("light_energy_J", "light_energy_ideal_J", "light_lost_J")
 #: A reversal's start that sits off the family's settled detent by more than this share of a step falls back.
 REVERSAL_OFFSET = 0.01
 _FIELDS = tuple("peak_torque peak_current energy overshoot overshoot_time rest slip missed lost failed ring".split())
@@ -102,9 +105,9 @@ class StepFamily:
 
 @dataclasses.dataclass(frozen=True)
 class ComposedCase:
-    """A case's figures composed from its family (peak torque and phase current, electrical energy, maximum
-    tracking error, light on the tube, steps missed, lost, commanded and executed, the duration), or
-    ``fallback``: why the case must be run in full."""
+    """A case's figures composed from its family (peak torque and phase current, electrical energy and the
+    drive's energy per day, maximum tracking error, light on the tube and with ideal tracking, steps missed,
+    lost, commanded and executed, the duration), or ``fallback``: why the case must be run in full."""
 
     figures: dict
     fallback: str | None = None
@@ -287,13 +290,16 @@ def compose_case(
         "peak_phase_current_A": float(at["peak_current"].max(initial=0.0)),
         "electrical_energy_J": holding + float(at["energy"].sum()),
         "max_tracking_error_deg": _max_tracking_error(inputs, commanded, panel, at, direction),
-        "light_energy_J": _light(scenario, inputs, panel),
+        **_light(scenario, inputs, panel),
         "missed_steps": missed,
         "steps_lost": int(np.rint(at["lost"]).sum()),
         "steps_commanded": len(schedule),
         "steps_executed": len(schedule) - missed,
         "duration_s": inputs.duration,
+        "stowed_time_s": 0.0,  # a family's case has no stow move (no wind speed)
+        "light_lost_stowed_J": 0.0,
     }
+    figures.update(energy_per_day(figures, scenario))
     return ComposedCase(figures)
 
 
@@ -347,8 +353,8 @@ def _max_tracking_error(inputs: DriveInputs, commanded, panel, at: dict, directi
     return float(np.degrees(np.abs(errors).max()))
 
 
-def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> float:
-    """``light_energy_J`` as a run's figures give it (no first-order terms) on the panel at rest, on the
+def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> dict:
+    """:data:`LIGHT_FIGURES` as a run's figures give them (no first-order terms) on the panel at rest, on the
     case's output grid every :data:`LIGHT_EVERY` seconds and its last row."""
     roles = scenario.resolved_roles()
     grid = inputs.output_times
@@ -360,6 +366,7 @@ def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> float:
     )
     drive = {**drive_metadata(inputs), "step_times": []}  # no solver steps to correct the rows with
     metadata = {"window_start": inputs.window_start.isoformat(), "roles": roles, "drive": drive}
-    light = LightIntegrals(metadata, scenario, first_order=False, wanted=["light_energy_J"])
+    light = LightIntegrals(metadata, scenario, first_order=False, wanted=LIGHT_FIGURES)
     light(trace)
-    return float(light.figures()["light_energy_J"])
+    figures = light.figures()
+    return {name: float(figures[name]) for name in LIGHT_FIGURES}

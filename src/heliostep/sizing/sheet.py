@@ -22,6 +22,7 @@ from heliostep.results.output.folder import check_foreign, hold_folder, staging_
 from heliostep.results.output.rescue import rescue_folder, write_text_parts
 from heliostep.sizing.plan import SizingPlan
 from heliostep.sizing.size import judge_candidates, run_sizing_cases
+from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES
 
 __all__ = ["SIZING_FILES", "SheetNotWritten", "size"]
 
@@ -60,15 +61,26 @@ def size(
     should_stop: Callable[[], bool] | None = None,
     catalogue: str = "",
     on_case: Callable[[str, dict], None] | None = None,
+    exact: bool = False,
+    certify: int = CERTIFICATE_CASES,
+    seed: int = 0,
 ) -> dict:
-    """Run the plan's cases, judge every candidate and write the sheet into ``out_dir``; the sheet."""
+    """Run the plan's cases (``exact``, ``certify``, ``seed``: :func:`~heliostep.sizing.size.run_sizing_cases`),
+    judge every candidate and write the sheet into ``out_dir``; the sheet."""
     from heliostep.plots.sizing import sizing_html  # here: matplotlib only when a sheet is drawn
 
     folder = check_out_dir(out_dir)
     with hold_folder(folder):
         check_foreign(folder, SIZING_FILES)
         results = run_sizing_cases(
-            plan, scheduler=scheduler, progress=progress, should_stop=should_stop, on_case=on_case
+            plan,
+            scheduler=scheduler,
+            progress=progress,
+            should_stop=should_stop,
+            on_case=on_case,
+            exact=exact,
+            certify=certify,
+            seed=seed,
         )
         stopped = len(results) < len(plan.cases)
         sheet = judge_candidates(plan, results, curves=not stopped, should_stop=should_stop)
@@ -85,6 +97,7 @@ def size(
             "complete": not stopped,
             "finished_cases": [case.key for case in plan.cases if case.key in results],
             "unfinished_cases": [case.key for case in plan.cases if case.key not in results],
+            "composition": composition_record(list(results.values())),
             **sheet,
         }
         record = json.dumps(_json_safe(sheet), indent=1) + "\n"
@@ -118,3 +131,23 @@ def _rescue(name: str, record: str) -> Path | None:
     except OSError:
         return None
     return folder
+
+
+def composition_record(records: list[dict]) -> dict:
+    """How the day cases were made: their count by method (``full``, ``composed`` from the drive's step
+    family, ``certificate``), and per certified figure the largest deviation on the certificate's cases with
+    its tolerance (none without composed cases)."""
+    methods: dict[str, int] = {}
+    for record in records:
+        methods[record.get("method") or "full"] = methods.get(record.get("method") or "full", 0) + 1
+    certified = [record for record in records if record.get("method") == "certificate"]
+    deviations = {
+        name: {
+            "max_deviation": max(
+                (value for record in certified if (value := record[f"deviation_{name}"]) == value), default=None
+            ),  # a certificate case that failed (nan) fails its family, whose days then ran in full
+            "tolerance": tolerance,
+        }
+        for name, tolerance in CERTIFIED_FIGURES.items()
+    }
+    return {"methods": methods, "certificate": deviations if methods.get("composed") else {}}

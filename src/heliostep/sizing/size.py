@@ -25,6 +25,7 @@ from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_i
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
+from heliostep.sizing.composed import CASE_FIGURES, compose_days
 from heliostep.sizing.days import date_of, select_days
 from heliostep.sizing.inputs import check_wind_given, file_digest, sizing_inputs
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario, check_case_count, check_cases
@@ -32,6 +33,7 @@ from heliostep.sizing.pool import CurveTask, on_every_core
 from heliostep.sizing.stow import stow_angles, stow_step_rates
 from heliostep.sizing.verdict import judge
 from heliostep.sweep.band import load_ranges
+from heliostep.sweep.certificate import CERTIFICATE_CASES
 from heliostep.sweep.spec import MAX_CASES
 from heliostep.sweep.worker import FmuPayload, _local_fmu
 
@@ -260,23 +262,8 @@ def run_sizing_case(
             return {"interrupted": True}
         return {"complete": False, "error": str(failed)[:500], "wall_time_s": clock.perf_counter() - started}
     figures = dict(result.summary or {})
-    keep = (
-        "max_tracking_error_deg",
-        "steps_commanded",
-        "missed_steps",
-        "steps_lost",
-        "electrical_energy_J",
-        "drive_energy_per_day_J",
-        "drive_power_mean_W",
-        "peak_torque_Nm",
-        "light_energy_ideal_J",
-        "light_energy_J",
-        "light_lost_J",
-        "light_lost_stowed_J",
-        "stowed_time_s",
-    )
-    record = {key: figures.get(key) for key in keep}
-    record.update(complete=True, wall_time_s=clock.perf_counter() - started)
+    record = {key: figures.get(key) for key in CASE_FIGURES}
+    record.update(complete=True, wall_time_s=clock.perf_counter() - started, method="full")
     return record
 
 
@@ -287,33 +274,47 @@ def run_sizing_cases(
     progress: bool = False,
     should_stop: Callable[[], bool] | None = None,
     on_case: Callable[[str, dict], None] | None = None,
+    exact: bool = False,
+    certify: int = CERTIFICATE_CASES,
+    seed: int = 0,
 ) -> dict[str, dict]:
-    """Run the plan's cases (on Dask with ``scheduler``, else here, one after another); case key ->
-    its record. Stopped part-way, it returns the cases finished so far. ``on_case(key, record)`` is
-    called as each case finishes."""
+    """Run the plan's cases: those step families compose here (:func:`heliostep.sizing.composed.compose_days`,
+    certified by ``certify`` cases drawn by ``seed``; ``exact``: none), the rest co-simulated (on Dask with
+    ``scheduler``, else here, one after another); case key -> its record. Stopped part-way, it returns the
+    cases finished so far. ``on_case(key, record)`` is called as each case finishes."""
     results: dict[str, dict] = {}
     bar = progress_bar(len(plan.cases), "sizing cases", "case", progress)
     source, folder = plan.scenario.source, str(plan.folder)
+
+    def finished(case: SizingCase, record: dict) -> None:
+        results[case.key] = record
+        bar.update(1)
+        if on_case is not None:
+            on_case(case.key, record)
+
+    def in_full(case: SizingCase) -> dict:
+        return run_sizing_case(plan.raw, case.overrides, source, folder, should_stop, plan.fmu_paths)
+
     try:
+        left: list[tuple[SizingCase, str | None]] = [(case, None) for case in plan.cases]
+        if not exact:
+            left = list(compose_days(plan, in_full, finished, should_stop, certify, seed))
         if scheduler:
-            _run_on_dask(plan, scheduler, results, bar, should_stop, on_case)
+            _run_on_dask(plan, left, scheduler, results, bar, should_stop, on_case)
             return results
-        for case in plan.cases:
+        for case, reason in left:
             if should_stop is not None and should_stop():
                 break
-            record = run_sizing_case(plan.raw, case.overrides, source, folder, should_stop, plan.fmu_paths)
+            record = in_full(case)
             if record.get("interrupted"):
                 break
-            results[case.key] = record
-            bar.update(1)
-            if on_case is not None:
-                on_case(case.key, record)
+            finished(case, {**record, "fallback": reason})
     finally:
         bar.close()
     return results
 
 
-def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_stop, on_case) -> None:
+def _run_on_dask(plan: SizingPlan, left, scheduler: str, results: dict, bar, should_stop, on_case) -> None:
     """The cases on the scheduler's workers, collected as they finish; the rest cancelled on a stop."""
     from distributed import as_completed
 
@@ -327,17 +328,19 @@ def _run_on_dask(plan: SizingPlan, scheduler: str, results: dict, bar, should_st
     with _dask_client(scheduler=scheduler) as client:
         [shipped] = client.scatter([payloads], broadcast=True)
         futures = {
-            client.submit(
-                run_sizing_case, plan.raw, case.overrides, source, folder, None, None, shipped, pure=False
-            ): case
-            for case in plan.cases
+            client.submit(run_sizing_case, plan.raw, case.overrides, source, folder, None, None, shipped, pure=False): (
+                case,
+                reason,
+            )
+            for case, reason in left
         }
         for future in as_completed(list(futures)):
             if should_stop is not None and should_stop():
                 client.cancel(list(futures))
                 break
-            key = futures[future].key
-            results[key] = future.result()
+            case, reason = futures[future]
+            key = case.key
+            results[key] = {**future.result(), "fallback": reason}
             bar.update(1)
             if on_case is not None:
                 on_case(key, results[key])

@@ -21,6 +21,7 @@ CERTIFIED_FIGURES = {
     "electrical_energy_J": 1e-3,
     "max_tracking_error_deg": 1e-2,
     "light_energy_J": 1e-3,
+    "light_energy_ideal_J": 1e-3,
     "missed_steps": 0.0,
     "steps_lost": 0.0,
 }
@@ -64,3 +65,31 @@ def failed_figures(rows: Sequence[Mapping]) -> list[str]:
         if not values or any(v is None or not np.isfinite(v) or v > tolerance for v in values):
             failed.append(name)
     return failed
+
+
+#: A family is built when the cases it would compose hold more window than this [s]: a family costs about as
+#: much CPU as 3.4 hours of a day's co-simulation (benchmarks/bench_sweep.py --full-day), so fewer would be
+#: composed at a loss.
+FAMILY_WORTH_S = 4 * 3600.0
+
+
+def certificate_sample(groups: Mapping[str, Sequence[float]], certify: int = CERTIFICATE_CASES, seed: int = 0) -> dict:
+    """Per group (key -> its cases' window durations [s], in sweep order) the positions of its certificate's
+    cases: its share of ``certify``, at least two, one at random in each of as many equal runs of its cases
+    (so spread over the sweep), drawn by ``seed``; None for a group whose other cases hold no more than
+    :data:`FAMILY_WORTH_S` of window (it runs in full)."""
+    total = sum(len(durations) for durations in groups.values())
+    random = np.random.default_rng(seed)
+    sample: dict = {}
+    for key, durations in groups.items():
+        count = max(2, int(np.ceil(certify * len(durations) / total)))
+        picked = [int(random.choice(run)) for run in np.array_split(np.arange(len(durations)), count)]
+        composed = sum(durations) - sum(durations[k] for k in set(picked) if k < len(durations))
+        sample[key] = picked if len(durations) > count and composed > FAMILY_WORTH_S else None
+    return sample
+
+
+def window_seconds(scenario) -> float:
+    """A case's window [s] (:meth:`heliostep.scenario.Scenario.window_bounds`)."""
+    start, end = scenario.window_bounds()
+    return (end - start).total_seconds()

@@ -16,12 +16,16 @@ import socket
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 
-import numpy as np
-
 from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.step_family import StepFamily, build_family, compose_case, family_key, not_composable
 from heliostep.scenario import Scenario, validate_scenario
-from heliostep.sweep.certificate import CERTIFICATE_CASES, certified_row, failed_figures
+from heliostep.sweep.certificate import (
+    CERTIFICATE_CASES,
+    certificate_sample,
+    certified_row,
+    failed_figures,
+    window_seconds,
+)
 from heliostep.sweep.spec import SweepCase
 from heliostep.sweep.store import FIGURE_COLUMNS
 from heliostep.sweep.worker import (
@@ -52,29 +56,26 @@ class FamilyPlan:
 
 
 def plan_families(cases: Sequence[SweepCase], certify: int = CERTIFICATE_CASES, seed: int = 0) -> FamilyPlan:
-    """Group ``cases`` (FMUs shipped: ``fmu_sha256`` set) by drive and draw each group's certificate: its
-    share of ``certify`` cases, at least two, one at random in each of as many equal runs of its cases in
-    sweep order (so spread over the days and mirrors), by ``seed``. A group no bigger than its certificate
-    runs in full, as does a case :func:`~heliostep.run.step_family.not_composable` refuses."""
+    """Group ``cases`` (FMUs shipped: ``fmu_sha256`` set) by drive and draw each group's certificate
+    (:func:`~heliostep.sweep.certificate.certificate_sample`); a group too small for a family to pay runs in
+    full, as does a case :func:`~heliostep.run.step_family.not_composable` refuses."""
     full: dict[str, str] = {}
-    groups: dict[str, list[SweepCase]] = {}
+    groups: dict[str, list] = {}
     for case in cases:
         scenario = validate_scenario(case.scenario, source=case.source, folder=case.folder)
         reason = not_composable(scenario)
         if reason is not None:
             full[case.case_id] = reason
         else:
-            groups.setdefault(family_key(scenario, case.fmu_sha256), []).append(case)
-    composable = sum(len(group) for group in groups.values())
-    random = np.random.default_rng(seed)
+            groups.setdefault(family_key(scenario, case.fmu_sha256), []).append((case, window_seconds(scenario)))
+    sample = certificate_sample({key: [d for _, d in group] for key, group in groups.items()}, certify, seed)
     families, certificate = {}, {}
-    for key, group in groups.items():
-        count = max(2, int(np.ceil(certify * len(group) / composable)))
-        if len(group) <= count:
-            full.update({case.case_id: "a family no bigger than its certificate" for case in group})
-            continue
-        runs = np.array_split(np.arange(len(group)), count)
-        families[key], certificate[key] = group, [group[int(random.choice(run))] for run in runs]
+    for key, pairs in groups.items():
+        group = [case for case, _ in pairs]
+        if sample[key] is None:
+            full.update({case.case_id: "too few cases for a family to pay" for case in group})
+        else:
+            families[key], certificate[key] = group, [group[k] for k in sample[key]]
     return FamilyPlan(full, families, certificate)
 
 
