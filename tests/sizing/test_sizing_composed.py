@@ -21,7 +21,7 @@ def test_a_candidates_days_composed_are_its_days_in_full(fmu_paths):
     candidate = dataclasses.replace(candidate, currents=(candidate.currents[-1],))
     overrides = ["window.start=10:00", "window.duration=7200"]
     plan = plan_sizing(SCENARIO, [candidate], design_gust=20.0, days=DAYS, overrides=overrides, band_days=False)
-    composed = run_sizing_cases(plan, certify=2)
+    composed = run_sizing_cases(plan, certify=2)  # its one family in a pool process
     exact = run_sizing_cases(plan, exact=True)
     assert composition_record(list(exact.values()))["methods"] == {"full": 5}
     record = composition_record(list(composed.values()))

@@ -1,20 +1,25 @@
 """A sizing's day cases composed from step families (:mod:`heliostep.run.step_family`), certified.
 
 The cases of one candidate at one current (and at the band's corner) share a drive, so a family; each
-family's days are composed from it, and a sample of them, spread over the days, is also co-simulated in
-full: its records carry each certified figure's deviation. A family whose certificate exceeds a tolerance,
-or that cannot be built, has its days co-simulated in full, as has a day that leaves what a family assumes.
+family's days are composed from it in a process of the pool (:mod:`heliostep.sizing.pool`), and a sample of
+them, spread over the days, is also co-simulated in full: its records carry each certified figure's
+deviation. A family whose certificate exceeds a tolerance, or that cannot be built, has its days
+co-simulated in full, as has a day that leaves what a family assumes.
 The same rules as a sweep's (:mod:`heliostep.sweep.composed`); method: docs/sweep.md.
 """
 
 from __future__ import annotations
 
 import time as clock
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
 
 from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.step_family import build_family, compose_case, family_key, not_composable
+from heliostep.sizing.case import CASE_FIGURES, run_sizing_case
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario
+from heliostep.sizing.pool import on_every_core
 from heliostep.sweep.certificate import (
     CERTIFICATE_CASES,
     certificate_sample,
@@ -23,38 +28,21 @@ from heliostep.sweep.certificate import (
     window_seconds,
 )
 
-__all__ = ["CASE_FIGURES", "compose_days"]
-
-#: A day case's figures in the sheet's records.
-CASE_FIGURES = (
-    "max_tracking_error_deg",
-    "steps_commanded",
-    "missed_steps",
-    "steps_lost",
-    "electrical_energy_J",
-    "drive_energy_per_day_J",
-    "drive_power_mean_W",
-    "peak_torque_Nm",
-    "peak_phase_current_A",
-    "light_energy_ideal_J",
-    "light_energy_J",
-    "light_lost_J",
-    "light_lost_stowed_J",
-    "stowed_time_s",
-)
+__all__ = ["FamilyTask", "compose_days"]
 
 
 def compose_days(
     plan: SizingPlan,
-    run_full: Callable[[SizingCase], dict],
     on_record: Callable[[SizingCase, dict], None],
     should_stop: Callable[[], bool] | None = None,
     certify: int = CERTIFICATE_CASES,
     seed: int = 0,
+    workers: int | None = None,
 ) -> list[tuple[SizingCase, str]]:
-    """Compose the plan's cases that families can, here, one family after another: each record (with its
-    ``method`` and, on a certificate's, ``deviation_<figure>``) to ``on_record``; ``run_full(case)`` runs a
-    certificate's case in full. Returns the cases left to co-simulate in full, each with why."""
+    """Compose the plan's cases that families can, a family a task on every core
+    (:func:`heliostep.sizing.pool.on_every_core`; ``workers``: how many), each record (with its ``method`` and,
+    on a certificate's, ``deviation_<figure>``) to ``on_record`` as its family finishes. Returns the cases left
+    to co-simulate in full, each with why (those of families a stop kept from beginning among them)."""
     left: list[tuple[SizingCase, str]] = []
     groups: dict[str, list] = {}
     for case in plan.cases:
@@ -63,55 +51,73 @@ def compose_days(
         if reason is not None:
             left.append((case, reason))
         else:
-            groups.setdefault(family_key(scenario), []).append((case, scenario))
-    durations = {key: [window_seconds(scenario) for _, scenario in group] for key, group in groups.items()}
-    sample = certificate_sample(durations, certify, seed)
+            groups.setdefault(family_key(scenario), []).append((case, window_seconds(scenario)))
+    sample = certificate_sample({key: [d for _, d in group] for key, group in groups.items()}, certify, seed)
+    tasks = {}
     for key, group in groups.items():
-        if should_stop is not None and should_stop():
-            break
+        cases = tuple(case for case, _ in group)
         if sample[key] is None:
-            left += [(case, "too few cases for a family to pay") for case, _ in group]
-            continue
-        left += _compose_family(group, sample[key], run_full, on_record, should_stop)
+            left += [(case, "too few cases for a family to pay") for case in cases]
+        else:
+            tasks[key] = FamilyTask(
+                plan.raw, plan.scenario.source, str(plan.folder), plan.fmu_paths, cases, tuple(sample[key])
+            )
+
+    def done(key: str, outcome: tuple[list, list]) -> None:
+        records, fell_back = outcome
+        for case, record in records:
+            on_record(case, record)
+        left.extend(fell_back)
+
+    finished, _ = on_every_core(tasks, should_stop, workers, done)
+    for key, task in tasks.items():
+        if key not in finished:  # a stop kept it from beginning
+            left += [(case, "stopped before its family") for case in task.cases]
     return left
 
 
-def _compose_family(group, sample: Sequence[int], run_full, on_record, should_stop) -> list[tuple[SizingCase, str]]:
-    """One family's cases: its certificate run in full and compared, then (it holds) the rest composed and
-    recorded, or (it does not, or the family cannot be built) all of them left to run in full."""
-    try:
-        family = build_family(group[0][1], should_stop)
-    except InterruptedError:
-        return []
-    except Exception as exc:  # noqa: BLE001 - the days run in full, which reports what is wrong
-        return [(case, f"no family: {str(exc)[:200]}") for case, _ in group]
-    composed: dict[str, dict] = {}
-    left: list[tuple[SizingCase, str]] = []
-    for case, scenario in group:
-        if should_stop is not None and should_stop():
-            return left
-        started = clock.perf_counter()
-        composition = compose_case(scenario, family, prepare_inputs(scenario))
-        if composition.fallback is not None:
-            left.append((case, composition.fallback))
-            continue
-        figures = {name: composition.figures.get(name) for name in CASE_FIGURES}
-        composed[case.key] = {**figures, "complete": True, "wall_time_s": clock.perf_counter() - started}
-    certificate = []
-    for index in sample:
-        case = group[index][0]
-        if case.key not in composed:
-            continue  # fell back: run in full among the rest
-        full = run_full(case)
-        if full.get("interrupted"):
-            return left
-        certificate.append(certified_row(full, composed.pop(case.key)))
-        on_record(case, certificate[-1])
-    failed = failed_figures(certificate)
-    for case, _ in group:
-        if case.key in composed:
-            if failed:
+@dataclass(frozen=True)
+class FamilyTask:
+    """One family's days (``cases``, with the positions of its certificate's in ``sample``), composed where a
+    pool's process runs it: its certificate co-simulated in full and compared, then (it holds) the rest
+    composed, or (it does not, or the family cannot be built) all of them left to run in full. Returns the
+    records and the cases left, each with why."""
+
+    raw: dict
+    source: str
+    folder: str
+    fmu_paths: Mapping[str, Path]
+    cases: tuple[SizingCase, ...]
+    sample: tuple[int, ...]
+
+    def __call__(self) -> tuple[list, list]:
+        folder = Path(self.folder)
+        scenarios = [case_scenario(self.raw, case.overrides, self.source, folder) for case in self.cases]
+        try:
+            family = build_family(scenarios[0])
+        except Exception as exc:  # noqa: BLE001 - the days run in full, which reports what is wrong
+            return [], [(case, f"no family: {str(exc)[:200]}") for case in self.cases]
+        composed: dict[str, dict] = {}
+        left: list[tuple[SizingCase, str]] = []
+        for case, scenario in zip(self.cases, scenarios):
+            started = clock.perf_counter()
+            composition = compose_case(scenario, family, prepare_inputs(scenario))
+            if composition.fallback is not None:
+                left.append((case, composition.fallback))
+                continue
+            figures = {name: composition.figures.get(name) for name in CASE_FIGURES}
+            composed[case.key] = {**figures, "complete": True, "wall_time_s": clock.perf_counter() - started}
+        records, certificate = [], []
+        for index in self.sample:
+            case = self.cases[index]
+            if case.key in composed:  # (one that fell back runs in full among the rest)
+                full = run_sizing_case(self.raw, case.overrides, self.source, self.folder, None, self.fmu_paths)
+                certificate.append(certified_row(full, composed.pop(case.key)))
+                records.append((case, certificate[-1]))
+        failed = failed_figures(certificate)
+        for case in self.cases:
+            if case.key in composed and failed:
                 left.append((case, f"the family's certificate fails on {', '.join(failed)}"))
-            else:
-                on_record(case, {**composed[case.key], "method": "composed"})
-    return left
+            elif case.key in composed:
+                records.append((case, {**composed[case.key], "method": "composed"}))
+        return records, left

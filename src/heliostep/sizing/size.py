@@ -9,7 +9,6 @@ import copy
 import datetime as dt
 import hashlib
 import math
-import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
@@ -19,23 +18,24 @@ from heliostep.cosim import read_fmu
 from heliostep.drive.wind import air_density, panel_wind_moment
 from heliostep.errors import InputError
 from heliostep.progress import progress_bar
-from heliostep.run import RunFailed, RunOptions, resolve_fmus, run_scenario
+from heliostep.run import resolve_fmus
 from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
 from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_instance, shipped_catalogue_path
 from heliostep.scenario.keys import apply_overrides
 from heliostep.scenario.yaml_io import read_yaml_file
 from heliostep.sizing.band import corner_parameters, drive_at, worst_corner
-from heliostep.sizing.composed import CASE_FIGURES, compose_days
+from heliostep.sizing.case import run_sizing_case
+from heliostep.sizing.composed import compose_days
 from heliostep.sizing.days import date_of, select_days
 from heliostep.sizing.inputs import check_wind_given, file_digest, sizing_inputs
-from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario, check_case_count, check_cases
+from heliostep.sizing.plan import SizingCase, SizingPlan, check_case_count, check_cases
 from heliostep.sizing.pool import CurveTask, on_every_core
 from heliostep.sizing.stow import stow_angles, stow_step_rates
 from heliostep.sizing.verdict import judge
 from heliostep.sweep.band import load_ranges
 from heliostep.sweep.certificate import CERTIFICATE_CASES
 from heliostep.sweep.spec import MAX_CASES
-from heliostep.sweep.worker import FmuPayload, _local_fmu
+from heliostep.sweep.worker import FmuPayload
 
 __all__ = [
     "DEFAULT_CURVE_RATES",
@@ -239,34 +239,6 @@ def _plan_cases(plan: SizingPlan) -> list[SizingCase]:
     return cases
 
 
-def run_sizing_case(
-    raw: dict,
-    overrides: Sequence[str],
-    source: str,
-    folder: str,
-    should_stop: Callable[[], bool] | None = None,
-    fmu_paths: Mapping[str, Path] | None = None,
-    shipped: Mapping[str, FmuPayload] | None = None,
-) -> dict:
-    """One case (on a Dask worker or here): its figures, or why it failed; ``"interrupted": True``
-    when ``should_stop`` stopped it (not a finished case). ``fmu_paths``: the FMUs resolved once;
-    ``shipped``: their bytes, sent to a worker that may have neither the models nor the cache."""
-    scenario = case_scenario(raw, overrides, source, Path(folder))
-    if shipped is not None:
-        fmu_paths = {instance: _local_fmu(payload) for instance, payload in shipped.items()}
-    started = clock.perf_counter()
-    try:
-        result = run_scenario(scenario, RunOptions(keep_trace=False, should_stop=should_stop, fmu_paths=fmu_paths))
-    except RunFailed as failed:
-        if failed.result.reason == "interrupted":
-            return {"interrupted": True}
-        return {"complete": False, "error": str(failed)[:500], "wall_time_s": clock.perf_counter() - started}
-    figures = dict(result.summary or {})
-    record = {key: figures.get(key) for key in CASE_FIGURES}
-    record.update(complete=True, wall_time_s=clock.perf_counter() - started, method="full")
-    return record
-
-
 def run_sizing_cases(
     plan: SizingPlan,
     *,
@@ -298,7 +270,7 @@ def run_sizing_cases(
     try:
         left: list[tuple[SizingCase, str | None]] = [(case, None) for case in plan.cases]
         if not exact:
-            left = list(compose_days(plan, in_full, finished, should_stop, certify, seed))
+            left = list(compose_days(plan, finished, should_stop, certify, seed))
         if scheduler:
             _run_on_dask(plan, left, scheduler, results, bar, should_stop, on_case)
             return results
