@@ -12,7 +12,7 @@ from distributed import Client, LocalCluster
 
 from heliostep.paths import scenarios_dir
 from heliostep.sweep import run_sweep
-from heliostep.sweep.certificate import CERTIFIED_FIGURES, row_deviation
+from heliostep.sweep.certificate import CERTIFIED_FIGURES, certificate_sample, row_deviation
 
 #: 3 days x 3 end mirrors, 45 minutes each on a sweep case's grid: beyond the certificate's cases, more window
 #: than a family needs to pay (heliostep.sweep.certificate.FAMILY_WORTH_S).
@@ -77,3 +77,16 @@ def test_a_rerun_of_a_composed_sweep_skips_every_case(client, both_ways, tmp_pat
     folder = Path(tmp_path_factory.getbasetemp()) / "composed0"
     outcome = run_sweep(folder / "composed.yaml", folder / "exact-False.parquet", client=client)
     assert outcome.executed == 0 and outcome.skipped == 9
+
+
+def test_the_certificate_is_spread_reproducible_and_left_out_where_a_family_would_not_pay():
+    hour = 3600.0
+    groups = {"year": [10 * hour] * 365, "short": [300.0] * 30, "few": [10 * hour] * 2}
+    sample = certificate_sample(groups, certify=20, seed=7)
+    assert sample == certificate_sample(groups, certify=20, seed=7) != certificate_sample(groups, certify=20, seed=8)
+    assert sample["short"] is None  # 30 five-minute days: 2.5 h of window, less than a family costs
+    assert sample["few"] is None  # no case left to compose beside its certificate
+    picked = sample["year"]
+    assert len(picked) == 19  # its share of 20 (365 of 397 cases), one in each 19th of the year
+    # run k of 19 near-equal runs of 365 (19 or 20 days) begins at or after day 19 k and ends before 19 (k + 1) + 4
+    assert all(19 * k <= day < 19 * (k + 1) + 4 for k, day in enumerate(picked)) and picked == sorted(set(picked))

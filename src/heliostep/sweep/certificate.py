@@ -83,9 +83,12 @@ def certificate_sample(groups: Mapping[str, Sequence[float]], certify: int = CER
     sample: dict = {}
     for key, durations in groups.items():
         count = max(2, int(np.ceil(certify * len(durations) / total)))
+        if len(durations) <= count:
+            sample[key] = None
+            continue
         picked = [int(random.choice(run)) for run in np.array_split(np.arange(len(durations)), count)]
-        composed = sum(durations) - sum(durations[k] for k in set(picked) if k < len(durations))
-        sample[key] = picked if len(durations) > count and composed > FAMILY_WORTH_S else None
+        composed = sum(durations) - sum(durations[k] for k in picked)
+        sample[key] = picked if composed > FAMILY_WORTH_S else None
     return sample
 
 
