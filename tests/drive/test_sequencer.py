@@ -5,7 +5,14 @@ import pytest
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
-from heliostep.drive.sequencer import PATTERNS, Sequencer, reference_interpolant, schedule_steps
+from heliostep.drive.sequencer import (
+    PATTERNS,
+    TRIGGERS,
+    PreparationStopped,
+    Sequencer,
+    reference_interpolant,
+    schedule_steps,
+)
 from heliostep.errors import InputError
 
 N_C = 50  # rotor teeth, Table 3
@@ -191,20 +198,44 @@ def _walk_by_whole_spline_roots(reference, sequencer, fraction=0.5):
         indices.append(index)
 
 
-@pytest.mark.parametrize("lattice", [True, False], ids=["levels solved at once", "one level at a time"])
-def test_the_schedule_is_the_whole_spline_roots_bit_for_bit(lattice, monkeypatch):
-    """A reference that rises, turns and falls over 600 pieces (a sun-like swing with a wobble): the
-    schedule solved from the lattice of levels at once, and one level at a time, is the long way's bit for bit."""
-    import heliostep.drive.sequencer as sequencer_module
-
-    if not lattice:
-        monkeypatch.setattr(sequencer_module, "LATTICE_MAX_LEVELS", 0)
+def _swing(held: bool):
+    """A reference that rises, turns and falls over 600 pieces (a sun-like swing with a wobble); ``held``: with
+    stretches held still (zero slope at their knots) and a plateau at the top."""
     times = np.linspace(0.0, 600.0, 601)
     angle = 0.4 * np.sin(times / 200.0) + 0.002 * np.sin(times / 7.0)
-    reference = reference_interpolant(times, angle)
+    if held:
+        angle = np.minimum(angle, 0.39)
+        for begin in (40, 170, 500):
+            angle[begin : begin + 12] = angle[begin]
+    return reference_interpolant(times, angle)
+
+
+@pytest.mark.parametrize("held", [False, True], ids=["moving", "held stretches"])
+@pytest.mark.parametrize("trigger", ["midpoint", "reach"])
+def test_the_schedule_is_the_whole_spline_roots_bit_for_bit(held, trigger):
+    """The schedule of a reference stepping both ways is the long way's bit for bit: the same roots (scipy's root
+    finder on each piece), the same first crossing after each step, for both triggers."""
+    reference = _swing(held)
     sequencer = Sequencer(step_angle=STEP / 4)
-    schedule = schedule_steps(reference, sequencer)
-    expected_times, expected_indices = _walk_by_whole_spline_roots(reference, sequencer)
+    schedule = schedule_steps(reference, sequencer, trigger=trigger)
+    expected_times, expected_indices = _walk_by_whole_spline_roots(reference, sequencer, TRIGGERS[trigger])
     assert len(schedule) > 80 and np.any(np.diff(schedule.indices) < 0)  # it steps both ways
     assert np.array_equal(schedule.times.view(np.uint64), expected_times.view(np.uint64))
     assert np.array_equal(schedule.indices, expected_indices)
+
+
+def test_a_stop_request_stops_the_scheduling():
+    """A stop request is looked at while the levels are solved and while the steps are walked: asked to stop at
+    its first look or its last, the scheduler raises; never asked to, it schedules what it would without."""
+    times = np.linspace(0.0, 3000.0, 301)
+    reference = reference_interpolant(times, 0.01 * STEP * times)  # 3000 / 100 * 100 = 3000 quarter steps
+    sequencer = Sequencer(step_angle=STEP / 100)
+    asked = []
+    schedule = schedule_steps(reference, sequencer, should_stop=lambda: asked.append(1) and False)
+    assert len(schedule) == 3000 and len(asked) >= 2
+    assert np.array_equal(schedule.times, schedule_steps(reference, sequencer).times)
+    with pytest.raises(PreparationStopped, match="solving the step levels"):
+        schedule_steps(reference, sequencer, should_stop=lambda: True)
+    looks = []
+    with pytest.raises(PreparationStopped, match="scheduling the steps"):
+        schedule_steps(reference, sequencer, should_stop=lambda: looks.append(1) or len(looks) == len(asked))

@@ -8,7 +8,6 @@ Details: docs/physics.md, ``heliostep.drive.sequencer``.
 
 from __future__ import annotations
 
-import bisect
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
@@ -180,7 +179,8 @@ def schedule_steps(
     trigger : {'midpoint', 'reach'}
         Step when the reference crosses the midpoint to the next position, or reaches it.
     should_stop : callable, optional
-        Asked every :data:`STOP_CHECK_STEPS` steps; when True, :class:`PreparationStopped` is raised.
+        Asked every :data:`STOP_CHECK_STEPS` levels solved and steps scheduled; when True,
+        :class:`PreparationStopped` is raised.
 
     Returns
     -------
@@ -188,130 +188,190 @@ def schedule_steps(
     """
     if trigger not in TRIGGERS:
         raise InputError(f"sequencer trigger {trigger!r}: expected one of {', '.join(TRIGGERS)}")
-    fraction = TRIGGERS[trigger]
     start = reference.x[0]
     if initial_index is None:
         initial_index = sequencer.nearest_index(float(reference(start)))
     crossings = _LevelCrossings(reference)
-    increment = sequencer.increment
-    step = fraction * increment
-    lattice = crossings.lattice(sequencer, step, initial_index, should_stop)  # every level with a crossing, at once
-    next_crossing = crossings.next_crossing
-    times, indices, index, t = [], [], initial_index, start
-    while True:
-        if lattice is not None and lattice[0] <= index < lattice[0] + len(lattice[1]):
-            up_level, down_level = lattice[1][index - lattice[0]], lattice[2][index - lattice[0]]
-        else:  # (never: the lattice spans the reference's range)
-            position = float(sequencer.position(index))
-            up_level, down_level = position + step, position - step
-        up = next_crossing(up_level, +1, t)
-        down = next_crossing(down_level, -1, t)
-        if not np.isfinite(min(up, down)):
-            break
-        t, index = (up, index + 1) if up <= down else (down, index - 1)
-        times.append(t)
-        indices.append(index)
-        if should_stop is not None and len(times) % STOP_CHECK_STEPS == 0 and should_stop():
-            raise PreparationStopped(f"stopped while scheduling the steps ({len(times)} so far, t = {t:.6g} s)")
-    return StepSchedule(np.array(times, dtype=float), np.array(indices, dtype=int), initial_index)
-
-
-#: Levels solved at once at most (beyond, each level is solved when the walk reaches it).
-LATTICE_MAX_LEVELS = 4_000_000
+    first, ups, downs = crossings.lattice(sequencer, TRIGGERS[trigger] * sequencer.increment)
+    levels = np.unique(np.concatenate([ups, downs]))
+    up_level, down_level = np.searchsorted(levels, ups), np.searchsorted(levels, downs)  # each found exactly
+    wanted = np.zeros((len(levels), 2), dtype=bool)  # per level: a step's if crossed upwards, downwards
+    wanted[up_level, 0] = wanted[down_level, 1] = True
+    times, directions, bounds = crossings.solve(levels, wanted, should_stop)
+    steps = _possible_steps(np.arange(first, first + len(ups)), (up_level, down_level), times, directions, bounds)
+    step_times, step_indices = _walk(steps, initial_index, start, should_stop)
+    return StepSchedule(step_times, step_indices, initial_index)
 
 
 class _LevelCrossings:
-    """Where a PCHIP reference crosses levels, in which direction; each level solved once.
+    """Where a PCHIP reference crosses levels, in which direction; each level solved once, on the pieces that
+    bracket it (PCHIP is monotone on every interval), each by scipy's root finder (that of ``PPoly.solve``).
 
-    PCHIP is monotone on every interval, so only the pieces whose end values bracket a level
-    can cross it: just those are solved (solving the whole spline per level is O(pieces)).
+    A piece is not solved at a level that steps cross in one direction only when it is monotone the other way
+    with a margin over the rounding of its slope (none of its crossings could be a step's), unless a piece solved
+    at that level is near enough for their roots to merge.
     """
 
     def __init__(self, reference: PchipInterpolator) -> None:
         self.reference = reference
         self.start, self.stop = reference.x[0], reference.x[-1]
         self.slope = reference.derivative()
-        self._crossings: dict[float, tuple[list[float], list[int]]] = {}
         self.knots = reference.x
         self._piece_c = np.ascontiguousarray(np.transpose(reference.c)[:, :, None, None])  # piece k: (4, 1, 1)
+        self._piece_x = np.ascontiguousarray(np.stack([self.knots[:-1], self.knots[1:]], axis=1))  # piece k: (2,)
         ends = reference(self.knots)
         self.piece_low, self.piece_high = np.minimum(ends[:-1], ends[1:]), np.maximum(ends[:-1], ends[1:])
         self.margin = 1e-12 * max(1.0, float(np.abs(ends).max()))
+        self.rising, self.falling = _monotone_slopes(self.slope.c, np.diff(self.knots))
 
-    def solve(self, level: float) -> list[float]:
-        """The times where the reference equals ``level`` [rad], sorted, near-duplicates merged."""
-        margin = self.margin
-        pieces = np.nonzero((self.piece_low - margin <= level) & (level <= self.piece_high + margin))[0]
-        return self._merged([t for k in pieces for t in self._piece_roots(int(k), level)])
-
-    def _piece_roots(self, k: int, level: float) -> list[float]:
-        """The finite roots of piece ``k`` at ``level``: scipy's ``PPoly.solve(level, extrapolate=False)`` on the
-        piece alone, called as it calls its root finder (on the piece's coefficients, C-contiguous)."""
-        roots = _real_roots(self._piece_c[k], self.knots[k : k + 2], level, True, False)[0]
-        return [t for t in roots.tolist() if np.isfinite(t)]
-
-    @staticmethod
-    def _merged(roots: list[float]) -> list[float]:
-        roots = sorted(roots)
-        return [t for i, t in enumerate(roots) if i == 0 or t - roots[i - 1] > 1e-12 * max(1.0, abs(t))]
-
-    def crossings_of(self, level: float) -> tuple[list[float], list[int]]:
-        """Times in (start, stop] where the reference crosses ``level``, and the directions."""
-        if level not in self._crossings:
-            self._store([level], [self.solve(level)])
-        return self._crossings[level]
-
-    def _store(self, levels: list[float], solved: list[list[float]]) -> None:
-        """The crossings of each of ``levels`` from its roots ``solved``; the slopes at all of them in one call."""
-        kept = [[t for t in roots if self.start < t <= self.stop] for roots in solved]
-        every = [t for roots in kept for t in roots]
-        slopes = iter(self.slope(np.array(every, dtype=float)).tolist() if every else [])
-        for level, roots in zip(levels, kept):  # (zip takes a slope only for a root)
-            directions = [_crossing_direction(self.reference, d, t, level) for t, d in zip(roots, slopes)]
-            self._crossings[level] = (roots, directions)
-
-    def lattice(
-        self, sequencer: Sequencer, step: float, initial_index: int, should_stop: Callable[[], bool] | None = None
-    ) -> tuple[int, list, list] | None:
-        """The up and down levels (position ± ``step``) of every step index whose levels lie within the
-        reference's range, their crossings solved at once: (first index, up levels, down levels), or None
-        when they would be more than :data:`LATTICE_MAX_LEVELS`. The same values as one level at a time:
-        the same pieces per level, the same root finder on each, the same merging."""
+    def lattice(self, sequencer: Sequencer, step: float) -> tuple[int, np.ndarray, np.ndarray]:
+        """The up and down levels (position ± ``step``) of every step index from the first to the last whose
+        levels can lie within the reference's range, two more each side: (first index, ups, downs). An index
+        beyond has no level in the range: no step leads to it or from it."""
         low, high = float(self.piece_low.min()) - self.margin, float(self.piece_high.max()) + self.margin
         increment, offset = sequencer.increment, sequencer.offset
-        first = min(initial_index, int(np.floor((low - offset - step) / increment)) - 2)
-        last = max(initial_index, int(np.ceil((high - offset + step) / increment)) + 2)
-        if not 0 <= 2 * (last - first + 1) <= LATTICE_MAX_LEVELS:
-            return None
+        first = int(np.floor((low - offset - step) / increment)) - 2
+        last = int(np.ceil((high - offset + step) / increment)) + 2
         positions = sequencer.position(np.arange(first, last + 1))
-        ups, downs = positions + step, positions - step
-        levels = np.unique(np.concatenate([ups, downs]))
-        # per piece, the levels it can cross (the test of solve, as two searches on the sorted levels)
+        return first, positions + step, positions - step
+
+    def solve(
+        self, levels: np.ndarray, wanted: np.ndarray, should_stop: Callable[[], bool] | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The crossings of the sorted ``levels`` in (start, stop]: times [s] and directions (+1 up, -1 down,
+        0 a touch), by level then time, and where each level's begin (``bounds[j]:bounds[j + 1]``). ``wanted``:
+        per level, whether steps cross it upwards, downwards; crossings no step can take may be left out."""
+        which, pieces = self._pairs(levels)
+        solved = self._needed(which, pieces, wanted)
+        which, pieces = which[solved], pieces[solved]
+        found = self._roots(pieces.tolist(), levels[which].tolist(), should_stop)
+        counts = np.fromiter(map(len, found), dtype=np.intp, count=len(found))
+        roots = np.concatenate(found) if found else np.zeros(0)
+        level = np.repeat(which, counts)
+        finite = np.isfinite(roots)
+        roots, level = roots[finite], level[finite]
+        order = np.lexsort((roots, level))
+        roots, level = roots[order], level[order]
+        # near-duplicates merged (a root at a knot found on both pieces), then kept in (start, stop]
+        repeated = np.zeros(len(roots), dtype=bool)
+        repeated[1:] = (level[1:] == level[:-1]) & ~(
+            roots[1:] - roots[:-1] > 1e-12 * np.maximum(1.0, np.abs(roots[1:]))
+        )
+        kept = ~repeated & (self.start < roots) & (roots <= self.stop)
+        roots, level = roots[kept], level[kept]
+        return roots, self._directions(roots, levels[level]), np.searchsorted(level, np.arange(len(levels) + 1))
+
+    def _pairs(self, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(level, piece) of every piece whose end values bracket a level (within the margin), by level then piece."""
         begin = np.searchsorted(levels, self.piece_low - self.margin, side="left")
         end = np.searchsorted(levels, self.piece_high + self.margin, side="right")
         counts = np.maximum(end - begin, 0)
         pieces = np.repeat(np.arange(len(begin)), counts)
         which = np.repeat(begin - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
-        order = np.argsort(which, kind="stable")  # by level, then piece (as solve's nonzero)
-        found: dict[int, list[float]] = {}
-        values = levels.tolist()
-        for n, (j, k) in enumerate(zip(which[order].tolist(), pieces[order].tolist())):
-            found.setdefault(j, []).extend(self._piece_roots(k, values[j]))
-            if should_stop is not None and n % STOP_CHECK_STEPS == STOP_CHECK_STEPS - 1 and should_stop():
-                raise PreparationStopped(f"stopped while solving the step levels ({n + 1} of {len(which)} so far)")
-        solved = [j for j in found if values[j] not in self._crossings]
-        self._store([values[j] for j in solved], [self._merged(found[j]) for j in solved])
-        for level in values:
-            self._crossings.setdefault(level, ([], []))
-        return first, ups.tolist(), downs.tolist()
+        order = np.argsort(which, kind="stable")
+        return which[order], pieces[order]
 
-    def next_crossing(self, level: float, direction: int, after: float) -> float:
-        """The first time [s] after ``after`` where the reference crosses ``level`` in ``direction``."""
-        times, directions = self.crossings_of(level)
-        for k in range(bisect.bisect_right(times, after), len(times)):
-            if directions[k] == direction:
-                return times[k]
-        return np.inf
+    def _needed(self, which: np.ndarray, pieces: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+        """Per (level, piece) pair, whether it is solved: not when the level is wanted down (up) only and the piece
+        rises (falls), so that none of its crossings can be wanted, unless a pair of the level that is solved lies
+        so near that their roots could be merged (twice the merging distance)."""
+        idle = (~wanted[which, 0] & self.rising[pieces]) | (~wanted[which, 1] & self.falling[pieces])
+        count, at = len(which), np.arange(len(which))
+        before = np.maximum.accumulate(np.where(idle, -1, at))  # the nearest pair solved anyway, at or before
+        after = np.minimum.accumulate(np.where(idle, count, at)[::-1])[::-1]  # at or after
+        gap = 2e-12 * max(1.0, float(np.abs(self.knots).max()))
+        prior, next_ = np.maximum(before, 0), np.minimum(after, count - 1)
+        knots = self.knots
+        near = (before >= 0) & (which[prior] == which) & (knots[pieces] - knots[pieces[prior] + 1] <= gap)
+        near |= (after < count) & (which[next_] == which) & (knots[pieces[next_]] - knots[pieces + 1] <= gap)
+        return ~idle | near
+
+    def _roots(self, pieces: list[int], values: list[float], should_stop: Callable[[], bool] | None) -> list:
+        """The roots of each piece at its level: scipy's ``PPoly.solve(level, extrapolate=False)`` on the piece
+        alone, called as it calls its root finder (on the piece's coefficients, C-contiguous)."""
+        piece_c, piece_x, found = list(self._piece_c), list(self._piece_x), []  # (views: faster to pick from a list)
+        for begin in range(0, len(pieces), STOP_CHECK_STEPS):
+            if begin and should_stop is not None and should_stop():
+                raise PreparationStopped(f"stopped while solving the step levels ({begin} of {len(pieces)} so far)")
+            found += [
+                _real_roots(piece_c[k], piece_x[k], y, True, False)[0]
+                for k, y in zip(pieces[begin : begin + STOP_CHECK_STEPS], values[begin : begin + STOP_CHECK_STEPS])
+            ]
+        return found
+
+    def _directions(self, roots: np.ndarray, levels: np.ndarray) -> np.ndarray:
+        """+1 where the reference crosses upwards at ``roots``, -1 downwards, 0 where it only touches: the
+        slope's sign, or where it is zero (or not finite) the values either side."""
+        slopes = self.slope(roots)
+        directions = np.where(slopes > 0, 1, np.where(slopes < 0, -1, 0))
+        for j in np.nonzero(~np.isfinite(slopes) | (slopes == 0))[0].tolist():
+            directions[j] = _crossing_direction(self.reference, float(slopes[j]), float(roots[j]), float(levels[j]))
+        return directions
+
+
+def _monotone_slopes(c: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per piece of a slope (quadratic pieces ``c``, highest power first, over ``widths``): whether its value as
+    computed is > 0 (rising) or < 0 (falling) at every point of the piece and at the start of the next one (where
+    a crossing at the knot takes its slope): the extreme over the piece beyond the rounding of the evaluation."""
+    a, b, c0 = c
+    at_end = (c0 + b * widths) + a * (widths * widths)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vertex = -b / (2 * a)
+        top = c0 - b * b / (4 * a)  # the value at the vertex
+    inside = (a != 0) & (vertex > 0) & (vertex < widths)
+    least = np.where(inside & (a > 0), np.minimum(np.minimum(c0, at_end), top), np.minimum(c0, at_end))
+    most = np.where(inside & (a < 0), np.maximum(np.maximum(c0, at_end), top), np.maximum(c0, at_end))
+    rounding = 64 * np.finfo(float).eps * (np.abs(c0) + np.abs(b) * widths + np.abs(a) * widths * widths)
+    finite = np.isfinite(rounding)
+    next_start = np.concatenate([c0[1:], [np.nan]])
+    last = np.arange(len(c0)) == len(c0) - 1  # the last piece's end is its own
+    rising = finite & (least > rounding) & (last | (next_start > 0))
+    falling = finite & (most < -rounding) & (last | (next_start < 0))
+    return rising, falling
+
+
+def _possible_steps(index, level_of, times, directions, bounds) -> tuple[np.ndarray, ...]:
+    """Every step a crossing can command: the crossings of each ``index``'s up level upwards and of its down
+    level downwards (``level_of``: their levels), as (time, from index, to index, 1 for a step down)."""
+    parts = []
+    for levels, direction in zip(level_of, (1, -1)):
+        begin, counts = bounds[levels], bounds[levels + 1] - bounds[levels]
+        at = np.repeat(begin - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
+        source = np.repeat(index, counts)
+        match = directions[at] == direction
+        at, source = at[match], source[match]
+        parts.append((times[at], source, source + direction, np.full(len(at), int(direction < 0))))
+    return tuple(np.concatenate(field) for field in zip(*parts))
+
+
+def _walk(
+    steps: tuple[np.ndarray, ...], initial_index: int, start: float, should_stop: Callable[[], bool] | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The steps taken, as (times, indices): from ``initial_index`` at ``start``, each the first of the possible
+    ``steps`` (time, from index, to index, 1 for down) from the index commanded later than the last taken (an
+    up step first at a tie): each step's successor found at once, then the chain followed."""
+    time, source, target, down = steps
+    if not len(time):
+        return np.zeros(0), np.zeros(0, dtype=int)
+    order = np.lexsort((down, time, source))
+    time, source, target = time[order], source[order], target[order]
+    distinct = np.unique(time)
+    rank = np.searchsorted(distinct, time)
+    base, width = int(source[0]), len(distinct) + 1
+    key = (source - base) * width + rank  # sorted: by index, then time
+    asked = np.append(target, initial_index)  # the index after each step, and at the start
+    later = np.append(rank + 1, np.searchsorted(distinct, start, side="right"))  # the rank of the first time after
+    found = np.searchsorted(key, (asked - base) * width + later)
+    inside = np.minimum(found, len(key) - 1)
+    following = np.where((found < len(key)) & (source[inside] == asked), found, -1).tolist()
+    taken, step = [], following[-1]
+    while step >= 0:
+        taken.append(step)
+        step = following[step]
+        if should_stop is not None and len(taken) % STOP_CHECK_STEPS == 0 and should_stop():
+            at = time[taken[-1]]
+            raise PreparationStopped(f"stopped while scheduling the steps ({len(taken)} so far, t = {at:.6g} s)")
+    return time[taken].astype(float), target[taken].astype(int)
 
 
 def _crossing_direction(reference, d: float, t: float, level: float) -> int:
