@@ -1,16 +1,24 @@
 """README's ``heliostep size`` example timed from outside, beside another checkout's (prints figures; not a test).
 
-    .venv/bin/python benchmarks/bench_size.py [--repeat 2] [--baseline SRC] [--set KEY=VALUE ...]
+    .venv/bin/python benchmarks/bench_size.py [--repeat 2] [--baseline SRC] [--set KEY=VALUE ...] [--days-all]
 
 The wall time of the whole process of ``heliostep size scenarios/jan21-central.yaml --design-gust 30``,
 alternating with the same command on the code in ``SRC`` (another checkout's ``src``, through ``PYTHONPATH``)
 where given; best of N each. Last line: ``size: <s> s, baseline <s> s, ratio <r>``.
+
+``--days-all``: the same with ``--days all`` (the shipped catalogue and its currents, every day, and again at
+the ranges' worst corner) once, its days composed from step families on the machine's cores; its CPU time
+(the process and its pool's), and beside it the full co-simulation's, estimated from the certificate's days
+(co-simulated in full) times the days. Last line: ``size --days all: <min> min on <n> cores (families),
+full co-simulation <h> core-hours``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -22,16 +30,47 @@ COMMAND = ["size", str(ROOT / "scenarios" / "jan21-central.yaml"), "--design-gus
 HELIOSTEP = [sys.executable, "-c", "from heliostep.cli import console_main; console_main()"]
 
 
-def run_once(extra: list[str], src: str | None) -> float:
-    """The wall time [s] of one sizing into a fresh folder."""
+def run_once(extra: list[str], src: str | None, sheet: dict | None = None) -> float:
+    """The wall time [s] of one sizing into a fresh folder (its ``sizing.json`` into ``sheet`` if given)."""
     env = {**os.environ, **({"PYTHONPATH": src} if src else {})}
     with tempfile.TemporaryDirectory() as folder:
         started = time.perf_counter()
         done = subprocess.run([*HELIOSTEP, *COMMAND, *extra, "--out", folder], capture_output=True, text=True, env=env)
         wall = time.perf_counter() - started
+        if sheet is not None and done.returncode == 0:
+            sheet.update(json.loads((Path(folder) / "sizing.json").read_text()))
     if done.returncode != 0:
         sys.exit(f"heliostep size failed ({src or 'this tree'}):\n{done.stderr}")
     return wall
+
+
+def days_all() -> None:
+    """``--days all`` with families, and the full co-simulation's estimate from the certificate's days."""
+    sheet: dict = {}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    wall = run_once(["--days", "all", "--max-cases", "30000"], None, sheet)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    records = [
+        record
+        for candidate in sheet["candidates"]
+        for current in candidate["currents"]
+        for record in (current.get("simulation") or {}).get("per_day", {}).values()
+    ]
+    methods = sheet["composition"]["methods"]
+    full = [record["wall_time_s"] for record in records if record.get("method") in ("full", "certificate")]
+    days = sum(methods.values())
+    estimate = days * sum(full) / len(full)
+    cores = os.cpu_count() or 1
+    print(f"days {days}: {methods}; a day in full {sum(full) / len(full):.2f} s (mean of {len(full)})")
+    for name, figure in sheet["composition"]["certificate"].items():
+        print(
+            f"  {name:24s} certified max deviation {figure['max_deviation']:.2e} (tolerance {figure['tolerance']:.1e})"
+        )
+    print(
+        f"size --days all: {wall / 60:.1f} min on {cores} cores (families, {cpu / 60:.1f} core-minutes), "
+        f"full co-simulation {estimate / 3600:.2f} core-hours"
+    )
 
 
 def main() -> None:
@@ -39,7 +78,11 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--baseline", help="another checkout's src folder, run alternately")
     parser.add_argument("--set", action="append", default=[], help="KEY=VALUE passed to heliostep size --set")
+    parser.add_argument("--days-all", action="store_true", help="--days all, composed, beside full's estimate")
     args = parser.parse_args()
+    if args.days_all:
+        days_all()
+        return
     extra = [item for pair in args.set for item in ("--set", pair)]
     variants = {"this tree": None, **({"baseline": args.baseline} if args.baseline else {})}
     times: dict[str, list[float]] = {name: [] for name in variants}
