@@ -323,7 +323,9 @@ def _fallback(family: StepFamily, commanded: np.ndarray, inputs: DriveInputs, at
     if angle.min() < family.angles[0] or angle.max() > family.angles[-1]:
         span = f"{np.degrees(angle.min()):.1f} .. {np.degrees(angle.max()):.1f} deg"
         return f"steps outside the family's panel angles ({span})"
-    early = int(np.sum(np.diff(inputs.schedule.times) < at["ring"][1:]))
+    if not _full_currents(inputs, commanded):
+        return "reference currents other than the sequencer's full ones of the index held"
+    early = int(np.sum(np.diff(inputs.schedule.times) < at["ring"][:-1]))  # each step's ring against its rest
     if early:
         return f"{early} steps before the previous step's ring died out"
     if np.any(at["failed"] > 0) or np.any(at["lost"] > 0) or np.any(at["slip"] != 0):
@@ -334,6 +336,17 @@ def _fallback(family: StepFamily, commanded: np.ndarray, inputs: DriveInputs, at
         count = int(np.sum(offset > REVERSAL_OFFSET))
         return f"{count} reversals start off the detent by up to {offset.max():.1%} of a step"
     return None
+
+
+def _full_currents(inputs: DriveInputs, commanded: np.ndarray) -> bool:
+    """Whether the reference currents are, before the first step and from each step on, the sequencer's
+    full currents of the index held (the family's transients start from them and hold them)."""
+    schedule = inputs.schedule
+    held = np.concatenate([[schedule.initial_index], schedule.indices])
+    if len(inputs.current_a_ref) != len(held) or len(commanded) != len(held):
+        return False
+    current_a, current_b = inputs.sequencer.reference_currents(held)
+    return bool(np.array_equal(current_a, inputs.current_a_ref) and np.array_equal(current_b, inputs.current_b_ref))
 
 
 def _max_tracking_error(inputs: DriveInputs, commanded, panel, at: dict, direction) -> float:
