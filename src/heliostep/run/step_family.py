@@ -367,19 +367,17 @@ def _max_tracking_error(inputs: DriveInputs, commanded, panel, at: dict, directi
 
 
 def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> dict:
-    """:data:`LIGHT_FIGURES` as a run's figures give them (no first-order terms) on the panel at rest, on the
-    case's output grid every :data:`LIGHT_EVERY` seconds and its last row."""
+    """:data:`LIGHT_FIGURES` as a run's figures give them (no first-order terms) on the panel at rest, at
+    rows every :data:`LIGHT_EVERY` seconds from the window's start and at its end, the sun grid at the rows."""
     roles = scenario.resolved_roles()
-    grid = inputs.output_times
-    every = max(1, round(LIGHT_EVERY / scenario.output.interval))
-    grid = np.unique(np.concatenate([grid[::every], grid[-1:]]))
+    grid = np.append(np.arange(0.0, inputs.duration, LIGHT_EVERY), inputs.duration)
     held = np.searchsorted(inputs.schedule.times, grid, side="right")
     trace = pd.DataFrame(
         {"time": grid, "panel_angle_ref": inputs.panel_reference()(grid), roles["panel_angle"]: panel[held]}
     )
     drive = {**drive_metadata(inputs), "step_times": []}  # no solver steps to correct the rows with
     metadata = {"window_start": inputs.window_start.isoformat(), "roles": roles, "drive": drive}
-    light = LightIntegrals(metadata, scenario, first_order=False, wanted=LIGHT_FIGURES)
+    light = LightIntegrals(metadata, scenario, first_order=False, wanted=LIGHT_FIGURES, sun_grid_s=LIGHT_EVERY)
     light(trace)
     figures = light.figures()
     return {name: float(figures[name]) for name in LIGHT_FIGURES}

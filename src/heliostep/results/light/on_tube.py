@@ -111,22 +111,24 @@ def _light_rows(
     window_grid: dict | None = None,
     first_order: bool = True,
     only: Collection[str] | None = None,
+    step: float = SUN_GRID_S,
 ) -> dict:
     """:func:`light_timeseries`'s columns for the rows of ``trace`` (a whole trace or a block of
     one), the sun grid anchored at ``origin`` (the whole trace's first time [s]): the grid
     points are ``origin + k SUN_GRID_S`` whatever the block, so blocks give the rows the whole
     trace gives. ``window_grid``: :func:`sun_grid` at the points k = 0, 1, ... already computed (used
     where it covers the block's points); ``first_order``: with the stepping's first-order columns (where the
-    reference's are); ``only``: those attitudes' columns alone (and ``time``, ``dni``; None: every one's)."""
+    reference's are); ``only``: those attitudes' columns alone (and ``time``, ``dni``; None: every one's);
+    ``step``: the grid's [s] (SUN_GRID_S in the docstring above)."""
     conf = scenario.optics
     distance, axis = scenario.mirror.mirror_distance, scenario.mirror.axis
     h = scenario.plant.to_plant().tube_height
     seconds = trace["time"].to_numpy(dtype=float)
-    first, last = grid_span(seconds, origin)
+    first, last = grid_span(seconds, origin, step)
     if window_grid is not None and last < len(window_grid["time"]):
         points = grid_slice(window_grid, first, last + 1)
     else:
-        points = sun_grid(origin + np.arange(first, last + 1) * SUN_GRID_S, metadata, scenario, weather)
+        points = sun_grid(origin + np.arange(first, last + 1) * step, metadata, scenario, weather)
     grid_s = points["time"]
     sun = np.stack([np.interp(seconds, grid_s, c) for c in points["sun"]])
     sun /= np.linalg.norm(sun, axis=0)
@@ -246,12 +248,21 @@ class LightIntegrals:
     the trace. ``weather``: see :func:`light_timeseries`. ``first_order=False``: without the
     stepping's first-order terms (their figures None; two attitudes' light fewer at every row).
     ``wanted``: the names of the figures to compute (:data:`FIGURE_NEEDS`; None: all), the light of
-    the attitudes they need alone computed at the rows (each figure the same bit for bit as among all)."""
+    the attitudes they need alone computed at the rows (each figure the same bit for bit as among all).
+    ``sun_grid_s``: the step of the sun grid the rows interpolate [s]; rows as sparse as it or sparser
+    (a composed case's, :mod:`heliostep.run.step_family`) take a grid at their own spacing, computing the
+    sun and the sun-alone attitudes at no more points than the rows."""
 
     def __init__(
-        self, metadata: Mapping, scenario, weather=None, first_order: bool = True, wanted: Collection[str] | None = None
+        self,
+        metadata: Mapping,
+        scenario,
+        weather=None,
+        first_order: bool = True,
+        wanted: Collection[str] | None = None,
+        sun_grid_s: float = SUN_GRID_S,
     ):
-        self.metadata, self.scenario = metadata, scenario
+        self.metadata, self.scenario, self.sun_grid_s = metadata, scenario, sun_grid_s
         self.wanted = None if wanted is None else frozenset(wanted)
         unknown = sorted(set(self.wanted or ()) - set(FIGURE_NEEDS))
         if unknown:
@@ -279,7 +290,9 @@ class LightIntegrals:
             self._origin = float(seconds[0])
             start, end = self.scenario.window_bounds()
             duration = (end - start).total_seconds()
-            self._window_grid = window_sun_grid(self._origin, duration, self.metadata, self.scenario, self._weather)
+            self._window_grid = window_sun_grid(
+                self._origin, duration, self.metadata, self.scenario, self._weather, self.sun_grid_s
+            )
         series = _light_rows(
             block,
             self.metadata,
@@ -289,6 +302,7 @@ class LightIntegrals:
             self._window_grid,
             self._first_order_rows,
             self._attitudes,
+            self.sun_grid_s,
         )
         powers = {key[len("power_") : -len("_W")]: value for key, value in series.items() if key.startswith("power_")}
         if "stepping_first_order_W" in series:

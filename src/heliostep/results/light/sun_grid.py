@@ -35,11 +35,11 @@ def _row_times(seconds: np.ndarray, metadata: Mapping) -> pd.DatetimeIndex:
     return start + pd.to_timedelta(seconds, unit="s")
 
 
-def grid_span(seconds: np.ndarray, origin: float) -> tuple[int, int]:
-    """The first and last index k of the grid points ``origin + k SUN_GRID_S`` that bracket ``seconds``."""
-    first = max(int(np.floor((seconds[0] - origin) / SUN_GRID_S)), 0)
-    last = int(np.ceil((seconds[-1] - origin) / SUN_GRID_S))
-    if origin + last * SUN_GRID_S < seconds[-1]:
+def grid_span(seconds: np.ndarray, origin: float, step: float = SUN_GRID_S) -> tuple[int, int]:
+    """The first and last index k of the grid points ``origin + k step`` that bracket ``seconds``."""
+    first = max(int(np.floor((seconds[0] - origin) / step)), 0)
+    last = int(np.ceil((seconds[-1] - origin) / step))
+    if origin + last * step < seconds[-1]:
         last += 1
     return first, max(last, first + 1)
 
@@ -84,16 +84,18 @@ def grid_slice(grid: dict, start: int, stop: int) -> dict:
     return {key: value[..., start:stop] for key, value in grid.items()}
 
 
-def window_sun_grid(origin: float, duration: float, metadata: Mapping, scenario, weather) -> dict | None:
-    """:func:`sun_grid` at every grid point from the first row, at ``origin`` [s], to the window's end,
-    ``duration`` [s] (per block it would pay pvlib's fixed overheads each time); None when the first row
-    is at or past the window's end. The last :data:`KEPT_GRIDS` are kept, read-only, by everything
+def window_sun_grid(
+    origin: float, duration: float, metadata: Mapping, scenario, weather, step: float = SUN_GRID_S
+) -> dict | None:
+    """:func:`sun_grid` at every grid point, ``step`` [s] apart, from the first row, at ``origin`` [s], to the
+    window's end, ``duration`` [s] (per block it would pay pvlib's fixed overheads each time); None when the
+    first row is at or past the window's end. The last :data:`KEPT_GRIDS` are kept, read-only, by everything
     their values depend on (:func:`_grid_key`): a sweep's cases of one day and mirror share one."""
     if not duration > origin:
         return None
-    _, last = grid_span(np.array([duration]), origin)
-    grid_s = origin + np.arange(last + 1) * SUN_GRID_S
-    key = _grid_key(origin, len(grid_s), metadata, scenario, weather)
+    _, last = grid_span(np.array([duration]), origin, step)
+    grid_s = origin + np.arange(last + 1) * step
+    key = _grid_key(origin, step, len(grid_s), metadata, scenario, weather)
     found = None if key is None else _kept.get(key)
     if found is not None and found[0] is weather:
         _kept.move_to_end(key)  # type: ignore[arg-type]
@@ -108,8 +110,8 @@ def window_sun_grid(origin: float, duration: float, metadata: Mapping, scenario,
     return grid
 
 
-def _grid_key(origin: float, points: int, metadata: Mapping, scenario, weather) -> tuple | None:
-    """What :func:`sun_grid`'s values at ``points`` points from ``origin`` depend on besides pvlib: the
+def _grid_key(origin: float, step: float, points: int, metadata: Mapping, scenario, weather) -> tuple | None:
+    """What :func:`sun_grid`'s values at ``points`` points ``step`` apart from ``origin`` depend on besides pvlib: the
     window's start, the site, the plant, the mirror's distance, the date, the clouds and the weather (a
     file already read: that very object). None: not to be kept (a weather file's path, read anew each
     time as it may have changed; a scenario whose sections cannot be keys)."""
@@ -120,7 +122,7 @@ def _grid_key(origin: float, points: int, metadata: Mapping, scenario, weather) 
     clouds = tuple(tracking.cloud_spans) if tracking is not None else ()
     start = (str(metadata["window_start"]), str(metadata.get("timezone", "UTC")))
     sections = (scenario.site, scenario.plant, scenario.mirror.mirror_distance, scenario.window.date)
-    key = (float(origin), points, start, *sections, clouds, source)
+    key = (float(origin), float(step), points, start, *sections, clouds, source)
     try:
         hash(key)
     except TypeError:
