@@ -47,7 +47,7 @@ FAMILY_ANGLES_DEG = np.linspace(-60.0, 60.0, 25)
 #: (the ring of a step dies out within a tenth of a second: docs/sweep.md).
 STEP_AT, WINDOW = 0.02, 1.0
 #: The light on the tube composed on the case's output grid taken every this many seconds.
-LIGHT_EVERY = 30.0
+LIGHT_EVERY = 60.0
 #: The light figures a composed case carries (:class:`~heliostep.results.light.on_tube.LightIntegrals`'s).
 LIGHT_FIGURES = ("light_energy_J", "light_energy_ideal_J", "light_lost_J")
 #: A reversal's start that sits off the family's settled detent by more than this share of a step falls back.
