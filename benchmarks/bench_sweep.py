@@ -181,8 +181,10 @@ def main(argv: list[str] | None = None) -> None:
                 label = ", ".join(f"{key}={value}" for key, value in changed.items())
                 values = {key: parse_yaml_value(value) for key, value in changed.items()}  # as --set reads them
                 baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **values}, label)[0]
-            core_seconds, table = full_day(folder, min(args.workers), shipped, "as shipped")
-            families, worst = with_families(folder, min(args.workers), table, core_seconds / YEAR_FIELD_CASES)
+            core_seconds, table, cpu_ratio = full_day(folder, min(args.workers), shipped, "as shipped")
+            families, worst = with_families(
+                folder, min(args.workers), table, core_seconds / YEAR_FIELD_CASES, cpu_ratio
+            )
             # the lines a script reads: the year-field estimate, in core-hours and on 2 workers
             print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
             print(
@@ -194,9 +196,10 @@ def main(argv: list[str] | None = None) -> None:
                 print(f"  baseline ({label}): {baseline / 3600:.2f} core-hours; shipped / baseline {ratio:.2f}")
 
 
-def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> tuple[float, object]:
+def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> tuple[float, object, float]:
     """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml with ``overrides`` (its
-    own, or changed): the core-seconds of the whole sweep (see the module docstring), and the cases' table."""
+    own, or changed): the core-seconds of the whole sweep (see the module docstring), the cases' table and
+    the workers' CPU time over the cases' wall time."""
     folder.mkdir(parents=True, exist_ok=True)
     days = write_sweep(
         folder,
@@ -245,14 +248,17 @@ def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> tuple
         f"  (were every case as slow as the longest day's slowest, {longest:.2f} s of CPU: "
         f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)"
     )
-    return core_seconds, table
+    return core_seconds, table, cpu_ratio
 
 
-def with_families(folder: Path, n_workers: int, exact, per_full: float) -> tuple[float, tuple[str, float]]:
+def with_families(
+    folder: Path, n_workers: int, exact, per_full: float, cpu_ratio: float
+) -> tuple[float, tuple[str, float]]:
     """The same cases composed from their step families: each figure's largest deviation from the full runs
     (``exact``) over every case, and year-field.yaml's core-seconds with families: the sample's families and
-    tasks (its CPU time less its cases'), the certificate's cases at a full case's mean CPU ``per_full`` [s],
-    the rest at the composed cases' mean."""
+    tasks (the workers' CPU time less the certificate's cases', as their full runs took it with ``cpu_ratio``,
+    less the composed cases'), the certificate's cases at a full case's mean CPU ``per_full`` [s], the rest
+    at the composed cases' mean."""
     from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES, row_deviation
 
     days = folder / "days.yaml"
@@ -268,12 +274,12 @@ def with_families(folder: Path, n_workers: int, exact, per_full: float) -> tuple
         print(f"  {name:24s} largest deviation over every case {max(values):.2e} (tolerance {tolerance:.1e})")
     composed = table[table["method"] == "composed"]
     per_composed = composed["wall_time_s"].mean()
-    in_full = int((table["method"] != "composed").sum())
-    family_seconds = max(0.0, cpu_seconds - in_full * per_full - composed["wall_time_s"].sum())
+    in_full = full.loc[table.index[table["method"] != "composed"], "wall_time_s"].sum() * cpu_ratio
+    family_seconds = cpu_seconds - in_full - composed["wall_time_s"].sum()
     core_seconds = family_seconds + CERTIFICATE_CASES * per_full + (YEAR_FIELD_CASES - CERTIFICATE_CASES) * per_composed
     print(
-        f"  the families and the tasks' overhead {family_seconds:.1f} s of CPU; a composed case {per_composed:.3f} s, "
-        f"a full one {per_full:.2f} s"
+        f"  the workers' CPU {cpu_seconds:.1f} s: the families and the tasks' overhead {family_seconds:.1f} s; "
+        f"a composed case {per_composed:.3f} s, a full one {per_full:.2f} s"
     )
     worst = max(ratios, key=lambda name: ratios[name] / (CERTIFIED_FIGURES[name] or 1.0))
     return core_seconds, (worst, ratios[worst])

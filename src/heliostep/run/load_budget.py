@@ -5,7 +5,9 @@ Details: docs/sizing.md, ``heliostep.run.load_budget``.
 
 from __future__ import annotations
 
+import functools
 import math
+import types
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -96,12 +98,25 @@ def mechanics_values(scenario: Scenario, instance: str, mechanics_fmu: Path | No
     """The mechanics FMU's ``T_c``, ``M_c`` [N.m], ``J_p``, ``J_m`` [kg.m2]: the scenario's
     ``parameters.<instance>`` values over the FMU's defaults (0 where neither has one)."""
     given = scenario.parameters.get(instance, {})
-    variables = read_fmu(mechanics_fmu).variables if mechanics_fmu is not None else {}
+    starts = start_values(mechanics_fmu) if mechanics_fmu is not None else {}
     values = {}
     for name in ("T_c", "M_c", "J_p", "J_m"):
-        start = variables[name].start if name in variables else None
+        start = starts.get(name)
         values[name] = float(given[name]) if name in given else (float(start) if isinstance(start, float) else 0.0)
     return values
+
+
+def start_values(fmu: Path) -> Mapping[str, object]:
+    """Each variable's start value in the FMU file ``fmu`` (None without one), read once per version of
+    the file (its path, size and modification time): a sweep's cases read the same FMU thousands of times."""
+    status = Path(fmu).stat()
+    return _start_values(str(Path(fmu).resolve()), status.st_size, status.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=32)
+def _start_values(path: str, size: int, modified: int) -> Mapping[str, object]:
+    variables = read_fmu(path).variables
+    return types.MappingProxyType({name: variable.start for name, variable in variables.items()})
 
 
 def wind_moment_at(inputs: DriveInputs) -> np.ndarray:

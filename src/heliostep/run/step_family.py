@@ -12,6 +12,7 @@ it along the case's step schedule. A case whose steps leave what a family assume
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import time as clock
@@ -97,10 +98,20 @@ class StepFamily:
         elif name in ("missed", "lost", "failed"):
             right = np.clip(np.searchsorted(self.angles, angle), 1, len(self.angles) - 1)
             values = np.maximum(table[right - 1], table[right])
-        else:  # a transient that failed is nan: the case falls back, its neighbours' largest stands in
-            table = np.where(np.isfinite(table), table, np.nanmax(table, initial=0.0))
-            values = CubicSpline(self.angles, table, axis=0)(angle)
+        else:
+            values = self._splines[name](angle)
         return values[np.arange(len(angle)), (direction > 0).astype(int), phase]
+
+    @functools.cached_property
+    def _splines(self) -> dict[str, CubicSpline]:
+        """The smooth fields' cubic splines in the panel angle, made once (a transient that failed is nan:
+        the case falls back, and its neighbours' largest stands in)."""
+        splines = {}
+        for name, table in self.table.items():
+            if name not in ("slip", "missed", "lost", "failed"):
+                table = np.where(np.isfinite(table), table, np.nanmax(table, initial=0.0))
+                splines[name] = CubicSpline(self.angles, table, axis=0)
+        return splines
 
 
 @dataclasses.dataclass(frozen=True)

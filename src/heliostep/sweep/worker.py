@@ -20,11 +20,16 @@ from pathlib import Path
 
 import pandas as pd
 
-from heliostep.cosim.fmi import read_fmu
 from heliostep.drive.inputs import DriveInputs, prepare_inputs, reference_times
 from heliostep.errors import HeliostepError
 from heliostep.run import RunOptions, run_scenario
-from heliostep.run.load_budget import load_budget, mechanics_values, step_limit_of_holding, wind_moment_at
+from heliostep.run.load_budget import (
+    load_budget,
+    mechanics_values,
+    start_values,
+    step_limit_of_holding,
+    wind_moment_at,
+)
 from heliostep.scenario import (
     Scenario,
     validate_scenario,
@@ -146,8 +151,8 @@ def _holding_torque(scenario: Scenario, motor: str | None, motor_fmu: Path | Non
     """k_e x I [N.m]: the torque constant of the ``motor`` instance (parameter or FMU default) times the current."""
     k_e = scenario.parameters.get(motor or "", {}).get("k_e")
     if k_e is None and motor_fmu is not None:
-        variable = read_fmu(motor_fmu).variables.get("k_e")
-        k_e = None if variable is None else variable.start
+        default = start_values(motor_fmu).get("k_e")
+        k_e = default if isinstance(default, float | int) else None
     return None if k_e is None else float(k_e) * scenario.sequencer.current
 
 
