@@ -90,3 +90,37 @@ def test_the_certificate_is_spread_reproducible_and_left_out_where_a_family_woul
     assert len(picked) == 19  # its share of 20 (365 of 397 cases), one in each 19th of the year
     # run k of 19 near-equal runs of 365 (19 or 20 days) begins at or after day 19 k and ends before 19 (k + 1) + 4
     assert all(19 * k <= day < 19 * (k + 1) + 4 for k, day in enumerate(picked)) and picked == sorted(set(picked))
+
+
+def test_the_report_says_how_the_rows_were_made_and_the_largest_certified_deviations():
+    import pandas as pd
+
+    from heliostep.cli.sweep import _certificate_lines
+
+    table = pd.DataFrame(
+        {
+            "method": ["composed", "certificate", "certificate", "full"],
+            "fallback": [None, None, None, "wind by its speed (a load that changes over the day)"],
+            **{f"deviation_{name}": [None, 1e-5, 3e-5, None] for name in CERTIFIED_FIGURES},
+        }
+    )
+    lines = _certificate_lines(table)
+    assert lines[0] == "  rows: 2 certificate, 1 composed, 1 full"
+    assert "run in full instead of composed: 1 (most often: wind by its speed" in lines[1]
+    assert lines[3].split() == ["peak_torque_Nm", "3.00e-05", "(5.0e-03)"]
+    assert len(lines) == 3 + len(CERTIFIED_FIGURES)
+
+
+def test_certify_below_one_is_refused_before_anything_runs(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / "composed.yaml"
+    path.write_text(yaml.safe_dump(SWEEP, sort_keys=False))
+    code = "from heliostep.cli import console_main; console_main()"
+    done = subprocess.run(
+        [sys.executable, "-c", code, "sweep", str(path), "--certify", "0"], capture_output=True, text=True
+    )
+    assert done.returncode == 2
+    assert "--certify: '0': expected a whole number of cases >= 1" in done.stderr
+    assert not (tmp_path / "out").exists()
