@@ -118,9 +118,8 @@ def test_certify_below_one_is_refused_before_anything_runs(tmp_path):
     path = tmp_path / "composed.yaml"
     path.write_text(yaml.safe_dump(SWEEP, sort_keys=False))
     code = "from heliostep.cli import console_main; console_main()"
-    done = subprocess.run(
-        [sys.executable, "-c", code, "sweep", str(path), "--certify", "0"], capture_output=True, text=True
-    )
+    command = [sys.executable, "-c", code, "sweep", str(path), "--certify", "0"]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode == 2
     assert "--certify: '0': expected a whole number of cases >= 1" in done.stderr
-    assert not (tmp_path / "out").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["composed.yaml"]  # no out/ folder made
