@@ -121,5 +121,5 @@ def test_certify_below_one_is_refused_before_anything_runs(tmp_path):
     command = [sys.executable, "-c", code, "sweep", str(path), "--certify", "0"]
     done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode == 2
-    assert "--certify: '0': expected a whole number of cases >= 1" in done.stderr
+    assert "--certify: 0: expected a whole number of cases >= 1" in done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["composed.yaml"]  # no out/ folder made

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from heliostep.cli.signals import stop_requests
-from heliostep.cli.sweep import add_family_options
+from heliostep.cli.sweep import add_family_options, case_count
 
 #: The defaults of heliostep.sizing.size (imported when the command runs: every command's start stays short).
 ALL_DAYS = "all"
@@ -92,7 +92,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--max-cases",
-        type=_whole_number,
+        type=case_count,
         default=None,
         metavar="N",
         help="refuse a sizing of more cases than this, before any runs (default: as many as a sweep may have)",
@@ -101,17 +101,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", default=None, help="output folder (default out/<scenario>-sizing)")
     parser.add_argument("--scheduler", default=None, metavar="ADDR", help="Dask scheduler (tcp://HOST:PORT)")
     parser.set_defaults(func=main)
-
-
-def _whole_number(text: str) -> int:
-    """A whole number >= 1 (argparse type: exit 2 naming the option otherwise)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{text}: expected a whole number of cases >= 1")
-    return value
 
 
 def _days(values: list[str]) -> list[int] | str:

@@ -34,7 +34,7 @@ from heliostep.sweep import (
 from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES
 from heliostep.sweep.local_worker import silence_distributed_logs
 
-__all__ = ["add_family_options", "register"]
+__all__ = ["add_family_options", "case_count", "register"]
 
 RESULTS_FILE = "results.parquet"
 
@@ -89,14 +89,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run_command)
 
 
-def _case_count(text: str) -> int:
-    """``--certify``: a whole number of cases, at least one."""
+def case_count(text: str) -> int:
+    """A whole number of cases >= 1 (``--certify``, ``size --max-cases``; argparse's type: exit 2 naming the
+    option otherwise)."""
     try:
         value = int(text)
     except ValueError:
         value = 0
     if value < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number of cases >= 1")
+        raise argparse.ArgumentTypeError(f"{text}: expected a whole number of cases >= 1")
     return value
 
 
@@ -111,7 +112,7 @@ def add_family_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--certify",
-        type=_case_count,
+        type=case_count,
         default=CERTIFICATE_CASES,
         metavar="N",
         help=f"cases run in full to certify the composed ones, spread over the sweep (default: {CERTIFICATE_CASES})",
