@@ -1,16 +1,17 @@
 """README's ``heliostep size`` example timed from outside, beside another checkout's (prints figures; not a test).
 
-    .venv/bin/python benchmarks/bench_size.py [--repeat 2] [--baseline SRC] [--set KEY=VALUE ...] [--days-all]
+    .venv/bin/python benchmarks/bench_size.py [--repeat 2] [--baseline SRC] [--set KEY=VALUE ...]
+        [--days-all [--candidate NAME ...]]
 
 The wall time of the whole process of ``heliostep size scenarios/jan21-central.yaml --design-gust 30``,
 alternating with the same command on the code in ``SRC`` (another checkout's ``src``, through ``PYTHONPATH``)
 where given; best of N each. Last line: ``size: <s> s, baseline <s> s, ratio <r>``.
 
-``--days-all``: the same with ``--days all`` (the shipped catalogue and its currents, every day, and again at
-the ranges' worst corner) once, its days composed from step families on the machine's cores; its CPU time
-(the process and its pool's), and beside it the full co-simulation's, estimated from the certificate's days
-(co-simulated in full) times the days. Last line: ``size --days all: <min> min on <n> cores (families),
-full co-simulation <h> core-hours``.
+``--days-all``: the same with ``--days all`` (the shipped catalogue, or its ``--candidate`` entries, and their
+currents, every day, and again at the ranges' worst corner) once, its days composed from step families on the
+machine's cores; its CPU time (the process and its pool's), and beside it the full co-simulation's, estimated
+from the days co-simulated in full (the certificate's, those that fell back) times the days. Last line:
+``size --days all: <min> min on <n> cores (families), full co-simulation <h> core-hours``.
 """
 
 from __future__ import annotations
@@ -44,11 +45,13 @@ def run_once(extra: list[str], src: str | None, sheet: dict | None = None) -> fl
     return wall
 
 
-def days_all() -> None:
-    """``--days all`` with families, and the full co-simulation's estimate from the certificate's days."""
+def days_all(candidates: list[str]) -> None:
+    """``--days all`` with families (of ``candidates`` alone, where named), and the full co-simulation's
+    estimate from the days co-simulated in full."""
     sheet: dict = {}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    wall = run_once(["--days", "all", "--max-cases", "30000"], None, sheet)
+    named = [item for name in candidates for item in ("--candidate", name)]
+    wall = run_once(["--days", "all", "--max-cases", "30000", *named], None, sheet)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
     records = [
@@ -59,10 +62,14 @@ def days_all() -> None:
     ]
     methods = sheet["composition"]["methods"]
     full = [record["wall_time_s"] for record in records if record.get("method") in ("full", "certificate")]
+    fell_back = sum(1 for record in records if record.get("method") == "full")
     days = sum(methods.values())
     estimate = days * sum(full) / len(full)
     cores = os.cpu_count() or 1
-    print(f"days {days}: {methods}; a day in full {sum(full) / len(full):.2f} s (mean of {len(full)})")
+    print(
+        f"days {days}: {methods}; a day in full {sum(full) / len(full):.2f} s (mean of {len(full)}), "
+        f"{fell_back} fell back"
+    )
     for name, figure in sheet["composition"]["certificate"].items():
         print(
             f"  {name:24s} certified max deviation {figure['max_deviation']:.2e} (tolerance {figure['tolerance']:.1e})"
@@ -79,9 +86,10 @@ def main() -> None:
     parser.add_argument("--baseline", help="another checkout's src folder, run alternately")
     parser.add_argument("--set", action="append", default=[], help="KEY=VALUE passed to heliostep size --set")
     parser.add_argument("--days-all", action="store_true", help="--days all, composed, beside full's estimate")
+    parser.add_argument("--candidate", action="append", default=[], help="with --days-all: only this catalogue entry")
     args = parser.parse_args()
     if args.days_all:
-        days_all()
+        days_all(args.candidate)
         return
     extra = [item for pair in args.set for item in ("--set", pair)]
     variants = {"this tree": None, **({"baseline": args.baseline} if args.baseline else {})}
