@@ -9,9 +9,9 @@ where given; best of N each. Last line: ``size: <s> s, baseline <s> s, ratio <r>
 
 ``--days-all``: the same with ``--days all`` (the shipped catalogue, or its ``--candidate`` entries, and their
 currents, every day, and again at the ranges' worst corner) once, its days composed from step families on the
-machine's cores; its CPU time (the process and its pool's), and beside it the full co-simulation's, estimated
-from the days co-simulated in full (the certificate's, those that fell back) times the days. Last line:
-``size --days all: <min> min on <n> cores (families), full co-simulation <h> core-hours``.
+machine's cores; its wall time, and beside it the full co-simulation's CPU, estimated from the days
+co-simulated in full (the certificate's, those that fell back) times the days. Last line:
+``size --days all: <min> min on <n> cores (families), full co-simulation <h> core-hours (<min> min on <n> cores)``.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -49,11 +48,8 @@ def days_all(candidates: list[str]) -> None:
     """``--days all`` with families (of ``candidates`` alone, where named), and the full co-simulation's
     estimate from the days co-simulated in full."""
     sheet: dict = {}
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     named = [item for name in candidates for item in ("--candidate", name)]
     wall = run_once(["--days", "all", "--max-cases", "30000", *named], None, sheet)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
     records = [
         record
         for candidate in sheet["candidates"]
@@ -75,8 +71,8 @@ def days_all(candidates: list[str]) -> None:
             f"  {name:24s} certified max deviation {figure['max_deviation']:.2e} (tolerance {figure['tolerance']:.1e})"
         )
     print(
-        f"size --days all: {wall / 60:.1f} min on {cores} cores (families, {cpu / 60:.1f} core-minutes), "
-        f"full co-simulation {estimate / 3600:.2f} core-hours"
+        f"size --days all: {wall / 60:.1f} min on {cores} cores (families), "
+        f"full co-simulation {estimate / 3600:.2f} core-hours ({estimate / cores / 60:.1f} min on {cores} cores)"
     )
 
 
