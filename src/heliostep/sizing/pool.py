@@ -3,8 +3,7 @@
 Each curve is a set of bench simulations independent of the others', so the curves (each candidate's,
 nominal and at the ranges' worst corner) go to a pool of processes started by the standard library's fork
 server, one curve a task; a curve is the same whichever process computes it. So do the step families of
-:mod:`heliostep.sizing.composed`, a family and its days a task. (The day cases co-simulated in full, short,
-gain nothing measurable there: they run one after another, or on Dask.)
+:mod:`heliostep.sizing.composed`, a family and its days a task, and the days co-simulated in full, a day a task.
 The children ignore SIGINT: a stop request is the parent's, which begins no task more and keeps those under way
 once finished. A script that calls the sizing needs ``if __name__ == "__main__":`` around it, as any user of
 multiprocessing's fork server does (its children import the script's main module).

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import datetime as dt
+import functools
 import hashlib
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -250,10 +251,11 @@ def run_sizing_cases(
     certify: int = CERTIFICATE_CASES,
     seed: int = 0,
 ) -> dict[str, dict]:
-    """Run the plan's cases: those step families compose here (:func:`heliostep.sizing.composed.compose_days`,
+    """Run the plan's cases: those step families compose (:func:`heliostep.sizing.composed.compose_days`,
     certified by ``certify`` cases drawn by ``seed``; ``exact``: none), the rest co-simulated (on Dask with
-    ``scheduler``, else here, one after another); case key -> its record. Stopped part-way, it returns the
-    cases finished so far. ``on_case(key, record)`` is called as each case finishes."""
+    ``scheduler``, else a case a task on every core, :func:`heliostep.sizing.pool.on_every_core`); case key ->
+    its record. Stopped part-way, it returns the cases finished so far (a stop begins no case more and lets
+    those under way finish). ``on_case(key, record)`` is called as each case finishes."""
     results: dict[str, dict] = {}
     bar = progress_bar(len(plan.cases), "sizing cases", "case", progress)
     source, folder = plan.scenario.source, str(plan.folder)
@@ -264,9 +266,6 @@ def run_sizing_cases(
         if on_case is not None:
             on_case(case.key, record)
 
-    def in_full(case: SizingCase) -> dict:
-        return run_sizing_case(plan.raw, case.overrides, source, folder, should_stop, plan.fmu_paths)
-
     try:
         left: list[tuple[SizingCase, str | None]] = [(case, None) for case in plan.cases]
         if not exact:
@@ -274,13 +273,14 @@ def run_sizing_cases(
         if scheduler:
             _run_on_dask(plan, left, scheduler, results, bar, should_stop, on_case)
             return results
-        for case, reason in left:
-            if should_stop is not None and should_stop():
-                break
-            record = in_full(case)
-            if record.get("interrupted"):
-                break
-            finished(case, {**record, "fallback": reason})
+        why = {case.key: (case, reason) for case, reason in left}
+        tasks = {
+            case.key: functools.partial(run_sizing_case, plan.raw, case.overrides, source, folder, None, plan.fmu_paths)
+            for case, _ in left
+        }  # each day in full a task on every core, a stop beginning none more
+        on_every_core(
+            tasks, should_stop, on_done=lambda key, record: finished(why[key][0], {**record, "fallback": why[key][1]})
+        )
     finally:
         bar.close()
     return results
