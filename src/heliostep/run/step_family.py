@@ -25,6 +25,7 @@ from scipy.interpolate import CubicSpline
 from heliostep.cosim import SimulationError
 from heliostep.drive.inputs import DriveInputs, implied_parameters, prepare_inputs
 from heliostep.drive.sequencer import PATTERNS, StepSchedule
+from heliostep.drive.wind_load import commanded_panel_angle
 from heliostep.results.figures.solution import SolutionRecorder
 from heliostep.results.figures.tradeoffs import energy_per_day
 from heliostep.results.light.on_tube import LightIntegrals
@@ -47,7 +48,7 @@ FAMILY_ANGLES_DEG = np.linspace(-60.0, 60.0, 25)
 #: A transient: held this long [s] at its detent, then stepped, then watched until the window's end [s]
 #: (the ring of a step dies out within a tenth of a second: docs/sweep.md).
 STEP_AT, WINDOW = 0.02, 1.0
-#: The light on the tube composed on the case's output grid taken every this many seconds.
+#: The light on the tube composed at rows this many seconds apart from the window's start [s].
 LIGHT_EVERY = 60.0
 #: The light figures a composed case carries (:class:`~heliostep.results.light.on_tube.LightIntegrals`'s).
 LIGHT_FIGURES = ("light_energy_J", "light_energy_ideal_J", "light_lost_J")
@@ -217,14 +218,14 @@ def _transient(prepared, angle: float, index: int, direction: int) -> dict:
     """One step (``direction`` 0: none) from index ``index`` held with the panel at ``angle`` [rad],
     co-simulated over :data:`WINDOW` as ``prepared`` (a run's set-up) would: its figures."""
     scenario, sequencer = prepared.scenario, prepared.inputs.sequencer
-    ratio = scenario.transmission.pinion_radius / scenario.transmission.lever_arm
+    r, s = scenario.transmission.pinion_radius, scenario.transmission.lever_arm
     steps = [index + direction] if direction else []
     schedule = StepSchedule(np.array([STEP_AT] if direction else [], dtype=float), np.array(steps, dtype=int), index)
     current_a, current_b = sequencer.reference_currents(np.array([index, *steps]))
-    start = float(np.arctan(np.tan(angle) - sequencer.position(index) * ratio))  # the panel at rotor 0
+    start = float(commanded_panel_angle(-sequencer.position(index), angle, r, s))  # the panel at rotor 0
     implied = implied_parameters(scenario, sequencer, schedule, (current_a[0], current_b[0]), start, None)
     end = index + direction
-    target = float(np.arctan(np.tan(start) + sequencer.position(end) * ratio))
+    target = float(commanded_panel_angle(sequencer.position(end), start, r, s))
     ends = np.array([0.0, WINDOW])
     inputs = dataclasses.replace(
         prepared.inputs,
@@ -316,8 +317,9 @@ def compose_case(
 
 def _panel_at(inputs: DriveInputs, scenario: Scenario, held: np.ndarray) -> np.ndarray:
     """The panel angle [rad] at the detent of each step index ``held``: the transmission from the start."""
-    ratio = scenario.transmission.pinion_radius / scenario.transmission.lever_arm
-    return np.arctan(np.tan(inputs.panel_angle_ref[0]) + inputs.sequencer.position(held) * ratio)
+    transmission = scenario.transmission
+    rotor = inputs.sequencer.position(held)
+    return commanded_panel_angle(rotor, inputs.panel_angle_ref[0], transmission.pinion_radius, transmission.lever_arm)
 
 
 def _fallback(family: StepFamily, commanded: np.ndarray, inputs: DriveInputs, at: dict, steps) -> str | None:
@@ -334,7 +336,7 @@ def _fallback(family: StepFamily, commanded: np.ndarray, inputs: DriveInputs, at
     if angle.min() < family.angles[0] or angle.max() > family.angles[-1]:
         span = f"{np.degrees(angle.min()):.1f} .. {np.degrees(angle.max()):.1f} deg"
         return f"steps outside the family's panel angles ({span})"
-    if not _full_currents(inputs, commanded):
+    if not _full_currents(inputs):
         return "reference currents other than the sequencer's full ones of the index held"
     early = int(np.sum(np.diff(inputs.schedule.times) < at["ring"][:-1]))  # each step's ring against its rest
     if early:
@@ -349,12 +351,12 @@ def _fallback(family: StepFamily, commanded: np.ndarray, inputs: DriveInputs, at
     return None
 
 
-def _full_currents(inputs: DriveInputs, commanded: np.ndarray) -> bool:
+def _full_currents(inputs: DriveInputs) -> bool:
     """Whether the reference currents are, before the first step and from each step on, the sequencer's
     full currents of the index held (the family's transients start from them and hold them)."""
     schedule = inputs.schedule
     held = np.concatenate([[schedule.initial_index], schedule.indices])
-    if len(inputs.current_a_ref) != len(held) or len(commanded) != len(held):
+    if len(inputs.current_a_ref) != len(held):
         return False
     current_a, current_b = inputs.sequencer.reference_currents(held)
     return bool(np.array_equal(current_a, inputs.current_a_ref) and np.array_equal(current_b, inputs.current_b_ref))

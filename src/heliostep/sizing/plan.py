@@ -52,7 +52,7 @@ class SizingPlan:
     safety_factor: float
     curve_rates: tuple[float, ...]
     cases: list[SizingCase] = field(default_factory=list)
-    mechanics: dict[str, float] = field(default_factory=dict)  # T_c, M_c, J_p
+    mechanics: dict[str, float] = field(default_factory=dict)  # T_c, M_c, J_p, J_m (run.load_budget.mechanics_values)
     fmu_paths: dict[str, Path] = field(default_factory=dict)  # instance -> FMU, resolved once for every case
     day_selection: DaySelection | None = None  # the days and why each (heliostep.sizing.days)
     ranges: tuple[ParameterRange, ...] = ()  # the drive physics' ranges (heliostep.sizing.band)

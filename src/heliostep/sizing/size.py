@@ -15,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from heliostep.cosim import read_fmu
 from heliostep.drive.wind import air_density, panel_wind_moment
 from heliostep.errors import InputError
 from heliostep.progress import progress_bar
 from heliostep.run import resolve_fmus
+from heliostep.run.load_budget import mechanics_values
 from heliostep.scenario import Scenario, resolve_scenario_path, validate_scenario
 from heliostep.scenario.catalogue import MotorCandidate, motor_overrides, role_instance, shipped_catalogue_path
 from heliostep.scenario.keys import apply_overrides
@@ -99,23 +99,6 @@ def _design_wind(scenario: Scenario, wind: float) -> tuple[str, ...]:
     return (*(f"wind.{key}=null" for key in sources), f"wind.moment={wind!r}")
 
 
-def _mechanics_values(scenario: Scenario, fmu_paths: Mapping[str, Path]) -> dict[str, float]:
-    """The mechanics FMU's T_c, M_c, J_p: its defaults with the scenario's values over them."""
-    instance = _instance(scenario, "wind_moment", "mechanics")
-    info = read_fmu(fmu_paths[instance])
-    given = scenario.parameters.get(instance, {})
-    values: dict[str, float] = {}
-    for name in ("T_c", "M_c", "J_p"):
-        start = info.variables[name].start if name in info.variables else None
-        if name in given:
-            values[name] = float(given[name])
-        elif isinstance(start, float):
-            values[name] = start
-        else:
-            values[name] = 0.0
-    return values
-
-
 def _check_options(design_gust, days, safety_factor: float, curve_rates: Sequence[float], max_cases) -> None:
     """The options' values, InputError naming the option."""
     if isinstance(max_cases, bool) or not isinstance(max_cases, int) or max_cases < 1:
@@ -183,7 +166,8 @@ def plan_sizing(
     plan.cases = _plan_cases(plan)
     check_cases(plan)  # every case's scenario valid and the largest within the budget before anything runs
     plan.fmu_paths = resolve_fmus(scenario)
-    plan.mechanics = _mechanics_values(scenario, plan.fmu_paths)
+    mechanics = _instance(scenario, "wind_moment", "mechanics")
+    plan.mechanics = mechanics_values(scenario, mechanics, plan.fmu_paths[mechanics])
     return plan
 
 

@@ -9,16 +9,13 @@ case whose steps leave what a family assumes (its row's ``fallback`` says why). 
 
 from __future__ import annotations
 
-import copy
 import dataclasses
-import os
-import socket
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 
 from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.step_family import StepFamily, build_family, compose_case, family_key, not_composable
-from heliostep.scenario import Scenario, validate_scenario
+from heliostep.scenario import validate_scenario
 from heliostep.sweep.certificate import (
     CERTIFICATE_CASES,
     certificate_sample,
@@ -31,14 +28,13 @@ from heliostep.sweep.store import FIGURE_COLUMNS
 from heliostep.sweep.worker import (
     FmuPayload,
     _error_text,
-    _fmu_key,
     _holding_torque,
-    _local_fmu,
     _lost_case_row,
-    _now,
     load_figures,
+    local_scenario,
     primary_sharing_error,
     run_case,
+    run_columns,
 )
 
 #: Cases composed per Dask task.
@@ -81,7 +77,7 @@ def plan_families(cases: Sequence[SweepCase], certify: int = CERTIFICATE_CASES, 
 
 def family_task(case: SweepCase, payloads: Mapping[str, FmuPayload]) -> StepFamily:
     """The Dask task that builds the family of ``case``'s drive (its FMUs from ``payloads``)."""
-    return build_family(_scenario(case, payloads), fmu_digests=case.fmu_sha256)
+    return build_family(local_scenario(case, payloads)[0], fmu_digests=case.fmu_sha256)
 
 
 def compose_task(cases: Sequence[SweepCase], family: StepFamily, payloads: Mapping[str, FmuPayload], run_id: str):
@@ -91,7 +87,7 @@ def compose_task(cases: Sequence[SweepCase], family: StepFamily, payloads: Mappi
     for case in cases:
         started = clock.perf_counter()
         try:
-            scenario, local = _scenario(case, payloads), _local_fmus(case, payloads)
+            scenario, local = local_scenario(case, payloads)
             inputs = prepare_inputs(scenario)
             composed = compose_case(scenario, family, inputs, case.fmu_sha256)
         except Exception as exc:  # noqa: BLE001 - the case runs in full, which reports what is wrong
@@ -109,32 +105,9 @@ def compose_task(cases: Sequence[SweepCase], family: StepFamily, payloads: Mappi
     return rows, fallbacks
 
 
-def _scenario(case: SweepCase, payloads: Mapping[str, FmuPayload]) -> Scenario:
-    """The case's scenario on its FMUs written locally."""
-    data = copy.deepcopy(case.scenario)
-    dropped = {instance: None for instance, reference in data["fmus"].items() if reference is None}
-    local = {instance: str(path) for instance, path in _local_fmus(case, payloads).items()}
-    data["fmus"] = {**dropped, **local}
-    return validate_scenario(data, source=case.source, folder=case.folder)
-
-
-def _local_fmus(case: SweepCase, payloads: Mapping[str, FmuPayload]) -> dict:
-    return {instance: _local_fmu(payloads[sha]) for instance, sha in case.fmu_sha256.items()}
-
-
 def _finished(row: dict, case: SweepCase, run_id: str, started: float, method: str, fallback=None) -> dict:
-    row.update(
-        status="ok",
-        error_type=None,
-        error=None,
-        wall_time_s=clock.perf_counter() - started,
-        finished_at=_now(),
-        run_id=run_id,
-        worker=f"{socket.gethostname()}:{os.getpid()}",
-        fmu_sha256=_fmu_key(case.fmu_sha256),
-        method=method,
-        fallback=fallback,
-    )
+    row.update(status="ok", error_type=None, error=None, method=method, fallback=fallback)
+    row.update(run_columns(case, run_id, started))
     return row
 
 
@@ -205,7 +178,6 @@ class _Submitter:
 class _Family:
     """A family's progress: compose tasks and certificate cases not back yet, rows held until certified."""
 
-    key: str
     chunks: int
     waiting: set
     composed: dict = dataclasses.field(default_factory=dict)  # case id -> composed row, held
@@ -222,7 +194,7 @@ class _Collector:
     def __init__(self, run: _Submitter, plan: FamilyPlan, pending, record: Callable[[dict], None]):
         self.run, self.pending, self.record, self.recorded = run, pending, record, 0
         self.states = {
-            key: _Family(key, -(-len(group) // COMPOSE_CHUNK), {case.case_id for case in plan.certificate[key]})
+            key: _Family(-(-len(group) // COMPOSE_CHUNK), {case.case_id for case in plan.certificate[key]})
             for key, group in plan.families.items()
         }
         self.sample = {case.case_id: key for key, group in plan.certificate.items() for case in group}

@@ -190,11 +190,7 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
     row.update(method="full", fallback=None)
     scenario = None
     try:
-        data = copy.deepcopy(case.scenario)
-        local = {instance: _local_fmu(payloads[sha]) for instance, sha in case.fmu_sha256.items()}
-        dropped = {instance: None for instance, reference in data["fmus"].items() if reference is None}
-        data["fmus"] = {**dropped, **{instance: str(path) for instance, path in local.items()}}
-        scenario = validate_scenario(data, source=case.source, folder=case.folder)
+        scenario, local = local_scenario(case, payloads)
         # supervised (a crashing or hanging FMU fails this case only, named), the child started by a fork server
         # (a Dask worker runs threads); the table needs the figures only
         options = RunOptions(keep_trace=False, supervise=True, light_first_order=False, start_method="forkserver")
@@ -214,14 +210,30 @@ def run_case(case: SweepCase, payloads: Mapping[str, FmuPayload], run_id: str = 
             row.update(primary_sharing_error(scenario))
         except Exception as exc:  # noqa: BLE001
             logger.warning("primary sharing error of case %s: %s", case.case_id, exc)
-    row.update(
-        wall_time_s=clock.perf_counter() - started,
-        finished_at=_now(),
-        run_id=run_id,
-        worker=f"{socket.gethostname()}:{os.getpid()}",
-        fmu_sha256=_fmu_key(case.fmu_sha256),
-    )
+    row.update(run_columns(case, run_id, started))
     return row
+
+
+def local_scenario(case: SweepCase, payloads: Mapping[str, FmuPayload]) -> tuple[Scenario, dict[str, Path]]:
+    """The case's scenario on its FMUs written on this worker (from ``payloads``), and those FMUs' paths by
+    instance."""
+    data = copy.deepcopy(case.scenario)
+    local = {instance: _local_fmu(payloads[sha]) for instance, sha in case.fmu_sha256.items()}
+    dropped = {instance: None for instance, reference in data["fmus"].items() if reference is None}
+    data["fmus"] = {**dropped, **{instance: str(path) for instance, path in local.items()}}
+    return validate_scenario(data, source=case.source, folder=case.folder), local
+
+
+def run_columns(case: SweepCase, run_id: str, started: float) -> dict:
+    """A finished case's execution columns: its wall time since ``started`` (:func:`time.perf_counter`), the
+    time, the sweep invocation, the worker, its FMUs."""
+    return {
+        "wall_time_s": clock.perf_counter() - started,
+        "finished_at": _now(),
+        "run_id": run_id,
+        "worker": f"{socket.gethostname()}:{os.getpid()}",
+        "fmu_sha256": _fmu_key(case.fmu_sha256),
+    }
 
 
 def _now() -> str:
