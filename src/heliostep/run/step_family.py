@@ -27,11 +27,13 @@ from heliostep.drive.inputs import DriveInputs, implied_parameters, prepare_inpu
 from heliostep.drive.sequencer import PATTERNS, StepSchedule
 from heliostep.drive.wind_load import commanded_panel_angle
 from heliostep.results.figures.solution import SolutionRecorder
+from heliostep.results.figures.steps import FULL_STEPS_PER_PERIOD, SETTLING_BAND
 from heliostep.results.figures.tradeoffs import energy_per_day
 from heliostep.results.light.on_tube import LightIntegrals
 from heliostep.results.trace.frame import drive_metadata
 from heliostep.run.bindings import parameters
 from heliostep.run.runner import _prepare, _system
+from heliostep.run.step_settling import LOBES, lobes, settling_times
 from heliostep.scenario import Scenario, validate_scenario
 
 __all__ = [
@@ -54,7 +56,9 @@ LIGHT_EVERY = 60.0
 LIGHT_FIGURES = ("light_energy_J", "light_energy_ideal_J", "light_lost_J")
 #: A reversal's start that sits off the family's settled detent by more than this share of a step falls back.
 REVERSAL_OFFSET = 0.01
-_FIELDS = tuple("peak_torque peak_current energy overshoot overshoot_time rest slip missed lost failed ring".split())
+_FIELDS = tuple(
+    "peak_torque peak_current energy overshoot overshoot_time rest slip missed lost failed ring lag".split()
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,7 +75,12 @@ class StepFamily:
         Per field, shape (angles, 2, cycle): ``peak_torque`` [N.m], ``peak_current`` [A], ``energy`` above
         holding [J], ``overshoot`` past the new detent [steps] and its time after the step [s], ``rest``
         off the detent at the end [rad], ``slip`` whole steps lost (signed), ``missed``, ``lost``, ``failed``
-        (the drive ran away), ``ring`` (last time after the step farther than 5 % of a step from rest [s]).
+        (the drive ran away), ``ring`` (last time after the step farther than 5 % of a step from rest [s]),
+        ``lag`` the rotor's lag behind its detent held before the step [settling bands: SETTLING_BAND of a
+        step increment].
+    lobes : ndarray
+        The swings of each step's ring, shape (angles, 2, cycle, LOBES, 4)
+        (:func:`~heliostep.run.step_settling.lobes`).
     holding_power : ndarray
         Electrical power holding each phase of the cycle [W].
     cpu_s : float
@@ -81,6 +90,7 @@ class StepFamily:
     key: str
     angles: np.ndarray
     table: dict
+    lobes: np.ndarray
     holding_power: np.ndarray
     cpu_s: float
 
@@ -118,8 +128,9 @@ class StepFamily:
 @dataclasses.dataclass(frozen=True)
 class ComposedCase:
     """A case's figures composed from its family (peak torque and phase current, electrical energy and the
-    drive's energy per day, maximum tracking error, light on the tube and with ideal tracking, steps missed,
-    lost, commanded and executed, the duration), or ``fallback``: why the case must be run in full."""
+    drive's energy per day, maximum tracking error, settling times, light on the tube and with ideal
+    tracking, steps missed, lost, commanded and executed, the duration), or ``fallback``: why the case must
+    be run in full."""
 
     figures: dict
     fallback: str | None = None
@@ -169,6 +180,7 @@ def build_family(
     cycle = _cycle(prepared.inputs.sequencer)
     angles = np.radians(FAMILY_ANGLES_DEG)
     table = {name: np.zeros((len(angles), 2, cycle)) for name in _FIELDS}
+    swings = np.zeros((len(angles), 2, cycle, LOBES, 4))
     middle = float(angles[len(angles) // 2])
     holding = np.array([_transient(prepared, middle, p, 0)["energy"] / WINDOW for p in range(cycle)])
     for i, angle in enumerate(angles):
@@ -180,25 +192,41 @@ def build_family(
                 figures["energy"] -= holding[p] * WINDOW
                 for name in _FIELDS:
                     table[name][i, d, p] = figures[name]
-    return StepFamily(family_key(scenario, fmu_digests), angles, table, holding, clock.process_time() - started)
+                swings[i, d, p] = figures["lobes"]
+    key = family_key(scenario, fmu_digests)
+    return StepFamily(key, angles, table, swings, holding, clock.process_time() - started)
 
 
 class _Watch:
-    """The master's monitor for one transient: the run's solution figures, and the panel after the step."""
+    """The master's monitor for one transient: the run's solution figures, and the panel and the rotor
+    from the step on."""
 
-    def __init__(self, recorder: SolutionRecorder, panel: int):
-        self.recorder, self.panel, self.rows = recorder, panel, [np.zeros((0, 2))]
+    def __init__(self, recorder: SolutionRecorder, panel: int, rotor: int):
+        self.recorder, self.columns, self.rows = recorder, [0, panel, rotor], [np.zeros((0, 3))]
 
     def __call__(self, rows: np.ndarray) -> None:
         self.recorder(rows)
         rows = np.atleast_2d(rows)
-        self.rows.append(rows[rows[:, 0] > STEP_AT][:, [0, self.panel]].copy())
+        self.rows.append(rows[rows[:, 0] >= STEP_AT][:, self.columns].copy())
+
+    def swings(self, sequencer, commanded: float) -> np.ndarray:
+        """The step's ring as :func:`~heliostep.run.step_settling.lobes` keeps it: the rotor about its rest
+        as the run's step judge takes it (``commanded`` [rad] less the lag held at the first row)."""
+        time, _, rotor = np.concatenate(self.rows).T
+        lag = self.recorder.steps.lag
+        if not len(time) or lag is None:
+            return np.zeros((LOBES, 4))
+        period = FULL_STEPS_PER_PERIOD * sequencer.step_angle
+        rest = commanded - lag
+        rest -= period * np.round((rest - rotor[-1]) / period)
+        return lobes(time, (rotor - rest) / (SETTLING_BAND * sequencer.increment), STEP_AT)
 
     def motion(self, target: float, direction: int, step: float, cycle: int) -> dict:
         """The swing past the new detent ``target`` [rad] (in panel steps ``step`` [rad]) and its time after
         the step; where the panel rests at the end: whole electrical cycles off (``slip``, steps lost) and
         the rest [rad]; the ring [s]."""
-        time, panel = np.concatenate(self.rows).T
+        time, panel, _ = np.concatenate(self.rows).T
+        time, panel = time[time > STEP_AT], panel[time > STEP_AT]
         if not len(time):
             return {"overshoot": 0.0, "overshoot_time": 0.0, "rest": 0.0, "slip": 0.0, "ring": 0.0}
         past = direction * (panel - target)
@@ -244,11 +272,12 @@ def _transient(prepared, angle: float, index: int, direction: int) -> dict:
     columns = ["time", *[item.name for item in system.inputs]]
     columns += [f"{name}.{output}" for name, info in system.fmus.items() for output in info.traced_outputs]
     recorder = SolutionRecorder(columns, prepared.roles, sequencer, schedule, None)
-    watch = _Watch(recorder, columns.index(prepared.roles["panel_angle"]))
+    watch = _Watch(recorder, columns.index(prepared.roles["panel_angle"]), columns.index(prepared.roles["rotor_angle"]))
     try:
         system.simulate(0.0, WINDOW, ends, prepared.solver, monitor=watch)
     except SimulationError:  # the drive runs away: an outcome a family cannot compose (a case falls back)
-        return {**dict.fromkeys(_FIELDS, np.nan), "slip": 0.0, "missed": 1.0, "lost": 1.0, "failed": 1.0}
+        failed = {"slip": 0.0, "missed": 1.0, "lost": 1.0, "failed": 1.0, "lobes": np.zeros((LOBES, 4))}
+        return {**dict.fromkeys(_FIELDS, np.nan), **failed}
     figures = recorder.figures()
     step = abs(target - angle) if direction else 1.0  # the panel's step between the two detents
     return {
@@ -258,6 +287,8 @@ def _transient(prepared, angle: float, index: int, direction: int) -> dict:
         **watch.motion(target, direction or 1, step, _cycle(sequencer)),
         "missed": figures["missed_steps"] if direction else 0,
         "lost": figures["steps_lost"],
+        "lag": watch.recorder.steps.lag / (SETTLING_BAND * sequencer.increment),
+        "lobes": watch.swings(sequencer, float(sequencer.position(end))) if direction else np.zeros((LOBES, 4)),
         "failed": 0.0,
     }
 
@@ -279,7 +310,8 @@ def compose_case(
     Peaks: the largest of its steps' (each a spline in the panel angle). Electrical energy: holding
     power times the time at each phase, plus each step's energy above holding. Tracking error: the
     reference minus the panel at rest (its detent, a load's lag), at every interval's ends and at each
-    step's swing past its target. Light on the tube: :class:`~heliostep.results.light.on_tube.LightIntegrals`
+    step's swing past its target. Settling: each step's from the swings of its ring
+    (:mod:`heliostep.run.step_settling`). Light on the tube: :class:`~heliostep.results.light.on_tube.LightIntegrals`
     on that panel angle. Steps missed and lost: the family's outcomes.
     """
     if family.key != family_key(scenario, fmu_digests):
@@ -302,6 +334,7 @@ def compose_case(
         "peak_phase_current_A": float(at["peak_current"].max(initial=0.0)),
         "electrical_energy_J": holding + float(at["energy"].sum()),
         "max_tracking_error_deg": _max_tracking_error(inputs, commanded, panel, at, direction),
+        **_settling(family, commanded[:-1], (direction, phase), at["lag"], np.diff(bounds)[1:]),
         **_light(scenario, inputs, panel),
         "missed_steps": missed,
         "steps_lost": int(np.rint(at["lost"]).sum()),
@@ -377,6 +410,27 @@ def _max_tracking_error(inputs: DriveInputs, commanded, panel, at: dict, directi
         ]
     )
     return float(np.degrees(np.abs(errors).max()))
+
+
+def _settling(family: StepFamily, angle: np.ndarray, steps, lag: np.ndarray, rests: np.ndarray) -> dict:
+    """``settling_time_max_s``, ``settling_time_mean_s`` and ``settling_not_settled`` (a run's
+    ``settling_time_s`` as a sweep's table gives it), each step's settling time from the swings
+    of the family's transients at the angles around its own ``angle`` [rad] (``steps``: each step's
+    direction and phase), about the lag held before the first step (``lag``: each step's own [bands]); a step
+    not settled within its rest before the next step or the window's end [s] is not settled."""
+    direction, phase = steps
+    below = np.clip(np.searchsorted(family.angles, angle) - 1, 0, len(family.angles) - 2)
+    weight = (angle - family.angles[below]) / np.diff(family.angles)[below]
+    side = (direction > 0).astype(int)
+    settling = settling_times(
+        family.lobes[below, side, phase], family.lobes[below + 1, side, phase], weight, lag - lag[0]
+    )
+    settled = settling[settling <= rests]
+    return {
+        "settling_time_max_s": float(settled.max()) if len(settled) else None,
+        "settling_time_mean_s": float(settled.mean()) if len(settled) else None,
+        "settling_not_settled": int(len(settling) - len(settled)),
+    }
 
 
 def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> dict:

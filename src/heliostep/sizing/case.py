@@ -11,9 +11,10 @@ from pathlib import Path
 
 from heliostep.run import RunFailed, RunOptions, run_scenario
 from heliostep.sizing.plan import case_scenario
+from heliostep.sweep.certificate import CERTIFIED_FIGURES
 from heliostep.sweep.worker import FmuPayload, _local_fmu
 
-__all__ = ["CASE_FIGURES", "run_sizing_case"]
+__all__ = ["CASE_FIGURES", "CERTIFIED_CASE_FIGURES", "run_sizing_case"]
 
 #: A day case's figures in the sheet's records.
 CASE_FIGURES = (
@@ -32,6 +33,8 @@ CASE_FIGURES = (
     "light_lost_stowed_J",
     "stowed_time_s",
 )
+#: The figures of a sweep's certificate that a day case carries: those a sizing's certificate compares.
+CERTIFIED_CASE_FIGURES = tuple(name for name in CERTIFIED_FIGURES if name in CASE_FIGURES)
 
 
 def run_sizing_case(

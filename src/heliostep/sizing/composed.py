@@ -17,7 +17,7 @@ from pathlib import Path
 
 from heliostep.drive.inputs import prepare_inputs
 from heliostep.run.step_family import build_family, compose_case, family_key, not_composable
-from heliostep.sizing.case import CASE_FIGURES, run_sizing_case
+from heliostep.sizing.case import CASE_FIGURES, CERTIFIED_CASE_FIGURES, run_sizing_case
 from heliostep.sizing.plan import SizingCase, SizingPlan, case_scenario
 from heliostep.sizing.pool import on_every_core
 from heliostep.sweep.certificate import (
@@ -112,9 +112,9 @@ class FamilyTask:
             case = self.cases[index]
             if case.key in composed:  # (one that fell back runs in full among the rest)
                 full = run_sizing_case(self.raw, case.overrides, self.source, self.folder, None, self.fmu_paths)
-                certificate.append(certified_row(full, composed.pop(case.key)))
+                certificate.append(certified_row(full, composed.pop(case.key), CERTIFIED_CASE_FIGURES))
                 records.append((case, certificate[-1]))
-        failed = failed_figures(certificate)
+        failed = failed_figures(certificate, CERTIFIED_CASE_FIGURES)
         for case in self.cases:
             if case.key in composed and failed:
                 left.append((case, f"the family's certificate fails on {', '.join(failed)}"))

@@ -20,6 +20,7 @@ from heliostep.errors import RunFailure
 from heliostep.results.output.files import check_out_dir
 from heliostep.results.output.folder import check_foreign, hold_folder, staging_folder, swap_in
 from heliostep.results.output.rescue import rescue_folder, write_text_parts
+from heliostep.sizing.case import CERTIFIED_CASE_FIGURES
 from heliostep.sizing.plan import SizingPlan
 from heliostep.sizing.size import judge_candidates, run_sizing_cases
 from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES
@@ -149,5 +150,6 @@ def composition_record(records: list[dict]) -> dict:
             "tolerance": tolerance,
         }
         for name, tolerance in CERTIFIED_FIGURES.items()
+        if name in CERTIFIED_CASE_FIGURES
     }
     return {"methods": methods, "certificate": deviations if methods.get("composed") else {}}
