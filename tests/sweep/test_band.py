@@ -283,6 +283,7 @@ def test_cli_band_writes_summary_and_a_sample_equals_a_plain_run(client, fmu_pat
             "  - {key: parameters.motor.V_supply, low: 48, high: 24, unit: V, source: s}\n",
             "low = 48 is not below high = 24",
         ),
+        (["--exact"], None, "--exact: only with --band"),
     ],
 )
 def test_bad_band_input_is_exit_2_naming_the_key(args, ranges, expected, tmp_path, capsys, fmu_paths):

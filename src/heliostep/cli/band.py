@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from heliostep.errors import InputError
 from heliostep.sweep.band import DEFAULT_SEED, MAX_BAND_SAMPLES, RANGES_FILE, BandDesign, band_design, load_ranges
 
 #: How long to try reaching --scheduler [s].
@@ -19,12 +20,14 @@ BAND_HELP = (
     "pins (band.pinned) keep its value. summary.json gains 'band': each figure's nominal, min, median "
     "and max over the samples, the design (seed, ranges, each sample's values) and each sample's "
     "figures; a failed sample is listed there and named on stderr. Ctrl+C during the band keeps the "
-    "nominal run's files and writes the band of the samples finished."
+    "nominal run's files and writes the band of the samples finished. A window of more than 4 hours "
+    "composes each sample from its drive's step family, certified by 2 samples run both ways "
+    "(docs/sweep.md); --exact runs every sample in full."
 )
 
 
 def add_band_options(parser: argparse.ArgumentParser) -> None:
-    """--band, --band-seed, --band-ranges, --scheduler, --workers."""
+    """--band, --band-seed, --band-ranges, --exact, --scheduler, --workers."""
     group = parser.add_argument_group("uncertainty band", BAND_HELP)
     group.add_argument(
         "--band",
@@ -46,6 +49,9 @@ def add_band_options(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="the ranges file (default: the shipped one)",
     )
+    group.add_argument(
+        "--exact", action="store_true", help="with --band: every sample co-simulated in full, none composed"
+    )
     group.add_argument("--scheduler", metavar="ADDRESS", help="run the band on this Dask scheduler (tcp://HOST:PORT)")
     group.add_argument("--workers", type=int, metavar="N", help="worker processes of the local cluster (one per core)")
 
@@ -54,6 +60,8 @@ def prepare_band(args: argparse.Namespace, scenario, fmu_paths) -> BandDesign | 
     """The band's design, checked before anything runs (an InputError, exit 2, names the key or option);
     None without --band."""
     if args.band is None:
+        if args.exact:
+            raise InputError("--exact: only with --band (a run without a band is co-simulated in full)")
         return None
     design = band_design(
         scenario, load_ranges(args.band_ranges), args.band, args.band_seed, fmu_paths, ranges_file=args.band_ranges
@@ -109,6 +117,7 @@ def run_band_after(
         connect_timeout=CONNECT_TIMEOUT,
         should_stop=stop.is_set,
         on_sample=report,
+        exact=args.exact,
     )
     record = band_record(run_figures(result), outcome)
     write_band_summary(out_dir, result.summary_record(), record)
@@ -137,6 +146,16 @@ def band_report(record: dict) -> str:
             continue
         values = (entry[key] for key in ("nominal", "min", "median", "max"))
         lines.append(f"  {name:34s} " + " ".join(f"{value:11.5g}" for value in values))
+    composition = record.get("composition") or {}
+    if composition.get("methods", {}).get("composed") or composition.get("certificate_failed"):
+        methods = ", ".join(f"{count} {method}" for method, count in sorted(composition["methods"].items()))
+        lines.append(f"  samples by method: {methods}")
+        for name, figure in composition["certificate"].items():
+            deviation = figure["max_deviation"]
+            shown = "n/a" if deviation is None else f"{deviation:.2e}"
+            lines.append(f"  certified max deviation {name:26s} {shown} (tolerance {figure['tolerance']:.1e})")
+        if composition.get("certificate_failed"):
+            lines.append(f"  the certificate failed on {', '.join(composition['certificate_failed'])}: all in full")
     if record.get("note"):
         lines.append(f"  note: {record['note']}")
     return "\n".join(lines)

@@ -25,6 +25,8 @@ from heliostep.run.estimate import estimate_run
 from heliostep.run.runner import HELD_TRACE_MAX_DURATION
 from heliostep.scenario import Scenario, validate_scenario
 from heliostep.sweep.band import BandDesign
+from heliostep.sweep.band_composed import band_ways, certificate_failures, certify_sample, composed_sample
+from heliostep.sweep.certificate import CERTIFIED_FIGURES
 from heliostep.sweep.cluster import _dask_client, _worker_count
 from heliostep.sweep.worker import FmuPayload, _error_text, _fmu_payload, _local_fmu
 
@@ -32,6 +34,7 @@ __all__ = [
     "BandOutcome",
     "band_figures",
     "run_figures",
+    "band_composition",
     "band_record",
     "check_band_budget",
     "run_band",
@@ -47,13 +50,19 @@ class BandOutcome:
     """What :func:`run_band` did: each sample's result (index order), and whether it was stopped.
 
     ``results[i]`` is None for a sample that did not finish (the band stopped), else a dict with
-    ``status`` ("ok" or "failed"), ``figures`` (:func:`band_figures`; None when failed), ``error``
-    and ``wall_time_s`` [s].
+    ``status`` ("ok" or "failed"), ``figures`` (:func:`band_figures`; None when failed), ``error``,
+    ``wall_time_s`` [s], ``method`` (full, composed or certificate), ``fallback`` (why a sample to compose
+    ran in full) and, on a certificate's, ``deviations``. ``ways``: how each sample was to run
+    (:func:`~heliostep.sweep.band_composed.band_ways`), ``in_full_why`` why none was composed, and
+    ``certificate_failed`` the figures on which the certificate failed (the composed samples then ran in full).
     """
 
     design: BandDesign
     results: list[dict[str, Any] | None]
     interrupted: bool = False
+    ways: list[str] = dataclasses.field(default_factory=list)
+    in_full_why: str | None = None
+    certificate_failed: list[str] = dataclasses.field(default_factory=list)
 
     @property
     def finished(self) -> list[int]:
@@ -96,20 +105,36 @@ def _is_number(value: Any) -> TypeGuard[float]:
     return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
 
 
-def run_band_sample(index: int, data: dict, source: str, folder: str, payloads: Mapping[str, FmuPayload]) -> dict:
-    """One sample's run (a Dask task): its FMUs written locally, the run supervised, its figures.
+def run_band_sample(
+    index: int, data: dict, source: str, folder: str, payloads: Mapping[str, FmuPayload], way: str = "full"
+) -> dict:
+    """One sample (a Dask task): its FMUs written locally, then as ``way`` says (:func:`band_ways`): run
+    supervised (``full``), composed from its step family (``composed``; run where it falls back, ``fallback``
+    says why), or both (``certificate``: the full run's figures, the composition's ``deviations``).
 
     Never raises for a failing run: its ``status`` is "failed" with the error's text."""
     started = clock.perf_counter()
-    result: dict[str, Any] = {"index": index, "status": "ok", "figures": None, "error": None}
+    result: dict[str, Any] = {"index": index, "status": "ok", "figures": None, "error": None, "method": way}
     try:
         data = copy.deepcopy(data)
         data["fmus"] = {
             instance: None if sha is None else str(_local_fmu(payloads[sha])) for instance, sha in data["fmus"].items()
         }
         scenario = validate_scenario(data, source=source, folder=Path(folder))
-        run = run_scenario(scenario, RunOptions(keep_trace=False, supervise=True))
-        result["figures"] = run_figures(run)
+        composed, fallback = None, None
+        if way != "full":
+            try:
+                composed, fallback = composed_sample(scenario)
+            except Exception as exc:  # noqa: BLE001 - the sample runs in full, which reports what is wrong
+                fallback = f"not composed: {_error_text(exc)[:200]}"
+        if way == "composed" and composed is not None:
+            result["figures"] = band_figures(composed)
+        else:
+            run = run_scenario(scenario, RunOptions(keep_trace=False, supervise=True))
+            result["figures"] = run_figures(run)
+            result.update(method="full" if way == "composed" else way, fallback=fallback)
+            if way == "certificate":
+                result["deviations"] = certify_sample(run.summary, composed)
     except RunFailed as exc:
         result.update(status="failed", error=_error_text(exc))
     except Exception as exc:  # noqa: BLE001 - a failing sample is recorded, never fatal
@@ -149,8 +174,10 @@ def run_band(
     connect_timeout: float = 5.0,
     should_stop: Callable[[], bool] | None = None,
     on_sample: Callable[[dict], None] | None = None,
+    exact: bool = False,
 ) -> BandOutcome:
-    """Run the design's samples of ``scenario`` on Dask.
+    """Run the design's samples of ``scenario`` on Dask, composed from their step families where that pays
+    (:func:`~heliostep.sweep.band_composed.band_ways`), certified by samples run in full.
 
     Parameters
     ----------
@@ -166,69 +193,118 @@ def run_band(
     should_stop : callable, optional
         Asked every :data:`STOP_POLL` s; once true the samples not finished are cancelled.
     on_sample : callable, optional
-        Called with each finished sample's result.
+        Called with each finished sample's result (a composed one once the certificate is in).
+    exact : bool
+        Every sample co-simulated in full.
 
     Returns
     -------
     BandOutcome
     """
     samples, payloads = _shipped_samples(scenario, design, fmu_paths)
-    outcome = BandOutcome(design, [None] * design.samples)
+    ways, why = band_ways(scenario, design, exact)
+    outcome = BandOutcome(design, [None] * design.samples, ways=ways, in_full_why=why)
     if should_stop is not None and should_stop():  # stopped before the cluster starts
         outcome.interrupted = True
         return outcome
     with _dask_client(client, scheduler, n_workers, connect_timeout) as dask:  # Ctrl+C: sweep.local_worker
-        futures, shipped = _submit_samples(dask, samples, payloads, str(scenario.folder))
+        submit, shipped = _submitter(dask, samples, payloads, str(scenario.folder))
         try:
-            _collect(dask, futures, outcome, should_stop, on_sample)
+            _Collector(dask, submit, outcome, should_stop, on_sample).run()
         finally:
             for future in shipped:
                 future.release()
     return outcome
 
 
-def _submit_samples(dask, samples: list[tuple[int, dict, str]], payloads: Mapping[str, FmuPayload], folder: str):
-    """The FMUs shipped once and one task per sample: (future -> sample index, the FMUs' futures)."""
+def _submitter(dask, samples: list[tuple[int, dict, str]], payloads: Mapping[str, FmuPayload], folder: str):
+    """The FMUs shipped once, and ``submit(index, way)``: the future of one sample's task (and the FMUs'
+    futures)."""
     run_id = uuid.uuid4().hex[:12]
     shipped = {
         sha: dask.submit(_fmu_payload, payload, key=f"heliostep-band-fmu-{sha[:16]}-{run_id}", pure=False)
         for sha, payload in payloads.items()
     }
-    futures = {}
-    for index, data, source in samples:
+
+    def submit(index: int, way: str):
+        _, data, source = samples[index]
         needed = {sha: shipped[sha] for sha in set(data["fmus"].values()) if sha is not None}
-        key = f"heliostep-band-{index}-{run_id}"
-        futures[dask.submit(run_band_sample, index, data, source, folder, needed, pure=False, key=key)] = index
-    return futures, list(shipped.values())
+        key = f"heliostep-band-{index}-{way}-{run_id}"
+        return dask.submit(run_band_sample, index, data, source, folder, needed, way, pure=False, key=key)
+
+    return submit, list(shipped.values())
 
 
-def _collect(dask, futures: dict, outcome: BandOutcome, should_stop, on_sample) -> None:
-    """Each sample's result into ``outcome`` as it finishes; once ``should_stop()`` the rest cancelled."""
-    from distributed import wait
+class _Collector:
+    """Each sample's result into the outcome as it finishes; a composed one held until the certificate's
+    samples are in, then kept or, where the certificate fails, its sample run again in full. Once
+    ``should_stop()`` the rest are cancelled (held compositions with them: not certified, not kept)."""
 
-    pending = set(futures)
-    while pending:
-        if should_stop is not None and should_stop():
-            outcome.interrupted = True
-            dask.cancel(list(pending))
-            return
-        try:
-            done, pending = wait(pending, timeout=STOP_POLL, return_when="FIRST_COMPLETED")
-        except TimeoutError:
-            continue
-        for future in done:
-            index = futures[future]
+    def __init__(self, dask, submit, outcome: BandOutcome, should_stop, on_sample) -> None:
+        self.dask, self.submit, self.outcome = dask, submit, outcome
+        self.should_stop, self.on_sample = should_stop, on_sample
+        self.futures = {submit(index, way): index for index, way in enumerate(outcome.ways)}
+        self.waiting = outcome.ways.count("certificate")
+        self.held: list[dict] = []
+
+    def run(self) -> None:
+        from distributed import wait
+
+        pending = set(self.futures)
+        while pending:
+            if self.should_stop is not None and self.should_stop():
+                self.outcome.interrupted = True
+                self.dask.cancel(list(pending))
+                return
             try:
-                result = future.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: recorded as the sample's failure
-                result = {"index": index, "status": "failed", "figures": None, "error": _error_text(exc)}
-                result["wall_time_s"] = None
-            future.release()
-            if result["status"] != "ok" and should_stop is not None and should_stop():
-                continue  # ended by the stop (Ctrl+C reaches the local workers too): not run, not failed
-            outcome.results[index] = result
-            if on_sample is not None:
-                on_sample(result)
+                done, pending = wait(pending, timeout=STOP_POLL, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                continue
+            for future in done:
+                pending |= self._take(future)
+
+    def _take(self, future) -> set:
+        """One finished task's result; the futures it submits (composed samples to run in full)."""
+        index = self.futures.pop(future)
+        try:
+            result = future.result()
+        except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: recorded as the sample's failure
+            result = {"index": index, "status": "failed", "figures": None, "error": _error_text(exc)}
+            result["wall_time_s"] = None
+        future.release()
+        if result["status"] != "ok" and self.should_stop is not None and self.should_stop():
+            return set()  # ended by the stop (Ctrl+C reaches the local workers too): not run, not failed
+        if result.get("method") == "composed":
+            if self.outcome.certificate_failed:
+                return self._in_full([index])
+            if self.waiting:
+                self.held.append(result)
+                return set()
+        self._keep(result)
+        if self.outcome.ways[index] != "certificate" or result.get("method") == "full":
+            return set()
+        self.waiting -= 1
+        if self.waiting:
+            return set()
+        certified = [r.get("deviations") or {} for r in self.outcome.results if r is not None and "deviations" in r]
+        certified += [{}] * (self.outcome.ways.count("certificate") - len(certified))  # a certificate that failed
+        self.outcome.certificate_failed = certificate_failures(certified)
+        held, self.held = self.held, []
+        if self.outcome.certificate_failed:
+            return self._in_full([r["index"] for r in held])
+        for composed in held:
+            self._keep(composed)
+        return set()
+
+    def _in_full(self, indices: list[int]) -> set:
+        submitted = {self.submit(index, "full"): index for index in indices}
+        self.futures.update(submitted)
+        return set(submitted)
+
+    def _keep(self, result: dict) -> None:
+        self.outcome.results[result["index"]] = result
+        if self.on_sample is not None:
+            self.on_sample(result)
 
 
 def check_band_budget(scenario: Scenario, samples: int, n_workers: int | None = None) -> None:
@@ -282,10 +358,32 @@ def band_record(nominal_figures: Mapping[str, float], outcome: BandOutcome) -> d
             for index, result in enumerate(outcome.results)
         ],
     }
+    record["composition"] = band_composition(outcome)
     notes = band_notes(outcome)
     if notes:
         record["note"] = "; ".join(notes)
     return record
+
+
+def band_composition(outcome: BandOutcome) -> dict[str, Any]:
+    """How the samples were made: their count by method, why none was composed (``in_full``), and per
+    certified figure the largest deviation on the certificate's samples with its tolerance."""
+    finished = [result for result in outcome.results if result is not None]
+    methods: dict[str, int] = {}
+    for result in finished:
+        methods[result.get("method") or "full"] = methods.get(result.get("method") or "full", 0) + 1
+    certified = [result["deviations"] for result in finished if result.get("deviations")]
+    return {
+        "methods": methods,
+        "in_full": outcome.in_full_why,
+        "certificate_failed": outcome.certificate_failed,
+        "certificate": {
+            name: {"max_deviation": max((d[name] for d in certified), default=None), "tolerance": tolerance}
+            for name, tolerance in CERTIFIED_FIGURES.items()
+        }
+        if certified
+        else {},
+    }
 
 
 def band_notes(outcome: BandOutcome) -> list[str]:
@@ -297,6 +395,12 @@ def band_notes(outcome: BandOutcome) -> list[str]:
         notes.append(
             f"{len(failed)} of {design.samples} samples failed (sample(s) {', '.join(map(str, failed))}: "
             "see sample_results); the band is over the others"
+        )
+    composed = sum(1 for result in outcome.results if result is not None and result.get("method") == "composed")
+    if composed:
+        notes.append(
+            f"{composed} samples composed from their step families carry the figures a family composes "
+            '(docs/sweep.md, "Step families"); the band of the others is over the samples run in full'
         )
     missing = [index for index, result in enumerate(outcome.results) if result is None]
     if missing:
