@@ -33,7 +33,7 @@ from heliostep.results.light.on_tube import LightIntegrals
 from heliostep.results.trace.frame import drive_metadata
 from heliostep.run.bindings import parameters
 from heliostep.run.runner import _prepare, _system
-from heliostep.run.step_settling import LOBES, lobes, settling_times
+from heliostep.run.step_settling import LOBES, lobes, settling_figures
 from heliostep.scenario import Scenario, validate_scenario
 
 __all__ = [
@@ -334,7 +334,9 @@ def compose_case(
         "peak_phase_current_A": float(at["peak_current"].max(initial=0.0)),
         "electrical_energy_J": holding + float(at["energy"].sum()),
         "max_tracking_error_deg": _max_tracking_error(inputs, commanded, panel, at, direction),
-        **_settling(family, commanded[:-1], (direction, phase), at["lag"], np.diff(bounds)[1:]),
+        **settling_figures(
+            family.lobes, family.angles, commanded[:-1], (direction, phase), at["lag"], np.diff(bounds)[1:]
+        ),
         **_light(scenario, inputs, panel),
         "missed_steps": missed,
         "steps_lost": int(np.rint(at["lost"]).sum()),
@@ -410,27 +412,6 @@ def _max_tracking_error(inputs: DriveInputs, commanded, panel, at: dict, directi
         ]
     )
     return float(np.degrees(np.abs(errors).max()))
-
-
-def _settling(family: StepFamily, angle: np.ndarray, steps, lag: np.ndarray, rests: np.ndarray) -> dict:
-    """``settling_time_max_s``, ``settling_time_mean_s`` and ``settling_not_settled`` (a run's
-    ``settling_time_s`` as a sweep's table gives it), each step's settling time from the swings
-    of the family's transients at the angles around its own ``angle`` [rad] (``steps``: each step's
-    direction and phase), about the lag held before the first step (``lag``: each step's own [bands]); a step
-    not settled within its rest before the next step or the window's end [s] is not settled."""
-    direction, phase = steps
-    below = np.clip(np.searchsorted(family.angles, angle) - 1, 0, len(family.angles) - 2)
-    weight = (angle - family.angles[below]) / np.diff(family.angles)[below]
-    side = (direction > 0).astype(int)
-    settling = settling_times(
-        family.lobes[below, side, phase], family.lobes[below + 1, side, phase], weight, lag - lag[0]
-    )
-    settled = settling[settling <= rests]
-    return {
-        "settling_time_max_s": float(settled.max()) if len(settled) else None,
-        "settling_time_mean_s": float(settled.mean()) if len(settled) else None,
-        "settling_not_settled": int(len(settling) - len(settled)),
-    }
 
 
 def _light(scenario: Scenario, inputs: DriveInputs, panel: np.ndarray) -> dict:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LOBES", "lobes", "settling_times"]
+__all__ = ["LOBES", "lobes", "settling_figures", "settling_times"]
 
 #: The swings of a step's ring a family keeps: a step whose last kept swing still leaves the band is not
 #: settled (a lightly damped ring swings some tens of times before it stays within).
@@ -72,3 +72,25 @@ def settling_times(below: np.ndarray, above: np.ndarray, weight: np.ndarray, shi
     last = LOBES - 1 - np.argmax(out[:, ::-1], axis=1)
     settling = np.where(out.any(axis=1), back[np.arange(len(back)), last], 0.0)
     return np.where(out[:, -1], np.inf, settling)
+
+
+def settling_figures(
+    swings: np.ndarray, angles: np.ndarray, angle: np.ndarray, steps, lag: np.ndarray, rests: np.ndarray
+) -> dict:
+    """``settling_time_max_s``, ``settling_time_mean_s`` and ``settling_not_settled`` (a run's
+    ``settling_time_s`` as a sweep's table gives it) of a case's steps at panel angles ``angle`` [rad]
+    (``steps``: each step's direction and phase), from a family's ``swings`` (shape (angles, 2, cycle, LOBES,
+    4)) at its ``angles`` [rad] around each, about the lag held before the first step (``lag``: each
+    step's own [bands]); a step not settled within its rest before the next step or the window's end
+    (``rests`` [s]) is not settled."""
+    direction, phase = steps
+    below = np.clip(np.searchsorted(angles, angle) - 1, 0, len(angles) - 2)
+    weight = (angle - angles[below]) / np.diff(angles)[below]
+    side = (direction > 0).astype(int)
+    settling = settling_times(swings[below, side, phase], swings[below + 1, side, phase], weight, lag - lag[0])
+    settled = settling[settling <= rests]
+    return {
+        "settling_time_max_s": float(settled.max()) if len(settled) else None,
+        "settling_time_mean_s": float(settled.mean()) if len(settled) else None,
+        "settling_not_settled": int(len(settling) - len(settled)),
+    }
