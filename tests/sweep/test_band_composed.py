@@ -12,7 +12,7 @@ from heliostep.run import resolve_fmus
 from heliostep.scenario import load_scenario
 from heliostep.sweep import band_composed
 from heliostep.sweep.band import band_design, load_ranges
-from heliostep.sweep.band_composed import BAND_CERTIFY, band_ways
+from heliostep.sweep.band_composed import BAND_CERTIFY, band_ways, certificate_failures
 from heliostep.sweep.band_run import band_record, run_band
 from heliostep.sweep.certificate import CERTIFIED_FIGURES, row_deviation
 from loopback_cluster import loopback_client
@@ -85,3 +85,11 @@ def test_a_band_composes_only_where_a_family_pays(fmu_paths):
     assert short == ["full"] * 5 and "a window of 0.083 h" in why
     closed = load_scenario(scenarios_dir() / "jan21-closed-loop.yaml", ("window.duration=14760",))
     assert "closed_loop" in band_ways(closed, design)[1]
+
+
+def test_a_certificate_sample_that_failed_or_was_not_composed_fails_the_certificate():
+    within = {name: tolerance / 2 for name, tolerance in CERTIFIED_FIGURES.items()}
+    assert certificate_failures([within, within]) == []
+    assert certificate_failures([within, {**within, "electrical_energy_J": 2e-3}]) == ["electrical_energy_J"]
+    assert certificate_failures([within, {**within, "peak_torque_Nm": float("nan")}]) == ["peak_torque_Nm"]
+    assert certificate_failures([within, {}]) == list(CERTIFIED_FIGURES) == certificate_failures([])

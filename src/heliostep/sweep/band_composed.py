@@ -54,19 +54,19 @@ def composed_sample(scenario: Scenario) -> tuple[dict | None, str | None]:
     return figures, None
 
 
-def certify_sample(summary: Mapping, composed: Mapping | None) -> dict[str, float]:
-    """Each certified figure's deviation of a sample's composition from its full run's ``summary`` (nan where
-    it was not composed)."""
-    full, flat = summary_figures(summary), _flat(composed) if composed is not None else {}
-    return {name: row_deviation(full, flat, name) if flat else float("nan") for name in CERTIFIED_FIGURES}
+def certify_sample(summary: Mapping, composed: Mapping) -> dict[str, float]:
+    """Each certified figure's deviation of a sample's composition from its full run's ``summary``."""
+    full, flat = summary_figures(summary), _flat(composed)
+    return {name: row_deviation(full, flat, name) for name in CERTIFIED_FIGURES}
 
 
 def certificate_failures(deviations: Sequence[Mapping[str, float]]) -> list[str]:
-    """The certified figures whose deviation exceeds its tolerance on any certificate sample (nan fails)."""
+    """The certified figures whose deviation exceeds its tolerance on any certificate sample (nan, or none:
+    a sample that failed, fails; no sample at all, every figure)."""
     return [
         name
         for name, tolerance in CERTIFIED_FIGURES.items()
-        if not deviations or any(not np.isfinite(d[name]) or d[name] > tolerance for d in deviations)
+        if not deviations or any(not d.get(name, np.nan) <= tolerance for d in deviations)
     ]
 
 

@@ -133,7 +133,7 @@ def run_band_sample(
             run = run_scenario(scenario, RunOptions(keep_trace=False, supervise=True))
             result["figures"] = run_figures(run)
             result.update(method="full" if way == "composed" else way, fallback=fallback)
-            if way == "certificate":
+            if way == "certificate" and composed is not None:  # one that fell back certifies nothing
                 result["deviations"] = certify_sample(run.summary, composed)
     except RunFailed as exc:
         result.update(status="failed", error=_error_text(exc))
@@ -281,13 +281,17 @@ class _Collector:
                 self.held.append(result)
                 return set()
         self._keep(result)
-        if self.outcome.ways[index] != "certificate" or result.get("method") == "full":
+        if self.outcome.ways[index] != "certificate":
             return set()
         self.waiting -= 1
         if self.waiting:
             return set()
-        certified = [r.get("deviations") or {} for r in self.outcome.results if r is not None and "deviations" in r]
-        certified += [{}] * (self.outcome.ways.count("certificate") - len(certified))  # a certificate that failed
+        ways, results = self.outcome.ways, self.outcome.results
+        certified = [  # a sample that failed has no deviations, and fails the certificate; one that fell back, none
+            (results[i] or {}).get("deviations") or {}
+            for i, way in enumerate(ways)
+            if way == "certificate" and not (results[i] or {}).get("fallback")
+        ]
         self.outcome.certificate_failed = certificate_failures(certified)
         held, self.held = self.held, []
         if self.outcome.certificate_failed:
