@@ -8,7 +8,7 @@ half period of the ring, wherever one of the ring's swings shrinks below the ban
 change smoothly with the angle, so a family keeps each swing (a lobe: the rows between two crossings of
 the rest) with its height, the time the rotor comes back into the band after it and the rate at which it
 does, and a case's settling is the last swing that still leaves the band, the swings interpolated between
-the family's two angles around its step.
+the family's two angles around its step (the heights geometrically, as a damped ring's shrink).
 """
 
 from __future__ import annotations
@@ -57,10 +57,11 @@ def settling_times(below: np.ndarray, above: np.ndarray, weight: np.ndarray, shi
     about the lag held at its first row; a step held at another load lags by other than that): the
     swings on the side of the shift shrink by it and come back into the band sooner, to first order."""
     w = weight[:, None]
-    with np.errstate(
-        divide="ignore", invalid="ignore"
-    ):  # a ring's swings shrink by a factor each: their heights go geometric
-        height = np.exp((1.0 - w) * np.log(below[..., 0]) + w * np.log(above[..., 0]))
+    low, high = below[..., 0], above[..., 0]
+    both = (low > 0.0) & (high > 0.0)
+    # the heights geometric, as a ring decays; linear where a swing is missing at one of the two angles
+    geometric = np.exp((1.0 - w) * np.log(np.where(both, low, 1.0)) + w * np.log(np.where(both, high, 1.0)))
+    height = np.where(both, geometric, (1.0 - w) * low + w * high)
     back = (1.0 - w) * below[..., 1] + w * above[..., 1]
     rate = (1.0 - w) * below[..., 2] + w * above[..., 2]
     side = np.where(w < 0.5, below[..., 3], above[..., 3])
