@@ -20,6 +20,8 @@ from loopback_cluster import loopback_client
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
 #: 4.1 hours of the paper's day as a sweep case's grid: more window than a family costs (FAMILY_WORTH_S).
 LONG = ("window.start=10:00", "window.duration=14760", "output.interval=1.0", "output.step_detail=0")
+#: 45 minutes of it, composed here all the same (the threshold set to 0: the method is the same, the cost not).
+SHORT = ("window.start=10:00", "window.duration=2700", "output.interval=1.0", "output.step_detail=0")
 #: The band's names of the table's settling columns.
 SETTLING = {"settling_time_max_s": "settling_time_s.max", "settling_time_mean_s": "settling_time_s.mean"}
 SETTLING["settling_not_settled"] = "settling_time_s.not_settled"
@@ -33,18 +35,19 @@ def _flat(figures: dict) -> dict:
 def bands(fmu_paths) -> dict:
     """The band of 3 samples composed (2 of them the certificate), and again with a certificate that cannot
     pass (peak torque at tolerance 0), which runs the composed sample in full."""
-    scenario = load_scenario(CENTRAL, LONG)
+    scenario = load_scenario(CENTRAL, SHORT)
     paths = resolve_fmus(scenario)
     design = band_design(scenario, load_ranges(), 3, fmu_paths=paths)
     outcomes = {}
     with loopback_client() as client, pytest.MonkeyPatch.context() as patch:
+        patch.setattr(band_composed, "FAMILY_WORTH_S", 0.0)
         outcomes["composed"] = run_band(scenario, design, paths, client=client)
         patch.setattr(band_composed, "CERTIFIED_FIGURES", {**CERTIFIED_FIGURES, "peak_torque_Nm": 0.0})
         outcomes["failed"] = run_band(scenario, design, paths, client=client)
     return outcomes
 
 
-def test_a_long_bands_samples_are_composed_and_certified(bands):
+def test_a_bands_samples_are_composed_and_certified(bands):
     outcome = bands["composed"]
     assert outcome.ways.count("certificate") == BAND_CERTIFY and outcome.ways.count("composed") == 1
     record = band_record({"peak_torque_Nm": 1.0}, outcome)
@@ -66,7 +69,7 @@ def test_a_composed_sample_agrees_with_its_full_cosimulation(bands):
     (index,) = [i for i, way in enumerate(composed.ways) if way == "composed"]
     assert composed.results[index]["method"] == "composed" and failed.results[index]["method"] == "full"
     full, ours = (_flat(outcome.results[index]["figures"]) for outcome in (failed, composed))
-    assert ours["steps_commanded"] == full["steps_commanded"] > 300
+    assert ours["steps_commanded"] == full["steps_commanded"] > 50
     for name, tolerance in CERTIFIED_FIGURES.items():
         assert row_deviation(full, ours, name) <= tolerance, (name, full[name], ours[name])
     for i, way in enumerate(composed.ways):  # the certificate's samples: the same full runs both times
