@@ -4,8 +4,10 @@ cannot compose say why."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
+from heliostep.drive.inputs import prepare_inputs
 from heliostep.paths import scenarios_dir
 from heliostep.run import RunFailed, RunOptions, run_scenario
 from heliostep.run.step_family import build_family, compose_case, family_key, not_composable
@@ -80,6 +82,17 @@ def test_a_weak_motor_that_loses_steps_falls_back(fmu_paths):
     composition = compose_case(scenario, build_family(scenario))
     assert composition.figures == {}
     assert "lost" in composition.fallback
+
+
+def test_a_stow_move_falls_back_its_steps_faster_than_a_steps_ring(fmu_paths):
+    """jan21-windy.yaml stows in a gust and returns: the slews step faster than a step's ring dies out, so
+    the steps interact, which a family of single steps cannot give; asked directly, the family refuses."""
+    scenario = load_scenario(scenarios_dir() / "jan21-windy.yaml")
+    family = build_family(scenario)
+    composition = compose_case(scenario, family)
+    assert composition.figures == {} and "stow moves" in composition.fallback
+    gaps = np.diff(prepare_inputs(scenario).schedule.times)
+    assert np.sum(gaps < family.table["ring"].min()) > 100  # steps before even the shortest ring has died out
 
 
 @pytest.mark.parametrize(
