@@ -56,6 +56,9 @@ LIGHT_EVERY = 60.0
 LIGHT_FIGURES = ("light_energy_J", "light_energy_ideal_J", "light_lost_J")
 #: A reversal's start that sits off the family's settled detent by more than this share of a step falls back.
 REVERSAL_OFFSET = 0.01
+#: A step whose panel still moves this long after it [s] creeps toward its rest slower than a family's window
+#: shows (its rest at the window's end is not the one the next step starts from): its case falls back.
+CREEP = 0.5 * (WINDOW - STEP_AT)
 _FIELDS = tuple(
     "peak_torque peak_current energy overshoot overshoot_time rest slip missed lost failed ring lag".split()
 )
@@ -360,9 +363,9 @@ def _panel_at(inputs: DriveInputs, scenario: Scenario, held: np.ndarray) -> np.n
 def _fallback(family: StepFamily, commanded: np.ndarray, inputs: DriveInputs, at: dict, steps) -> str | None:
     """Why a case's steps leave what the family assumes, or None: no step at all, a stow move, a step
     outside its angles, a step before the previous one's ring has died out, a transient that ran away or
-    lost steps, a reversal that starts off the settled detent (friction holding the panel where the other
-    direction left it) by over :data:`REVERSAL_OFFSET` of a step. ``commanded``: the panel at each detent
-    [rad]; ``steps``: each step's (direction, phase)."""
+    lost steps, or still moves after :data:`CREEP`, a reversal that starts off the settled detent (friction
+    holding the panel where the other direction left it) by over :data:`REVERSAL_OFFSET` of a step.
+    ``commanded``: the panel at each detent [rad]; ``steps``: each step's (direction, phase)."""
     angle, (direction, phase) = commanded[:-1], steps
     if not len(angle):
         return "no step in the window"
@@ -378,6 +381,8 @@ def _fallback(family: StepFamily, commanded: np.ndarray, inputs: DriveInputs, at
         return f"{early} steps before the previous step's ring died out"
     if np.any(at["failed"] > 0) or np.any(at["lost"] > 0) or np.any(at["slip"] != 0):
         return "steps lost, or a drive that runs away, in the family's transients"
+    if np.any(at["ring"] > CREEP):  # after the two above: a transient that failed has no ring
+        return f"steps still moving {CREEP:.2g} s after they are made (a creep slower than the family's window)"
     other = family.at("rest", angle, -direction, phase)
     offset = np.abs(at["rest"] - other) / np.abs(np.diff(commanded)) * (np.diff(direction, prepend=direction[0]) != 0)
     if np.any(offset > REVERSAL_OFFSET):
