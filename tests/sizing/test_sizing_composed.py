@@ -7,9 +7,9 @@ import dataclasses
 
 from heliostep.paths import scenarios_dir
 from heliostep.scenario.catalogue import load_catalogue
+from heliostep.sizing.case import CERTIFIED_CASE_FIGURES
 from heliostep.sizing.sheet import composition_record
 from heliostep.sizing.size import plan_sizing, run_sizing_cases
-from heliostep.sizing.case import CERTIFIED_CASE_FIGURES
 from heliostep.sweep.certificate import CERTIFIED_FIGURES, row_deviation
 
 SCENARIO = scenarios_dir() / "jan21-central.yaml"

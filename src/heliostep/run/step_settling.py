@@ -7,15 +7,15 @@ A run judges a step settled from the last row at which the rotor lies outside a 
 half period of the ring, wherever one of the ring's swings shrinks below the band. The swings themselves
 change smoothly with the angle, so a family keeps each swing (a lobe: the rows between two crossings of
 the rest) with its height, the time the rotor comes back into the band after it and the rate at which it
-does, and a case's settling is the last swing that still leaves the band, the swings interpolated between
-the family's two angles around its step (the heights geometrically, as a damped ring's shrink).
+does, and a case's settling is the last swing that still leaves the band, each swing interpolated
+between the family's two angles around its step.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LOBES", "lobes", "settling_figures", "settling_times"]
+__all__ = ["LOBES", "lobes", "settling_figures", "settling_times", "swings_at"]
 
 #: The swings of a step's ring a family keeps: a step whose last kept swing still leaves the band is not
 #: settled (a lightly damped ring swings some tens of times before it stays within).
@@ -24,11 +24,13 @@ LOBES = 64
 
 def lobes(time: np.ndarray, deviation: np.ndarray, t_step: float) -> np.ndarray:
     """The first :data:`LOBES` swings of a step's ring, shape (LOBES, 4): height of the swing [bands]; the
-    time from the step until the rotor is back within the band [s] (the swing's peak where it stays within);
-    the rate at which the deviation falls through the band there [bands/s]; the swing's side (-1, +1).
+        time from the step until the rotor is back within the band [s] (the swing's peak where it stays within,
+    the window's end where it is still out);
+        the rate at which the deviation falls through the band there [bands/s]; the swing's side (-1, +1).
 
-    ``time`` [s] and ``deviation`` [bands] are the rows from the step on: the rotor minus its rest, in the
-    settling band's width. Missing swings are zeros."""
+        ``time`` [s] and ``deviation`` [bands] are the rows from the step on: the rotor minus its rest, in the
+        settling band's width. Swings after the ring has stopped have no height, and follow the last in time
+        (so that a spline over rings that stop at different swings stays smooth)."""
     side = np.where(deviation < 0.0, -1.0, 1.0)
     starts = np.flatnonzero(np.diff(side, prepend=0.0))
     ends = np.append(starts[1:], len(time))
@@ -40,31 +42,47 @@ def lobes(time: np.ndarray, deviation: np.ndarray, t_step: float) -> np.ndarray:
         outside = np.flatnonzero(size[peak:j] > 1.0)
         last = peak + int(outside[-1]) if len(outside) else -1
         if last < 0 or last + 1 >= len(time):  # within the band, or still out at the window's end
-            kept[k, 1] = time[peak] - t_step if last < 0 else np.inf
+            kept[k, 1] = time[peak if last < 0 else -1] - t_step
             continue
         d0, d1 = size[last] - 1.0, size[last + 1] - 1.0  # as the run interpolates its crossing
         fraction = d0 / (d0 - d1) if d0 != d1 else 1.0
         span = time[last + 1] - time[last]
         kept[k, 1] = time[last] + fraction * span - t_step
         kept[k, 2] = (d0 - d1) / span if span > 0 else 0.0
+    found = min(len(starts), LOBES)
+    if 2 <= found < LOBES:  # the ring has stopped (dry friction): the swings after it follow the last in time
+        later = np.arange(1, LOBES - found + 1)
+        kept[found:, 1] = kept[found - 1, 1] + later * np.median(np.diff(kept[:found, 1]))
+        kept[found:, 2] = kept[found - 1, 2]
+        kept[found:, 3] = kept[found - 1, 3] * (-1.0) ** later
+    inside = np.flatnonzero(kept[1:found, 0] <= 1.0) + 1
+    if len(inside):  # after the first swing within the band, the heights the last two swings' loss goes on to
+        first = int(inside[0])
+        after = np.arange(1, LOBES - first)
+        kept[first + 1 :, 0] = kept[first, 0] - after * (kept[first - 1, 0] - kept[first, 0])
     return kept
 
 
-def settling_times(below: np.ndarray, above: np.ndarray, weight: np.ndarray, shift: np.ndarray) -> np.ndarray:
-    """Each step's settling time [s] from the swings of the family's transients at the angles below and
-    above it (``below``, ``above``: shape (steps, LOBES, 4), as :func:`lobes`), interpolated by ``weight``
-    (0 at the angle below, 1 above), with the rest moved by ``shift`` [bands] (the run judges every step
-    about the lag held at its first row; a step held at another load lags by other than that): the
-    swings on the side of the shift shrink by it and come back into the band sooner, to first order."""
-    w = weight[:, None]
-    low, high = below[..., 0], above[..., 0]
-    both = (low > 0.0) & (high > 0.0)
-    # the heights geometric, as a ring decays; linear where a swing is missing at one of the two angles
-    geometric = np.exp((1.0 - w) * np.log(np.where(both, low, 1.0)) + w * np.log(np.where(both, high, 1.0)))
-    height = np.where(both, geometric, (1.0 - w) * low + w * high)
-    back = (1.0 - w) * below[..., 1] + w * above[..., 1]
-    rate = (1.0 - w) * below[..., 2] + w * above[..., 2]
-    side = np.where(w < 0.5, below[..., 3], above[..., 3])
+def swings_at(table: np.ndarray, grid: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The swings at each of ``x`` from the swings ``table`` (shape (points, LOBES, 4), as :func:`lobes`) at
+    the points ``grid``: each swing's height, time back and rate linear between the two points around each
+    (exact where the ring loses the same height each swing, as the panel's dry friction makes it; a ring
+    that decays by a factor each swing, viscous, may have its last swing out of the band misplaced by one
+    near a jump), its side the nearer point's. Shape (len(x), LOBES, 4)."""
+    below = np.clip(np.searchsorted(grid, x) - 1, 0, len(grid) - 2)
+    weight = ((x - grid[below]) / np.diff(grid)[below])[:, None, None]
+    values = (1.0 - weight) * table[below, :, :3] + weight * table[below + 1, :, :3]
+    nearest = np.clip(np.rint(np.interp(x, grid, np.arange(len(grid)))).astype(int), 0, len(grid) - 1)
+    return np.concatenate([values, table[nearest][..., 3:]], axis=-1)
+
+
+def settling_times(swings: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """Each step's settling time [s] from its ``swings`` (shape (steps, LOBES, 4), :func:`swings_at`), with
+    the rest moved by ``shift`` [bands] (the run judges every step about the lag held at its first row; a
+    step held at another load lags by other than that): the swings on the side of the shift shrink by it
+    and come back into the band sooner, to first order. A step whose last swing kept still leaves the band
+    has not settled (inf)."""
+    height, back, rate, side = (swings[..., k] for k in range(4))
     moved = side * shift[:, None]
     height = height - moved
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -81,14 +99,16 @@ def settling_figures(
     """``settling_time_max_s``, ``settling_time_mean_s`` and ``settling_not_settled`` (a run's
     ``settling_time_s`` as a sweep's table gives it) of a case's steps at panel angles ``angle`` [rad]
     (``steps``: each step's direction and phase), from a family's ``swings`` (shape (angles, 2, cycle, LOBES,
-    4)) at its ``angles`` [rad] around each, about the lag held before the first step (``lag``: each
-    step's own [bands]); a step not settled within its rest before the next step or the window's end
-    (``rests`` [s]) is not settled."""
+    4)) at its ``angles`` [rad], about the lag held before the first step (``lag``: each step's own
+    [bands]); a step not settled within its rest before the next step or the window's end (``rests`` [s]) is
+    not settled."""
     direction, phase = steps
-    below = np.clip(np.searchsorted(angles, angle) - 1, 0, len(angles) - 2)
-    weight = (angle - angles[below]) / np.diff(angles)[below]
     side = (direction > 0).astype(int)
-    settling = settling_times(swings[below, side, phase], swings[below + 1, side, phase], weight, lag - lag[0])
+    at = np.zeros((len(angle), LOBES, 4))
+    for d, p in set(zip(side.tolist(), phase.tolist())):
+        chosen = (side == d) & (phase == p)
+        at[chosen] = swings_at(swings[:, d, p], angles, angle[chosen])
+    settling = settling_times(at, lag - lag[0])
     settled = settling[settling <= rests]
     return {
         "settling_time_max_s": float(settled.max()) if len(settled) else None,
