@@ -4,7 +4,7 @@ Each sample of a band is another drive (its uncertain parameters drawn), so each
 (:mod:`heliostep.run.step_family`): it pays where the window holds more than a family costs
 (:data:`~heliostep.sweep.certificate.FAMILY_WORTH_S`). :data:`BAND_CERTIFY` samples, drawn by the band's seed,
 are co-simulated in full as well and compared figure by figure; a certificate that fails sends every composed
-sample to the full co-simulation. Details: docs/sweep.md, "Uncertainty band".
+sample to the full co-simulation. Details: docs/running.md, "Uncertainty bands".
 """
 
 from __future__ import annotations
@@ -56,8 +56,8 @@ def composed_sample(scenario: Scenario) -> tuple[dict | None, str | None]:
 
 def certify_sample(summary: Mapping, composed: Mapping) -> dict[str, float]:
     """Each certified figure's deviation of a sample's composition from its full run's ``summary``."""
-    full, flat = summary_figures(summary), _flat(composed)
-    return {name: row_deviation(full, flat, name) for name in CERTIFIED_FIGURES}
+    full, ours = summary_figures(summary), summary_figures(composed)
+    return {name: row_deviation(full, ours, name) for name in CERTIFIED_FIGURES}
 
 
 def certificate_failures(deviations: Sequence[Mapping[str, float]]) -> list[str]:
@@ -68,8 +68,3 @@ def certificate_failures(deviations: Sequence[Mapping[str, float]]) -> list[str]
         for name, tolerance in CERTIFIED_FIGURES.items()
         if not deviations or any(not d.get(name, np.nan) <= tolerance for d in deviations)
     ]
-
-
-def _flat(figures: Mapping) -> dict:
-    settling = figures.get("settling_time_s") or {}
-    return {**figures, **{name: settling.get(key) for name, key in _SETTLING.items()}}
