@@ -80,7 +80,7 @@ def settling_times(swings: np.ndarray, shift: np.ndarray) -> np.ndarray:
     """Each step's settling time [s] from its ``swings`` (shape (steps, LOBES, 4), :func:`swings_at`), with
     the rest moved by ``shift`` [bands] (the run judges every step about the lag held at its first row; a
     step held at another load lags by other than that): the swings on the side of the shift shrink by it
-    and come back into the band sooner, to first order. A step whose last swing kept still leaves the band
+    and come back into the band sooner, to first order. A step whose last swing given still leaves the band
     has not settled (inf)."""
     height, back, rate, side = (swings[..., k] for k in range(4))
     moved = side * shift[:, None]
@@ -88,7 +88,7 @@ def settling_times(swings: np.ndarray, shift: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         back = np.where(rate > 0.0, back - moved / rate, back)
     out = height > 1.0
-    last = LOBES - 1 - np.argmax(out[:, ::-1], axis=1)
+    last = out.shape[1] - 1 - np.argmax(out[:, ::-1], axis=1)
     settling = np.where(out.any(axis=1), back[np.arange(len(back)), last], 0.0)
     return np.where(out[:, -1], np.inf, settling)
 
@@ -103,12 +103,15 @@ def settling_figures(
     [bands]); a step not settled within its rest before the next step or the window's end (``rests`` [s]) is
     not settled."""
     direction, phase = steps
-    side = (direction > 0).astype(int)
-    at = np.zeros((len(angle), LOBES, 4))
+    side, shift = (direction > 0).astype(int), lag - lag[0]
+    reach = np.flatnonzero((swings[..., 0] > 0.9 - np.abs(shift).max(initial=0.0)).any(axis=(0, 1, 2)))
+    count = min(LOBES, int(reach[-1]) + 2) if len(reach) else 1  # the swings that may leave the band, and one
+    swings = swings[..., :count, :]
+    at = np.zeros((len(angle), count, 4))
     for d, p in set(zip(side.tolist(), phase.tolist())):
         chosen = (side == d) & (phase == p)
         at[chosen] = swings_at(swings[:, d, p], angles, angle[chosen])
-    settling = settling_times(at, lag - lag[0])
+    settling = settling_times(at, shift)
     settled = settling[settling <= rests]
     return {
         "settling_time_max_s": float(settled.max()) if len(settled) else None,
