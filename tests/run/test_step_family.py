@@ -4,6 +4,8 @@ cannot compose say why."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -17,6 +19,12 @@ from heliostep.sweep.worker import summary_figures
 
 #: Half an hour of the paper's morning: about 60 steps on the full grid's figures, as a sweep's case.
 HALF_HOUR = ("window.start=10:00", "window.duration=1800", "output.interval=1.0", "output.step_detail=0")
+
+
+@functools.cache
+def _family(motor: str):
+    """The half hour's family of the motor variant ``motor`` (built once for the tests that use it)."""
+    return build_family(load_scenario(scenarios_dir() / "jan21-central.yaml", (*HALF_HOUR, f"fmus.motor={motor}")))
 
 
 def _full(scenario) -> dict:
@@ -41,7 +49,7 @@ def test_a_motor_variant_builds_its_own_family_and_moves_as_the_full_cosimulatio
     assert len({family_key(scenario) for scenario in scenarios.values()}) == 2
     full, composed = {}, {}
     for name, scenario in scenarios.items():
-        composition = compose_case(scenario, build_family(scenario))
+        composition = compose_case(scenario, _family(name))
         assert composition.fallback is None
         full[name], composed[name] = _full(scenario), composition.figures
         _assert_within_tolerances(full[name], composed[name])
@@ -63,7 +71,7 @@ def test_the_composed_settling_times_are_the_converged_cosimulations(fmu_paths):
     period (9 %) from rtol 1e-7 (docs/sweep.md, "Settling"). The composed settling times follow the swings'
     heights: they agree with the full run at rtol 1e-7 within 0.5 %."""
     scenario = load_scenario(scenarios_dir() / "jan21-central.yaml", HALF_HOUR)
-    composed = compose_case(scenario, build_family(scenario)).figures
+    composed = compose_case(scenario, _family("StepperMotor")).figures
     tight = _full(load_scenario(scenarios_dir() / "jan21-central.yaml", (*HALF_HOUR, "solver.rtol=1e-7")))
     for name in ("settling_time_max_s", "settling_time_mean_s"):
         assert composed[name] == pytest.approx(tight[name], rel=5e-3), name

@@ -20,8 +20,8 @@ from loopback_cluster import loopback_client
 CENTRAL = scenarios_dir() / "jan21-central.yaml"
 #: 4.1 hours of the paper's day as a sweep case's grid: more window than a family costs (FAMILY_WORTH_S).
 LONG = ("window.start=10:00", "window.duration=14760", "output.interval=1.0", "output.step_detail=0")
-#: 45 minutes of it, composed here all the same (the threshold set to 0: the method is the same, the cost not).
-SHORT = ("window.start=10:00", "window.duration=2700", "output.interval=1.0", "output.step_detail=0")
+#: 20 minutes of it, composed here all the same (the threshold set to 0: the method is the same, the cost not).
+SHORT = ("window.start=10:00", "window.duration=1200", "output.interval=1.0", "output.step_detail=0")
 #: The band's names of the table's settling columns.
 SETTLING = {"settling_time_max_s": "settling_time_s.max", "settling_time_mean_s": "settling_time_s.mean"}
 SETTLING["settling_not_settled"] = "settling_time_s.not_settled"
@@ -69,7 +69,7 @@ def test_a_composed_sample_agrees_with_its_full_cosimulation(bands):
     (index,) = [i for i, way in enumerate(composed.ways) if way == "composed"]
     assert composed.results[index]["method"] == "composed" and failed.results[index]["method"] == "full"
     full, ours = (_flat(outcome.results[index]["figures"]) for outcome in (failed, composed))
-    assert ours["steps_commanded"] == full["steps_commanded"] > 50
+    assert ours["steps_commanded"] == full["steps_commanded"] > 30
     for name, tolerance in CERTIFIED_FIGURES.items():
         assert row_deviation(full, ours, name) <= tolerance, (name, full[name], ours[name])
     for i, way in enumerate(composed.ways):  # the certificate's samples: the same full runs both times
