@@ -51,8 +51,9 @@ def main() -> None:
             times[exact].append(wall)
             print(f"{'--exact' if exact else 'families'}: {wall:.1f} s, {band['composition']['methods']}")
             for name, figure in band["composition"]["certificate"].items():
-                if figure["max_deviation"] is not None and figure["max_deviation"] / figure["tolerance"] > worst[1]:
-                    worst = (f"{name} {figure['max_deviation']:.2e}", figure["max_deviation"] / figure["tolerance"])
+                deviation, tolerance = figure["max_deviation"], figure["tolerance"]
+                if deviation is not None and tolerance and deviation / tolerance > worst[1]:  # (counts: exact)
+                    worst = (f"{name} {deviation:.2e}", deviation / tolerance)
     composed, exact = min(times[False]), min(times[True])
     print(
         f"band {args.samples} samples: {composed:.1f} s (families), {exact:.1f} s (--exact), "
