@@ -23,14 +23,16 @@ LOBES = 64
 
 
 def lobes(time: np.ndarray, deviation: np.ndarray, t_step: float) -> np.ndarray:
-    """The first :data:`LOBES` swings of a step's ring, shape (LOBES, 4): height of the swing [bands]; the
-        time from the step until the rotor is back within the band [s] (the swing's peak where it stays within,
-    the window's end where it is still out);
-        the rate at which the deviation falls through the band there [bands/s]; the swing's side (-1, +1).
+    """The first :data:`LOBES` swings of a step's ring, shape (LOBES, 4): the height of the swing [bands]; the
+    time from the step until the rotor is back within the band [s] (the swing's peak where it stays within,
+    the window's end where it is still out); the rate at which the deviation falls through the band there
+    [bands/s]; the swing's side (-1, +1).
 
-        ``time`` [s] and ``deviation`` [bands] are the rows from the step on: the rotor minus its rest, in the
-        settling band's width. Swings after the ring has stopped have no height, and follow the last in time
-        (so that a spline over rings that stop at different swings stays smooth)."""
+    ``time`` [s] and ``deviation`` [bands] are the rows from the step on: the rotor minus its rest, in the
+    settling band's width. After the first swing within the band the heights go on losing what the last
+    swing lost (below none where the ring has stopped, as under dry friction), and swings after the ring has
+    stopped follow the last in time: a ring that stops there and its neighbour's that swings once more
+    interpolate as the swings it would have made."""
     side = np.where(deviation < 0.0, -1.0, 1.0)
     starts = np.flatnonzero(np.diff(side, prepend=0.0))
     ends = np.append(starts[1:], len(time))
