@@ -27,7 +27,7 @@ from heliostep.drive.inputs import DriveInputs, implied_parameters, prepare_inpu
 from heliostep.drive.sequencer import PATTERNS, StepSchedule
 from heliostep.drive.wind_load import commanded_panel_angle
 from heliostep.results.figures.solution import SolutionRecorder
-from heliostep.results.figures.steps import FULL_STEPS_PER_PERIOD, SETTLING_BAND
+from heliostep.results.figures.steps import SETTLING_BAND, rest_detent
 from heliostep.results.figures.tradeoffs import energy_per_day
 from heliostep.results.light.on_tube import LightIntegrals
 from heliostep.results.trace.frame import drive_metadata
@@ -219,9 +219,7 @@ class _Watch:
         lag = self.recorder.steps.lag
         if not len(time) or lag is None:
             return np.zeros((LOBES, 4))
-        period = FULL_STEPS_PER_PERIOD * sequencer.step_angle
-        rest = commanded - lag
-        rest -= period * np.round((rest - rotor[-1]) / period)
+        rest = rest_detent(commanded, lag, rotor[-1], sequencer)
         return lobes(time, (rotor - rest) / (SETTLING_BAND * sequencer.increment), STEP_AT)
 
     def motion(self, target: float, direction: int, step: float, cycle: int) -> dict:

@@ -27,6 +27,7 @@ __all__ = [
     "lost_between",
     "lost_steps",
     "outcome_records",
+    "rest_detent",
     "step_outcome",
 ]
 
@@ -161,6 +162,14 @@ def _period(sequencer: Sequencer) -> float:
     return FULL_STEPS_PER_PERIOD * sequencer.step_angle
 
 
+def rest_detent(commanded, lag, rotor_end, sequencer: Sequencer):
+    """The rotor's rest [rad] a step is judged about: the command ``commanded`` less the elastic ``lag`` held at
+    the first row, moved by whole electrical periods to the detent the rotor ends in at ``rotor_end`` [rad]."""
+    period = _period(sequencer)
+    rest = commanded - lag
+    return rest - period * np.round((rest - rotor_end) / period)
+
+
 def step_outcome(
     t_step: float,
     commanded: float,
@@ -175,11 +184,9 @@ def step_outcome(
     at the next step (or the end), both included; ``previous`` is the command before the step
     and ``lag`` the elastic lag held at the start [rad]."""
     increment = sequencer.increment
-    period = _period(sequencer)
     move = (x[-1] - x[0]) / increment
     missed = bool(abs(move - (commanded - previous) / increment) > MISS_TOLERANCE)
-    rest = commanded - lag
-    rest -= period * np.round((rest - x[-1]) / period)  # the detent the rotor ends in
+    rest = rest_detent(commanded, lag, x[-1], sequencer)
     outside = np.nonzero(np.abs(x - rest) > settling_band * increment)[0]
     settling: float | None
     if len(outside) == 0:
@@ -268,13 +275,12 @@ class StepJudge:
         starts = np.concatenate([[pos], ends[: m - 1]])
         stops = ends[:m]
         sequencer, increment = self.sequencer, self.sequencer.increment
-        period, band = _period(sequencer), SETTLING_BAND * increment
+        band = SETTLING_BAND * increment
         commanded = np.asarray(sequencer.position(self.schedule.indices[k : k + m]), dtype=float)
         previous = np.concatenate([[self._previous], commanded[:-1]])
         move = (rotor[stops] - rotor[starts]) / increment
         missed = np.abs(move - (commanded - previous) / increment) > MISS_TOLERANCE
-        rest = commanded - self.lag
-        rest -= period * np.round((rest - rotor[stops]) / period)
+        rest = rest_detent(commanded, self.lag, rotor[stops], sequencer)
         lengths = stops - starts + 1  # each step's rows: its first to the next step's first, both included
         offsets = np.cumsum(lengths) - lengths
         local = np.arange(int(lengths.sum())) - np.repeat(offsets, lengths)
