@@ -147,9 +147,8 @@ def composition_record(records: list[dict]) -> dict:
             "max_deviation": max(
                 (value for record in certified if (value := record[f"deviation_{name}"]) == value), default=None
             ),  # a certificate case that failed (nan) fails its family, whose days then ran in full
-            "tolerance": tolerance,
+            "tolerance": CERTIFIED_FIGURES[name],
         }
-        for name, tolerance in CERTIFIED_FIGURES.items()
-        if name in CERTIFIED_CASE_FIGURES
+        for name in CERTIFIED_CASE_FIGURES
     }
     return {"methods": methods, "certificate": deviations if methods.get("composed") else {}}
