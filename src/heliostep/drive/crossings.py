@@ -76,13 +76,11 @@ class LevelCrossings:
         """The crossings of the sorted ``levels`` in (start, stop]: times [s] and directions (+1 up, -1 down,
         0 a touch), by level then time, and where each level's begin (``bounds[j]:bounds[j + 1]``). ``wanted``:
         per level, whether steps cross it upwards, downwards; crossings no step can take may be left out.
-        ``should_stop``: asked before solving and every :data:`STOP_CHECK_STEPS` pieces scipy solves; when True,
+        ``should_stop``: asked after every :data:`STOP_CHECK_STEPS` pieces solved; when True,
         :class:`PreparationStopped` is raised."""
         which, pieces = self._pairs(levels)
         solved = self._needed(which, pieces, wanted)
         which, pieces = which[solved], pieces[solved]
-        if should_stop is not None and should_stop():
-            raise PreparationStopped(f"stopped while solving the step levels (0 of {len(pieces)} so far)")
         values = levels[which]
         monotone = (self.rising | self.falling)[pieces]
         inside = (values > self.piece_low[pieces] + self.margin) & (values < self.piece_high[pieces] - self.margin)
@@ -90,6 +88,8 @@ class LevelCrossings:
         k = pieces[bracketed]
         c = self.reference.c[:, k]
         single = bracketed_roots(c, self.knots[k], np.diff(self.knots)[k], values[bracketed], self.rising[k])
+        if len(k) >= STOP_CHECK_STEPS and should_stop is not None and should_stop():
+            raise PreparationStopped(f"stopped while solving the step levels ({len(k)} of {len(pieces)} so far)")
         others = ~bracketed
         found = self._roots(pieces[others].tolist(), values[others].tolist(), should_stop)
         counts = np.fromiter(map(len, found), dtype=np.intp, count=len(found))

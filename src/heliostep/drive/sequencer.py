@@ -163,8 +163,8 @@ def schedule_steps(
     trigger : {'midpoint', 'reach'}
         Step when the reference crosses the midpoint to the next position, or reaches it.
     should_stop : callable, optional
-        Asked before the levels are solved, then every :data:`STOP_CHECK_STEPS` levels scipy solves and steps
-        scheduled; when True, :class:`PreparationStopped` is raised.
+        Asked every :data:`STOP_CHECK_STEPS` levels solved and steps scheduled; when True,
+        :class:`PreparationStopped` is raised.
 
     Returns
     -------
