@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
@@ -133,18 +134,58 @@ def _normalize(table: pd.DataFrame) -> pd.DataFrame:
         kinds = {type(v) for v in table[column] if not _missing(v)}
         if len(kinds) > 1 and not kinds <= {int, float}:
             table[column] = pd.array([None if _missing(v) else str(v) for v in table[column]], dtype="string")
+    return table[_ordered(table.columns)]
+
+
+def _ordered(columns) -> list[str]:
+    """The table's column order: the case's identity, the axes' and other columns not known, then the known."""
+    known = {**CASE_COLUMNS, **FIGURE_COLUMNS, **RUN_COLUMNS}
     ordered = [c for c in CASE_COLUMNS if c in ("case_id", "case_index", "role")]
-    ordered += [c for c in table.columns if c not in known]
-    ordered += [c for c in CASE_COLUMNS if c not in ordered] + list(FIGURE_COLUMNS) + list(RUN_COLUMNS)
-    return table[ordered]
+    ordered += [c for c in columns if c not in known]
+    return ordered + [c for c in CASE_COLUMNS if c not in ordered] + list(FIGURE_COLUMNS) + list(RUN_COLUMNS)
+
+
+@functools.cache
+def _arrow_types() -> dict[str, pa.DataType]:
+    """The Arrow type of each known column's dtype (:func:`_normalize`), as this pandas converts it."""
+    sample = pd.DataFrame({dtype: pd.array([None], dtype=dtype) for dtype in ("Int64", "float64", "string")})
+    return {field.name: field.type for field in pa.Schema.from_pandas(sample, preserve_index=False)}
+
+
+def _as_float(value) -> float:
+    """A value as :func:`_normalize` makes it in a float column (``pd.to_numeric(errors="coerce")``)."""
+    if _missing(value):
+        return math.nan
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _row_table(row: Mapping) -> pa.Table:
+    """One row with :func:`_normalize`'s types and order, built straight in Arrow: a part is written per
+    finished case, as often as the workers finish them."""
+    known = {**CASE_COLUMNS, **FIGURE_COLUMNS, **RUN_COLUMNS}
+    arrays, names, types = [], _ordered(row), _arrow_types()
+    for name in names:
+        value, dtype = row.get(name), known.get(name)
+        if dtype == "Int64":
+            arrays.append(pa.array([None if pd.isna(value) else int(value)], types[dtype]))
+        elif dtype == "float64":
+            arrays.append(pa.array([_as_float(value)], types[dtype], from_pandas=True))  # NaN: null
+        elif dtype == "string":
+            arrays.append(pa.array([None if _missing(value) else str(value)], types[dtype]))
+        else:  # an axis' column: its value's own type, as pandas infers it for one row
+            arrays.append(pa.array([value]))
+    return pa.Table.from_arrays(arrays, names=names)
 
 
 def _missing(value) -> bool:
     return value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA
 
 
-def _write_atomically(table: pd.DataFrame, path: Path, metadata: Mapping | None = None) -> None:
-    arrow = pa.Table.from_pandas(_normalize(table), preserve_index=False)
+def _write_atomically(table: pd.DataFrame | pa.Table, path: Path, metadata: Mapping | None = None) -> None:
+    arrow = table if isinstance(table, pa.Table) else pa.Table.from_pandas(_normalize(table), preserve_index=False)
     if metadata:
         arrow = arrow.replace_schema_metadata(
             {**(arrow.schema.metadata or {}), _METADATA_KEY: json.dumps(metadata).encode()}
@@ -288,4 +329,4 @@ def _column_union(cases: Sequence[SweepCase]) -> list[str]:
 
 
 def _write_part(row: Mapping, results_path: Path) -> None:
-    _write_atomically(pd.DataFrame([row]), _parts_dir(results_path) / f"{row['case_id']}.parquet")
+    _write_atomically(_row_table(row), _parts_dir(results_path) / f"{row['case_id']}.parquet")
