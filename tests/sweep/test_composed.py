@@ -123,3 +123,86 @@ def test_certify_below_one_is_refused_before_anything_runs(tmp_path):
     assert done.returncode == 2
     assert "--certify: 0: expected a whole number of cases >= 1" in done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["composed.yaml"]  # no out/ folder made
+
+
+class _Done:
+    """A finished task as the collector takes it from its queue: its result, released once read."""
+
+    def __init__(self, result):
+        self._result, self.released = result, False
+
+    def result(self):
+        return self._result
+
+    def release(self):
+        self.released = True
+
+
+class _Tasks:
+    """The sweep's submitter as the collector sees it: each task's tag, and full runs asked for (none here)."""
+
+    def __init__(self, cases):
+        self.tags, self.run_id, self.cases, self.asked = {}, "r", {case.case_id: case for case in cases}, []
+
+    def full(self, case, reason):
+        self.asked.append((case.case_id, reason))
+        return _Done(None)
+
+
+def test_a_familys_composed_rows_are_written_as_they_come_once_its_certificate_holds():
+    """The collector (heliostep.sweep.composed._Collector) holds a family's composed rows until its certificate
+    is in, then writes them, and each later task's rows as soon as that task is back, not after the last one; a
+    certificate that fails sends the rows held and each later one to a full run instead."""
+    from heliostep.sweep.composed import FamilyPlan, _chunks, _Collector
+    from heliostep.sweep.spec import SweepCase
+
+    cases = [SweepCase(f"c{k}", k, {"case_id": f"c{k}"}, {}, "s", ".") for k in range(7)]
+    chunks = _chunks(cases, [cases[1], cases[5]])
+    assert [[case.case_id for case in chunk] for chunk in chunks] == [["c1", "c5"], ["c0", "c2", "c3", "c4", "c6"]]
+    figures = {name: 1.0 for name in CERTIFIED_FIGURES}
+    for off in (0.0, 1.0):  # a certificate that holds, then one whose composed torque is off by 100 %
+        tasks, written, queue = _Tasks(cases), [], []
+        plan = FamilyPlan({}, {"f": cases}, {"f": [cases[1], cases[5]]})
+        collector = _Collector(tasks, plan, queue, lambda row, to=written: to.append((row["case_id"], row["method"])))
+        composed = lambda ids, shift=0.0: (  # noqa: E731 - a compose task's result: rows, no fallback
+            [{"case_id": i, **figures, "peak_torque_Nm": 1.0 + shift, "method": "composed"} for i in ids],
+            [],
+        )
+        for task, tag in (
+            (_Done(composed(["c1", "c5"], off)), ("compose", chunks[0], "f", None)),
+            (_Done({"case_id": "c1", **figures, "status": "ok"}), ("full", cases[1], None, True)),
+            (_Done(composed(["c0", "c2"])), ("compose", chunks[1][:2], "f", None)),
+            (_Done({"case_id": "c5", **figures, "status": "ok"}), ("full", cases[5], None, True)),
+            (_Done(composed(["c3", "c4", "c6"])), ("compose", chunks[1][2:], "f", None)),
+        ):
+            tasks.tags[task] = tag
+            queue.append(task)
+        progress = []
+        collector.pending = _Watched(queue, progress, written)
+        collector.collect()
+        if not off:
+            assert written[:2] == [("c1", "certificate"), ("c5", "certificate")]
+            assert [case for case, _ in written[2:]] == ["c0", "c2", "c3", "c4", "c6"]
+            # c0 and c2 are written when c5's full run completes the certificate, before the last task is read
+            assert progress[3] == 4 and progress[4] == 7 and not tasks.asked
+        else:
+            assert written == [("c1", "certificate"), ("c5", "certificate")]
+            assert [case for case, _ in tasks.asked] == ["c0", "c2", "c3", "c4", "c6"]
+            assert all("certificate fails on peak_torque_Nm" in reason for _, reason in tasks.asked)
+
+
+class _Watched(list):
+    """The collector's queue, noting how many rows are written when each task is taken (and taking no new
+    ones: the full runs asked for are only noted)."""
+
+    def __init__(self, tasks, progress, written):
+        super().__init__(tasks)
+        self.progress, self.written = progress, written
+
+    def __iter__(self):
+        for task in list(super().__iter__()):
+            yield task
+            self.progress.append(len(self.written))
+
+    def add(self, task):
+        pass

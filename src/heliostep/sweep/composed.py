@@ -135,9 +135,17 @@ def run_with_families(
             pending.add(run.full(case, None, certificate=True))
     for key, group in plan.families.items():
         family = run.family(group[0])
-        for start in range(0, len(group), COMPOSE_CHUNK):
-            pending.add(run.compose(group[start : start + COMPOSE_CHUNK], family, key))
+        for chunk in _chunks(group, plan.certificate[key]):
+            pending.add(run.compose(chunk, family, key))
     return _Collector(run, plan, pending, record).collect()
+
+
+def _chunks(group: Sequence[SweepCase], certificate: Sequence[SweepCase]) -> list[list[SweepCase]]:
+    """A family's compose tasks: its certificate's cases first (the family's rows are held until they are
+    compared), then the rest in sweep order, :data:`COMPOSE_CHUNK` cases a task."""
+    sample = {case.case_id for case in certificate}
+    rest = [case for case in group if case.case_id not in sample]
+    return [list(certificate)] + [rest[start : start + COMPOSE_CHUNK] for start in range(0, len(rest), COMPOSE_CHUNK)]
 
 
 class _Submitter:
@@ -176,27 +184,24 @@ class _Submitter:
 
 @dataclasses.dataclass
 class _Family:
-    """A family's progress: compose tasks and certificate cases not back yet, rows held until certified."""
+    """A family's progress: the certificate cases not back yet, rows held until the certificate is in, and then
+    its verdict (``failed``: the figures it fails on)."""
 
-    chunks: int
     waiting: set
     composed: dict = dataclasses.field(default_factory=dict)  # case id -> composed row, held
     full: dict = dataclasses.field(default_factory=dict)  # certificate case id -> its full row
     fallen: dict = dataclasses.field(default_factory=dict)  # certificate case id -> why it was not composed
     certified: list = dataclasses.field(default_factory=list)
-    settled: bool = False
+    failed: list | None = None  # None until the certificate is in
 
 
 class _Collector:
-    """Records each finished task's rows: a family's composed rows once its certificate holds, else its
-    cases run in full."""
+    """Records each finished task's rows: a family's composed rows once its certificate holds (those composed
+    before, then each as it comes), else its cases run in full."""
 
     def __init__(self, run: _Submitter, plan: FamilyPlan, pending, record: Callable[[dict], None]):
         self.run, self.pending, self.record, self.recorded = run, pending, record, 0
-        self.states = {
-            key: _Family(-(-len(group) // COMPOSE_CHUNK), {case.case_id for case in plan.certificate[key]})
-            for key, group in plan.families.items()
-        }
+        self.states = {key: _Family({case.case_id for case in plan.certificate[key]}) for key in plan.families}
         self.sample = {case.case_id: key for key, group in plan.certificate.items() for case in group}
 
     def _record(self, row: dict) -> None:
@@ -230,7 +235,6 @@ class _Collector:
         self._certify(state)
 
     def _composed(self, cases: Sequence[SweepCase], result, state: _Family) -> None:
-        state.chunks -= 1
         if isinstance(result, Exception):
             rows, fallbacks = [], [(case, f"no family: {_error_text(result)[:200]}") for case in cases]
         else:
@@ -248,22 +252,22 @@ class _Collector:
         self._certify(state)
 
     def _certify(self, state: _Family) -> None:
-        """Record the certificate rows whose full and composed figures are both back; once the family's
-        are all back, its composed rows (the certificate holds) or their full runs (it does not)."""
+        """Record the certificate rows whose full and composed figures are both back; once the certificate is
+        in, the composed rows held and each later one (it holds) or their full runs (it does not)."""
         for case_id in [c for c in state.waiting if c in state.full and c in state.composed]:
             state.waiting.discard(case_id)
             row = certified_row(state.full.pop(case_id), state.composed.pop(case_id))
             state.certified.append(row)
             self._record(row)
-        if state.settled or state.chunks or state.waiting:
+        if state.waiting:
             return
-        state.settled = True
-        failed = failed_figures(state.certified)
-        if not failed:
+        if state.failed is None:
+            state.failed = failed_figures(state.certified)
+        if not state.failed:
             for row in state.composed.values():
                 self._record(row)
         else:
-            reason = f"the family's certificate fails on {', '.join(failed)}"
+            reason = f"the family's certificate fails on {', '.join(state.failed)}"
             for row in state.composed.values():
                 self.pending.add(self.run.full(self.run.cases[row["case_id"]], reason))
         state.composed.clear()
