@@ -6,8 +6,12 @@
 single-threaded workers (median of ``--repeat``): cases per minute, the scaling, the year x 13 mirrors estimated.
 With ``--full-day``, sunrise-to-sunset cases of ``scenarios/sweeps/year-field.yaml`` on days 1, 62, 123, 184, 245,
 306 x mirrors 0, 3, 6, 9, 12 and the shared primary, plus day 172, on the smallest cluster of ``--workers``, and
-the whole sweep (365 x 14 cases) estimated from their mean CPU time per case (the workers' and their children's,
-counted with psutil): ``year-field: <h> core-hours, <h> h on 2 workers``. ``--baseline-set KEY=VALUE`` first
+the whole sweep (365 x 14 cases) in full estimated from their mean CPU time per case (the workers' and their
+children's, counted with psutil): ``year-field: <h> core-hours, <h> h on 2 workers``; the same cases composed
+from their step families, each figure's largest deviation from the full runs; then year-field.yaml run whole
+with its families on the largest cluster of ``--workers``, its CPU time measured (the client's, the scheduler's
+and the workers'): ``year-field: <h> core-hours (families), <h> core-hours (full), certified max deviation
+<figure> <value>``. ``--baseline-set KEY=VALUE`` first
 estimates the same with that override on top, in the same run. Clusters are started and warmed up, and the FMUs
 built, before the clock starts.
 """
@@ -181,10 +185,9 @@ def main(argv: list[str] | None = None) -> None:
                 label = ", ".join(f"{key}={value}" for key, value in changed.items())
                 values = {key: parse_yaml_value(value) for key, value in changed.items()}  # as --set reads them
                 baseline = full_day(folder / "baseline", min(args.workers), {**shipped, **values}, label)[0]
-            core_seconds, table, cpu_ratio = full_day(folder, min(args.workers), shipped, "as shipped")
-            families, worst = with_families(
-                folder, min(args.workers), table, core_seconds / YEAR_FIELD_CASES, cpu_ratio
-            )
+            core_seconds, table = full_day(folder, min(args.workers), shipped, "as shipped")
+            worst = with_families(folder, min(args.workers), table)
+            families = whole_year_field(folder, max(args.workers))
             # the lines a script reads: the year-field estimate, in core-hours and on 2 workers
             print(f"year-field: {core_seconds / 3600:.2f} core-hours, {core_seconds / 2 / 3600:.2f} h on 2 workers")
             print(
@@ -196,10 +199,10 @@ def main(argv: list[str] | None = None) -> None:
                 print(f"  baseline ({label}): {baseline / 3600:.2f} core-hours; shipped / baseline {ratio:.2f}")
 
 
-def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> tuple[float, object, float]:
+def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> tuple[float, object]:
     """Sunrise-to-sunset cases over the year and the estimate of year-field.yaml with ``overrides`` (its
-    own, or changed): the core-seconds of the whole sweep (see the module docstring), the cases' table and
-    the workers' CPU time over the cases' wall time."""
+    own, or changed): the core-seconds of the whole sweep in full (see the module docstring) and the cases'
+    table."""
     folder.mkdir(parents=True, exist_ok=True)
     days = write_sweep(
         folder,
@@ -248,21 +251,16 @@ def full_day(folder: Path, n_workers: int, overrides: dict, label: str) -> tuple
         f"  (were every case as slow as the longest day's slowest, {longest:.2f} s of CPU: "
         f"{duration_text(YEAR_FIELD_CASES * longest / 2)} on 2 workers)"
     )
-    return core_seconds, table, cpu_ratio
+    return core_seconds, table
 
 
-def with_families(
-    folder: Path, n_workers: int, exact, per_full: float, cpu_ratio: float
-) -> tuple[float, tuple[str, float]]:
+def with_families(folder: Path, n_workers: int, exact) -> tuple[str, float]:
     """The same cases composed from their step families: each figure's largest deviation from the full runs
-    (``exact``) over every case, and year-field.yaml's core-seconds with families: the sample's families and
-    tasks (the workers' CPU time less the certificate's cases', as their full runs took it with ``cpu_ratio``,
-    less the composed cases'), the certificate's cases at a full case's mean CPU ``per_full`` [s], the rest
-    at the composed cases' mean."""
-    from heliostep.sweep.certificate import CERTIFICATE_CASES, CERTIFIED_FIGURES, row_deviation
+    (``exact``) over every case; the figure nearest its tolerance, and its deviation."""
+    from heliostep.sweep.certificate import CERTIFIED_FIGURES, row_deviation
 
     days = folder / "days.yaml"
-    _, wall, outcome, cpu_seconds = timed_sweep(days, folder / "families", n_workers, exact=False)
+    _, wall, outcome, _ = timed_sweep(days, folder / "families", n_workers, exact=False)
     table = outcome.table.set_index("case_id")
     full = exact.set_index("case_id")
     methods = table["method"].value_counts().to_dict()
@@ -272,17 +270,45 @@ def with_families(
         values = [row_deviation(full.loc[case_id], row, name) for case_id, row in table.iterrows()]
         ratios[name] = max(values)
         print(f"  {name:24s} largest deviation over every case {max(values):.2e} (tolerance {tolerance:.1e})")
-    composed = table[table["method"] == "composed"]
-    per_composed = composed["wall_time_s"].mean()
-    in_full = full.loc[table.index[table["method"] != "composed"], "wall_time_s"].sum() * cpu_ratio
-    family_seconds = cpu_seconds - in_full - composed["wall_time_s"].sum()
-    core_seconds = family_seconds + CERTIFICATE_CASES * per_full + (YEAR_FIELD_CASES - CERTIFICATE_CASES) * per_composed
-    print(
-        f"  the workers' CPU {cpu_seconds:.1f} s: the families and the tasks' overhead {family_seconds:.1f} s; "
-        f"a composed case {per_composed:.3f} s, a full one {per_full:.2f} s"
-    )
     worst = max(ratios, key=lambda name: ratios[name] / (CERTIFIED_FIGURES[name] or 1.0))
-    return core_seconds, (worst, ratios[worst])
+    return worst, ratios[worst]
+
+
+def whole_year_field(folder: Path, n_workers: int) -> float:
+    """year-field.yaml run whole with its families, as ``heliostep sweep`` runs it, on a fresh local cluster of
+    ``n_workers``: its CPU time [s], this process's (the sweep's client and the cluster's scheduler) and the
+    workers' with their children, from reading the sweep file to the last row written."""
+    import resource
+
+    with (
+        LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=":0",
+            silence_logs=logging.ERROR,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        client.wait_for_workers(n_workers)
+        workers_before = sum(client.run(worker_cpu_seconds).values())
+        own = resource.getrusage(resource.RUSAGE_SELF)
+        started = clock.perf_counter()
+        outcome = execute_cases(expand_cases(load_sweep(YEAR_FIELD)), folder / "year-field.parquet", client=client)
+        wall = clock.perf_counter() - started
+        ended = resource.getrusage(resource.RUSAGE_SELF)
+        workers = sum(client.run(worker_cpu_seconds).values()) - workers_before
+    client_cpu = (ended.ru_utime - own.ru_utime) + (ended.ru_stime - own.ru_stime)
+    methods = outcome.table["method"].value_counts().to_dict()
+    if outcome.failed or len(outcome.table) != YEAR_FIELD_CASES:
+        raise SystemExit(f"year-field: {outcome.failed} case(s) failed, {len(outcome.table)} rows")
+    print(
+        f"\nyear-field.yaml whole with families, measured: {len(outcome.table)} cases {methods}, "
+        f"{wall / 60:.1f} min wall on {n_workers} worker(s); CPU {(client_cpu + workers) / 60:.1f} core-min "
+        f"(client and scheduler {client_cpu / 60:.1f}, workers {workers / 60:.1f})"
+    )
+    return client_cpu + workers
 
 
 if __name__ == "__main__":

@@ -78,7 +78,7 @@ def assert_only_the_stop_line(stderr: str, results: Path) -> None:
 def test_ctrl_c_while_cases_run_prints_one_line_and_keeps_the_finished_cases(tmp_path, fmu_paths):
     process, results = start_sweep(tmp_path)
     parts = results.with_name(results.name + ".parts")
-    wait_for(process, lambda: parts.is_dir() and any(parts.glob("*.parquet")), "finished case")
+    wait_for(process, lambda: parts.is_dir() and any(parts.glob("*.arrow")), "finished case")
     stderr = interrupted(process)
     assert_only_the_stop_line(stderr, results)
     kept = read_results(results)
@@ -100,7 +100,7 @@ def test_a_sweep_killed_outright_is_taken_up_again_by_the_same_command(tmp_path,
     takes it up again, keeps the finished cases and runs the rest."""
     process, results = start_sweep(tmp_path)
     parts = results.with_name(results.name + ".parts")
-    wait_for(process, lambda: parts.is_dir() and any(parts.glob("*.parquet")), "finished case")
+    wait_for(process, lambda: parts.is_dir() and any(parts.glob("*.arrow")), "finished case")
     os.killpg(process.pid, signal.SIGKILL)
     process.communicate(timeout=WAIT)
     again, _ = start_sweep(tmp_path)
