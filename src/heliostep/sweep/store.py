@@ -8,7 +8,7 @@ import logging
 import math
 import os
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -222,10 +222,15 @@ def _write_atomically(table: pd.DataFrame, path: Path, metadata: Mapping | None 
         arrow = arrow.replace_schema_metadata(
             {**(arrow.schema.metadata or {}), _METADATA_KEY: json.dumps(metadata).encode()}
         )
+    _replace_atomically(path, lambda scratch: pq.write_table(arrow, scratch))
+
+
+def _replace_atomically(path: Path, write: Callable[[str], None]) -> None:
+    """``write`` a scratch file beside ``path`` (given its absolute path), then rename it to ``path``."""
     path.parent.mkdir(parents=True, exist_ok=True)
     scratch = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
     try:
-        pq.write_table(arrow, arrow_path(scratch))
+        write(arrow_path(scratch))
         os.replace(scratch, path)
     finally:
         scratch.unlink(missing_ok=True)
@@ -356,13 +361,10 @@ def _column_union(cases: Sequence[SweepCase]) -> list[str]:
 
 
 def _write_part(row: Mapping, results_path: Path) -> None:
-    path = _parts_dir(results_path) / f"{row['case_id']}.arrow"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    scratch = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
     table = _row_table(row)
-    try:
-        with pa.OSFile(arrow_path(scratch), "wb") as sink, pa.ipc.new_file(sink, table.schema) as writer:
+
+    def write(scratch: str) -> None:
+        with pa.OSFile(scratch, "wb") as sink, pa.ipc.new_file(sink, table.schema) as writer:
             writer.write_table(table)
-        os.replace(scratch, path)
-    finally:
-        scratch.unlink(missing_ok=True)
+
+    _replace_atomically(_parts_dir(results_path) / f"{row['case_id']}.arrow", write)
