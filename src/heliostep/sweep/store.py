@@ -202,7 +202,7 @@ def _row_table(row: Mapping) -> pa.Table:
     for name in names:
         value, dtype = row.get(name), known.get(name)
         if dtype == "Int64":
-            arrays.append(pa.array([None if pd.isna(value) else int(value)], types[dtype]))
+            arrays.append(pa.array([None if value is None or pd.isna(value) else int(value)], types[dtype]))
         elif dtype == "float64":
             arrays.append(pa.array([_as_float(value)], types[dtype], from_pandas=True))  # NaN: null
         elif dtype == "string":
