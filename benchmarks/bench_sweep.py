@@ -19,6 +19,7 @@ built, before the clock starts.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import statistics
@@ -82,16 +83,9 @@ def worker_cpu_seconds() -> float:
     return total
 
 
-def timed_sweep(
-    sweep: Path, folder: Path, n_workers: int, repeat: int = 1, exact: bool = True
-) -> tuple[float, float, object, float]:
-    """(validation time [s], median execution wall time [s], last outcome, the workers' CPU time over the
-    last run, their simulation children's included [s]) of a sweep.
-
-    Runs it ``repeat`` times, each into a fresh results table, on one local cluster of
-    ``n_workers`` started (and warmed up) before the clock.
-    """
-    validations, walls = [], []
+@contextlib.contextmanager
+def local_client(n_workers: int):
+    """A client of a local cluster of ``n_workers`` single-threaded worker processes, all of them started."""
     with (
         LocalCluster(
             n_workers=n_workers,
@@ -104,6 +98,20 @@ def timed_sweep(
         Client(cluster) as client,
     ):
         client.wait_for_workers(n_workers)
+        yield client
+
+
+def timed_sweep(
+    sweep: Path, folder: Path, n_workers: int, repeat: int = 1, exact: bool = True
+) -> tuple[float, float, object, float]:
+    """(validation time [s], median execution wall time [s], last outcome, the workers' CPU time over the
+    last run, their simulation children's included [s]) of a sweep.
+
+    Runs it ``repeat`` times, each into a fresh results table, on one local cluster of
+    ``n_workers`` started (and warmed up) before the clock.
+    """
+    validations, walls = [], []
+    with local_client(n_workers) as client:
         # warm up: the imports a case needs, outside the clock (heliostep.sweep loads its modules on first
         # use, and pvlib is imported where the sun is computed: both would fall on the first case)
         for module in ("heliostep.sweep.worker", "heliostep.run", "pvlib", "scipy.interpolate"):
@@ -280,18 +288,7 @@ def whole_year_field(folder: Path, n_workers: int) -> float:
     workers' with their children, from reading the sweep file to the last row written."""
     import resource
 
-    with (
-        LocalCluster(
-            n_workers=n_workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=":0",
-            silence_logs=logging.ERROR,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        client.wait_for_workers(n_workers)
+    with local_client(n_workers) as client:
         workers_before = sum(client.run(worker_cpu_seconds).values())
         own = resource.getrusage(resource.RUSAGE_SELF)
         started = clock.perf_counter()
