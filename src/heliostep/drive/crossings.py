@@ -57,7 +57,8 @@ class LevelCrossings:
         ends = reference(self.knots)
         self.piece_low, self.piece_high = np.minimum(ends[:-1], ends[1:]), np.maximum(ends[:-1], ends[1:])
         self.margin = 1e-12 * max(1.0, float(np.abs(ends).max()))
-        self.rising, self.falling = _monotone_slopes(self.slope.c, np.diff(self.knots))
+        self.widths = np.diff(self.knots)
+        self.rising, self.falling = _monotone_slopes(self.slope.c, self.widths)
 
     def lattice(self, sequencer, step: float) -> tuple[int, np.ndarray, np.ndarray]:
         """The up and down levels (position ± ``step``) of every step index of ``sequencer`` from the first to the
@@ -87,7 +88,7 @@ class LevelCrossings:
         bracketed = monotone & inside
         k = pieces[bracketed]
         c = self.reference.c[:, k]
-        single = bracketed_roots(c, self.knots[k], np.diff(self.knots)[k], values[bracketed], self.rising[k])
+        single = bracketed_roots(c, self.knots[k], self.widths[k], values[bracketed], self.rising[k])
         if len(k) >= STOP_CHECK_STEPS and should_stop is not None and should_stop():
             raise PreparationStopped(f"stopped while solving the step levels ({len(k)} of {len(pieces)} so far)")
         others = ~bracketed

@@ -100,6 +100,9 @@ RUN_COLUMNS = {
 }
 
 
+#: Every column the table types itself, with its dtype.
+_KNOWN_COLUMNS = {**CASE_COLUMNS, **FIGURE_COLUMNS, **RUN_COLUMNS}
+
 _METADATA_KEY = b"heliostep.sweep"
 
 
@@ -146,9 +149,8 @@ def _parts_frame(part_files: Sequence[Path]) -> pd.DataFrame | None:
 
 def _normalize(table: pd.DataFrame) -> pd.DataFrame:
     """Fixed dtypes for the known columns; axis columns of mixed types become text."""
-    known = {**CASE_COLUMNS, **FIGURE_COLUMNS, **RUN_COLUMNS}
     table = table.copy()
-    for column, dtype in known.items():
+    for column, dtype in _KNOWN_COLUMNS.items():
         if column not in table:
             table[column] = pd.Series([None] * len(table), dtype=object)
         values = table[column]
@@ -161,7 +163,7 @@ def _normalize(table: pd.DataFrame) -> pd.DataFrame:
         else:
             table[column] = pd.array([None if _missing(v) else str(v) for v in values], dtype="string")
     for column in table.columns:
-        if column in known or table[column].dtype != object:
+        if column in _KNOWN_COLUMNS or table[column].dtype != object:
             continue
         kinds = {type(v) for v in table[column] if not _missing(v)}
         if len(kinds) > 1 and not kinds <= {int, float}:
@@ -171,9 +173,8 @@ def _normalize(table: pd.DataFrame) -> pd.DataFrame:
 
 def _ordered(columns) -> list[str]:
     """The table's column order: the case's identity, the axes' and other columns not known, then the known."""
-    known = {**CASE_COLUMNS, **FIGURE_COLUMNS, **RUN_COLUMNS}
     ordered = [c for c in CASE_COLUMNS if c in ("case_id", "case_index", "role")]
-    ordered += [c for c in columns if c not in known]
+    ordered += [c for c in columns if c not in _KNOWN_COLUMNS]
     return ordered + [c for c in CASE_COLUMNS if c not in ordered] + list(FIGURE_COLUMNS) + list(RUN_COLUMNS)
 
 
@@ -197,10 +198,9 @@ def _as_float(value) -> float:
 def _row_table(row: Mapping) -> pa.Table:
     """One row with :func:`_normalize`'s types and order, built straight in Arrow: a part is written per
     finished case, as often as the workers finish them."""
-    known = {**CASE_COLUMNS, **FIGURE_COLUMNS, **RUN_COLUMNS}
     arrays, names, types = [], _ordered(row), _arrow_types()
     for name in names:
-        value, dtype = row.get(name), known.get(name)
+        value, dtype = row.get(name), _KNOWN_COLUMNS.get(name)
         if dtype == "Int64":
             arrays.append(pa.array([None if value is None or pd.isna(value) else int(value)], types[dtype]))
         elif dtype == "float64":
